@@ -1,0 +1,11 @@
+"""Constraint primitives, one module each: its math in the docstring and its ``SPEC`` (signature)."""
+
+from vfdsl.primitives import (above, along, angular_speed, cone, follows, joint_limits, joint_speed,
+                              keeps_direction, on_plane, passes_through, rotates_around, speed, stays_at,
+                              within_distance)
+from vfdsl.primitives.spec import ConstraintSpec
+
+_MODULES = (stays_at, keeps_direction, along, rotates_around, above, on_plane, follows, cone, passes_through,
+            within_distance, joint_limits, joint_speed, speed, angular_speed)
+
+CONSTRAINTS: dict[str, ConstraintSpec] = {m.SPEC.name: m.SPEC for m in _MODULES}

@@ -1,0 +1,227 @@
+"""The checked IR: a task with every name resolved, every number in SI units (m, rad, s, N) and every
+shape checked. This is exactly what the compiler sees, and what ``vfdsl show`` prints.
+
+Each declaration, constraint and objective keeps the :class:`~vfdsl.syntax.ast.Span` it came from;
+statements expanded from a fixture also keep ``via``, the chain of ``use`` sites that produced them.
+The IR round-trips through JSON: ``Task.model_validate_json(task.model_dump_json()) == task``.
+"""
+
+from __future__ import annotations
+
+from typing import Annotated, Literal, Union
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field
+
+from vfdsl.syntax.ast import Span
+
+Vec3 = Annotated[list[float], Field(min_length=3, max_length=3)]
+
+
+class _Model(BaseModel):
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+
+# ------------------------------------------------------------------------------------------ values (SI)
+
+class PointValue(_Model):
+    kind: Literal["point"] = "point"
+    xyz: Vec3
+
+
+class VectorValue(_Model):
+    """A displacement (metres), e.g. the shift between a curve and its copy along the tool."""
+
+    kind: Literal["vector"] = "vector"
+    xyz: Vec3
+
+
+class DirectionValue(_Model):
+    """A unit vector (normalized by the compiler)."""
+
+    kind: Literal["direction"] = "direction"
+    xyz: Vec3
+
+
+class LineValue(_Model):
+    kind: Literal["line"] = "line"
+    point: Vec3
+    direction: Vec3                  # unit
+
+
+class PlaneValue(_Model):
+    kind: Literal["plane"] = "plane"
+    point: Vec3
+    normal: Vec3                     # unit, toward the free side
+
+
+class PoseValue(_Model):
+    """A rigid transform world <- local: p_world = R(rpy) p_local + translation (URDF's fixed-axis rpy)."""
+
+    kind: Literal["pose"] = "pose"
+    translation: Vec3
+    rpy: Vec3
+
+
+class CurveValue(_Model):
+    """A b-spline of ``degree`` interpolating ``points`` (in order)."""
+
+    kind: Literal["curve"] = "curve"
+    degree: int
+    points: list[Vec3]
+
+
+class ScalarValue(_Model):
+    """A number with a named dimension ('length', 'angle', 'speed', 'number', ...), in SI."""
+
+    kind: Literal["scalar"] = "scalar"
+    dimension: str
+    value: float
+
+
+class FlagValue(_Model):
+    kind: Literal["flag"] = "flag"
+    value: bool
+
+
+Value = Annotated[
+    Union[PointValue, VectorValue, DirectionValue, LineValue, PlaneValue, PoseValue, CurveValue, ScalarValue,
+          FlagValue],
+    Field(discriminator="kind"),
+]
+
+
+# -------------------------------------------------------------------------------------------- arguments
+
+class ParamRef(_Model):
+    """A run-time parameter, read each tick (its value may change while the controller runs)."""
+
+    ref: Literal["param"] = "param"
+    name: str
+
+
+class FrameRef(_Model):
+    ref: Literal["frame"] = "frame"
+    name: str
+
+
+class InputRef(_Model):
+    ref: Literal["input"] = "input"
+    name: str
+
+
+class Const(_Model):
+    """A value fixed at compile time."""
+
+    ref: Literal["const"] = "const"
+    value: Value
+
+
+Arg = Annotated[Union[ParamRef, FrameRef, InputRef, Const], Field(discriminator="ref")]
+
+
+# --------------------------------------------------------------------------------------------- declarations
+
+class RobotDecl(_Model):
+    name: str
+    urdf: str                        # absolute path of the URDF file
+    span: Span
+
+
+class FrameDecl(_Model):
+    """A task frame: a robot link, an offset pose in the link frame, and the local tool axis (unit)."""
+
+    name: str
+    robot: str
+    link: str
+    offset: Vec3                     # metres, in the link frame
+    rpy: Vec3                        # radians, fixed-axis roll-pitch-yaw of the frame in the link frame
+    tool_axis: Vec3                  # unit vector in the frame's own coordinates
+    span: Span
+
+
+INPUT_SIZES = {"force": 3, "torque": 3, "wrench": 6, "twist": 6}
+
+
+class InputDecl(_Model):
+    """A signal read every tick: force (N), torque (N m), wrench [f; tau] or twist [v; w] (SI)."""
+
+    name: str
+    type: Literal["force", "torque", "wrench", "twist"]
+    span: Span
+
+    @property
+    def size(self) -> int:
+        return INPUT_SIZES[self.type]
+
+
+class ParamDecl(_Model):
+    """A reference value that may change at run time; ``frame`` names a pose param it is expressed in."""
+
+    name: str
+    type: str                        # point, direction, line, plane, pose, curve, vector, length, angle, ...
+    value: Value
+    frame: str | None = None
+    span: Span
+
+
+# --------------------------------------------------------------------------------- constraints, objectives
+
+class Constraint(_Model):
+    """One ``require`` statement, resolved: a primitive applied to a task frame (or to the joints)."""
+
+    primitive: str
+    frame: str | None
+    args: dict[str, Arg]
+    tolerance: float | None = None   # SI (m or rad); None for primitives without one
+    resolution: list[int] | None = None
+    soft: bool = False
+    weight: float | None = None      # slack weight of a soft constraint
+    span: Span
+    via: list[Span] = []
+
+
+class Objective(_Model):
+    """One ``minimize`` term: weight * || E dq - f ||^2."""
+
+    term: str
+    args: dict[str, Arg]
+    weight: float
+    span: Span
+    via: list[Span] = []
+
+
+class Scene(_Model):
+    """Data kept outside the task's logic: where it starts and how fast it ticks."""
+
+    file: str | None = None
+    start: list[float] | None = None  # joint coordinates (m or rad), in the robot's joint order
+    period: float | None = None       # control period in seconds
+
+
+class Task(_Model):
+    name: str
+    file: str
+    robots: list[RobotDecl]
+    frames: list[FrameDecl]
+    inputs: list[InputDecl]
+    params: list[ParamDecl]
+    objectives: list[Objective]
+    constraints: list[Constraint]
+    scene: Scene = Scene()
+    imports: list[str] = []
+    span: Span
+
+    @property
+    def start(self) -> np.ndarray | None:
+        """The scene's start configuration, or None when the scene gives none."""
+        return None if self.scene.start is None else np.array(self.scene.start, dtype=float)
+
+    def frame(self, name: str) -> FrameDecl:
+        return next(f for f in self.frames if f.name == name)
+
+    def param(self, name: str) -> ParamDecl:
+        return next(p for p in self.params if p.name == name)
+
+    def input(self, name: str) -> InputDecl:
+        return next(i for i in self.inputs if i.name == name)

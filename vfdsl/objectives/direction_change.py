@@ -1,0 +1,11 @@
+"""Keep the tool direction (lecture, slide 45, the eta term):  weight * || alpha x l_t ||^2,
+alpha = J_w dq the rotation of the step and l_t the tool axis: penalizes any change of the tool direction."""
+
+from vfdsl.primitives.spec import ArgSpec, ObjectiveSpec
+
+SPEC = ObjectiveSpec(
+    name="direction_change",
+    summary="penalize changes of the tool axis direction",
+    args=(ArgSpec("frame", "frame", "the task frame whose tool axis should stay steady"),),
+    source="Taylor, lecture notes, slide 45",
+)

@@ -1,0 +1,20 @@
+"""Track the user's input (paper II-C, eq. 18; admittance control).
+
+The frame's twist follows the input through the admittance law: dx_d = K u dt with
+K = diag(gain I3, angular_gain I3) acting on a wrench [f; tau] (a force drives only translation, a torque
+only rotation, the other part is asked to stay still), or K = gain for a twist input. Term:
+weight * || J_f dq - dx_d ||^2.
+"""
+
+from vfdsl.primitives.spec import ArgSpec, ObjectiveSpec
+
+SPEC = ObjectiveSpec(
+    name="track",
+    summary="move the frame as the input commands (admittance: velocity = gain * input)",
+    args=(ArgSpec("frame", "frame", "the task frame that follows the input"),
+          ArgSpec("input", "input", "the user's force, torque, wrench or twist"),
+          ArgSpec("gain", "gain", "linear admittance (m/s per N, or a scale for a twist)", default=None),
+          ArgSpec("angular_gain", "angular_gain", "angular admittance (rad/s per N m, or a scale)",
+                  default=None)),
+    source="Li, Kapoor & Taylor 2005, II-C, eq. (18)",
+)

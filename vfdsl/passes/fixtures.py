@@ -1,0 +1,134 @@
+"""Reusable fixtures: named, parameterized groups of constraints and objectives, and their expansion.
+
+    fixture virtual_rcm(f: frame, pivot: point, eps: length = 1 um) {
+        require f stays_at(pivot) within eps resolution 4x4
+    }
+    use virtual_rcm(tip, pivot)
+
+Scoping is lexical: a fixture body sees only its formals (not the names of the task that uses it), and the
+literals in its body keep the units of the file that defines it. ``use`` binds each actual argument, checked
+against the formal's kind at the use site; expansion is recursive, and a fixture that uses itself (directly
+or not) is an error. Every expanded statement records the chain of ``use`` sites in ``via``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Callable
+
+from vfdsl.errors import VfError, suggest
+from vfdsl.ir import model as ir
+from vfdsl.passes.units import DefaultUnits
+from vfdsl.primitives.spec import ARG_KINDS, REQUIRED, ArgSpec
+from vfdsl.syntax import ast
+
+FORMAL_KINDS = tuple(k for k in ARG_KINDS if k not in ("gain", "angular_gain"))
+
+
+@dataclass(frozen=True)
+class Scope:
+    """Where a statement is read: its file's units, and (inside a fixture) the bound formals."""
+
+    units: DefaultUnits
+    bindings: dict[str, ir.Arg] | None = None       # None at task level
+    fixture: str | None = None
+    via: tuple[ast.Span, ...] = field(default=())
+
+
+@dataclass(frozen=True)
+class Fixture:
+    definition: ast.FixtureDef
+    units: DefaultUnits                               # the units of the file that defines it
+
+
+# evaluate(value, kind, scope) -> the IR argument for that value, checked against kind
+Evaluate = Callable[[ast.Value, str, Scope], ir.Arg]
+
+
+def collect(modules: list[tuple[ast.Module, DefaultUnits]]) -> dict[str, Fixture]:
+    table: dict[str, Fixture] = {}
+    for module, units in modules:
+        for stmt in module.statements:
+            if not isinstance(stmt, ast.FixtureDef):
+                continue
+            if stmt.name.text in table:
+                first = table[stmt.name.text].definition.name.span
+                raise VfError(f"fixture '{stmt.name.text}' is defined twice", stmt.name.span.pos(),
+                              hint=f"first defined at {first}")
+            _check_formals(stmt)
+            table[stmt.name.text] = Fixture(stmt, units)
+    return table
+
+
+def _check_formals(fixture: ast.FixtureDef) -> None:
+    seen: set[str] = set()
+    for formal in fixture.formals:
+        if formal.name.text in seen:
+            raise VfError(f"formal '{formal.name.text}' appears twice", formal.name.span.pos())
+        seen.add(formal.name.text)
+        if formal.type.text not in FORMAL_KINDS:
+            raise VfError(f"unknown kind '{formal.type.text}'", formal.type.span.pos(),
+                          hint=suggest(formal.type.text, FORMAL_KINDS, "kinds"))
+
+
+def expand(statements: list, scope: Scope, fixtures: dict[str, Fixture], evaluate: Evaluate,
+           active: tuple[str, ...] = ()) -> list[tuple[ast.MinimizeStmt | ast.RequireStmt, Scope]]:
+    """Replace every ``use`` by its fixture's body, recursively; keep minimize/require with their scope."""
+    out: list[tuple[ast.MinimizeStmt | ast.RequireStmt, Scope]] = []
+    for stmt in statements:
+        if isinstance(stmt, (ast.MinimizeStmt, ast.RequireStmt)):
+            out.append((stmt, scope))
+        elif isinstance(stmt, ast.UseStmt):
+            out.extend(_expand_use(stmt, scope, fixtures, evaluate, active))
+    return out
+
+
+def _expand_use(use: ast.UseStmt, scope: Scope, fixtures: dict[str, Fixture], evaluate: Evaluate,
+                active: tuple[str, ...]):
+    name = use.call.name
+    if name.text not in fixtures:
+        raise VfError(f"unknown fixture '{name.text}'", name.span.pos(), hint=suggest(name.text, fixtures, "fixtures"))
+    if name.text in active:
+        chain = " -> ".join(active[active.index(name.text):] + (name.text,))
+        raise VfError(f"fixture '{name.text}' uses itself: {chain}", use.span.pos())
+    clauses = use.clauses
+    if clauses.within or clauses.resolution or clauses.weight or clauses.soft:
+        raise VfError("`use` takes no clauses", use.span.pos(),
+                      hint="put within/resolution/soft/weight on the statements inside the fixture, "
+                           "or make them formals of the fixture")
+    fixture = fixtures[name.text]
+    formals = [ArgSpec(f.name.text, f.type.text, "", default=f.default if f.default is not None else REQUIRED)
+               for f in fixture.definition.formals]
+    given = bind_arguments(use.call, formals, f"fixture '{name.text}'")
+    definition_scope = Scope(units=fixture.units, bindings={}, fixture=name.text)
+    bindings: dict[str, ir.Arg] = {}
+    for formal in formals:
+        if formal.name in given:
+            bindings[formal.name] = evaluate(given[formal.name], formal.kind, scope)
+        else:
+            bindings[formal.name] = evaluate(formal.default, formal.kind, definition_scope)
+    inner = Scope(units=fixture.units, bindings=bindings, fixture=name.text, via=scope.via + (use.span,))
+    return expand(fixture.definition.body, inner, fixtures, evaluate, active + (name.text,))
+
+
+def bind_arguments(call: ast.Call, specs: list[ArgSpec], what: str) -> dict[str, ast.Value]:
+    """Match a call's positional and keyword arguments to a signature; report extra, unknown, missing."""
+    names = [s.name for s in specs]
+    if len(call.args) > len(specs):
+        extra = call.args[len(specs)]
+        raise VfError(f"{what} takes {len(specs)} argument{'s' if len(specs) != 1 else ''}, got {len(call.args)}",
+                      extra.span.pos(), hint=f"its arguments are: {', '.join(names) or 'none'}")
+    given: dict[str, ast.Value] = dict(zip(names, call.args))
+    for kw in call.kwargs:
+        if kw.name.text not in names:
+            raise VfError(f"{what} has no argument '{kw.name.text}'", kw.name.span.pos(),
+                          hint=suggest(kw.name.text, names, "arguments"))
+        if kw.name.text in given:
+            raise VfError(f"argument '{kw.name.text}' is given twice", kw.name.span.pos())
+        given[kw.name.text] = kw.value
+    missing = [s.name for s in specs if s.required and s.name not in given]
+    if missing:
+        plural = "s" if len(missing) > 1 else ""
+        raise VfError(f"{what} is missing argument{plural} {', '.join(missing)}", call.span.pos(),
+                      hint=f"its arguments are: {', '.join(names)}")
+    return given

@@ -1,0 +1,68 @@
+"""Imports: read a task file and every library it imports (transitively), detecting import cycles.
+
+``import "lib/fixtures.vf"`` is resolved relative to the importing file. An imported file must start with
+``library NAME`` and may hold only ``units``, ``import`` and ``fixture`` statements. A file reached twice
+(a diamond) is read once; a file that imports itself, directly or not, is an error at the import that
+closes the cycle.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+from vfdsl.errors import VfError
+from vfdsl.syntax import ast
+from vfdsl.syntax.parser import parse_module
+
+_LIBRARY_STATEMENTS = (ast.UnitsStmt, ast.ImportStmt, ast.FixtureDef)
+
+
+@dataclass(frozen=True)
+class SourceFile:
+    path: Path
+    module: ast.Module
+
+
+def read_source(path: Path, pos=None) -> SourceFile:
+    try:
+        text = path.read_text()
+    except FileNotFoundError:
+        raise VfError(f"file not found: {path}", pos) from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise VfError(f"cannot read {path}: {exc}", pos) from None
+    return SourceFile(path, parse_module(text, str(path)))
+
+
+def load_program(entry: Path) -> tuple[SourceFile, list[SourceFile]]:
+    """The entry task file and its libraries, each library after the ones it imports."""
+    main = read_source(entry)
+    if main.module.header != "task":
+        raise VfError(f"{entry.name} is a library; load a task file (one that starts with `task NAME`)",
+                      main.module.name.span.pos())
+    libraries: dict[Path, SourceFile] = {}
+    _visit(main, [main.path.resolve()], libraries)
+    return main, list(libraries.values())
+
+
+def _visit(source: SourceFile, stack: list[Path], done: dict[Path, SourceFile]) -> None:
+    for stmt in source.module.statements:
+        if not isinstance(stmt, ast.ImportStmt):
+            continue
+        target = (source.path.parent / stmt.path).resolve()
+        if target in stack:
+            cycle = " -> ".join(p.name for p in stack[stack.index(target):] + [target])
+            raise VfError(f"import cycle: {cycle}", stmt.span.pos(), hint="a library cannot import itself, "
+                          "directly or through other libraries")
+        if target in done:
+            continue
+        library = read_source(target, stmt.span.pos())
+        if library.module.header != "library":
+            raise VfError(f"'{stmt.path}' is a task, not a library", stmt.span.pos(),
+                          hint="only files that start with `library NAME` can be imported")
+        for inner in library.module.statements:
+            if not isinstance(inner, _LIBRARY_STATEMENTS):
+                raise VfError(f"a library holds only fixtures, imports and units; this {inner.kind} statement "
+                              "belongs in a task", inner.span.pos())
+        _visit(library, stack + [target], done)
+        done[target] = library

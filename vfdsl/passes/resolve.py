@@ -1,0 +1,448 @@
+"""Name resolution and checking: syntax tree (+ scene, + libraries) -> the checked :class:`~vfdsl.ir.model.Task`.
+
+The pass walks the task's declarations in order (one namespace for robots, frames, inputs and params;
+a name may be declared once), expands fixtures, then checks every ``require``/``minimize`` call against its
+primitive's signature (:mod:`vfdsl.primitives.spec`): argument names and kinds, units (via
+:mod:`vfdsl.passes.units`) and shapes (via :mod:`vfdsl.passes.shapes`), then the clauses ``within``,
+``resolution``, ``soft`` and ``weight``. Any mistake raises :class:`~vfdsl.errors.VfError` at its position.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+
+from vfdsl.errors import VfError, suggest
+from vfdsl.ir import model as ir
+from vfdsl.kinematics.robot import Robot
+from vfdsl.objectives import OBJECTIVES
+from vfdsl.passes import fixtures as fx
+from vfdsl.passes import units as u
+from vfdsl.passes.scene import SceneData, load_scene
+from vfdsl.passes.shapes import LiteralReader, describe_kind
+from vfdsl.primitives import CONSTRAINTS
+from vfdsl.primitives.spec import GEOMETRIC_KINDS, SCALAR_DIMENSIONS, ArgSpec, gain_dimension
+from vfdsl.syntax import ast
+
+PARAM_KINDS = GEOMETRIC_KINDS + tuple(SCALAR_DIMENSIONS)
+DEFAULT_SOFT_WEIGHT = 1e3
+_AXES = {"x": [1.0, 0.0, 0.0], "y": [0.0, 1.0, 0.0], "z": [0.0, 0.0, 1.0]}
+
+
+def file_units(module: ast.Module) -> u.DefaultUnits:
+    """The defaults set by a file's (single) ``units`` statement."""
+    statements = [s for s in module.statements if isinstance(s, ast.UnitsStmt)]
+    if len(statements) > 1:
+        raise VfError("only one `units` statement per file", statements[1].span.pos(),
+                      hint=f"the first is at {statements[0].span}")
+    units = u.DefaultUnits()
+    for stmt in statements:
+        seen: dict[tuple, ast.Name] = {}
+        for name in stmt.names:
+            dim, _ = u.lookup(name.text, name.span)
+            if dim in seen:
+                raise VfError(f"two units for {u.describe(dim)}: '{seen[dim].text}' and '{name.text}'",
+                              name.span.pos())
+            seen[dim] = name
+            units = units.with_unit(name.text, name.span)
+    return units
+
+
+class Resolver:
+    """Builds the IR of one task. Use :func:`resolve`."""
+
+    def __init__(self, module: ast.Module, path: Path, libraries: list[tuple[ast.Module, u.DefaultUnits]]):
+        self.module = module
+        self.path = path
+        self.units = file_units(module)
+        self.fixtures = fx.collect(libraries + [(module, self.units)])
+        self.declared: dict[str, ast.Node] = {}            # name -> its declaring statement
+        self.robots: dict[str, tuple[ir.RobotDecl, Robot]] = {}
+        self.frames: dict[str, ir.FrameDecl] = {}
+        self.inputs: dict[str, ir.InputDecl] = {}
+        self.params: dict[str, ir.ParamDecl] = {}
+        self.task_scope = fx.Scope(units=self.units)
+
+    # ----------------------------------------------------------------------------------- entry point
+    def run(self, imports: list[str]) -> ir.Task:
+        statements = self.module.statements
+        scene = self._scene(statements)
+        for stmt in statements:
+            if isinstance(stmt, (ast.RobotStmt, ast.FrameStmt, ast.InputStmt, ast.ParamStmt)):
+                self._declare(stmt.name)
+        for stmt in statements:
+            if isinstance(stmt, ast.RobotStmt):
+                self._robot(stmt)
+        if len(self.robots) != 1:
+            where = (self.module.name.span if not self.robots
+                     else list(self.robots.values())[1][0].span)
+            raise VfError("a task drives exactly one robot" + ("; none is declared" if not self.robots else ""),
+                          where.pos(), hint='declare it with: robot shr = urdf "shr7"')
+        for stmt in statements:
+            if isinstance(stmt, ast.FrameStmt):
+                self._frame(stmt)
+            elif isinstance(stmt, ast.InputStmt):
+                self._input(stmt)
+        self._params([s for s in statements if isinstance(s, ast.ParamStmt)], scene)
+        body = [s for s in statements if isinstance(s, (ast.MinimizeStmt, ast.RequireStmt, ast.UseStmt))]
+        objectives, constraints = [], []
+        for stmt, scope in fx.expand(body, self.task_scope, self.fixtures, self.evaluate):
+            if isinstance(stmt, ast.MinimizeStmt):
+                objectives.append(self._objective(stmt, scope))
+            else:
+                constraints.append(self._constraint(stmt, scope))
+        robot_decl, robot = next(iter(self.robots.values()))
+        return ir.Task(
+            name=self.module.name.text, file=str(self.path), span=self.module.span,
+            robots=[robot_decl], frames=list(self.frames.values()), inputs=list(self.inputs.values()),
+            params=list(self.params.values()), objectives=objectives, constraints=constraints,
+            scene=self._scene_ir(scene, robot), imports=imports)
+
+    # ---------------------------------------------------------------------------------- declarations
+    def _declare(self, name: ast.Name) -> None:
+        if name.text in self.declared:
+            raise VfError(f"'{name.text}' is declared twice", name.span.pos(),
+                          hint=f"first declared at {self.declared[name.text].span}")
+        self.declared[name.text] = name
+
+    def _robot(self, stmt: ast.RobotStmt) -> None:
+        try:
+            robot = Robot.load(stmt.urdf, base_dir=self.path.parent)
+        except VfError as exc:
+            raise VfError(exc.message, stmt.span.pos(), exc.hint) from None
+        decl = ir.RobotDecl(name=stmt.name.text, urdf=str(robot.urdf_path), span=stmt.span)
+        self.robots[stmt.name.text] = (decl, robot)
+
+    def _frame(self, stmt: ast.FrameStmt) -> None:
+        if stmt.robot.text not in self.robots:
+            raise VfError(f"unknown robot '{stmt.robot.text}'", stmt.robot.span.pos(),
+                          hint=suggest(stmt.robot.text, self.robots, "robots"))
+        robot = self.robots[stmt.robot.text][1]
+        if stmt.link.text not in robot.link_names():
+            raise VfError(f"robot '{stmt.robot.text}' has no link '{stmt.link.text}'", stmt.link.span.pos(),
+                          hint=suggest(stmt.link.text, robot.link_names(), "links"))
+        reader = LiteralReader(self.units, self._no_names)
+        offset = reader.read(stmt.offset, "vector").xyz if stmt.offset else [0.0, 0.0, 0.0]
+        rpy = reader.read(stmt.rotate, "rpy").xyz if stmt.rotate else [0.0, 0.0, 0.0]
+        if stmt.axis is None:
+            axis = _AXES[robot.tool_axis.get(stmt.link.text, "z")]
+        elif isinstance(stmt.axis, ast.NameRef) and stmt.axis.name in _AXES:
+            axis = _AXES[stmt.axis.name]
+        else:
+            axis = reader.read(stmt.axis, "direction").xyz
+        self.frames[stmt.name.text] = ir.FrameDecl(name=stmt.name.text, robot=stmt.robot.text, link=stmt.link.text,
+                                                   offset=offset, rpy=rpy, tool_axis=axis, span=stmt.span)
+
+    def _input(self, stmt: ast.InputStmt) -> None:
+        if stmt.type.text not in ir.INPUT_SIZES:
+            raise VfError(f"unknown input type '{stmt.type.text}'", stmt.type.span.pos(),
+                          hint=suggest(stmt.type.text, ir.INPUT_SIZES, "input types"))
+        self.inputs[stmt.name.text] = ir.InputDecl(name=stmt.name.text, type=stmt.type.text, span=stmt.span)
+
+    def _params(self, statements: list[ast.ParamStmt], scene: SceneData | None) -> None:
+        by_name = {s.name.text: s for s in statements}
+        if scene is not None:
+            for name, (_, key_span) in scene.params.items():
+                if name not in by_name:
+                    raise VfError(f"the scene sets '{name}', which is not a param of this task", key_span.pos(),
+                                  hint=suggest(name, by_name, "params"))
+        for stmt in statements:
+            kind = stmt.type.text
+            if kind not in PARAM_KINDS:
+                raise VfError(f"unknown param type '{kind}'", stmt.type.span.pos(),
+                              hint=suggest(kind, PARAM_KINDS, "param types"))
+            degree = self._curve_degree(stmt)
+            if stmt.frame is not None:
+                target = by_name.get(stmt.frame.text)
+                if target is None or target.type.text != "pose":
+                    poses = [s.name.text for s in statements if s.type.text == "pose"]
+                    raise VfError(f"'{stmt.frame.text}' is not a pose param", stmt.frame.span.pos(),
+                                  hint=suggest(stmt.frame.text, poses, "pose params"))
+                if kind not in ("point", "vector", "direction", "line", "plane", "curve", "pose"):
+                    raise VfError(f"a {kind} cannot be expressed in a frame", stmt.frame.span.pos())
+            if scene is not None and stmt.name.text in scene.params:
+                source, units = scene.params[stmt.name.text][0], scene.units
+            elif stmt.default is not None:
+                source, units = stmt.default, self.units
+            else:
+                raise VfError(f"param '{stmt.name.text}' has no value", stmt.name.span.pos(),
+                              hint=f"give a default (`= ...`) or set params.{stmt.name.text} in the scene file")
+            source = _named_mapping(source, kind)
+            value = LiteralReader(units, self._no_names).read(source, kind, curve_degree=degree)
+            self.params[stmt.name.text] = ir.ParamDecl(
+                name=stmt.name.text, type=kind, value=value,
+                frame=stmt.frame.text if stmt.frame else None, span=stmt.span)
+
+    def _curve_degree(self, stmt: ast.ParamStmt) -> int | None:
+        if stmt.type.text != "curve":
+            if stmt.type_args:
+                raise VfError(f"a {stmt.type.text} param takes no type arguments", stmt.type_args[0].span.pos())
+            return None
+        degree = None
+        for kw in stmt.type_args:
+            if kw.name.text != "degree":
+                raise VfError(f"curve has no type argument '{kw.name.text}'", kw.name.span.pos(),
+                              hint="write curve(degree = 5)")
+            degree = LiteralReader(self.units, self._no_names).integer(kw.value, "degree")
+        return degree
+
+    # ---------------------------------------------------------------------------------------- scene
+    def _scene(self, statements) -> SceneData | None:
+        explicit = [s for s in statements if isinstance(s, ast.SceneStmt)]
+        if len(explicit) > 1:
+            raise VfError("only one `scene` statement per task", explicit[1].span.pos())
+        if explicit:
+            return load_scene(self.path.parent / explicit[0].path, self.units, explicit[0].span.pos())
+        default = self.path.with_suffix(".yaml")
+        return load_scene(default, self.units, None) if default.is_file() else None
+
+    def _scene_ir(self, scene: SceneData | None, robot: Robot) -> ir.Scene:
+        if scene is None:
+            return ir.Scene()
+        reader = LiteralReader(scene.units, self._no_names)
+        period = None
+        if scene.period is not None:
+            period = reader.scalar(scene.period, u.TIME, "period")
+            if period <= 0:
+                raise VfError("the period must be positive", scene.period.span.pos())
+        start = None
+        if scene.start is not None:
+            start = self._start(scene.start, reader, robot)
+        return ir.Scene(file=str(scene.file), start=start, period=period)
+
+    def _start(self, value, reader: LiteralReader, robot: Robot) -> list[float]:
+        dims = [u.LENGTH if t == "prismatic" else u.ANGLE for t in robot.joint_types]
+        if isinstance(value, dict):
+            for name in value:
+                if name not in robot.joint_names:
+                    raise VfError(f"robot '{robot.name}' has no joint '{name}'", value[name].span.pos(),
+                                  hint=suggest(name, robot.joint_names, "joints"))
+            missing = [n for n in robot.joint_names if n not in value]
+            if missing:
+                first = next(iter(value.values()))
+                raise VfError(f"the start configuration misses joint{'s' if len(missing) > 1 else ''} "
+                              f"{', '.join(missing)}", first.span.pos())
+            q = [reader.scalar(value[n], d, "joint value") for n, d in zip(robot.joint_names, dims)]
+        else:
+            if not isinstance(value, ast.Vector) or len(value.items) != robot.nq:
+                raise VfError(f"the start configuration needs {robot.nq} joint values "
+                              f"({', '.join(robot.joint_names)})", value.span.pos())
+            q = [reader.scalar(v, d, "joint value") for v, d in zip(value.items, dims)]
+        arr = np.array(q)
+        outside = [n for n, x, lo, hi in zip(robot.joint_names, arr, robot.lower, robot.upper)
+                   if not lo - 1e-12 <= x <= hi + 1e-12]
+        if outside:
+            raise VfError(f"the start configuration is outside the joint limits of {', '.join(outside)}",
+                          value.span.pos() if not isinstance(value, dict) else next(iter(value.values())).span.pos())
+        return q
+
+    # ------------------------------------------------------------------------------------- names
+    def _no_names(self, ref: ast.NameRef, kind: str) -> ir.Value:
+        raise VfError(f"a name ('{ref.name}') cannot stand here; write the value itself", ref.span.pos())
+
+    def evaluate(self, value: ast.Value, kind: str, scope: fx.Scope, input_type: str | None = None) -> ir.Arg:
+        """The IR argument for ``value`` read as ``kind`` in ``scope`` (names resolve lexically)."""
+        if isinstance(value, ast.NameRef):
+            return self._resolve_name(value, kind, scope)
+        if kind in ("frame", "input"):
+            raise VfError(f"expected the name of {describe_kind(kind)}", value.span.pos(),
+                          hint=suggest("", self._names_of(kind, scope), f"{kind}s"))
+        reader = LiteralReader(scope.units, lambda ref, k: self._constant(ref, k, scope))
+        if kind in ("gain", "angular_gain"):
+            dim = gain_dimension(input_type, kind)
+            return ir.Const(value=ir.ScalarValue(dimension=kind, value=reader.scalar(value, dim, kind)))
+        return ir.Const(value=reader.read(value, kind))
+
+    def _names_of(self, kind: str, scope: fx.Scope) -> list[str]:
+        if scope.bindings is not None:
+            return list(scope.bindings)
+        table = {"frame": self.frames, "input": self.inputs}.get(kind)
+        if table is not None:
+            return list(table)
+        return [n for n, p in self.params.items() if p.type == kind] or list(self.params)
+
+    def _resolve_name(self, ref: ast.NameRef, kind: str, scope: fx.Scope) -> ir.Arg:
+        if scope.bindings is not None:
+            if ref.name not in scope.bindings:
+                raise VfError(f"unknown name '{ref.name}' in fixture '{scope.fixture}'", ref.span.pos(),
+                              hint=suggest(ref.name, scope.bindings, "formals") +
+                              " (a fixture body sees only its formals)")
+            arg = scope.bindings[ref.name]
+        elif ref.name in self.frames:
+            arg = ir.FrameRef(name=ref.name)
+        elif ref.name in self.inputs:
+            arg = ir.InputRef(name=ref.name)
+        elif ref.name in self.params:
+            arg = ir.ParamRef(name=ref.name)
+        elif ref.name in self.robots:
+            raise VfError(f"'{ref.name}' is a robot; expected {describe_kind(kind)}", ref.span.pos())
+        else:
+            raise VfError(f"unknown {kind.replace('_', ' ')} '{ref.name}'", ref.span.pos(),
+                          hint=suggest(ref.name, self._names_of(kind, scope), f"{kind.replace('_', ' ')}s"))
+        actual = self._arg_kind(arg)
+        if not _compatible(actual, kind):
+            raise VfError(f"expected {describe_kind(kind)}, but '{ref.name}' is {describe_kind(actual)}",
+                          ref.span.pos())
+        return arg
+
+    def _constant(self, ref: ast.NameRef, kind: str, scope: fx.Scope) -> ir.Value:
+        """A name inside a composite literal or a clause: it must stand for a compile-time constant."""
+        arg = self._resolve_name(ref, kind, scope)
+        if not isinstance(arg, ir.Const):
+            raise VfError(f"'{ref.name}' is a run-time {kind}; only constants can stand here", ref.span.pos(),
+                          hint="write the value itself, or make it a fixture formal")
+        return arg.value
+
+    def _arg_kind(self, arg: ir.Arg) -> str:
+        if isinstance(arg, ir.FrameRef):
+            return "frame"
+        if isinstance(arg, ir.InputRef):
+            return "input"
+        if isinstance(arg, ir.ParamRef):
+            return self.params[arg.name].type
+        value = arg.value
+        return value.dimension if isinstance(value, ir.ScalarValue) else value.kind
+
+    # ------------------------------------------------------------------------------- statements
+    def _bind(self, call: ast.Call, specs: tuple[ArgSpec, ...], scope: fx.Scope, what: str,
+              subject: ir.FrameRef | None = None) -> dict[str, ir.Arg]:
+        given = fx.bind_arguments(call, list(specs), what)
+        args: dict[str, ir.Arg] = {}
+        input_type = None
+        for spec in specs:
+            if spec.name in given:
+                args[spec.name] = self.evaluate(given[spec.name], spec.kind, scope, input_type)
+                if isinstance(args[spec.name], ir.InputRef):
+                    input_type = self.inputs[args[spec.name].name].type
+            elif spec.default == "subject":
+                args[spec.name] = subject
+            elif spec.default is not None:
+                args[spec.name] = ir.Const(value=spec.default)
+        return args
+
+    def _objective(self, stmt: ast.MinimizeStmt, scope: fx.Scope) -> ir.Objective:
+        name = stmt.call.name
+        spec = OBJECTIVES.get(name.text)
+        if spec is None:
+            hint = suggest(name.text, OBJECTIVES, "objective terms")
+            if name.text in CONSTRAINTS:
+                hint = f"'{name.text}' is a constraint: write `require <frame> {name.text}(...)`"
+            raise VfError(f"unknown objective term '{name.text}'", name.span.pos(), hint=hint)
+        clauses = stmt.clauses
+        for clause, word in ((clauses.within, "within"), (clauses.resolution, "resolution"), (clauses.soft, "soft")):
+            if clause is not None:
+                raise VfError(f"`{word}` applies to constraints, not to objective terms", _span(clause).pos())
+        args = self._bind(stmt.call, spec.args, scope, f"{name.text}(...)")
+        if name.text == "track":
+            self._check_gains(stmt.call, args)
+        weight = self._weight(clauses.weight, scope, 1.0)
+        return ir.Objective(term=name.text, args=args, weight=weight, span=stmt.span, via=list(scope.via))
+
+    def _check_gains(self, call: ast.Call, args: dict[str, ir.Arg]) -> None:
+        input_type = self.inputs[args["input"].name].type
+        for kind in ("gain", "angular_gain"):
+            present = kind in args
+            needed = gain_dimension(input_type, kind) is not None
+            if present and not needed:
+                raise VfError(f"a {input_type} input has no {kind.replace('_', ' ')}", call.span.pos(),
+                              hint="a force drives translation (gain), a torque drives rotation (angular_gain)")
+            if needed and not present:
+                if input_type == "twist":
+                    args[kind] = ir.Const(value=ir.ScalarValue(dimension=kind, value=1.0))
+                else:
+                    example = "gain = 2 mm/s/N" if kind == "gain" else "angular_gain = 5 deg/s/Nm"
+                    raise VfError(f"track with a {input_type} input needs {kind}", call.span.pos(),
+                                  hint=f"e.g. {example}")
+
+    def _constraint(self, stmt: ast.RequireStmt, scope: fx.Scope) -> ir.Constraint:
+        name = stmt.call.name
+        spec = CONSTRAINTS.get(name.text)
+        if spec is None:
+            hint = suggest(name.text, CONSTRAINTS, "primitives")
+            if name.text in OBJECTIVES:
+                hint = f"'{name.text}' is an objective term: write `minimize {name.text}(...)`"
+            raise VfError(f"unknown primitive '{name.text}'", name.span.pos(), hint=hint)
+        subject = None
+        if spec.subject:
+            if stmt.subject is None:
+                raise VfError(f"{name.text} applies to a task frame", name.span.pos(),
+                              hint=f"write `require <frame> {name.text}(...)`")
+            subject = self.evaluate(ast.NameRef(span=stmt.subject.span, name=stmt.subject.text), "frame", scope)
+        elif stmt.subject is not None:
+            raise VfError(f"{name.text} applies to the whole robot, not to a frame", stmt.subject.span.pos(),
+                          hint=f"write `require {name.text}(...)`")
+        args = self._bind(stmt.call, spec.args, scope, f"{name.text}(...)", subject)
+        clauses = stmt.clauses
+        tolerance = None
+        if spec.tolerance is None:
+            if clauses.within is not None:
+                raise VfError(f"{name.text} takes no tolerance (`within`)", clauses.within.span.pos())
+        elif clauses.within is not None:
+            reader = LiteralReader(scope.units, lambda ref, k: self._constant(ref, k, scope))
+            tolerance = reader.scalar(clauses.within, SCALAR_DIMENSIONS[spec.tolerance], spec.tolerance)
+            if tolerance <= 0:
+                raise VfError("a tolerance must be positive", clauses.within.span.pos())
+        else:
+            tolerance = spec.default_tolerance
+        shape = spec.resolution_shape(args)
+        resolution = None
+        if shape is None:
+            if clauses.resolution is not None:
+                raise VfError(f"{name.text} takes no polytope resolution", clauses.resolution.span.pos())
+        else:
+            resolution = self._resolution(clauses.resolution, shape, spec)
+        if clauses.weight is not None and clauses.soft is None:
+            raise VfError("`weight` applies to soft constraints", clauses.weight.span.pos(),
+                          hint="add `soft` to make this constraint soft; hard constraints have no weight")
+        soft = clauses.soft is not None
+        weight = self._weight(clauses.weight, scope, DEFAULT_SOFT_WEIGHT) if soft else None
+        return ir.Constraint(primitive=name.text, frame=subject.name if subject else None, args=args,
+                             tolerance=tolerance, resolution=resolution, soft=soft, weight=weight,
+                             span=stmt.span, via=list(scope.via))
+
+    def _resolution(self, given: ast.Resolution | None, shape: str, spec) -> list[int]:
+        if given is None:
+            return list(spec.default_resolution[shape])
+        counts = given.counts
+        if shape == "sphere" and len(counts) != 2:
+            raise VfError(f"{spec.name} is bounded by a sphere polytope: give n x m directions", given.span.pos(),
+                          hint="e.g. resolution 4x4")
+        if shape == "polygon" and len(counts) != 1:
+            raise VfError(f"{spec.name} is bounded by a polygon: give its number of sides", given.span.pos(),
+                          hint="e.g. resolution 8")
+        if min(counts) < 3:
+            raise VfError("a bounded polytope needs at least 3 directions per angle", given.span.pos(),
+                          hint="use 3 or more (the paper uses 4x4 for a sphere and 8 for a polygon)")
+        return counts
+
+    def _weight(self, value: ast.Value | None, scope: fx.Scope, default: float) -> float:
+        if value is None:
+            return default
+        reader = LiteralReader(scope.units, lambda ref, k: self._constant(ref, k, scope))
+        weight = reader.scalar(value, u.DIMENSIONLESS, "number")
+        if weight < 0 or not math.isfinite(weight):
+            raise VfError("a weight must be a non-negative number", value.span.pos())
+        return weight
+
+
+def _compatible(actual: str, expected: str) -> bool:
+    return actual == expected or (expected == "vector" and actual == "point")
+
+
+def _named_mapping(value: ast.Value, kind: str) -> ast.Value:
+    """A scene mapping reads as the composite of the param's kind: {point: .., normal: ..} -> plane(...)."""
+    if isinstance(value, ast.Call) and value.name.text == "{mapping}":
+        name = "bspline" if kind == "curve" else kind
+        return value.model_copy(update={"name": value.name.model_copy(update={"text": name})})
+    return value
+
+
+def _span(clause) -> ast.Span:
+    return clause if isinstance(clause, ast.Span) else clause.span
+
+
+def resolve(module: ast.Module, path: Path, libraries: list[tuple[ast.Module, u.DefaultUnits]],
+            imports: list[str]) -> ir.Task:
+    return Resolver(module, path, libraries).run(imports)

@@ -1,0 +1,125 @@
+"""Scene files: the YAML data a task needs but that is not part of its logic.
+
+    units: mm, deg            # units of bare numbers in this file (default: the task's units)
+    period: 10 ms             # control period
+    start: {x: 0, y: 0, z: 0, rcm_a: 0, rcm_b: 0, roll: 0, insert: 10}   # or a list in joint order
+    params:                   # values of the task's params (override the task file's defaults)
+      plate: {translation: [120, 0, 40], rpy: [0, 0, 30]}
+      path: [[0, 0, 0], [10, 5, 0], ...]
+
+YAML values are turned into the same syntax nodes a ``.vf`` file produces (a list is a vector, a mapping is
+a composite such as ``pose(...)``, ``"10 mm"`` is a number with a unit), with positions in the YAML file,
+so they go through exactly the same unit and shape checks and their errors point into the scene file.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+from pathlib import Path
+
+import yaml
+
+from vfdsl.errors import SourcePos, VfError
+from vfdsl.passes.units import DefaultUnits
+from vfdsl.syntax import ast
+
+_QUANTITY = re.compile(r"^\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*([A-Za-z][A-Za-z*/]*)?\s*$")
+_TOP_KEYS = ("units", "period", "start", "params")
+
+
+@dataclass(frozen=True)
+class SceneData:
+    file: Path
+    units: DefaultUnits
+    period: ast.Value | None
+    start: ast.Value | dict[str, ast.Value] | None
+    params: dict[str, tuple[ast.Value, ast.Span]]        # value, and the span of its key
+
+
+def load_scene(path: Path, task_units: DefaultUnits, pos: SourcePos | None) -> SceneData:
+    try:
+        text = path.read_text()
+    except OSError:
+        raise VfError(f"scene file not found: {path}", pos,
+                      hint="write it, or point the task at another file with `scene \"file.yaml\"`") from None
+    try:
+        root = yaml.compose(text)
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        where = SourcePos(str(path), mark.line + 1, mark.column + 1) if mark else SourcePos(str(path), 1, 1)
+        raise VfError(f"malformed YAML: {getattr(exc, 'problem', exc)}", where, source_text=text) from None
+    file = str(path)
+    if root is None:
+        return SceneData(path, task_units, None, None, {})
+    if not isinstance(root, yaml.MappingNode):
+        raise VfError("a scene file is a mapping with keys " + ", ".join(_TOP_KEYS), _pos(root, file))
+    top = _mapping(root, file)
+    for key, (key_node, _) in top.items():
+        if key not in _TOP_KEYS:
+            from vfdsl.errors import suggest
+            raise VfError(f"unknown scene key '{key}'", _pos(key_node, file), hint=suggest(key, _TOP_KEYS, "keys"))
+    units = task_units
+    if "units" in top:
+        units = _units(top["units"][1], file, task_units)
+    period = _value(top["period"][1], file) if "period" in top else None
+    start = None
+    if "start" in top:
+        node = top["start"][1]
+        start = ({k: _value(v, file) for k, (_, v) in _mapping(node, file).items()}
+                 if isinstance(node, yaml.MappingNode) else _value(node, file))
+    params = {}
+    if "params" in top:
+        node = top["params"][1]
+        if not isinstance(node, yaml.MappingNode):
+            raise VfError("'params' is a mapping from param names to values", _pos(node, file))
+        params = {k: (_value(v, file), _span(kn, file)) for k, (kn, v) in _mapping(node, file).items()}
+    return SceneData(path, units, period, start, params)
+
+
+def _mapping(node: yaml.MappingNode, file: str) -> dict[str, tuple[yaml.Node, yaml.Node]]:
+    out = {}
+    for key_node, value_node in node.value:
+        key = str(key_node.value)
+        if key in out:
+            raise VfError(f"key '{key}' appears twice", _pos(key_node, file))
+        out[key] = (key_node, value_node)
+    return out
+
+
+def _units(node: yaml.Node, file: str, base: DefaultUnits) -> DefaultUnits:
+    names = ([str(n.value) for n in node.value] if isinstance(node, yaml.SequenceNode)
+             else [n.strip() for n in str(node.value).split(",")])
+    units = base
+    for name in names:
+        units = units.with_unit(name, _span(node, file))
+    return units
+
+
+def _value(node: yaml.Node, file: str) -> ast.Value:
+    """A YAML node -> the syntax node a .vf file would give for the same value."""
+    span = _span(node, file)
+    if isinstance(node, yaml.SequenceNode):
+        return ast.Vector(span=span, items=[_value(n, file) for n in node.value])
+    if isinstance(node, yaml.MappingNode):
+        fields = _mapping(node, file)
+        kwargs = [ast.KeywordArg(span=_span(k, file), name=ast.Name(span=_span(k, file), text=key),
+                                 value=_value(v, file)) for key, (k, v) in fields.items()]
+        return ast.Call(span=span, name=ast.Name(span=span, text="{mapping}"), kwargs=kwargs)
+    text = str(node.value)
+    if text in ("true", "false"):
+        return ast.Bool(span=span, value=text == "true")
+    match = _QUANTITY.match(text)
+    if match is None:
+        raise VfError(f"expected a number (optionally with a unit, like \"10 mm\"), got {text!r}", span.pos())
+    return ast.Quantity(span=span, number=float(match.group(1)), unit=match.group(2))
+
+
+def _span(node: yaml.Node, file: str) -> ast.Span:
+    start, end = node.start_mark, node.end_mark
+    return ast.Span(file=file, line=start.line + 1, column=start.column + 1, end_line=end.line + 1,
+                    end_column=end.column + 1)
+
+
+def _pos(node: yaml.Node, file: str) -> SourcePos:
+    return _span(node, file).pos()

@@ -1,0 +1,191 @@
+"""Shapes: literal values -> SI IR values, checking that each has the shape its kind needs.
+
+A point or vector is 3 lengths, a direction 3 plain numbers (not all zero; normalized here), a line a
+point and a direction, a plane a point and a normal, a pose a translation and roll-pitch-yaw angles, a curve
+a degree and at least degree + 1 points. Composite literals are written as calls:
+``line([0, 0, 0], [0, 0, 1])``, ``plane(point = [0, 0, 5] mm, normal = [0, 0, 1])``,
+``pose(translation = [..], rpy = [..] deg)``, ``bspline(points = [[..], [..], ...])``.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Callable
+
+from vfdsl.errors import VfError, suggest
+from vfdsl.ir import model as ir
+from vfdsl.passes import units as u
+from vfdsl.primitives.spec import SCALAR_DIMENSIONS
+from vfdsl.syntax import ast
+
+# A resolver for names that appear inside composite literals: returns the constant bound to that name.
+ConstLookup = Callable[[ast.NameRef, str], ir.Value]
+
+_COMPOSITES = {
+    "line": (("point", "point"), ("direction", "direction")),
+    "plane": (("point", "point"), ("normal", "direction")),
+    "pose": (("translation", "vector"), ("rpy", "rpy")),
+}
+_WRITE_AS = {
+    "point": "[x, y, z] with a length unit, e.g. [0, 0, -10] mm",
+    "vector": "[x, y, z] with a length unit, e.g. [0, 0, 100] mm",
+    "direction": "[x, y, z] plain numbers, e.g. [0, -0.2, 1]",
+    "line": "line(point = [x, y, z], direction = [dx, dy, dz])",
+    "plane": "plane(point = [x, y, z], normal = [nx, ny, nz])",
+    "pose": "pose(translation = [x, y, z], rpy = [roll, pitch, yaw])",
+    "curve": "bspline(points = [[x, y, z], ...]) or a list of points from the scene",
+    "flag": "true or false",
+}
+
+
+def describe_kind(kind: str) -> str:
+    article = "an" if kind[0] in "aeiou" else "a"
+    return f"{article} {kind.replace('_', ' ')}"
+
+
+class LiteralReader:
+    """Reads literal AST values in one unit context (a file's ``units`` statement)."""
+
+    def __init__(self, units: u.DefaultUnits, lookup: ConstLookup):
+        self.units = units
+        self.lookup = lookup
+
+    def read(self, value: ast.Value, kind: str, curve_degree: int | None = None) -> ir.Value:
+        if isinstance(value, ast.NameRef):
+            return self.lookup(value, kind)
+        if kind in ("point", "vector"):
+            xyz = self._numbers3(value, u.LENGTH, kind)
+            return ir.PointValue(xyz=xyz) if kind == "point" else ir.VectorValue(xyz=xyz)
+        if kind == "direction":
+            return ir.DirectionValue(xyz=self._direction(value))
+        if kind == "rpy":
+            return ir.VectorValue(xyz=self._numbers3(value, u.ANGLE, "rpy"))
+        if kind in _COMPOSITES:
+            return self._composite(value, kind)
+        if kind == "curve":
+            return self._curve(value, curve_degree)
+        if kind == "flag":
+            if not isinstance(value, ast.Bool):
+                raise self._wrong(value, kind)
+            return ir.FlagValue(value=value.value)
+        if kind in SCALAR_DIMENSIONS:
+            return ir.ScalarValue(dimension=kind, value=self.scalar(value, SCALAR_DIMENSIONS[kind], kind))
+        raise VfError(f"'{kind}' is not a value kind", value.span.pos())  # pragma: no cover - specs are fixed
+
+    def scalar(self, value: ast.Value, dim: u.Dim, what: str) -> float:
+        if isinstance(value, ast.NameRef):
+            looked_up = self.lookup(value, what)
+            assert isinstance(looked_up, ir.ScalarValue)
+            return looked_up.value
+        if not isinstance(value, ast.Quantity):
+            raise VfError(f"expected {u.describe(dim)}, got {_what(value)}", value.span.pos(),
+                          hint="write a number with a unit, e.g. 5 mm")
+        return u.to_si(value.number, value.unit, dim, self.units, value.span)
+
+    # -- helpers ---------------------------------------------------------------------------------------
+    def _wrong(self, value: ast.Value, kind: str) -> VfError:
+        return VfError(f"expected {describe_kind(kind)}, got {_what(value)}", value.span.pos(),
+                       hint=f"write {_WRITE_AS[kind]}" if kind in _WRITE_AS else None)
+
+    def _numbers3(self, value: ast.Value, dim: u.Dim, kind: str) -> list[float]:
+        if not isinstance(value, ast.Vector):
+            raise self._wrong(value, kind)
+        if len(value.items) != 3:
+            raise VfError(f"{describe_kind(kind)} needs 3 numbers, got {len(value.items)}", value.span.pos(),
+                          hint=f"write {_WRITE_AS.get(kind, '[x, y, z]')}")
+        out = []
+        for item in value.items:
+            if not isinstance(item, ast.Quantity):
+                raise VfError(f"expected a number, got {_what(item)}", item.span.pos())
+            unit = item.unit if item.unit is not None else value.unit
+            out.append(u.to_si(item.number, unit, dim, self.units, item.span))
+        return out
+
+    def _direction(self, value: ast.Value) -> list[float]:
+        xyz = self._numbers3(value, u.DIMENSIONLESS, "direction")
+        norm = math.sqrt(sum(c * c for c in xyz))
+        if norm < 1e-12:
+            raise VfError("a direction cannot be zero", value.span.pos(), hint="give a non-zero vector, e.g. [0, 0, 1]")
+        return [c / norm for c in xyz]
+
+    def _composite(self, value: ast.Value, kind: str) -> ir.Value:
+        fields = _COMPOSITES[kind]
+        if not isinstance(value, ast.Call) or value.name.text != kind:
+            raise self._wrong(value, kind)
+        bound = bind_fields(value, [name for name, _ in fields], required=kind != "pose")
+        out = {}
+        for name, field_kind in fields:
+            if name in bound:
+                read = self.read(bound[name], field_kind)
+                out[name] = read.xyz
+            else:
+                out[name] = [0.0, 0.0, 0.0]
+        if kind == "line":
+            return ir.LineValue(**out)
+        if kind == "plane":
+            return ir.PlaneValue(**out)
+        return ir.PoseValue(**out)
+
+    def _curve(self, value: ast.Value, degree: int | None) -> ir.CurveValue:
+        points_value = value
+        if isinstance(value, ast.Call):
+            if value.name.text != "bspline":
+                raise self._wrong(value, "curve")
+            bound = bind_fields(value, ["points", "degree"], required=False)
+            if "points" not in bound:
+                raise VfError("bspline(...) needs points = [[x, y, z], ...]", value.span.pos())
+            points_value = bound["points"]
+            if "degree" in bound:
+                given = self.integer(bound["degree"], "degree")
+                if degree is not None and given != degree:
+                    raise VfError(f"the curve's degree is declared as {degree} but given here as {given}",
+                                  bound["degree"].span.pos())
+                degree = given
+        if not isinstance(points_value, ast.Vector) or not all(isinstance(p, ast.Vector) for p in points_value.items):
+            raise self._wrong(value, "curve")
+        degree = 3 if degree is None else degree
+        points = [self._numbers3(p if p.unit else p.model_copy(update={"unit": points_value.unit}), u.LENGTH, "point")
+                  for p in points_value.items]
+        if len(points) < degree + 1:
+            raise VfError(f"a degree-{degree} b-spline needs at least {degree + 1} points, got {len(points)}",
+                          points_value.span.pos())
+        return ir.CurveValue(degree=degree, points=points)
+
+    def integer(self, value: ast.Value, what: str) -> int:
+        if not isinstance(value, ast.Quantity) or value.unit or value.number != int(value.number) or value.number < 1:
+            raise VfError(f"{what} must be a positive whole number", value.span.pos())
+        return int(value.number)
+
+
+def bind_fields(call: ast.Call, names: list[str], required: bool) -> dict[str, ast.Value]:
+    """Match a composite literal's positional and keyword arguments to field names."""
+    if len(call.args) > len(names):
+        raise VfError(f"{call.name.text}(...) takes at most {len(names)} values, got {len(call.args)}",
+                      call.args[len(names)].span.pos(), hint=f"its fields are: {', '.join(names)}")
+    bound: dict[str, ast.Value] = dict(zip(names, call.args))
+    for kw in call.kwargs:
+        if kw.name.text not in names:
+            raise VfError(f"{call.name.text}(...) has no field '{kw.name.text}'", kw.name.span.pos(),
+                          hint=suggest(kw.name.text, names, "fields"))
+        if kw.name.text in bound:
+            raise VfError(f"field '{kw.name.text}' is given twice", kw.name.span.pos())
+        bound[kw.name.text] = kw.value
+    missing = [n for n in names if n not in bound]
+    if required and missing:
+        raise VfError(f"{call.name.text}(...) is missing {', '.join(missing)}", call.span.pos(),
+                      hint=f"write {_WRITE_AS.get(call.name.text, call.name.text + '(...)')}")
+    return bound
+
+
+def _what(value: ast.Value) -> str:
+    if isinstance(value, ast.Quantity):
+        return f"the number {value.number:g}" + (f" {value.unit}" if value.unit else "")
+    if isinstance(value, ast.Vector):
+        return f"a list of {len(value.items)}"
+    if isinstance(value, ast.Call):
+        return f"{value.name.text}(...)"
+    if isinstance(value, ast.NameRef):
+        return f"the name '{value.name}'"
+    if isinstance(value, ast.String):
+        return "a string"
+    return "true/false"

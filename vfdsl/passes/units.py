@@ -1,0 +1,124 @@
+"""Units and dimensions: every literal becomes an SI number (m, rad, s, N), or a compile error.
+
+A dimension is a vector of exponents over (length, angle, time, force). Angles are a dimension of their
+own here, so that a length where an angle belongs (or the reverse) is caught at compile time. A number
+written without a unit takes the file's default units (``units mm, deg``), combined with the expected
+dimension: a bare ``5`` where a speed is expected means 5 mm/s in a ``units mm`` file.
+"""
+
+from __future__ import annotations
+
+import difflib
+import math
+from dataclasses import dataclass
+
+from vfdsl.errors import VfError
+from vfdsl.syntax.ast import Span
+
+Dim = tuple[int, int, int, int]          # exponents of (length, angle, time, force)
+
+DIMENSIONLESS: Dim = (0, 0, 0, 0)
+LENGTH: Dim = (1, 0, 0, 0)
+ANGLE: Dim = (0, 1, 0, 0)
+TIME: Dim = (0, 0, 1, 0)
+FORCE: Dim = (0, 0, 0, 1)
+TORQUE: Dim = (1, 0, 0, 1)
+SPEED: Dim = (1, 0, -1, 0)
+ANGULAR_SPEED: Dim = (0, 1, -1, 0)
+
+# name -> (dimension, factor to SI)
+UNITS: dict[str, tuple[Dim, float]] = {
+    "m": (LENGTH, 1.0), "cm": (LENGTH, 1e-2), "mm": (LENGTH, 1e-3), "um": (LENGTH, 1e-6),
+    "rad": (ANGLE, 1.0), "mrad": (ANGLE, 1e-3), "deg": (ANGLE, math.pi / 180.0),
+    "s": (TIME, 1.0), "ms": (TIME, 1e-3),
+    "N": (FORCE, 1.0), "Nm": (TORQUE, 1.0), "Nmm": (TORQUE, 1e-3),
+}
+
+_BASE_NAMES = ("length", "angle", "time", "force")
+_DIM_WORDS = {
+    DIMENSIONLESS: "a plain number", LENGTH: "a length", ANGLE: "an angle", TIME: "a time",
+    FORCE: "a force", TORQUE: "a torque", SPEED: "a speed", ANGULAR_SPEED: "an angular speed",
+}
+_EXAMPLE_UNIT = {LENGTH: "mm", ANGLE: "deg", TIME: "s", FORCE: "N", TORQUE: "Nmm", SPEED: "mm/s",
+                 ANGULAR_SPEED: "deg/s", DIMENSIONLESS: ""}
+
+
+def describe(dim: Dim) -> str:
+    """'a length', 'a speed', or the SI formula for other dimensions ('m/s/N')."""
+    return _DIM_WORDS.get(dim) or f"a quantity in {si_formula(dim)}"
+
+
+def si_formula(dim: Dim) -> str:
+    si = ("m", "rad", "s", "N")
+    num = "*".join(s if e == 1 else f"{s}^{e}" for s, e in zip(si, dim) if e > 0) or "1"
+    den = "/".join(s if e == -1 else f"{s}^{-e}" for s, e in zip(si, dim) if e < 0)
+    return f"{num}/{den}" if den else num
+
+
+@dataclass(frozen=True)
+class DefaultUnits:
+    """The file's ``units`` statement: the unit a bare number takes for each base dimension."""
+
+    length: str = "m"
+    angle: str = "rad"
+    time: str = "s"
+    force: str = "N"
+
+    def factor(self, dim: Dim) -> float:
+        """SI factor of a bare number of dimension ``dim``."""
+        scale = 1.0
+        for base_unit, exponent in zip((self.length, self.angle, self.time, self.force), dim):
+            scale *= UNITS[base_unit][1] ** exponent
+        return scale
+
+    def with_unit(self, name: str, span: Span) -> "DefaultUnits":
+        dim, _ = lookup(name, span)
+        if dim not in (LENGTH, ANGLE, TIME, FORCE):
+            raise VfError(f"'{name}' is not a base unit; a units statement takes units of length, angle, "
+                          "time or force", span.pos(), hint="e.g. units mm, deg")
+        field = _BASE_NAMES[(LENGTH, ANGLE, TIME, FORCE).index(dim)]
+        return DefaultUnits(**{**self.__dict__, field: name})
+
+
+def lookup(name: str, span: Span) -> tuple[Dim, float]:
+    try:
+        return UNITS[name]
+    except KeyError:
+        close = difflib.get_close_matches(name, UNITS, n=1, cutoff=0.5)
+        hint = f"did you mean '{close[0]}'? " if close else ""
+        raise VfError(f"unknown unit '{name}'", span.pos(),
+                      hint=hint + "known units: " + ", ".join(UNITS)) from None
+
+
+def parse_unit(text: str, span: Span) -> tuple[Dim, float]:
+    """'deg/s/N/mm' -> (dimension, SI factor). Operators apply left to right."""
+    dim = [0, 0, 0, 0]
+    factor = 1.0
+    sign = 1
+    token = ""
+    for ch in text + "*":
+        if ch in "*/":
+            unit_dim, unit_factor = lookup(token, span)
+            dim = [d + sign * u for d, u in zip(dim, unit_dim)]
+            factor *= unit_factor ** sign
+            sign = 1 if ch == "*" else -1
+            token = ""
+        else:
+            token += ch
+    return tuple(dim), factor
+
+
+def to_si(number: float, unit: str | None, expected: Dim, defaults: DefaultUnits, span: Span) -> float:
+    """Convert one number to SI, checking its unit's dimension against ``expected``."""
+    if not math.isfinite(number):
+        raise VfError("numbers must be finite", span.pos())
+    if unit is None:
+        return number * defaults.factor(expected)
+    dim, factor = parse_unit(unit, span)
+    if dim != expected:
+        example = _EXAMPLE_UNIT.get(expected)
+        hint = f"write it like 5 {example}".rstrip() if example is not None else f"use units of {si_formula(expected)}"
+        if expected == DIMENSIONLESS:
+            hint = "write a plain number, without a unit"
+        raise VfError(f"expected {describe(expected)}, but '{unit}' is {describe(dim)}", span.pos(), hint=hint)
+    return number * factor

@@ -1,0 +1,15 @@
+"""Forbidden half-space (paper II-B.5, eqs. 14-15; lecture "forbidden half space").
+
+Keep the frame origin on the free side of a plane with unit normal d toward the free side:
+delta_p = p - P_cl,  d . (delta_p + dx_p) >= 0  ->  H = [d^T 0], h = -H delta.
+"""
+
+from vfdsl.primitives.spec import ArgSpec, ConstraintSpec
+
+SPEC = ConstraintSpec(
+    name="above",
+    summary="keep the frame origin on the free side of a plane (its normal points to the free side)",
+    subject=True,
+    args=(ArgSpec("plane", "plane", "the boundary plane, normal toward the allowed side"),),
+    source="Li, Kapoor & Taylor 2005, II-B.5, eqs. (14)-(15)",
+)

@@ -1,0 +1,18 @@
+"""Move along a line (paper II-B.3, eqs. 7-10).
+
+Keep the frame origin within ``eps`` of the line L(s) = L0 + l s:  delta_p = p - P_cl (closest point),
+u_p = projection of (delta_p + dx_p) on the plane normal to l,  || u_p || <= eps, approximated by the n-gon
+u_i = R3 [cos a_i, sin a_i, 0], R3 = [v1 v2 l] (eq. 8): rows u_i . (delta_p + dx_p) <= eps.
+"""
+
+from vfdsl.primitives.spec import ArgSpec, ConstraintSpec
+
+SPEC = ConstraintSpec(
+    name="along",
+    summary="keep the frame origin within `within` of a line",
+    subject=True,
+    args=(ArgSpec("line", "line", "the line to move along"),),
+    tolerance="length", default_tolerance=1e-5,
+    resolution="polygon",
+    source="Li, Kapoor & Taylor 2005, II-B.3, eqs. (7)-(10)",
+)

@@ -1,0 +1,12 @@
+"""Angular speed limit of a frame:  || dx_r || <= w_max dt, by the n x m sphere polytope."""
+
+from vfdsl.primitives.spec import ArgSpec, ConstraintSpec
+
+SPEC = ConstraintSpec(
+    name="angular_speed",
+    summary="bound the angular speed of the frame",
+    subject=True,
+    args=(ArgSpec("max", "angular_speed", "the largest angular speed"),),
+    resolution="sphere",
+    source="Li, Kapoor & Taylor 2005, II-C",
+)

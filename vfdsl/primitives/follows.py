@@ -1,0 +1,22 @@
+"""Follow a curve (paper III-A, eqs. 19-20).
+
+Every tick, find the point P_c of the curve closest to the anchor frame's origin and the unit tangent l_c
+there; shift P_c by ``shift`` (given in the curve's own frame, e.g. 100 mm along the plate normal for the
+tool shaft) and apply "move along a line" (II-B.3) with the line through P_c + shift along l_c.
+"""
+
+from vfdsl.ir import model as ir
+from vfdsl.primitives.spec import ArgSpec, ConstraintSpec
+
+SPEC = ConstraintSpec(
+    name="follows",
+    summary="keep the frame origin within `within` of a curve (closest point and tangent every tick)",
+    subject=True,
+    args=(ArgSpec("curve", "curve", "the b-spline to follow"),
+          ArgSpec("shift", "vector", "offset of the followed copy of the curve, in the curve's frame",
+                  default=ir.VectorValue(xyz=[0.0, 0.0, 0.0])),
+          ArgSpec("anchor", "frame", "the frame whose closest point on the curve is used", default="subject")),
+    tolerance="length", default_tolerance=1e-5,
+    resolution="polygon",
+    source="Li, Kapoor & Taylor 2005, III-A, eqs. (19)-(21)",
+)

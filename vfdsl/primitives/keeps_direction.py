@@ -1,0 +1,22 @@
+"""Maintain a direction (paper II-B.2, eqs. 5-6).
+
+Keep the tool axis l_t along a direction l_d:  delta_r = l_d x l_t,  || delta_r + dx_r || <= eps.
+The paper's 3-D polytope also bounds the roll about the tool axis by eps per tick (erratum 4), which pins
+tool roll; the default is roll-free: only the two components of (delta_r + dx_r) normal to l_t are bounded
+(an n-gon in the plane normal to l_t). ``pin_roll = true`` gives the paper's n x m sphere form.
+"""
+
+from vfdsl.ir import model as ir
+from vfdsl.primitives.spec import ArgSpec, ConstraintSpec, flag
+
+SPEC = ConstraintSpec(
+    name="keeps_direction",
+    summary="keep the tool axis along a direction (roll-free unless pin_roll = true)",
+    subject=True,
+    args=(ArgSpec("direction", "direction", "the direction the tool axis keeps"),
+          ArgSpec("pin_roll", "flag", "also bound roll about the tool axis (the paper's 3-D form)",
+                  default=ir.FlagValue(value=False))),
+    tolerance="angle", default_tolerance=1e-3,
+    resolution=lambda args: "sphere" if flag(args, "pin_roll") else "polygon",
+    source="Li, Kapoor & Taylor 2005, II-B.2, eqs. (5)-(6); DESIGN erratum 4",
+)

@@ -1,0 +1,18 @@
+"""Remote center of motion through a port (lecture, slide 46).
+
+Keep the tool-axis line through the frame origin p with direction l_t within ``eps`` of the port point c:
+the perpendicular offset e = (I - l_t l_t^T)(c - p) after the step, linearized in both dp and dr,
+bounded by an n-gon in the plane normal to l_t.
+"""
+
+from vfdsl.primitives.spec import ArgSpec, ConstraintSpec
+
+SPEC = ConstraintSpec(
+    name="passes_through",
+    summary="keep the tool axis line within `within` of a port point (remote center of motion)",
+    subject=True,
+    args=(ArgSpec("port", "point", "the entry port c"),),
+    tolerance="length", default_tolerance=1e-5,
+    resolution="polygon",
+    source="Taylor, lecture notes, slide 46",
+)

@@ -1,0 +1,18 @@
+"""Rotate around a line (paper II-B.4, eqs. 11-13).
+
+Keep the tool axis l_t perpendicular to a direction w_d (the tool sweeps the plane Pi normal to w_d):
+l_Pi = normalized projection of l_t on Pi,  delta_r = l_Pi x l_t,  u_r = projection of (delta_r + dx_r) on Pi,
+|| u_r || <= eps with the n-gon of R4 = [v1 v2 w_d]. Erratum 2: the rows act on (delta_r + dx_r).
+"""
+
+from vfdsl.primitives.spec import ArgSpec, ConstraintSpec
+
+SPEC = ConstraintSpec(
+    name="rotates_around",
+    summary="keep the tool axis perpendicular to an axis, so the tool rotates around it",
+    subject=True,
+    args=(ArgSpec("axis", "direction", "the rotation axis w_d"),),
+    tolerance="angle", default_tolerance=1e-3,
+    resolution="polygon",
+    source="Li, Kapoor & Taylor 2005, II-B.4, eqs. (11)-(13); DESIGN erratum 2",
+)

@@ -1,0 +1,201 @@
+"""The surface syntax tree: what a ``.vf`` file says, before any name, unit or shape is checked.
+
+Every node is a pydantic model with a :class:`Span`, so later passes can point at the exact text.
+Values keep their units as written; :mod:`vfdsl.passes` turns them into SI numbers.
+"""
+
+from __future__ import annotations
+
+from typing import Annotated, Literal, Union
+
+from pydantic import BaseModel, ConfigDict, Field
+
+from vfdsl.errors import SourcePos
+
+
+class Span(BaseModel):
+    """A range of source text: 1-based line and column, end exclusive."""
+
+    model_config = ConfigDict(frozen=True)
+    file: str
+    line: int
+    column: int
+    end_line: int
+    end_column: int
+
+    def pos(self) -> SourcePos:
+        return SourcePos(self.file, self.line, self.column, self.end_line, self.end_column)
+
+    def __str__(self) -> str:
+        return f"{self.file}:{self.line}:{self.column}"
+
+
+class Node(BaseModel):
+    model_config = ConfigDict(frozen=True)
+    span: Span
+
+
+class Name(Node):
+    """An identifier as written, with its position."""
+
+    text: str
+
+
+# ---------------------------------------------------------------------------------------------- values
+
+class Quantity(Node):
+    node: Literal["quantity"] = "quantity"
+    number: float
+    unit: str | None = None          # e.g. "mm", "deg/s/N/mm"; None = the file's default unit
+
+
+class Vector(Node):
+    node: Literal["vector"] = "vector"
+    items: list["Value"]
+    unit: str | None = None          # applies to items written without a unit
+
+
+class KeywordArg(Node):
+    name: Name
+    value: "Value"
+
+
+class Call(Node):
+    node: Literal["call"] = "call"
+    name: Name
+    args: list["Value"] = []
+    kwargs: list[KeywordArg] = []
+
+
+class NameRef(Node):
+    node: Literal["name"] = "name"
+    name: str
+
+
+class String(Node):
+    node: Literal["string"] = "string"
+    text: str
+
+
+class Bool(Node):
+    node: Literal["bool"] = "bool"
+    value: bool
+
+
+Value = Annotated[Union[Quantity, Vector, Call, NameRef, String, Bool], Field(discriminator="node")]
+
+
+# ------------------------------------------------------------------------------------------ statements
+
+class Resolution(Node):
+    counts: list[int]                # [n] for a polygon, [n, m] for a sphere
+
+
+class Clauses(BaseModel):
+    """The trailing clauses of a minimize/require/use statement."""
+
+    model_config = ConfigDict(frozen=True)
+    within: Value | None = None
+    resolution: Resolution | None = None
+    weight: Value | None = None
+    soft: Span | None = None         # where `soft` was written
+
+
+class UnitsStmt(Node):
+    kind: Literal["units"] = "units"
+    names: list[Name]
+
+
+class ImportStmt(Node):
+    kind: Literal["import"] = "import"
+    path: str
+
+
+class SceneStmt(Node):
+    kind: Literal["scene"] = "scene"
+    path: str
+
+
+class RobotStmt(Node):
+    kind: Literal["robot"] = "robot"
+    name: Name
+    urdf: str
+
+
+class FrameStmt(Node):
+    kind: Literal["frame"] = "frame"
+    name: Name
+    robot: Name
+    link: Name
+    offset: Value | None = None
+    rotate: Value | None = None
+    axis: Value | None = None
+
+
+class InputStmt(Node):
+    kind: Literal["input"] = "input"
+    name: Name
+    type: Name
+
+
+class ParamStmt(Node):
+    kind: Literal["param"] = "param"
+    name: Name
+    type: Name
+    type_args: list[KeywordArg] = []
+    frame: Name | None = None
+    default: Value | None = None
+
+
+class MinimizeStmt(Node):
+    kind: Literal["minimize"] = "minimize"
+    call: Call
+    clauses: Clauses = Clauses()
+    via: list[Span] = []             # the `use` sites this statement was expanded through, outermost first
+
+
+class RequireStmt(Node):
+    kind: Literal["require"] = "require"
+    subject: Name | None             # the task frame, or None for whole-robot constraints (joint limits, ...)
+    call: Call
+    clauses: Clauses = Clauses()
+    via: list[Span] = []
+
+
+class UseStmt(Node):
+    kind: Literal["use"] = "use"
+    call: Call
+    clauses: Clauses = Clauses()
+    via: list[Span] = []
+
+
+class Formal(Node):
+    name: Name
+    type: Name
+    default: Value | None = None
+
+
+BodyStatement = Annotated[Union[MinimizeStmt, RequireStmt, UseStmt], Field(discriminator="kind")]
+
+
+class FixtureDef(Node):
+    kind: Literal["fixture"] = "fixture"
+    name: Name
+    formals: list[Formal]
+    body: list[BodyStatement]
+
+
+Statement = Annotated[
+    Union[UnitsStmt, ImportStmt, SceneStmt, RobotStmt, FrameStmt, InputStmt, ParamStmt, FixtureDef,
+          MinimizeStmt, RequireStmt, UseStmt],
+    Field(discriminator="kind"),
+]
+
+
+class Module(Node):
+    """One parsed file: a task or a library of fixtures."""
+
+    file: str
+    header: Literal["task", "library"]
+    name: Name
+    statements: list[Statement]

@@ -1,0 +1,309 @@
+"""Text -> :class:`~vfdsl.syntax.ast.Module`: the Lark parser over ``grammar/vf.lark`` and the tree transformer.
+
+Lark's errors become :class:`~vfdsl.errors.VfError` with the position, what was expected in words, and a
+"did you mean" when a keyword is misspelt.
+"""
+
+from __future__ import annotations
+
+import difflib
+from functools import lru_cache
+from importlib import resources
+from pathlib import Path
+
+from lark import Lark, Token, Transformer, v_args
+from lark.exceptions import UnexpectedCharacters, UnexpectedEOF, UnexpectedInput, UnexpectedToken, VisitError
+
+from vfdsl.errors import SourcePos, VfError
+from vfdsl.syntax import ast
+
+KEYWORDS = ("task", "library", "units", "import", "scene", "robot", "frame", "input", "param",
+            "fixture", "minimize", "require", "use")
+STATEMENT_KEYWORDS = KEYWORDS[2:]
+
+_TERMINAL_WORDS = {
+    "NAME": "a name", "SIGNED_NUMBER": "a number", "STRING": 'a quoted string ("...")',
+    "RESOLUTION": "a resolution such as 8 or 4x4", "UNIT_OP": "'*' or '/'", "$END": "end of file",
+}
+
+
+def grammar_path() -> Path:
+    """The grammar file the package uses: the copy inside an installed wheel, else the repository's."""
+    packaged = resources.files("vfdsl").joinpath("grammar", "vf.lark")
+    if packaged.is_file():
+        return Path(str(packaged))
+    return Path(__file__).resolve().parents[2] / "grammar" / "vf.lark"
+
+
+@lru_cache(maxsize=1)
+def _lark() -> Lark:
+    return Lark(grammar_path().read_text(), parser="lalr", lexer="contextual", propagate_positions=True,
+                maybe_placeholders=False)
+
+
+def parse_module(text: str, file: str) -> ast.Module:
+    """Parse one ``.vf`` file's text. Raises VfError on any syntax error."""
+    parser = _lark()
+    try:
+        tree = parser.parse(text)
+    except UnexpectedInput as exc:
+        raise _syntax_error(exc, text, file, parser) from None
+    try:
+        return _ToAst(file).transform(tree)
+    except VisitError as exc:
+        if isinstance(exc.orig_exc, VfError):
+            err = exc.orig_exc
+            raise VfError(err.message, err.pos, err.hint, source_text=text) from None
+        raise
+
+
+# ------------------------------------------------------------------------------------------------ errors
+
+def _describe(terminal: str, parser: Lark) -> str:
+    if terminal in _TERMINAL_WORDS:
+        return _TERMINAL_WORDS[terminal]
+    try:
+        pattern = parser.get_terminal(terminal).pattern
+    except KeyError:
+        return terminal.lower()
+    return f"'{pattern.value}'" if pattern.type == "str" else terminal.lower()
+
+
+def _syntax_error(exc: UnexpectedInput, text: str, file: str, parser: Lark) -> VfError:
+    line, column = max(exc.line, 1), max(exc.column, 1)
+    expected = sorted(getattr(exc, "expected", None) or getattr(exc, "allowed", None) or [])
+    words = sorted({_describe(t, parser) for t in expected})
+    statement_words = [f"'{k}'" for k in STATEMENT_KEYWORDS]
+    if sum(w in statement_words for w in words) >= 5:
+        words = ["a statement (require, minimize, param, ...)"] + [w for w in words if w not in statement_words]
+    width = 1
+    hint = None
+    if isinstance(exc, UnexpectedToken) and exc.token.type == "$END" or isinstance(exc, UnexpectedEOF):
+        message = "unexpected end of file"
+        lines = text.rstrip().splitlines() or [""]
+        line, column = len(lines), len(lines[-1]) + 1
+    elif isinstance(exc, UnexpectedToken):
+        found = str(exc.token)
+        width = max(1, len(found))
+        message = f"unexpected {_found_word(exc.token)}"
+        candidates = [_describe(t, parser).strip("'") for t in expected]
+        if any(k in STATEMENT_KEYWORDS for k in candidates):
+            candidates += STATEMENT_KEYWORDS
+        close = difflib.get_close_matches(found, candidates, n=1, cutoff=0.6)
+        if close:
+            hint = f"did you mean '{close[0]}'?"
+    elif isinstance(exc, UnexpectedCharacters):
+        char = text[exc.pos_in_stream] if 0 <= exc.pos_in_stream < len(text) else "?"
+        message = f"unexpected character {char!r}"
+    else:  # pragma: no cover - lark has no other UnexpectedInput kinds
+        message = "syntax error"
+    if words:
+        message += "; expected " + _join_or(words)
+    pos = SourcePos(file, line, column, line, column + width)
+    return VfError(message, pos, hint, source_text=text)
+
+
+def _found_word(token: Token) -> str:
+    if token.type == "NAME":
+        return f"name '{token}'"
+    if token.type == "SIGNED_NUMBER":
+        return f"number {token}"
+    if token.type == "STRING":
+        return f"string {token}"
+    return f"'{token}'"
+
+
+def _join_or(words: list[str]) -> str:
+    if len(words) > 8:
+        words = words[:8] + ["..."]
+    return words[0] if len(words) == 1 else ", ".join(words[:-1]) + " or " + words[-1]
+
+
+# ------------------------------------------------------------------------------------------- transformer
+
+def _span_of_token(tok: Token, file: str) -> ast.Span:
+    return ast.Span(file=file, line=tok.line, column=tok.column, end_line=tok.end_line, end_column=tok.end_column)
+
+
+def _string_value(tok: Token) -> str:
+    return bytes(tok[1:-1], "utf-8").decode("unicode_escape")
+
+
+@v_args(meta=True)
+class _ToAst(Transformer):
+    """Lark tree -> pydantic AST. One method per grammar rule; positions come from Lark's meta."""
+
+    def __init__(self, file: str):
+        super().__init__()
+        self.file = file
+
+    def _span(self, meta) -> ast.Span:
+        return ast.Span(file=self.file, line=meta.line, column=meta.column, end_line=meta.end_line,
+                        end_column=meta.end_column)
+
+    def _name(self, tok: Token) -> ast.Name:
+        return ast.Name(span=_span_of_token(tok, self.file), text=str(tok))
+
+    # header and top level
+    def start(self, meta, children):
+        header_kind, name = children[0]
+        return ast.Module(span=self._span(meta), file=self.file, header=header_kind, name=name,
+                          statements=children[1:])
+
+    def task_header(self, meta, children):
+        return ("task", self._name(children[0]))
+
+    def library_header(self, meta, children):
+        return ("library", self._name(children[0]))
+
+    # declarations
+    def units_stmt(self, meta, children):
+        return ast.UnitsStmt(span=self._span(meta), names=[self._name(t) for t in children])
+
+    def import_stmt(self, meta, children):
+        return ast.ImportStmt(span=self._span(meta), path=_string_value(children[0]))
+
+    def scene_stmt(self, meta, children):
+        return ast.SceneStmt(span=self._span(meta), path=_string_value(children[0]))
+
+    def robot_stmt(self, meta, children):
+        return ast.RobotStmt(span=self._span(meta), name=self._name(children[0]), urdf=_string_value(children[1]))
+
+    def frame_stmt(self, meta, children):
+        name, robot, link, *clauses = children
+        fields = {}
+        for key, value in clauses:
+            if key in fields:
+                raise VfError(f"the '{key}' clause is given twice", value.span.pos())
+            fields[key] = value
+        return ast.FrameStmt(span=self._span(meta), name=self._name(name), robot=self._name(robot),
+                             link=ast.Name(span=_span_of_token(link, self.file), text=_string_value(link)),
+                             **fields)
+
+    def offset_clause(self, meta, children):
+        return ("offset", children[0])
+
+    def rotate_clause(self, meta, children):
+        return ("rotate", children[0])
+
+    def axis_clause(self, meta, children):
+        return ("axis", children[0])
+
+    def input_stmt(self, meta, children):
+        return ast.InputStmt(span=self._span(meta), name=self._name(children[0]), type=self._name(children[1]))
+
+    def param_stmt(self, meta, children):
+        name, (type_name, type_args), *rest = children
+        frame = next((c[1] for c in rest if isinstance(c, tuple) and c[0] == "in"), None)
+        default = next((c[1] for c in rest if isinstance(c, tuple) and c[0] == "="), None)
+        return ast.ParamStmt(span=self._span(meta), name=self._name(name), type=type_name, type_args=type_args,
+                             frame=frame, default=default)
+
+    def type_spec(self, meta, children):
+        name = self._name(children[0])
+        args, kwargs = children[1] if len(children) > 1 else ([], [])
+        if args:
+            raise VfError("type arguments must be named, e.g. curve(degree = 5)", args[0].span.pos())
+        return (name, kwargs)
+
+    def param_frame(self, meta, children):
+        return ("in", self._name(children[0]))
+
+    def param_default(self, meta, children):
+        return ("=", children[0])
+
+    # statements with clauses
+    def _clauses(self, items) -> ast.Clauses:
+        fields: dict = {}
+        for key, value, span in items:
+            if key in fields:
+                raise VfError(f"the '{key}' clause is given twice", span.pos())
+            fields[key] = value
+        return ast.Clauses(**fields)
+
+    def minimize_stmt(self, meta, children):
+        return ast.MinimizeStmt(span=self._span(meta), call=children[0], clauses=self._clauses(children[1:]))
+
+    def frame_require(self, meta, children):
+        return ast.RequireStmt(span=self._span(meta), subject=self._name(children[0]), call=children[1],
+                               clauses=self._clauses(children[2:]))
+
+    def global_require(self, meta, children):
+        return ast.RequireStmt(span=self._span(meta), subject=None, call=children[0],
+                               clauses=self._clauses(children[1:]))
+
+    def use_stmt(self, meta, children):
+        return ast.UseStmt(span=self._span(meta), call=children[0], clauses=self._clauses(children[1:]))
+
+    def within_clause(self, meta, children):
+        return ("within", children[0], self._span(meta))
+
+    def weight_clause(self, meta, children):
+        return ("weight", children[0], self._span(meta))
+
+    def soft_clause(self, meta, children):
+        span = self._span(meta)
+        return ("soft", span, span)
+
+    def resolution_clause(self, meta, children):
+        tok = children[0]
+        span = _span_of_token(tok, self.file)
+        counts = [int(part) for part in str(tok).replace(" ", "").split("x")]
+        return ("resolution", ast.Resolution(span=span, counts=counts), self._span(meta))
+
+    # fixtures
+    def fixture_def(self, meta, children):
+        name = self._name(children[0])
+        formals = [c for c in children[1:] if isinstance(c, ast.Formal)]
+        body = [c for c in children[1:] if c is not None and not isinstance(c, ast.Formal)]
+        return ast.FixtureDef(span=self._span(meta), name=name, formals=formals, body=body)
+
+    def formal(self, meta, children):
+        default = children[2][1] if len(children) > 2 else None
+        return ast.Formal(span=self._span(meta), name=self._name(children[0]), type=self._name(children[1]),
+                          default=default)
+
+    # values
+    def call(self, meta, children):
+        args, kwargs = children[1] if len(children) > 1 else ([], [])
+        return ast.Call(span=self._span(meta), name=self._name(children[0]), args=args, kwargs=kwargs)
+
+    def arguments(self, meta, children):
+        args, kwargs = [], []
+        for child in children:
+            if isinstance(child, ast.KeywordArg):
+                if any(k.name.text == child.name.text for k in kwargs):
+                    raise VfError(f"argument '{child.name.text}' is given twice", child.name.span.pos())
+                kwargs.append(child)
+            elif kwargs:
+                raise VfError("a positional argument cannot follow a keyword argument", child.span.pos())
+            else:
+                args.append(child)
+        return (args, kwargs)
+
+    def keyword_argument(self, meta, children):
+        return ast.KeywordArg(span=self._span(meta), name=self._name(children[0]), value=children[1])
+
+    def quantity(self, meta, children):
+        unit = children[1] if len(children) > 1 else None
+        return ast.Quantity(span=self._span(meta), number=float(children[0]), unit=unit)
+
+    def vector(self, meta, children):
+        unit = children[-1] if children and isinstance(children[-1], str) else None
+        items = [c for c in children if c is not None and not isinstance(c, str)]
+        return ast.Vector(span=self._span(meta), items=items, unit=unit)
+
+    def unit(self, meta, children):
+        return "".join(str(c) for c in children)
+
+    def name_ref(self, meta, children):
+        return ast.NameRef(span=self._span(meta), name=str(children[0]))
+
+    def string(self, meta, children):
+        return ast.String(span=self._span(meta), text=_string_value(children[0]))
+
+    def true(self, meta, children):
+        return ast.Bool(span=self._span(meta), value=True)
+
+    def false(self, meta, children):
+        return ast.Bool(span=self._span(meta), value=False)
