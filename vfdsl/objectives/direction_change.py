@@ -1,6 +1,10 @@
 """Keep the tool direction (lecture, slide 45, the eta term):  weight * || alpha x l_t ||^2,
 alpha = J_w dq the rotation of the step and l_t the tool axis: penalizes any change of the tool direction."""
 
+import casadi as ca
+
+from vfdsl.compiler.geometry import skew
+from vfdsl.compiler.rows import Term
 from vfdsl.primitives.spec import ArgSpec, ObjectiveSpec
 
 SPEC = ObjectiveSpec(
@@ -9,3 +13,8 @@ SPEC = ObjectiveSpec(
     args=(ArgSpec("frame", "frame", "the task frame whose tool axis should stay steady"),),
     source="Taylor, lecture notes, slide 45",
 )
+
+
+def lower(o, ctx) -> Term:
+    f = ctx.frame(o.args["frame"].name)
+    return Term(E=skew(f.axis) @ f.Jw, f=ca.DM.zeros(3))     # l x alpha = -(alpha x l): same norm

@@ -6,6 +6,9 @@ only rotation, the other part is asked to stay still), or K = gain for a twist i
 weight * || J_f dq - dx_d ||^2.
 """
 
+import casadi as ca
+
+from vfdsl.compiler.rows import Term
 from vfdsl.primitives.spec import ArgSpec, ObjectiveSpec
 
 SPEC = ObjectiveSpec(
@@ -18,3 +21,18 @@ SPEC = ObjectiveSpec(
                   default=None)),
     source="Li, Kapoor & Taylor 2005, II-C, eq. (18)",
 )
+
+
+def lower(o, ctx) -> Term:
+    f = ctx.frame(o.args["frame"].name)
+    u = ctx.input(o.args["input"])
+    kind = ctx.task.input(o.args["input"].name).type
+    gain = ctx.scalar(o.args["gain"]) if "gain" in o.args else 0.0
+    angular_gain = ctx.scalar(o.args["angular_gain"]) if "angular_gain" in o.args else 0.0
+    if kind == "force":
+        linear, angular = u, ca.DM.zeros(3)
+    elif kind == "torque":
+        linear, angular = ca.DM.zeros(3), u
+    else:
+        linear, angular = u[0:3], u[3:6]
+    return Term(E=f.J, f=ca.vertcat(gain * linear, angular_gain * angular) * ctx.dt)

@@ -49,14 +49,15 @@ def _visit(source: SourceFile, stack: list[Path], done: dict[Path, SourceFile]) 
     for stmt in source.module.statements:
         if not isinstance(stmt, ast.ImportStmt):
             continue
-        target = (source.path.parent / stmt.path).resolve()
+        path = source.path.parent / stmt.path
+        target = path.resolve()
         if target in stack:
             cycle = " -> ".join(p.name for p in stack[stack.index(target):] + [target])
             raise VfError(f"import cycle: {cycle}", stmt.span.pos(), hint="a library cannot import itself, "
                           "directly or through other libraries")
         if target in done:
             continue
-        library = read_source(target, stmt.span.pos())
+        library = read_source(path, stmt.span.pos())
         if library.module.header != "library":
             raise VfError(f"'{stmt.path}' is a task, not a library", stmt.span.pos(),
                           hint="only files that start with `library NAME` can be imported")

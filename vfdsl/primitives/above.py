@@ -4,6 +4,9 @@ Keep the frame origin on the free side of a plane with unit normal d toward the 
 delta_p = p - P_cl,  d . (delta_p + dx_p) >= 0  ->  H = [d^T 0], h = -H delta.
 """
 
+import casadi as ca
+
+from vfdsl.compiler.rows import Rows, lower_bounds
 from vfdsl.primitives.spec import ArgSpec, ConstraintSpec
 
 SPEC = ConstraintSpec(
@@ -13,3 +16,10 @@ SPEC = ConstraintSpec(
     args=(ArgSpec("plane", "plane", "the boundary plane, normal toward the allowed side"),),
     source="Li, Kapoor & Taylor 2005, II-B.5, eqs. (14)-(15)",
 )
+
+
+def lower(c, ctx) -> Rows:
+    f = ctx.frame(c.frame)
+    plane = ctx.plane(c.args["plane"])
+    d = plane.normal
+    return lower_bounds(d.T @ f.Jv, -ca.dot(d, f.p - plane.point), ["half-space"])

@@ -5,6 +5,8 @@ u_p = projection of (delta_p + dx_p) on the plane normal to l,  || u_p || <= eps
 u_i = R3 [cos a_i, sin a_i, 0], R3 = [v1 v2 l] (eq. 8): rows u_i . (delta_p + dx_p) <= eps.
 """
 
+from vfdsl.compiler.geometry import polygon_directions
+from vfdsl.compiler.rows import Rows, facets
 from vfdsl.primitives.spec import ArgSpec, ConstraintSpec
 
 SPEC = ConstraintSpec(
@@ -16,3 +18,14 @@ SPEC = ConstraintSpec(
     resolution="polygon",
     source="Li, Kapoor & Taylor 2005, II-B.3, eqs. (7)-(10)",
 )
+
+
+def lower(c, ctx) -> Rows:
+    line = ctx.line(c.args["line"])
+    return along_line(ctx.frame(c.frame), line.point, line.direction, c.tolerance, c.resolution[0])
+
+
+def along_line(frame, point, direction, eps, n) -> Rows:
+    """Polygon rows keeping ``frame``'s origin within eps of the line (point, unit direction)."""
+    delta = frame.p - point                      # its component along the line is ignored by the rows
+    return facets(polygon_directions(direction, n), delta, eps, frame.Jv)

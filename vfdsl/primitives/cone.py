@@ -6,6 +6,11 @@ R = [d2, l_a/||l_a||, -d1] (eq. 22); delta_r = d1 sin gamma - l_t x l_a (eq. 23)
 "rotate around a line" rows (eq. 13) about w_d.
 """
 
+import casadi as ca
+
+from vfdsl.compiler.geometry import normalize
+from vfdsl.compiler.rows import Rows
+from vfdsl.primitives.rotates_around import around_axis
 from vfdsl.primitives.spec import ArgSpec, ConstraintSpec
 
 SPEC = ConstraintSpec(
@@ -18,3 +23,16 @@ SPEC = ConstraintSpec(
     resolution="polygon",
     source="Li, Kapoor & Taylor 2005, III-B, eqs. (22)-(23)",
 )
+
+
+def lower(c, ctx) -> Rows:
+    f = ctx.frame(c.frame)
+    l_t = f.axis
+    l_a = ctx.direction(c.args["axis"])
+    gamma = ctx.scalar(c.args["angle"])
+    cross = ca.cross(l_t, l_a)
+    d1 = normalize(cross)
+    d2 = normalize(ca.cross(d1, l_a))
+    w_d = ca.cos(gamma) * d2 + ca.sin(gamma) * l_a          # eq. 22: R [cos g, sin g, 0]^T, R = [d2, l_a, -d1]
+    delta_r = d1 * ca.sin(gamma) - cross                     # eq. 23
+    return around_axis(f, w_d, c.tolerance, c.resolution[0], delta_r)

@@ -5,6 +5,10 @@ there; shift P_c by ``shift`` (given in the curve's own frame, e.g. 100 mm along
 tool shaft) and apply "move along a line" (II-B.3) with the line through P_c + shift along l_c.
 """
 
+import casadi as ca
+
+from vfdsl.compiler.rows import Rows
+from vfdsl.primitives.along import along_line
 from vfdsl.ir import model as ir
 from vfdsl.primitives.spec import ArgSpec, ConstraintSpec
 
@@ -20,3 +24,11 @@ SPEC = ConstraintSpec(
     resolution="polygon",
     source="Li, Kapoor & Taylor 2005, III-A, eqs. (19)-(21)",
 )
+
+
+def lower(c, ctx) -> Rows:
+    curve = ctx.curve(c.args["curve"])
+    anchor = ctx.frame(c.args["anchor"].name)
+    point, tangent = ctx.closest_point(c.args["curve"], c.args["anchor"].name, curve, anchor.p)
+    shift = curve.R @ ca.DM(c.args["shift"].value.xyz)
+    return along_line(ctx.frame(c.frame), point + shift, tangent, c.tolerance, c.resolution[0])

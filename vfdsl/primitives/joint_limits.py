@@ -1,5 +1,9 @@
 """Joint position limits (lecture, slide 44):  q_lo - q <= dq <= q_hi - q."""
 
+import casadi as ca
+import numpy as np
+
+from vfdsl.compiler.rows import Rows
 from vfdsl.primitives.spec import ConstraintSpec
 
 SPEC = ConstraintSpec(
@@ -8,3 +12,11 @@ SPEC = ConstraintSpec(
     subject=False,
     source="Taylor, lecture notes, slide 44",
 )
+
+
+def lower(c, ctx) -> Rows:
+    robot = ctx.robot
+    limited = [i for i in range(robot.nq) if np.isfinite(robot.lower[i]) and np.isfinite(robot.upper[i])]
+    A = ca.SX(ca.DM.eye(robot.nq)[limited, :])
+    return Rows(A=A, lb=ca.DM(robot.lower[limited]) - ctx.q[limited], ub=ca.DM(robot.upper[limited]) - ctx.q[limited],
+                facets=[robot.joint_names[i] for i in limited], bounds=len(limited) == robot.nq)

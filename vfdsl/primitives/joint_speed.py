@@ -1,5 +1,8 @@
 """Joint speed limits:  |dq_i| <= fraction * qdot_max_i * dt, with qdot_max from the URDF."""
 
+import casadi as ca
+
+from vfdsl.compiler.rows import Rows
 from vfdsl.ir import model as ir
 from vfdsl.primitives.spec import ArgSpec, ConstraintSpec
 
@@ -11,3 +14,9 @@ SPEC = ConstraintSpec(
                   default=ir.ScalarValue(dimension="number", value=1.0)),),
     source="Li, Kapoor & Taylor 2005, II-C (an upper bound on the incremental motion)",
 )
+
+
+def lower(c, ctx) -> Rows:
+    robot = ctx.robot
+    step = ctx.scalar(c.args["fraction"]) * ca.DM(robot.velocity_limit) * ctx.dt
+    return Rows(A=ca.SX.eye(robot.nq), lb=-step, ub=step, facets=list(robot.joint_names), bounds=True)

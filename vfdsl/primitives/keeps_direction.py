@@ -6,6 +6,10 @@ tool roll; the default is roll-free: only the two components of (delta_r + dx_r)
 (an n-gon in the plane normal to l_t). ``pin_roll = true`` gives the paper's n x m sphere form.
 """
 
+import casadi as ca
+
+from vfdsl.compiler.geometry import polygon_directions, sphere_directions
+from vfdsl.compiler.rows import Rows, facets
 from vfdsl.ir import model as ir
 from vfdsl.primitives.spec import ArgSpec, ConstraintSpec, flag
 
@@ -20,3 +24,13 @@ SPEC = ConstraintSpec(
     resolution=lambda args: "sphere" if flag(args, "pin_roll") else "polygon",
     source="Li, Kapoor & Taylor 2005, II-B.2, eqs. (5)-(6); DESIGN erratum 4",
 )
+
+
+def lower(c, ctx) -> Rows:
+    f = ctx.frame(c.frame)
+    delta_r = ca.cross(ctx.direction(c.args["direction"]), f.axis)
+    if flag(c.args, "pin_roll"):
+        U = ca.DM(sphere_directions(*c.resolution))
+    else:
+        U = polygon_directions(f.axis, c.resolution[0])
+    return facets(U, delta_r, c.tolerance, f.Jw)

@@ -4,6 +4,9 @@ Keep the frame origin on a plane, within ``eps`` on the free side:
 0 <= d . (delta_p + dx_p) <= eps  ->  H = [d^T 0; -d^T 0], h = [0; -eps] - H delta.
 """
 
+import casadi as ca
+
+from vfdsl.compiler.rows import Rows, lower_bounds
 from vfdsl.primitives.spec import ArgSpec, ConstraintSpec
 
 SPEC = ConstraintSpec(
@@ -14,3 +17,12 @@ SPEC = ConstraintSpec(
     tolerance="length", default_tolerance=1e-5,
     source="Li, Kapoor & Taylor 2005, II-B.5, eqs. (16)-(17)",
 )
+
+
+def lower(c, ctx) -> Rows:
+    f = ctx.frame(c.frame)
+    plane = ctx.plane(c.args["plane"])
+    d = plane.normal
+    depth = ca.dot(d, f.p - plane.point)
+    return lower_bounds(ca.vertcat(d.T @ f.Jv, -d.T @ f.Jv), ca.vertcat(-depth, -c.tolerance + depth),
+                        ["not below", "not above tolerance"])

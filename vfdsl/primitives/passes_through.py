@@ -5,6 +5,10 @@ the perpendicular offset e = (I - l_t l_t^T)(c - p) after the step, linearized i
 bounded by an n-gon in the plane normal to l_t.
 """
 
+import casadi as ca
+
+from vfdsl.compiler.geometry import polygon_directions, skew
+from vfdsl.compiler.rows import Rows, facets
 from vfdsl.primitives.spec import ArgSpec, ConstraintSpec
 
 SPEC = ConstraintSpec(
@@ -16,3 +20,12 @@ SPEC = ConstraintSpec(
     resolution="polygon",
     source="Taylor, lecture notes, slide 46",
 )
+
+
+def lower(c, ctx) -> Rows:
+    f = ctx.frame(c.frame)
+    l = f.axis
+    r = ctx.point(c.args["port"]) - f.p
+    w = ca.cross(r, l)                                       # |w| = distance from the port to the tool line
+    J_w = skew(l) @ f.Jv - skew(r) @ skew(l) @ f.Jw          # d w = l x dp + r x (dr x l)
+    return facets(polygon_directions(l, c.resolution[0]), w, c.tolerance, J_w)

@@ -5,6 +5,10 @@ l_Pi = normalized projection of l_t on Pi,  delta_r = l_Pi x l_t,  u_r = project
 || u_r || <= eps with the n-gon of R4 = [v1 v2 w_d]. Erratum 2: the rows act on (delta_r + dx_r).
 """
 
+import casadi as ca
+
+from vfdsl.compiler.geometry import normalize, polygon_directions
+from vfdsl.compiler.rows import Rows, facets
 from vfdsl.primitives.spec import ArgSpec, ConstraintSpec
 
 SPEC = ConstraintSpec(
@@ -16,3 +20,15 @@ SPEC = ConstraintSpec(
     resolution="polygon",
     source="Li, Kapoor & Taylor 2005, II-B.4, eqs. (11)-(13); DESIGN erratum 2",
 )
+
+
+def lower(c, ctx) -> Rows:
+    return around_axis(ctx.frame(c.frame), ctx.direction(c.args["axis"]), c.tolerance, c.resolution[0])
+
+
+def around_axis(frame, w, eps, n, delta_r=None) -> Rows:
+    """Polygon rows (normal to w) on delta_r + dx_r; delta_r defaults to l_Pi x l_t (eq. 11)."""
+    if delta_r is None:
+        l_pi = normalize(frame.axis - ca.dot(frame.axis, w) * w)
+        delta_r = ca.cross(l_pi, frame.axis)
+    return facets(polygon_directions(w, n), delta_r, eps, frame.Jw)

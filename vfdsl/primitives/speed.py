@@ -1,5 +1,9 @@
 """Cartesian speed limit of a frame origin:  || dx_p || <= v_max dt, by the n x m sphere polytope."""
 
+import casadi as ca
+
+from vfdsl.compiler.geometry import sphere_directions
+from vfdsl.compiler.rows import Rows, facets
 from vfdsl.primitives.spec import ArgSpec, ConstraintSpec
 
 SPEC = ConstraintSpec(
@@ -10,3 +14,8 @@ SPEC = ConstraintSpec(
     resolution="sphere",
     source="Li, Kapoor & Taylor 2005, II-C",
 )
+
+
+def lower(c, ctx) -> Rows:
+    f = ctx.frame(c.frame)
+    return facets(ca.DM(sphere_directions(*c.resolution)), ca.DM.zeros(3), ctx.scalar(c.args["max"]) * ctx.dt, f.Jv)

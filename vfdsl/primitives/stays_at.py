@@ -6,6 +6,10 @@ a_i = 2 pi i / n, b_j = 2 pi j / m, with repeated directions removed (erratum 3)
 u . (delta_p + dx_p) <= eps, i.e. H = -u, h = -eps - H delta (erratum 1).
 """
 
+import casadi as ca
+
+from vfdsl.compiler.geometry import sphere_directions
+from vfdsl.compiler.rows import Rows, facets
 from vfdsl.primitives.spec import ArgSpec, ConstraintSpec
 
 SPEC = ConstraintSpec(
@@ -17,3 +21,9 @@ SPEC = ConstraintSpec(
     resolution="sphere",
     source="Li, Kapoor & Taylor 2005, II-B.1, eqs. (2)-(4)",
 )
+
+
+def lower(c, ctx) -> Rows:
+    f = ctx.frame(c.frame)
+    delta = f.p - ctx.point(c.args["target"])
+    return facets(ca.DM(sphere_directions(*c.resolution)), delta, c.tolerance, f.Jv)

@@ -3,6 +3,10 @@
 || p + dx_p - P || <= r, approximated by the n x m sphere polytope (as stays_at with eps = r).
 """
 
+import casadi as ca
+
+from vfdsl.compiler.geometry import sphere_directions
+from vfdsl.compiler.rows import Rows, facets
 from vfdsl.primitives.spec import ArgSpec, ConstraintSpec
 
 SPEC = ConstraintSpec(
@@ -14,3 +18,9 @@ SPEC = ConstraintSpec(
     resolution="sphere",
     source="Taylor, lecture notes, slide 44",
 )
+
+
+def lower(c, ctx) -> Rows:
+    f = ctx.frame(c.frame)
+    delta = f.p - ctx.point(c.args["center"])
+    return facets(ca.DM(sphere_directions(*c.resolution)), delta, ctx.scalar(c.args["distance"]), f.Jv)

@@ -1,0 +1,202 @@
+"""What a lowering sees: the symbols of one tick and the task's frames and references, in world coordinates.
+
+Symbols: q (nq joint coordinates), u (every input, concatenated in declaration order), p (every run-time
+param, flattened in declaration order; see :class:`ParamLayout`), dt (the control period). A param declared
+``in`` a pose param is transformed to the world each tick: points by R x + t, directions by R d, curves by
+searching in the curve's own frame.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import cached_property
+
+import casadi as ca
+import numpy as np
+
+from vfdsl.compiler.curve import SplineCurve
+from vfdsl.compiler.geometry import homogeneous, normalize, rpy_matrix
+from vfdsl.ir import model as ir
+from vfdsl.kinematics.robot import Robot
+from vfdsl.kinematics.symbolic import SymbolicKinematics
+
+# Run-time size of each param type (curves are fixed at compile time; they move through their `in` pose).
+PARAM_SIZES = {"point": 3, "vector": 3, "direction": 3, "line": 6, "plane": 6, "pose": 6, "curve": 0,
+               "length": 1, "angle": 1, "speed": 1, "angular_speed": 1, "number": 1, "time": 1, "force": 1}
+
+
+def flatten(value: ir.Value) -> list[float]:
+    """A param value as the flat numbers of its run-time slot."""
+    if isinstance(value, (ir.PointValue, ir.VectorValue, ir.DirectionValue)):
+        return list(value.xyz)
+    if isinstance(value, ir.LineValue):
+        return [*value.point, *value.direction]
+    if isinstance(value, ir.PlaneValue):
+        return [*value.point, *value.normal]
+    if isinstance(value, ir.PoseValue):
+        return [*value.translation, *value.rpy]
+    if isinstance(value, ir.ScalarValue):
+        return [value.value]
+    return []
+
+
+@dataclass(frozen=True)
+class ParamSlot:
+    name: str
+    type: str
+    offset: int
+    size: int
+
+
+class ParamLayout:
+    """Where each run-time param lives in the flat vector p."""
+
+    def __init__(self, params: list[ir.ParamDecl]):
+        self.slots: dict[str, ParamSlot] = {}
+        offset = 0
+        for decl in params:
+            size = PARAM_SIZES[decl.type]
+            self.slots[decl.name] = ParamSlot(decl.name, decl.type, offset, size)
+            offset += size
+        self.size = offset
+        self.defaults = np.concatenate([np.array(flatten(d.value), dtype=float) for d in params]
+                                       or [np.zeros(0)])
+
+
+@dataclass(frozen=True)
+class FrameSymbols:
+    """A task frame at the tick's q: origin p, rotation R, tool axis l = R a, Jacobian J = [Jv; Jw]."""
+
+    p: ca.SX
+    R: ca.SX
+    axis: ca.SX
+    J: ca.SX
+
+    @property
+    def Jv(self) -> ca.SX:
+        return self.J[0:3, :]
+
+    @property
+    def Jw(self) -> ca.SX:
+        return self.J[3:6, :]
+
+
+@dataclass(frozen=True)
+class Line:
+    point: ca.SX
+    direction: ca.SX
+
+
+@dataclass(frozen=True)
+class Plane:
+    point: ca.SX
+    normal: ca.SX
+
+
+@dataclass(frozen=True)
+class PlacedCurve:
+    """A compile-time curve placed in the world by a (possibly run-time) pose: x_world = R x_local + t."""
+
+    curve: SplineCurve
+    R: ca.SX
+    t: ca.SX
+
+    def closest(self, x_world) -> tuple[ca.SX, ca.SX]:
+        point, tangent = self.curve.closest(self.R.T @ (x_world - self.t))
+        return self.R @ point + self.t, self.R @ tangent
+
+
+class Context:
+    """Symbols and symbolic geometry for lowering one task."""
+
+    def __init__(self, task: ir.Task, robot: Robot):
+        self.task = task
+        self.robot = robot
+        self.nq = robot.nq
+        self.q = ca.SX.sym("q", robot.nq)
+        self.input_offsets: dict[str, tuple[int, int]] = {}
+        offset = 0
+        for decl in task.inputs:
+            self.input_offsets[decl.name] = (offset, decl.size)
+            offset += decl.size
+        self.u = ca.SX.sym("u", offset)
+        self.layout = ParamLayout(task.params)
+        self.p = ca.SX.sym("p", self.layout.size)
+        self.dt = ca.SX.sym("dt")
+        self._frames: dict[str, FrameSymbols] = {}
+        self._closest: dict[tuple[str, str], tuple[ca.SX, ca.SX]] = {}
+
+    @cached_property
+    def kinematics(self) -> SymbolicKinematics:
+        return SymbolicKinematics(self.robot, self.q)
+
+    def frame(self, name: str) -> FrameSymbols:
+        if name not in self._frames:
+            decl = self.task.frame(name)
+            kin = self.kinematics.frame(decl.link, homogeneous(decl.offset, decl.rpy))
+            self._frames[name] = FrameSymbols(kin.p, kin.R, kin.R @ ca.DM(decl.tool_axis), kin.J)
+        return self._frames[name]
+
+    def input(self, arg: ir.InputRef) -> ca.SX:
+        offset, size = self.input_offsets[arg.name]
+        return self.u[offset:offset + size]
+
+    # ----------------------------------------------------------------------------------- references
+    def _raw(self, arg: ir.ParamRef | ir.Const) -> tuple[str, object, ir.Value]:
+        """(type, flat symbols or numbers, IR value) of an argument, before placing it in the world."""
+        if isinstance(arg, ir.Const):
+            value = arg.value
+            kind = value.dimension if isinstance(value, ir.ScalarValue) else value.kind
+            return kind, ca.DM(flatten(value)) if flatten(value) else None, value
+        decl = self.task.param(arg.name)
+        slot = self.layout.slots[arg.name]
+        return decl.type, self.p[slot.offset:slot.offset + slot.size], decl.value
+
+    def _pose_of(self, arg: ir.ParamRef | ir.Const) -> tuple[ca.SX, ca.SX] | None:
+        if isinstance(arg, ir.ParamRef) and self.task.param(arg.name).frame is not None:
+            _, flat, _ = self._raw(ir.ParamRef(name=self.task.param(arg.name).frame))
+            return rpy_matrix(flat[3:6]), flat[0:3]
+        return None
+
+    def point(self, arg) -> ca.SX:
+        _, flat, _ = self._raw(arg)
+        pose = self._pose_of(arg)
+        return flat if pose is None else pose[0] @ flat + pose[1]
+
+    def vector(self, arg) -> ca.SX:
+        _, flat, _ = self._raw(arg)
+        pose = self._pose_of(arg)
+        return flat if pose is None else pose[0] @ flat
+
+    def direction(self, arg) -> ca.SX:
+        return normalize(self.vector(arg))
+
+    def line(self, arg) -> Line:
+        _, flat, _ = self._raw(arg)
+        point, direction = flat[0:3], normalize(flat[3:6])
+        pose = self._pose_of(arg)
+        if pose is not None:
+            point, direction = pose[0] @ point + pose[1], pose[0] @ direction
+        return Line(point, direction)
+
+    def plane(self, arg) -> Plane:
+        line = self.line(arg)
+        return Plane(line.point, line.direction)
+
+    def scalar(self, arg) -> ca.SX:
+        _, flat, _ = self._raw(arg)
+        return flat[0]
+
+    def curve(self, arg) -> PlacedCurve:
+        _, _, value = self._raw(arg)
+        spline = SplineCurve.interpolate(np.array(value.points), value.degree)
+        pose = self._pose_of(arg)
+        R, t = pose if pose is not None else (ca.SX.eye(3), ca.SX.zeros(3))
+        return PlacedCurve(spline, R, t)
+
+    def closest_point(self, curve_arg, anchor: str, curve: PlacedCurve, x) -> tuple[ca.SX, ca.SX]:
+        """The curve's closest point and tangent to frame ``anchor``, built once per (curve, anchor)."""
+        key = (curve_arg.model_dump_json(), anchor)
+        if key not in self._closest:
+            self._closest[key] = curve.closest(x)
+        return self._closest[key]

@@ -1,0 +1,80 @@
+"""Shared geometry for the lowerings: polytope directions, plane bases, rotations, in CasADi and numpy.
+
+Polytopes (DESIGN "Conventions"): the n x m sphere polytope has directions
+u_ij = [cos a_i cos b_j, cos a_i sin b_j, sin a_i], a_i = 2 pi i / n, b_j = 2 pi j / m (paper eq. 3); the
+parametrization repeats directions (the poles; a and pi - a for some n, m), so duplicates are removed
+(erratum 3): the paper's 4 x 4 gives the 6 faces of a cube. The n-gon in the plane normal to a unit
+vector l has directions R3 [cos a_i, sin a_i, 0], R3 = [v1 v2 l] (paper eq. 8).
+"""
+
+from __future__ import annotations
+
+import math
+
+import casadi as ca
+import numpy as np
+
+# Guards normalizations in generated code against division by zero (never changes a non-degenerate value
+# by more than ~1e-18 relative).
+_TINY = 1e-36
+
+
+def sphere_directions(n: int, m: int) -> np.ndarray:
+    """The unique directions of the n x m sphere polytope (rows), in the paper's order of first appearance."""
+    out: list[np.ndarray] = []
+    for i in range(1, n + 1):
+        a = 2 * math.pi * i / n
+        for j in range(1, m + 1):
+            b = 2 * math.pi * j / m
+            u = np.array([math.cos(a) * math.cos(b), math.cos(a) * math.sin(b), math.sin(a)])
+            u[np.abs(u) < 1e-15] = 0.0
+            if not any(np.allclose(u, v, atol=1e-12) for v in out):
+                out.append(u)
+    return np.array(out)
+
+
+def polygon_angles(n: int) -> np.ndarray:
+    """a_i = 2 pi i / n, i = 1..n (paper eq. 9)."""
+    return 2 * math.pi * np.arange(1, n + 1) / n
+
+
+def skew(v):
+    """sk(v): the matrix with sk(v) w = v x w (CasADi)."""
+    return ca.vertcat(ca.horzcat(0, -v[2], v[1]), ca.horzcat(v[2], 0, -v[0]), ca.horzcat(-v[1], v[0], 0))
+
+
+def normalize(v):
+    return v / ca.sqrt(ca.sumsqr(v) + _TINY)
+
+
+def plane_basis(l):
+    """v1, v2 spanning the plane normal to the unit vector l (paper eq. 8), with l' = x unless l is near x."""
+    helper = ca.if_else(ca.fabs(l[0]) < 0.9, ca.DM([1.0, 0.0, 0.0]), ca.DM([0.0, 1.0, 0.0]))
+    v1 = normalize(ca.cross(l, helper))
+    v2 = normalize(ca.cross(v1, l))
+    return v1, v2
+
+
+def polygon_directions(l, n: int):
+    """The n rows u_i = R3 [cos a_i, sin a_i, 0] of the polygon in the plane normal to l (n x 3, CasADi)."""
+    v1, v2 = plane_basis(l)
+    return ca.vertcat(*[(math.cos(a) * v1 + math.sin(a) * v2).T for a in polygon_angles(n)])
+
+
+def rpy_matrix(rpy):
+    """R = Rz(yaw) Ry(pitch) Rx(roll): URDF's fixed-axis roll-pitch-yaw (works on numbers and CasADi)."""
+    r, p, y = rpy[0], rpy[1], rpy[2]
+    cr, sr, cp, sp, cy, sy = ca.cos(r), ca.sin(r), ca.cos(p), ca.sin(p), ca.cos(y), ca.sin(y)
+    return ca.vertcat(
+        ca.horzcat(cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr),
+        ca.horzcat(sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr),
+        ca.horzcat(-sp, cp * sr, cp * cr),
+    )
+
+
+def homogeneous(xyz, rpy) -> np.ndarray:
+    """The 4x4 numeric transform of a translation and fixed-axis rpy."""
+    T = np.eye(4)
+    T[:3, :3] = np.array(ca.DM(rpy_matrix(ca.DM(rpy))))
+    T[:3, 3] = xyz
+    return T
