@@ -18,6 +18,7 @@ from typing import Callable
 
 from vfdsl.errors import VfError, suggest
 from vfdsl.ir import model as ir
+from vfdsl.passes.calls import bind_arguments
 from vfdsl.passes.units import DefaultUnits
 from vfdsl.primitives.spec import ARG_KINDS, REQUIRED, ArgSpec
 from vfdsl.syntax import ast
@@ -99,7 +100,8 @@ def _expand_use(use: ast.UseStmt, scope: Scope, fixtures: dict[str, Fixture], ev
     fixture = fixtures[name.text]
     formals = [ArgSpec(f.name.text, f.type.text, "", default=f.default if f.default is not None else REQUIRED)
                for f in fixture.definition.formals]
-    given = bind_arguments(use.call, formals, f"fixture '{name.text}'")
+    given = bind_arguments(use.call, [f.name for f in formals], {f.name for f in formals if f.required},
+                           f"fixture '{name.text}'")
     definition_scope = Scope(units=fixture.units, bindings={}, fixture=name.text)
     bindings: dict[str, ir.Arg] = {}
     for formal in formals:
@@ -109,26 +111,3 @@ def _expand_use(use: ast.UseStmt, scope: Scope, fixtures: dict[str, Fixture], ev
             bindings[formal.name] = evaluate(formal.default, formal.kind, definition_scope)
     inner = Scope(units=fixture.units, bindings=bindings, fixture=name.text, via=scope.via + (use.span,))
     return expand(fixture.definition.body, inner, fixtures, evaluate, active + (name.text,))
-
-
-def bind_arguments(call: ast.Call, specs: list[ArgSpec], what: str) -> dict[str, ast.Value]:
-    """Match a call's positional and keyword arguments to a signature; report extra, unknown, missing."""
-    names = [s.name for s in specs]
-    if len(call.args) > len(specs):
-        extra = call.args[len(specs)]
-        raise VfError(f"{what} takes {len(specs)} argument{'s' if len(specs) != 1 else ''}, got {len(call.args)}",
-                      extra.span.pos(), hint=f"its arguments are: {', '.join(names) or 'none'}")
-    given: dict[str, ast.Value] = dict(zip(names, call.args))
-    for kw in call.kwargs:
-        if kw.name.text not in names:
-            raise VfError(f"{what} has no argument '{kw.name.text}'", kw.name.span.pos(),
-                          hint=suggest(kw.name.text, names, "arguments"))
-        if kw.name.text in given:
-            raise VfError(f"argument '{kw.name.text}' is given twice", kw.name.span.pos())
-        given[kw.name.text] = kw.value
-    missing = [s.name for s in specs if s.required and s.name not in given]
-    if missing:
-        plural = "s" if len(missing) > 1 else ""
-        raise VfError(f"{what} is missing argument{plural} {', '.join(missing)}", call.span.pos(),
-                      hint=f"its arguments are: {', '.join(names)}")
-    return given

@@ -20,6 +20,7 @@ from vfdsl.kinematics.robot import Robot
 from vfdsl.objectives import OBJECTIVES
 from vfdsl.passes import fixtures as fx
 from vfdsl.passes import units as u
+from vfdsl.passes.calls import bind_arguments
 from vfdsl.passes.scene import SceneData, load_scene
 from vfdsl.passes.shapes import LiteralReader, describe_kind
 from vfdsl.primitives import CONSTRAINTS
@@ -308,7 +309,7 @@ class Resolver:
     # ------------------------------------------------------------------------------- statements
     def _bind(self, call: ast.Call, specs: tuple[ArgSpec, ...], scope: fx.Scope, what: str,
               subject: ir.FrameRef | None = None) -> dict[str, ir.Arg]:
-        given = fx.bind_arguments(call, list(specs), what)
+        given = bind_arguments(call, [s.name for s in specs], {s.name for s in specs if s.required}, what)
         args: dict[str, ir.Arg] = {}
         input_type = None
         for spec in specs:
@@ -324,12 +325,8 @@ class Resolver:
 
     def _objective(self, stmt: ast.MinimizeStmt, scope: fx.Scope) -> ir.Objective:
         name = stmt.call.name
-        spec = OBJECTIVES.get(name.text)
-        if spec is None:
-            hint = suggest(name.text, OBJECTIVES, "objective terms")
-            if name.text in CONSTRAINTS:
-                hint = f"'{name.text}' is a constraint: write `require <frame> {name.text}(...)`"
-            raise VfError(f"unknown objective term '{name.text}'", name.span.pos(), hint=hint)
+        spec = _lookup_spec(name, OBJECTIVES, "objective term", CONSTRAINTS,
+                            f"'{name.text}' is a constraint: write `require <frame> {name.text}(...)`")
         clauses = stmt.clauses
         for clause, word in ((clauses.within, "within"), (clauses.resolution, "resolution"), (clauses.soft, "soft")):
             if clause is not None:
@@ -358,12 +355,8 @@ class Resolver:
 
     def _constraint(self, stmt: ast.RequireStmt, scope: fx.Scope) -> ir.Constraint:
         name = stmt.call.name
-        spec = CONSTRAINTS.get(name.text)
-        if spec is None:
-            hint = suggest(name.text, CONSTRAINTS, "primitives")
-            if name.text in OBJECTIVES:
-                hint = f"'{name.text}' is an objective term: write `minimize {name.text}(...)`"
-            raise VfError(f"unknown primitive '{name.text}'", name.span.pos(), hint=hint)
+        spec = _lookup_spec(name, CONSTRAINTS, "primitive", OBJECTIVES,
+                            f"'{name.text}' is an objective term: write `minimize {name.text}(...)`")
         subject = None
         if spec.subject:
             if stmt.subject is None:
@@ -425,6 +418,14 @@ class Resolver:
         if weight < 0 or not math.isfinite(weight):
             raise VfError("a weight must be a non-negative number", value.span.pos())
         return weight
+
+
+def _lookup_spec(name: ast.Name, table: dict, what: str, other: dict, other_hint: str):
+    """The signature called ``name`` in ``table``; a helpful error when it is unknown or in ``other``."""
+    if name.text in table:
+        return table[name.text]
+    hint = other_hint if name.text in other else suggest(name.text, table, f"{what}s")
+    raise VfError(f"unknown {what} '{name.text}'", name.span.pos(), hint=hint)
 
 
 def _compatible(actual: str, expected: str) -> bool:

@@ -12,9 +12,10 @@ from __future__ import annotations
 import math
 from typing import Callable
 
-from vfdsl.errors import VfError, suggest
+from vfdsl.errors import VfError
 from vfdsl.ir import model as ir
 from vfdsl.passes import units as u
+from vfdsl.passes.calls import bind_arguments
 from vfdsl.primitives.spec import SCALAR_DIMENSIONS
 from vfdsl.syntax import ast
 
@@ -112,7 +113,8 @@ class LiteralReader:
         fields = _COMPOSITES[kind]
         if not isinstance(value, ast.Call) or value.name.text != kind:
             raise self._wrong(value, kind)
-        bound = bind_fields(value, [name for name, _ in fields], required=kind != "pose")
+        names = [name for name, _ in fields]
+        bound = bind_arguments(value, names, names if kind != "pose" else (), f"{kind}(...)")
         out = {}
         for name, field_kind in fields:
             if name in bound:
@@ -131,7 +133,7 @@ class LiteralReader:
         if isinstance(value, ast.Call):
             if value.name.text != "bspline":
                 raise self._wrong(value, "curve")
-            bound = bind_fields(value, ["points", "degree"], required=False)
+            bound = bind_arguments(value, ["points", "degree"], (), "bspline(...)")
             if "points" not in bound:
                 raise VfError("bspline(...) needs points = [[x, y, z], ...]", value.span.pos())
             points_value = bound["points"]
@@ -155,26 +157,6 @@ class LiteralReader:
         if not isinstance(value, ast.Quantity) or value.unit or value.number != int(value.number) or value.number < 1:
             raise VfError(f"{what} must be a positive whole number", value.span.pos())
         return int(value.number)
-
-
-def bind_fields(call: ast.Call, names: list[str], required: bool) -> dict[str, ast.Value]:
-    """Match a composite literal's positional and keyword arguments to field names."""
-    if len(call.args) > len(names):
-        raise VfError(f"{call.name.text}(...) takes at most {len(names)} values, got {len(call.args)}",
-                      call.args[len(names)].span.pos(), hint=f"its fields are: {', '.join(names)}")
-    bound: dict[str, ast.Value] = dict(zip(names, call.args))
-    for kw in call.kwargs:
-        if kw.name.text not in names:
-            raise VfError(f"{call.name.text}(...) has no field '{kw.name.text}'", kw.name.span.pos(),
-                          hint=suggest(kw.name.text, names, "fields"))
-        if kw.name.text in bound:
-            raise VfError(f"field '{kw.name.text}' is given twice", kw.name.span.pos())
-        bound[kw.name.text] = kw.value
-    missing = [n for n in names if n not in bound]
-    if required and missing:
-        raise VfError(f"{call.name.text}(...) is missing {', '.join(missing)}", call.span.pos(),
-                      hint=f"write {_WRITE_AS.get(call.name.text, call.name.text + '(...)')}")
-    return bound
 
 
 def _what(value: ast.Value) -> str:
