@@ -4,12 +4,16 @@ that change the operation count, so the same graph can be generated as C).
 The curve is the b-spline of the given degree that interpolates the points in order, parametrized by
 cumulative chord length s (metres). Closest point to x, every tick:
 
-1. coarse: the nearest of K precomputed samples C(s_k) (a chain of comparisons), which fixes the span;
-2. fine: Newton on f(s) = (C(s) - x) . C'(s) = 0 with the span's polynomial,
-   s <- s - f / (|C'|^2 + (C - x) . C''), kept inside the span, a fixed number of times.
+1. coarse: the nearest of K samples C(s_k), equally spaced in arc length at most ``SAMPLE_SPACING`` apart
+   (a chain of comparisons);
+2. fine: Newton on f(s) = (C(s) - x) . C'(s) = 0, s <- s - f / (|C'|^2 + (C - x) . C''), kept inside the
+   bracket [s_(k-1), s_(k+1)] of the nearest sample (which may cross a knot: each step evaluates the span
+   its s lies in), a fixed number of times; a step whose curvature term is not positive is not taken;
+3. the better of the Newton point and the nearest sample is kept.
 
-With samples much denser than the curve's features the coarse point lies in the basin of the true closest
-point, and three Newton steps reach it to rounding error (tested against a brute-force search).
+With samples much denser than the curve's features the closest point lies in the bracket of the nearest
+sample, where (C - x) . C' is monotone, and the steps reach it to rounding error (tested against a
+brute-force search).
 """
 
 from __future__ import annotations
@@ -23,8 +27,9 @@ from scipy.interpolate import make_interp_spline
 
 from vfdsl.compiler.geometry import normalize
 
-NEWTON_STEPS = 3
-SAMPLES_PER_SPAN = 24
+NEWTON_STEPS = 6
+SAMPLE_SPACING = 1e-3           # metres of arc length between coarse samples
+MIN_SAMPLES = 64
 
 
 @dataclass(frozen=True)
@@ -61,42 +66,50 @@ class SplineCurve:
             out += self.coeffs[k, j] * math.factorial(j) / math.factorial(j - derivative) * tau ** (j - derivative)
         return out
 
-    def samples(self) -> tuple[np.ndarray, np.ndarray]:
-        """Sample parameters and their span indices (the coarse search grid)."""
-        params, spans = [], []
-        for k in range(len(self.breaks) - 1):
-            for t in np.linspace(self.breaks[k], self.breaks[k + 1], SAMPLES_PER_SPAN, endpoint=False):
-                params.append(t)
-                spans.append(k)
-        params.append(self.breaks[-1])
-        spans.append(len(self.breaks) - 2)
-        return np.array(params), np.array(spans)
+    def samples(self) -> np.ndarray:
+        """Sample parameters equally spaced in arc length (the coarse search grid)."""
+        fine = np.linspace(0.0, self.length_parameter, 200 * (len(self.breaks) - 1) * 8 + 1)
+        speed = np.array([np.linalg.norm(self.evaluate(t, 1)) for t in fine])
+        arc = np.concatenate([[0.0], np.cumsum((speed[1:] + speed[:-1]) / 2 * np.diff(fine))])
+        count = max(MIN_SAMPLES, int(np.ceil(arc[-1] / SAMPLE_SPACING)) + 1)
+        return np.interp(np.linspace(0.0, arc[-1], count), arc, fine)
 
     def closest(self, x) -> tuple[ca.SX, ca.SX]:
         """Closest point and unit tangent to x (3-vector, CasADi), as expressions of x."""
-        params, spans = self.samples()
+        params = self.samples()
         points = np.array([self.evaluate(t) for t in params])
+        before = np.concatenate([[params[0]], params[:-1]])
+        after = np.concatenate([params[1:], [params[-1]]])
         best_d = ca.sumsqr(x - points[0])
-        best_s, best_k = ca.SX(params[0]), ca.SX(spans[0])
-        for t, k, c in zip(params[1:], spans[1:], points[1:]):
-            d = ca.sumsqr(x - c)
+        s_best, lower, upper = ca.SX(params[0]), ca.SX(before[0]), ca.SX(after[0])
+        for k in range(1, len(params)):
+            d = ca.sumsqr(x - points[k])
             closer = d < best_d
             best_d = ca.if_else(closer, d, best_d)
-            best_s = ca.if_else(closer, t, best_s)
-            best_k = ca.if_else(closer, float(k), best_k)
-        n_spans = len(self.breaks) - 1
-        select = [best_k == k for k in range(n_spans)]
-        start = sum(sel * self.breaks[k] for k, sel in enumerate(select))
-        width = sum(sel * (self.breaks[k + 1] - self.breaks[k]) for k, sel in enumerate(select))
-        coeffs = [sum(sel * ca.DM(self.coeffs[k, j]) for k, sel in enumerate(select)) for j in range(self.degree + 1)]
-        tau = best_s - start
+            s_best = ca.if_else(closer, params[k], s_best)
+            lower = ca.if_else(closer, before[k], lower)
+            upper = ca.if_else(closer, after[k], upper)
+        s = s_best
         for _ in range(NEWTON_STEPS):
-            c0, c1, c2 = (self._poly(coeffs, tau, d) for d in range(3))
+            c0, c1, c2 = self._at(s)
             f = ca.dot(c0 - x, c1)
             df = ca.dot(c1, c1) + ca.dot(c0 - x, c2)
-            step = ca.if_else(df > 1e-12, f / df, 0.0)
-            tau = ca.fmin(ca.fmax(tau - step, 0.0), width)
-        return self._poly(coeffs, tau, 0), normalize(self._poly(coeffs, tau, 1))
+            s = ca.fmin(ca.fmax(s - ca.if_else(df > 0, f / df, 0.0), lower), upper)
+        c0, c1, _ = self._at(s)
+        newton_better = ca.sumsqr(c0 - x) <= best_d
+        s = ca.if_else(newton_better, s, s_best)
+        c0, c1, _ = self._at(s)
+        return c0, normalize(c1)
+
+    def _at(self, s) -> tuple[ca.SX, ca.SX, ca.SX]:
+        """C(s), C'(s), C''(s) with the span chosen from s (symbolic)."""
+        inner = self.breaks[1:-1]
+        index = sum((s >= b) for b in inner) if len(inner) else ca.SX(0.0)
+        select = [index == k for k in range(len(self.breaks) - 1)]
+        start = sum(sel * b for sel, b in zip(select, self.breaks[:-1]))
+        coeffs = [sum(sel * ca.DM(self.coeffs[k, j]) for k, sel in enumerate(select)) for j in range(self.degree + 1)]
+        tau = s - start
+        return tuple(self._poly(coeffs, tau, d) for d in range(3))
 
     def _poly(self, coeffs: list, tau, derivative: int):
         out = 0
