@@ -90,7 +90,7 @@ def suggest(name: str, known: Iterable[str], what: str) -> str:
     """A hint for an unknown ``name``: the closest known names, then the full list."""
     known = sorted(set(known))
     if not known:
-        return f"no {what} is declared"
+        return f"none declared ({what})"
     close = difflib.get_close_matches(name, known, n=3, cutoff=0.6)
     listing = ", ".join(known)
     if close:

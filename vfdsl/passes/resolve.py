@@ -12,7 +12,6 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
-import numpy as np
 
 from vfdsl.errors import VfError, suggest
 from vfdsl.ir import model as ir
@@ -76,11 +75,13 @@ class Resolver:
         for stmt in statements:
             if isinstance(stmt, ast.RobotStmt):
                 self._robot(stmt)
-        if len(self.robots) != 1:
-            where = (self.module.name.span if not self.robots
-                     else list(self.robots.values())[1][0].span)
-            raise VfError("a task drives exactly one robot" + ("; none is declared" if not self.robots else ""),
-                          where.pos(), hint='declare it with: robot shr = urdf "shr7"')
+        if not self.robots:
+            raise VfError("a task drives exactly one robot; none is declared", self.module.name.span.pos(),
+                          hint='declare it with: robot shr = urdf "shr7"')
+        if len(self.robots) > 1:
+            first, second = (decl.span for decl, _ in list(self.robots.values())[:2])
+            raise VfError("a task drives exactly one robot", second.pos(),
+                          hint=f"the first is declared at {first}; split the task, one per robot")
         for stmt in statements:
             if isinstance(stmt, ast.FrameStmt):
                 self._frame(stmt)
@@ -210,33 +211,30 @@ class Resolver:
                 raise VfError("the period must be positive", scene.period.span.pos())
         start = None
         if scene.start is not None:
-            start = self._start(scene.start, reader, robot)
+            start = self._start(scene.start, scene.start_span, reader, robot)
         return ir.Scene(file=str(scene.file), start=start, period=period)
 
-    def _start(self, value, reader: LiteralReader, robot: Robot) -> list[float]:
+    def _start(self, value, span: ast.Span, reader: LiteralReader, robot: Robot) -> list[float]:
         dims = [u.LENGTH if t == "prismatic" else u.ANGLE for t in robot.joint_types]
         if isinstance(value, dict):
-            for name in value:
+            for name, (_, key_span) in value.items():
                 if name not in robot.joint_names:
-                    raise VfError(f"robot '{robot.name}' has no joint '{name}'", value[name].span.pos(),
+                    raise VfError(f"robot '{robot.name}' has no joint '{name}'", key_span.pos(),
                                   hint=suggest(name, robot.joint_names, "joints"))
             missing = [n for n in robot.joint_names if n not in value]
             if missing:
-                first = next(iter(value.values()))
                 raise VfError(f"the start configuration misses joint{'s' if len(missing) > 1 else ''} "
-                              f"{', '.join(missing)}", first.span.pos())
-            q = [reader.scalar(value[n], d, "joint value") for n, d in zip(robot.joint_names, dims)]
+                              f"{', '.join(missing)}", span.pos(), hint="give a value for every joint")
+            values = [value[n][0] for n in robot.joint_names]
         else:
             if not isinstance(value, ast.Vector) or len(value.items) != robot.nq:
                 raise VfError(f"the start configuration needs {robot.nq} joint values "
-                              f"({', '.join(robot.joint_names)})", value.span.pos())
-            q = [reader.scalar(v, d, "joint value") for v, d in zip(value.items, dims)]
-        arr = np.array(q)
-        outside = [n for n, x, lo, hi in zip(robot.joint_names, arr, robot.lower, robot.upper)
-                   if not lo - 1e-12 <= x <= hi + 1e-12]
-        if outside:
-            raise VfError(f"the start configuration is outside the joint limits of {', '.join(outside)}",
-                          value.span.pos() if not isinstance(value, dict) else next(iter(value.values())).span.pos())
+                              f"({', '.join(robot.joint_names)})", span.pos())
+            values = value.items
+        q = [reader.scalar(v, d, "joint value") for v, d in zip(values, dims)]
+        for name, x, lo, hi, v in zip(robot.joint_names, q, robot.lower, robot.upper, values):
+            if not lo - 1e-12 <= x <= hi + 1e-12:
+                raise VfError(f"joint {name} starts outside its limits [{lo:g}, {hi:g}] (SI units)", v.span.pos())
         return q
 
     # ------------------------------------------------------------------------------------- names
@@ -253,6 +251,9 @@ class Resolver:
         reader = LiteralReader(scope.units, lambda ref, k: self._constant(ref, k, scope))
         if kind in ("gain", "angular_gain"):
             dim = gain_dimension(input_type, kind)
+            if dim is None:
+                raise VfError(f"a {input_type} input has no {kind.replace('_', ' ')}", value.span.pos(),
+                              hint="a force drives translation (gain), a torque drives rotation (angular_gain)")
             return ir.Const(value=ir.ScalarValue(dimension=kind, value=reader.scalar(value, dim, kind)))
         return ir.Const(value=reader.read(value, kind))
 
@@ -293,7 +294,7 @@ class Resolver:
         arg = self._resolve_name(ref, kind, scope)
         if not isinstance(arg, ir.Const):
             raise VfError(f"'{ref.name}' is a run-time {kind}; only constants can stand here", ref.span.pos(),
-                          hint="write the value itself, or make it a fixture formal")
+                          hint="write the value itself here (or pass a literal into the fixture)")
         return arg.value
 
     def _arg_kind(self, arg: ir.Arg) -> str:
@@ -340,12 +341,7 @@ class Resolver:
     def _check_gains(self, call: ast.Call, args: dict[str, ir.Arg]) -> None:
         input_type = self.inputs[args["input"].name].type
         for kind in ("gain", "angular_gain"):
-            present = kind in args
-            needed = gain_dimension(input_type, kind) is not None
-            if present and not needed:
-                raise VfError(f"a {input_type} input has no {kind.replace('_', ' ')}", call.span.pos(),
-                              hint="a force drives translation (gain), a torque drives rotation (angular_gain)")
-            if needed and not present:
+            if gain_dimension(input_type, kind) is not None and kind not in args:
                 if input_type == "twist":
                     args[kind] = ir.Const(value=ir.ScalarValue(dimension=kind, value=1.0))
                 else:

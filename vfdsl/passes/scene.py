@@ -20,7 +20,7 @@ from pathlib import Path
 
 import yaml
 
-from vfdsl.errors import SourcePos, VfError
+from vfdsl.errors import SourcePos, VfError, suggest
 from vfdsl.passes.units import DefaultUnits
 from vfdsl.syntax import ast
 
@@ -33,16 +33,19 @@ class SceneData:
     file: Path
     units: DefaultUnits
     period: ast.Value | None
-    start: ast.Value | dict[str, ast.Value] | None
+    start: ast.Value | dict[str, tuple[ast.Value, ast.Span]] | None   # a list, or joint -> (value, key span)
+    start_span: ast.Span | None
     params: dict[str, tuple[ast.Value, ast.Span]]        # value, and the span of its key
 
 
 def load_scene(path: Path, task_units: DefaultUnits, pos: SourcePos | None) -> SceneData:
     try:
         text = path.read_text()
-    except OSError:
+    except FileNotFoundError:
         raise VfError(f"scene file not found: {path}", pos,
                       hint="write it, or point the task at another file with `scene \"file.yaml\"`") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise VfError(f"cannot read scene file {path}: {exc}", pos) from None
     try:
         root = yaml.compose(text)
     except yaml.YAMLError as exc:
@@ -51,22 +54,22 @@ def load_scene(path: Path, task_units: DefaultUnits, pos: SourcePos | None) -> S
         raise VfError(f"malformed YAML: {getattr(exc, 'problem', exc)}", where, source_text=text) from None
     file = str(path)
     if root is None:
-        return SceneData(path, task_units, None, None, {})
+        return SceneData(path, task_units, None, None, None, {})
     if not isinstance(root, yaml.MappingNode):
         raise VfError("a scene file is a mapping with keys " + ", ".join(_TOP_KEYS), _pos(root, file))
     top = _mapping(root, file)
     for key, (key_node, _) in top.items():
         if key not in _TOP_KEYS:
-            from vfdsl.errors import suggest
             raise VfError(f"unknown scene key '{key}'", _pos(key_node, file), hint=suggest(key, _TOP_KEYS, "keys"))
     units = task_units
     if "units" in top:
         units = _units(top["units"][1], file, task_units)
     period = _value(top["period"][1], file) if "period" in top else None
-    start = None
+    start, start_span = None, None
     if "start" in top:
         node = top["start"][1]
-        start = ({k: _value(v, file) for k, (_, v) in _mapping(node, file).items()}
+        start_span = _span(node, file)
+        start = ({k: (_value(v, file), _span(kn, file)) for k, (kn, v) in _mapping(node, file).items()}
                  if isinstance(node, yaml.MappingNode) else _value(node, file))
     params = {}
     if "params" in top:
@@ -74,12 +77,14 @@ def load_scene(path: Path, task_units: DefaultUnits, pos: SourcePos | None) -> S
         if not isinstance(node, yaml.MappingNode):
             raise VfError("'params' is a mapping from param names to values", _pos(node, file))
         params = {k: (_value(v, file), _span(kn, file)) for k, (kn, v) in _mapping(node, file).items()}
-    return SceneData(path, units, period, start, params)
+    return SceneData(path, units, period, start, start_span, params)
 
 
 def _mapping(node: yaml.MappingNode, file: str) -> dict[str, tuple[yaml.Node, yaml.Node]]:
     out = {}
     for key_node, value_node in node.value:
+        if not isinstance(key_node, yaml.ScalarNode):
+            raise VfError("a key must be a plain name", _pos(key_node, file))
         key = str(key_node.value)
         if key in out:
             raise VfError(f"key '{key}' appears twice", _pos(key_node, file))
@@ -88,23 +93,28 @@ def _mapping(node: yaml.MappingNode, file: str) -> dict[str, tuple[yaml.Node, ya
 
 
 def _units(node: yaml.Node, file: str, base: DefaultUnits) -> DefaultUnits:
-    names = ([str(n.value) for n in node.value] if isinstance(node, yaml.SequenceNode)
-             else [n.strip() for n in str(node.value).split(",")])
+    items = node.value if isinstance(node, yaml.SequenceNode) else [node]
+    if not all(isinstance(n, yaml.ScalarNode) for n in items):
+        raise VfError("units are written as `units: mm, deg` or `units: [mm, deg]`", _pos(node, file))
+    names = [name.strip() for n in items for name in str(n.value).split(",")]
     units = base
     for name in names:
         units = units.with_unit(name, _span(node, file))
     return units
 
 
-def _value(node: yaml.Node, file: str) -> ast.Value:
+def _value(node: yaml.Node, file: str, inside: tuple = ()) -> ast.Value:
     """A YAML node -> the syntax node a .vf file would give for the same value."""
     span = _span(node, file)
+    if any(node is outer for outer in inside):
+        raise VfError("a value cannot contain itself (recursive YAML alias)", span.pos())
+    inside = inside + (node,)
     if isinstance(node, yaml.SequenceNode):
-        return ast.Vector(span=span, items=[_value(n, file) for n in node.value])
+        return ast.Vector(span=span, items=[_value(n, file, inside) for n in node.value])
     if isinstance(node, yaml.MappingNode):
         fields = _mapping(node, file)
         kwargs = [ast.KeywordArg(span=_span(k, file), name=ast.Name(span=_span(k, file), text=key),
-                                 value=_value(v, file)) for key, (k, v) in fields.items()]
+                                 value=_value(v, file, inside)) for key, (k, v) in fields.items()]
         return ast.Call(span=span, name=ast.Name(span=span, text="{mapping}"), kwargs=kwargs)
     text = str(node.value)
     if text in ("true", "false"):

@@ -103,8 +103,11 @@ class LiteralReader:
         return out
 
     def _direction(self, value: ast.Value) -> list[float]:
+        if isinstance(value, ast.Vector) and value.unit is not None:
+            raise VfError(f"a direction is plain numbers; remove the unit '{value.unit}'", value.span.pos(),
+                          hint="write it like [0, -0.2, 1]")
         xyz = self._numbers3(value, u.DIMENSIONLESS, "direction")
-        norm = math.sqrt(sum(c * c for c in xyz))
+        norm = math.hypot(*xyz)
         if norm < 1e-12:
             raise VfError("a direction cannot be zero", value.span.pos(), hint="give a non-zero vector, e.g. [0, 0, 1]")
         return [c / norm for c in xyz]
@@ -154,7 +157,8 @@ class LiteralReader:
         return ir.CurveValue(degree=degree, points=points)
 
     def integer(self, value: ast.Value, what: str) -> int:
-        if not isinstance(value, ast.Quantity) or value.unit or value.number != int(value.number) or value.number < 1:
+        if (not isinstance(value, ast.Quantity) or value.unit or not math.isfinite(value.number)
+                or value.number != int(value.number) or value.number < 1):
             raise VfError(f"{what} must be a positive whole number", value.span.pos())
         return int(value.number)
 

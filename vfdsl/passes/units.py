@@ -51,8 +51,10 @@ def describe(dim: Dim) -> str:
 def si_formula(dim: Dim) -> str:
     si = ("m", "rad", "s", "N")
     num = "*".join(s if e == 1 else f"{s}^{e}" for s, e in zip(si, dim) if e > 0) or "1"
-    den = "/".join(s if e == -1 else f"{s}^{-e}" for s, e in zip(si, dim) if e < 0)
-    return f"{num}/{den}" if den else num
+    den = [s if e == -1 else f"{s}^{-e}" for s, e in zip(si, dim) if e < 0]
+    if not den:
+        return num
+    return f"{num}/{den[0]}" if len(den) == 1 else f"{num}/({'*'.join(den)})"
 
 
 @dataclass(frozen=True)
@@ -121,4 +123,7 @@ def to_si(number: float, unit: str | None, expected: Dim, defaults: DefaultUnits
         if expected == DIMENSIONLESS:
             hint = "write a plain number, without a unit"
         raise VfError(f"expected {describe(expected)}, but '{unit}' is {describe(dim)}", span.pos(), hint=hint)
-    return number * factor
+    value = number * factor
+    if not math.isfinite(value):
+        raise VfError("this number is too large", span.pos())
+    return value

@@ -7,6 +7,7 @@ Lark's errors become :class:`~vfdsl.errors.VfError` with the position, what was 
 from __future__ import annotations
 
 import difflib
+import json
 from functools import lru_cache
 from importlib import resources
 from pathlib import Path
@@ -90,8 +91,14 @@ def _syntax_error(exc: UnexpectedInput, text: str, file: str, parser: Lark) -> V
         if any(k in STATEMENT_KEYWORDS for k in candidates):
             candidates += STATEMENT_KEYWORDS
         close = difflib.get_close_matches(found, candidates, n=1, cutoff=0.6)
+        previous = (exc.token_history or [None])[-1]
+        swallowed = (difflib.get_close_matches(str(previous), STATEMENT_KEYWORDS, n=1, cutoff=0.75)
+                     if previous is not None and previous.type == "NAME" else [])
         if close:
             hint = f"did you mean '{close[0]}'?"
+        elif swallowed:
+            hint = (f"'{previous}' (line {previous.line}) was read as a unit; did you mean the statement "
+                    f"'{swallowed[0]}'?")
     elif isinstance(exc, UnexpectedCharacters):
         char = text[exc.pos_in_stream] if 0 <= exc.pos_in_stream < len(text) else "?"
         message = f"unexpected character {char!r}"
@@ -125,8 +132,15 @@ def _span_of_token(tok: Token, file: str) -> ast.Span:
     return ast.Span(file=file, line=tok.line, column=tok.column, end_line=tok.end_line, end_column=tok.end_column)
 
 
-def _string_value(tok: Token) -> str:
-    return bytes(tok[1:-1], "utf-8").decode("unicode_escape")
+def _string_value(tok: Token, file: str) -> str:
+    """A quoted string's text: JSON escapes (\\" \\\\ \\n \\uXXXX ...), no control characters."""
+    try:
+        text = json.loads(tok)
+    except json.JSONDecodeError as exc:
+        raise VfError(f"malformed string: {exc.msg.lower()}", _span_of_token(tok, file).pos()) from None
+    if any(ord(ch) < 32 for ch in text):
+        raise VfError("a string cannot contain control characters", _span_of_token(tok, file).pos())
+    return text
 
 
 @v_args(meta=True)
@@ -161,13 +175,13 @@ class _ToAst(Transformer):
         return ast.UnitsStmt(span=self._span(meta), names=[self._name(t) for t in children])
 
     def import_stmt(self, meta, children):
-        return ast.ImportStmt(span=self._span(meta), path=_string_value(children[0]))
+        return ast.ImportStmt(span=self._span(meta), path=_string_value(children[0], self.file))
 
     def scene_stmt(self, meta, children):
-        return ast.SceneStmt(span=self._span(meta), path=_string_value(children[0]))
+        return ast.SceneStmt(span=self._span(meta), path=_string_value(children[0], self.file))
 
     def robot_stmt(self, meta, children):
-        return ast.RobotStmt(span=self._span(meta), name=self._name(children[0]), urdf=_string_value(children[1]))
+        return ast.RobotStmt(span=self._span(meta), name=self._name(children[0]), urdf=_string_value(children[1], self.file))
 
     def frame_stmt(self, meta, children):
         name, robot, link, *clauses = children
@@ -177,7 +191,7 @@ class _ToAst(Transformer):
                 raise VfError(f"the '{key}' clause is given twice", value.span.pos())
             fields[key] = value
         return ast.FrameStmt(span=self._span(meta), name=self._name(name), robot=self._name(robot),
-                             link=ast.Name(span=_span_of_token(link, self.file), text=_string_value(link)),
+                             link=ast.Name(span=_span_of_token(link, self.file), text=_string_value(link, self.file)),
                              **fields)
 
     def offset_clause(self, meta, children):
@@ -300,7 +314,7 @@ class _ToAst(Transformer):
         return ast.NameRef(span=self._span(meta), name=str(children[0]))
 
     def string(self, meta, children):
-        return ast.String(span=self._span(meta), text=_string_value(children[0]))
+        return ast.String(span=self._span(meta), text=_string_value(children[0], self.file))
 
     def true(self, meta, children):
         return ast.Bool(span=self._span(meta), value=True)
