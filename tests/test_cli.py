@@ -22,7 +22,7 @@ DIAGNOSTIC = re.compile(r"^(?P<file>.+):(?P<line>\d+):(?P<column>\d+): error: (?
 
 
 def vfdsl(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "vfdsl.cli", *args], capture_output=True, text=True, check=False,
+    return subprocess.run([sys.executable, "-P", "-m", "vfdsl.cli", *args], capture_output=True, text=True, check=False,
                           timeout=120, cwd=cwd)
 
 
@@ -128,7 +128,7 @@ def test_library_instead_of_a_task():
 
 def test_closed_pipe_is_quiet():
     """`vfdsl show x.vf | head -1`: the reader goes away before the output is written; no traceback."""
-    proc = subprocess.Popen([sys.executable, "-m", "vfdsl.cli", "show", str(TASK_B), "--format", "json"],
+    proc = subprocess.Popen([sys.executable, "-P", "-m", "vfdsl.cli", "show", str(TASK_B), "--format", "json"],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE)
     proc.stdout.close()
     err = proc.stderr.read().decode()

@@ -23,7 +23,7 @@ import vfdsl
 from vfdsl import Task
 from vfdsl.cli import main as cli_main
 from vfdsl.ir import model as ir
-from vfdsl.kinematics.robot import Robot
+from vfdsl.kinematics.robot import ROBOTS_DIR, Robot
 
 TASK_FILES = sorted(TASKS_DIR.glob("*.vf"))
 TASK_IDS = [p.stem for p in TASK_FILES]
@@ -102,7 +102,7 @@ def test_task_loads(path: Path):
 @pytest.mark.parametrize("path", TASK_FILES, ids=TASK_IDS)
 def test_json_from_cli_round_trips(path: Path):
     """`vfdsl show --format json`, run as a separate process, gives back exactly the task vfdsl.load builds."""
-    proc = subprocess.run([sys.executable, "-m", "vfdsl.cli", "show", str(path), "--format", "json"],
+    proc = subprocess.run([sys.executable, "-P", "-m", "vfdsl.cli", "show", str(path), "--format", "json"],
                           capture_output=True, text=True, timeout=120, check=False)
     assert proc.returncode == 0, proc.stderr
     assert proc.stderr == ""
@@ -508,3 +508,13 @@ def test_docs_tables_match_the_specs():
     assert _section("objective-table").splitlines() == objective_rows
     assert _section("constraint-args").splitlines() == [_arguments(s) for s in CONSTRAINTS.values()]
     assert _section("objective-args").splitlines() == [_arguments(s) for s in OBJECTIVES.values()]
+
+
+def test_ir_names_shipped_robots_portably(tmp_path):
+    """A shipped robot is recorded by name (the IR is the same wherever vfdsl is installed); a URDF file of
+    the user's by its absolute path."""
+    assert vfdsl.load(TASKS_DIR / "paper_b_virtual_rcm.vf").robots[0].urdf == "shr7"
+    urdf = (ROBOTS_DIR / "panda7.urdf").read_text()
+    (tmp_path / "my_arm.urdf").write_text(urdf)
+    (tmp_path / "t.vf").write_text('task t\nrobot arm = urdf "my_arm.urdf"\n')
+    assert vfdsl.load(tmp_path / "t.vf").robots[0].urdf == str((tmp_path / "my_arm.urdf").resolve())

@@ -124,7 +124,7 @@ Arg = Annotated[Union[ParamRef, FrameRef, InputRef, Const], Field(discriminator=
 
 class RobotDecl(_Model):
     name: str
-    urdf: str                        # absolute path of the URDF file
+    urdf: str                        # a shipped robot's name ("shr7"), or the absolute path of a URDF file
     span: Span
 
 

@@ -15,7 +15,7 @@ from pathlib import Path
 
 from vfdsl.errors import VfError, suggest
 from vfdsl.ir import model as ir
-from vfdsl.kinematics.robot import Robot
+from vfdsl.kinematics.robot import ROBOTS_DIR, Robot
 from vfdsl.objectives import OBJECTIVES
 from vfdsl.passes import fixtures as fx
 from vfdsl.passes import units as u
@@ -114,7 +114,8 @@ class Resolver:
             robot = Robot.load(stmt.urdf, base_dir=self.path.parent)
         except VfError as exc:
             raise VfError(exc.message, stmt.span.pos(), exc.hint) from None
-        decl = ir.RobotDecl(name=stmt.name.text, urdf=str(robot.urdf_path), span=stmt.span)
+        shipped = robot.urdf_path.parent == ROBOTS_DIR
+        decl = ir.RobotDecl(name=stmt.name.text, urdf=robot.name if shipped else str(robot.urdf_path), span=stmt.span)
         self.robots[stmt.name.text] = (decl, robot)
 
     def _frame(self, stmt: ast.FrameStmt) -> None:
