@@ -1,0 +1,242 @@
+"""The tick solver: phase 1 against independent solves, the least-violation phase 2, bound clipping,
+and the native and interpreted paths giving the same answers."""
+
+from __future__ import annotations
+
+import casadi as ca
+import daqp
+import numpy as np
+import pytest
+from scipy.optimize import minimize, nnls
+
+from vfdsl.codegen import build_library
+from vfdsl.errors import VfError
+from vfdsl.runtime import BufferedFunction, StepStatus, build_step_function
+from vfdsl.runtime.qp import PER_ROW_GROUPS_LIMIT
+
+N, M, DT = 6, 30, 0.01
+SPEED = 10.0  # |dq| <= SPEED * dt = 0.1
+FEAS_TOL = 1e-6
+
+
+def random_qp_data(seed: int) -> ca.Function:
+    """H = J'J + 0.01 I with J(q) through sin/cos; rows A(q) through sin; p sets the lower bounds.
+
+    About a third of the rows are two-sided, the last one is an equality.
+    """
+    rng = np.random.default_rng(seed)
+    q, u, p, dt = ca.SX.sym("q", N), ca.SX.sym("u", 3), ca.SX.sym("p", M), ca.SX.sym("dt")
+    def normal(*shape):
+        return ca.DM(rng.normal(size=shape))
+
+    J = normal(3, N) * ca.cos(q[0]) + normal(3, N) * ca.sin(q[1])
+    H = J.T @ J + 0.01 * ca.SX.eye(N)
+    A = normal(M, N) + 0.3 * ca.sin(ca.repmat(q.T, M, 1) + normal(M, N))
+    width = ca.DM(np.where(rng.random(M) < 0.35, 0.5, np.inf))
+    width[M - 1] = 0
+    speed = SPEED * dt * ca.DM.ones(N)
+    return ca.Function("qp_data", [q, u, p, dt], [H, -J.T @ u, A, p, p + width, -speed, speed],
+                       ["q", "u", "p", "dt"], ["H", "g", "A", "lba", "uba", "lbx", "ubx"])
+
+
+def conflict_qp_data() -> ca.Function:
+    """Rows with a known conflict; bounds = joint limits [-1, 1] intersected with the speed bound.
+
+    r0: x0 >= 1 (beyond the speed bound)   r1: x1 >= 0.05, r2: x1 <= -0.05 (contradict each other)
+    r3: x2 <= 0.02 (holds; the user pushes into it)   r4, r5: far from active.
+    """
+    q, u, p, dt = ca.SX.sym("q", 4), ca.SX.sym("u", 4), ca.SX.sym("p", 0), ca.SX.sym("dt")
+    A = ca.DM([[1, 0, 0, 0], [0, 1, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1], [1, 0, 1, 0]])
+    lba = ca.DM([1, 0.05, -ca.inf, -ca.inf, -1, -ca.inf])
+    uba = ca.DM([ca.inf, ca.inf, -0.05, 0.02, ca.inf, 1])
+    speed = SPEED * dt
+    lbx, ubx = ca.fmax(-1 - q, -speed), ca.fmin(1 - q, speed)
+    return ca.Function("conflict", [q, u, p, dt], [ca.SX.eye(4), -u, A, lba, uba, lbx, ubx],
+                       ["q", "u", "p", "dt"], ["H", "g", "A", "lba", "uba", "lbx", "ubx"])
+
+
+def qp(qp_data: ca.Function, *args) -> list[np.ndarray]:
+    H, g, A, lba, uba, lbx, ubx = (np.array(v) for v in qp_data(*args))
+    return [H, g.ravel(), A, lba.ravel(), uba.ravel(), lbx.ravel(), ubx.ravel()]
+
+
+def row_violation(A, lba, uba, x) -> np.ndarray:
+    r = A @ x
+    return np.maximum(np.maximum(lba - r, r - uba), 0)
+
+
+def violation_measure(A, lba, uba, x, rho=1.0) -> float:
+    """sum_i rho v_i + v_i^2 / 2: phase 2's measure with one group per row."""
+    v = row_violation(A, lba, uba, x)
+    return float(np.sum(rho * v + 0.5 * v * v))
+
+
+def kkt_residual(H, g, A, lba, uba, lbx, ubx, x, active_tol=1e-7) -> float:
+    """Stationarity residual with nonnegative multipliers on the active rows and bounds (NNLS)."""
+    C = np.vstack([A, np.eye(len(x))])
+    lower, upper = np.r_[lba, lbx], np.r_[uba, ubx]
+    r = C @ x
+    columns = [-C[i] for i in np.flatnonzero(r - lower <= active_tol)]
+    columns += [C[i] for i in np.flatnonzero(upper - r <= active_tol)]
+    gradient = H @ x + g
+    if not columns:
+        return float(np.linalg.norm(gradient))
+    return float(nnls(np.array(columns).T, -gradient)[1])
+
+
+def instance(seed: int, infeasible: bool):
+    rng = np.random.default_rng(100 + seed)
+    p = -0.05 * rng.random(M)
+    p[M - 1] = 0.0
+    if infeasible:
+        p[0] = 5.0  # needs a_0'x >= 5 with |x| <= 0.1
+    return rng.uniform(-1, 1, N), 5 * rng.normal(size=3), p, np.array([DT])
+
+
+@pytest.fixture(scope="module")
+def random_paths(tmp_path_factory):
+    qp_data = random_qp_data(7)
+    step = build_step_function(qp_data, "vf_test_random")
+    library = build_library(step, "vf_test_random", tmp_path_factory.mktemp("cache"), {})
+    return (qp_data, BufferedFunction.native(library.so_path, "vf_test_random"),
+            BufferedFunction.interpreted(step))
+
+
+@pytest.fixture(scope="module")
+def conflict_paths(tmp_path_factory):
+    step = build_step_function(conflict_qp_data(), "vf_test_conflict")
+    library = build_library(step, "vf_test_conflict", tmp_path_factory.mktemp("cache"), {})
+    native = BufferedFunction.native(library.so_path, "vf_test_conflict")
+    return native, BufferedFunction.interpreted(step)
+
+
+def solve_both(paths, args):
+    """(x, status, violation) of the native path, after checking the interpreted path agrees."""
+    native, interpreted = paths
+    x, status, violation = (a.copy() for a in native(*args))
+    x_i, status_i, violation_i = interpreted(*args)
+    np.testing.assert_allclose(x, x_i, atol=1e-9)
+    np.testing.assert_allclose(violation, violation_i, atol=1e-9)
+    assert status[0] == status_i[0]
+    return x, StepStatus(int(status[0])), violation
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_feasible_matches_daqp_binding_and_kkt(random_paths, seed):
+    qp_data, *paths = random_paths
+    args = instance(seed, infeasible=False)
+    x, status, violation = solve_both(paths, args)
+    H, g, A, lba, uba, lbx, ubx = qp(qp_data, *args)
+    reference, _, flag, _ = daqp.solve(H, g, A, np.r_[ubx, np.minimum(uba, 1e30)], np.r_[lbx, lba],
+                                       np.r_[np.zeros(N + M - 1), 5].astype(np.int32))
+    assert flag == 1
+    assert status == StepStatus.OPTIMAL
+    np.testing.assert_allclose(x, reference, atol=1e-8)
+    assert kkt_residual(H, g, A, lba, uba, lbx, ubx, x) < 1e-8
+    assert not violation.any()
+    assert row_violation(A, lba, uba, x).max() <= FEAS_TOL
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_infeasible_least_violation_against_slsqp(random_paths, seed):
+    qp_data, *paths = random_paths
+    args = instance(seed, infeasible=True)
+    x, status, violation = solve_both(paths, args)
+    H, g, A, lba, uba, lbx, ubx = qp(qp_data, *args)
+
+    assert status == StepStatus.LEAST_VIOLATION
+    assert np.all(np.isfinite(x)) and np.all(x >= lbx - 1e-12) and np.all(x <= ubx + 1e-12)
+    expected = row_violation(A, lba, uba, x)
+    np.testing.assert_allclose(violation, np.where(expected > FEAS_TOL, expected, 0), atol=1e-12)
+    assert violation[0] > 0
+    measure = violation_measure(A, lba, uba, x)
+    assert measure < violation_measure(A, lba, uba, np.zeros(N))
+    assert measure <= slsqp_least_violation(A, lba, uba, lbx, ubx) + 1e-7
+
+
+def slsqp_least_violation(A, lba, uba, lbx, ubx) -> float:
+    """An independent solve of min sum(rho t + t^2/2) s.t. lba - t <= A x <= uba + t, t >= 0."""
+    m, n = A.shape
+    finite_upper = np.isfinite(uba)
+    constraints = [
+        {"type": "ineq", "fun": lambda z: A @ z[:n] + z[n:] - lba},
+        {"type": "ineq", "fun": lambda z: (uba[finite_upper] - A[finite_upper] @ z[:n]
+                                           + z[n:][finite_upper])},
+    ]
+    bounds = list(zip(lbx, ubx, strict=True)) + [(0, None)] * m
+    best = np.inf
+    for start in range(3):
+        x0 = np.random.default_rng(start).uniform(lbx, ubx)
+        z0 = np.r_[x0, row_violation(A, lba, uba, x0)]
+        result = minimize(lambda z: z[n:].sum() + 0.5 * z[n:] @ z[n:], z0, method="SLSQP",
+                          bounds=bounds, constraints=constraints,
+                          options={"ftol": 1e-14, "maxiter": 1000})
+        best = min(best, violation_measure(A, lba, uba, np.clip(result.x[:n], lbx, ubx)))
+    return best
+
+
+def test_conflicting_rows_are_exactly_the_violated_ones(conflict_paths):
+    args = (np.zeros(4), np.array([1.0, 0.0, 1.0, 0.0]), np.zeros(0), np.array([DT]))
+    x, status, violation = solve_both(conflict_paths, args)
+    assert status == StepStatus.LEAST_VIOLATION
+    np.testing.assert_allclose(violation, [0.9, 0.05, 0.05, 0, 0, 0], atol=1e-8)
+    np.testing.assert_allclose(x, [0.1, 0.0, 0.02, 0.0], atol=1e-8)  # r3 still holds exactly
+
+
+def test_crossed_bounds_pinned_toward_the_limits(conflict_paths):
+    q = np.array([0.0, 0.0, 0.0, 1.5])  # joint 3 beyond its upper limit 1: bounds [-0.1, -0.5]
+    args = (q, np.array([0.0, 0.0, 0.0, 1.0]), np.zeros(0), np.array([DT]))
+    x, status, violation = solve_both(conflict_paths, args)
+    assert status & StepStatus.BOUNDS_CLIPPED
+    assert x[3] == pytest.approx(-0.1)
+
+
+def test_row_groups_share_one_violation():
+    groups = ["r0", "pair", "pair", "rest", "rest", "rest"]
+    step = build_step_function(conflict_qp_data(), "grouped", row_groups=groups)
+    x, status, violation = step(np.zeros(4), [1.0, 0.0, 1.0, 0.0], np.zeros(0), DT)
+    assert int(status) == StepStatus.LEAST_VIOLATION
+    np.testing.assert_allclose(np.array(violation).ravel(), [0.9, 0.05, 0.05, 0, 0, 0], atol=1e-8)
+    with pytest.raises(ValueError, match="row_groups"):
+        build_step_function(conflict_qp_data(), "grouped", row_groups=[0, 1])
+
+
+def test_many_rows_without_groups_warn():
+    q, u, p, dt = ca.SX.sym("q", 2), ca.SX.sym("u", 2), ca.SX.sym("p", 0), ca.SX.sym("dt")
+    m = PER_ROW_GROUPS_LIMIT + 1
+    rows = [ca.DM.ones(m, 2), -ca.DM.ones(m), ca.DM.ones(m)]
+    qp_data = ca.Function("many", [q, u, p, dt],
+                          [ca.SX.eye(2), -u, *rows, -dt * ca.DM.ones(2), dt * ca.DM.ones(2)])
+    with pytest.warns(UserWarning, match="pass one group per source constraint"):
+        build_step_function(qp_data, "many")
+    build_step_function(qp_data, "many", row_groups=[i % 4 for i in range(m)])  # no warning
+
+
+def test_no_general_rows():
+    q, u, p, dt = ca.SX.sym("q", 2), ca.SX.sym("u", 2), ca.SX.sym("p", 0), ca.SX.sym("dt")
+    empty_rows = [ca.SX(0, 2), ca.SX(0, 1), ca.SX(0, 1)]
+    qp_data = ca.Function("box_only", [q, u, p, dt],
+                          [ca.SX.eye(2), -u, *empty_rows, -dt * ca.DM.ones(2), dt * ca.DM.ones(2)])
+    x, status, violation = BufferedFunction.interpreted(build_step_function(qp_data, "box"))(
+        np.zeros(2), np.array([5.0, -0.001]), np.zeros(0), np.array([0.01]))
+    np.testing.assert_allclose(x, [0.01, -0.001])
+    assert status[0] == 0 and violation.size == 0
+
+
+def test_buffered_matrices_are_column_major(random_paths):
+    qp_data = random_paths[0]
+    args = instance(0, infeasible=False)
+    H, _, A, *_ = BufferedFunction.interpreted(qp_data)(*args)
+    np.testing.assert_array_equal(H, np.array(qp_data(*args)[0]))
+    np.testing.assert_array_equal(A, np.array(qp_data(*args)[2]))
+
+
+def test_buffered_function_rejects_bad_inputs(random_paths):
+    _, native, _ = random_paths
+    q, u, p, dt = instance(0, infeasible=False)
+    with pytest.raises(VfError, match="takes 4 inputs"):
+        native(q, u, p)
+    with pytest.raises(VfError, match="'q' needs 6 values, got 1"):
+        native(0.5, u, p, dt)  # a scalar is never broadcast to a joint vector
+    out = native(q, u, p, 0.01)  # plain floats and lists are accepted when the size matches
+    assert out[0] is native(q, u, p, dt)[0]  # the same buffer every call

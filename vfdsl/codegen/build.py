@@ -1,0 +1,231 @@
+"""Generate C for a CasADi Function, compile it against DAQP, and cache the shared library.
+
+One cache entry per content digest::
+
+    <cache_dir>/<prefix>-<digest[:16]>/
+        <prefix>.c  <prefix>.h   generated source (exported symbol: ``<prefix>``)
+        lib<prefix>-<nonce>.so   the library; the nonce makes every build's path unique, because
+                                 glibc hands out an already-loaded library of the same path again
+        <prefix>.json            caller metadata + sizes, digest, compiler, flags, so_sha256, ...
+
+digest = sha256(generated C and header, compiler flags, compiler ``--version`` line, resolved
+target (``-###`` output, which pins ``-march=native`` to this CPU), CasADi version, metadata).
+
+An entry is used only if its metadata parses and names the same digest, every file exists, and
+the .so has the recorded sha256 and loads with the exported symbol; anything else (truncated or
+foreign .so, missing file, edited metadata) is rebuilt. A build happens in a private temporary
+directory inside ``cache_dir`` (same filesystem) and is published with one ``os.replace`` of the
+whole directory; two processes racing on one entry both end up with a complete, verified library,
+and a library file already mapped by a process is never written to.
+
+Codegen policy: conics built with ``error_on_fail=False`` continue after a failed solve when
+CasADi evaluates them, but CasADi's generated C still aborts the whole function (``return -1``).
+That early return is removed, so the generated code has the interpreted semantics (failure
+reported through the outputs, see :mod:`vfdsl.runtime.qp`); conics with ``error_on_fail=True``
+(``return -1000``) are left alone.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import ctypes
+import datetime
+import functools
+import hashlib
+import json
+import os
+import re
+import secrets
+import shlex
+import shutil
+import subprocess
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import casadi as ca
+
+from vfdsl.errors import VfError
+
+FLAGS = ("-O3", "-march=native", "-fPIC", "-shared", "-fvisibility=hidden", "-fno-math-errno",
+         "-DGCC_HASCLASSVISIBILITY")
+"""Speed flags. Never ``-ffast-math``: the step's NaN/inf checks must survive optimisation."""
+
+CASADI_DIR = Path(ca.__file__).parent
+_NONFATAL_FAILURE = re.compile(r"if \(!d_qp\.success\) \{\s*return -1;\s*\}")
+_IDENTIFIER = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
+
+
+class CompilerUnavailable(VfError):
+    """No working C compiler: use the interpreted path, or install one / set ``CC``."""
+
+
+@dataclass(frozen=True)
+class BuiltLibrary:
+    so_path: Path
+    c_path: Path
+    h_path: Path
+    meta_path: Path
+    digest: str
+
+
+@dataclass(frozen=True)
+class Compiler:
+    command: tuple[str, ...]
+    version: str
+    target: str
+
+
+def build_library(fn: ca.Function, prefix: str, cache_dir: Path, metadata: dict) -> BuiltLibrary:
+    """The cached library of ``fn``, exported as C symbol ``prefix``; built if needed."""
+    if not _IDENTIFIER.fullmatch(prefix):
+        raise ValueError(f"prefix {prefix!r} is not a C identifier")
+    cache_dir = Path(cache_dir)
+    cache_dir.mkdir(parents=True, exist_ok=True)
+    compiler = find_compiler()
+    with tempfile.TemporaryDirectory(dir=cache_dir, prefix=f".build-{prefix}-") as tmp:
+        work = Path(tmp)
+        source, header = _generate(fn, prefix, work)
+        digest = _digest(source, header, compiler, metadata)
+        entry = cache_dir / f"{prefix}-{digest[:16]}"
+        found = _verified(entry, prefix, digest)
+        if found is not None:
+            return found
+        built = _compile(fn, prefix, work, compiler, digest, metadata)
+        return _publish(work, built, entry, prefix, digest)
+
+
+def find_compiler() -> Compiler:
+    """The compiler named by ``$CC`` (default ``cc``), identified by version and resolved target."""
+    command = tuple(shlex.split(os.environ.get("CC", "cc")))
+    path = shutil.which(command[0]) if command else None
+    if path is None:
+        raise CompilerUnavailable(
+            f"C compiler {os.environ.get('CC', 'cc')!r} not found",
+            hint="install gcc or clang, set CC to a compiler, or use the interpreted runtime path")
+    return _identify((path,) + command[1:], os.stat(path).st_mtime_ns)
+
+
+@functools.lru_cache(maxsize=8)
+def _identify(command: tuple[str, ...], _mtime_ns: int) -> Compiler:
+    version = next(iter(_run([*command, "--version"]).stdout.splitlines()), "").strip()
+    probe = _run([*command, *FLAGS, "-###", "-E", "-x", "c", os.devnull])  # -E: no temp file names
+    target = hashlib.sha256(probe.stderr.encode()).hexdigest()
+    return Compiler(command, version, target)
+
+
+def _run(argv: list[str]) -> subprocess.CompletedProcess:
+    try:
+        return subprocess.run(argv, capture_output=True, text=True, check=True)
+    except OSError as e:
+        raise CompilerUnavailable(f"cannot run C compiler {argv[0]!r}: {e}") from e
+    except subprocess.CalledProcessError as e:
+        raise CompilerUnavailable(f"C compiler {argv[0]!r} does not work: {_tail(e.stderr)}") from e
+
+
+def _tail(text: str, lines: int = 25) -> str:
+    return "\n".join(text.strip().splitlines()[-lines:])
+
+
+def _generate(fn: ca.Function, prefix: str, work: Path) -> tuple[str, str]:
+    """Write ``<prefix>.c``/``.h`` into ``work`` (the function exported as ``prefix``)."""
+    if fn.name() != prefix:
+        args = fn.mx_in()
+        fn = ca.Function(prefix, args, fn.call(args), fn.name_in(), fn.name_out())
+    generator = ca.CodeGenerator(f"{prefix}.c", {"with_header": True})
+    generator.add(fn)
+    generator.generate(str(work) + os.sep)
+    c_path, h_path = work / f"{prefix}.c", work / f"{prefix}.h"
+    source = _NONFATAL_FAILURE.sub("/* vfdsl: solver failure reported through the outputs */",
+                                   c_path.read_text())
+    c_path.write_text(source)
+    return source, h_path.read_text()
+
+
+def _digest(source: str, header: str, compiler: Compiler, metadata: dict) -> str:
+    key = json.dumps({"source": source, "header": header, "flags": FLAGS,
+                      "compiler": compiler.version, "target": compiler.target,
+                      "casadi": ca.__version__, "metadata": metadata}, sort_keys=True)
+    return hashlib.sha256(key.encode()).hexdigest()
+
+
+def _compile(fn: ca.Function, prefix: str, work: Path, compiler: Compiler, digest: str,
+             metadata: dict) -> dict[str, Any]:
+    """Compile in ``work``, check that the result loads, write the metadata; return it."""
+    so_name = f"lib{prefix}-{secrets.token_hex(4)}.so"
+    argv = [*compiler.command, *FLAGS, f"-I{CASADI_DIR / 'include'}", f"{prefix}.c", "-o", so_name,
+            str(CASADI_DIR / "libdaqpstat.a"), "-lm", "-Wl,--exclude-libs,ALL"]
+    result = subprocess.run(argv, cwd=work, capture_output=True, text=True)
+    if result.returncode != 0:
+        raise VfError(f"compiling {prefix}.c failed ({shlex.join(argv)}):\n{_tail(result.stderr)}")
+    _load(work / so_name, prefix)
+    meta = {**metadata,
+            "prefix": prefix, "digest": digest,
+            "inputs": _io(fn.name_in(), fn.size_in), "outputs": _io(fn.name_out(), fn.size_out),
+            "compiler": compiler.command[0], "compiler_version": compiler.version,
+            "compiler_target_sha256": compiler.target, "flags": list(FLAGS),
+            "casadi_version": ca.__version__,
+            "created": datetime.datetime.now(datetime.UTC).isoformat(),
+            "so_file": so_name, "so_sha256": _sha256(work / so_name)}
+    (work / f"{prefix}.json").write_text(json.dumps(meta, indent=2, sort_keys=True))
+    return meta
+
+
+def _io(names: list[str], size) -> list[dict[str, Any]]:
+    return [{"name": name, "shape": list(size(i))} for i, name in enumerate(names)]
+
+
+def _publish(work: Path, meta: dict, entry: Path, prefix: str, digest: str) -> BuiltLibrary:
+    """Move the finished build to ``entry`` atomically, replacing an invalid entry if any."""
+    staged = work / "entry"
+    staged.mkdir()
+    for name in (f"{prefix}.c", f"{prefix}.h", meta["so_file"], f"{prefix}.json"):
+        os.replace(work / name, staged / name)
+    for _ in range(3):
+        try:
+            os.replace(staged, entry)
+            return _library(entry, prefix, digest, meta)
+        except OSError:  # entry exists: another process won the race, or it is invalid
+            found = _verified(entry, prefix, digest)
+            if found is not None:
+                return found
+        with contextlib.suppress(FileNotFoundError):  # another process may have moved it first
+            os.replace(entry, work / f"invalid-{secrets.token_hex(4)}")
+    raise VfError(f"could not publish {entry}: it keeps being replaced by other processes")
+
+
+def _verified(entry: Path, prefix: str, digest: str) -> BuiltLibrary | None:
+    """The library in ``entry`` if it is complete, uncorrupted and loadable, else None."""
+    try:
+        meta = json.loads((entry / f"{prefix}.json").read_text())
+        library = _library(entry, prefix, digest, meta)
+        intact = (meta["digest"] == digest and library.so_path.parent == entry
+                  and library.c_path.is_file() and library.h_path.is_file()
+                  and _sha256(library.so_path) == meta["so_sha256"])
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
+    if not intact:
+        return None
+    try:
+        _load(library.so_path, prefix)
+    except VfError:
+        return None
+    return library
+
+
+def _library(entry: Path, prefix: str, digest: str, meta: dict) -> BuiltLibrary:
+    return BuiltLibrary(so_path=entry / meta["so_file"], c_path=entry / f"{prefix}.c",
+                        h_path=entry / f"{prefix}.h", meta_path=entry / f"{prefix}.json",
+                        digest=digest)
+
+
+def _load(so_path: Path, prefix: str) -> None:
+    try:
+        getattr(ctypes.CDLL(str(so_path)), prefix)
+    except (OSError, AttributeError) as e:
+        raise VfError(f"{so_path} does not load or lacks symbol {prefix!r}: {e}") from e
+
+
+def _sha256(path: Path) -> str:
+    return hashlib.sha256(path.read_bytes()).hexdigest()

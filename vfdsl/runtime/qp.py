@@ -1,0 +1,207 @@
+"""The tick solver: one CasADi graph from QP data to a safe joint increment.
+
+The compiler hands over ``qp_data(q, u, p, dt) -> (H, g, A, lba, uba, lbx, ubx)`` describing
+
+    minimize 1/2 x'Hx + g'x   subject to   lba <= A x <= uba,   lbx <= x <= ubx        (P)
+
+with H positive definite, x = [dq; slack] (n entries) and m general rows.
+:func:`build_step_function` wraps it into ``step(q, u, p, dt) -> (x, status, violation)`` solved
+by DAQP through CasADi's ``conic`` plugin, so the whole tick (QP data, solve, fallback) is one
+Function that CasADi evaluates or code-generates into one C function.
+
+**Bounds.** lbx > ubx happens only when q is outside its joint limits: the position bound
+[q_lo - q, q_hi - q] and the speed bound [-v dt, v dt] (which contains 0) are then disjoint. Such
+an entry is pinned to whichever of lbx_j, ubx_j is smaller in magnitude -- the point of the
+interval containing 0 (the speed bound) nearest the other one, i.e. a return toward the limits at
+full allowed speed. Status bit ``BOUNDS_CLIPPED`` reports it. The clipped box B is never empty.
+
+**Phase 1** solves (P) over B. DAQP is a dual active-set method: its iterates are dual feasible
+and it stops when the primal iterate is feasible, so "x is finite and within ``feas_tol`` of every
+row and bound" is equivalent to success; it is checked in the graph (the conic exposes no flag).
+
+**Phase 2** (evaluated only when phase 1 fails, through a ``Function.if_else`` switch) is
+lexicographic. Rows are partitioned into G groups (one per row by default, or one per source
+constraint, see ``row_groups``); E in {0,1}^{m x G} is the incidence matrix and t in R^G the
+per-group violation.
+
+    (A) least violation:   minimize   1/2 |t|^2 + rho 1't + mu/2 x'(H/h)x     (h = trace(H)/n)
+                           subject to  lba - E t <= A x <= uba + E t,   x in B,   t >= 0
+
+    (B) objective:         minimize   1/2 x'Hx + g'x
+                           subject to  min(lba, A x_A) <= A x <= max(uba, A x_A),   x in B
+
+(A) is always feasible (any x in B with t large enough). Its measure sum_g (rho t_g + t_g^2/2) is
+strictly increasing and strictly convex in t, so the least violation t* is unique. With one group
+per row it sums over rows; with coarser groups each group counts its worst row (an L-infinity
+measure inside one polytope). The linear term makes the penalty exact at t = 0: a group that can
+be satisfied is satisfied exactly, since the tie-breaker mu (smallest motion among least-violating
+points) has a marginal cost far below rho. mu = 1e-3 is deliberately not tiny: CasADi's DAQP build
+loses accuracy on this ill-conditioned problem as mu shrinks (1e-5 relative error at mu = 1e-4,
+false infeasibility at 1e-8), while at 1e-3 the violation measure matched a mu -> 0 reference to
+3e-10 relative.
+
+(B) keeps every row that x_A satisfies hard and relaxes the others just enough to contain x_A: it
+is feasible by construction, and the user's objective acts only inside the least-violation set, so
+no row that could hold is traded for tracking. (A) has n + G variables and 2m rows; DAQP is dense,
+so G = m costs O((n + m)^3) per solve: pass coarse groups for large m (docs/runtime.md: timings).
+
+If (A) fails numerically x is the zero motion clipped to B; if only (B) fails it is x_A (status
+bit ``FALLBACK``). x always lies in B, and is finite when the QP data are.
+
+``violation[i] = max(lba_i - a_i'x, a_i'x - uba_i, 0)`` for the returned x, set to 0 when below
+``feas_tol``, so the caller can name the violated rows by label.
+"""
+
+from __future__ import annotations
+
+import enum
+import warnings
+from collections.abc import Callable, Hashable, Sequence
+
+import casadi as ca
+import numpy as np
+
+QP_DATA_OUTPUTS = ("H", "g", "A", "lba", "uba", "lbx", "ubx")
+STEP_OUTPUTS = ("x", "status", "violation")
+PER_ROW_GROUPS_LIMIT = 100
+"""Above this many rows one group per row makes phase 2 slow (~30 ms at m = 200; seconds, DAQP
+iteration-limit failures and megabytes of generated C at m = 1000): a warning asks for groups."""
+
+
+class StepStatus(enum.IntFlag):
+    """What happened in one tick (the ``status`` output, as bit flags)."""
+
+    OPTIMAL = 0
+    LEAST_VIOLATION = 1  # phase 1 gave no feasible point: x solves the least-violation problem
+    BOUNDS_CLIPPED = 2   # lbx > ubx somewhere (q outside its joint limits): bounds were clipped
+    FALLBACK = 4         # a phase-2 QP failed numerically: x is x_A or the clipped zero motion
+
+
+def build_step_function(qp_data: ca.Function, prefix: str, *,
+                        row_groups: Sequence[Hashable] | None = None,
+                        feas_tol: float = 1e-6,
+                        penalty: float = 1.0,
+                        tie_break: float = 1e-3) -> ca.Function:
+    """``prefix(q, u, p, dt) -> (x[n], status, violation[m])`` solving ``qp_data``'s QP.
+
+    ``row_groups[i]`` is the group of general row i (default: one group per row); ``feas_tol`` the
+    absolute tolerance (row units) under which a row or bound counts as satisfied; ``penalty`` is
+    rho and ``tie_break`` is mu of phase 2 (see the module docstring).
+    """
+    _check_qp_data(qp_data)
+    n, m = qp_data.size1_out(0), qp_data.size1_out(2)
+    inputs = [ca.MX.sym(name, qp_data.sparsity_in(i)) for i, name in enumerate(qp_data.name_in())]
+    H, g, A, lba, uba, lbx, ubx = (ca.densify(v) for v in qp_data.call(inputs))
+    lo, hi, clipped = _safe_box(lbx, ubx)
+
+    x1 = _daqp(n, m, feas_tol, "phase1")(H, g, A, lba, uba, lo, hi)
+    if m == 0:
+        x, status = x1, ca.MX(int(StepStatus.OPTIMAL))
+    else:
+        ok1 = _acceptable(x1, A @ x1, lba, uba, lo, hi, feas_tol)
+        switch = _phase2_switch([H, g, A, lba, uba, lo, hi, x1], _incidence(m, row_groups),
+                                feas_tol, penalty, tie_break)
+        picked = switch(ok1, H, g, A, lba, uba, lo, hi, x1)
+        x, status = picked[:n], picked[n]
+    status = status + int(StepStatus.BOUNDS_CLIPPED) * clipped
+    violation = _row_violation(A @ x, lba, uba)
+    violation = ca.if_else(violation > feas_tol, violation, 0)
+    return ca.Function(prefix, inputs, [x, status, violation], list(qp_data.name_in()),
+                       list(STEP_OUTPUTS))
+
+
+def _check_qp_data(qp_data: ca.Function) -> None:
+    if qp_data.n_in() != 4 or qp_data.n_out() != 7:
+        raise ValueError(f"qp_data must map (q, u, p, dt) to {QP_DATA_OUTPUTS}, "
+                         f"got {qp_data.n_in()} inputs and {qp_data.n_out()} outputs")
+    n, m = qp_data.size1_out(0), qp_data.size1_out(2)
+    expected = [(n, n), (n, 1), (m, n), (m, 1), (m, 1), (n, 1), (n, 1)]
+    got = [(qp_data.size1_out(i), qp_data.size2_out(i)) for i in range(7)]
+    if got != expected:
+        raise ValueError(f"qp_data output shapes {got} do not match {expected} for n={n}, m={m}")
+
+
+def _daqp(n: int, m: int, feas_tol: float, name: str) -> Callable[..., ca.MX]:
+    """solve(H, g, A, lba, uba, lbx, ubx) -> x: dense DAQP conic, no exception on failure."""
+    sparsity = {"h": ca.Sparsity.dense(n, n), "a": ca.Sparsity.dense(m, n)}
+    options = {"error_on_fail": False, "daqp": {"primal_tol": feas_tol * 1e-3}}
+    conic = ca.conic(name, "daqp", sparsity, options)
+
+    def solve(H, g, A, lba, uba, lbx, ubx):
+        return conic(h=H, g=g, a=A, lba=lba, uba=uba, lbx=lbx, ubx=ubx)["x"]
+
+    return solve
+
+
+def _safe_box(lbx: ca.MX, ubx: ca.MX) -> tuple[ca.MX, ca.MX, ca.MX]:
+    """B = [lo, hi]: crossed entries pinned to the bound of smaller magnitude; flag if any."""
+    crossed = lbx > ubx
+    pin = ca.if_else(ca.fabs(lbx) <= ca.fabs(ubx), lbx, ubx)
+    return ca.if_else(crossed, pin, lbx), ca.if_else(crossed, pin, ubx), ca.mmax(crossed)
+
+
+def _row_violation(Ax: ca.MX, lower: ca.MX, upper: ca.MX) -> ca.MX:
+    """max(lower - Ax, Ax - upper, 0), elementwise."""
+    return ca.fmax(ca.fmax(lower - Ax, Ax - upper), 0)
+
+
+def _acceptable(x, Ax, lba, uba, lo, hi, tol) -> ca.MX:
+    """1 when x is finite and within tol of every row and bound."""
+    finite = ca.mmin(ca.fabs(x) < ca.inf)
+    rows_ok = ca.mmax(_row_violation(Ax, lba, uba)) <= tol
+    box_ok = ca.mmax(_row_violation(x, lo, hi)) <= tol
+    return ca.logic_and(finite, ca.logic_and(rows_ok, box_ok))
+
+
+def _incidence(m: int, row_groups: Sequence[Hashable] | None) -> ca.DM:
+    """E[i, k] = 1 when row i belongs to the k-th distinct group (first-seen order)."""
+    if row_groups is None:
+        if m > PER_ROW_GROUPS_LIMIT:
+            warnings.warn(f"{m} general rows and no row_groups: phase 2 gets {m} slack variables; "
+                          "pass one group per source constraint", stacklevel=3)
+        return ca.DM(ca.Sparsity.diag(m), 1.0)
+    if len(row_groups) != m:
+        raise ValueError(f"row_groups has {len(row_groups)} entries for {m} general rows")
+    ids = {group: k for k, group in enumerate(dict.fromkeys(row_groups))}
+    E = np.zeros((m, len(ids)))
+    E[np.arange(m), [ids[group] for group in row_groups]] = 1.0
+    return ca.DM(E)
+
+
+def _phase2_switch(values: list[ca.MX], E: ca.DM, tol, rho, mu) -> ca.Function:
+    """switch(ok, H, g, A, lba, uba, lo, hi, x1) -> [x1; 0] when ok, else phase 2's [x; status].
+
+    The branches are Functions of values already computed: a short-circuit ``if_else`` on
+    expressions would make each branch recompute them (QP data and phase 1) from the inputs.
+    """
+    names = ("H", "g", "A", "lba", "uba", "lo", "hi", "x1")
+    args = [ca.MX.sym(name, v.sparsity()) for name, v in zip(names, values, strict=True)]
+    H, g, A, lba, uba, lo, hi, x1 = args
+    keep = ca.Function("keep", args, [ca.vertcat(x1, int(StepStatus.OPTIMAL))])
+    recover = ca.Function("recover", args,
+                          [_least_violation(H, g, A, lba, uba, lo, hi, E, tol, rho, mu)])
+    return ca.Function.if_else("phase2_if_needed", keep, recover)
+
+
+def _least_violation(H, g, A, lba, uba, lo, hi, E: ca.DM, tol, rho, mu) -> ca.MX:
+    """Phase 2 (A then B), returning [x; status]."""
+    n, m, G = H.size1(), A.size1(), E.size2()
+    scale = mu * n / ca.trace(H)
+    H_a = ca.diagcat(scale * H, ca.DM.eye(G))
+    g_a = ca.vertcat(ca.DM.zeros(n), rho * ca.DM.ones(G))
+    A_a = ca.vertcat(ca.horzcat(A, E), ca.horzcat(A, -E))
+    inf_m, inf_G = ca.inf * ca.DM.ones(m), ca.inf * ca.DM.ones(G)
+    lba_a, uba_a = ca.vertcat(lba, -inf_m), ca.vertcat(inf_m, uba)
+    lbz, ubz = ca.vertcat(lo, ca.DM.zeros(G)), ca.vertcat(hi, inf_G)
+    z = _daqp(n + G, 2 * m, tol, "phase2a")(H_a, g_a, A_a, lba_a, uba_a, lbz, ubz)
+    x_a = z[:n]
+    Ax_a = A @ x_a
+    lba_b, uba_b = ca.fmin(lba, Ax_a), ca.fmax(uba, Ax_a)
+    x_b = _daqp(n, m, tol, "phase2b")(H, g, A, lba_b, uba_b, lo, hi)
+
+    ok_a = _acceptable(z, A_a @ z, lba_a, uba_a, lbz, ubz, tol)
+    ok_b = _acceptable(x_b, A @ x_b, lba_b, uba_b, lo, hi, tol)
+    rest = ca.fmin(ca.fmax(0, lo), hi)
+    x = ca.if_else(ok_a, ca.if_else(ok_b, x_b, x_a), rest)
+    status = int(StepStatus.LEAST_VIOLATION) + int(StepStatus.FALLBACK) * (1 - ok_a * ok_b)
+    return ca.vertcat(x, status)
