@@ -1,8 +1,14 @@
-"""vfdsl: virtual fixtures as short declarative ``.vf`` files, compiled into constrained least-squares controllers."""
+"""vfdsl: virtual fixtures as short declarative ``.vf`` files, compiled into constrained least-squares controllers.
+
+    task = vfdsl.load("tasks/paper_b_virtual_rcm.vf")       # parse, import, expand, check
+    ctrl = vfdsl.compile(task)                              # the tick's QP and its solver
+    dq = ctrl.step(task.start, {"tau": [0, 0, 0.01]})
+"""
 
 from vfdsl.errors import VfError
 from vfdsl.ir.model import Task
 from vfdsl.loader import load
+from vfdsl.runtime.controller import Controller, compile
 
-__all__ = ["Task", "VfError", "load"]
+__all__ = ["Controller", "Task", "VfError", "compile", "load"]
 __version__ = "0.1.0"

@@ -19,6 +19,7 @@ from pathlib import Path
 
 import matplotlib.pyplot as plt
 import numpy as np
+import yaml
 from mpl_toolkits.mplot3d.art3d import Poly3DCollection
 from scipy.interpolate import make_interp_spline
 from scipy.spatial import ConvexHull
@@ -228,8 +229,8 @@ def figure_cone():
     plt.close(fig)
 
 
-PAPER_A = np.array([[-40, -10, 0], [-28, 12, 0], [-15, -8, 0], [-4, 15, 0],
-                    [8, -12, 0], [20, 10, 0], [30, -5, 0], [40, 8, 0]], dtype=float)   # mm, the plate frame
+SCENE_A = Path(__file__).resolve().parents[2] / "tasks" / "paper_a_follow_curve.yaml"
+PAPER_A = np.array(yaml.safe_load(SCENE_A.read_text())["params"]["path"]["points"], dtype=float)  # mm, plate
 
 
 def figure_follow_curve():

@@ -10,23 +10,42 @@ anything is evaluated: an unknown name, a wrong length, NaN or inf raises :class
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
 
 import numpy as np
 from pydantic import BaseModel
 
-from vfdsl.compiler.assemble import AssembledProblem, RowLabel
+from vfdsl.compiler.assemble import AssembledProblem, RowLabel, assemble
 from vfdsl.compiler.context import PARAM_SIZES, flatten
 from vfdsl.errors import VfError, suggest
 from vfdsl.ir import model as ir
 from vfdsl.kinematics.robot import Robot
+from vfdsl.runtime.native import BufferedFunction
+from vfdsl.runtime.qp import StepStatus, build_step_function
 
 
 def compile(task: ir.Task) -> "Controller":
-    """Build the task's QP (interpreted; see vfdsl.codegen for generated C)."""
-    from vfdsl.compiler.assemble import assemble
-    robot = Robot.load(task.robots[0].urdf)
-    return Controller(task, assemble(task, robot))
+    """A Controller for ``task``: its tick QP and the solver step around it, evaluated by CasADi."""
+    problem = assemble(task, Robot.load(task.robots[0].urdf))
+    step = BufferedFunction.interpreted(build_step_function(problem.function, symbol_prefix(task)))
+    return Controller(task, problem, step)
+
+
+def symbol_prefix(task: ir.Task) -> str:
+    """A C identifier naming this task's functions."""
+    return "vf_" + re.sub(r"\W", "_", task.name)
+
+
+@dataclass(frozen=True)
+class Violation:
+    """A hard row the last step could not satisfy, and by how much (in the row's units: m or rad)."""
+
+    label: RowLabel
+    amount: float
+
+    def __str__(self) -> str:
+        return f"{self.label}: violated by {self.amount:.3g}"
 
 
 @dataclass(frozen=True)
@@ -52,7 +71,7 @@ class QuadraticProgram:
 class Controller:
     """Evaluates a task's QP each tick (and, with a step function, solves it)."""
 
-    def __init__(self, task: ir.Task, problem: AssembledProblem, step_function=None):
+    def __init__(self, task: ir.Task, problem: AssembledProblem, step: BufferedFunction):
         self.task = task
         self.assembled = problem
         self.nq = problem.nq
@@ -65,8 +84,10 @@ class Controller:
         self._input_offsets = ctx.input_offsets
         self._u = np.zeros(ctx.u.shape[0])
         self._p_default = ctx.layout.defaults.copy()
-        self._step_function = step_function
+        self._step = step
         self._labels = self._all_labels()
+        self.status = StepStatus.OPTIMAL
+        self._violation = np.zeros(0)
 
     # -------------------------------------------------------------------------------------- API
     def problem(self, q, inputs=None, params=None, dt=None) -> QuadraticProgram:
@@ -79,10 +100,25 @@ class Controller:
                                 labels=list(self._labels), nq=self.nq)
 
     def step(self, q, inputs=None, params=None, dt=None) -> np.ndarray:
-        """The joint increment dq for this tick."""
-        if self._step_function is None:
-            raise VfError("this controller has no solver attached")
-        return self._step_function(*self._arguments(q, inputs, params, dt))[:self.nq]
+        """The joint increment dq for this tick (checked inputs, one solver call).
+
+        When the hard rows cannot all hold, dq solves the least-violation problem instead: ``status``
+        says so and :meth:`violations` names the rows. dq is always finite and within the joint bounds."""
+        q_buf, u_buf, p_buf, dt_buf = self._step.inputs
+        q_buf[:], u_buf[:], p_buf[:], dt_buf[...] = self._arguments(q, inputs, params, dt)
+        x, status, self._violation = self._step.evaluate()
+        self.status = StepStatus(int(status[0]))
+        return x[:self.nq].copy()
+
+    def violations(self) -> list[Violation]:
+        """The constraint rows the last step violates (empty after a normal step)."""
+        amounts = self._violation
+        return [Violation(label, float(a)) for label, a in zip(self.assembled.row_labels, amounts) if a > 0]
+
+    @property
+    def backend(self) -> str:
+        """'native' (generated C) or 'interpreted' (CasADi in this process)."""
+        return self._step.kind
 
     @property
     def row_labels(self) -> list[RowLabel]:
