@@ -24,29 +24,34 @@ lexicographic. Rows are partitioned into G groups (one per row by default, or on
 constraint, see ``row_groups``); E in {0,1}^{m x G} is the incidence matrix and t in R^G the
 per-group violation.
 
-    (A) least violation:   minimize   1/2 |t|^2 + rho 1't + mu/2 x'(H/h)x     (h = trace(H)/n)
+    (A) least violation:   minimize   1/2 |t|^2 + rho 1't + mu/2 |x|^2
                            subject to  lba - E t <= A x <= uba + E t,   x in B,   t >= 0
 
     (B) objective:         minimize   1/2 x'Hx + g'x
-                           subject to  min(lba, A x_A) <= A x <= max(uba, A x_A),   x in B
+                           subject to  lba' <= A x <= uba',   x in B
+                           (lba'_i = a_i'x_A - tol/100 where a_i'x_A < lba_i, else lba_i; likewise uba')
 
 (A) is always feasible (any x in B with t large enough). Its measure sum_g (rho t_g + t_g^2/2) is
 strictly increasing and strictly convex in t, so the least violation t* is unique. With one group
 per row it sums over rows; with coarser groups each group counts its worst row (an L-infinity
 measure inside one polytope). The linear term makes the penalty exact at t = 0: a group that can
 be satisfied is satisfied exactly, since the tie-breaker mu (smallest motion among least-violating
-points) has a marginal cost far below rho. mu = 1e-3 is deliberately not tiny: CasADi's DAQP build
-loses accuracy on this ill-conditioned problem as mu shrinks (1e-5 relative error at mu = 1e-4,
-false infeasibility at 1e-8), while at 1e-3 the violation measure matched a mu -> 0 reference to
-3e-10 relative.
+points) has a marginal cost far below rho. The tie-breaker is mu I, not a multiple of H: H's
+eigenvalues span ~1e-6..10 on the example tasks, and mu H / trace(H) next to the identity on t made
+(A) so ill-conditioned that CasADi's DAQP returned rows violated by up to 2e-7 while reporting
+success; with mu I (A) is solved to ~1e-13 (measured).
 
-(B) keeps every row that x_A satisfies hard and relaxes the others just enough to contain x_A: it
-is feasible by construction, and the user's objective acts only inside the least-violation set, so
+(B) keeps every row that x_A satisfies hard and relaxes the others just enough to contain x_A (plus
+tol/100, so that its feasible set is not a single degenerate point): it is feasible by
+construction, and the user's objective acts only inside the least-violation set, so
 no row that could hold is traded for tracking. (A) has n + G variables and 2m rows; DAQP is dense,
 so G = m costs O((n + m)^3) per solve: pass coarse groups for large m (docs/runtime.md: timings).
 
-If (A) fails numerically x is the zero motion clipped to B; if only (B) fails it is x_A (status
-bit ``FALLBACK``). x always lies in B, and is finite when the QP data are.
+(A) is feasible by construction, so its answer is taken unless the solve failed outright (rows or
+bounds off by more than 1e-6: a failed solve is off by orders of magnitude), clipped into B (the
+solver's bound noise). If (B) fails, x is x_A, a least-violation move without the objective; if (A)
+fails, x is the zero motion clipped to B, with status bit ``FALLBACK``. x always lies in B,
+and is finite when the QP data are.
 
 ``violation[i] = max(lba_i - a_i'x, a_i'x - uba_i, 0)`` for the returned x, set to 0 when below
 ``feas_tol``, so the caller can name the violated rows by label.
@@ -74,7 +79,7 @@ class StepStatus(enum.IntFlag):
     OPTIMAL = 0
     LEAST_VIOLATION = 1  # phase 1 gave no feasible point: x solves the least-violation problem
     BOUNDS_CLIPPED = 2   # lbx > ubx somewhere (q outside its joint limits): bounds were clipped
-    FALLBACK = 4         # a phase-2 QP failed numerically: x is x_A or the clipped zero motion
+    FALLBACK = 4         # the least-violation QP failed numerically: x is the zero motion clipped to B
 
 
 def build_step_function(qp_data: ca.Function, prefix: str, *,
@@ -122,13 +127,18 @@ def _check_qp_data(qp_data: ca.Function) -> None:
 
 
 def _daqp(n: int, m: int, feas_tol: float, name: str) -> Callable[..., ca.MX]:
-    """solve(H, g, A, lba, uba, lbx, ubx) -> x: dense DAQP conic, no exception on failure."""
-    sparsity = {"h": ca.Sparsity.dense(n, n), "a": ca.Sparsity.dense(m, n)}
+    """solve(H, g, A, lba, uba, lbx, ubx) -> x: dense DAQP conic, no exception on failure.
+
+    The variable bounds reach DAQP as identity rows: through CasADi's interface (3.8) DAQP met simple
+    bounds only to ~5e-8 (measured), general rows to ``primal_tol``."""
+    sparsity = {"h": ca.Sparsity.dense(n, n), "a": ca.Sparsity.dense(m + n, n)}
     options = {"error_on_fail": False, "daqp": {"primal_tol": feas_tol * 1e-3}}
     conic = ca.conic(name, "daqp", sparsity, options)
+    free = ca.inf * ca.DM.ones(n)
 
     def solve(H, g, A, lba, uba, lbx, ubx):
-        return conic(h=H, g=g, a=A, lba=lba, uba=uba, lbx=lbx, ubx=ubx)["x"]
+        return conic(h=H, g=g, a=ca.vertcat(A, ca.DM.eye(n)), lba=ca.vertcat(lba, lbx),
+                     uba=ca.vertcat(uba, ubx), lbx=-free, ubx=free)["x"]
 
     return solve
 
@@ -183,25 +193,32 @@ def _phase2_switch(values: list[ca.MX], E: ca.DM, tol, rho, mu) -> ca.Function:
     return ca.Function.if_else("phase2_if_needed", keep, recover)
 
 
+# (B)'s rows are relaxed already; its check only has to catch a failed solve, whose answer is off by
+# orders of magnitude (seen: 1 to 20), not decide feasibility at the 1e-9 level, where the generated and
+# interpreted evaluations (whose QP data differ in the last bits) could decide differently.
+_GROSS_FAILURE = 1e-6
+
+
 def _least_violation(H, g, A, lba, uba, lo, hi, E: ca.DM, tol, rho, mu) -> ca.MX:
     """Phase 2 (A then B), returning [x; status]."""
     n, m, G = H.size1(), A.size1(), E.size2()
-    scale = mu * n / ca.trace(H)
-    H_a = ca.diagcat(scale * H, ca.DM.eye(G))
+    H_a = ca.diagcat(mu * ca.DM.eye(n), ca.DM.eye(G))
     g_a = ca.vertcat(ca.DM.zeros(n), rho * ca.DM.ones(G))
     A_a = ca.vertcat(ca.horzcat(A, E), ca.horzcat(A, -E))
     inf_m, inf_G = ca.inf * ca.DM.ones(m), ca.inf * ca.DM.ones(G)
     lba_a, uba_a = ca.vertcat(lba, -inf_m), ca.vertcat(inf_m, uba)
     lbz, ubz = ca.vertcat(lo, ca.DM.zeros(G)), ca.vertcat(hi, inf_G)
     z = _daqp(n + G, 2 * m, tol, "phase2a")(H_a, g_a, A_a, lba_a, uba_a, lbz, ubz)
-    x_a = z[:n]
+    x_a = ca.fmin(ca.fmax(z[:n], lo), hi)
     Ax_a = A @ x_a
-    lba_b, uba_b = ca.fmin(lba, Ax_a), ca.fmax(uba, Ax_a)
-    x_b = _daqp(n, m, tol, "phase2b")(H, g, A, lba_b, uba_b, lo, hi)
+    margin = 1e-2 * tol                                  # > DAQP's primal tolerance (1e-3 tol)
+    lba_b = ca.if_else(Ax_a < lba, Ax_a - margin, lba)   # only the rows x_a violates are relaxed
+    uba_b = ca.if_else(Ax_a > uba, Ax_a + margin, uba)
+    x_b = ca.fmin(ca.fmax(_daqp(n, m, tol, "phase2b")(H, g, A, lba_b, uba_b, lo, hi), lo), hi)
 
-    ok_a = _acceptable(z, A_a @ z, lba_a, uba_a, lbz, ubz, tol)
-    ok_b = _acceptable(x_b, A @ x_b, lba_b, uba_b, lo, hi, tol)
+    ok_a = _acceptable(z, A_a @ z, lba_a, uba_a, lbz, ubz, _GROSS_FAILURE)
+    ok_b = _acceptable(x_b, A @ x_b, lba_b, uba_b, lo, hi, _GROSS_FAILURE)
     rest = ca.fmin(ca.fmax(0, lo), hi)
     x = ca.if_else(ok_a, ca.if_else(ok_b, x_b, x_a), rest)
-    status = int(StepStatus.LEAST_VIOLATION) + int(StepStatus.FALLBACK) * (1 - ok_a * ok_b)
+    status = int(StepStatus.LEAST_VIOLATION) + int(StepStatus.FALLBACK) * (1 - ok_a)
     return ca.vertcat(x, status)
