@@ -1,7 +1,8 @@
-"""Shared fixtures for the language tests: where the example tasks live, and a scratch copy of them."""
+"""Shared fixtures: where the example tasks live, a scratch copy of them, and a private library cache."""
 
 from __future__ import annotations
 
+import os
 import shutil
 from pathlib import Path
 
@@ -24,3 +25,16 @@ def tasks_copy(tmp_path: Path) -> Path:
     target = tmp_path / "tasks"
     shutil.copytree(TASKS_DIR, target)
     return target
+
+
+@pytest.fixture(scope="session", autouse=True)
+def private_cache(tmp_path_factory) -> Path:
+    """Generated libraries go to a cache of this test session, never the user's ~/.cache/vfdsl."""
+    cache = tmp_path_factory.mktemp("vfdsl-cache")
+    previous = os.environ.get("VFDSL_CACHE")
+    os.environ["VFDSL_CACHE"] = str(cache)
+    yield cache
+    if previous is None:
+        del os.environ["VFDSL_CACHE"]
+    else:
+        os.environ["VFDSL_CACHE"] = previous

@@ -7,16 +7,19 @@ scipy through the scene's points (closest point by dense search plus Newton).
 
 from __future__ import annotations
 
+from functools import partial
+
 import numpy as np
 import pytest
+from conftest import TASKS_DIR
 from scipy.interpolate import make_interp_spline
 from scipy.spatial.transform import Rotation
 
 import vfdsl
-from conftest import TASKS_DIR
 from vfdsl.kinematics.robot import Robot
-from vfdsl.runtime.controller import compile as compile_task
 from vfdsl.runtime.qp import StepStatus
+
+compile_task = partial(vfdsl.compile, backend="interpreted")   # rows and solutions; C is tested elsewhere
 
 pytestmark = pytest.mark.slow
 

@@ -57,7 +57,9 @@ def test_build_then_hit(tmp_path, compiles, interpreted_x):
     mtime = first.so_path.stat().st_mtime_ns
     second = build_library(small_step("vf_a"), "vf_a", tmp_path, {"task": "a"})  # rebuilt graph
     assert compiles == ["vf_a"]
-    assert second == first and first.so_path.stat().st_mtime_ns == mtime
+    assert not first.reused and second.reused
+    assert second.so_path == first.so_path and second.digest == first.digest
+    assert first.so_path.stat().st_mtime_ns == mtime
     meta = json.loads(first.meta_path.read_text())
     assert meta["task"] == "a" and meta["digest"] == first.digest
     assert meta["inputs"][0] == {"name": "q", "shape": [2, 1]}

@@ -8,7 +8,8 @@
 from vfdsl.errors import VfError
 from vfdsl.ir.model import Task
 from vfdsl.loader import load
-from vfdsl.runtime.controller import Controller, compile
+from vfdsl.pipeline import compile
+from vfdsl.runtime.controller import Controller
 
 __all__ = ["Controller", "Task", "VfError", "compile", "load"]
 __version__ = "0.1.0"

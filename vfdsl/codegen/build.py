@@ -28,6 +28,7 @@ reported through the outputs, see :mod:`vfdsl.runtime.qp`); conics with ``error_
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import ctypes
 import datetime
 import functools
@@ -68,6 +69,7 @@ class BuiltLibrary:
     h_path: Path
     meta_path: Path
     digest: str
+    reused: bool = False             # True when a verified cache entry was used, nothing compiled
 
 
 @dataclass(frozen=True)
@@ -91,7 +93,7 @@ def build_library(fn: ca.Function, prefix: str, cache_dir: Path, metadata: dict)
         entry = cache_dir / f"{prefix}-{digest[:16]}"
         found = _verified(entry, prefix, digest)
         if found is not None:
-            return found
+            return dataclasses.replace(found, reused=True)
         built = _compile(fn, prefix, work, compiler, digest, metadata)
         return _publish(work, built, entry, prefix, digest)
 

@@ -60,6 +60,7 @@ class AssembledProblem:
     function: ca.Function
     context: Context
     row_labels: list[RowLabel]
+    row_groups: list[int]                    # per row of A, the index of the constraint it comes from
     bound_labels: list[list[RowLabel]]       # per variable, the hard bounds that shaped it (may be empty)
     slack_labels: list[RowLabel] = field(default_factory=list)
 
@@ -95,12 +96,12 @@ def assemble(task: ir.Task, robot: Robot) -> AssembledProblem:
 
     lbx, ubx = [-inf] * nq, [inf] * nq
     bound_labels: list[list[RowLabel]] = [[] for _ in range(nq)]
-    rows_A, rows_lb, rows_ub, labels = [], [], [], []
-    soft_rows: list[tuple[int, Rows, ir.Constraint]] = []
-    for c in task.constraints:
+    rows_A, rows_lb, rows_ub, labels, groups = [], [], [], [], []
+    soft_rows: list[tuple[int, Rows, ir.Constraint, int]] = []
+    for number, c in enumerate(task.constraints):
         rows = _module("primitives", c.primitive).lower(c, ctx)
         if c.soft:
-            soft_rows.append((len(soft_rows), rows, c))
+            soft_rows.append((len(soft_rows), rows, c, number))
         elif rows.bounds:
             for i in range(nq):
                 lbx[i] = ca.fmax(lbx[i], rows.lb[i])
@@ -111,14 +112,15 @@ def assemble(task: ir.Task, robot: Robot) -> AssembledProblem:
             rows_lb.append(rows.lb)
             rows_ub.append(rows.ub)
             labels += [_label(c, f) for f in rows.facets]
+            groups += [number] * len(rows.facets)
 
     # soft constraints: one slack each, appended after dq
     n_slack = len(soft_rows)
-    H = ca.diagcat(H, ca.diag(ca.DM([2 * c.weight for _, _, c in soft_rows]))) if n_slack else H
+    H = ca.diagcat(H, ca.diag(ca.DM([2 * c.weight for _, _, c, _ in soft_rows]))) if n_slack else H
     g = ca.vertcat(g, ca.DM.zeros(n_slack))
     A_full = [ca.horzcat(A, ca.SX.zeros(A.shape[0], n_slack)) for A in rows_A]
     slack_labels = []
-    for index, rows, c in soft_rows:
+    for index, rows, c, number in soft_rows:
         column = ca.DM.zeros(1, n_slack)
         column[index] = 1
         k = rows.A.shape[0]
@@ -127,11 +129,13 @@ def assemble(task: ir.Task, robot: Robot) -> AssembledProblem:
         rows_lb.append(rows.lb)
         rows_ub.append(ca.DM.inf(k))
         labels += [_label(c, f + " (lower)" if not one_sided else f) for f in rows.facets]
+        groups += [number] * k
         if not one_sided:
             A_full.append(ca.horzcat(rows.A, ca.repmat(-column, k, 1)))
             rows_lb.append(-ca.DM.inf(k))
             rows_ub.append(rows.ub)
             labels += [_label(c, f + " (upper)") for f in rows.facets]
+            groups += [number] * k
         slack_labels.append(_label(c, "slack"))
     lbx += [ca.DM(0.0)] * n_slack
     ubx += [inf] * n_slack
@@ -142,4 +146,4 @@ def assemble(task: ir.Task, robot: Robot) -> AssembledProblem:
     outputs = [ca.densify(x) for x in (H, g, A, lba, uba, ca.vertcat(*lbx), ca.vertcat(*ubx))]
     function = ca.Function("qp_data", [ctx.q, ctx.u, ctx.p, ctx.dt], outputs,
                            ["q", "u", "p", "dt"], ["H", "g", "A", "lba", "uba", "lbx", "ubx"])
-    return AssembledProblem(function, ctx, labels, bound_labels, slack_labels)
+    return AssembledProblem(function, ctx, labels, groups, bound_labels, slack_labels)

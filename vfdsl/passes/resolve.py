@@ -12,7 +12,6 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
-
 from vfdsl.errors import VfError, suggest
 from vfdsl.ir import model as ir
 from vfdsl.kinematics.robot import ROBOTS_DIR, Robot
@@ -23,7 +22,12 @@ from vfdsl.passes.calls import bind_arguments
 from vfdsl.passes.scene import SceneData, load_scene
 from vfdsl.passes.shapes import LiteralReader, describe_kind
 from vfdsl.primitives import CONSTRAINTS
-from vfdsl.primitives.spec import GEOMETRIC_KINDS, SCALAR_DIMENSIONS, ArgSpec, gain_dimension
+from vfdsl.primitives.spec import (
+    GEOMETRIC_KINDS,
+    SCALAR_DIMENSIONS,
+    ArgSpec,
+    gain_dimension,
+)
 from vfdsl.syntax import ast
 
 PARAM_KINDS = GEOMETRIC_KINDS + tuple(SCALAR_DIMENSIONS)

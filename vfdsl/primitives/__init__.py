@@ -1,8 +1,21 @@
 """Constraint primitives, one module each: its math in the docstring and its ``SPEC`` (signature)."""
 
-from vfdsl.primitives import (above, along, angular_speed, cone, follows, joint_limits, joint_speed,
-                              keeps_direction, on_plane, passes_through, rotates_around, speed, stays_at,
-                              within_distance)
+from vfdsl.primitives import (
+                              above,
+                              along,
+                              angular_speed,
+                              cone,
+                              follows,
+                              joint_limits,
+                              joint_speed,
+                              keeps_direction,
+                              on_plane,
+                              passes_through,
+                              rotates_around,
+                              speed,
+                              stays_at,
+                              within_distance,
+)
 from vfdsl.primitives.spec import ConstraintSpec
 
 _MODULES = (stays_at, keeps_direction, along, rotates_around, above, on_plane, follows, cone, passes_through,

@@ -8,8 +8,8 @@ tool shaft) and apply "move along a line" (II-B.3) with the line through P_c + s
 import casadi as ca
 
 from vfdsl.compiler.rows import Rows
-from vfdsl.primitives.along import along_line
 from vfdsl.ir import model as ir
+from vfdsl.primitives.along import along_line
 from vfdsl.primitives.spec import ArgSpec, ConstraintSpec
 
 SPEC = ConstraintSpec(

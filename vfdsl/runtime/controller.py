@@ -1,6 +1,6 @@
 """The Controller: a compiled task you call once per control tick.
 
-    ctrl = vfdsl.compile(vfdsl.load("tasks/paper_b_virtual_rcm.vf"))
+    ctrl = vfdsl.compile(vfdsl.load("tasks/paper_b_virtual_rcm.vf"))      # see vfdsl.pipeline
     dq = ctrl.step(q, {"tau": [0, 0, 0.02]})           # joint increment for this tick
     qp = ctrl.problem(q, {"tau": [0, 0, 0.02]})        # the numeric QP behind it, one label per row
 
@@ -10,31 +10,17 @@ anything is evaluated: an unknown name, a wrong length, NaN or inf raises :class
 
 from __future__ import annotations
 
-import re
 from dataclasses import dataclass
 
 import numpy as np
 from pydantic import BaseModel
 
-from vfdsl.compiler.assemble import AssembledProblem, RowLabel, assemble
+from vfdsl.compiler.assemble import AssembledProblem, RowLabel
 from vfdsl.compiler.context import PARAM_SIZES, flatten
 from vfdsl.errors import VfError, suggest
 from vfdsl.ir import model as ir
-from vfdsl.kinematics.robot import Robot
 from vfdsl.runtime.native import BufferedFunction
-from vfdsl.runtime.qp import StepStatus, build_step_function
-
-
-def compile(task: ir.Task) -> "Controller":
-    """A Controller for ``task``: its tick QP and the solver step around it, evaluated by CasADi."""
-    problem = assemble(task, Robot.load(task.robots[0].urdf))
-    step = BufferedFunction.interpreted(build_step_function(problem.function, symbol_prefix(task)))
-    return Controller(task, problem, step)
-
-
-def symbol_prefix(task: ir.Task) -> str:
-    """A C identifier naming this task's functions."""
-    return "vf_" + re.sub(r"\W", "_", task.name)
+from vfdsl.runtime.qp import StepStatus
 
 
 @dataclass(frozen=True)

@@ -1,0 +1,106 @@
+"""``vfdsl.compile``: a checked task -> a Controller whose step is one call into generated C.
+
+    IR --assemble--> qp_data Function --build_step_function--> step Function (QP data + DAQP + fallback)
+       --build_library--> C source, shared library, metadata (cached by content hash) --> Controller
+
+Without a C compiler the same step Function is evaluated by CasADi in the process (the interpreted
+path): same answers, slower; a single warning says so.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import re
+import warnings
+from pathlib import Path
+
+import vfdsl
+from vfdsl.codegen.build import BuiltLibrary, CompilerUnavailable, build_library
+from vfdsl.compiler.assemble import AssembledProblem, assemble
+from vfdsl.errors import VfError
+from vfdsl.ir import model as ir
+from vfdsl.kinematics.robot import Robot
+from vfdsl.runtime.controller import Controller
+from vfdsl.runtime.native import BufferedFunction
+from vfdsl.runtime.qp import build_step_function
+
+# A row or bound is satisfied within this much (m or rad): far below any tolerance a task can express.
+FEASIBILITY_TOLERANCE = 1e-9
+BACKENDS = ("auto", "native", "interpreted")
+
+
+class InterpretedFallback(UserWarning):
+    """No C compiler: the controller runs interpreted (same answers, slower)."""
+
+
+_warned = False
+
+
+def default_cache_dir() -> Path:
+    """$VFDSL_CACHE, else $XDG_CACHE_HOME/vfdsl, else ~/.cache/vfdsl."""
+    if os.environ.get("VFDSL_CACHE"):
+        return Path(os.environ["VFDSL_CACHE"])
+    return Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache")) / "vfdsl"
+
+
+def symbol_prefix(task: ir.Task) -> str:
+    """The C identifier of this task's step function: its name and a short hash of its IR, so that
+    several tasks (or versions of one) can be loaded in one process."""
+    digest = hashlib.sha256(task.model_dump_json().encode()).hexdigest()[:8]
+    return f"vf_{re.sub(r'[^A-Za-z0-9_]', '_', task.name)}_{digest}"
+
+
+def compile(task: ir.Task, *, backend: str = "auto", cache_dir: str | Path | None = None) -> Controller:
+    """A Controller for ``task``. ``backend``: 'native' (generated C, error without a compiler),
+    'interpreted' (CasADi in this process), or 'auto' (native when a C compiler is found)."""
+    controller, _ = build(task, backend=backend, cache_dir=cache_dir)
+    return controller
+
+
+def build(task: ir.Task, *, backend: str = "auto",
+          cache_dir: str | Path | None = None) -> tuple[Controller, BuiltLibrary | None]:
+    """As :func:`compile`, also returning the generated library (None on the interpreted path)."""
+    global _warned
+    if backend not in BACKENDS:
+        raise VfError(f"unknown backend '{backend}'; use one of {', '.join(BACKENDS)}")
+    problem = assemble(task, Robot.load(task.robots[0].urdf))
+    prefix = symbol_prefix(task)
+    step = build_step_function(problem.function, prefix, row_groups=problem.row_groups,
+                               feas_tol=FEASIBILITY_TOLERANCE)
+    if backend != "interpreted":
+        try:
+            library = build_library(step, prefix, Path(cache_dir or default_cache_dir()), metadata(task, problem))
+            return Controller(task, problem, BufferedFunction.native(library.so_path, prefix)), library
+        except CompilerUnavailable as exc:
+            if backend == "native":
+                raise
+            if not _warned:
+                warnings.warn(f"{exc.message}; running the controller interpreted (same answers, slower)",
+                              InterpretedFallback, stacklevel=2)
+                _warned = True
+    return Controller(task, problem, BufferedFunction.interpreted(step)), None
+
+
+def metadata(task: ir.Task, problem: AssembledProblem) -> dict:
+    """What a caller of the generated library needs to know: layouts, rows and where they come from."""
+    ctx = problem.context
+    return {
+        "task": task.name,
+        "file": task.file,
+        "vfdsl_version": vfdsl.__version__,
+        "ir_sha256": hashlib.sha256(task.model_dump_json().encode()).hexdigest(),
+        "robot": task.robots[0].urdf,
+        "joints": list(ctx.robot.joint_names),
+        "variables": {"dq": problem.nq, "slack": problem.n_slack},
+        "input_layout": [{"name": name, "offset": offset, "size": size}
+                   for name, (offset, size) in ctx.input_offsets.items()],
+        "param_layout": [{"name": s.name, "type": s.type, "offset": s.offset, "size": s.size}
+                   for s in ctx.layout.slots.values() if s.size],
+        "default_params": ctx.layout.defaults.tolist(),
+        "period": task.scene.period,
+        "rows": [{"label": str(label), "primitive": label.primitive, "frame": label.frame,
+                  "file": label.span.file, "line": label.span.line, "group": group}
+                 for label, group in zip(problem.row_labels, problem.row_groups)],
+        "bounds": [[str(label) for label in labels] for labels in problem.bound_labels],
+    }
