@@ -175,7 +175,7 @@ def _incidence(m: int, row_groups: Sequence[Hashable] | None) -> ca.DM:
     ids = {group: k for k, group in enumerate(dict.fromkeys(row_groups))}
     E = np.zeros((m, len(ids)))
     E[np.arange(m), [ids[group] for group in row_groups]] = 1.0
-    return ca.DM(E)
+    return ca.sparsify(ca.DM(E))
 
 
 def _phase2_switch(values: list[ca.MX], E: ca.DM, tol, rho, mu) -> ca.Function:
