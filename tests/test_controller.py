@@ -65,6 +65,10 @@ def test_pose_params_take_a_mapping():
     (lambda c, q: c.step(q, {"tau": [0, 0, np.nan]}), "NaN or inf"),
     (lambda c, q: c.step(q, {"tau": [0, 0, np.inf]}), "NaN or inf"),
     (lambda c, q: c.step(q, {"tau": [0, 0]}), "must have 3 numbers"),
+    (lambda c, q: c.step(q, {"tau": [0.0]}), "must have 3 numbers"),            # no broadcasting
+    (lambda c, q: c.step(q, {"tau": 0.0}), "must have 3 numbers"),
+    (lambda c, q: c.step(0.1, {"tau": [0, 0, 0]}), "q (joint coordinates) must have 7 numbers"),
+    (lambda c, q: c.step(q, [0, 0, 0]), "inputs must be a mapping"),
     (lambda c, q: c.step(q, {"torque": [0, 0, 0]}), "unknown input 'torque'"),
     (lambda c, q: c.step(q, {}), "missing input 'tau'"),
     (lambda c, q: c.step(q[:6], {"tau": [0, 0, 0]}), "q (joint coordinates) must have 7 numbers"),
@@ -114,3 +118,19 @@ def test_repeated_steps_walk_back_into_the_fixture(task_b, ctrl_b):
     p, _ = robot.frame_pose(q, "tool_tip")
     assert np.linalg.norm(p - [0, 0, 0.29]) <= np.sqrt(3) * 1e-6 + 1e-7
     assert ctrl_b.status == StepStatus.OPTIMAL
+
+
+def test_params_of_one_tick_do_not_stick(task_b, ctrl_b):
+    """A param passed for one tick applies to that tick only; the next tick uses the defaults again."""
+    tau = {"tau": [0.0, 0.0, 0.01]}
+    default = ctrl_b.step(task_b.start, tau)
+    moved = ctrl_b.step(task_b.start, tau, params={"pivot": [1e-4, 0, 0.29]})
+    assert not np.allclose(moved, default)
+    np.testing.assert_array_equal(ctrl_b.step(task_b.start, tau), default)
+
+
+def test_step_result_is_a_copy(task_b, ctrl_b):
+    first = ctrl_b.step(task_b.start, {"tau": [0.0, 0.0, 0.01]})
+    kept = first.copy()
+    ctrl_b.step(task_b.start, {"tau": [0.0, 0.0, -0.01]})
+    np.testing.assert_array_equal(first, kept)

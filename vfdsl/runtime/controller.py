@@ -72,8 +72,9 @@ class Controller:
         self._p_default = ctx.layout.defaults.copy()
         self._step = step
         self._labels = self._all_labels()
-        self.status = StepStatus.OPTIMAL
+        self._status = np.zeros(1)
         self._violation = np.zeros(0)
+        self._default_params_in_buffer = False
 
     # -------------------------------------------------------------------------------------- API
     def problem(self, q, inputs=None, params=None, dt=None) -> QuadraticProgram:
@@ -91,10 +92,21 @@ class Controller:
         When the hard rows cannot all hold, dq solves the least-violation problem instead: ``status``
         says so and :meth:`violations` names the rows. dq is always finite and within the joint bounds."""
         q_buf, u_buf, p_buf, dt_buf = self._step.inputs
-        q_buf[:], u_buf[:], p_buf[:], dt_buf[...] = self._arguments(q, inputs, params, dt)
-        x, status, self._violation = self._step.evaluate()
-        self.status = StepStatus(int(status[0]))
+        inputs = {} if inputs is None else inputs
+        if not self._write_unchecked(q, inputs, q_buf, u_buf):     # anything unusual: the detailed checks
+            q_buf[:] = _finite_vector(q, self.nq, "q (joint coordinates)")
+            u_buf[:] = self._inputs(inputs)
+        if params or not self._default_params_in_buffer:
+            p_buf[:] = self._params(params or {})
+            self._default_params_in_buffer = not params
+        dt_buf[...] = self._dt(dt)
+        x, self._status, self._violation = self._step.evaluate()
         return x[:self.nq].copy()
+
+    @property
+    def status(self) -> StepStatus:
+        """How the last step went: OPTIMAL, or LEAST_VIOLATION (and BOUNDS_CLIPPED, FALLBACK) flags."""
+        return StepStatus(int(self._status[0]))
 
     def violations(self) -> list[Violation]:
         """The constraint rows the last step violates (empty after a normal step)."""
@@ -119,6 +131,24 @@ class Controller:
             bounds.append(f"bounds of joint {joint}: " + ("; ".join(map(str, joint_labels)) or "none"))
         bounds += [f"slack >= 0 of {label}" for label in self.assembled.slack_labels]
         return bounds + [str(label) for label in self.assembled.row_labels]
+
+    def _write_unchecked(self, q, inputs, q_buf: np.ndarray, u_buf: np.ndarray) -> bool:
+        """The fast path of :meth:`step`: write q and the inputs straight into the solver's buffers.
+        False when anything is unusual (a name, a length, NaN or inf), for the detailed checks to report."""
+        if type(inputs) is not dict or len(inputs) != len(self._input_offsets):
+            return False
+        try:
+            if len(q) != self.nq:
+                return False
+            q_buf[:] = q
+            for name, (offset, size) in self._input_offsets.items():
+                value = inputs[name]
+                if len(value) != size:
+                    return False
+                u_buf[offset:offset + size] = value
+        except (KeyError, TypeError, ValueError):
+            return False
+        return bool(np.isfinite(q_buf).all() and np.isfinite(u_buf).all())
 
     def _arguments(self, q, inputs, params, dt) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
         q = _finite_vector(q, self.nq, "q (joint coordinates)")
