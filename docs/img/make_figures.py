@@ -24,6 +24,10 @@ from mpl_toolkits.mplot3d.art3d import Poly3DCollection
 from scipy.interpolate import make_interp_spline
 from scipy.spatial import ConvexHull
 
+from vfdsl.compiler.geometry import (
+    sphere_directions,  # the figures show what vfdsl builds
+)
+
 plt.switch_backend("Agg")
 
 OUT = Path(__file__).resolve().parent
@@ -31,18 +35,6 @@ DPI = 110
 
 
 # ============================================================================================ polytopes
-
-def sphere_directions(n: int, m: int) -> np.ndarray:
-    """Eq. (3): u_ij = [cos a_i cos b_j, cos a_i sin b_j, sin a_i], a_i = 2 pi i/n, b_j = 2 pi j/m, unique."""
-    out: list[np.ndarray] = []
-    for i in range(1, n + 1):
-        for j in range(1, m + 1):
-            a, b = 2 * math.pi * i / n, 2 * math.pi * j / m
-            u = np.array([math.cos(a) * math.cos(b), math.cos(a) * math.sin(b), math.sin(a)])
-            if all(np.linalg.norm(u - v) > 1e-9 for v in out):
-                out.append(u)
-    return np.array(out)
-
 
 def polytope_vertices(U: np.ndarray) -> np.ndarray:
     """Vertices of {x : U x <= 1} by brute force: every triple of facet planes, kept if feasible."""
