@@ -21,16 +21,12 @@ _TINY = 1e-36
 
 def sphere_directions(n: int, m: int) -> np.ndarray:
     """The unique directions of the n x m sphere polytope (rows), in the paper's order of first appearance."""
-    out: list[np.ndarray] = []
-    for i in range(1, n + 1):
-        a = 2 * math.pi * i / n
-        for j in range(1, m + 1):
-            b = 2 * math.pi * j / m
-            u = np.array([math.cos(a) * math.cos(b), math.cos(a) * math.sin(b), math.sin(a)])
-            u[np.abs(u) < 1e-15] = 0.0
-            if not any(np.allclose(u, v, atol=1e-12) for v in out):
-                out.append(u)
-    return np.array(out)
+    a = np.repeat(2 * np.pi * np.arange(1, n + 1) / n, m)
+    b = np.tile(2 * np.pi * np.arange(1, m + 1) / m, n)
+    u = np.column_stack([np.cos(a) * np.cos(b), np.cos(a) * np.sin(b), np.sin(a)])
+    keys = np.round(u, 9) + 0.0                  # + 0.0 folds -0.0 into 0.0; 1e-9 merges rounding twins
+    _, first = np.unique(keys, axis=0, return_index=True)
+    return u[np.sort(first)]
 
 
 def polygon_angles(n: int) -> np.ndarray:
