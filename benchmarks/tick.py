@@ -1,0 +1,502 @@
+"""Tick-time benchmark of vfdsl's controllers, with pink as the baseline, in one run.
+
+    python benchmarks/tick.py              # full run (a few minutes)
+    python benchmarks/tick.py --quick      # short run (< ~40 s): fewer ticks, smaller row sweep
+    python benchmarks/tick.py --json out.json
+
+What is timed (see benchmarks/README.md): one control tick = kinematics + constraint rows + QP assembly +
+DAQP solve (+ the least-violation machinery's checks), i.e. one call of the task's step Function:
+
+- interpreted : the step Function evaluated by CasADi's VM (vfdsl.compile(task, backend="interpreted")),
+                raw call: inputs written into the bound arrays, then BufferedFunction.evaluate();
+- generated   : the same Function as generated C (backend="native"), same raw call;
+- step()      : the full Controller.step(q, inputs) API on the generated path (input checks, copy of dq);
+- pink        : pink.solve_ik on the Panda, one FrameTask, default limits, DAQP (qpsolvers).
+
+Each figure is time.perf_counter_ns around one call, after 1,000 warm-up ticks, with the garbage collector
+disabled, over states of a closed-loop trajectory recorded beforehand (same states for every variant).
+Progress goes to stderr; the report goes to stdout.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import gc
+import importlib.metadata
+import json
+import os
+import platform
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+import vfdsl
+from vfdsl import pipeline
+from vfdsl.kinematics.robot import Robot
+from vfdsl.runtime.qp import StepStatus
+
+ROOT = Path(__file__).resolve().parent.parent
+TASKS = ROOT / "tasks"
+BENCH = Path(__file__).resolve().parent
+WARMUP = 1_000
+READY_DEG = [0, -45, 0, -135, 0, 90, 45]           # the Panda's ready pose
+# A row-count task of section 4: one stays_at polytope of n x n directions on shr7.
+ROWS_TASK = """task rows_{n}x{n}
+units mm, deg
+robot shr = urdf "shr7"
+frame tip = shr.link("tool_tip")
+input f : force
+param p : point = [0, 0, 290]
+minimize track(tip, f, gain = 1 mm/s/N)
+minimize damping() weight 1e-6
+require tip stays_at(p) within 1 um resolution {n}x{n}
+require joint_limits()
+require joint_speed()
+"""
+# n of the sweep. Unique facets: n^2 for odd n, about n^2/2 for even n (erratum 3 removes repeats);
+# 31x31 gives 961 rows (closest to 1,000), 45x45 gives 2,025 (the first >= 2,000).
+SWEEP_FULL = (3, 8, 12, 16, 24, 32, 31, 45)
+SWEEP_QUICK = (3, 8, 16, 24)
+
+TARGETS = {  # (what, limit in us) per experiment, checked against the generated paths
+    "paper_b_virtual_rcm": [("median", 10.0), ("p99", 30.0)],
+    "paper_a_follow_curve": [("median", 20.0)],
+}
+PINK_RATIO_TARGET = 20.0
+ROWS_TARGET = (1000, 150.0)
+COMPILE_TARGET = 10.0
+
+
+def log(msg: str) -> None:
+    print(msg, file=sys.stderr, flush=True)
+
+
+# ------------------------------------------------------------------------------------------ machine
+def machine() -> dict:
+    cpu = "unknown"
+    with contextlib.suppress(OSError):
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                cpu = line.split(":", 1)[1].strip()
+                break
+    try:
+        cc = subprocess.run([os.environ.get("CC", "cc"), "--version"], check=False, capture_output=True, text=True)
+        cc_line = cc.stdout.splitlines()[0] if cc.stdout else "unavailable"
+    except OSError:
+        cc_line = "unavailable"
+
+    def version(dist: str) -> str:
+        try:
+            return importlib.metadata.version(dist)
+        except importlib.metadata.PackageNotFoundError:
+            return "not installed"
+
+    import casadi
+    info = {
+        "cpu": cpu,
+        "cores": os.cpu_count(),
+        "cores_usable": len(os.sched_getaffinity(0)),
+        "kernel": platform.release(),
+        "python": platform.python_version(),
+        "numpy": np.__version__,
+        "casadi": casadi.__version__,
+        "pinocchio": version("pin"),
+        "pink": version("pin-pink"),
+        "daqp": version("daqp"),
+        "qpsolvers": version("qpsolvers"),
+        "vfdsl": vfdsl.__version__,
+        "cc": cc_line,
+        "loadavg": os.getloadavg()[0],
+    }
+    pc = time.perf_counter_ns
+    samples = np.empty(20_000, np.int64)
+    for k in range(samples.size):
+        t0 = pc()
+        samples[k] = pc() - t0
+    info["timer_overhead_ns"] = float(np.median(samples))
+    return info
+
+
+# ------------------------------------------------------------------------------------------- timing
+def stats(ns: np.ndarray) -> dict:
+    us = ns / 1e3
+    return {"median_us": float(np.median(us)), "p99_us": float(np.percentile(us, 99)),
+            "max_us": float(us.max()), "ticks": int(us.size)}
+
+
+def time_raw(step, qs, us, p, dt: float, ticks: int) -> tuple[dict, dict]:
+    """One evaluate() per tick, inputs written into the bound arrays first (outside the timed region)."""
+    q_buf, u_buf, p_buf, dt_buf = step.inputs
+    p_buf[:] = p
+    dt_buf[...] = dt
+    evaluate, pc, m = step.evaluate, time.perf_counter_ns, len(qs)
+    status_buf = step._outputs[1]
+    out = np.empty(ticks, np.int64)
+    statuses: dict[int, int] = {}
+    gc.disable()
+    try:
+        for k in range(WARMUP + ticks):
+            i = k % m
+            q_buf[:] = qs[i]
+            u_buf[:] = us[i]
+            t0 = pc()
+            evaluate()
+            t1 = pc()
+            if k >= WARMUP:
+                out[k - WARMUP] = t1 - t0
+                s = int(status_buf[0])
+                statuses[s] = statuses.get(s, 0) + 1
+    finally:
+        gc.enable()
+    return stats(out), statuses
+
+
+def time_step(ctrl, qs, inputs: list[dict], dt: float, ticks: int) -> dict:
+    """The whole Controller.step API per tick (the input mappings are built beforehand, as a caller's are)."""
+    step, pc, m = ctrl.step, time.perf_counter_ns, len(qs)
+    out = np.empty(ticks, np.int64)
+    gc.disable()
+    try:
+        for k in range(WARMUP + ticks):
+            i = k % m
+            q, u = qs[i], inputs[i]
+            t0 = pc()
+            step(q, u, None, dt)
+            t1 = pc()
+            if k >= WARMUP:
+                out[k - WARMUP] = t1 - t0
+    finally:
+        gc.enable()
+    return stats(out)
+
+
+def record(ctrl, q0, inputs_of, dt: float, count: int,
+           params: dict | None = None) -> tuple[np.ndarray, np.ndarray, list[dict], dict]:
+    """A closed-loop trajectory (q <- q + dq) driven by inputs_of(k, q) -> {name: array}."""
+    q = np.array(q0, dtype=float)
+    qs, us, dicts, statuses = [], [], [], {}
+    for k in range(count):
+        inputs = inputs_of(k, q)
+        qs.append(q.copy())
+        dicts.append({name: np.asarray(v, dtype=float) for name, v in inputs.items()})
+        us.append(np.concatenate([np.ravel(inputs[name]) for name in ctrl._input_offsets]))
+        q = q + ctrl.step(q, inputs, params, dt)
+        statuses[int(ctrl.status)] = statuses.get(int(ctrl.status), 0) + 1
+    return np.array(qs), np.array(us), dicts, statuses
+
+
+# ------------------------------------------------------------------------------------- trajectories
+def push_along_curve(task):
+    """Experiment A: the hand pushes the tip 3 N along the plate's x axis (the curve's overall direction),
+    forward for 500 ticks then back, with a 0.5 N sideways wobble."""
+    from scipy.spatial.transform import Rotation
+    plate = task.param("plate").value
+    x_axis = Rotation.from_euler("xyz", plate.rpy).as_matrix()[:, 0]
+
+    def inputs(k, q):
+        direction = 1.0 if (k // 500) % 2 == 0 else -1.0
+        wobble = 0.5 * np.array([np.sin(0.3 * k), np.cos(0.2 * k), 0.0])
+        return {"f": 3.0 * direction * x_axis + wobble}
+    return inputs
+
+
+def twist_about_cone(task):
+    """Experiment B: a torque about the cone axis (reversed every 1,000 ticks) plus a slowly turning wobble."""
+    axis = np.array(task.param("axis").value.xyz)
+
+    def inputs(k, q):
+        direction = 1.0 if (k // 1000) % 2 == 0 else -1.0
+        return {"tau": 0.01 * direction * axis + 0.005 * np.array([np.cos(0.01 * k), np.sin(0.01 * k), 0.0])}
+    return inputs
+
+
+def circle_target(k: int, dt: float) -> tuple[np.ndarray, float, np.ndarray, np.ndarray]:
+    """The moving target of the Panda comparison: a 20 mm circle in 4 s, yawing +-0.1 rad.
+    Returns (translation offset, yaw, linear velocity, angular velocity) at tick k."""
+    t, w = k * dt, 2 * np.pi / 4.0
+    offset = 0.02 * np.array([np.cos(w * t) - 1.0, np.sin(w * t), 0.0])
+    velocity = 0.02 * w * np.array([-np.sin(w * t), np.cos(w * t), 0.0])
+    yaw = 0.1 * np.sin(w * t)
+    return offset, yaw, velocity, np.array([0.0, 0.0, 0.1 * w * np.cos(w * t)])
+
+
+def follow_circle(dt: float):
+    def inputs(k, q):
+        _, _, v, omega = circle_target(k, dt)
+        return {"v": np.concatenate([v, omega])}
+    return inputs
+
+
+def slide_on_polytope(k, q):
+    """Section 4: a force turning in the plane (and a little out of it): the tip slides over the polytope."""
+    return {"f": 2.0 * np.array([np.cos(0.02 * k), np.sin(0.02 * k), 0.3 * np.sin(0.013 * k)])}
+
+
+# ---------------------------------------------------------------------------------------- pink
+def pink_baseline(ticks: int, dt: float) -> dict:
+    import pink
+    import pinocchio as pin
+    from pink.tasks import FrameTask
+
+    model = pin.buildModelFromUrdf(str(ROOT / "vfdsl" / "robots" / "panda7.urdf"))
+    data = model.createData()
+    q = np.radians(READY_DEG)
+    configuration = pink.Configuration(model, data, q)
+    task = FrameTask("tool_tip", position_cost=1.0, orientation_cost=1.0)
+    start = configuration.get_transform_frame_to_world("tool_tip").copy()
+    target = start.copy()
+    solve_ik, pc = pink.solve_ik, time.perf_counter_ns
+    solve_ns, update_ns = np.empty(ticks, np.int64), np.empty(ticks, np.int64)
+    errors = []
+    gc.disable()
+    try:
+        for k in range(WARMUP + ticks):
+            offset, yaw, _, _ = circle_target(k + 1, dt)      # where the target is at the end of this tick
+            target.translation = start.translation + offset
+            target.rotation = pin.rpy.rpyToMatrix(0.0, 0.0, yaw) @ start.rotation
+            task.set_target(target)
+            t0 = pc()
+            v = solve_ik(configuration, [task], dt, solver="daqp")
+            t1 = pc()
+            q = configuration.integrate(v, dt)
+            configuration.update(q)
+            t2 = pc()
+            if k >= WARMUP:
+                solve_ns[k - WARMUP] = t1 - t0
+                update_ns[k - WARMUP] = t2 - t1
+                if k % 100 == 0:
+                    errors.append(np.linalg.norm(
+                        configuration.get_transform_frame_to_world("tool_tip").translation - target.translation))
+    finally:
+        gc.enable()
+    return {"solve_ik": stats(solve_ns), "solve_ik_plus_update": stats(solve_ns + update_ns),
+            "tip_error_mm": 1e3 * float(np.max(errors))}
+
+
+# --------------------------------------------------------------------------------------- sections
+def load_panda_track():
+    """benchmarks/panda_track.vf with its scene benchmarks/panda_track.yaml."""
+    task = vfdsl.load(BENCH / "panda_track.vf")
+    assert np.allclose(task.start, np.radians(READY_DEG)) and abs(task.scene.period - 0.01) < 1e-12
+    return task
+
+
+def experiment(name: str, task, driver, ticks: int, record_ticks: int, cache: Path) -> dict:
+    log(f"[{name}] building generated and interpreted controllers")
+    native = vfdsl.compile(task, backend="native", cache_dir=cache)
+    interpreted = vfdsl.compile(task, backend="interpreted")
+    dt = task.scene.period
+    qs, us, dicts, rec_status = record(native, task.start, driver, dt, record_ticks)
+    p = native._p_default
+    log(f"[{name}] timing ({ticks} ticks each, {len(qs)} recorded states, dt {dt * 1e3:g} ms)")
+    gen, statuses = time_raw(native._step, qs, us, p, dt, ticks)
+    interp, _ = time_raw(interpreted._step, qs, us, p, dt, ticks)
+    api = time_step(native, qs, dicts, dt, ticks)
+    return {"rows": len(native.row_labels), "nq": native.nq, "dt": dt,
+            "interpreted": interp, "generated": gen, "step": api,
+            "optimal_fraction": statuses.get(int(StepStatus.OPTIMAL), 0) / ticks,
+            "statuses": {StepStatus(s).name or str(s): c for s, c in statuses.items()},
+            "recorded_statuses": {StepStatus(s).name or str(s): c for s, c in rec_status.items()},
+            "_states": (qs, dicts)}
+
+
+def panda_tip_error(task, states, dt) -> float:
+    """vfdsl's open-loop tracking: largest distance of the tip from the circle target over the recording (mm)."""
+    robot = Robot.load("panda7")
+    qs, _ = states
+    start, _ = robot.frame_pose(task.start, "tool_tip")
+    worst = 0.0
+    for k in range(0, len(qs), 100):
+        tip, _ = robot.frame_pose(qs[k], "tool_tip")
+        worst = max(worst, float(np.linalg.norm(tip - (start + circle_target(k, dt)[0]))))
+    return 1e3 * worst
+
+
+def sweep(ns, ticks: int, tmp: Path) -> list[dict]:
+    robot = Robot.load("shr7")
+    start = vfdsl.load(TASKS / "paper_b_virtual_rcm.vf").start      # experiment B's start: tip 10 mm below the RCM
+    tip, _ = robot.frame_pose(start, "tool_tip")
+    results = []
+    for n in ns:
+        folder = tmp / f"rows_{n}"
+        folder.mkdir()
+        path = folder / f"rows_{n}x{n}.vf"
+        path.write_text(ROWS_TASK.format(n=n))
+        task = vfdsl.load(path)
+        log(f"[rows {n}x{n}] compiling")
+        t0 = time.perf_counter()
+        ctrl, lib = pipeline.build(task, backend="native", cache_dir=folder / "cache")
+        compile_s = time.perf_counter() - t0
+        c_mb = lib.c_path.stat().st_size / 1e6
+        p = ctrl._params({"p": tip}).copy()        # the polytope centred on the tip at the start
+        qs, us, _, _ = record(ctrl, start, slide_on_polytope, 0.01, 400, params={"p": tip})
+        log(f"[rows {n}x{n}] {len(ctrl.row_labels)} rows, compiled in {compile_s:.1f} s; timing")
+        timing, statuses = time_raw(ctrl._step, qs, us, p, 0.01, ticks)
+        results.append({"n": n, "rows": len(ctrl.row_labels), "compile_s": compile_s, "c_source_mb": c_mb,
+                        **timing, "optimal_fraction": statuses.get(0, 0) / ticks})
+    return sorted(results, key=lambda r: r["rows"])
+
+
+def compile_times(paths, tmp: Path) -> list[dict]:
+    results = []
+    for path in paths:
+        task = vfdsl.load(path)
+        cache = Path(tempfile.mkdtemp(dir=tmp, prefix="compile-"))
+        log(f"[compile] {path.name}")
+        t0 = time.perf_counter()
+        ctrl, lib = pipeline.build(task, backend="native", cache_dir=cache)
+        fresh = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        _, again = pipeline.build(task, backend="native", cache_dir=cache)
+        cached = time.perf_counter() - t0
+        assert again.reused, f"{path.name}: the second build did not hit the cache"
+        results.append({"task": path.stem, "rows": len(ctrl.row_labels), "fresh_s": fresh, "cached_s": cached,
+                        "c_source_mb": lib.c_path.stat().st_size / 1e6})
+    return results
+
+
+# ------------------------------------------------------------------------------------------- report
+def verdict(ok: bool) -> str:
+    return "PASS" if ok else "MISS"
+
+
+def report(m: dict, exps: dict, pink: dict, rows: list[dict], compiles: list[dict], quick: bool,
+           elapsed: float) -> str:
+    out = []
+    w = out.append
+    w("vfdsl tick benchmark" + ("  (--quick: fewer ticks, smaller sweep)" if quick else ""))
+    w("=" * 100)
+    w("1. Machine")
+    w("-" * 100)
+    w(f"CPU        {m['cpu']}, {m['cores']} cores ({m['cores_usable']} usable); Linux {m['kernel']}; "
+      f"load average {m['loadavg']:.2f} at start")
+    w(f"Python     {m['python']}")
+    w(f"packages   numpy {m['numpy']}, casadi {m['casadi']}, pinocchio {m['pinocchio']}, pink {m['pink']}, "
+      f"daqp {m['daqp']}, qpsolvers {m['qpsolvers']}, vfdsl {m['vfdsl']}")
+    w(f"cc         {m['cc']}")
+    w(f"timing     perf_counter_ns per call (its own overhead {m['timer_overhead_ns']:.0f} ns, included), "
+      f"{WARMUP} warm-up ticks, gc disabled")
+
+    w("")
+    w("2. Tick time, shr7 paper experiments and the Panda task (us; closed-loop states, user-like inputs)")
+    w("-" * 100)
+    w(f"{'task':<22}{'rows':>5}  {'path':<13}{'median':>8}{'p99':>8}{'max':>9}   {'ticks':>6}   targets")
+    for name, e in exps.items():
+        label = {"paper_a_follow_curve": "A  follow curve", "paper_b_virtual_rcm": "B  virtual RCM",
+                 "panda_track": "panda_track"}[name]
+        for i, kind in enumerate(("interpreted", "generated", "step")):
+            s = e[kind]
+            checks = []
+            if kind != "interpreted":
+                for what, limit in TARGETS.get(name, []):
+                    value = s["median_us" if what == "median" else "p99_us"]
+                    checks.append(f"{what} <= {limit:g}: {verdict(value <= limit)}")
+            path = {"interpreted": "interpreted", "generated": "generated", "step": "step() API"}[kind]
+            n_rows = (str(e["rows"]) if e["rows"] else "0*") if i == 0 else ""
+            w(f"{label if i == 0 else '':<22}{n_rows:>5}  {path:<13}"
+              f"{s['median_us']:8.2f}{s['p99_us']:8.2f}{s['max_us']:9.1f}   {s['ticks']:>6}   "
+              + ",  ".join(checks))
+        w(f"{'':<29}speed-up generated vs interpreted {e['interpreted']['median_us'] / e['generated']['median_us']:.1f}x;"
+          f" step() adds {e['step']['median_us'] - e['generated']['median_us']:.1f} us;"
+          f" optimal ticks {100 * e['optimal_fraction']:.1f}%")
+
+    w(f"{'':<29}* panda_track has no general rows, only variable bounds (joint limits and speeds)")
+    w("")
+    w("3. pink baseline: Panda, one FrameTask on tool_tip, default limits, solver daqp, dt 10 ms")
+    w("-" * 100)
+    ps, pu = pink["solve_ik"], pink["solve_ik_plus_update"]
+    w(f"{'':<36}{'median':>8}{'p99':>8}{'max':>9}   {'ticks':>6}")
+    w(f"{'pink solve_ik':<36}{ps['median_us']:8.2f}{ps['p99_us']:8.2f}{ps['max_us']:9.1f}   {ps['ticks']:>6}")
+    w(f"{'pink solve_ik + integrate + update':<36}{pu['median_us']:8.2f}{pu['p99_us']:8.2f}{pu['max_us']:9.1f}"
+      f"   {pu['ticks']:>6}")
+    pt = exps["panda_track"]
+    w(f"tip distance from the moving target, max: pink {1e3 * pink['tip_error_mm']:.1f} um (pose feedback); "
+      f"vfdsl panda_track {1e3 * pt['tip_error_mm']:.0f} um")
+    w("(the vfdsl task integrates the target's twist without pose feedback: it drifts, as expected)")
+    w("")
+    w(f"{'ratio pink solve_ik / vfdsl':<36}{'median':>8}{'p99':>8}   target")
+    for name, e in exps.items():
+        for kind, path in (("generated", "generated"), ("step", "step() API")):
+            rm = ps["median_us"] / e[kind]["median_us"]
+            r99 = ps["p99_us"] / e[kind]["p99_us"]
+            target = ""
+            if name == "panda_track" and kind == "generated":
+                target = f"median >= {PINK_RATIO_TARGET:g}x: {verdict(rm >= PINK_RATIO_TARGET)}"
+            elif name != "panda_track" and kind == "generated":
+                target = "(reference: different robot and task)"
+            w(f"{'  ' + name + ', ' + path:<36}{rm:7.1f}x{r99:7.1f}x   {target}")
+
+    w("")
+    w("4. Scaling with the number of rows: shr7, require tip stays_at(p) within 1 um resolution NxN "
+      "(generated, feasible states)")
+    w("-" * 100)
+    closest = min(rows, key=lambda r: abs(r["rows"] - ROWS_TARGET[0]))
+    w(f"{'N x N':>7}{'rows':>7}{'median':>9}{'p99':>9}{'max':>9}{'compile s':>11}{'C MB':>7}{'optimal':>9}   target")
+    for r in rows:
+        target = ""
+        if r is closest and abs(r["rows"] - ROWS_TARGET[0]) > 0.25 * ROWS_TARGET[0]:
+            target = f"(no row count near {ROWS_TARGET[0]:,}: target not checked)"
+        elif r is closest:
+            target = (f"{ROWS_TARGET[0]:,} rows: median <= {ROWS_TARGET[1]:g} us: "
+                      f"{verdict(r['median_us'] <= ROWS_TARGET[1])}")
+        w(f"{str(r['n']) + 'x' + str(r['n']):>7}{r['rows']:>7}{r['median_us']:9.1f}{r['p99_us']:9.1f}"
+          f"{r['max_us']:9.1f}{r['compile_s']:11.1f}{r['c_source_mb']:7.1f}{100 * r['optimal_fraction']:8.0f}%   {target}")
+    w(f"{'':>7}sweep compile total {sum(r['compile_s'] for r in rows):.0f} s; "
+      f"{rows[0]['ticks']} ticks per row count")
+
+    w("")
+    w("5. Compile time per example task (fresh cache directory each; then a cached rebuild)")
+    w("-" * 100)
+    w(f"{'task':<34}{'rows':>5}{'fresh s':>9}{'cached s':>10}{'C MB':>7}   target")
+    for c in compiles:
+        w(f"{c['task']:<34}{c['rows']:>5}{c['fresh_s']:9.2f}{c['cached_s']:10.2f}{c['c_source_mb']:7.2f}   "
+          f"fresh <= {COMPILE_TARGET:g} s: {verdict(c['fresh_s'] <= COMPILE_TARGET)}")
+    w("")
+    w(f"total run time {elapsed:.0f} s")
+    return "\n".join(out)
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="short run: fewer ticks, smaller row sweep")
+    parser.add_argument("--json", metavar="FILE", help="also save the numbers as JSON")
+    args = parser.parse_args(argv)
+    ticks = 3_000 if args.quick else 20_000
+    sweep_ticks = 1_000 if args.quick else 5_000
+    started = time.perf_counter()
+
+    m = machine()
+    with tempfile.TemporaryDirectory(prefix="vfdsl-bench-") as tmp_name:
+        tmp = Path(tmp_name)
+        cache = tmp / "cache"
+        exps = {}
+        for name, driver in (("paper_a_follow_curve", push_along_curve), ("paper_b_virtual_rcm", twist_about_cone)):
+            task = vfdsl.load(TASKS / f"{name}.vf")
+            exps[name] = experiment(name, task, driver(task), ticks, 4_000, cache)
+        panda = load_panda_track()
+        exps["panda_track"] = experiment("panda_track", panda, follow_circle(panda.scene.period), ticks, 4_000, cache)
+        exps["panda_track"]["tip_error_mm"] = panda_tip_error(panda, exps["panda_track"]["_states"],
+                                                              panda.scene.period)
+        log(f"[pink] timing ({ticks} ticks)")
+        pink = pink_baseline(ticks, 0.01)
+        rows = sweep(SWEEP_QUICK if args.quick else SWEEP_FULL, sweep_ticks, tmp)
+        compiles = compile_times(sorted(TASKS.glob("*.vf")), tmp)
+    for e in exps.values():
+        e.pop("_states")
+
+    elapsed = time.perf_counter() - started
+    if args.json:
+        Path(args.json).write_text(json.dumps({"machine": m, "quick": args.quick, "experiments": exps,
+                                               "pink": pink, "rows_sweep": rows, "compile": compiles,
+                                               "elapsed_s": elapsed}, indent=2))
+    print(report(m, exps, pink, rows, compiles, args.quick, elapsed))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
