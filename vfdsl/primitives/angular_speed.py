@@ -1,10 +1,8 @@
 """Angular speed limit of a frame:  || dx_r || <= w_max dt, by the n x m sphere polytope."""
 
-import casadi as ca
-
-from vfdsl.compiler.geometry import sphere_directions
-from vfdsl.compiler.rows import Rows, facets
+from vfdsl.compiler.rows import Rows
 from vfdsl.primitives.spec import ArgSpec, ConstraintSpec
+from vfdsl.primitives.speed import speed_rows
 
 SPEC = ConstraintSpec(
     name="angular_speed",
@@ -17,5 +15,4 @@ SPEC = ConstraintSpec(
 
 
 def lower(c, ctx) -> Rows:
-    f = ctx.frame(c.frame)
-    return facets(ca.DM(sphere_directions(*c.resolution)), ca.DM.zeros(3), ctx.scalar(c.args["max"]) * ctx.dt, f.Jw)
+    return speed_rows(c, ctx, ctx.frame(c.frame).Jw)

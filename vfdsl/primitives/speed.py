@@ -17,5 +17,9 @@ SPEC = ConstraintSpec(
 
 
 def lower(c, ctx) -> Rows:
-    f = ctx.frame(c.frame)
-    return facets(ca.DM(sphere_directions(*c.resolution)), ca.DM.zeros(3), ctx.scalar(c.args["max"]) * ctx.dt, f.Jv)
+    return speed_rows(c, ctx, ctx.frame(c.frame).Jv)
+
+
+def speed_rows(c, ctx, J) -> Rows:
+    """Sphere-polytope rows || J dq || <= max dt (J: the linear or the angular block of the frame Jacobian)."""
+    return facets(ca.DM(sphere_directions(*c.resolution)), ca.DM.zeros(3), ctx.scalar(c.args["max"]) * ctx.dt, J)
