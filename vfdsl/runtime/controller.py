@@ -56,7 +56,8 @@ class QuadraticProgram:
 
 
 class Controller:
-    """Evaluates a task's QP each tick (and, with a step function, solves it)."""
+    """A compiled task: each tick evaluates its QP and solves it with one call to its step function
+    (generated C, or the same graph interpreted by CasADi)."""
 
     def __init__(self, task: ir.Task, problem: AssembledProblem, step: BufferedFunction):
         self.task = task
