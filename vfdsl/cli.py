@@ -25,6 +25,15 @@ vfdsl compiles virtual fixtures written as .vf task files into constrained least
 A task file names a robot, task frames on it, the user's inputs, reference parameters, objective terms
 (minimize ...) and constraints (require ...). See docs/language.md for the language."""
 
+_EPILOG = """\
+a first session:
+  vfdsl show tasks/paper_b_virtual_rcm.vf        check a task and see what the compiler will see
+  vfdsl compile tasks/paper_b_virtual_rcm.vf     generate and build its controller
+  python -c "import vfdsl; t = vfdsl.load('tasks/paper_b_virtual_rcm.vf'); \\
+             print(vfdsl.compile(t).step(t.start, {'tau': [0, 0, 0.01]}))"
+
+'vfdsl COMMAND --help' explains each command."""
+
 _SHOW_EPILOG = """\
 examples:
   vfdsl show tasks/paper_b_virtual_rcm.vf              the checked task, as YAML
@@ -80,7 +89,7 @@ def _compile(args: argparse.Namespace) -> int:
 
 
 def _parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="vfdsl", description=_DESCRIPTION,
+    parser = argparse.ArgumentParser(prog="vfdsl", description=_DESCRIPTION, epilog=_EPILOG,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--version", action="version", version=f"vfdsl {vfdsl.__version__}")
     commands = parser.add_subparsers(dest="command", metavar="COMMAND")
