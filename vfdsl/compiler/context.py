@@ -142,29 +142,28 @@ class Context:
         return self.u[offset:offset + size]
 
     # ----------------------------------------------------------------------------------- references
-    def _raw(self, arg: ir.ParamRef | ir.Const) -> tuple[str, object, ir.Value]:
-        """(type, flat symbols or numbers, IR value) of an argument, before placing it in the world."""
+    def _raw(self, arg: ir.ParamRef | ir.Const) -> tuple[object, ir.Value]:
+        """(flat symbols or numbers, IR value) of an argument, before placing it in the world."""
         if isinstance(arg, ir.Const):
-            value = arg.value
-            kind = value.dimension if isinstance(value, ir.ScalarValue) else value.kind
-            return kind, ca.DM(flatten(value)) if flatten(value) else None, value
+            flat = flatten(arg.value)
+            return (ca.DM(flat) if flat else None), arg.value
         decl = self.task.param(arg.name)
         slot = self.layout.slots[arg.name]
-        return decl.type, self.p[slot.offset:slot.offset + slot.size], decl.value
+        return self.p[slot.offset:slot.offset + slot.size], decl.value
 
     def _pose_of(self, arg: ir.ParamRef | ir.Const) -> tuple[ca.SX, ca.SX] | None:
         if isinstance(arg, ir.ParamRef) and self.task.param(arg.name).frame is not None:
-            _, flat, _ = self._raw(ir.ParamRef(name=self.task.param(arg.name).frame))
+            flat, _ = self._raw(ir.ParamRef(name=self.task.param(arg.name).frame))
             return rpy_matrix(flat[3:6]), flat[0:3]
         return None
 
     def point(self, arg) -> ca.SX:
-        _, flat, _ = self._raw(arg)
+        flat, _ = self._raw(arg)
         pose = self._pose_of(arg)
         return flat if pose is None else pose[0] @ flat + pose[1]
 
     def vector(self, arg) -> ca.SX:
-        _, flat, _ = self._raw(arg)
+        flat, _ = self._raw(arg)
         pose = self._pose_of(arg)
         return flat if pose is None else pose[0] @ flat
 
@@ -172,7 +171,7 @@ class Context:
         return normalize(self.vector(arg))
 
     def line(self, arg) -> Line:
-        _, flat, _ = self._raw(arg)
+        flat, _ = self._raw(arg)
         point, direction = flat[0:3], normalize(flat[3:6])
         pose = self._pose_of(arg)
         if pose is not None:
@@ -184,11 +183,11 @@ class Context:
         return Plane(line.point, line.direction)
 
     def scalar(self, arg) -> ca.SX:
-        _, flat, _ = self._raw(arg)
+        flat, _ = self._raw(arg)
         return flat[0]
 
     def curve(self, arg) -> PlacedCurve:
-        _, _, value = self._raw(arg)
+        _, value = self._raw(arg)
         spline = SplineCurve.interpolate(np.array(value.points), value.degree)
         pose = self._pose_of(arg)
         R, t = pose if pose is not None else (ca.SX.eye(3), ca.SX.zeros(3))

@@ -50,10 +50,6 @@ class QuadraticProgram:
     labels: list[str]
     nq: int
 
-    @property
-    def n_bounds(self) -> int:
-        return self.P.shape[0]
-
 
 class Controller:
     """A compiled task: each tick evaluates its QP and solves it with one call to its step function
