@@ -44,11 +44,16 @@ def default_cache_dir() -> Path:
     return Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache")) / "vfdsl"
 
 
-def symbol_prefix(task: ir.Task) -> str:
+def ir_digest(task: ir.Task) -> str:
+    """sha256 of the task's IR (its JSON form)."""
+    return hashlib.sha256(task.model_dump_json().encode()).hexdigest()
+
+
+def symbol_prefix(task: ir.Task, digest: str | None = None) -> str:
     """The C identifier of this task's step function: its name and a short hash of its IR, so that
     several tasks (or versions of one) can be loaded in one process."""
-    digest = hashlib.sha256(task.model_dump_json().encode()).hexdigest()[:8]
-    return f"vf_{re.sub(r'[^A-Za-z0-9_]', '_', task.name)}_{digest}"
+    digest = digest or ir_digest(task)
+    return f"vf_{re.sub(r'[^A-Za-z0-9_]', '_', task.name)}_{digest[:8]}"
 
 
 def compile(task: ir.Task, *, backend: str = "auto", cache_dir: str | Path | None = None) -> Controller:
@@ -65,12 +70,14 @@ def build(task: ir.Task, *, backend: str = "auto",
     if backend not in BACKENDS:
         raise VfError(f"unknown backend '{backend}'; use one of {', '.join(BACKENDS)}")
     problem = assemble(task, Robot.load(task.robots[0].urdf))
-    prefix = symbol_prefix(task)
+    digest = ir_digest(task)
+    prefix = symbol_prefix(task, digest)
     step = build_step_function(problem.function, prefix, row_groups=problem.row_groups,
                                feas_tol=FEASIBILITY_TOLERANCE)
     if backend != "interpreted":
         try:
-            library = build_library(step, prefix, Path(cache_dir or default_cache_dir()), metadata(task, problem))
+            library = build_library(step, prefix, Path(cache_dir or default_cache_dir()),
+                                    metadata(task, problem, digest))
             return Controller(task, problem, BufferedFunction.native(library.so_path, prefix)), library
         except CompilerUnavailable as exc:
             if backend == "native":
@@ -82,14 +89,14 @@ def build(task: ir.Task, *, backend: str = "auto",
     return Controller(task, problem, BufferedFunction.interpreted(step)), None
 
 
-def metadata(task: ir.Task, problem: AssembledProblem) -> dict:
+def metadata(task: ir.Task, problem: AssembledProblem, digest: str) -> dict:
     """What a caller of the generated library needs to know: layouts, rows and where they come from."""
     ctx = problem.context
     return {
         "task": task.name,
         "file": task.file,
         "vfdsl_version": vfdsl.__version__,
-        "ir_sha256": hashlib.sha256(task.model_dump_json().encode()).hexdigest(),
+        "ir_sha256": digest,
         "robot": task.robots[0].urdf,
         "joints": list(ctx.robot.joint_names),
         "variables": {"dq": problem.nq, "slack": problem.n_slack},
