@@ -253,7 +253,7 @@ class Resolver:
         if kind in ("frame", "input"):
             raise VfError(f"expected the name of {describe_kind(kind)}", value.span.pos(),
                           hint=suggest("", self._names_of(kind, scope), f"{kind}s"))
-        reader = LiteralReader(scope.units, lambda ref, k: self._constant(ref, k, scope))
+        reader = self._scoped_reader(scope)
         if kind in ("gain", "angular_gain"):
             dim = gain_dimension(input_type, kind)
             if dim is None:
@@ -293,6 +293,10 @@ class Resolver:
             raise VfError(f"expected {describe_kind(kind)}, but '{ref.name}' is {describe_kind(actual)}",
                           ref.span.pos())
         return arg
+
+    def _scoped_reader(self, scope: fx.Scope) -> LiteralReader:
+        """Reads literals in ``scope``'s units; names inside them must stand for constants."""
+        return LiteralReader(scope.units, lambda ref, k: self._constant(ref, k, scope))
 
     def _constant(self, ref: ast.NameRef, kind: str, scope: fx.Scope) -> ir.Value:
         """A name inside a composite literal or a clause: it must stand for a compile-time constant."""
@@ -374,7 +378,7 @@ class Resolver:
             if clauses.within is not None:
                 raise VfError(f"{name.text} takes no tolerance (`within`)", clauses.within.span.pos())
         elif clauses.within is not None:
-            reader = LiteralReader(scope.units, lambda ref, k: self._constant(ref, k, scope))
+            reader = self._scoped_reader(scope)
             tolerance = reader.scalar(clauses.within, SCALAR_DIMENSIONS[spec.tolerance], spec.tolerance)
             if tolerance <= 0:
                 raise VfError("a tolerance must be positive", clauses.within.span.pos())
@@ -414,7 +418,7 @@ class Resolver:
     def _weight(self, value: ast.Value | None, scope: fx.Scope, default: float) -> float:
         if value is None:
             return default
-        reader = LiteralReader(scope.units, lambda ref, k: self._constant(ref, k, scope))
+        reader = self._scoped_reader(scope)
         weight = reader.scalar(value, u.DIMENSIONLESS, "number")
         if weight < 0 or not math.isfinite(weight):
             raise VfError("a weight must be a non-negative number", value.span.pos())
