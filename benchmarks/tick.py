@@ -131,7 +131,7 @@ def stats(ns: np.ndarray) -> dict:
 
 def time_raw(step, qs, us, p, dt: float, ticks: int) -> tuple[dict, dict]:
     """One evaluate() per tick, inputs written into the bound arrays first (outside the timed region)."""
-    q_buf, u_buf, p_buf, dt_buf = step.inputs
+    q_buf, u_buf, p_buf, dt_buf, _ = step.inputs
     p_buf[:] = p
     dt_buf[...] = dt
     evaluate, pc, m = step.evaluate, time.perf_counter_ns, len(qs)

@@ -16,7 +16,7 @@ from vfdsl.codegen import build as build_module
 from vfdsl.errors import VfError
 from vfdsl.runtime import BufferedFunction, build_step_function
 
-ARGS = (np.array([0.3, -0.2]), np.array([0.2, 0.05]), np.array([0.05]), np.array([0.01]))
+ARGS = (np.array([0.3, -0.2]), np.array([0.2, 0.05]), np.array([0.05]), np.array([0.01]), 0.0)
 
 
 def small_step(prefix: str, weight: float = 1.0) -> ca.Function:

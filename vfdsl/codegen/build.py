@@ -18,11 +18,19 @@ directory inside ``cache_dir`` (same filesystem) and is published with one ``os.
 whole directory; two processes racing on one entry both end up with a complete, verified library,
 and a library file already mapped by a process is never written to.
 
-Codegen policy: conics built with ``error_on_fail=False`` continue after a failed solve when
-CasADi evaluates them, but CasADi's generated C still aborts the whole function (``return -1``).
-That early return is removed, so the generated code has the interpreted semantics (failure
-reported through the outputs, see :mod:`vfdsl.runtime.qp`); conics with ``error_on_fail=True``
-(``return -1000``) are left alone.
+Codegen policy, two edits of CasADi's generated C:
+
+- Conics built with ``error_on_fail=False`` continue after a failed solve when CasADi evaluates
+  them, but CasADi's generated C still aborts the whole function (``return -1``). That early return
+  is removed, so the generated code has the interpreted semantics (failure reported through the
+  outputs, see :mod:`vfdsl.runtime.qp`); conics with ``error_on_fail=True`` (``return -1000``) are
+  left alone.
+- CasADi's DAQP interface (``casadi_daqp_solve``, ``casadi_daqp_free_mem``) is replaced by
+  ``daqp_persistent.c``: the DAQP workspace is allocated on a conic's first call and kept, later
+  calls update it in place and warm-start from the previous working set, so a step allocates
+  nothing. ``persistent_daqp=False`` keeps CasADi's interface (set up, solved cold and freed on
+  every call): the baseline of ``benchmarks/tick.py``. The replaced definitions are matched exactly;
+  a CasADi whose generated DAQP interface differs is refused with an error, never half-patched.
 """
 
 from __future__ import annotations
@@ -55,6 +63,13 @@ FLAGS = ("-O3", "-march=native", "-fPIC", "-shared", "-fvisibility=hidden", "-fn
 
 CASADI_DIR = Path(ca.__file__).parent
 _NONFATAL_FAILURE = re.compile(r"if \(!d_qp\.success\) \{\s*return -1;\s*\}")
+_DAQP_SOLVE = re.compile(r"^int casadi_daqp_solve\(struct casadi_daqp_data\* d, [^\n]*\{\n.*?^\}\n",
+                         re.MULTILINE | re.DOTALL)
+_DAQP_FREE_MEM = re.compile(r"^void casadi_daqp_free_mem\(struct casadi_daqp_data\* d\) \{\n\}\n",
+                            re.MULTILINE)
+_WARM_CALL = re.compile(r"(/\* \w+_warm:\(h\[[^\n]*\*/\nstatic int \w+\([^\n]*\{\n(?:(?!\n\}\n).)*?)"
+                        r"casadi_daqp_solve\(d, arg, res, iw, w\);", re.DOTALL)
+PERSISTENT_DAQP = (Path(__file__).parent / "daqp_persistent.c").read_text()
 _IDENTIFIER = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
 
 
@@ -79,8 +94,12 @@ class Compiler:
     target: str
 
 
-def build_library(fn: ca.Function, prefix: str, cache_dir: Path, metadata: dict) -> BuiltLibrary:
-    """The cached library of ``fn``, exported as C symbol ``prefix``; built if needed."""
+def build_library(fn: ca.Function, prefix: str, cache_dir: Path, metadata: dict, *,
+                  persistent_daqp: bool = True) -> BuiltLibrary:
+    """The cached library of ``fn``, exported as C symbol ``prefix``; built if needed.
+
+    ``persistent_daqp``: replace CasADi's DAQP interface by the allocation-free, warm-started one
+    (module docstring)."""
     if not _IDENTIFIER.fullmatch(prefix):
         raise ValueError(f"prefix {prefix!r} is not a C identifier")
     cache_dir = Path(cache_dir)
@@ -88,7 +107,7 @@ def build_library(fn: ca.Function, prefix: str, cache_dir: Path, metadata: dict)
     compiler = find_compiler()
     with tempfile.TemporaryDirectory(dir=cache_dir, prefix=f".build-{prefix}-") as tmp:
         work = Path(tmp)
-        source, header = _generate(fn, prefix, work)
+        source, header = _generate(fn, prefix, work, persistent_daqp)
         digest = _digest(source, header, compiler, metadata)
         entry = cache_dir / f"{prefix}-{digest[:16]}"
         found = _verified(entry, prefix, digest)
@@ -130,7 +149,7 @@ def _tail(text: str, lines: int = 25) -> str:
     return "\n".join(text.strip().splitlines()[-lines:])
 
 
-def _generate(fn: ca.Function, prefix: str, work: Path) -> tuple[str, str]:
+def _generate(fn: ca.Function, prefix: str, work: Path, persistent_daqp: bool) -> tuple[str, str]:
     """Write ``<prefix>.c``/``.h`` into ``work`` (the function exported as ``prefix``)."""
     if fn.name() != prefix:
         args = fn.mx_in()
@@ -141,8 +160,26 @@ def _generate(fn: ca.Function, prefix: str, work: Path) -> tuple[str, str]:
     c_path, h_path = work / f"{prefix}.c", work / f"{prefix}.h"
     source = _NONFATAL_FAILURE.sub("/* vfdsl: solver failure reported through the outputs */",
                                    c_path.read_text())
+    if persistent_daqp:
+        source = with_persistent_daqp(source)
     c_path.write_text(source)
     return source, h_path.read_text()
+
+
+def with_persistent_daqp(source: str) -> str:
+    """``source`` with CasADi's DAQP interface replaced by ``daqp_persistent.c`` (unchanged if it
+    has no DAQP conic)."""
+    if "casadi_daqp_solve" not in source:
+        return source
+    solve, free_mem = _DAQP_SOLVE.findall(source), _DAQP_FREE_MEM.findall(source)
+    if len(solve) != 1 or len(free_mem) != 1:
+        raise VfError(f"CasADi {ca.__version__} generates a DAQP interface this vfdsl does not know",
+                      hint="install the CasADi version vfdsl requires (pip install 'casadi>=3.8.2,<3.9')")
+    source, warm = _WARM_CALL.subn(r"\1vfdsl_daqp_solve(d, 1);", source)
+    if warm != len(re.findall(r"/\* \w+_warm:\(h\[", source)):
+        raise VfError(f"CasADi {ca.__version__}: a warm-started conic's DAQP call was not found")
+    source = _DAQP_FREE_MEM.sub("", source)
+    return _DAQP_SOLVE.sub(lambda _: PERSISTENT_DAQP, source)
 
 
 def _digest(source: str, header: str, compiler: Compiler, metadata: dict) -> str:

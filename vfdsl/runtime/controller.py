@@ -73,6 +73,8 @@ class Controller:
         self._status = np.zeros(1)
         self._violation = np.zeros(0)
         self._default_params_in_buffer = False
+        if step.kind == "native":
+            self._prime()
 
     # -------------------------------------------------------------------------------------- API
     def problem(self, q, inputs=None, params=None, dt=None) -> QuadraticProgram:
@@ -89,7 +91,7 @@ class Controller:
 
         When the hard rows cannot all hold, dq solves the least-violation problem instead: ``status``
         says so and :meth:`violations` names the rows. dq is always finite and within the joint bounds."""
-        q_buf, u_buf, p_buf, dt_buf = self._step.inputs
+        q_buf, u_buf, p_buf, dt_buf, _ = self._step.inputs
         inputs = {} if inputs is None else inputs
         if not self._write_unchecked(q, inputs, q_buf, u_buf):     # anything unusual: the detailed checks
             q_buf[:] = _finite_vector(q, self.nq, "q (joint coordinates)")
@@ -122,6 +124,20 @@ class Controller:
         return list(self.assembled.row_labels)
 
     # ------------------------------------------------------------------------------- checking
+    def _prime(self) -> None:
+        """One evaluation with phase 2 forced (input ``recover``) at the start configuration: every DAQP
+        workspace of the generated step is allocated now, so that no later step allocates memory."""
+        q_buf, u_buf, p_buf, dt_buf, recover = self._step.inputs
+        q_buf[:] = self.task.start if self.task.start is not None else 0.0
+        u_buf[:] = 0.0
+        p_buf[:] = self._p_default
+        dt_buf[...] = self.default_dt or 0.01
+        recover[...] = 1.0
+        try:
+            self._step.evaluate()
+        finally:
+            recover[...] = 0.0
+
     def _all_labels(self) -> list[str]:
         bounds = []
         for i, joint_labels in enumerate(self.assembled.bound_labels):

@@ -5,7 +5,7 @@ The compiler hands over ``qp_data(q, u, p, dt) -> (H, g, A, lba, uba, lbx, ubx)`
     minimize 1/2 x'Hx + g'x   subject to   lba <= A x <= uba,   lbx <= x <= ubx        (P)
 
 with H positive definite, x = [dq; slack] (n entries) and m general rows.
-:func:`build_step_function` wraps it into ``step(q, u, p, dt) -> (x, status, violation)`` solved
+:func:`build_step_function` wraps it into ``step(q, u, p, dt, recover) -> (x, status, violation)`` solved
 by DAQP through CasADi's ``conic`` plugin, so the whole tick (QP data, solve, fallback) is one
 Function that CasADi evaluates or code-generates into one C function.
 
@@ -19,7 +19,8 @@ full allowed speed. Status bit ``BOUNDS_CLIPPED`` reports it. The clipped box B 
 and it stops when the primal iterate is feasible, so "x is finite and within ``feas_tol`` of every
 row and bound" is equivalent to success; it is checked in the graph (the conic exposes no flag).
 
-**Phase 2** (evaluated only when phase 1 fails, through a ``Function.if_else`` switch) is
+**Phase 2** (evaluated only when phase 1 fails, or when the input ``recover`` is nonzero, through a
+``Function.if_else`` switch) is
 lexicographic. Rows are partitioned into G groups (one per row by default, or one per source
 constraint, see ``row_groups``); E in {0,1}^{m x G} is the incidence matrix and t in R^G the
 per-group violation.
@@ -87,7 +88,10 @@ def build_step_function(qp_data: ca.Function, prefix: str, *,
                         feas_tol: float = 1e-6,
                         penalty: float = 1.0,
                         tie_break: float = 1e-3) -> ca.Function:
-    """``prefix(q, u, p, dt) -> (x[n], status, violation[m])`` solving ``qp_data``'s QP.
+    """``prefix(q, u, p, dt, recover) -> (x[n], status, violation[m])`` solving ``qp_data``'s QP.
+
+    ``recover`` nonzero evaluates phase 2 even when phase 1 succeeds: the generated controller does
+    it once when it is loaded, so that every solver's workspace exists before the first tick.
 
     ``row_groups[i]`` is the group of general row i (default: one group per row); ``feas_tol`` the
     absolute tolerance (row units) under which a row or bound counts as satisfied; ``penalty`` is
@@ -96,23 +100,24 @@ def build_step_function(qp_data: ca.Function, prefix: str, *,
     _check_qp_data(qp_data)
     n, m = qp_data.size1_out(0), qp_data.size1_out(2)
     inputs = [ca.MX.sym(name, qp_data.sparsity_in(i)) for i, name in enumerate(qp_data.name_in())]
+    recover = ca.MX.sym("recover")
     H, g, A, lba, uba, lbx, ubx = (ca.densify(v) for v in qp_data.call(inputs))
     lo, hi, clipped = _safe_box(lbx, ubx)
 
-    x1 = _daqp(n, m, feas_tol, "phase1")(H, g, A, lba, uba, lo, hi)
+    x1 = _daqp(n, m, feas_tol, "phase1_warm")(H, g, A, lba, uba, lo, hi)
     if m == 0:
         x, status = x1, ca.MX(int(StepStatus.OPTIMAL))
     else:
         ok1 = _acceptable(x1, A @ x1, lba, uba, lo, hi, feas_tol)
         switch = _phase2_switch([H, g, A, lba, uba, lo, hi, x1], _incidence(m, row_groups),
                                 feas_tol, penalty, tie_break)
-        picked = switch(ok1, H, g, A, lba, uba, lo, hi, x1)
+        picked = switch(ca.logic_and(ok1, recover == 0), H, g, A, lba, uba, lo, hi, x1)
         x, status = picked[:n], picked[n]
     status = status + int(StepStatus.BOUNDS_CLIPPED) * clipped
     violation = _row_violation(A @ x, lba, uba)
     violation = ca.if_else(violation > feas_tol, violation, 0)
-    return ca.Function(prefix, inputs, [x, status, violation], list(qp_data.name_in()),
-                       list(STEP_OUTPUTS))
+    return ca.Function(prefix, [*inputs, recover], [x, status, violation],
+                       [*qp_data.name_in(), "recover"], list(STEP_OUTPUTS))
 
 
 def _check_qp_data(qp_data: ca.Function) -> None:
