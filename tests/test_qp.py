@@ -257,3 +257,15 @@ def test_forced_recovery_at_a_feasible_state_changes_nothing(random_paths, seed)
         assert StepStatus(int(status[0])) == StepStatus.LEAST_VIOLATION
         np.testing.assert_allclose(x, x1, atol=1e-9)
         assert not violation.any()
+
+
+def test_a_failed_solve_leaves_the_generated_solver_usable(random_paths):
+    """NaN data (the Controller refuses them; a C caller might not) make phase 1 fail; the next, normal
+    ticks are solved as on a fresh solver."""
+    _, native, interpreted = random_paths
+    q, u, p, dt = instance(1, infeasible=False)
+    _, status, _ = native(np.full_like(q, np.nan), u, p, dt, 0.0)
+    assert StepStatus(int(status[0])) & StepStatus.LEAST_VIOLATION
+    for seed in (1, 2):
+        args = instance(seed, infeasible=seed == 2)
+        np.testing.assert_allclose(native(*args, 0.0)[0], interpreted(*args, 0.0)[0], atol=1e-9)
