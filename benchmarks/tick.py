@@ -10,6 +10,9 @@ DAQP solve (+ the least-violation machinery's checks), i.e. one call of the task
 - interpreted : the step Function evaluated by CasADi's VM (vfdsl.compile(task, backend="interpreted")),
                 raw call: inputs written into the bound arrays, then BufferedFunction.evaluate();
 - generated   : the same Function as generated C (backend="native"), same raw call;
+- casadi daqp : the same generated C with CasADi's own DAQP interface (pipeline.build(...,
+                persistent_daqp=False): DAQP set up, solved cold and freed every call), same raw call:
+                the baseline of the persistent, warm-started solver;
 - step()      : the full Controller.step(q, inputs) API on the generated path (input checks, copy of dq);
 - pink        : pink.solve_ik on the Panda, one FrameTask, default limits, DAQP (qpsolvers).
 
@@ -290,15 +293,17 @@ def experiment(name: str, task, driver, ticks: int, record_ticks: int, cache: Pa
     log(f"[{name}] building generated and interpreted controllers")
     native = vfdsl.compile(task, backend="native", cache_dir=cache)
     interpreted = vfdsl.compile(task, backend="interpreted")
+    cold, _ = pipeline.build(task, backend="native", cache_dir=cache, persistent_daqp=False)
     dt = task.scene.period
     qs, us, dicts, rec_status = record(native, task.start, driver, dt, record_ticks)
     p = native._p_default
     log(f"[{name}] timing ({ticks} ticks each, {len(qs)} recorded states, dt {dt * 1e3:g} ms)")
     gen, statuses = time_raw(native._step, qs, us, p, dt, ticks)
     interp, _ = time_raw(interpreted._step, qs, us, p, dt, ticks)
+    casadi_daqp, _ = time_raw(cold._step, qs, us, p, dt, ticks)
     api = time_step(native, qs, dicts, dt, ticks)
     return {"rows": len(native.row_labels), "nq": native.nq, "dt": dt,
-            "interpreted": interp, "generated": gen, "step": api,
+            "interpreted": interp, "casadi_daqp": casadi_daqp, "generated": gen, "step": api,
             "optimal_fraction": statuses.get(int(StepStatus.OPTIMAL), 0) / ticks,
             "statuses": {StepStatus(s).name or str(s): c for s, c in statuses.items()},
             "recorded_statuses": {StepStatus(s).name or str(s): c for s, c in rec_status.items()},
@@ -337,8 +342,11 @@ def sweep(ns, ticks: int, tmp: Path) -> list[dict]:
         qs, us, _, _ = record(ctrl, start, slide_on_polytope, 0.01, 400, params={"p": tip})
         log(f"[rows {n}x{n}] {len(ctrl.row_labels)} rows, compiled in {compile_s:.1f} s; timing")
         timing, statuses = time_raw(ctrl._step, qs, us, p, 0.01, ticks)
+        cold, _ = pipeline.build(task, backend="native", cache_dir=folder / "cache", persistent_daqp=False)
+        cold_timing, _ = time_raw(cold._step, qs, us, p, 0.01, ticks)
         results.append({"n": n, "rows": len(ctrl.row_labels), "compile_s": compile_s, "c_source_mb": c_mb,
-                        **timing, "optimal_fraction": statuses.get(0, 0) / ticks})
+                        **timing, "casadi_daqp_median_us": cold_timing["median_us"],
+                        "optimal_fraction": statuses.get(0, 0) / ticks})
     return sorted(results, key=lambda r: r["rows"])
 
 
@@ -389,19 +397,21 @@ def report(m: dict, exps: dict, pink: dict, rows: list[dict], compiles: list[dic
     for name, e in exps.items():
         label = {"paper_a_follow_curve": "A  follow curve", "paper_b_virtual_rcm": "B  virtual RCM",
                  "panda_track": "panda_track"}[name]
-        for i, kind in enumerate(("interpreted", "generated", "step")):
+        for i, kind in enumerate(("interpreted", "casadi_daqp", "generated", "step")):
             s = e[kind]
             checks = []
-            if kind != "interpreted":
+            if kind in ("generated", "step"):
                 for what, limit in TARGETS.get(name, []):
                     value = s["median_us" if what == "median" else "p99_us"]
                     checks.append(f"{what} <= {limit:g}: {verdict(value <= limit)}")
-            path = {"interpreted": "interpreted", "generated": "generated", "step": "step() API"}[kind]
+            path = {"interpreted": "interpreted", "casadi_daqp": "casadi daqp", "generated": "generated",
+                    "step": "step() API"}[kind]
             n_rows = (str(e["rows"]) if e["rows"] else "0*") if i == 0 else ""
             w(f"{label if i == 0 else '':<22}{n_rows:>5}  {path:<13}"
               f"{s['median_us']:8.2f}{s['p99_us']:8.2f}{s['max_us']:9.1f}   {s['ticks']:>6}   "
               + ",  ".join(checks))
         w(f"{'':<29}speed-up generated vs interpreted {e['interpreted']['median_us'] / e['generated']['median_us']:.1f}x;"
+          f" vs CasADi's DAQP interface {e['casadi_daqp']['median_us'] / e['generated']['median_us']:.2f}x;"
           f" step() adds {e['step']['median_us'] - e['generated']['median_us']:.1f} us;"
           f" optimal ticks {100 * e['optimal_fraction']:.1f}%")
 
@@ -436,7 +446,8 @@ def report(m: dict, exps: dict, pink: dict, rows: list[dict], compiles: list[dic
       "(generated, feasible states)")
     w("-" * 100)
     closest = min(rows, key=lambda r: abs(r["rows"] - ROWS_TARGET[0]))
-    w(f"{'N x N':>7}{'rows':>7}{'median':>9}{'p99':>9}{'max':>9}{'compile s':>11}{'C MB':>7}{'optimal':>9}   target")
+    w(f"{'N x N':>7}{'rows':>7}{'median':>9}{'p99':>9}{'max':>9}{'casadi daqp':>12}{'compile s':>11}{'C MB':>7}"
+      f"{'optimal':>9}   target")
     for r in rows:
         target = ""
         if r is closest and abs(r["rows"] - ROWS_TARGET[0]) > 0.25 * ROWS_TARGET[0]:
@@ -445,7 +456,9 @@ def report(m: dict, exps: dict, pink: dict, rows: list[dict], compiles: list[dic
             target = (f"{ROWS_TARGET[0]:,} rows: median <= {ROWS_TARGET[1]:g} us: "
                       f"{verdict(r['median_us'] <= ROWS_TARGET[1])}")
         w(f"{str(r['n']) + 'x' + str(r['n']):>7}{r['rows']:>7}{r['median_us']:9.1f}{r['p99_us']:9.1f}"
-          f"{r['max_us']:9.1f}{r['compile_s']:11.1f}{r['c_source_mb']:7.1f}{100 * r['optimal_fraction']:8.0f}%   {target}")
+          f"{r['max_us']:9.1f}{r['casadi_daqp_median_us']:12.1f}{r['compile_s']:11.1f}{r['c_source_mb']:7.1f}{100 * r['optimal_fraction']:8.0f}%   {target}")
+    w(f"{'':>7}'casadi daqp': median of the same ticks with CasADi's own DAQP interface (set up, cold, freed "
+      "every call)")
     w(f"{'':>7}sweep compile total {sum(r['compile_s'] for r in rows):.0f} s; "
       f"{rows[0]['ticks']} ticks per row count")
 

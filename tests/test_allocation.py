@@ -17,9 +17,9 @@ from conftest import TASKS_DIR
 
 import vfdsl
 from vfdsl import pipeline
-from vfdsl.codegen.build import CASADI_DIR, build_library, find_compiler
+from vfdsl.codegen.build import CASADI_DIR, find_compiler
 from vfdsl.kinematics.robot import Robot
-from vfdsl.runtime import StepStatus, build_step_function
+from vfdsl.runtime import StepStatus
 
 HARNESS = Path(__file__).with_name("alloc_harness.c")
 
@@ -82,10 +82,6 @@ def test_steps_allocate_nothing_after_the_priming_tick(task_b, walk, tmp_path):
 
 def test_casadis_own_daqp_interface_allocates_every_tick(task_b, walk, tmp_path):
     """The counter catches allocations: CasADi's interface sets DAQP up and frees it on every call."""
-    problem = pipeline.assemble(task_b, Robot.load(task_b.robots[0].urdf))
-    prefix = pipeline.symbol_prefix(task_b) + "_casadi"
-    step = build_step_function(problem.function, prefix, row_groups=problem.row_groups,
-                               feas_tol=pipeline.FEASIBILITY_TOLERANCE)
-    library = build_library(step, prefix, tmp_path / "cache", {}, persistent_daqp=False)
+    _, library = pipeline.build(task_b, backend="native", persistent_daqp=False)
     calls = replay(harness(library, tmp_path), walk)[:, 0]
     assert (calls[1:] > 0).all()

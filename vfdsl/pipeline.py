@@ -63,9 +63,11 @@ def compile(task: ir.Task, *, backend: str = "auto", cache_dir: str | Path | Non
     return controller
 
 
-def build(task: ir.Task, *, backend: str = "auto",
-          cache_dir: str | Path | None = None) -> tuple[Controller, BuiltLibrary | None]:
-    """As :func:`compile`, also returning the generated library (None on the interpreted path)."""
+def build(task: ir.Task, *, backend: str = "auto", cache_dir: str | Path | None = None,
+          persistent_daqp: bool = True) -> tuple[Controller, BuiltLibrary | None]:
+    """As :func:`compile`, also returning the generated library (None on the interpreted path).
+    ``persistent_daqp=False`` keeps CasADi's own DAQP interface in the generated C (set up, solved cold
+    and freed every call; see :mod:`vfdsl.codegen.build`): the baseline of the benchmarks."""
     global _warned
     if backend not in BACKENDS:
         raise VfError(f"unknown backend '{backend}'; use one of {', '.join(BACKENDS)}")
@@ -77,7 +79,7 @@ def build(task: ir.Task, *, backend: str = "auto",
     if backend != "interpreted":
         try:
             library = build_library(step, prefix, Path(cache_dir or default_cache_dir()),
-                                    metadata(task, problem, digest))
+                                    metadata(task, problem, digest), persistent_daqp=persistent_daqp)
             return Controller(task, problem, BufferedFunction.native(library.so_path, prefix)), library
         except CompilerUnavailable as exc:
             if backend == "native":
