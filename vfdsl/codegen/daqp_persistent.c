@@ -57,7 +57,6 @@ void casadi_daqp_free_mem(struct casadi_daqp_data* d) {
 }
 
 static int vfdsl_daqp_solve(struct casadi_daqp_data* d, int warm) {
-  casadi_int i;
   int flag;
   const struct casadi_daqp_prob* p = d->prob;
   const struct casadi_qp_prob* p_qp = p->qp;
