@@ -47,10 +47,16 @@ def task_b():
 
 
 @pytest.fixture(scope="module")
-def walk(task_b):
+def built(task_b):
+    """The generated Controller of experiment B and its library."""
+    return pipeline.build(task_b, backend="native")
+
+
+@pytest.fixture(scope="module")
+def walk(task_b, built):
     """Ticks (q, u, p, dt, recover) as flat vectors: the priming tick, then 300 states alternating between
     near the start (feasible) and 1 mm-scale perturbations (the rows conflict: least violation)."""
-    ctrl = vfdsl.compile(task_b, backend="interpreted")
+    ctrl, _ = built
     robot = Robot.load(task_b.robots[0].urdf)
     rng = np.random.default_rng(3)
     p, dt = ctrl._p_default, task_b.scene.period
@@ -62,8 +68,8 @@ def walk(task_b):
     return ticks
 
 
-def test_steps_allocate_nothing_after_the_priming_tick(task_b, walk, tmp_path):
-    ctrl, library = pipeline.build(task_b, backend="native")
+def test_steps_allocate_nothing_after_the_priming_tick(built, walk, tmp_path):
+    ctrl, library = built
     rows = replay(harness(library, tmp_path), walk)
     calls, codes, statuses, xs = rows[:, 0], rows[:, 1], rows[:, 2].astype(int), rows[:, 3:]
     assert not codes.any()

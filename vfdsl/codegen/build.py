@@ -27,8 +27,9 @@ Codegen policy, two edits of CasADi's generated C:
   left alone.
 - CasADi's DAQP interface (``casadi_daqp_solve``, ``casadi_daqp_free_mem``) is replaced by
   ``daqp_persistent.c``: the DAQP workspace is allocated on a conic's first call and kept, later
-  calls update it in place and warm-start from the previous working set, so a step allocates
-  nothing. ``persistent_daqp=False`` keeps CasADi's interface (set up, solved cold and freed on
+  calls update it in place, so a step allocates nothing. A conic whose name ends in ``_warm``
+  starts DAQP from its previous working set; the others start cold, as CasADi's interface does.
+  ``persistent_daqp=False`` keeps CasADi's interface (set up, solved cold and freed on
   every call): the baseline of ``benchmarks/tick.py``. The replaced definitions are matched exactly;
   a CasADi whose generated DAQP interface differs is refused with an error, never half-patched.
 """
@@ -161,12 +162,12 @@ def _generate(fn: ca.Function, prefix: str, work: Path, persistent_daqp: bool) -
     source = _NONFATAL_FAILURE.sub("/* vfdsl: solver failure reported through the outputs */",
                                    c_path.read_text())
     if persistent_daqp:
-        source = with_persistent_daqp(source)
+        source = _with_persistent_daqp(source)
     c_path.write_text(source)
     return source, h_path.read_text()
 
 
-def with_persistent_daqp(source: str) -> str:
+def _with_persistent_daqp(source: str) -> str:
     """``source`` with CasADi's DAQP interface replaced by ``daqp_persistent.c`` (unchanged if it
     has no DAQP conic)."""
     if "casadi_daqp_solve" not in source:
