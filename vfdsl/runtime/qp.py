@@ -69,6 +69,8 @@ import numpy as np
 
 QP_DATA_OUTPUTS = ("H", "g", "A", "lba", "uba", "lbx", "ubx")
 STEP_OUTPUTS = ("x", "status", "violation")
+GRADIENT_SATURATION = 1e3
+"""K of :func:`_saturated_gradient`: a user push beyond K box widths is saturated."""
 PER_ROW_GROUPS_LIMIT = 100
 """Above this many rows one group per row makes phase 2 slow (~30 ms at m = 200; seconds, DAQP
 iteration-limit failures and megabytes of generated C at m = 1000): a warning asks for groups."""
@@ -103,6 +105,7 @@ def build_step_function(qp_data: ca.Function, prefix: str, *,
     recover = ca.MX.sym("recover")
     H, g, A, lba, uba, lbx, ubx = (ca.densify(v) for v in qp_data.call(inputs))
     lo, hi, clipped = _safe_box(lbx, ubx)
+    g = _saturated_gradient(H, g, lo, hi)
 
     x1 = _daqp(n, m, feas_tol, "phase1_warm")(H, g, A, lba, uba, lo, hi)
     if m == 0:
@@ -113,6 +116,11 @@ def build_step_function(qp_data: ca.Function, prefix: str, *,
                                 feas_tol, penalty, tie_break)
         picked = switch(ca.logic_and(ok1, recover == 0), H, g, A, lba, uba, lo, hi, x1)
         x, status = picked[:n], picked[n]
+    # The last line of defence, for every path: x is finite and in B (up to the solver's bound noise,
+    # then clipped), or it is the rest motion with FALLBACK.
+    safe = _in_box(x, lo, hi, _GROSS_FAILURE)
+    x = ca.if_else(safe, _clip(x, lo, hi), _rest(lo, hi))
+    status = ca.if_else(safe, status, int(StepStatus.LEAST_VIOLATION) * (m > 0) + int(StepStatus.FALLBACK))
     status = status + int(StepStatus.BOUNDS_CLIPPED) * clipped
     violation = _row_violation(A @ x, lba, uba)
     violation = ca.if_else(violation > feas_tol, violation, 0)
@@ -148,6 +156,20 @@ def _daqp(n: int, m: int, feas_tol: float, name: str) -> Callable[..., ca.MX]:
     return solve
 
 
+def _saturated_gradient(H: ca.MX, g: ca.MX, lo: ca.MX, hi: ca.MX) -> ca.MX:
+    """g, scaled down (never up) so that |g|_inf <= K ||H||_inf W, W the largest finite bound of B.
+
+    ||H||_inf >= lambda_max(H), so an unscaled |g|_inf above that limit puts the unconstrained step
+    -H^-1 g at least K W from the origin: the answer is saturated by the bounds either way, and the
+    scaled g keeps its direction while DAQP's transformed data (R^-T g, A H^-1 g) stay far from
+    overflow and from swamping the rows' offsets. Never active on the example tasks' normal ticks."""
+    finite_abs = lambda b: ca.if_else(ca.fabs(b) < ca.inf, ca.fabs(b), 0)  # noqa: E731
+    width = ca.mmax(ca.fmax(finite_abs(lo), finite_abs(hi)))
+    limit = GRADIENT_SATURATION * ca.mmax(ca.sum2(ca.fabs(H))) * width
+    g_max = ca.mmax(ca.fabs(g))
+    return g * ca.if_else(ca.logic_and(width > 0, g_max > limit), limit / g_max, 1)
+
+
 def _safe_box(lbx: ca.MX, ubx: ca.MX) -> tuple[ca.MX, ca.MX, ca.MX]:
     """B = [lo, hi]: crossed entries pinned to the bound of smaller magnitude; flag if any."""
     crossed = lbx > ubx
@@ -160,12 +182,25 @@ def _row_violation(Ax: ca.MX, lower: ca.MX, upper: ca.MX) -> ca.MX:
     return ca.fmax(ca.fmax(lower - Ax, Ax - upper), 0)
 
 
+def _in_box(x, lo, hi, tol) -> ca.MX:
+    """1 when x is finite and within tol of the box [lo, hi]."""
+    finite = ca.mmin(ca.fabs(x) < ca.inf)
+    return ca.logic_and(finite, ca.mmax(_row_violation(x, lo, hi)) <= tol)
+
+
 def _acceptable(x, Ax, lba, uba, lo, hi, tol) -> ca.MX:
     """1 when x is finite and within tol of every row and bound."""
-    finite = ca.mmin(ca.fabs(x) < ca.inf)
-    rows_ok = ca.mmax(_row_violation(Ax, lba, uba)) <= tol
-    box_ok = ca.mmax(_row_violation(x, lo, hi)) <= tol
-    return ca.logic_and(finite, ca.logic_and(rows_ok, box_ok))
+    return ca.logic_and(_in_box(x, lo, hi, tol), ca.mmax(_row_violation(Ax, lba, uba)) <= tol)
+
+
+def _clip(x, lo, hi) -> ca.MX:
+    """x clipped into [lo, hi]; only ever applied to a finite x (fmax(NaN, lo) is lo, not NaN)."""
+    return ca.fmin(ca.fmax(x, lo), hi)
+
+
+def _rest(lo, hi) -> ca.MX:
+    """The safe motion: zero, or the point of B nearest zero when q is outside its joint limits."""
+    return _clip(ca.MX.zeros(lo.sparsity()), lo, hi)
 
 
 def _incidence(m: int, row_groups: Sequence[Hashable] | None) -> ca.DM:
@@ -214,16 +249,17 @@ def _least_violation(H, g, A, lba, uba, lo, hi, E: ca.DM, tol, rho, mu) -> ca.MX
     lba_a, uba_a = ca.vertcat(lba, -inf_m), ca.vertcat(inf_m, uba)
     lbz, ubz = ca.vertcat(lo, ca.DM.zeros(G)), ca.vertcat(hi, inf_G)
     z = _daqp(n + G, 2 * m, tol, "phase2a")(H_a, g_a, A_a, lba_a, uba_a, lbz, ubz)
-    x_a = ca.fmin(ca.fmax(z[:n], lo), hi)
+    x_a = _clip(z[:n], lo, hi)      # used only when (A) is acceptable, i.e. z is finite
     Ax_a = A @ x_a
     margin = 1e-2 * tol                                  # > DAQP's primal tolerance (1e-3 tol)
     lba_b = ca.if_else(Ax_a < lba, Ax_a - margin, lba)   # only the rows x_a violates are relaxed
     uba_b = ca.if_else(Ax_a > uba, Ax_a + margin, uba)
-    x_b = ca.fmin(ca.fmax(_daqp(n, m, tol, "phase2b")(H, g, A, lba_b, uba_b, lo, hi), lo), hi)
+    x_b = _daqp(n, m, tol, "phase2b")(H, g, A, lba_b, uba_b, lo, hi)
 
+    # Acceptance is decided on the solver's own answers, before any clipping: clipping a failed
+    # solve's NaN into B would turn it into a full-speed motion that looks feasible.
     ok_a = _acceptable(z, A_a @ z, lba_a, uba_a, lbz, ubz, _GROSS_FAILURE)
     ok_b = _acceptable(x_b, A @ x_b, lba_b, uba_b, lo, hi, _GROSS_FAILURE)
-    rest = ca.fmin(ca.fmax(0, lo), hi)
-    x = ca.if_else(ok_a, ca.if_else(ok_b, x_b, x_a), rest)
+    x = ca.if_else(ok_a, ca.if_else(ok_b, _clip(x_b, lo, hi), x_a), _rest(lo, hi))
     status = int(StepStatus.LEAST_VIOLATION) + int(StepStatus.FALLBACK) * (1 - ok_a)
     return ca.vertcat(x, status)
