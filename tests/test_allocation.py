@@ -59,7 +59,7 @@ def walk(task_b, built):
     ctrl, _ = built
     robot = Robot.load(task_b.robots[0].urdf)
     rng = np.random.default_rng(3)
-    p, dt = ctrl._p_default, task_b.scene.period
+    p, dt = ctrl.assembled.context.layout.defaults, task_b.scene.period
     ticks = [np.concatenate([task_b.start, np.zeros(3), p, [dt, 1.0]])]
     for k in range(300):
         spread = 1e-3 if (k // 20) % 2 else 1e-7

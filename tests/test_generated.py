@@ -108,7 +108,8 @@ def test_compile_command_writes_source_library_and_metadata(tmp_path, capsys):
     assert {(r["primitive"], r["line"]) for r in meta["rows"]} == {("stays_at", 10), ("cone", 11)}
     assert all(r["file"].endswith("fixtures.vf") for r in meta["rows"])
     assert meta["casadi_version"] and meta["compiler"]
-    assert len(list(entry.glob("*.c"))) == 1 and len(list(entry.glob("*.so"))) == 1
+    assert len(list(entry.glob("*.c"))) == 1 and len(list(entry.glob("lib*.so"))) == 1
+    assert [p.name for p in entry.glob("*_py-*.so")] == [meta["python_module_file"]]   # the extension
     assert cli_main(["compile", str(task_file), "-o", str(tmp_path)]) == 0
     assert "reused cached build" in capsys.readouterr().out
 

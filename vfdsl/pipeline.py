@@ -16,13 +16,13 @@ import warnings
 from pathlib import Path
 
 import vfdsl
-from vfdsl.codegen.build import BuiltLibrary, CompilerUnavailable, build_library
+from vfdsl.codegen.build import BuiltLibrary, CompilerUnavailable, build_library, load_module
 from vfdsl.compiler.assemble import AssembledProblem, assemble
 from vfdsl.errors import VfError
 from vfdsl.ir import model as ir
 from vfdsl.kinematics.robot import Robot
 from vfdsl.runtime.controller import Controller
-from vfdsl.runtime.native import BufferedFunction
+from vfdsl.runtime.native import BufferedFunction, LockedRunner, StepperRunner
 from vfdsl.runtime.qp import build_step_function
 
 # A row or bound is satisfied within this much (m or rad): far below any tolerance a task can express.
@@ -80,7 +80,8 @@ def build(task: ir.Task, *, backend: str = "auto", cache_dir: str | Path | None 
         try:
             library = build_library(step, prefix, Path(cache_dir or default_cache_dir()),
                                     metadata(task, problem, digest), persistent_daqp=persistent_daqp)
-            return Controller(task, problem, BufferedFunction.native(library.so_path, prefix)), library
+            return Controller(task, problem, _native_runner(task, problem, library, prefix),
+                              FEASIBILITY_TOLERANCE), library
         except CompilerUnavailable as exc:
             if backend == "native":
                 raise
@@ -88,7 +89,17 @@ def build(task: ir.Task, *, backend: str = "auto", cache_dir: str | Path | None 
                 warnings.warn(f"{exc.message}; running the controller interpreted (same answers, slower)",
                               InterpretedFallback, stacklevel=2)
                 _warned = True
-    return Controller(task, problem, BufferedFunction.interpreted(step)), None
+    runner = LockedRunner(BufferedFunction.interpreted(step), problem.nq, problem.context.layout.defaults)
+    return Controller(task, problem, runner, FEASIBILITY_TOLERANCE), None
+
+
+def _native_runner(task: ir.Task, problem: AssembledProblem, library: BuiltLibrary, prefix: str):
+    """The generated step through the task's Python extension, or, when it could not be built (no
+    Python headers), through CasADi's loader of the C library (same answers, the checks in Python)."""
+    if library.module_path is not None:
+        return StepperRunner(load_module(library.module_path), **Controller.runner_layout(task, problem))
+    return LockedRunner(BufferedFunction.native(library.so_path, prefix), problem.nq,
+                        problem.context.layout.defaults)
 
 
 def metadata(task: ir.Task, problem: AssembledProblem, digest: str) -> dict:

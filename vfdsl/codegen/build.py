@@ -42,6 +42,7 @@ import ctypes
 import datetime
 import functools
 import hashlib
+import importlib.util
 import json
 import os
 import re
@@ -49,6 +50,7 @@ import secrets
 import shlex
 import shutil
 import subprocess
+import sysconfig
 import tempfile
 from dataclasses import dataclass
 from pathlib import Path
@@ -58,9 +60,10 @@ import casadi as ca
 
 from vfdsl.errors import VfError
 
-FLAGS = ("-O3", "-march=native", "-fPIC", "-shared", "-fvisibility=hidden", "-fno-math-errno",
+FLAGS = ("-O3", "-march=native", "-fPIC", "-pthread", "-fvisibility=hidden", "-fno-math-errno",
          "-DGCC_HASCLASSVISIBILITY")
 """Speed flags. Never ``-ffast-math``: the step's NaN/inf checks must survive optimisation."""
+STEPPER = Path(__file__).parent / "stepper.c"
 
 CASADI_DIR = Path(ca.__file__).parent
 _NONFATAL_FAILURE = re.compile(r"if \(!d_qp\.success\) \{\s*return -1;\s*\}")
@@ -71,6 +74,12 @@ _DAQP_FREE_MEM = re.compile(r"^void casadi_daqp_free_mem\(struct casadi_daqp_dat
 _WARM_CALL = re.compile(r"(/\* \w+_warm:\(h\[[^\n]*\*/\nstatic int \w+\([^\n]*\{\n(?:(?!\n\}\n).)*?)"
                         r"casadi_daqp_solve\(d, arg, res, iw, w\);", re.DOTALL)
 PERSISTENT_DAQP = (Path(__file__).parent / "daqp_persistent.c").read_text()
+MEMORY_SLOTS = (Path(__file__).parent / "memory_slots.c").read_text()
+MAX_SLOTS = 64
+"""Controllers of one task that may exist at once in a process (memory slots of its generated code)."""
+_MAX_THREADS = "#ifndef CASADI_MAX_NUM_THREADS\n#define CASADI_MAX_NUM_THREADS 1\n#endif\n"
+_POOL_CHECKOUT = re.compile(r"^int (casadi_f\d+)_checkout\(void\) \{\n.*?^\}\n", re.MULTILINE | re.DOTALL)
+_POOL_RELEASE = re.compile(r"^void (casadi_f\d+)_release\(int mem\) \{\n.*?^\}\n", re.MULTILINE | re.DOTALL)
 _IDENTIFIER = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
 
 
@@ -80,12 +89,18 @@ class CompilerUnavailable(VfError):
 
 @dataclass(frozen=True)
 class BuiltLibrary:
-    so_path: Path
+    so_path: Path                    # the C library (exported symbol: the prefix)
     c_path: Path
     h_path: Path
     meta_path: Path
     digest: str
+    module_path: Path | None = None  # the Python extension (stepper.c), None without Python headers
     reused: bool = False             # True when a verified cache entry was used, nothing compiled
+
+    @property
+    def module_name(self) -> str:
+        """The extension's module name (its ``PyInit_`` symbol)."""
+        return self.module_path.name.split("-")[0] if self.module_path else ""
 
 
 @dataclass(frozen=True)
@@ -163,6 +178,7 @@ def _generate(fn: ca.Function, prefix: str, work: Path, persistent_daqp: bool) -
                                    c_path.read_text())
     if persistent_daqp:
         source = _with_persistent_daqp(source)
+    source = _with_memory_slots(source, prefix)
     c_path.write_text(source)
     return source, h_path.read_text()
 
@@ -183,33 +199,95 @@ def _with_persistent_daqp(source: str) -> str:
     return _DAQP_SOLVE.sub(lambda _: PERSISTENT_DAQP, source)
 
 
+def _with_memory_slots(source: str, prefix: str) -> str:
+    """``source`` with one memory slot per caller (``memory_slots.c``): the exported checkout/release
+    hand out slots, and every solver's memory pool answers with the running call's slot."""
+    entry = (f"CASADI_SYMBOL_EXPORT int {prefix}(const casadi_real** arg, casadi_real** res, "
+             f"casadi_int* iw, casadi_real* w, int mem){{\n  return casadi_f0(arg, res, iw, w, mem);\n}}\n\n"
+             f"CASADI_SYMBOL_EXPORT int {prefix}_checkout(void) {{\n  return 0;\n}}\n\n"
+             f"CASADI_SYMBOL_EXPORT void {prefix}_release(int mem) {{\n}}\n")
+    pools = _POOL_CHECKOUT.findall(source)
+    if source.count(entry) != 1 or source.count(_MAX_THREADS) != 1 or len(_POOL_RELEASE.findall(source)) != len(pools):
+        raise VfError(f"CasADi {ca.__version__} generates an entry point this vfdsl does not know",
+                      hint="install the CasADi version vfdsl requires (pip install 'casadi>=3.8.2,<3.9')")
+    source = source.replace(_MAX_THREADS, f"#define CASADI_MAX_NUM_THREADS {MAX_SLOTS}\n"
+                            "#define VFDSL_MAX_SLOTS CASADI_MAX_NUM_THREADS\n"
+                            "static int vfdsl_current_slot(void);\n")
+    source = _POOL_CHECKOUT.sub(r"int \1_checkout(void) {\n  return vfdsl_current_slot();\n}\n", source)
+    source = _POOL_RELEASE.sub(r"void \1_release(int mem) {\n}\n", source)
+    slots = (MEMORY_SLOTS.replace("@PREFIX@", prefix)
+             .replace("@INIT_SLOT@", "\n".join(f"  {pool}_init_mem(s);" for pool in pools))
+             .replace("@FREE_SLOT@", "\n".join(f"  {pool}_free_mem(s);\n  memset(&{pool}_mem[s], 0, sizeof {pool}_mem[s]);"
+                                                for pool in pools)))
+    return source.replace(entry, slots)
+
+
 def _digest(source: str, header: str, compiler: Compiler, metadata: dict) -> str:
     key = json.dumps({"source": source, "header": header, "flags": FLAGS,
                       "compiler": compiler.version, "target": compiler.target,
-                      "casadi": ca.__version__, "metadata": metadata}, sort_keys=True)
+                      "casadi": ca.__version__, "metadata": metadata,
+                      "python_module": _python_build_key()}, sort_keys=True)
     return hashlib.sha256(key.encode()).hexdigest()
+
+
+@functools.lru_cache(maxsize=1)
+def python_headers() -> tuple[str, ...] | None:
+    """Include directories for building the Python extension (Python's and NumPy's), or None when
+    Python.h is missing (a Python without its development headers): then only the C library is built."""
+    import numpy
+    include = sysconfig.get_paths().get("include")
+    if not include or not (Path(include) / "Python.h").is_file():
+        return None
+    return include, numpy.get_include()
+
+
+def _python_build_key() -> dict | None:
+    """What the extension depends on besides the generated C: its source, the ABI, NumPy's C API."""
+    if python_headers() is None:
+        return None
+    import numpy
+    return {"stepper": STEPPER.read_text(), "soabi": sysconfig.get_config_var("SOABI"),
+            "numpy": numpy.__version__}
 
 
 def _compile(fn: ca.Function, prefix: str, work: Path, compiler: Compiler, digest: str,
              metadata: dict) -> dict[str, Any]:
-    """Compile in ``work``, check that the result loads, write the metadata; return it."""
-    so_name = f"lib{prefix}-{secrets.token_hex(4)}.so"
-    argv = [*compiler.command, *FLAGS, f"-I{CASADI_DIR / 'include'}", f"{prefix}.c", "-o", so_name,
-            str(CASADI_DIR / "libdaqpstat.a"), "-lm", "-Wl,--exclude-libs,ALL"]
-    result = subprocess.run(argv, cwd=work, capture_output=True, text=True)
-    if result.returncode != 0:
-        raise VfError(f"compiling {prefix}.c failed ({shlex.join(argv)}):\n{_tail(result.stderr)}")
+    """Compile in ``work``: the generated C once into an object, linked into the C library and (with
+    Python headers) into the Python extension; check that both load; write the metadata; return it."""
+    nonce = secrets.token_hex(4)
+    so_name = f"lib{prefix}-{nonce}.so"
+    daqp = [str(CASADI_DIR / "libdaqpstat.a"), "-lm", "-Wl,--exclude-libs,ALL"]
+    _cc(compiler, work, [*FLAGS, f"-I{CASADI_DIR / 'include'}", "-c", f"{prefix}.c", "-o", f"{prefix}.o"])
+    _cc(compiler, work, [*FLAGS, "-shared", f"{prefix}.o", "-o", so_name, *daqp])
     _load(work / so_name, prefix)
+    module_file = None
+    headers = python_headers()
+    if headers is not None:
+        module = f"{prefix}_py"
+        module_file = f"{module}-{nonce}.so"
+        _cc(compiler, work, [*FLAGS, "-shared", *(f"-I{d}" for d in headers), f"-DVFDSL_PREFIX={prefix}",
+                             f"-DVFDSL_MODULE={module}", "-include", f"{prefix}.h", str(STEPPER),
+                             f"{prefix}.o", "-o", module_file, "-Wl,-Bsymbolic", *daqp])
+        load_module(work / module_file)
     meta = {**metadata,
             "prefix": prefix, "digest": digest,
             "inputs": _io(fn.name_in(), fn.size_in), "outputs": _io(fn.name_out(), fn.size_out),
             "compiler": compiler.command[0], "compiler_version": compiler.version,
             "compiler_target_sha256": compiler.target, "flags": list(FLAGS),
-            "casadi_version": ca.__version__,
+            "casadi_version": ca.__version__, "max_slots": MAX_SLOTS,
             "created": datetime.datetime.now(datetime.UTC).isoformat(),
-            "so_file": so_name, "so_sha256": _sha256(work / so_name)}
+            "so_file": so_name, "so_sha256": _sha256(work / so_name),
+            "python_module_file": module_file,
+            "python_module_sha256": _sha256(work / module_file) if module_file else None}
     (work / f"{prefix}.json").write_text(json.dumps(meta, indent=2, sort_keys=True))
     return meta
+
+
+def _cc(compiler: Compiler, work: Path, args: list[str]) -> None:
+    argv = [*compiler.command, *args]
+    result = subprocess.run(argv, cwd=work, capture_output=True, text=True)
+    if result.returncode != 0:
+        raise VfError(f"the C compiler failed ({shlex.join(argv)}):\n{_tail(result.stderr)}")
 
 
 def _io(names: list[str], size) -> list[dict[str, Any]]:
@@ -220,7 +298,8 @@ def _publish(work: Path, meta: dict, entry: Path, prefix: str, digest: str) -> B
     """Move the finished build to ``entry`` atomically, replacing an invalid entry if any."""
     staged = work / "entry"
     staged.mkdir()
-    for name in (f"{prefix}.c", f"{prefix}.h", meta["so_file"], f"{prefix}.json"):
+    files = [f"{prefix}.c", f"{prefix}.h", meta["so_file"], f"{prefix}.json"]
+    for name in files + ([meta["python_module_file"]] if meta["python_module_file"] else []):
         os.replace(work / name, staged / name)
     for _ in range(3):
         try:
@@ -242,22 +321,27 @@ def _verified(entry: Path, prefix: str, digest: str) -> BuiltLibrary | None:
         library = _library(entry, prefix, digest, meta)
         intact = (meta["digest"] == digest and library.so_path.parent == entry
                   and library.c_path.is_file() and library.h_path.is_file()
-                  and _sha256(library.so_path) == meta["so_sha256"])
+                  and _sha256(library.so_path) == meta["so_sha256"]
+                  and (library.module_path is None
+                       or _sha256(library.module_path) == meta["python_module_sha256"]))
     except (OSError, ValueError, KeyError, TypeError):
         return None
     if not intact:
         return None
     try:
         _load(library.so_path, prefix)
+        if library.module_path is not None:
+            load_module(library.module_path)
     except VfError:
         return None
     return library
 
 
 def _library(entry: Path, prefix: str, digest: str, meta: dict) -> BuiltLibrary:
+    module = meta["python_module_file"]
     return BuiltLibrary(so_path=entry / meta["so_file"], c_path=entry / f"{prefix}.c",
                         h_path=entry / f"{prefix}.h", meta_path=entry / f"{prefix}.json",
-                        digest=digest)
+                        digest=digest, module_path=entry / module if module else None)
 
 
 def _load(so_path: Path, prefix: str) -> None:
@@ -265,6 +349,19 @@ def _load(so_path: Path, prefix: str) -> None:
         getattr(ctypes.CDLL(str(so_path)), prefix)
     except (OSError, AttributeError) as e:
         raise VfError(f"{so_path} does not load or lacks symbol {prefix!r}: {e}") from e
+
+
+def load_module(path: Path):
+    """The Python extension at ``path`` (module name: the file name up to its first '-')."""
+    name = Path(path).name.split("-")[0]
+    try:
+        spec = importlib.util.spec_from_file_location(name, path)
+        module = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(module)
+        module.Stepper  # noqa: B018 - the type the runtime needs
+    except (ImportError, AttributeError, OSError) as e:
+        raise VfError(f"{path} does not load as a Python extension: {e}") from e
+    return module
 
 
 def _sha256(path: Path) -> str:

@@ -10,29 +10,41 @@ anything is evaluated: an unknown name, a wrong length, NaN or inf raises :class
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
+from functools import cached_property
 
+import casadi as ca
 import numpy as np
-from pydantic import BaseModel
 
 from vfdsl.compiler.assemble import AssembledProblem, RowLabel
-from vfdsl.compiler.context import PARAM_SIZES, flatten
-from vfdsl.errors import VfError, suggest
 from vfdsl.ir import model as ir
-from vfdsl.runtime.native import BufferedFunction
+from vfdsl.primitives import CONSTRAINTS
 from vfdsl.runtime.qp import StepStatus
+from vfdsl.runtime.values import MAX_PERIOD, RuntimeValues
+
+_UNITS = {"length": "m", "angle": "rad"}
 
 
 @dataclass(frozen=True)
 class Violation:
-    """A hard row the last step could not satisfy, and by how much (in the row's units: m or rad)."""
+    """A constraint the last step could not satisfy, and by how much, in its own SI unit: a hard row's
+    excess, or a soft constraint's slack (how far the fixture is off)."""
 
     label: RowLabel
     amount: float
+    unit: str = ""
 
     def __str__(self) -> str:
-        return f"{self.label}: violated by {self.amount:.3g}"
+        return f"{self.label}: violated by {self.amount:.3g} {self.unit}".rstrip()
+
+
+@dataclass(frozen=True)
+class FramePose:
+    """A task frame as the controller sees it: origin (m), rotation (world <- frame), tool axis (unit)."""
+
+    position: np.ndarray
+    rotation: np.ndarray
+    tool_axis: np.ndarray
 
 
 @dataclass(frozen=True)
@@ -52,91 +64,125 @@ class QuadraticProgram:
 
 
 class Controller:
-    """A compiled task: each tick evaluates its QP and solves it with one call to its step function
-    (generated C, or the same graph interpreted by CasADi)."""
+    """A compiled task: each tick checks its arguments and evaluates the QP and its solution with one
+    call of the task's step (generated C, or the same graph interpreted by CasADi).
 
-    def __init__(self, task: ir.Task, problem: AssembledProblem, step: BufferedFunction):
+    Threads: every controller owns its solver memory (warm start included) and buffers, so controllers
+    of one task run in parallel threads and give the same dq as alone; one controller called from two
+    threads at once serialises the calls (a lock), never mixes them."""
+
+    def __init__(self, task: ir.Task, problem: AssembledProblem, runner, feasibility_tolerance: float):
         self.task = task
         self.assembled = problem
         self.nq = problem.nq
         ctx = problem.context
+        robot = ctx.robot
         self.input_sizes = {d.name: d.size for d in task.inputs}
-        self.param_names = [d.name for d in task.params if PARAM_SIZES[d.type] > 0]
-        self.param_defaults = {d.name: d.value for d in task.params if PARAM_SIZES[d.type] > 0}
+        self.param_names = [name for name, slot in ctx.layout.slots.items() if slot.size]
+        self.param_defaults = {d.name: d.value for d in task.params if d.name in self.param_names}
         self.default_dt = task.scene.period
-        self._layout = ctx.layout
-        self._input_offsets = ctx.input_offsets
-        self._u = np.zeros(ctx.u.shape[0])
-        self._p_default = ctx.layout.defaults.copy()
-        self._step = step
+        self._values = RuntimeValues(task, ctx.input_offsets, ctx.layout, robot.lower, robot.upper,
+                                     robot.joint_names)
+        self._runner = runner
+        self._fast = runner.fast_step
+        self._tolerance = feasibility_tolerance
         self._labels = self._all_labels()
-        self._status = np.zeros(1)
-        self._violation = np.zeros(0)
-        self._default_params_in_buffer = False
-        if step.kind == "native":
+        self._units = [_row_unit(label.primitive) for label in problem.row_labels]
+        self._slack_units = [_row_unit(label.primitive) for label in problem.slack_labels]
+        if runner.kind == "native":
             self._prime()
 
+    @classmethod
+    def runner_layout(cls, task: ir.Task, problem: AssembledProblem) -> dict:
+        """What a :class:`~vfdsl.runtime.native.StepperRunner` needs to know of the task."""
+        ctx = problem.context
+        values = RuntimeValues(task, ctx.input_offsets, ctx.layout, ctx.robot.lower, ctx.robot.upper,
+                               ctx.robot.joint_names)
+        return {"nq": problem.nq, "n": problem.nq + problem.n_slack, "m": len(problem.row_labels),
+                "input_offsets": dict(ctx.input_offsets), "p_default": ctx.layout.defaults,
+                "q_range": (values.q_min, values.q_max), "dt_default": task.scene.period,
+                "dt_max": MAX_PERIOD}
+
     # -------------------------------------------------------------------------------------- API
+    def step(self, q, inputs=None, params=None, dt=None) -> np.ndarray:
+        """The joint increment dq for this tick (SI), from the joint coordinates q, every declared input,
+        optionally params that replace their defaults for this tick, and dt (default: the scene's period).
+
+        Bad arguments (wrong type or shape, NaN or inf, unknown names, values out of their range) raise
+        VfError before anything is evaluated. When the hard rows cannot all hold, dq solves the
+        least-violation problem instead: ``status`` says so and :meth:`violations` names the rows. dq is
+        always finite and within the joint bounds."""
+        if self._fast is not None:
+            dq = self._fast(q, inputs, params, dt)
+            if dq is not NotImplemented:
+                return dq
+        v = self._values
+        return self._runner.run(v.q(q), v.inputs(inputs), v.params(params), v.dt(dt), 0.0)
+
     def problem(self, q, inputs=None, params=None, dt=None) -> QuadraticProgram:
-        args = self._arguments(q, inputs, params, dt)
-        H, g, A, lba, uba, lbx, ubx = (np.array(v) for v in self.assembled.function(*args))
+        """The numeric QP of this tick (before the solver's safeguards), one label per row."""
+        v = self._values
+        p = v.params(params)
+        args = (v.q(q), v.inputs(inputs), self.assembled.context.layout.defaults if p is None else p, v.dt(dt))
+        H, g, A, lba, uba, lbx, ubx = (np.array(x) for x in self.assembled.function(*args))
         n = H.shape[0]
         return QuadraticProgram(P=H, g=g.ravel(), A=np.vstack([np.eye(n), A]),
                                 lb=np.concatenate([lbx.ravel(), lba.ravel()]),
                                 ub=np.concatenate([ubx.ravel(), uba.ravel()]),
                                 labels=list(self._labels), nq=self.nq)
 
-    def step(self, q, inputs=None, params=None, dt=None) -> np.ndarray:
-        """The joint increment dq for this tick (checked inputs, one solver call).
-
-        When the hard rows cannot all hold, dq solves the least-violation problem instead: ``status``
-        says so and :meth:`violations` names the rows. dq is always finite and within the joint bounds."""
-        q_buf, u_buf, p_buf, dt_buf, _ = self._step.inputs
-        inputs = {} if inputs is None else inputs
-        if not self._write_unchecked(q, inputs, q_buf, u_buf):     # anything unusual: the detailed checks
-            q_buf[:] = _finite_vector(q, self.nq, "q (joint coordinates)")
-            u_buf[:] = self._inputs(inputs)
-        if params or not self._default_params_in_buffer:
-            p_buf[:] = self._params(params or {})
-            self._default_params_in_buffer = not params
-        dt_buf[...] = self._dt(dt)
-        x, self._status, self._violation = self._step.evaluate()
-        return x[:self.nq].copy()
+    def frames(self, q) -> dict[str, FramePose]:
+        """Every task frame's pose at q, from the controller's own kinematics (what the fixture sees)."""
+        values = self._frames_function(self._values.q(q))
+        poses = {}
+        for k, name in enumerate(d.name for d in self.task.frames):
+            p, R, axis = (np.array(values[3 * k + i]) for i in range(3))
+            poses[name] = FramePose(position=p.ravel(), rotation=R, tool_axis=axis.ravel())
+        return poses
 
     @property
     def status(self) -> StepStatus:
-        """How the last step went: OPTIMAL, or LEAST_VIOLATION (and BOUNDS_CLIPPED, FALLBACK) flags."""
-        return StepStatus(int(self._status[0]))
+        """How the last step went: OPTIMAL, or LEAST_VIOLATION, BOUNDS_CLIPPED and FALLBACK flags."""
+        return StepStatus(int(self._runner.status[0]))
 
     def violations(self) -> list[Violation]:
-        """The constraint rows the last step violates (empty after a normal step)."""
-        amounts = self._violation
-        return [Violation(label, float(a)) for label, a in zip(self.assembled.row_labels, amounts) if a > 0]
+        """What the last step leaves violated: hard rows (excess over their bound) and soft constraints
+        (their slack: how far the fixture is off), each in its SI unit. Empty after a step that meets
+        every constraint."""
+        rows = self.assembled.row_labels
+        found = [Violation(label, float(a), unit) for label, a, unit
+                 in zip(rows, self._runner.violation, self._units) if a > 0 and not label.soft]
+        slacks = self._runner.x[self.nq:]
+        found += [Violation(label, float(s), unit) for label, s, unit
+                  in zip(self.assembled.slack_labels, slacks, self._slack_units) if s > self._tolerance]
+        return found
 
     @property
     def backend(self) -> str:
         """'native' (generated C) or 'interpreted' (CasADi in this process)."""
-        return self._step.kind
+        return self._runner.kind
 
     @property
     def row_labels(self) -> list[RowLabel]:
         """Structured labels of the constraint rows (the rows of A after the variable bounds)."""
         return list(self.assembled.row_labels)
 
-    # ------------------------------------------------------------------------------- checking
+    # ------------------------------------------------------------------------------- internals
     def _prime(self) -> None:
         """One evaluation with phase 2 forced (input ``recover``) at the start configuration: every DAQP
         workspace of the generated step is allocated now, so that no later step allocates memory."""
-        q_buf, u_buf, p_buf, dt_buf, recover = self._step.inputs
-        q_buf[:] = self.task.start if self.task.start is not None else 0.0
-        u_buf[:] = 0.0
-        p_buf[:] = self._p_default
-        dt_buf[...] = self.default_dt or 0.01
-        recover[...] = 1.0
-        try:
-            self._step.evaluate()
-        finally:
-            recover[...] = 0.0
+        start = self.task.start if self.task.start is not None else np.zeros(self.nq)
+        u = np.zeros(sum(self.input_sizes.values()))
+        self._runner.run(np.asarray(start, dtype=float), u, None, self.default_dt or 0.01, 1.0)
+
+    @cached_property
+    def _frames_function(self) -> ca.Function:
+        ctx = self.assembled.context
+        outputs = []
+        for decl in self.task.frames:
+            frame = ctx.frame(decl.name)
+            outputs += [frame.p, frame.R, frame.axis]
+        return ca.Function("frames", [ctx.q], outputs)
 
     def _all_labels(self) -> list[str]:
         bounds = []
@@ -146,87 +192,11 @@ class Controller:
         bounds += [f"slack >= 0 of {label}" for label in self.assembled.slack_labels]
         return bounds + [str(label) for label in self.assembled.row_labels]
 
-    def _write_unchecked(self, q, inputs, q_buf: np.ndarray, u_buf: np.ndarray) -> bool:
-        """The fast path of :meth:`step`: write q and the inputs straight into the solver's buffers.
-        False when anything is unusual (a name, a length, NaN or inf), for the detailed checks to report."""
-        if type(inputs) is not dict or len(inputs) != len(self._input_offsets):
-            return False
-        try:
-            if len(q) != self.nq:
-                return False
-            q_buf[:] = q
-            for name, (offset, size) in self._input_offsets.items():
-                value = inputs[name]
-                if len(value) != size:
-                    return False
-                u_buf[offset:offset + size] = value
-        except (KeyError, TypeError, ValueError):
-            return False
-        # A finite sum means every entry is finite; an overflow only sends the step to the detailed checks.
-        return math.isfinite(q_buf.sum() + u_buf.sum())
 
-    def _arguments(self, q, inputs, params, dt) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
-        q = _finite_vector(q, self.nq, "q (joint coordinates)")
-        return q, self._inputs(inputs or {}), self._params(params or {}), self._dt(dt)
-
-    def _inputs(self, inputs: dict) -> np.ndarray:
-        if not isinstance(inputs, dict):
-            raise VfError("inputs must be a mapping from input names to values")
-        for name in inputs:
-            if name not in self.input_sizes:
-                raise VfError(f"unknown input '{name}'", hint=suggest(str(name), self.input_sizes, "inputs"))
-        u = self._u
-        for name, (offset, size) in self._input_offsets.items():
-            if name not in inputs:
-                raise VfError(f"missing input '{name}' ({size} numbers)",
-                              hint="pass every declared input each tick, zeros when idle")
-            u[offset:offset + size] = _finite_vector(inputs[name], size, f"input '{name}'")
-        return u
-
-    def _params(self, params: dict) -> np.ndarray:
-        if not isinstance(params, dict):
-            raise VfError("params must be a mapping from param names to values")
-        p = self._p_default.copy() if params else self._p_default
-        for name, value in params.items():
-            slot = self._layout.slots.get(name)
-            if slot is None or slot.size == 0:
-                raise VfError(f"unknown run-time param '{name}'", hint=suggest(str(name), self.param_names, "params"))
-            if isinstance(value, dict):
-                value = _from_mapping(slot.type, value)
-            if isinstance(value, BaseModel):
-                value = flatten(value)
-            p[slot.offset:slot.offset + slot.size] = _finite_vector(value, slot.size, f"param '{name}'")
-        return p
-
-    def _dt(self, dt) -> float:
-        if dt is None:
-            dt = self.default_dt
-            if dt is None:
-                raise VfError("no control period: pass dt, or set `period` in the task's scene")
-        dt = float(dt)
-        if not np.isfinite(dt) or dt <= 0:
-            raise VfError(f"dt must be a positive number of seconds, got {dt}")
-        return dt
+_ROW_UNITS = {"above": "m", "within_distance": "m", "speed": "m", "angular_speed": "rad"}
 
 
-def _finite_vector(value, size: int, what: str) -> np.ndarray:
-    try:
-        arr = np.asarray(value, dtype=float).reshape(-1)
-    except (TypeError, ValueError):
-        raise VfError(f"{what} must be {size} numbers") from None
-    if arr.size != size:
-        raise VfError(f"{what} must have {size} numbers, got {arr.size}")
-    if not np.all(np.isfinite(arr)):
-        raise VfError(f"{what} contains NaN or inf: {arr.tolist()}")
-    return arr
-
-
-_MAPPING_FIELDS = {"pose": ("translation", "rpy"), "line": ("point", "direction"), "plane": ("point", "normal")}
-
-
-def _from_mapping(kind: str, value: dict) -> list[float]:
-    fields = _MAPPING_FIELDS.get(kind)
-    if fields is None or set(value) != set(fields):
-        raise VfError(f"a {kind} param value is " + (f"a mapping with keys {', '.join(fields)}" if fields
-                                                      else "a list of numbers"))
-    return [x for f in fields for x in np.asarray(value[f], dtype=float).reshape(-1)]
+def _row_unit(primitive: str) -> str:
+    """The unit of a primitive's rows: its tolerance's, or (without a tolerance) what its rows bound."""
+    spec = CONSTRAINTS.get(primitive)
+    return _UNITS.get(spec.tolerance, "") if spec and spec.tolerance else _ROW_UNITS.get(primitive, "")

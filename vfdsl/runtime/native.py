@@ -10,11 +10,22 @@ Measured (docs/runtime.md): the bare ``buffer()`` evaluation costs 0.07 us of ca
 0.7 us for a ctypes call of the same C function with prebuilt pointer arrays; :meth:`evaluate` (with
 its return-code check) 0.5 us and :meth:`__call__` with four array inputs 1.7 us.
 
-Not thread-safe: one instance owns one set of buffers and one solver memory.
+Not thread-safe: one instance owns one set of buffers and one solver memory; :class:`LockedRunner`
+serialises its callers.
+
+A *runner* is what a :class:`~vfdsl.runtime.controller.Controller` calls each tick:
+``run(q, u, p, dt, recover) -> dq`` on checked float64 arrays (``p`` None: the task's default params),
+the arrays ``x``, ``status`` and ``violation`` of its last evaluation, and ``fast_step``, an optional
+``(q, inputs, params, dt) -> dq or NotImplemented`` that takes plain arguments without the Python
+checks. :class:`StepperRunner` runs the generated C through the task's Python extension
+(``vfdsl/codegen/stepper.c``): own memory slot, GIL released during the solve, a fast path in C;
+:class:`LockedRunner` runs a :class:`BufferedFunction` (interpreted, or the C library through CasADi
+when no Python headers were there to build the extension).
 """
 
 from __future__ import annotations
 
+import threading
 from pathlib import Path
 
 import casadi as ca
@@ -56,6 +67,11 @@ class BufferedFunction:
         return cls(function, "interpreted")
 
     @property
+    def outputs(self) -> tuple[np.ndarray, ...]:
+        """The bound output arrays, overwritten by each evaluation."""
+        return self._outputs
+
+    @property
     def inputs(self) -> tuple[np.ndarray, ...]:
         """The bound input arrays: writing into them and calling :meth:`evaluate` skips the copy."""
         return self._inputs
@@ -95,3 +111,52 @@ def _bind(set_buffer, i: int, sparsity: ca.Sparsity, what: str) -> np.ndarray:
     set_buffer(i, memoryview(storage))
     rows, cols = sparsity.shape
     return storage if cols == 1 else storage.reshape((rows, cols), order="F")
+
+
+class LockedRunner:
+    """A BufferedFunction behind a lock: callers from several threads are serialised."""
+
+    fast_step = None
+
+    def __init__(self, function: BufferedFunction, nq: int, p_default: np.ndarray):
+        self.kind = function.kind
+        self.nq = nq
+        self._function = function
+        self._p_default = p_default
+        self._lock = threading.Lock()
+        self.x, self.status, self.violation = function.outputs
+
+    def run(self, q, u, p, dt: float, recover: float) -> np.ndarray:
+        with self._lock:
+            q_buf, u_buf, p_buf, dt_buf, recover_buf = self._function.inputs
+            q_buf[:], u_buf[:] = q, u
+            p_buf[:] = self._p_default if p is None else p
+            dt_buf[...], recover_buf[...] = dt, recover
+            x, _, _ = self._function.evaluate()
+            return x[:self.nq].copy()
+
+
+class StepperRunner:
+    """The task's Python extension: a ``Stepper`` with its own memory slot of the generated code."""
+
+    kind = "native"
+
+    def __init__(self, module, nq: int, n: int, m: int, input_offsets: dict[str, tuple[int, int]],
+                 p_default: np.ndarray, q_range: tuple[np.ndarray, np.ndarray], dt_default: float | None,
+                 dt_max: float):
+        nu = sum(size for _, size in input_offsets.values())
+        arrays = tuple(np.zeros(k) for k in (nq, nu, p_default.size, 1, 1, n, 1, m))
+        self.x, self.status, self.violation = arrays[5:]
+        names = tuple(input_offsets)
+        try:
+            self.stepper = module.Stepper(arrays, np.ascontiguousarray(p_default, dtype=float), names,
+                                          tuple(input_offsets[k][0] for k in names),
+                                          tuple(input_offsets[k][1] for k in names),
+                                          np.concatenate(q_range).astype(float),
+                                          float("nan") if dt_default is None else float(dt_default),
+                                          float(dt_max))
+        except RuntimeError as e:
+            raise VfError(f"cannot start another controller of this task: {e}",
+                          hint="close (delete) controllers you no longer use") from None
+        self.fast_step = self.stepper.step
+        self.run = self.stepper.run

@@ -1,0 +1,227 @@
+"""Run-time values: what a caller hands to ``Controller.step``, checked before anything moves.
+
+Every value is checked for its type (real numbers only: no strings, booleans, complex numbers or other
+objects; lists, tuples and real NumPy arrays are fine), its shape, finiteness and the same ranges a
+value written in the task file gets. Each failure is a :class:`~vfdsl.errors.VfError` that names the
+argument (``q``, ``input 'tau'``, ``param 'axis'``, ``dt``). Everything is SI.
+
+- q: within the joint limits widened by the joint's span on each side (a value further out is a
+  faulty encoder or a unit mistake, e.g. degrees for radians, not a state to recover from);
+- directions, line directions and plane normals: not zero (|v| >= 1e-12, computed without under- or
+  overflow), normalized here;
+- scalar params: the ranges of every argument they feed (``vfdsl.primitives.spec``);
+- dt: in (0, MAX_PERIOD].
+"""
+
+from __future__ import annotations
+
+import math
+import numbers
+from collections.abc import Mapping
+
+import numpy as np
+from pydantic import BaseModel
+
+from vfdsl.compiler.context import flatten
+from vfdsl.errors import VfError, suggest
+from vfdsl.ir import model as ir
+
+MAX_PERIOD = 1.0
+"""Longest control period accepted (s): a longer tick lets the speed bounds allow large jumps."""
+MIN_DIRECTION_NORM = 1e-12
+"""A direction shorter than this (before normalization) is taken for zero, at load and at run time."""
+
+_FIELDS = {"line": ("point", "direction"), "plane": ("point", "normal"), "pose": ("translation", "rpy")}
+_UNIT_PARTS = {"direction": (slice(0, 3),), "line": (slice(3, 6),), "plane": (slice(3, 6),)}
+
+
+def unit_direction(xyz, what: str) -> list[float]:
+    """``xyz`` normalized; VfError when it is (numerically) zero. math.hypot scales internally, so
+    neither 1e-160 nor 1e160 components under- or overflow."""
+    norm = math.hypot(*xyz)
+    if not norm >= MIN_DIRECTION_NORM:
+        raise VfError(f"{what} is a zero direction ({_show(xyz)}, length {norm:.3g})",
+                      hint="give a non-zero vector, e.g. [0, 0, 1]")
+    return [float(c) / norm for c in xyz]
+
+
+def real_vector(value, size: int, what: str) -> np.ndarray:
+    """``value`` as ``size`` finite float64 numbers: a list or tuple of real numbers, or a real NumPy
+    array (1-D, or 2-D with one row or one column)."""
+    if isinstance(value, np.ndarray):
+        if value.dtype.kind not in "fiu":
+            raise VfError(f"{what} must be real numbers, got an array of {value.dtype}")
+        if value.ndim > 2 or (value.ndim == 2 and 1 not in value.shape) or value.ndim == 0:
+            raise VfError(f"{what} must be a vector of {size} numbers, got an array of shape {value.shape}")
+        arr = value.astype(float).reshape(-1)
+    elif isinstance(value, (list, tuple)):
+        for i, item in enumerate(value):
+            if not _is_real(item):
+                raise VfError(f"{what} must be {size} real numbers; item {i} is {_describe(item)}")
+        try:
+            arr = np.array([float(item) for item in value], dtype=float)
+        except OverflowError:
+            raise VfError(f"{what} holds a number too large for a float") from None
+    else:
+        raise VfError(f"{what} must have {size} numbers (a list or array), got {_describe(value)}")
+    if arr.size != size:
+        raise VfError(f"{what} must have {size} numbers, got {arr.size}")
+    bad = np.flatnonzero(~np.isfinite(arr))
+    if bad.size:
+        raise VfError(f"{what} contains NaN or inf (index {int(bad[0])}): {_show(arr)}")
+    return arr
+
+
+def real_scalar(value, what: str) -> float:
+    """``value`` as a float: a real number, not a list, string or boolean (finiteness is the caller's
+    range check)."""
+    if not _is_real(value):
+        raise VfError(f"{what} must be a real number, got {_describe(value)}")
+    try:
+        return float(value)
+    except OverflowError:
+        return math.inf
+
+
+def _is_real(x) -> bool:
+    return isinstance(x, numbers.Real) and not isinstance(x, (bool, np.bool_))
+
+
+def _describe(x) -> str:
+    if isinstance(x, str):
+        return f"the string {x[:20]!r}"
+    if isinstance(x, (bool, np.bool_)):
+        return f"the boolean {x}"
+    if isinstance(x, numbers.Complex) and not isinstance(x, numbers.Real):
+        return f"the complex number {x}"
+    return f"a {type(x).__name__}"
+
+
+def _show(values) -> str:
+    return "[" + ", ".join(f"{float(v):.6g}" for v in values) + "]"
+
+
+class RuntimeValues:
+    """The checks of one task's run-time values (its inputs, params, joints and period)."""
+
+    def __init__(self, task: ir.Task, input_offsets: dict[str, tuple[int, int]], layout,
+                 lower: np.ndarray, upper: np.ndarray, joint_names: list[str]):
+        self.task = task
+        self.nq = len(lower)
+        self.input_offsets = input_offsets
+        self.n_inputs = sum(size for _, size in input_offsets.values())
+        self.layout = layout
+        self.joint_names = joint_names
+        span = np.where(np.isfinite(upper - lower), upper - lower, np.inf)
+        self.lower, self.upper = lower, upper
+        self.q_min, self.q_max = lower - span, upper + span
+        self.default_period = task.scene.period
+        self.ranges = _param_ranges(task)
+
+    # ------------------------------------------------------------------------------------------ q
+    def q(self, value) -> np.ndarray:
+        q = real_vector(value, self.nq, "q (joint coordinates)")
+        outside = np.flatnonzero((q < self.q_min) | (q > self.q_max))
+        if outside.size:
+            i = int(outside[0])
+            raise VfError(f"q[{i}] = {q[i]:.6g} is far outside joint '{self.joint_names[i]}''s limits "
+                          f"[{self.lower[i]:.6g}, {self.upper[i]:.6g}] (SI: m or rad)",
+                          hint="check the unit (radians, metres) and the joint order, or the encoder")
+        return q
+
+    # ------------------------------------------------------------------------------------- inputs
+    def inputs(self, value) -> np.ndarray:
+        if value is None:
+            value = {}
+        if not isinstance(value, Mapping):
+            raise VfError(f"inputs must be a mapping from input names to values, got {_describe(value)}")
+        for name in value:
+            if name not in self.input_offsets:
+                raise VfError(f"unknown input {name!r}", hint=suggest(str(name), self.input_offsets, "inputs"))
+        u = np.empty(self.n_inputs)
+        for name, (offset, size) in self.input_offsets.items():
+            if name not in value:
+                raise VfError(f"missing input '{name}' ({size} numbers)",
+                              hint="pass every declared input each tick, zeros when idle")
+            u[offset:offset + size] = real_vector(value[name], size, f"input '{name}'")
+        return u
+
+    # ------------------------------------------------------------------------------------- params
+    def params(self, value) -> np.ndarray | None:
+        """The full param vector with ``value``'s entries replaced, or None for the defaults."""
+        if value is None:
+            return None
+        if not isinstance(value, Mapping):
+            raise VfError(f"params must be a mapping from param names to values, got {_describe(value)}")
+        if not value:
+            return None
+        p = self.layout.defaults.copy()
+        for name, given in value.items():
+            slot = self.layout.slots.get(name)
+            if slot is None or slot.size == 0:
+                known = [n for n, s in self.layout.slots.items() if s.size]
+                raise VfError(f"unknown run-time param {name!r}", hint=suggest(str(name), known, "params"))
+            p[slot.offset:slot.offset + slot.size] = self.param(name, slot.type, slot.size, given)
+        return p
+
+    def param(self, name: str, kind: str, size: int, value) -> np.ndarray:
+        what = f"param '{name}'"
+        if isinstance(value, BaseModel):
+            if getattr(value, "kind", None) != _ir_kind(kind):
+                raise VfError(f"{what} is {_article(kind)}, got {_article(getattr(value, 'kind', '?'))} value")
+            value = flatten(value)
+        elif isinstance(value, Mapping):
+            value = self._from_mapping(what, kind, value)
+        elif size == 1 and not isinstance(value, (list, tuple, np.ndarray)):
+            value = [real_scalar(value, what)]          # a scalar param given as a number
+        flat = real_vector(value, size, what)
+        for part in _UNIT_PARTS.get(kind, ()):
+            flat[part] = unit_direction(flat[part], what if kind == "direction" else f"{what}'s {_FIELDS[kind][1]}")
+        for low_high, use in self.ranges.get(name, ()):
+            problem = low_high.violation(float(flat[0]))
+            if problem:
+                raise VfError(f"{what} = {flat[0]:.6g} (SI) {problem}, as the {use} it feeds")
+        return flat
+
+    def _from_mapping(self, what: str, kind: str, value: Mapping) -> list:
+        fields = _FIELDS.get(kind)
+        if fields is None or set(value) != set(fields):
+            raise VfError(f"{what} is {_article(kind)}: " + (f"a mapping with keys {', '.join(fields)}" if fields
+                                                              else "a list of numbers"))
+        return [x for f in fields for x in real_vector(value[f], 3, f"{what}'s {f}")]
+
+    # ----------------------------------------------------------------------------------------- dt
+    def dt(self, value) -> float:
+        if value is None:
+            if self.default_period is None:
+                raise VfError("no control period: pass dt, or set `period` in the task's scene")
+            return self.default_period
+        dt = real_scalar(value, "dt (the control period, s)")
+        if not 0 < dt <= MAX_PERIOD:
+            raise VfError(f"dt must be a positive number of seconds, at most {MAX_PERIOD:g}, got {dt:.6g}")
+        return dt
+
+
+def _ir_kind(kind: str) -> str:
+    return "scalar" if kind not in ("point", "vector", "direction", "line", "plane", "pose", "curve") else kind
+
+
+def _article(kind: str) -> str:
+    return ("an " if kind[:1] in "aeiou" else "a ") + kind
+
+
+def _param_ranges(task: ir.Task) -> dict[str, list]:
+    """param name -> [(Range, 'argument x of y'), ...]: the allowed range (``ArgSpec.range``) of every
+    argument the param feeds, so that a run-time value meets the same range as a literal."""
+    from vfdsl.objectives import OBJECTIVES
+    from vfdsl.primitives import CONSTRAINTS
+    out: dict[str, list] = {}
+    for statement in [*task.constraints, *task.objectives]:
+        name = statement.primitive if isinstance(statement, ir.Constraint) else statement.term
+        spec = CONSTRAINTS.get(name) or OBJECTIVES.get(name)
+        for arg_spec in spec.args if spec else ():
+            arg = statement.args.get(arg_spec.name)
+            allowed = getattr(arg_spec, "range", None)
+            if isinstance(arg, ir.ParamRef) and allowed is not None:
+                out.setdefault(arg.name, []).append((allowed, f"argument '{arg_spec.name}' of {name}"))
+    return out
