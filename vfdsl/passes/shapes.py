@@ -80,7 +80,7 @@ class LiteralReader:
             return looked_up.value
         if not isinstance(value, ast.Quantity):
             raise VfError(f"expected {u.describe(dim)}, got {_what(value)}", value.span.pos(),
-                          hint="write a number with a unit, e.g. 5 mm")
+                          hint=f"write {u.example(dim)}")
         return u.to_si(value.number, value.unit, dim, self.units, value.span)
 
     # -- helpers ---------------------------------------------------------------------------------------

@@ -48,6 +48,13 @@ def describe(dim: Dim) -> str:
     return _DIM_WORDS.get(dim) or f"a quantity in {si_formula(dim)}"
 
 
+def example(dim: Dim) -> str:
+    """How to write a value of dimension ``dim``: 'a number with a unit, e.g. 5 mm', 'a plain number, e.g. 10'."""
+    if dim == DIMENSIONLESS:
+        return "a plain number, e.g. 10"
+    return f"a number with a unit, e.g. 5 {_EXAMPLE_UNIT.get(dim) or si_formula(dim)}"
+
+
 def si_formula(dim: Dim) -> str:
     si = ("m", "rad", "s", "N")
     num = "*".join(s if e == 1 else f"{s}^{e}" for s, e in zip(si, dim) if e > 0) or "1"
@@ -72,6 +79,14 @@ class DefaultUnits:
         for base_unit, exponent in zip((self.length, self.angle, self.time, self.force), dim):
             scale *= UNITS[base_unit][1] ** exponent
         return scale
+
+    def show(self, value: float, dim: Dim) -> str:
+        """An SI ``value`` of dimension ``dim`` written in these units: 0.003 m -> '3 mm', 0.02 m/s -> '20 mm/s'."""
+        names = (self.length, self.angle, self.time, self.force)
+        num = "*".join(n if e == 1 else f"{n}^{e}" for n, e in zip(names, dim) if e > 0)
+        den = "".join(f"/{n}" if e == -1 else f"/{n}^{-e}" for n, e in zip(names, dim) if e < 0)
+        unit = (num or ("1" if den else "")) + den
+        return f"{value / self.factor(dim):g} {unit}".rstrip()
 
     def with_unit(self, name: str, span: Span) -> "DefaultUnits":
         dim, _ = lookup(name, span)
