@@ -11,7 +11,7 @@ import pytest
 import vfdsl
 from vfdsl import VfError
 from vfdsl.objectives import OBJECTIVES
-from vfdsl.passes import limits
+from vfdsl.passes import clause_ranges
 from vfdsl.pipeline import FEASIBILITY_TOLERANCE
 from vfdsl.primitives import CONSTRAINTS
 from vfdsl.primitives.spec import SCALAR_DIMENSIONS, Range
@@ -135,8 +135,8 @@ def test_tolerance_below_the_solver_names_both_numbers_in_the_tasks_units(tmp_pa
     err = fails(tmp_path, "require tip stays_at([0, 0, 290]) within 1e-12\n", 6, 42, "below what the solver can honour")
     solver_mm = f"{FEASIBILITY_TOLERANCE * 1e3:g} mm"
     assert "1e-12 mm" in err.message and solver_mm in err.message
-    assert f"{limits.TOLERANCE_MARGIN * FEASIBILITY_TOLERANCE * 1e3:g} mm" in err.hint
-    low = limits.TOLERANCE_MARGIN * FEASIBILITY_TOLERANCE
+    assert f"{clause_ranges.TOLERANCE_MARGIN * FEASIBILITY_TOLERANCE * 1e3:g} mm" in err.hint
+    low = clause_ranges.TOLERANCE_MARGIN * FEASIBILITY_TOLERANCE
     load(tmp_path, f"require tip stays_at([0, 0, 290]) within {low * 1e3 * 1.01!r}\n")
 
 

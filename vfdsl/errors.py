@@ -49,6 +49,10 @@ class VfError(Exception):
         self.notes = tuple(notes)
         self._source_text = source_text
 
+    def with_source(self, text: str) -> "VfError":
+        """The same error, showing its line from ``text`` (the text as it was parsed)."""
+        return VfError(self.message, self.pos, self.hint, text, self.notes)
+
     def with_note(self, note: str) -> "VfError":
         """The same error with one more note (e.g. the ``use`` site a fixture was expanded from)."""
         return VfError(self.message, self.pos, self.hint, self._source_text, self.notes + (note,))
@@ -72,8 +76,13 @@ class VfError(Exception):
             width = 1
             if self.pos.end_line == self.pos.line and self.pos.end_column:
                 width = max(1, self.pos.end_column - self.pos.column)
-            lead = "".join(ch if ch == "\t" else " " for ch in src_line[:self.pos.column - 1])
-            lines.append(f" {number} | {src_line}")
+            start = max(0, self.pos.column - 1 - _CONTEXT) if len(src_line) > 2 * _CONTEXT else 0
+            shown = ("..." if start else "") + src_line[start:start + 2 * _CONTEXT] \
+                + ("..." if len(src_line) > start + 2 * _CONTEXT else "")
+            width = min(width, 2 * _CONTEXT - (self.pos.column - 1 - start))
+            lead = ("   " if start else "") + "".join(
+                ch if ch == "\t" else " " for ch in src_line[start:self.pos.column - 1])
+            lines.append(f" {number} | {shown}")
             lines.append(f" {gutter} | {lead}{'^' * width}")
         if self.hint:
             lines.append(f"hint: {self.hint}")
@@ -96,6 +105,9 @@ class VfError(Exception):
 
     def __str__(self) -> str:
         return self.render()
+
+
+_CONTEXT = 80          # characters shown on each side of the caret when a source line is long
 
 
 def _printable(line: str) -> str:

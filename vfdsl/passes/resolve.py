@@ -18,6 +18,7 @@ from vfdsl.errors import VfError, suggest
 from vfdsl.ir import model as ir
 from vfdsl.kinematics.robot import ROBOTS_DIR, Robot
 from vfdsl.objectives import OBJECTIVES
+from vfdsl.passes import clause_ranges
 from vfdsl.passes import fixtures as fx
 from vfdsl.passes import limits
 from vfdsl.passes import units as u
@@ -44,17 +45,9 @@ def file_units(module: ast.Module) -> u.DefaultUnits:
     if len(statements) > 1:
         raise VfError("only one `units` statement per file", statements[1].span.pos(),
                       hint=f"the first is at {statements[0].span}")
-    units = u.DefaultUnits()
-    for stmt in statements:
-        seen: dict[tuple, ast.Name] = {}
-        for name in stmt.names:
-            dim, _ = u.lookup(name.text, name.span)
-            if dim in seen:
-                raise VfError(f"two units for {u.describe(dim)}: '{seen[dim].text}' and '{name.text}'",
-                              name.span.pos())
-            seen[dim] = name
-            units = units.with_unit(name.text, name.span)
-    return units
+    if not statements:
+        return u.DefaultUnits()
+    return u.default_units([(name.text, name.span) for name in statements[0].names])
 
 
 class Resolver:
@@ -181,7 +174,10 @@ class Resolver:
                     poses = [s.name.text for s in statements if s.type.text == "pose"]
                     raise VfError(f"'{stmt.frame.text}' is not a pose param", stmt.frame.span.pos(),
                                   hint=suggest(stmt.frame.text, poses, "pose params"))
-                if kind not in ("point", "vector", "direction", "line", "plane", "curve", "pose"):
+                if kind == "pose":
+                    raise VfError("a pose cannot be expressed `in` another pose", stmt.frame.span.pos(),
+                                  hint="nested frames are not supported: give the pose in the robot's base frame")
+                if kind not in ("point", "vector", "direction", "line", "plane", "curve"):
                     raise VfError(f"a {kind} cannot be expressed in a frame", stmt.frame.span.pos())
             if scene is not None and stmt.name.text in scene.params:
                 source, units = scene.params[stmt.name.text][0], scene.units
@@ -441,16 +437,16 @@ class Resolver:
         """A ``within`` value must be positive and large enough for the solver to honour it."""
         if tolerance <= 0:
             raise VfError("a tolerance must be positive", written.pos())
-        allowed = limits.tolerance_range(kind)
+        allowed = clause_ranges.tolerance_range(kind)
         if allowed.violation(tolerance) is None:
             return
         unit = units.length if kind == "length" else units.angle
         scale = u.UNITS[unit][1]
         if tolerance < allowed.low:
             raise VfError(f"tolerance {tolerance / scale:g} {unit} is below what the solver can honour: it holds "
-                          f"rows to {limits.FEASIBILITY_TOLERANCE / scale:g} {unit} (its feasibility tolerance)",
+                          f"rows to {clause_ranges.FEASIBILITY_TOLERANCE / scale:g} {unit} (its feasibility tolerance)",
                           written.pos(), hint=f"use at least {allowed.low / scale:g} {unit} "
-                                              f"({limits.TOLERANCE_MARGIN} times the solver's tolerance)")
+                                              f"({clause_ranges.TOLERANCE_MARGIN} times the solver's tolerance)")
         raise VfError(f"an angle tolerance must be below 90 deg, got {math.degrees(tolerance):g} deg", written.pos())
 
     def _resolution(self, given: ast.Resolution | None, shape: str, spec) -> list[int]:
@@ -476,10 +472,10 @@ class Resolver:
             return default
         reader = self._scoped_reader(scope)
         weight = reader.scalar(value, u.DIMENSIONLESS, "number")
-        problem = limits.WEIGHT.violation(weight)
+        problem = clause_ranges.WEIGHT.violation(weight)
         if problem:
             raise VfError(f"a weight {problem}, got {weight:g}", scope.source_span(value).pos(),
-                          hint=f"a weight is a plain number in {limits.WEIGHT.describe()}, e.g. 10 or 1e-6")
+                          hint=f"a weight is a plain number in {clause_ranges.WEIGHT.describe()}, e.g. 10 or 1e-6")
         return weight
 
 

@@ -97,6 +97,19 @@ class DefaultUnits:
         return DefaultUnits(**{**self.__dict__, field: name})
 
 
+def default_units(names: list[tuple[str, Span]], base: DefaultUnits = DefaultUnits()) -> DefaultUnits:
+    """The defaults set by one units statement (``units mm, deg``): at most one unit per base dimension."""
+    seen: dict[Dim, str] = {}
+    units = base
+    for name, span in names:
+        dim, _ = lookup(name, span)
+        if dim in seen:
+            raise VfError(f"two units for {describe(dim)}: '{seen[dim]}' and '{name}'", span.pos())
+        seen[dim] = name
+        units = units.with_unit(name, span)
+    return units
+
+
 def lookup(name: str, span: Span) -> tuple[Dim, float]:
     try:
         return UNITS[name]
