@@ -180,13 +180,11 @@ def _check_sampling(points: list[list[float]], value: ast.Vector, units: u.Defau
     CURVE_SAMPLES. The polyline through the points stands for the curve's length here."""
     chords = [math.dist(a, b) for a, b in zip(points, points[1:])]
     length = math.fsum(chords)
-    if not math.isfinite(length):
-        raise VfError("the curve's points are too far apart", value.span.pos())
-    samples = max(MIN_SAMPLES, math.ceil(length / SAMPLE_SPACING) + 1)
-    if samples > limits.CURVE_SAMPLES:
+    if not length <= (limits.CURVE_SAMPLES - 1) * SAMPLE_SPACING:      # also catches an infinite length
         raise limits.exceeded(f"this curve is too long ({units.show(length, u.LENGTH)} through its points) for "
                               f"closest-point samples {units.show(SAMPLE_SPACING, u.LENGTH)} apart",
                               limits.CURVE_SAMPLES, value.span.pos(), hint="the limit counts samples")
+    samples = max(MIN_SAMPLES, math.ceil(length / SAMPLE_SPACING) + 1)
     spacing = length / (samples - 1)
     for k, chord in enumerate(chords, start=1):
         where = value.items[k].span.pos()
