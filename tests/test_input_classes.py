@@ -169,8 +169,12 @@ def test_urdf_path_is_relative_to_the_task_not_the_working_directory(tmp_path, m
 def test_fifo_import_and_scene_are_refused_without_blocking(tmp_path):
     os.mkfifo(tmp_path / "lib.vf")
     os.mkfifo(tmp_path / "s.yaml")
+    os.mkfifo(tmp_path / "arm.urdf")
     fails(tmp_path, 'import "lib.vf"\n', "not a regular file", 5, 1)
     fails(tmp_path, 'scene "s.yaml"\n', "not a regular file", 5, 1)
+    fails(tmp_path, HEAD.replace('"shr7"', '"arm.urdf"'), "not a regular file", 3, 1)
+    (tmp_path / "lib2.vf").mkdir()
+    fails(tmp_path, 'import "lib2.vf"\n', "not a regular file", 5, 1)
 
 
 def test_oversized_files_are_refused(tmp_path):

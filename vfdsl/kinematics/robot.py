@@ -132,7 +132,7 @@ class Robot:
         path = Path(name_or_path).expanduser()
         if not path.is_absolute() and base_dir is not None:
             path = Path(base_dir) / path
-        if path.is_file():
+        if path.is_file() or (path.suffix == ".urdf" and path.exists()):     # a FIFO or device: refused on reading
             return cls(path.resolve())
         stem = str(name_or_path).removesuffix(".urdf")
         shipped = shipped_robots()
