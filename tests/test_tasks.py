@@ -481,7 +481,8 @@ def _resolution(spec) -> str:
 
 
 def _arguments(spec) -> str:
-    args = "; ".join(f"`{a.name}` ({a.kind}) {a.doc}" for a in spec.args) or "no arguments"
+    args = "; ".join(f"`{a.name}` ({a.kind}{', allowed ' + a.range.describe() if a.range else ''}) {a.doc}"
+                     for a in spec.args) or "no arguments"
     return f"- `{spec.name}`: {args}." + (f" Source: {spec.source}." if spec.source else "")
 
 

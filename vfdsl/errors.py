@@ -8,11 +8,16 @@ diagnostic::
        12 | require tpi stays_at(pivot) within 1 um
           |         ^^^
     hint: did you mean 'tip'? known frames: tip, shaft
+
+Notes add context, such as the ``use`` site of a fixture whose body holds the mistake. The source line is
+the one the parser counted (lines end at "\n" only, so form feeds, U+0085 and U+2028 stay inside a line),
+and the caret copies the line's tabs so that it lines up under tab-indented text.
 """
 
 from __future__ import annotations
 
 import difflib
+import unicodedata
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Iterable
@@ -36,12 +41,21 @@ class VfError(Exception):
     """A user-facing error: message, optional position, optional hint."""
 
     def __init__(self, message: str, pos: SourcePos | None = None, hint: str | None = None,
-                 source_text: str | None = None):
+                 source_text: str | None = None, notes: tuple[str, ...] = ()):
         super().__init__(message)
         self.message = message
         self.pos = pos
         self.hint = hint
+        self.notes = tuple(notes)
         self._source_text = source_text
+
+    def with_source(self, text: str) -> "VfError":
+        """The same error, showing its line from ``text`` (the text as it was parsed)."""
+        return VfError(self.message, self.pos, self.hint, text, self.notes)
+
+    def with_note(self, note: str) -> "VfError":
+        """The same error with one more note (e.g. the ``use`` site a fixture was expanded from)."""
+        return VfError(self.message, self.pos, self.hint, self._source_text, self.notes + (note,))
 
     @property
     def line(self) -> int | None:
@@ -62,10 +76,17 @@ class VfError(Exception):
             width = 1
             if self.pos.end_line == self.pos.line and self.pos.end_column:
                 width = max(1, self.pos.end_column - self.pos.column)
-            lines.append(f" {number} | {src_line}")
-            lines.append(f" {gutter} | {' ' * (self.pos.column - 1)}{'^' * width}")
+            start = max(0, self.pos.column - 1 - _CONTEXT) if len(src_line) > 2 * _CONTEXT else 0
+            shown = ("..." if start else "") + src_line[start:start + 2 * _CONTEXT] \
+                + ("..." if len(src_line) > start + 2 * _CONTEXT else "")
+            width = min(width, 2 * _CONTEXT - (self.pos.column - 1 - start))
+            lead = ("   " if start else "") + "".join(
+                ch if ch == "\t" else " " for ch in src_line[start:self.pos.column - 1])
+            lines.append(f" {number} | {shown}")
+            lines.append(f" {gutter} | {lead}{'^' * width}")
         if self.hint:
             lines.append(f"hint: {self.hint}")
+        lines.extend(f"note: {note}" for note in self.notes)
         return "\n".join(lines)
 
     def _source_line(self) -> str | None:
@@ -75,15 +96,24 @@ class VfError(Exception):
         if text is None:
             try:
                 text = Path(self.pos.file).read_text()
-            except OSError:
+            except (OSError, ValueError):
                 return None
-        all_lines = text.splitlines()
+        all_lines = text.split("\n")
         if 1 <= self.pos.line <= len(all_lines):
-            return all_lines[self.pos.line - 1].rstrip("\n")
+            return _printable(all_lines[self.pos.line - 1].rstrip("\r"))
         return None
 
     def __str__(self) -> str:
         return self.render()
+
+
+_CONTEXT = 80          # characters shown on each side of the caret when a source line is long
+
+
+def _printable(line: str) -> str:
+    """``line`` with every control or line-separator character except tab shown as '?', one for one (so the
+    caret keeps its column, and a terminal escape sequence in a file is shown, not obeyed)."""
+    return "".join("?" if ch != "\t" and (unicodedata.category(ch) in ("Cc", "Zl", "Zp")) else ch for ch in line)
 
 
 def suggest(name: str, known: Iterable[str], what: str) -> str:

@@ -4,8 +4,8 @@ that change the operation count, so the same graph can be generated as C).
 The curve is the b-spline of the given degree that interpolates the points in order, parametrized by
 cumulative chord length s (metres). Closest point to x, every tick:
 
-1. coarse: the nearest of K samples C(s_k), equally spaced in arc length at most ``SAMPLE_SPACING`` apart
-   (a chain of comparisons);
+1. coarse: the nearest of K samples C(s_k), equally spaced in arc length at most ``SAMPLE_SPACING`` apart,
+   and the knots (a chain of comparisons);
 2. fine: Newton on f(s) = (C(s) - x) . C'(s) = 0, s <- s - f / (|C'|^2 + (C - x) . C''), kept inside the
    bracket [s_(k-1), s_(k+1)] of the nearest sample (which may cross a knot: each step evaluates the span
    its s lies in), a fixed number of times; a step whose curvature term is not positive is not taken;
@@ -76,7 +76,7 @@ class SplineCurve:
 
     def closest(self, x) -> tuple[ca.SX, ca.SX]:
         """Closest point and unit tangent to x (3-vector, CasADi), as expressions of x."""
-        params = self.samples()
+        params = np.union1d(self.samples(), self.breaks)     # knots too: a polyline's corners are closest points
         points = np.array([self.evaluate(t) for t in params])
         before = np.concatenate([[params[0]], params[:-1]])
         after = np.concatenate([params[1:], [params[-1]]])
@@ -112,7 +112,7 @@ class SplineCurve:
         return tuple(self._poly(coeffs, tau, d) for d in range(3))
 
     def _poly(self, coeffs: list, tau, derivative: int):
-        out = 0
+        out = ca.DM.zeros(3)                     # stays zero for derivatives above the degree (a polyline's C'')
         for j in range(derivative, self.degree + 1):
             out = out + coeffs[j] * (math.factorial(j) / math.factorial(j - derivative)) * tau ** (j - derivative)
         return out

@@ -16,18 +16,26 @@ Metadata a URDF cannot hold comes from an optional sidecar ``<stem>.yaml`` next 
     description: one line
     resolution: {joint: smallest increment, ...}   # SI units; absent, or given for every joint
     tool_axis: {link: x|y|z, ...}                  # the local axis that is that link's tool axis
+
+Before Pinocchio reads a URDF, its joints are checked (with the URDF's line in the message): limits are
+finite numbers with lower <= upper and a velocity >= 0, an axis is not zero, and mimic joints are refused
+(vfdsl would drive them as independent joints). A robot needs at least one actuated joint. The sidecar's
+values must have the documented types.
 """
 
 from __future__ import annotations
 
-import xml.etree.ElementTree as ET
+import math
+from dataclasses import dataclass, field
 from pathlib import Path
+from xml.parsers import expat
 
 import numpy as np
 import pinocchio as pin
 import yaml
 
 from vfdsl.errors import VfError, suggest
+from vfdsl.passes.files import BoundedLoader, read_text
 
 ROBOTS_DIR = Path(__file__).resolve().parent.parent / "robots"
 
@@ -90,6 +98,9 @@ class Robot:
         self._data = self.model.createData()
         joints = list(self.model.joints)[1:]  # joint 0 is the universe
         self.nq = len(joints)
+        if self.nq == 0:
+            raise VfError(f"{self.urdf_path}: robot '{self.name}' has no actuated joint",
+                          hint="a task moves a robot's joints: give the URDF a revolute, continuous or prismatic joint")
         self.joint_names = list(self.model.names)[1:]
         self.joint_types = []
         self.joint_axes = []
@@ -121,8 +132,8 @@ class Robot:
         path = Path(name_or_path).expanduser()
         if not path.is_absolute() and base_dir is not None:
             path = Path(base_dir) / path
-        if path.is_file():
-            return cls(path)
+        if path.is_file() or (path.suffix == ".urdf" and path.exists()):     # a FIFO or device: refused on reading
+            return cls(path.resolve())
         stem = str(name_or_path).removesuffix(".urdf")
         shipped = shipped_robots()
         if stem in shipped:
@@ -197,45 +208,124 @@ class Robot:
         if not path.is_file():
             return "", None, {}
         try:
-            meta = yaml.safe_load(path.read_text()) or {}
+            meta = yaml.load(read_text(path, "robot sidecar"), Loader=BoundedLoader) or {}
         except yaml.YAMLError as e:
-            raise VfError(f"{path}: not valid YAML: {e}") from None
+            mark = getattr(e, "problem_mark", None)
+            where = f":{mark.line + 1}" if mark else ""
+            raise VfError(f"{path}{where}: not valid YAML: {getattr(e, 'problem', None) or e}") from None
         if not isinstance(meta, dict):
             raise VfError(f"{path}: expected a mapping with description, resolution, tool_axis")
         unknown = set(meta) - {"description", "resolution", "tool_axis"}
         if unknown:
             raise VfError(f"{path}: unknown key(s) {', '.join(sorted(map(str, unknown)))}",
                           hint="known keys: description, resolution, tool_axis")
+        description = meta.get("description", "")
+        if not isinstance(description, str):
+            raise VfError(f"{path}: description must be one line of text")
         resolution = None
         if meta.get("resolution") is not None:
             res = meta["resolution"]
             if not isinstance(res, dict) or set(res) != set(self.joint_names):
                 raise VfError(f"{path}: resolution must give a value for every joint: "
                               f"{', '.join(self.joint_names)}")
+            for name in self.joint_names:
+                value = res[name]
+                if isinstance(value, bool) or not isinstance(value, (int, float)) or not 0 < value < math.inf:
+                    raise VfError(f"{path}: the resolution of joint '{name}' must be a positive number, got "
+                                  f"{type(value).__name__ if isinstance(value, (list, dict)) else repr(value)}")
             resolution = np.array([float(res[n]) for n in self.joint_names])
-            if not np.all(resolution > 0):
-                raise VfError(f"{path}: resolutions must be positive")
-        tool_axis = {str(k): str(v) for k, v in (meta.get("tool_axis") or {}).items()}
+        axes = meta.get("tool_axis") or {}
+        if not isinstance(axes, dict) or not all(isinstance(v, str) for v in axes.values()):
+            raise VfError(f"{path}: tool_axis maps link names to x, y or z", hint="e.g. tool_axis: {tool_tip: z}")
+        tool_axis = {str(k): v for k, v in axes.items()}
         for link, axis in tool_axis.items():
             if link not in self._links:
                 raise VfError(f"{path}: tool_axis names unknown link '{link}'",
                               hint=suggest(link, self._links, "links"))
             if axis not in ("x", "y", "z"):
                 raise VfError(f"{path}: tool axis of '{link}' must be x, y or z, got '{axis}'")
-        return str(meta.get("description", "")), resolution, tool_axis
+        return description, resolution, tool_axis
 
 
 def _build_model(path: Path) -> pin.Model:
     """Pinocchio's model of the URDF at ``path``; VfError (never a raw parser error) if it is not one."""
-    if not path.is_file():
-        raise VfError(f"URDF file not found: {path}")
+    text = read_text(path, "URDF file")
     try:
-        root = ET.parse(path).getroot()
-    except ET.ParseError as e:
+        root, joints = _read_joints(text)
+    except expat.ExpatError as e:
         raise VfError(f"{path}: malformed URDF (not well-formed XML: {e})") from None
-    if root.tag != "robot":
-        raise VfError(f"{path}: malformed URDF (root element is <{root.tag}>, expected <robot>)")
+    if root != "robot":
+        raise VfError(f"{path}: malformed URDF (root element is <{root}>, expected <robot>)")
+    for joint in joints:
+        _check_joint(joint, f"{path}:{joint.line}")
     try:
-        return pin.buildModelFromUrdf(str(path))
+        return pin.buildModelFromXML(text)
     except (ValueError, RuntimeError) as e:
-        raise VfError(f"{path}: malformed URDF ({str(e).splitlines()[0]})") from None
+        raise VfError(f"{path}: malformed URDF ({(str(e).splitlines() or ['no reason given'])[0]})") from None
+
+
+@dataclass
+class _JointXml:
+    """A URDF <joint>: its attributes, its line, and the attributes of its first child of each tag."""
+
+    attrs: dict[str, str]
+    line: int
+    children: dict[str, dict[str, str]] = field(default_factory=dict)
+
+
+def _read_joints(text: str) -> tuple[str, list[_JointXml]]:
+    """The root tag of the XML ``text`` and its <joint> elements (children of the root), with lines."""
+    parser = expat.ParserCreate()
+    open_tags: list[str] = []
+    joints: list[_JointXml] = []
+    root: list[str] = []
+
+    def start(tag, attrs):
+        if not root:
+            root.append(tag)
+        if tag == "joint" and len(open_tags) == 1:
+            joints.append(_JointXml(attrs, parser.CurrentLineNumber))
+        elif len(open_tags) == 2 and open_tags[-1] == "joint":
+            joints[-1].children.setdefault(tag, attrs)
+        open_tags.append(tag)
+
+    parser.StartElementHandler = start
+    parser.EndElementHandler = lambda tag: open_tags.pop()
+    parser.Parse(text, True)
+    return (root or [""])[0], joints
+
+
+def _numbers(attrs: dict[str, str], tag: str, attribute: str, count: int, where: str, default: str) -> list[float]:
+    text = attrs.get(attribute, default)
+    try:
+        values = [float(x) for x in text.split()]
+    except ValueError:
+        values = []
+    if len(values) != count or not all(math.isfinite(v) for v in values):
+        raise VfError(f"{where}: <{tag} {attribute}=\"{text[:40]}\"> must be {count} finite number(s)")
+    return values
+
+
+def _check_joint(joint: _JointXml, where: str) -> None:
+    """What Pinocchio would accept silently but vfdsl must not: mimic joints, zero axes, inverted limits."""
+    name, kind = joint.attrs.get("name", "?"), joint.attrs.get("type", "?")
+    if kind == "fixed":
+        return
+    if "mimic" in joint.children:
+        raise VfError(f"{where}: joint '{name}' mimics joint '{joint.children['mimic'].get('joint', '?')}'; mimic "
+                      "joints are not supported", hint="vfdsl would move it as an independent joint: make it fixed, "
+                                                      "or model the coupling as one joint")
+    if "axis" in joint.children:
+        if math.hypot(*_numbers(joint.children["axis"], "axis", "xyz", 3, where, "1 0 0")) < 1e-12:
+            raise VfError(f"{where}: joint '{name}' has a zero axis", hint='give a unit axis, e.g. <axis xyz="0 0 1"/>')
+    if "limit" not in joint.children:
+        return
+    limit = joint.children["limit"]
+    velocity, = _numbers(limit, "limit", "velocity", 1, where, "0")
+    if velocity < 0:
+        raise VfError(f"{where}: joint '{name}' has a negative velocity limit ({velocity:g})")
+    if kind in ("revolute", "prismatic"):
+        lower, = _numbers(limit, "limit", "lower", 1, where, "0")
+        upper, = _numbers(limit, "limit", "upper", 1, where, "0")
+        if lower > upper:
+            raise VfError(f"{where}: joint '{name}' has lower limit {lower:g} above its upper limit {upper:g}")

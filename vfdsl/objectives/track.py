@@ -9,16 +9,17 @@ weight * || J_f dq - dx_d ||^2.
 import casadi as ca
 
 from vfdsl.compiler.rows import Term
-from vfdsl.primitives.spec import ArgSpec, ObjectiveSpec
+from vfdsl.primitives.spec import POSITIVE, ArgSpec, ObjectiveSpec
 
 SPEC = ObjectiveSpec(
     name="track",
     summary="move the frame as the input commands (admittance: velocity = gain * input)",
     args=(ArgSpec("frame", "frame", "the task frame that follows the input"),
           ArgSpec("input", "input", "the user's force, torque, wrench or twist"),
-          ArgSpec("gain", "gain", "linear admittance (m/s per N, or a scale for a twist)", default=None),
+          ArgSpec("gain", "gain", "linear admittance (m/s per N, or a scale for a twist)", default=None,
+                  range=POSITIVE),
           ArgSpec("angular_gain", "angular_gain", "angular admittance (rad/s per N m, or a scale)",
-                  default=None)),
+                  default=None, range=POSITIVE)),
     source="Li, Kapoor & Taylor 2005, II-C, eq. (18)",
 )
 

@@ -8,7 +8,9 @@
 Scoping is lexical: a fixture body sees only its formals (not the names of the task that uses it), and the
 literals in its body keep the units of the file that defines it. ``use`` binds each actual argument, checked
 against the formal's kind at the use site; expansion is recursive, and a fixture that uses itself (directly
-or not) is an error. Every expanded statement records the chain of ``use`` sites in ``via``.
+or not) is an error. Every expanded statement records the chain of ``use`` sites in ``via``, and an error in
+a fixture body names the ``use`` sites it was reached through. Expansion is bounded: at most
+``limits.FIXTURE_DEPTH`` nested uses and ``limits.EXPANDED_STATEMENTS`` statements in all.
 """
 
 from __future__ import annotations
@@ -18,6 +20,7 @@ from typing import Callable
 
 from vfdsl.errors import VfError, suggest
 from vfdsl.ir import model as ir
+from vfdsl.passes import limits
 from vfdsl.passes.calls import bind_arguments
 from vfdsl.passes.units import DefaultUnits
 from vfdsl.primitives.spec import ARG_KINDS, REQUIRED, ArgSpec
@@ -34,6 +37,19 @@ class Scope:
     bindings: dict[str, ir.Arg] | None = None       # None at task level
     fixture: str | None = None
     via: tuple[ast.Span, ...] = field(default=())
+    sources: dict[str, ast.Span] = field(default_factory=dict)   # formal -> where its value was written
+
+    def source_span(self, value: ast.Value) -> ast.Span:
+        """Where ``value`` was written: for a formal's name, the actual argument at the use (or the default)."""
+        if isinstance(value, ast.NameRef) and self.bindings is not None and value.name in self.sources:
+            return self.sources[value.name]
+        return value.span
+
+    def note(self, error: VfError) -> VfError:
+        """``error`` with the chain of ``use`` sites that brought this scope's statements in, innermost first."""
+        for span in reversed(self.via):
+            error = error.with_note(f"in a fixture used at {span}")
+        return error
 
 
 @dataclass(frozen=True)
@@ -80,18 +96,29 @@ def expand(statements: list, scope: Scope, fixtures: dict[str, Fixture], evaluat
         if isinstance(stmt, (ast.MinimizeStmt, ast.RequireStmt)):
             out.append((stmt, scope))
         elif isinstance(stmt, ast.UseStmt):
-            out.extend(_expand_use(stmt, scope, fixtures, evaluate, active))
+            try:
+                inner = _bind_use(stmt, scope, fixtures, evaluate, active)
+            except VfError as error:
+                raise scope.note(error) from None
+            out.extend(expand(fixtures[inner.fixture].definition.body, inner, fixtures, evaluate,
+                              active + (inner.fixture,)))
+        if len(out) > limits.EXPANDED_STATEMENTS:
+            raise scope.note(limits.exceeded("too many statements after expanding fixtures",
+                                             limits.EXPANDED_STATEMENTS, stmt.span.pos()))
     return out
 
 
-def _expand_use(use: ast.UseStmt, scope: Scope, fixtures: dict[str, Fixture], evaluate: Evaluate,
-                active: tuple[str, ...]):
+def _bind_use(use: ast.UseStmt, scope: Scope, fixtures: dict[str, Fixture], evaluate: Evaluate,
+              active: tuple[str, ...]) -> Scope:
+    """The scope of the body of the fixture that ``use`` names, with its formals bound."""
     name = use.call.name
     if name.text not in fixtures:
         raise VfError(f"unknown fixture '{name.text}'", name.span.pos(), hint=suggest(name.text, fixtures, "fixtures"))
     if name.text in active:
         chain = " -> ".join(active[active.index(name.text):] + (name.text,))
         raise VfError(f"fixture '{name.text}' uses itself: {chain}", use.span.pos())
+    if len(active) >= limits.FIXTURE_DEPTH:
+        raise limits.exceeded("fixtures nested too deeply", limits.FIXTURE_DEPTH, use.span.pos())
     clauses = use.clauses
     if clauses.within or clauses.resolution or clauses.weight or clauses.soft:
         raise VfError("`use` takes no clauses", use.span.pos(),
@@ -104,10 +131,13 @@ def _expand_use(use: ast.UseStmt, scope: Scope, fixtures: dict[str, Fixture], ev
                            f"fixture '{name.text}'")
     definition_scope = Scope(units=fixture.units, bindings={}, fixture=name.text)
     bindings: dict[str, ir.Arg] = {}
+    sources: dict[str, ast.Span] = {}
     for formal in formals:
         if formal.name in given:
             bindings[formal.name] = evaluate(given[formal.name], formal.kind, scope)
+            sources[formal.name] = scope.source_span(given[formal.name])
         else:
             bindings[formal.name] = evaluate(formal.default, formal.kind, definition_scope)
-    inner = Scope(units=fixture.units, bindings=bindings, fixture=name.text, via=scope.via + (use.span,))
-    return expand(fixture.definition.body, inner, fixtures, evaluate, active + (name.text,))
+            sources[formal.name] = formal.default.span
+    return Scope(units=fixture.units, bindings=bindings, fixture=name.text, via=scope.via + (use.span,),
+                 sources=sources)

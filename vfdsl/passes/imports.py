@@ -1,9 +1,10 @@
 """Imports: read a task file and every library it imports (transitively), detecting import cycles.
 
-``import "lib/fixtures.vf"`` is resolved relative to the importing file. An imported file must start with
-``library NAME`` and may hold only ``units``, ``import`` and ``fixture`` statements. A file reached twice
-(a diamond) is read once; a file that imports itself, directly or not, is an error at the import that
-closes the cycle.
+``import "lib/fixtures.vf"`` is resolved relative to the importing file. An imported file must be a ``.vf``
+file that starts with ``library NAME`` and may hold only ``units``, ``import`` and ``fixture`` statements. A
+file reached twice (a diamond) is read once; a file that imports itself, directly or not, is an error at the
+import that closes the cycle. Imports nest at most ``limits.IMPORT_DEPTH`` deep, and a program reads at most
+``limits.IMPORTED_FILES`` files.
 """
 
 from __future__ import annotations
@@ -12,6 +13,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from vfdsl.errors import VfError
+from vfdsl.passes import limits
+from vfdsl.passes.files import read_text
 from vfdsl.syntax import ast
 from vfdsl.syntax.parser import parse_module
 
@@ -25,13 +28,7 @@ class SourceFile:
 
 
 def read_source(path: Path, pos=None) -> SourceFile:
-    try:
-        text = path.read_text()
-    except FileNotFoundError:
-        raise VfError(f"file not found: {path}", pos) from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise VfError(f"cannot read {path}: {exc}", pos) from None
-    return SourceFile(path, parse_module(text, str(path)))
+    return SourceFile(path, parse_module(read_text(path, "file", pos), str(path)))
 
 
 def load_program(entry: Path) -> tuple[SourceFile, list[SourceFile]]:
@@ -49,14 +46,24 @@ def _visit(source: SourceFile, stack: list[Path], done: dict[Path, SourceFile]) 
     for stmt in source.module.statements:
         if not isinstance(stmt, ast.ImportStmt):
             continue
+        if not stmt.path.endswith(".vf"):
+            raise VfError(f"'{stmt.path}' is not a .vf file", stmt.span.pos(),
+                          hint="only libraries of fixtures (.vf files that start with `library NAME`) can be imported")
+        if len(stack) > limits.IMPORT_DEPTH:
+            raise limits.exceeded("imports nested too deeply", limits.IMPORT_DEPTH, stmt.span.pos())
         path = source.path.parent / stmt.path
-        target = path.resolve()
+        try:
+            target = path.resolve()
+        except (OSError, ValueError, RuntimeError) as exc:
+            raise VfError(f"cannot read file {path}: {exc}", stmt.span.pos()) from None
         if target in stack:
             cycle = " -> ".join(p.name for p in stack[stack.index(target):] + [target])
             raise VfError(f"import cycle: {cycle}", stmt.span.pos(), hint="a library cannot import itself, "
                           "directly or through other libraries")
         if target in done:
             continue
+        if len(done) >= limits.IMPORTED_FILES:
+            raise limits.exceeded("too many imported files", limits.IMPORTED_FILES, stmt.span.pos())
         library = read_source(path, stmt.span.pos())
         if library.module.header != "library":
             raise VfError(f"'{stmt.path}' is a task, not a library", stmt.span.pos(),

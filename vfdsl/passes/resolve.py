@@ -3,8 +3,10 @@
 The pass walks the task's declarations in order (one namespace for robots, frames, inputs and params;
 a name may be declared once), expands fixtures, then checks every ``require``/``minimize`` call against its
 primitive's signature (:mod:`vfdsl.primitives.spec`): argument names and kinds, units (via
-:mod:`vfdsl.passes.units`) and shapes (via :mod:`vfdsl.passes.shapes`), then the clauses ``within``,
-``resolution``, ``soft`` and ``weight``. Any mistake raises :class:`~vfdsl.errors.VfError` at its position.
+:mod:`vfdsl.passes.units`), shapes (via :mod:`vfdsl.passes.shapes`) and the argument's allowed range (for a
+literal, at the literal; for a param, at the param's value and naming the use), then the clauses ``within``,
+``resolution``, ``soft`` and ``weight`` against :mod:`vfdsl.passes.limits`. Any mistake raises
+:class:`~vfdsl.errors.VfError` at its position.
 """
 
 from __future__ import annotations
@@ -16,7 +18,9 @@ from vfdsl.errors import VfError, suggest
 from vfdsl.ir import model as ir
 from vfdsl.kinematics.robot import ROBOTS_DIR, Robot
 from vfdsl.objectives import OBJECTIVES
+from vfdsl.passes import clause_ranges
 from vfdsl.passes import fixtures as fx
+from vfdsl.passes import limits
 from vfdsl.passes import units as u
 from vfdsl.passes.calls import bind_arguments
 from vfdsl.passes.scene import SceneData, load_scene
@@ -41,17 +45,9 @@ def file_units(module: ast.Module) -> u.DefaultUnits:
     if len(statements) > 1:
         raise VfError("only one `units` statement per file", statements[1].span.pos(),
                       hint=f"the first is at {statements[0].span}")
-    units = u.DefaultUnits()
-    for stmt in statements:
-        seen: dict[tuple, ast.Name] = {}
-        for name in stmt.names:
-            dim, _ = u.lookup(name.text, name.span)
-            if dim in seen:
-                raise VfError(f"two units for {u.describe(dim)}: '{seen[dim].text}' and '{name.text}'",
-                              name.span.pos())
-            seen[dim] = name
-            units = units.with_unit(name.text, name.span)
-    return units
+    if not statements:
+        return u.DefaultUnits()
+    return u.default_units([(name.text, name.span) for name in statements[0].names])
 
 
 class Resolver:
@@ -67,6 +63,7 @@ class Resolver:
         self.frames: dict[str, ir.FrameDecl] = {}
         self.inputs: dict[str, ir.InputDecl] = {}
         self.params: dict[str, ir.ParamDecl] = {}
+        self.param_values: dict[str, ast.Value] = {}        # param -> the literal its value was read from
         self.task_scope = fx.Scope(units=self.units)
 
     # ----------------------------------------------------------------------------------- entry point
@@ -94,11 +91,21 @@ class Resolver:
         self._params([s for s in statements if isinstance(s, ast.ParamStmt)], scene)
         body = [s for s in statements if isinstance(s, (ast.MinimizeStmt, ast.RequireStmt, ast.UseStmt))]
         objectives, constraints = [], []
+        rows = 0
         for stmt, scope in fx.expand(body, self.task_scope, self.fixtures, self.evaluate):
-            if isinstance(stmt, ast.MinimizeStmt):
-                objectives.append(self._objective(stmt, scope))
-            else:
+            try:
+                if isinstance(stmt, ast.MinimizeStmt):
+                    objectives.append(self._objective(stmt, scope))
+                    continue
                 constraints.append(self._constraint(stmt, scope))
+                if len(constraints) > limits.CONSTRAINTS:
+                    raise limits.exceeded("too many constraints", limits.CONSTRAINTS, stmt.span.pos())
+                rows += _row_estimate(constraints[-1])
+                if rows > limits.ROWS:
+                    raise limits.exceeded(f"too many constraint rows (about {rows:,} so far)", limits.ROWS,
+                                          stmt.span.pos(), hint="lower the resolution of the polytopes")
+            except VfError as error:
+                raise scope.note(error) from None
         robot_decl, robot = next(iter(self.robots.values()))
         return ir.Task(
             name=self.module.name.text, file=str(self.path), span=self.module.span,
@@ -167,7 +174,10 @@ class Resolver:
                     poses = [s.name.text for s in statements if s.type.text == "pose"]
                     raise VfError(f"'{stmt.frame.text}' is not a pose param", stmt.frame.span.pos(),
                                   hint=suggest(stmt.frame.text, poses, "pose params"))
-                if kind not in ("point", "vector", "direction", "line", "plane", "curve", "pose"):
+                if kind == "pose":
+                    raise VfError("a pose cannot be expressed `in` another pose", stmt.frame.span.pos(),
+                                  hint="nested frames are not supported: give the pose in the robot's base frame")
+                if kind not in ("point", "vector", "direction", "line", "plane", "curve"):
                     raise VfError(f"a {kind} cannot be expressed in a frame", stmt.frame.span.pos())
             if scene is not None and stmt.name.text in scene.params:
                 source, units = scene.params[stmt.name.text][0], scene.units
@@ -177,6 +187,7 @@ class Resolver:
                 raise VfError(f"param '{stmt.name.text}' has no value", stmt.name.span.pos(),
                               hint=f"give a default (`= ...`) or set params.{stmt.name.text} in the scene file")
             source = _named_mapping(source, kind)
+            self.param_values[stmt.name.text] = source
             value = LiteralReader(units, self._no_names).read(source, kind, curve_degree=degree)
             self.params[stmt.name.text] = ir.ParamDecl(
                 name=stmt.name.text, type=kind, value=value,
@@ -327,11 +338,34 @@ class Resolver:
                 args[spec.name] = self.evaluate(given[spec.name], spec.kind, scope, input_type)
                 if isinstance(args[spec.name], ir.InputRef):
                     input_type = self.inputs[args[spec.name].name].type
+                if spec.range is not None:
+                    self._check_range(spec, args[spec.name], scope.source_span(given[spec.name]), call, scope)
             elif spec.default == "subject":
                 args[spec.name] = subject
             elif spec.default is not None:
                 args[spec.name] = ir.Const(value=spec.default)
         return args
+
+    def _check_range(self, spec: ArgSpec, arg: ir.Arg, written: ast.Span, call: ast.Call, scope: fx.Scope) -> None:
+        """A scalar argument (a literal, or a param's value) must lie in its spec's range."""
+        what = f"{call.name.text}(...) argument '{spec.name}'"
+        dim = SCALAR_DIMENSIONS.get(spec.kind)
+
+        def shown(value: float, units: u.DefaultUnits) -> str:
+            return units.show(value, dim) if dim is not None else f"{value:g} (SI units)"
+        if isinstance(arg, ir.Const) and isinstance(arg.value, ir.ScalarValue):
+            problem = spec.range.violation(arg.value.value)
+            if problem:
+                raise VfError(f"{what} {problem}, got {shown(arg.value.value, scope.units)}", written.pos(),
+                              hint=f"{spec.name} is {spec.doc}; allowed: {spec.range.describe()}")
+        elif isinstance(arg, ir.ParamRef) and isinstance(self.params[arg.name].value, ir.ScalarValue):
+            value = self.params[arg.name].value.value
+            problem = spec.range.violation(value)
+            if problem:
+                raise VfError(f"param '{arg.name}' is used as {what}, which {problem}; its value is "
+                              f"{shown(value, self.units)}", self.param_values[arg.name].span.pos(),
+                              hint=f"{spec.name} is {spec.doc}; allowed: {spec.range.describe()}",
+                              notes=(f"used at {written}",))
 
     def _objective(self, stmt: ast.MinimizeStmt, scope: fx.Scope) -> ir.Objective:
         name = stmt.call.name
@@ -380,8 +414,7 @@ class Resolver:
         elif clauses.within is not None:
             reader = self._scoped_reader(scope)
             tolerance = reader.scalar(clauses.within, SCALAR_DIMENSIONS[spec.tolerance], spec.tolerance)
-            if tolerance <= 0:
-                raise VfError("a tolerance must be positive", clauses.within.span.pos())
+            self._check_tolerance(tolerance, spec.tolerance, scope.source_span(clauses.within), scope.units)
         else:
             tolerance = spec.default_tolerance
         shape = spec.resolution_shape(args)
@@ -400,6 +433,22 @@ class Resolver:
                              tolerance=tolerance, resolution=resolution, soft=soft, weight=weight,
                              span=stmt.span, via=list(scope.via))
 
+    def _check_tolerance(self, tolerance: float, kind: str, written: ast.Span, units: u.DefaultUnits) -> None:
+        """A ``within`` value must be positive and large enough for the solver to honour it."""
+        if tolerance <= 0:
+            raise VfError("a tolerance must be positive", written.pos())
+        allowed = clause_ranges.tolerance_range(kind)
+        if allowed.violation(tolerance) is None:
+            return
+        unit = units.length if kind == "length" else units.angle
+        scale = u.UNITS[unit][1]
+        if tolerance < allowed.low:
+            raise VfError(f"tolerance {tolerance / scale:g} {unit} is below what the solver can honour: it holds "
+                          f"rows to {clause_ranges.FEASIBILITY_TOLERANCE / scale:g} {unit} (its feasibility tolerance)",
+                          written.pos(), hint=f"use at least {allowed.low / scale:g} {unit} "
+                                              f"({clause_ranges.TOLERANCE_MARGIN} times the solver's tolerance)")
+        raise VfError(f"an angle tolerance must be below 90 deg, got {math.degrees(tolerance):g} deg", written.pos())
+
     def _resolution(self, given: ast.Resolution | None, shape: str, spec) -> list[int]:
         if given is None:
             return list(spec.default_resolution[shape])
@@ -413,6 +462,9 @@ class Resolver:
         if min(counts) < 3:
             raise VfError("a bounded polytope needs at least 3 directions per angle", given.span.pos(),
                           hint="use 3 or more (the paper uses 4x4 for a sphere and 8 for a polygon)")
+        if max(counts) > limits.RESOLUTION:
+            raise limits.exceeded(f"resolution {max(counts)} is too fine", limits.RESOLUTION, given.span.pos(),
+                                  hint="directions per angle of a polytope; the paper uses 4x4 and 8")
         return counts
 
     def _weight(self, value: ast.Value | None, scope: fx.Scope, default: float) -> float:
@@ -420,8 +472,10 @@ class Resolver:
             return default
         reader = self._scoped_reader(scope)
         weight = reader.scalar(value, u.DIMENSIONLESS, "number")
-        if weight < 0 or not math.isfinite(weight):
-            raise VfError("a weight must be a non-negative number", value.span.pos())
+        problem = clause_ranges.WEIGHT.violation(weight)
+        if problem:
+            raise VfError(f"a weight {problem}, got {weight:g}", scope.source_span(value).pos(),
+                          hint=f"a weight is a plain number in {clause_ranges.WEIGHT.describe()}, e.g. 10 or 1e-6")
         return weight
 
 
@@ -443,6 +497,11 @@ def _named_mapping(value: ast.Value, kind: str) -> ast.Value:
         name = "bspline" if kind == "curve" else kind
         return value.model_copy(update={"name": value.name.model_copy(update={"text": name})})
     return value
+
+
+def _row_estimate(c: ir.Constraint) -> int:
+    """At most how many rows ``c`` adds (its polytope's directions, or 2 for a two-sided row)."""
+    return math.prod(c.resolution) if c.resolution else 2
 
 
 def _span(clause) -> ast.Span:

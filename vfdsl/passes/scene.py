@@ -21,7 +21,9 @@ from pathlib import Path
 import yaml
 
 from vfdsl.errors import SourcePos, VfError, suggest
-from vfdsl.passes.units import DefaultUnits
+from vfdsl.passes import limits
+from vfdsl.passes.files import BoundedLoader, read_text
+from vfdsl.passes.units import DefaultUnits, default_units
 from vfdsl.syntax import ast
 
 _QUANTITY = re.compile(r"^\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*([A-Za-z][A-Za-z*/]*)?\s*$")
@@ -39,15 +41,12 @@ class SceneData:
 
 
 def load_scene(path: Path, task_units: DefaultUnits, pos: SourcePos | None) -> SceneData:
+    if path.suffix not in (".yaml", ".yml"):
+        raise VfError(f"a scene file is YAML (.yaml or .yml), not '{path.name}'", pos)
+    text = read_text(path, "scene file", pos,
+                     hint="write it, or point the task at another file with `scene \"file.yaml\"`")
     try:
-        text = path.read_text()
-    except FileNotFoundError:
-        raise VfError(f"scene file not found: {path}", pos,
-                      hint="write it, or point the task at another file with `scene \"file.yaml\"`") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise VfError(f"cannot read scene file {path}: {exc}", pos) from None
-    try:
-        root = yaml.compose(text)
+        root = yaml.compose(text, Loader=BoundedLoader)
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         where = SourcePos(str(path), mark.line + 1, mark.column + 1) if mark else SourcePos(str(path), 1, 1)
@@ -61,22 +60,23 @@ def load_scene(path: Path, task_units: DefaultUnits, pos: SourcePos | None) -> S
     for key, (key_node, _) in top.items():
         if key not in _TOP_KEYS:
             raise VfError(f"unknown scene key '{key}'", _pos(key_node, file), hint=suggest(key, _TOP_KEYS, "keys"))
+    values = _Values(file)
     units = task_units
     if "units" in top:
         units = _units(top["units"][1], file, task_units)
-    period = _value(top["period"][1], file) if "period" in top else None
+    period = values.read(top["period"][1]) if "period" in top else None
     start, start_span = None, None
     if "start" in top:
         node = top["start"][1]
         start_span = _span(node, file)
-        start = ({k: (_value(v, file), _span(kn, file)) for k, (kn, v) in _mapping(node, file).items()}
-                 if isinstance(node, yaml.MappingNode) else _value(node, file))
+        start = ({k: (values.read(v), _span(kn, file)) for k, (kn, v) in _mapping(node, file).items()}
+                 if isinstance(node, yaml.MappingNode) else values.read(node))
     params = {}
     if "params" in top:
         node = top["params"][1]
         if not isinstance(node, yaml.MappingNode):
             raise VfError("'params' is a mapping from param names to values", _pos(node, file))
-        params = {k: (_value(v, file), _span(kn, file)) for k, (kn, v) in _mapping(node, file).items()}
+        params = {k: (values.read(v), _span(kn, file)) for k, (kn, v) in _mapping(node, file).items()}
     return SceneData(path, units, period, start, start_span, params)
 
 
@@ -96,32 +96,47 @@ def _units(node: yaml.Node, file: str, base: DefaultUnits) -> DefaultUnits:
     items = node.value if isinstance(node, yaml.SequenceNode) else [node]
     if not all(isinstance(n, yaml.ScalarNode) for n in items):
         raise VfError("units are written as `units: mm, deg` or `units: [mm, deg]`", _pos(node, file))
-    names = [name.strip() for n in items for name in str(n.value).split(",")]
-    units = base
-    for name in names:
-        units = units.with_unit(name, _span(node, file))
-    return units
+    names = [(name.strip(), _span(n, file)) for n in items for name in str(n.value).split(",")]
+    return default_units(names, base)
 
 
-def _value(node: yaml.Node, file: str, inside: tuple = ()) -> ast.Value:
-    """A YAML node -> the syntax node a .vf file would give for the same value."""
-    span = _span(node, file)
-    if any(node is outer for outer in inside):
-        raise VfError("a value cannot contain itself (recursive YAML alias)", span.pos())
-    inside = inside + (node,)
-    if isinstance(node, yaml.SequenceNode):
-        return ast.Vector(span=span, items=[_value(n, file, inside) for n in node.value])
-    if isinstance(node, yaml.MappingNode):
-        fields = _mapping(node, file)
-        kwargs = [ast.KeywordArg(span=_span(k, file), name=ast.Name(span=_span(k, file), text=key),
-                                 value=_value(v, file, inside)) for key, (k, v) in fields.items()]
-        return ast.Call(span=span, name=ast.Name(span=span, text="{mapping}"), kwargs=kwargs)
+class _Values:
+    """YAML nodes -> the syntax nodes a .vf file would give for the same values, counting every node read so
+    that aliases cannot expand a small file into a huge value (at most ``limits.YAML_NODES`` in all)."""
+
+    def __init__(self, file: str):
+        self.file = file
+        self.nodes = 0
+
+    def read(self, node: yaml.Node, inside: tuple = ()) -> ast.Value:
+        file = self.file
+        span = _span(node, file)
+        self.nodes += 1
+        if self.nodes > limits.YAML_NODES:
+            raise limits.exceeded("the scene's values are too large (YAML aliases expand them)", limits.YAML_NODES,
+                                  span.pos(), hint="the limit counts list items and mapping values after "
+                                                   "expanding aliases")
+        if any(node is outer for outer in inside):
+            raise VfError("a value cannot contain itself (recursive YAML alias)", span.pos())
+        inside = inside + (node,)
+        if isinstance(node, yaml.SequenceNode):
+            return ast.Vector(span=span, items=[self.read(n, inside) for n in node.value])
+        if isinstance(node, yaml.MappingNode):
+            fields = _mapping(node, file)
+            kwargs = [ast.KeywordArg(span=_span(k, file), name=ast.Name(span=_span(k, file), text=key),
+                                     value=self.read(v, inside)) for key, (k, v) in fields.items()]
+            return ast.Call(span=span, name=ast.Name(span=span, text="{mapping}"), kwargs=kwargs)
+        return _scalar(node, span)
+
+
+def _scalar(node: yaml.ScalarNode, span: ast.Span) -> ast.Value:
     text = str(node.value)
     if text in ("true", "false"):
         return ast.Bool(span=span, value=text == "true")
     match = _QUANTITY.match(text)
     if match is None:
-        raise VfError(f"expected a number (optionally with a unit, like \"10 mm\"), got {text!r}", span.pos())
+        shown = repr(text) if len(text) <= 40 else repr(text[:40]) + "..."
+        raise VfError(f"expected a number (optionally with a unit, like \"10 mm\"), got {shown}", span.pos())
     return ast.Quantity(span=span, number=float(match.group(1)), unit=match.group(2))
 
 

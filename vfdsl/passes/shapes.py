@@ -2,7 +2,9 @@
 
 A point or vector is 3 lengths, a direction 3 plain numbers (not all zero; normalized here), a line a
 point and a direction, a plane a point and a normal, a pose a translation and roll-pitch-yaw angles, a curve
-a degree and at least degree + 1 points. Composite literals are written as calls:
+a degree (1 for a polyline) and at least degree + 1 points, no two consecutive points closer than twice the
+spacing of the compiler's closest-point samples (:mod:`vfdsl.compiler.curve`), and not so long that it needs
+more than ``limits.CURVE_SAMPLES`` samples. Composite literals are written as calls:
 ``line([0, 0, 0], [0, 0, 1])``, ``plane(point = [0, 0, 5] mm, normal = [0, 0, 1])``,
 ``pose(translation = [..], rpy = [..] deg)``, ``bspline(points = [[..], [..], ...])``.
 """
@@ -12,8 +14,10 @@ from __future__ import annotations
 import math
 from typing import Callable
 
+from vfdsl.compiler.curve import MIN_SAMPLES, SAMPLE_SPACING
 from vfdsl.errors import VfError
 from vfdsl.ir import model as ir
+from vfdsl.passes import limits
 from vfdsl.passes import units as u
 from vfdsl.passes.calls import bind_arguments
 from vfdsl.primitives.spec import SCALAR_DIMENSIONS
@@ -80,7 +84,7 @@ class LiteralReader:
             return looked_up.value
         if not isinstance(value, ast.Quantity):
             raise VfError(f"expected {u.describe(dim)}, got {_what(value)}", value.span.pos(),
-                          hint="write a number with a unit, e.g. 5 mm")
+                          hint=f"write {u.example(dim)}")
         return u.to_si(value.number, value.unit, dim, self.units, value.span)
 
     # -- helpers ---------------------------------------------------------------------------------------
@@ -149,11 +153,18 @@ class LiteralReader:
         if not isinstance(points_value, ast.Vector) or not all(isinstance(p, ast.Vector) for p in points_value.items):
             raise self._wrong(value, "curve")
         degree = 3 if degree is None else degree
+        if degree > limits.CURVE_DEGREE:
+            raise limits.exceeded(f"a degree-{degree} curve", limits.CURVE_DEGREE, value.span.pos(),
+                                  hint="the paper uses degree 5; degree 1 is a polyline")
+        if len(points_value.items) > limits.CURVE_POINTS:
+            raise limits.exceeded(f"a curve of {len(points_value.items):,} points", limits.CURVE_POINTS,
+                                  points_value.span.pos())
         points = [self._numbers3(p if p.unit else p.model_copy(update={"unit": points_value.unit}), u.LENGTH, "point")
                   for p in points_value.items]
         if len(points) < degree + 1:
             raise VfError(f"a degree-{degree} b-spline needs at least {degree + 1} points, got {len(points)}",
-                          points_value.span.pos())
+                          points_value.span.pos(), hint="give more points, or lower the degree")
+        _check_sampling(points, points_value, self.units)
         return ir.CurveValue(degree=degree, points=points)
 
     def integer(self, value: ast.Value, what: str) -> int:
@@ -161,6 +172,30 @@ class LiteralReader:
                 or value.number != int(value.number) or value.number < 1):
             raise VfError(f"{what} must be a positive whole number", value.span.pos())
         return int(value.number)
+
+
+def _check_sampling(points: list[list[float]], value: ast.Vector, units: u.DefaultUnits) -> None:
+    """The compiler finds closest points among samples about SAMPLE_SPACING apart along the curve (at least
+    MIN_SAMPLES): each span between two points must hold at least two samples, and the curve at most
+    CURVE_SAMPLES. The polyline through the points stands for the curve's length here."""
+    chords = [math.dist(a, b) for a, b in zip(points, points[1:])]
+    length = math.fsum(chords)
+    if not length <= (limits.CURVE_SAMPLES - 1) * SAMPLE_SPACING:      # also catches an infinite length
+        raise limits.exceeded(f"this curve is too long ({units.show(length, u.LENGTH)} through its points) for "
+                              f"closest-point samples {units.show(SAMPLE_SPACING, u.LENGTH)} apart",
+                              limits.CURVE_SAMPLES, value.span.pos(), hint="the limit counts samples")
+    samples = max(MIN_SAMPLES, math.ceil(length / SAMPLE_SPACING) + 1)
+    spacing = length / (samples - 1)
+    for k, chord in enumerate(chords, start=1):
+        where = value.items[k].span.pos()
+        if chord == 0.0:
+            raise VfError(f"curve points {k} and {k + 1} are the same point", where,
+                          hint="remove the repeated point")
+        if chord < 2 * spacing:
+            raise VfError(f"curve points {k} and {k + 1} are {units.show(chord, u.LENGTH)} apart, too close for "
+                          f"the curve's closest-point samples ({units.show(spacing, u.LENGTH)} apart)", where,
+                          hint=f"keep consecutive points at least {units.show(2 * spacing, u.LENGTH)} apart "
+                               "(drop points, or space them out)")
 
 
 def _what(value: ast.Value) -> str:

@@ -48,6 +48,13 @@ def describe(dim: Dim) -> str:
     return _DIM_WORDS.get(dim) or f"a quantity in {si_formula(dim)}"
 
 
+def example(dim: Dim) -> str:
+    """How to write a value of dimension ``dim``: 'a number with a unit, e.g. 5 mm', 'a plain number, e.g. 10'."""
+    if dim == DIMENSIONLESS:
+        return "a plain number, e.g. 10"
+    return f"a number with a unit, e.g. 5 {_EXAMPLE_UNIT.get(dim) or si_formula(dim)}"
+
+
 def si_formula(dim: Dim) -> str:
     si = ("m", "rad", "s", "N")
     num = "*".join(s if e == 1 else f"{s}^{e}" for s, e in zip(si, dim) if e > 0) or "1"
@@ -73,6 +80,14 @@ class DefaultUnits:
             scale *= UNITS[base_unit][1] ** exponent
         return scale
 
+    def show(self, value: float, dim: Dim) -> str:
+        """An SI ``value`` of dimension ``dim`` written in these units: 0.003 m -> '3 mm', 0.02 m/s -> '20 mm/s'."""
+        names = (self.length, self.angle, self.time, self.force)
+        num = "*".join(n if e == 1 else f"{n}^{e}" for n, e in zip(names, dim) if e > 0)
+        den = "".join(f"/{n}" if e == -1 else f"/{n}^{-e}" for n, e in zip(names, dim) if e < 0)
+        unit = (num or ("1" if den else "")) + den
+        return f"{value / self.factor(dim):g} {unit}".rstrip()
+
     def with_unit(self, name: str, span: Span) -> "DefaultUnits":
         dim, _ = lookup(name, span)
         if dim not in (LENGTH, ANGLE, TIME, FORCE):
@@ -80,6 +95,19 @@ class DefaultUnits:
                           "time or force", span.pos(), hint="e.g. units mm, deg")
         field = _BASE_NAMES[(LENGTH, ANGLE, TIME, FORCE).index(dim)]
         return DefaultUnits(**{**self.__dict__, field: name})
+
+
+def default_units(names: list[tuple[str, Span]], base: DefaultUnits = DefaultUnits()) -> DefaultUnits:
+    """The defaults set by one units statement (``units mm, deg``): at most one unit per base dimension."""
+    seen: dict[Dim, str] = {}
+    units = base
+    for name, span in names:
+        dim, _ = lookup(name, span)
+        if dim in seen:
+            raise VfError(f"two units for {describe(dim)}: '{seen[dim]}' and '{name}'", span.pos())
+        seen[dim] = name
+        units = units.with_unit(name, span)
+    return units
 
 
 def lookup(name: str, span: Span) -> tuple[Dim, float]:

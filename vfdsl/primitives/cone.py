@@ -6,19 +6,22 @@ R = [d2, l_a/||l_a||, -d1] (eq. 22); delta_r = d1 sin gamma - l_t x l_a (eq. 23)
 "rotate around a line" rows (eq. 13) about w_d.
 """
 
+import math
+
 import casadi as ca
 
 from vfdsl.compiler.geometry import normalize
 from vfdsl.compiler.rows import Rows
 from vfdsl.primitives.rotates_around import around_axis
-from vfdsl.primitives.spec import ArgSpec, ConstraintSpec
+from vfdsl.primitives.spec import ArgSpec, ConstraintSpec, Range
 
 SPEC = ConstraintSpec(
     name="cone",
     summary="keep the tool axis at a fixed angle from an axis",
     subject=True,
     args=(ArgSpec("axis", "direction", "the cone axis l_a"),
-          ArgSpec("angle", "angle", "the cone half-angle gamma")),
+          ArgSpec("angle", "angle", "the cone half-angle gamma",
+                  range=Range(0.0, math.pi / 2, low_open=True, high_open=True, unit="deg"))),
     tolerance="angle", default_tolerance=1e-3,
     resolution="polygon",
     source="Li, Kapoor & Taylor 2005, III-B, eqs. (22)-(23)",

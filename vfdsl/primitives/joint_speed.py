@@ -4,14 +4,15 @@ import casadi as ca
 
 from vfdsl.compiler.rows import Rows
 from vfdsl.ir import model as ir
-from vfdsl.primitives.spec import ArgSpec, ConstraintSpec
+from vfdsl.primitives.spec import ArgSpec, ConstraintSpec, Range
 
 SPEC = ConstraintSpec(
     name="joint_speed",
     summary="bound each joint's speed by a fraction of its URDF velocity limit",
     subject=False,
     args=(ArgSpec("fraction", "number", "fraction of the URDF velocity limit",
-                  default=ir.ScalarValue(dimension="number", value=1.0)),),
+                  default=ir.ScalarValue(dimension="number", value=1.0),
+                  range=Range(0.0, 1.0, low_open=True)),),
     source="Li, Kapoor & Taylor 2005, II-C (an upper bound on the incremental motion)",
 )
 

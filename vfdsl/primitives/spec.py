@@ -8,10 +8,15 @@ Argument kinds: geometric values (point, vector, direction, line, plane, pose, c
 dimension (length, angle, speed, angular_speed, number), ``flag`` (true/false), ``frame`` and ``input``
 (names of declared task frames and inputs), and ``gain``/``angular_gain``, whose dimension follows the
 type of the call's ``input`` argument (see :func:`gain_dimension`).
+
+Every scalar argument states its allowed values once, as a :class:`Range` in SI units: the front end checks
+literals and param values against it at load time, the runtime checks run-time param values against the
+same range, and the docs tables are generated from it.
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import Callable, Literal
 
@@ -29,6 +34,50 @@ ARG_KINDS = VALUE_KINDS + NAME_KINDS + ("gain", "angular_gain")
 
 REQUIRED = object()
 
+
+@dataclass(frozen=True)
+class Range:
+    """Allowed values of a scalar argument, in SI units; None = unbounded on that side.
+
+    ``unit`` (a name from :data:`vfdsl.passes.units.UNITS`, e.g. "deg") only changes how the bounds are
+    written in messages and docs. Non-finite values are never allowed.
+    """
+
+    low: float | None = None
+    high: float | None = None
+    low_open: bool = False        # True: low itself is not allowed (value > low)
+    high_open: bool = False
+    unit: str | None = None
+
+    def violation(self, value: float) -> str | None:
+        """None when ``value`` is allowed, else a short phrase such as 'must be > 0' or 'must be in (0, 90) deg'."""
+        if not math.isfinite(value):
+            return "must be finite"
+        too_low = self.low is not None and (value <= self.low if self.low_open else value < self.low)
+        too_high = self.high is not None and (value >= self.high if self.high_open else value > self.high)
+        if not (too_low or too_high):
+            return None
+        return f"must be in {self.describe()}" if self.low is not None and self.high is not None \
+            else f"must be {self.describe()}"
+
+    def describe(self) -> str:
+        """The allowed values in words, for docs and messages: '> 0', '(0, 1]', '(0, 90) deg', 'any'."""
+        scale = u.UNITS[self.unit][1] if self.unit else 1.0
+        low = None if self.low is None else f"{self.low / scale:.6g}"
+        high = None if self.high is None else f"{self.high / scale:.6g}"
+        if low is not None and high is not None:
+            text = f"{'(' if self.low_open else '['}{low}, {high}{')' if self.high_open else ']'}"
+        elif low is not None:
+            text = f"{'>' if self.low_open else '>='} {low}"
+        elif high is not None:
+            text = f"{'<' if self.high_open else '<='} {high}"
+        else:
+            return "any"
+        return f"{text} {self.unit}" if self.unit else text
+
+
+POSITIVE = Range(low=0.0, low_open=True)
+
 ResolutionShape = Literal["sphere", "polygon"] | None
 
 
@@ -38,6 +87,7 @@ class ArgSpec:
     kind: str
     doc: str
     default: object = REQUIRED       # an ir.Value, or REQUIRED; "subject" means the constraint's own frame
+    range: Range | None = None       # allowed values of a scalar argument (SI); None: any finite value
 
     @property
     def required(self) -> bool:

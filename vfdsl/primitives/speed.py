@@ -4,13 +4,13 @@ import casadi as ca
 
 from vfdsl.compiler.geometry import sphere_directions
 from vfdsl.compiler.rows import Rows, facets
-from vfdsl.primitives.spec import ArgSpec, ConstraintSpec
+from vfdsl.primitives.spec import POSITIVE, ArgSpec, ConstraintSpec
 
 SPEC = ConstraintSpec(
     name="speed",
     summary="bound the linear speed of the frame origin",
     subject=True,
-    args=(ArgSpec("max", "speed", "the largest speed"),),
+    args=(ArgSpec("max", "speed", "the largest speed", range=POSITIVE),),
     resolution="sphere",
     source="Li, Kapoor & Taylor 2005, II-C",
 )

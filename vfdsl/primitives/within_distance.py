@@ -7,14 +7,14 @@ import casadi as ca
 
 from vfdsl.compiler.geometry import sphere_directions
 from vfdsl.compiler.rows import Rows, facets
-from vfdsl.primitives.spec import ArgSpec, ConstraintSpec
+from vfdsl.primitives.spec import POSITIVE, ArgSpec, ConstraintSpec
 
 SPEC = ConstraintSpec(
     name="within_distance",
     summary="keep the frame origin at most `distance` from a point",
     subject=True,
     args=(ArgSpec("center", "point", "the goal point"),
-          ArgSpec("distance", "length", "the largest allowed distance")),
+          ArgSpec("distance", "length", "the largest allowed distance", range=POSITIVE)),
     resolution="sphere",
     source="Taylor, lecture notes, slide 44",
 )

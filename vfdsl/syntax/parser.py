@@ -1,18 +1,22 @@
 """Text -> :class:`~vfdsl.syntax.ast.Module`: the Lark parser over ``grammar/vf.lark`` and the tree transformer.
 
 Lark's errors become :class:`~vfdsl.errors.VfError` with the position, what was expected in words, and a
-"did you mean" when a keyword is misspelt.
+"did you mean" when a keyword is misspelt. A file that does not start like a ``.vf`` file (``task NAME`` or
+``library NAME``, or a near miss of those words) is refused without printing any of its text, since it may
+be any file on the machine. Before the tree is transformed, nesting of values, number length and name
+length are checked against :mod:`vfdsl.passes.limits`, so no recursion can reach Python's own limit.
 """
 
 from __future__ import annotations
 
 import difflib
 import json
+import re
 from functools import lru_cache
 from importlib import resources
 from pathlib import Path
 
-from lark import Lark, Token, Transformer, v_args
+from lark import Lark, Token, Transformer, Tree, v_args
 from lark.exceptions import (
     UnexpectedCharacters,
     UnexpectedEOF,
@@ -22,11 +26,20 @@ from lark.exceptions import (
 )
 
 from vfdsl.errors import SourcePos, VfError
+from vfdsl.passes import limits
 from vfdsl.syntax import ast
 
 KEYWORDS = ("task", "library", "units", "import", "scene", "robot", "frame", "input", "param",
             "fixture", "minimize", "require", "use")
 STATEMENT_KEYWORDS = KEYWORDS[2:]
+
+_FIRST_WORD = re.compile(r"(?:\s|#[^\n]*)*([A-Za-z_]\w*)?")
+_NESTED_RULES = ("vector", "call")
+_HINTS_FOR_CHARACTERS = {
+    "+": "arithmetic (+, -, *) is not supported yet: write the computed value",
+    "\u00b5": "write micro as 'u': um, not \u00b5m",
+    "\u03bc": "write micro as 'u': um, not \u03bcm",
+}
 
 _TERMINAL_WORDS = {
     "NAME": "a name", "SIGNED_NUMBER": "a number", "STRING": 'a quoted string ("...")',
@@ -51,10 +64,14 @@ def _lark() -> Lark:
 def parse_module(text: str, file: str) -> ast.Module:
     """Parse one ``.vf`` file's text. Raises VfError on any syntax error."""
     parser = _lark()
+    first = _FIRST_WORD.match(text).group(1) or ""
+    if not difflib.get_close_matches(first, ["task", "library"], n=1, cutoff=0.6):
+        raise VfError(f"{file} is not a .vf file: it does not start with `task NAME` or `library NAME`")
     try:
         tree = parser.parse(text)
     except UnexpectedInput as exc:
         raise _syntax_error(exc, text, file, parser) from None
+    _check_limits(tree, text, file)
     try:
         return _ToAst(file).transform(tree)
     except VisitError as exc:
@@ -62,6 +79,32 @@ def parse_module(text: str, file: str) -> ast.Module:
             err = exc.orig_exc
             raise VfError(err.message, err.pos, err.hint, source_text=text) from None
         raise
+
+
+def _check_limits(tree: Tree, text: str, file: str) -> None:
+    """Nesting of values, and the length of numbers and names (walked with a stack, not recursion)."""
+    stack = [(tree, 0)]
+    while stack:
+        node, depth = stack.pop()
+        if node.data in _NESTED_RULES:
+            depth += 1
+            if depth > limits.NESTING:
+                raise limits.exceeded("values nested too deeply", limits.NESTING, _pos_of_meta(node.meta, file),
+                                      hint="lists and calls nest at most this deep") \
+                    .with_source(text)
+        for child in node.children:
+            if isinstance(child, Tree):
+                stack.append((child, depth))
+            elif isinstance(child, Token):
+                too_long = ((limits.NUMBER_CHARS, "number") if child.type in ("SIGNED_NUMBER", "RESOLUTION")
+                            else (limits.NAME_CHARS, "name") if child.type == "NAME" else None)
+                if too_long and len(child) > too_long[0]:
+                    raise limits.exceeded(f"this {too_long[1]} is {len(child):,} characters long", too_long[0],
+                                          _span_of_token(child, file).pos()).with_source(text)
+
+
+def _pos_of_meta(meta, file: str) -> SourcePos:
+    return SourcePos(file, meta.line, meta.column, meta.end_line, meta.end_column)
 
 
 # ------------------------------------------------------------------------------------------------ errors
@@ -105,9 +148,12 @@ def _syntax_error(exc: UnexpectedInput, text: str, file: str, parser: Lark) -> V
         elif swallowed:
             hint = (f"'{previous}' (line {previous.line}) was read as a unit; did you mean the statement "
                     f"'{swallowed[0]}'?")
+        if found.startswith("+"):
+            hint = _HINTS_FOR_CHARACTERS["+"]
     elif isinstance(exc, UnexpectedCharacters):
         char = text[exc.pos_in_stream] if 0 <= exc.pos_in_stream < len(text) else "?"
         message = f"unexpected character {char!r}"
+        hint = _HINTS_FOR_CHARACTERS.get(char)
     else:  # pragma: no cover - lark has no other UnexpectedInput kinds
         message = "syntax error"
     if words:

@@ -1,0 +1,63 @@
+"""Reading the user's files (tasks, libraries, scenes, URDFs and their sidecars) within the limits.
+
+A file must be a regular file (not a directory, FIFO or device: those could block or never end) of at most
+:data:`~vfdsl.passes.limits.FILE_BYTES`, in UTF-8; the check is made on the opened descriptor, so the file
+cannot be swapped between the check and the read. YAML is composed by a loader that refuses nesting deeper
+than :data:`~vfdsl.passes.limits.YAML_DEPTH` before Python's own recursion limit could be reached.
+"""
+
+from __future__ import annotations
+
+import os
+import stat
+from pathlib import Path
+
+import yaml
+
+from vfdsl.errors import SourcePos, VfError
+from vfdsl.passes import limits
+
+
+def read_text(path: Path, what: str, pos: SourcePos | None = None, hint: str | None = None) -> str:
+    """The text of the ``what`` (e.g. 'scene file') at ``path``; VfError at ``pos`` when it cannot be read."""
+    try:
+        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | getattr(os, "O_NOCTTY", 0))
+    except FileNotFoundError:
+        raise VfError(f"{what} not found: {path}", pos, hint=hint) from None
+    except (OSError, ValueError) as exc:
+        reason = exc.strerror if isinstance(exc, OSError) and exc.strerror else str(exc)
+        raise VfError(f"cannot read {what} {path}: {reason.lower()}", pos) from None
+    try:
+        if not stat.S_ISREG(os.fstat(fd).st_mode):
+            raise VfError(f"cannot read {what} {path}: not a regular file", pos,
+                          hint="name a file (not a directory, a pipe or a device)")
+        data = os.read(fd, limits.FILE_BYTES + 1)
+    except OSError as exc:
+        raise VfError(f"cannot read {what} {path}: {(exc.strerror or str(exc)).lower()}", pos) from None
+    finally:
+        os.close(fd)
+    if len(data) > limits.FILE_BYTES:
+        raise limits.exceeded(f"{what} {path} is too large", limits.FILE_BYTES, pos,
+                              hint="the limit is in bytes")
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise VfError(f"{what} {path} is not UTF-8 text (byte {exc.start})", pos) from None
+
+
+class BoundedLoader(yaml.SafeLoader):
+    """PyYAML's safe loader, refusing lists and mappings nested deeper than ``limits.YAML_DEPTH``."""
+
+    def __init__(self, stream):
+        super().__init__(stream)
+        self._depth = 0
+
+    def compose_node(self, parent, index):
+        self._depth += 1
+        try:
+            if self._depth > limits.YAML_DEPTH:
+                raise yaml.composer.ComposerError(None, None, f"nested more than {limits.YAML_DEPTH} levels deep",
+                                                  self.peek_event().start_mark)
+            return super().compose_node(parent, index)
+        finally:
+            self._depth -= 1

@@ -1,0 +1,33 @@
+"""Resource limits the front end enforces before any work starts.
+
+Resource limits sit far above any real task (about ten times the largest example, or more where a real
+task could grow, such as a digitized curve), so that a hostile or mistaken file fails fast with a message
+that names the limit instead of taking the machine's time or memory. They are listed in docs/language.md
+("Limits"); :func:`exceeded` builds the error.
+"""
+
+from __future__ import annotations
+
+from vfdsl.errors import SourcePos, VfError
+
+FILE_BYTES = 1_000_000           # a task, library, scene or sidecar file
+IMPORT_DEPTH = 16                # libraries importing libraries
+IMPORTED_FILES = 256             # files in one program
+NESTING = 16                     # brackets and calls inside one value: [[[...]]], f(g(...))
+NUMBER_CHARS = 40                # characters of one number literal
+NAME_CHARS = 100                 # characters of one name
+FIXTURE_DEPTH = 16               # `use` inside a fixture inside a fixture ...
+EXPANDED_STATEMENTS = 2_000      # statements after expanding every fixture
+CONSTRAINTS = 1_000              # `require` statements after expansion
+ROWS = 8_192                     # constraint rows (an upper estimate from the resolutions), joint bounds excluded
+RESOLUTION = 64                  # directions per angle of a polytope (64 x 64 at most for a sphere)
+CURVE_DEGREE = 9
+CURVE_POINTS = 128
+CURVE_SAMPLES = 2_048            # closest-point samples of one curve (about 2 m of curve at 1 mm)
+YAML_NODES = 100_000             # nodes of a scene after alias expansion
+YAML_DEPTH = 16                  # nesting of lists and mappings in a scene
+
+def exceeded(what: str, limit: int, pos: SourcePos | None, hint: str | None = None) -> VfError:
+    """The error for a resource limit: which one was hit, and its value."""
+    return VfError(f"{what}: the limit is {limit:,}", pos,
+                   hint=hint or "this limit sits far above any real task; split the task or simplify it")
