@@ -1,0 +1,292 @@
+"""``vfdsl check``: for each finding, a small task that triggers it and one that does not; the numbers
+behind the findings against independent computations; the command line (exit codes, JSON)."""
+
+from __future__ import annotations
+
+import itertools
+import json
+import math
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from conftest import TASKS_DIR
+
+import vfdsl
+from vfdsl.check import check, polytope
+from vfdsl.check.report import CODES, Severity
+from vfdsl.compiler.geometry import sphere_directions
+from vfdsl.runtime.qp import StepStatus
+
+# A sound probe task on the built-in Steady-Hand-like robot: at the start (insertion 10 mm) the tip is at
+# (0, 0, 290) mm and the tool axis points up (+z).
+PROBE = """\
+task probe
+units mm, deg
+robot shr = urdf "shr7"
+frame tip = shr.link("tool_tip")
+input f : force
+param target : point = [0, 0, 290]
+minimize track(tip, f, gain = 1 mm/s/N)
+minimize damping() weight 1e-6
+require tip stays_at(target) within 0.05 resolution 12x12
+require joint_limits()
+require joint_speed()
+"""
+SCENE = """\
+units: mm, deg
+period: 10 ms
+start: {x: 0, y: 0, z: 0, rcm_a: 0, rcm_b: 0, roll: 0, insert: 10}
+"""
+STAYS_AT = "require tip stays_at(target) within 0.05 resolution 12x12"
+
+
+def write_probe(tmp_path: Path, text: str = PROBE, scene: str = SCENE) -> Path:
+    (tmp_path / "probe.yaml").write_text(scene)
+    (tmp_path / "probe.vf").write_text(text)
+    return tmp_path / "probe.vf"
+
+
+def probe(tmp_path: Path, text: str = PROBE, scene: str = SCENE) -> vfdsl.Task:
+    return vfdsl.load(write_probe(tmp_path, text, scene))
+
+
+def codes(task: vfdsl.Task, **options) -> dict[str, list]:
+    """name -> the findings of that name."""
+    found: dict[str, list] = {}
+    for f in check(task, backend="interpreted", **options).findings:
+        found.setdefault(f.name, []).append(f)
+    return found
+
+
+def with_constraint(task: vfdsl.Task, index: int, **update) -> vfdsl.Task:
+    """The task with constraint ``index`` changed (for what the front end refuses in a file)."""
+    constraints = list(task.constraints)
+    constraints[index] = constraints[index].model_copy(update=update)
+    return task.model_copy(update={"constraints": constraints})
+
+
+def test_the_probe_task_is_sound(tmp_path):
+    report = check(probe(tmp_path), backend="interpreted")
+    assert [f.severity for f in report.findings if f.severity != Severity.NOTE] == [], report.render_text()
+    assert report.exit_status() == 0 and report.exit_status(strict=True) == 0
+
+
+def test_codes_are_unique_and_named():
+    assert len(set(CODES.values())) == len(CODES)
+    assert all(code.startswith("VF") and len(code) == 5 for code in CODES.values())
+
+
+# ------------------------------------------------------------------------------------------ polytopes
+
+def _brute_force_circumradius(U: np.ndarray) -> float:
+    """Farthest vertex of {v : U v <= 1}: every d-subset of facet planes, kept if it satisfies all facets."""
+    d = U.shape[1]
+    best = 0.0
+    for rows in itertools.combinations(range(len(U)), d):
+        M = U[list(rows)]
+        if abs(np.linalg.det(M)) < 1e-12:
+            continue
+        v = np.linalg.solve(M, np.ones(d))
+        if np.all(U @ v <= 1 + 1e-9):
+            best = max(best, float(np.linalg.norm(v)))
+    return best
+
+
+@pytest.mark.parametrize("resolution", [(3, 3), (4, 4), (5, 5), (6, 6), (8, 8), (4, 8), (8, 4), (3, 7)])
+def test_sphere_circumradius_matches_vertex_enumeration(resolution):
+    g = polytope.geometry("sphere", resolution)
+    assert g.bounded
+    assert g.unique == len(sphere_directions(*resolution))
+    assert g.circumradius == pytest.approx(_brute_force_circumradius(sphere_directions(*resolution)), rel=1e-9)
+
+
+def test_paper_4x4_is_a_cube():
+    g = polytope.geometry("sphere", (4, 4))
+    assert (g.listed, g.unique) == (16, 6)
+    assert g.circumradius == pytest.approx(math.sqrt(3))
+
+
+@pytest.mark.parametrize("n", [3, 4, 5, 8, 13])
+def test_polygon_circumradius_is_one_over_cos_pi_over_n(n):
+    assert polytope.geometry("polygon", (n,)).circumradius == pytest.approx(1 / math.cos(math.pi / n))
+
+
+@pytest.mark.parametrize("shape, resolution", [("sphere", (2, 2)), ("sphere", (2, 6)), ("sphere", (6, 2)),
+                                               ("polygon", (2,)), ("polygon", (1,))])
+def test_flat_or_two_sided_polytopes_are_unbounded(shape, resolution):
+    g = polytope.geometry(shape, resolution)
+    assert not g.bounded and g.circumradius == math.inf
+    # independent: some direction w has u . w <= 0 for every facet, so t w is admitted for every t
+    U = polytope.directions(shape, resolution)
+    rng = np.random.default_rng(0)
+    W = rng.normal(size=(20000, U.shape[1]))
+    W = np.vstack([W, np.eye(U.shape[1]), -np.eye(U.shape[1])])
+    assert np.any(np.all(W @ U.T <= 1e-12, axis=1))
+
+
+@pytest.mark.parametrize("overshoot", [0.5, 0.1, 0.05])
+def test_smallest_resolution_meets_the_overshoot_and_nothing_smaller_does(overshoot):
+    best = polytope.smallest_resolution("sphere", overshoot)
+    assert best.overshoot <= overshoot
+    for n in range(3, polytope.SEARCH_LIMIT + 1):
+        for m in range(3, polytope.SEARCH_LIMIT + 1):
+            if len(sphere_directions(n, m)) < best.unique:
+                assert polytope.geometry("sphere", (n, m)).overshoot > overshoot
+    polygon = polytope.smallest_resolution("polygon", overshoot)
+    assert polygon.overshoot <= overshoot < polytope.geometry("polygon", (polygon.resolution[0] - 1,)).overshoot
+
+
+def test_circumradius_is_reached_by_the_compiled_rows(tmp_path):
+    """The cube's corner sqrt(3) eps from the target satisfies every row the controller enforces."""
+    task = probe(tmp_path, PROBE.replace("resolution 12x12", "resolution 4x4"))
+    ctrl = vfdsl.compile(task, backend="interpreted")
+    qp = ctrl.problem(task.start, {"f": [0, 0, 0]})
+    rows = [i for i, label in enumerate(qp.labels) if label.startswith("stays_at")]
+    robot = ctrl.assembled.context.robot
+    J = robot.frame_jacobian(task.start, "tool_tip")[:3]
+    eps = 0.05e-3
+    for corner in itertools.product([-1, 1], repeat=3):
+        v = eps * np.array(corner, dtype=float)                    # the error after the step: a cube corner
+        p, _ = robot.frame_pose(task.start, "tool_tip")
+        dq = np.linalg.lstsq(J, v - (p - [0, 0, 0.29]), rcond=None)[0]
+        A = qp.A[rows, :ctrl.nq]
+        assert np.all(A @ dq >= qp.lb[rows] - 1e-12)               # admitted by every facet
+        assert np.linalg.norm(v) == pytest.approx(polytope.geometry("sphere", (4, 4)).circumradius * eps)
+
+
+def test_unbounded_polytope_is_an_error(tmp_path):
+    task = probe(tmp_path)
+    assert "polytope-unbounded" not in codes(task)
+    found = codes(with_constraint(task, 0, resolution=[2, 2]))["polytope-unbounded"]
+    assert found[0].severity == Severity.ERROR and found[0].span.line == 9
+
+
+def test_overshoot_warning_names_the_circumradius_and_a_resolution(tmp_path):
+    task = probe(tmp_path, PROBE.replace("resolution 12x12", "resolution 4x4"))
+    found = codes(task)["polytope-overshoot"][0]
+    assert found.severity == Severity.WARNING and found.span.line == 9
+    assert "86.6 um" in found.message and "73%" in found.message            # sqrt(3) * 50 um
+    assert found.data["worst"] == pytest.approx(math.sqrt(3) * 0.05e-3)
+    best = polytope.smallest_resolution("sphere", 0.10)
+    assert f"resolution {best.label}" in found.suggestion
+    assert "polytope-overshoot" not in codes(task, overshoot=0.8)
+    assert "polytope-overshoot" not in codes(probe(tmp_path))                 # 12x12: 6.9%
+
+
+def test_repeated_directions_note(tmp_path):
+    assert codes(probe(tmp_path))["polytope-repeated-directions"][0].data["facets"] == 62
+    assert "polytope-repeated-directions" not in codes(probe(tmp_path, PROBE.replace("12x12", "5x9")))
+
+
+def test_bounds_table_in_task_units(tmp_path):
+    text = PROBE.replace(STAYS_AT, "require tip within_distance(target, 34.5 mm) resolution 8x8")
+    report = check(probe(tmp_path, text), backend="interpreted")
+    [bound] = report.bounds
+    assert (bound.resolution, bound.facets) == ("8x8", 26)
+    assert bound.worst == pytest.approx(0.0345 * polytope.geometry("sphere", (8, 8)).circumradius)
+    assert "34.5 mm" in report.render_text() and "39.98 mm" in report.render_text()
+
+
+# ------------------------------------------------------------------------------------------ tolerances
+
+def test_nonpositive_tolerance_is_an_error(tmp_path):
+    task = probe(tmp_path)
+    assert "tolerance-nonpositive" not in codes(task)
+    assert codes(with_constraint(task, 0, tolerance=-1e-6))["tolerance-nonpositive"][0].severity == Severity.ERROR
+
+
+def test_implausible_tolerance_is_a_warning(tmp_path):
+    found = codes(probe(tmp_path, PROBE.replace("within 0.05 resolution", "within 50 resolution")))
+    assert "a unit slip" in found["tolerance-implausible"][0].message
+    assert "tolerance-implausible" not in codes(probe(tmp_path))
+
+
+def test_tolerance_below_the_joint_resolution(tmp_path):
+    found = codes(probe(tmp_path, PROBE.replace("within 0.05 resolution", "within 0.001 resolution")))
+    finding = found["tolerance-below-resolution"][0]
+    # independent: half a 10 um step of each joint along the worst facet, from Pinocchio's Jacobian
+    robot = vfdsl.compile(probe(tmp_path), backend="interpreted").assembled.context.robot
+    start = np.array([0, 0, 0, 0, 0, 0, 0.01])
+    J = robot.frame_jacobian(start, "tool_tip")[:3]
+    U = sphere_directions(12, 12)
+    expected = 0.5 * np.max(np.abs(U @ J) @ robot.resolution)
+    assert finding.data["realizable"] == pytest.approx(expected)
+    assert finding.data["tolerance"] == pytest.approx(1e-6) and 1e-6 < expected
+    assert "tolerance-below-resolution" not in codes(probe(tmp_path))
+
+
+def test_restore_takes_many_ticks_at_slow_joint_speeds(tmp_path):
+    slow = PROBE.replace("require joint_speed()", "require joint_speed(fraction = 0.001)")
+    task = probe(tmp_path, slow)
+    finding = codes(task)["tolerance-restore-ticks"][0]
+    # independent: over the box |dq_k| <= v_k, max (u J) dq = sum_k |u J_k| v_k (closed form, no LP)
+    robot = vfdsl.compile(task, backend="interpreted").assembled.context.robot
+    J = robot.frame_jacobian(task.start, "tool_tip")[:3]
+    v = 0.001 * robot.velocity_limit * 0.01
+    expected = np.min(np.abs(sphere_directions(12, 12) @ J) @ v)
+    assert finding.data["reach_per_tick"] == pytest.approx(expected, rel=1e-6)
+    assert finding.data["ticks"] == math.ceil(0.05e-3 / expected) > 10
+    assert finding.severity == Severity.WARNING
+    assert "tolerance-restore-ticks" not in codes(probe(tmp_path))
+
+
+# ------------------------------------------------------------------------------------------ feasibility
+
+def test_infeasible_start_names_an_irreducible_subset(tmp_path):
+    """The target 10 mm away, the joints limited to 0.2 mm per tick: stays_at and joint_speed conflict;
+    joint_limits is not part of the conflict."""
+    far = PROBE.replace("param target : point = [0, 0, 290]", "param target : point = [0, 0, 280]")
+    found = codes(probe(tmp_path, far))["start-infeasible"][0]
+    assert found.severity == Severity.ERROR
+    assert sorted(c["line"] for c in found.data["conflict"]) == [9, 11]
+    assert found.data["margin"] < 0
+    # a second solver agrees: the compiled controller (DAQP) cannot satisfy its rows at the start
+    ctrl = vfdsl.compile(probe(tmp_path, far), backend="interpreted")
+    ctrl.step(ctrl.task.start, {"f": [0, 0, 0]})
+    assert ctrl.violations() and ctrl.status & StepStatus.LEAST_VIOLATION
+    # and without the speed limit the same target is reachable in one tick
+    assert "start-infeasible" not in codes(probe(tmp_path, far.replace("require joint_speed()\n", "")))
+    assert "start-infeasible" not in codes(probe(tmp_path))
+
+
+# ------------------------------------------------------------------------------------------ the command
+
+def vfdsl_cli(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-P", "-m", "vfdsl.cli", *args], capture_output=True, text=True,
+                          check=False, timeout=120)
+
+
+def test_cli_exit_codes_and_json(tmp_path):
+    probe(tmp_path, PROBE.replace("resolution 12x12", "resolution 4x4"))
+    proc = vfdsl_cli("check", str(tmp_path / "probe.vf"))
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    assert "warning VF102 polytope-overshoot" in proc.stdout and "^^^" in proc.stdout
+    assert proc.stdout.rstrip().splitlines()[-1].startswith("probe: sound")
+    assert vfdsl_cli("check", str(tmp_path / "probe.vf"), "--strict").returncode == 1
+    data = json.loads(vfdsl_cli("check", str(tmp_path / "probe.vf"), "--json").stdout)
+    assert data["schema"] == 1 and data["exit_status"] == 0
+    [overshoot] = [f for f in data["findings"] if f["code"] == "VF102"]
+    assert overshoot["location"]["line"] == 9 and overshoot["severity"] == "warning"
+    probe(tmp_path, PROBE.replace("[0, 0, 290]", "[0, 0, 280]"))
+    proc = vfdsl_cli("check", str(tmp_path / "probe.vf"))
+    assert proc.returncode == 1 and "NOT SOUND" in proc.stdout
+
+
+def test_cli_usage_and_front_end_errors_exit_2(tmp_path):
+    write_probe(tmp_path, PROBE.replace("stays_at(target)", "stays_at(tagret)"))
+    proc = vfdsl_cli("check", str(tmp_path / "probe.vf"))
+    assert proc.returncode == 2 and "Traceback" not in proc.stderr and "unknown" in proc.stderr
+    assert vfdsl_cli("check", str(tmp_path / "probe.vf"), "--overshoot", "lots").returncode == 2
+    proc = vfdsl_cli("check", str(TASKS_DIR / "paper_b_virtual_rcm.vf"), "--scene", str(tmp_path / "none.yaml"))
+    assert proc.returncode == 2 and "scene file not found" in proc.stderr
+
+
+def test_cli_scene_option_replaces_the_scene(tmp_path):
+    probe(tmp_path)
+    (tmp_path / "far.yaml").write_text(SCENE.replace("insert: 10", "insert: 20"))     # tip 10 mm below target
+    proc = vfdsl_cli("check", str(tmp_path / "probe.vf"), "--scene", str(tmp_path / "far.yaml"), "--json")
+    assert proc.returncode == 1
+    assert "VF301" in {f["code"] for f in json.loads(proc.stdout)["findings"]}
