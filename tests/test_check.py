@@ -290,3 +290,55 @@ def test_cli_scene_option_replaces_the_scene(tmp_path):
     proc = vfdsl_cli("check", str(tmp_path / "probe.vf"), "--scene", str(tmp_path / "far.yaml"), "--json")
     assert proc.returncode == 1
     assert "VF301" in {f["code"] for f in json.loads(proc.stdout)["findings"]}
+
+
+# ------------------------------------------------------------------------------------------ residuals
+
+TILTED = SCENE.replace("rcm_a: 0", "rcm_a: 3")          # the tool axis 3 deg from +z
+
+
+@pytest.mark.parametrize("direction, angle, cause", [
+    ("[0, 0, -1]", 177.0, "opposite direction"),      # the insertion direction given instead of the tool axis
+    ("[1, 0, 0]", 90.0, "wrong frame axis"),
+])
+def test_direction_far_off_at_the_start_is_an_error_with_its_cause(tmp_path, direction, angle, cause):
+    text = PROBE.replace(STAYS_AT, f"require tip keeps_direction({direction}) within 1 deg")
+    task = probe(tmp_path, text, TILTED)
+    [finding] = codes(task)["residual-far"]
+    assert finding.severity == Severity.ERROR and finding.span.line == 9 and cause in finding.message
+    # independent: the angle between the tool axis (Pinocchio) and the direction
+    robot = vfdsl.compile(task, backend="interpreted").assembled.context.robot
+    _, R = robot.frame_pose(task.start, "tool_tip")
+    d = np.array(json.loads(direction), dtype=float)
+    expected = math.acos(np.clip(R[:, 2] @ d, -1, 1))
+    assert finding.data["error"] == pytest.approx(expected, abs=1e-9)
+    assert math.degrees(expected) == pytest.approx(angle, abs=1e-6)
+
+
+def test_opposite_direction_is_invisible_to_the_rows(tmp_path):
+    """The reason the true angle is measured: at 177 deg the rows see only sin(3 deg)."""
+    text = PROBE.replace(STAYS_AT, "require tip keeps_direction([0, 0, -1]) within 1 deg")
+    [finding] = codes(probe(tmp_path, text, TILTED))["residual-far"]
+    assert finding.data["rows_error"] == pytest.approx(math.sin(math.radians(3)), rel=1e-3)
+
+
+def test_small_start_error_is_a_warning_and_none_inside(tmp_path):
+    text = PROBE.replace(STAYS_AT, "require tip keeps_direction([0, 0, 1]) within 1 deg")
+    [finding] = codes(probe(tmp_path, text, TILTED))["residual-outside"]
+    assert finding.severity == Severity.WARNING and finding.data["error"] == pytest.approx(math.radians(3))
+    found = codes(probe(tmp_path, text))                       # tool axis on +z: inside
+    assert "residual-outside" not in found and "residual-far" not in found
+
+
+def test_point_in_the_wrong_unit(tmp_path):
+    text = PROBE.replace("[0, 0, 290]", "[0, 0, 0.29]")          # metres in a mm file
+    [finding] = codes(probe(tmp_path, text))["residual-far"]
+    assert "wrong unit" in finding.message and finding.data["error"] == pytest.approx(0.29 - 0.29e-3)
+
+
+def test_cone_axis_reversed(tmp_path):
+    text = PROBE.replace(STAYS_AT, "require tip cone([0, 0, -1], 3 deg) within 1 deg")
+    [finding] = codes(probe(tmp_path, text, TILTED))["residual-far"]
+    assert "opposite direction" in finding.message
+    assert finding.data["error"] == pytest.approx(math.radians(174))
+    assert "residual-far" not in codes(probe(tmp_path, text.replace("[0, 0, -1]", "[0, 0, 1]"), TILTED))

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import time
 
-from vfdsl.check import feasibility, polytope, tolerance
+from vfdsl.check import feasibility, polytope, residuals, tolerance
 from vfdsl.check.linearized import Linearization
 from vfdsl.check.report import Finding, Report, Severity
 from vfdsl.ir import model as ir
@@ -53,5 +53,6 @@ def check(task: ir.Task, *, overshoot: float = DEFAULT_OVERSHOOT, backend: str =
     rows = linear.rows(task.start)
     report.add(tolerance.analyse_at_start(rows, robot.resolution, robot.nq, linear.period))
     report.add(feasibility.analyse(rows, robot.nq, report.figures))
+    report.add(residuals.analyse(task, linear, rows, task.start))
     report.figures["seconds"] = time.perf_counter() - started
     return report
