@@ -342,3 +342,59 @@ def test_cone_axis_reversed(tmp_path):
     assert "opposite direction" in finding.message
     assert finding.data["error"] == pytest.approx(math.radians(174))
     assert "residual-far" not in codes(probe(tmp_path, text.replace("[0, 0, -1]", "[0, 0, 1]"), TILTED))
+
+
+# ------------------------------------------------------------------------------------------ kinematics
+
+def test_frame_on_the_base_is_an_error(tmp_path):
+    text = PROBE.replace('frame tip = shr.link("tool_tip")',
+                         'frame tip = shr.link("tool_tip")\nframe fixed = shr.link("base")')
+    text += "require fixed stays_at([0, 0, 0]) within 0.05\n"
+    [finding] = codes(probe(tmp_path, text))["frame-fixed"]
+    assert finding.severity == Severity.ERROR and finding.span.line == 5
+    assert "frame-fixed" not in codes(probe(tmp_path))
+
+
+def test_rotation_of_a_stage_link_is_singular(tmp_path):
+    """The z stage only translates: its J_w is zero, so an angle constraint on it cannot be corrected."""
+    text = PROBE.replace('frame tip = shr.link("tool_tip")',
+                         'frame tip = shr.link("tool_tip")\nframe stage = shr.link("stage_z")')
+    text += "require stage keeps_direction([0, 0, 1]) within 1 deg\n"
+    task = probe(tmp_path, text)
+    [finding] = codes(task)["kinematics-near-singular"]
+    assert finding.data["block"] == "w" and finding.data["sigma_min"] == pytest.approx(0, abs=1e-12)
+    # independent: Pinocchio's Jacobian of the link has rank 3 (the three stages)
+    robot = vfdsl.compile(task, backend="interpreted").assembled.context.robot
+    assert np.linalg.matrix_rank(robot.frame_jacobian(task.start, "stage_z")) == finding.data["rank"] == 3
+    assert "kinematics-near-singular" not in codes(probe(tmp_path))
+
+
+def test_start_near_a_joint_limit(tmp_path):
+    [finding] = codes(probe(tmp_path, scene=SCENE.replace("x: 0", "x: 59.9")))["start-near-limit"]
+    assert finding.data["joint"] == "x" and finding.data["limit"] == pytest.approx(0.06)
+    assert "start-near-limit" not in codes(probe(tmp_path))
+
+
+# ------------------------------------------------------------------------------------------ hands off
+
+def test_centering_moves_the_tool_with_the_hands_off(tmp_path):
+    text = PROBE.replace("minimize track(tip, f, gain = 1 mm/s/N)\n", "").replace(
+        "minimize damping() weight 1e-6", "minimize centering() weight 1")
+    task = probe(tmp_path, text, SCENE.replace("x: 0", "x: 30"))
+    [finding] = codes(task)["handsoff-drift"]
+    assert finding.severity == Severity.WARNING and "`minimize centering` at probe.vf:7" in finding.message
+    # independent: run the loop here and measure the tip with Pinocchio
+    ctrl = vfdsl.compile(task, backend="interpreted")
+    robot = ctrl.assembled.context.robot
+    q = task.start.copy()
+    for _ in range(50):
+        q = q + ctrl.step(q, {"f": [0, 0, 0]})
+    moved = np.linalg.norm(robot.frame_pose(q, "tool_tip")[0] - robot.frame_pose(task.start, "tool_tip")[0])
+    assert finding.data["moved"] >= moved > 1e-3
+
+
+def test_a_tracking_task_stays_still_and_a_distance_term_is_a_note(tmp_path):
+    assert "handsoff-drift" not in codes(probe(tmp_path))
+    text = PROBE.replace("minimize damping() weight 1e-6", "minimize distance(tip, [0, 2, 290])")
+    [finding] = codes(probe(tmp_path, text))["handsoff-drift"]
+    assert finding.severity == Severity.NOTE and "distance" in finding.message

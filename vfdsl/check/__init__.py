@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import time
 
-from vfdsl.check import feasibility, polytope, residuals, tolerance
+from vfdsl.check import feasibility, handsoff, kinematics, polytope, residuals, tolerance
 from vfdsl.check.linearized import Linearization
 from vfdsl.check.report import Finding, Report, Severity
 from vfdsl.ir import model as ir
@@ -54,5 +54,7 @@ def check(task: ir.Task, *, overshoot: float = DEFAULT_OVERSHOOT, backend: str =
     report.add(tolerance.analyse_at_start(rows, robot.resolution, robot.nq, linear.period))
     report.add(feasibility.analyse(rows, robot.nq, report.figures))
     report.add(residuals.analyse(task, linear, rows, task.start))
+    report.add(kinematics.analyse(robot, task, task.start, report.figures))
+    report.add(handsoff.analyse(controller, task, linear, report.figures))
     report.figures["seconds"] = time.perf_counter() - started
     return report
