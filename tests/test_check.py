@@ -54,9 +54,9 @@ def probe(tmp_path: Path, text: str = PROBE, scene: str = SCENE) -> vfdsl.Task:
 
 
 def codes(task: vfdsl.Task, **options) -> dict[str, list]:
-    """name -> the findings of that name."""
+    """name -> the findings of that name (a short random walk unless ``samples`` is given)."""
     found: dict[str, list] = {}
-    for f in check(task, backend="interpreted", **options).findings:
+    for f in check(task, backend="interpreted", **{"samples": 20, **options}).findings:
         found.setdefault(f.name, []).append(f)
     return found
 
@@ -398,3 +398,45 @@ def test_a_tracking_task_stays_still_and_a_distance_term_is_a_note(tmp_path):
     text = PROBE.replace("minimize damping() weight 1e-6", "minimize distance(tip, [0, 2, 290])")
     [finding] = codes(probe(tmp_path, text))["handsoff-drift"]
     assert finding.severity == Severity.NOTE and "distance" in finding.message
+
+
+# ------------------------------------------------------------------------------------------ sampled states
+
+def test_sampled_states_are_reproducible_and_feasible_on_a_sound_task(tmp_path):
+    task = probe(tmp_path)
+    first = check(task, backend="interpreted", samples=60, seed=3).figures["sampled"]
+    again = check(task, backend="interpreted", samples=60, seed=3).figures["sampled"]
+    assert first == again and first["samples"] == 60
+    assert first["worst_margin"] >= 0
+    # a second solver agrees at the worst state: the controller (DAQP) satisfies every row there
+    ctrl = vfdsl.compile(task, backend="interpreted")
+    ctrl.step(first["worst_margin_q"], {"f": [0, 0, 0]})
+    assert ctrl.status == StepStatus.OPTIMAL and not ctrl.violations()
+    # the walk moved the tool: the state differs from the start
+    assert np.linalg.norm(np.array(first["worst_conditioning_q"]) - task.start) > 0
+
+
+def test_sampling_flags_a_reached_state_where_the_rows_conflict(tmp_path):
+    """The walk is driven by a controller without the stays_at (the tool moves freely under the random
+    force); the full task's rows at the states it reaches conflict: stays_at with joint_speed."""
+    from vfdsl.check import sampling
+    from vfdsl.check.linearized import Linearization
+
+    task = probe(tmp_path)
+    free = task.model_copy(update={"constraints": task.constraints[1:]})
+    ctrl = vfdsl.compile(free, backend="interpreted")
+    figures: dict = {}
+    found = sampling.analyse(ctrl, task, Linearization(task, ctrl.assembled.context), 60, 0, figures)
+    [infeasible] = [f for f in found if f.name == "sampled-infeasible"]
+    assert infeasible.severity == Severity.ERROR and figures["sampled"]["worst_margin"] < 0
+    assert sorted(w.rsplit(":", 1)[1] for w in infeasible.data["conflict"]) == ["11", "9"]
+    assert "sampled-infeasible" not in codes(task, samples=60)
+
+
+def test_sampling_reports_ill_conditioned_states(tmp_path):
+    text = PROBE.replace('frame tip = shr.link("tool_tip")',
+                         'frame tip = shr.link("tool_tip")\nframe stage = shr.link("stage_z")')
+    text += "require stage keeps_direction([0, 0, 1]) within 1 deg\n"
+    [finding] = codes(probe(tmp_path, text), samples=20)["sampled-ill-conditioned"]
+    assert finding.data["worst_conditioning"] == pytest.approx(0, abs=1e-12)
+    assert "sampled-ill-conditioned" not in codes(probe(tmp_path), samples=20)

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import time
 
-from vfdsl.check import feasibility, handsoff, kinematics, polytope, residuals, tolerance
+from vfdsl.check import feasibility, handsoff, kinematics, polytope, residuals, sampling, tolerance
 from vfdsl.check.linearized import Linearization
 from vfdsl.check.report import Finding, Report, Severity
 from vfdsl.ir import model as ir
@@ -25,10 +25,12 @@ DEFAULT_OVERSHOOT = 0.10
 __all__ = ["DEFAULT_OVERSHOOT", "Finding", "Report", "Severity", "check"]
 
 
-def check(task: ir.Task, *, overshoot: float = DEFAULT_OVERSHOOT, backend: str = "auto") -> Report:
+def check(task: ir.Task, *, overshoot: float = DEFAULT_OVERSHOOT, samples: int = sampling.DEFAULT_SAMPLES,
+          seed: int = 0, backend: str = "auto") -> Report:
     """Every analysis of ``task``. ``overshoot``: the largest accepted excess of a polytope's worst error
-    over its tolerance (0.10 = 10%); ``backend``: how the closed-loop analyses run the controller
-    (see :func:`vfdsl.compile`)."""
+    over its tolerance (0.10 = 10%); ``samples``, ``seed``: the random walk of the sampled analysis (0
+    samples skips it); ``backend``: how the closed-loop analyses run the controller (see
+    :func:`vfdsl.compile`)."""
     from vfdsl.pipeline import compile as compile_task
 
     started = time.perf_counter()
@@ -56,5 +58,7 @@ def check(task: ir.Task, *, overshoot: float = DEFAULT_OVERSHOOT, backend: str =
     report.add(residuals.analyse(task, linear, rows, task.start))
     report.add(kinematics.analyse(robot, task, task.start, report.figures))
     report.add(handsoff.analyse(controller, task, linear, report.figures))
+    if samples > 0:
+        report.add(sampling.analyse(controller, task, linear, samples, seed, report.figures))
     report.figures["seconds"] = time.perf_counter() - started
     return report

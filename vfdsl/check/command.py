@@ -7,6 +7,7 @@ import json
 import sys
 from pathlib import Path
 
+from vfdsl.check.sampling import DEFAULT_SAMPLES
 from vfdsl.errors import VfError
 
 EXIT_NOT_SOUND = 1
@@ -41,6 +42,10 @@ def register(commands: argparse._SubParsersAction) -> None:
     parser.add_argument("--overshoot", metavar="PCT", default="10%", type=_fraction,
                         help="largest accepted excess of a polytope's worst error over its tolerance "
                              "(default: 10%%)")
+    parser.add_argument("--samples", metavar="N", type=_count, default=DEFAULT_SAMPLES,
+                        help=f"states of the random walk under random input to check (default: {DEFAULT_SAMPLES}; "
+                             "0 skips it)")
+    parser.add_argument("--seed", metavar="S", type=int, default=0, help="seed of the random walk (default: 0)")
     parser.set_defaults(run=run)
 
 
@@ -49,7 +54,7 @@ def run(args: argparse.Namespace) -> int:
     from vfdsl.check import check
 
     task = load_with_scene(args.file, args.scene) if args.scene else vfdsl.load(args.file)
-    report = check(task, overshoot=args.overshoot)
+    report = check(task, overshoot=args.overshoot, samples=args.samples, seed=args.seed)
     if args.json:
         json.dump(report.to_json(args.strict), sys.stdout, indent=2)
         sys.stdout.write("\n")
@@ -76,6 +81,16 @@ def load_with_scene(path: str | Path, scene: str | Path):
     main, libraries = load_program(path)
     return _OtherScene(main.module, path, [(lib.module, file_units(lib.module)) for lib in libraries]).run(
         [str(lib.path) for lib in libraries])
+
+
+def _count(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"expected 0 or more, got {value}")
+    return value
 
 
 def _fraction(text: str) -> float:

@@ -33,13 +33,16 @@ def zero_inputs(task: ir.Task) -> dict[str, np.ndarray]:
     return {d.name: np.zeros(d.size) for d in task.inputs}
 
 
-def run(controller, task: ir.Task, q0, ticks: int, inputs=None) -> np.ndarray:
-    """Joint coordinates of a closed loop of ``ticks`` steps (row 0 is q0); ``inputs(t)`` or zero."""
+def run(controller, task: ir.Task, q0, ticks: int, inputs=None, statuses: list | None = None) -> np.ndarray:
+    """Joint coordinates of a closed loop of ``ticks`` steps (row 0 is q0) under ``inputs(t)`` (default
+    zero); each step's status is appended to ``statuses`` when given."""
     q = np.array(q0, dtype=float)
     trajectory = [q.copy()]
     for t in range(ticks):
         q = q + controller.step(q, zero_inputs(task) if inputs is None else inputs(t))
         trajectory.append(q.copy())
+        if statuses is not None:
+            statuses.append(controller.status)
     return np.array(trajectory)
 
 

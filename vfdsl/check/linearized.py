@@ -108,6 +108,11 @@ def _is_selection(A) -> bool:
     return bool(np.all((M == 0) | (M == 1)) and np.all(M.sum(axis=1) == 1))
 
 
+def value_of(arg: ir.Arg, task: ir.Task) -> ir.Value:
+    """The value of a constant argument, or the default (or scene) value of a param."""
+    return arg.value if isinstance(arg, ir.Const) else task.param(arg.name).value
+
+
 def describe(c: ir.Constraint) -> str:
     """How findings name a constraint: ``stays_at(tip)``, ``joint_limits()``, with ``soft`` when it is."""
     return f"{'soft ' if c.soft else ''}{c.primitive}({c.frame or ''})"

@@ -21,7 +21,7 @@ from functools import lru_cache
 import numpy as np
 from scipy.spatial import ConvexHull, HalfspaceIntersection, QhullError
 
-from vfdsl.check.linearized import describe, subject, where
+from vfdsl.check.linearized import describe, subject, value_of, where
 from vfdsl.check.report import Bound, Finding, Severity, quantity
 from vfdsl.compiler.geometry import polygon_angles, sphere_directions
 from vfdsl.ir import model as ir
@@ -125,9 +125,7 @@ def stated_size(c: ir.Constraint, task: ir.Task) -> tuple[str, float] | None:
     """(kind, SI value) of what the constraint bounds: its tolerance, or its distance or speed argument."""
     if c.primitive in _STATED_BY_ARG:
         kind, name = _STATED_BY_ARG[c.primitive]
-        arg = c.args[name]
-        value = arg.value if isinstance(arg, ir.Const) else task.param(arg.name).value
-        return kind, float(value.value)
+        return kind, float(value_of(c.args[name], task).value)
     if c.tolerance is None:
         return None
     return CONSTRAINTS[c.primitive].tolerance, float(c.tolerance)

@@ -36,6 +36,7 @@ CODES: dict[str, str] = {
     "kinematics-near-singular": "VF601",
     "frame-fixed": "VF602",
     "start-near-limit": "VF603",
+    "sampled-summary": "VF700",
     "sampled-infeasible": "VF701",
     "sampled-ill-conditioned": "VF702",
     "unused-declaration": "VF801",
