@@ -440,3 +440,35 @@ def test_sampling_reports_ill_conditioned_states(tmp_path):
     [finding] = codes(probe(tmp_path, text), samples=20)["sampled-ill-conditioned"]
     assert finding.data["worst_conditioning"] == pytest.approx(0, abs=1e-12)
     assert "sampled-ill-conditioned" not in codes(probe(tmp_path), samples=20)
+
+
+# ------------------------------------------------------------------------------------------ hygiene
+
+def test_unused_declarations(tmp_path):
+    text = PROBE.replace("input f : force", "input f : force\ninput spare : torque\nparam p2 : point = [0, 0, 0]")
+    found = codes(probe(tmp_path, text))["unused-declaration"]
+    assert {(f.data["kind"], f.data["name"], f.span.line) for f in found} == {("input", "spare", 6),
+                                                                            ("param", "p2", 7)}
+    assert "unused-declaration" not in codes(probe(tmp_path))
+
+
+def test_a_looser_bound_on_the_same_point_is_redundant(tmp_path):
+    text = PROBE + "require tip within_distance(target, 1 mm) resolution 8x8\n"
+    [finding] = codes(probe(tmp_path, text))["redundant-constraint"]
+    assert finding.span.line == 12 and "stays_at(tip)" in finding.message
+    # a tighter one is not: the 8x8 polytope of 30 um (circumradius 34.8 um) lies inside the 12x12 one of
+    # 50 um (inradius 50 um), so it is the stays_at that becomes redundant
+    tight = PROBE + "require tip within_distance(target, 0.03 mm) resolution 8x8\n"
+    [finding] = codes(probe(tmp_path, tight))["redundant-constraint"]
+    assert finding.span.line == 9 and "within_distance(tip)" in finding.message
+    assert "redundant-constraint" not in codes(probe(tmp_path))
+
+
+def test_two_points_farther_apart_than_their_tolerances_contradict(tmp_path):
+    text = PROBE + "require tip stays_at([0, 0, 290.2]) within 0.05 resolution 12x12\n"
+    [finding] = codes(probe(tmp_path, text))["contradictory-tolerances"]
+    assert finding.severity == Severity.ERROR and finding.span.line == 9 and ":12" in finding.data["other"]
+    # independent: the two cubes-like polytopes (facet distance 50 um) around points 200 um apart along z
+    # miss each other by 200 - 2 x 50 um along the z facets: half of that is the uniform violation
+    assert finding.data["miss"] == pytest.approx((0.2e-3 - 2 * 0.05e-3) / 2, rel=1e-6)
+    assert "contradictory-tolerances" not in codes(probe(tmp_path, text.replace("290.2", "290.05")))

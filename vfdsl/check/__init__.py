@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import time
 
-from vfdsl.check import feasibility, handsoff, kinematics, polytope, residuals, sampling, tolerance
+from vfdsl.check import feasibility, handsoff, hygiene, kinematics, polytope, residuals, sampling, tolerance
 from vfdsl.check.linearized import Linearization
 from vfdsl.check.report import Finding, Report, Severity
 from vfdsl.ir import model as ir
@@ -38,6 +38,7 @@ def check(task: ir.Task, *, overshoot: float = DEFAULT_OVERSHOOT, samples: int =
     report.bounds = polytope.bounds_table(task)
     report.add(polytope.analyse(task, overshoot))
     report.add(tolerance.analyse_values(task))
+    report.add(hygiene.unused(task))
     if task.start is None:
         report.add([Finding("no-start", Severity.WARNING,
                             "the scene gives no start configuration: feasibility, residuals, kinematics, "
@@ -56,6 +57,8 @@ def check(task: ir.Task, *, overshoot: float = DEFAULT_OVERSHOOT, samples: int =
     report.add(tolerance.analyse_at_start(rows, robot.resolution, robot.nq, linear.period))
     report.add(feasibility.analyse(rows, robot.nq, report.figures))
     report.add(residuals.analyse(task, linear, rows, task.start))
+    report.add(hygiene.redundant(rows, robot.nq))
+    report.add(hygiene.contradictory(rows, robot.nq))
     report.add(kinematics.analyse(robot, task, task.start, report.figures))
     report.add(handsoff.analyse(controller, task, linear, report.figures))
     if samples > 0:
