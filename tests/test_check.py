@@ -472,3 +472,15 @@ def test_two_points_farther_apart_than_their_tolerances_contradict(tmp_path):
     # miss each other by 200 - 2 x 50 um along the z facets: half of that is the uniform violation
     assert finding.data["miss"] == pytest.approx((0.2e-3 - 2 * 0.05e-3) / 2, rel=1e-6)
     assert "contradictory-tolerances" not in codes(probe(tmp_path, text.replace("290.2", "290.05")))
+
+
+# ------------------------------------------------------------------------------------------ the examples
+
+@pytest.mark.parametrize("path", sorted(TASKS_DIR.glob("*.vf")), ids=lambda p: p.stem)
+def test_every_example_task_is_sound_and_explains_its_warnings(path):
+    report = check(vfdsl.load(path), backend="interpreted")
+    assert report.exit_status() == 0, report.render_text()
+    text = path.read_text()
+    for finding in report.findings:
+        if finding.severity == Severity.WARNING:
+            assert finding.code in text, f"{path.name} does not say why {finding.code} stands"
