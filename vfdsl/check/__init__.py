@@ -35,10 +35,19 @@ def check(task: ir.Task, *, overshoot: float = DEFAULT_OVERSHOOT, samples: int =
 
     started = time.perf_counter()
     report = Report(task.name, task.file)
+    timings = report.figures.setdefault("timings", {})
+
+    def run(stage: str, analysis, *args):
+        """One analysis, its findings added to the report and its time to figures.timings."""
+        begin = time.perf_counter()
+        findings = analysis(*args)
+        timings[stage] = timings.get(stage, 0.0) + time.perf_counter() - begin
+        report.add(findings)
+
     report.bounds = polytope.bounds_table(task)
-    report.add(polytope.analyse(task, overshoot))
-    report.add(tolerance.analyse_values(task))
-    report.add(hygiene.unused(task))
+    run("polytope", polytope.analyse, task, overshoot)
+    run("tolerance", tolerance.analyse_values, task)
+    run("hygiene", hygiene.unused, task)
     if task.start is None:
         report.add([Finding("no-start", Severity.WARNING,
                             "the scene gives no start configuration: feasibility, residuals, kinematics, "
@@ -50,18 +59,20 @@ def check(task: ir.Task, *, overshoot: float = DEFAULT_OVERSHOOT, samples: int =
         report.add([Finding("no-period", Severity.WARNING,
                             "the scene gives no control period: the checks assume 10 ms", task.span,
                             "add `period:` to the task's scene file", "task")])
+    begin = time.perf_counter()
     controller = compile_task(task, backend=backend)
     linear = Linearization(task, controller.assembled.context)
     robot = linear.robot
     rows = linear.rows(task.start)
-    report.add(tolerance.analyse_at_start(rows, robot.resolution, robot.nq, linear.period))
-    report.add(feasibility.analyse(rows, robot.nq, report.figures))
-    report.add(residuals.analyse(task, linear, rows, task.start))
-    report.add(hygiene.redundant(rows, robot.nq))
-    report.add(hygiene.contradictory(rows, robot.nq))
-    report.add(kinematics.analyse(robot, task, task.start, report.figures))
-    report.add(handsoff.analyse(controller, task, linear, report.figures))
+    timings["compile"] = time.perf_counter() - begin
+    run("tolerance", tolerance.analyse_at_start, rows, robot.resolution, robot.nq, linear.period)
+    run("feasibility", feasibility.analyse, rows, robot.nq, report.figures)
+    run("residuals", residuals.analyse, task, linear, rows, task.start)
+    run("hygiene", hygiene.redundant, rows, robot.nq)
+    run("hygiene", hygiene.contradictory, rows, robot.nq)
+    run("kinematics", kinematics.analyse, robot, task, task.start, report.figures)
+    run("handsoff", handsoff.analyse, controller, task, linear, report.figures)
     if samples > 0:
-        report.add(sampling.analyse(controller, task, linear, samples, seed, report.figures))
+        run("sampling", sampling.analyse, controller, task, linear, samples, seed, report.figures)
     report.figures["seconds"] = time.perf_counter() - started
     return report
