@@ -484,3 +484,37 @@ def test_every_example_task_is_sound_and_explains_its_warnings(path):
     for finding in report.findings:
         if finding.severity == Severity.WARNING:
             assert finding.code in text, f"{path.name} does not say why {finding.code} stands"
+
+
+# ------------------------------------------------------------------------------------------ scene gaps, report
+
+def test_no_start_skips_the_analyses_at_the_start(tmp_path):
+    found = codes(probe(tmp_path, scene="units: mm, deg\nperiod: 10 ms\n"))
+    assert found["no-start"][0].severity == Severity.WARNING
+    assert "sampled-summary" not in found and "no-start" not in codes(probe(tmp_path))
+
+
+def test_no_period_assumes_10_ms(tmp_path):
+    scene = SCENE.replace("period: 10 ms\n", "")
+    assert "10 ms" in codes(probe(tmp_path, scene=scene))["no-period"][0].message
+    assert "no-period" not in codes(probe(tmp_path))
+
+
+def test_sampled_summary_only_when_sampling(tmp_path):
+    task = probe(tmp_path)
+    [summary] = codes(task)["sampled-summary"]
+    assert summary.severity == Severity.NOTE and summary.data["samples"] == 20
+    assert "sampled-summary" not in codes(task, samples=0)
+
+
+def test_json_report_has_the_documented_fields(tmp_path):
+    data = check(probe(tmp_path), backend="interpreted", samples=10).to_json()
+    assert set(data) == {"schema", "task", "file", "sound", "exit_status", "counts", "findings", "bounds", "figures"}
+    assert set(data["counts"]) == {"error", "warning", "note"}
+    for finding in data["findings"]:
+        assert set(finding) == {"code", "name", "severity", "message", "suggestion", "subject", "location", "data"}
+        assert CODES[finding["name"]] == finding["code"]
+    assert set(data["bounds"][0]) == {"subject", "where", "kind", "stated", "resolution", "facets", "worst"}
+    json.dumps(data, allow_nan=False)                      # no inf or NaN
+    documented = (Path(__file__).resolve().parent.parent / "docs" / "check.md").read_text()
+    assert all(f"| {code} | {name} |" in documented for name, code in CODES.items())

@@ -33,13 +33,14 @@ def zero_inputs(task: ir.Task) -> dict[str, np.ndarray]:
     return {d.name: np.zeros(d.size) for d in task.inputs}
 
 
-def run(controller, task: ir.Task, q0, ticks: int, inputs=None, statuses: list | None = None) -> np.ndarray:
-    """Joint coordinates of a closed loop of ``ticks`` steps (row 0 is q0) under ``inputs(t)`` (default
-    zero); each step's status is appended to ``statuses`` when given."""
+def run(controller, task: ir.Task, q0, ticks: int, dt: float, inputs=None, statuses: list | None = None
+        ) -> np.ndarray:
+    """Joint coordinates of a closed loop of ``ticks`` steps of ``dt`` (row 0 is q0) under ``inputs(t)``
+    (default zero); each step's status is appended to ``statuses`` when given."""
     q = np.array(q0, dtype=float)
     trajectory = [q.copy()]
     for t in range(ticks):
-        q = q + controller.step(q, zero_inputs(task) if inputs is None else inputs(t))
+        q = q + controller.step(q, zero_inputs(task) if inputs is None else inputs(t), dt=dt)
         trajectory.append(q.copy())
         if statuses is not None:
             statuses.append(controller.status)
@@ -50,7 +51,7 @@ def analyse(controller, task: ir.Task, linear: Linearization, figures: dict) -> 
     robot = linear.robot
     period = linear.period
     ticks = max(MIN_TICKS, math.ceil(HANDS_OFF_SECONDS / period))
-    trajectory = run(controller, task, task.start, ticks)
+    trajectory = run(controller, task, task.start, ticks, period)
     dq_total = trajectory[-1] - trajectory[0]
     findings, drift = [], {}
     for frame in task.frames:

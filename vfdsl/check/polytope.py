@@ -58,11 +58,8 @@ def directions(shape: str, resolution: tuple[int, ...]) -> np.ndarray:
     """Unit facet directions: rows in 3-D for the sphere polytope, in the polygon's own plane for a polygon."""
     if shape == "sphere":
         return sphere_directions(*resolution)
-    angles = polygon_angles(resolution[0])
-    U = np.column_stack([np.cos(angles), np.sin(angles)])
-    keys = np.round(U, 9) + 0.0
-    _, first = np.unique(keys, axis=0, return_index=True)
-    return U[np.sort(first)]
+    angles = polygon_angles(resolution[0])          # n distinct angles: no repeated directions
+    return np.column_stack([np.cos(angles), np.sin(angles)])
 
 
 def positively_spanning(U: np.ndarray) -> bool:

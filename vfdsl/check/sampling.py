@@ -70,11 +70,7 @@ def analyse(controller, task: ir.Task, linear: Linearization, samples: int, seed
     robot = linear.robot
     inputs = random_inputs(task, samples, seed)
     statuses = []
-
-    def step_input(t):
-        return inputs[t]
-
-    trajectory = run(controller, task, task.start, samples, step_input, statuses)
+    trajectory = run(controller, task, task.start, samples, linear.period, inputs.__getitem__, statuses)
     margins, conditioning = [], []
     for q in trajectory[1:]:
         margins.append(feasibility.margin(linear.rows(q), robot.nq))
