@@ -518,3 +518,11 @@ def test_json_report_has_the_documented_fields(tmp_path):
     json.dumps(data, allow_nan=False)                      # no inf or NaN
     documented = (Path(__file__).resolve().parent.parent / "docs" / "check.md").read_text()
     assert all(f"| {code} | {name} |" in documented for name, code in CODES.items())
+
+
+def test_start_outside_the_limits_is_an_error(tmp_path):
+    task = probe(tmp_path)
+    outside = task.model_copy(update={"scene": task.scene.model_copy(update={"start": [0.07, 0, 0, 0, 0, 0, 0.01]})})
+    [finding] = codes(outside, samples=0)["start-outside-limits"]
+    assert finding.severity == Severity.ERROR and finding.data["joint"] == "x"
+    assert "start-outside-limits" not in codes(task)

@@ -9,7 +9,8 @@ small correction in one direction needs a large joint motion. The joints' column
 m/rad (revolute), so the ratio compares motions per SI unit of each joint.
 
 Joints that start within EDGE of their range from a limit are reported (VF603, warning): the first
-ticks can only move them one way.
+ticks can only move them one way; outside the limits (a task built in Python; the front end refuses it
+in a scene file) is VF604 (error).
 """
 
 from __future__ import annotations
@@ -103,7 +104,12 @@ def analyse(robot: Robot, task: ir.Task, q, figures: dict) -> list[Finding]:
         if not (np.isfinite(lo) and np.isfinite(hi)):
             continue
         edge = EDGE * (hi - lo)
-        if value - lo < edge or hi - value < edge:
+        if not lo <= value <= hi:
+            findings.append(Finding(
+                "start-outside-limits", Severity.ERROR,
+                f"joint {name} starts at {value:.6g}, outside its limits [{lo:.6g}, {hi:.6g}] (SI units)", span,
+                "start within the joint limits", "task", {"joint": name, "value": float(value)}))
+        elif value - lo < edge or hi - value < edge:
             limit = lo if value - lo < edge else hi
             findings.append(Finding(
                 "start-near-limit", Severity.WARNING,

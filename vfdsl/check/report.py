@@ -36,6 +36,7 @@ CODES: dict[str, str] = {
     "kinematics-near-singular": "VF601",
     "frame-fixed": "VF602",
     "start-near-limit": "VF603",
+    "start-outside-limits": "VF604",
     "sampled-summary": "VF700",
     "sampled-infeasible": "VF701",
     "sampled-ill-conditioned": "VF702",
@@ -148,6 +149,11 @@ class Report:
             out.append("guaranteed bounds (the worst error each constraint's rows admit)")
             out.extend(_bounds_table(self.bounds))
             out.append("")
+        measured = _measured(self.figures)
+        if measured:
+            out.append("measured")
+            out.extend(measured)
+            out.append("")
         out.append(self.verdict(strict))
         return "\n".join(out)
 
@@ -170,6 +176,24 @@ def _bounds_table(bounds: list[Bound]) -> list[str]:
                      quantity(b.worst, b.kind) + ratio))
     widths = [max(len(r[i]) for r in rows) for i in range(len(header))]
     return ["  " + "  ".join(cell.ljust(w) for cell, w in zip(r, widths)).rstrip() for r in rows]
+
+
+def _measured(figures: dict) -> list[str]:
+    """The figures a reader wants next to the findings: margin at the start, each frame's Jacobian and
+    hands-off motion, the time the check took."""
+    lines = []
+    if "start_margin" in figures:
+        lines.append(f"  feasibility margin at the start: {figures['start_margin']:.3g} (m or rad)")
+    for name, f in figures.get("frames", {}).items():
+        lines.append(f"  frame {name}: Jacobian rank {f['rank']}, smallest singular value {f['sigma_min_v']:.3g} "
+                     f"(J_v, ratio {f['conditioning_v']:.3g}), {f['sigma_min_w']:.3g} (J_w, ratio "
+                     f"{f['conditioning_w']:.3g})")
+    for name, f in figures.get("hands_off", {}).items():
+        lines.append(f"  hands off, frame {name}: moves {quantity(f['moved'], 'length')}, turns "
+                     f"{quantity(f['turned'], 'angle')}")
+    if "seconds" in figures:
+        lines.append(f"  checked in {figures['seconds']:.2f} s")
+    return lines
 
 
 def quantity(value: float, kind: str) -> str:
