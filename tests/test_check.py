@@ -439,6 +439,7 @@ def test_sampling_reports_ill_conditioned_states(tmp_path):
     text += "require stage keeps_direction([0, 0, 1]) within 1 deg\n"
     [finding] = codes(probe(tmp_path, text), samples=20)["sampled-ill-conditioned"]
     assert finding.data["worst_conditioning"] == pytest.approx(0, abs=1e-12)
+    assert finding.data["worst_conditioning_where"] == "stage.w" and finding.span.line == 5
     assert "sampled-ill-conditioned" not in codes(probe(tmp_path), samples=20)
 
 
@@ -526,3 +527,11 @@ def test_start_outside_the_limits_is_an_error(tmp_path):
     [finding] = codes(outside, samples=0)["start-outside-limits"]
     assert finding.severity == Severity.ERROR and finding.data["joint"] == "x"
     assert "start-outside-limits" not in codes(task)
+
+
+def test_check_help_teaches():
+    proc = vfdsl_cli("check", "--help")
+    assert proc.returncode == 0
+    for text in ("--scene", "--json", "--strict", "--overshoot", "(default: 10%)", "--samples", "exit status",
+                 "docs/check.md"):
+        assert text in proc.stdout

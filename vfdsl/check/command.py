@@ -7,6 +7,7 @@ import json
 import sys
 from pathlib import Path
 
+from vfdsl.check import DEFAULT_OVERSHOOT
 from vfdsl.check.sampling import DEFAULT_SAMPLES
 from vfdsl.errors import VfError
 
@@ -39,9 +40,9 @@ def register(commands: argparse._SubParsersAction) -> None:
     parser.add_argument("--scene", metavar="S.yaml", help="use this scene file instead of the task's own")
     parser.add_argument("--json", action="store_true", help="print the report as JSON (see docs/check.md)")
     parser.add_argument("--strict", action="store_true", help="exit with status 1 on warnings too")
-    parser.add_argument("--overshoot", metavar="PCT", default="10%", type=_fraction,
+    parser.add_argument("--overshoot", metavar="PCT", default=DEFAULT_OVERSHOOT, type=_fraction,
                         help="largest accepted excess of a polytope's worst error over its tolerance "
-                             "(default: 10%%)")
+                             f"(default: {DEFAULT_OVERSHOOT * 100:.0f}%%)")
     parser.add_argument("--samples", metavar="N", type=_count, default=DEFAULT_SAMPLES,
                         help=f"states of the random walk under random input to check (default: {DEFAULT_SAMPLES}; "
                              "0 skips it)")

@@ -110,7 +110,8 @@ def analyse(controller, task: ir.Task, linear: Linearization, samples: int, seed
             "sampled-ill-conditioned", Severity.WARNING,
             f"after {worst_conditioned + 1} ticks of random input {conditioning[worst_conditioned][1]} has a "
             f"singular value ratio of {conditioning[worst_conditioned][0]:.3g} at q = "
-            f"{_q_text(robot, trajectory[worst_conditioned + 1])}: near a singularity", None,
+            f"{_q_text(robot, trajectory[worst_conditioned + 1])}: near a singularity",
+            task.frame(conditioning[worst_conditioned][1].split(".")[0]).span,
             "constrain the motion away from it (joint limits, a cone) or accept slow corrections there",
             "sampled states", summary))
     return findings
