@@ -535,3 +535,26 @@ def test_check_help_teaches():
     for text in ("--scene", "--json", "--strict", "--overshoot", "(default: 10%)", "--samples", "exit status",
                  "docs/check.md"):
         assert text in proc.stdout
+
+
+def test_the_conflicting_set_is_irreducible(tmp_path):
+    """Remove any one member of the subset and the rest hold: the LP's motion satisfies every row and
+    bound (checked here with numpy); with all of them the margin is negative."""
+    from vfdsl.check.feasibility import irreducible_infeasible_subset
+    from vfdsl.check.linearized import Linearization
+    from vfdsl.check.lp import LinearSystem
+
+    far = PROBE.replace("[0, 0, 290]", "[0, 0, 280]") + "require tip keeps_direction([0, 0, 1]) within 1 deg\n"
+    task = probe(tmp_path, far)
+    ctrl = vfdsl.compile(task, backend="interpreted")
+    rows = Linearization(task, ctrl.assembled.context).rows(task.start)
+    conflict = irreducible_infeasible_subset(rows, ctrl.nq)
+    assert [r.constraint.primitive for r in conflict] == ["stays_at", "joint_speed"]
+    assert LinearSystem.from_rows(conflict, ctrl.nq).margin()[0] < 0
+    for member in conflict:
+        system = LinearSystem.from_rows([r for r in conflict if r is not member], ctrl.nq)
+        t, dq = system.margin()
+        assert t >= 0
+        Adq = system.A @ dq
+        assert np.all(Adq >= system.lb - 1e-12) and np.all(Adq <= system.ub + 1e-12)
+        assert np.all(dq >= system.lo - 1e-12) and np.all(dq <= system.hi + 1e-12)
