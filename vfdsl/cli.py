@@ -15,6 +15,7 @@ import time
 import yaml
 
 import vfdsl
+from vfdsl.check import command as check_command
 from vfdsl.errors import VfError
 
 EXIT_USER_ERROR = 2
@@ -28,6 +29,7 @@ A task file names a robot, task frames on it, the user's inputs, reference param
 _EPILOG = """\
 a first session:
   vfdsl show tasks/paper_b_virtual_rcm.vf        check a task and see what the compiler will see
+  vfdsl check tasks/paper_b_virtual_rcm.vf       prove the fixture sound before it touches a robot
   vfdsl compile tasks/paper_b_virtual_rcm.vf     generate and build its controller
   python -c "import vfdsl; t = vfdsl.load('tasks/paper_b_virtual_rcm.vf'); \\
              print(vfdsl.compile(t).step(t.start, {'tau': [0, 0, 0.01]}))"
@@ -111,6 +113,7 @@ def _parser() -> argparse.ArgumentParser:
     build.add_argument("-o", "--output", metavar="DIR",
                        help="where to put the build (default: $VFDSL_CACHE or ~/.cache/vfdsl)")
     build.set_defaults(run=_compile)
+    check_command.register(commands)
     return parser
 
 

@@ -65,9 +65,10 @@ class VfError(Exception):
     def column(self) -> int | None:
         return self.pos.column if self.pos else None
 
-    def render(self) -> str:
-        """The diagnostic as a user reads it: location, message, source line with caret, hint."""
-        head = f"{self.pos}: error: {self.message}" if self.pos else f"error: {self.message}"
+    def render(self, severity: str = "error") -> str:
+        """The diagnostic as a user reads it: location, message, source line with caret, hint.
+        ``severity`` names its kind in the head line (``vfdsl check`` also prints warnings and notes)."""
+        head = f"{self.pos}: {severity}: {self.message}" if self.pos else f"{severity}: {self.message}"
         lines = [head]
         src_line = self._source_line()
         if src_line is not None and self.pos is not None:

@@ -1,0 +1,78 @@
+"""``vfdsl check``: prove a fixture is sound before it touches a robot.
+
+    report = vfdsl.check(vfdsl.load("tasks/paper_b_virtual_rcm.vf"))
+    print(report.render_text()); report.exit_status()      # 0 sound, 1 an error
+
+Analyses, one module each: the polytopes behind the rows (:mod:`.polytope`), the tolerances
+(:mod:`.tolerance`), feasibility at the start with an irreducible infeasible subset (:mod:`.feasibility`),
+each constraint's error at the start (:mod:`.residuals`), the frames' kinematics (:mod:`.kinematics`),
+the closed loop with the hands off (:mod:`.handsoff`), configurations the fixture reaches under random
+input (:mod:`.sampling`), and declarations or constraints that do nothing or contradict (:mod:`.hygiene`).
+Findings and their rendering: :mod:`.report`; docs/check.md explains every code.
+"""
+
+from __future__ import annotations
+
+import time
+
+from vfdsl.check import feasibility, handsoff, hygiene, kinematics, polytope, residuals, sampling, tolerance
+from vfdsl.check.linearized import Linearization
+from vfdsl.check.report import Finding, Report, Severity
+from vfdsl.ir import model as ir
+
+DEFAULT_OVERSHOOT = 0.10
+
+__all__ = ["DEFAULT_OVERSHOOT", "Finding", "Report", "Severity", "check"]
+
+
+def check(task: ir.Task, *, overshoot: float = DEFAULT_OVERSHOOT, samples: int = sampling.DEFAULT_SAMPLES,
+          seed: int = 0, backend: str = "auto") -> Report:
+    """Every analysis of ``task``. ``overshoot``: the largest accepted excess of a polytope's worst error
+    over its tolerance (0.10 = 10%); ``samples``, ``seed``: the random walk of the sampled analysis (0
+    samples skips it); ``backend``: how the closed-loop analyses run the controller (see
+    :func:`vfdsl.compile`)."""
+    from vfdsl.pipeline import compile as compile_task
+
+    started = time.perf_counter()
+    report = Report(task.name, task.file)
+    timings = report.figures.setdefault("timings", {})
+
+    def run(stage: str, analysis, *args):
+        """One analysis, its findings added to the report and its time to figures.timings."""
+        begin = time.perf_counter()
+        findings = analysis(*args)
+        timings[stage] = timings.get(stage, 0.0) + time.perf_counter() - begin
+        report.add(findings)
+
+    report.bounds = polytope.bounds_table(task)
+    run("polytope", polytope.analyse, task, overshoot)
+    run("tolerance", tolerance.analyse_values, task)
+    run("hygiene", hygiene.unused, task)
+    if task.start is None:
+        report.add([Finding("no-start", Severity.WARNING,
+                            "the scene gives no start configuration: feasibility, residuals, kinematics, "
+                            "hands-off and sampled checks are skipped", task.span,
+                            "add `start:` to the task's scene file", "task")])
+        report.figures["seconds"] = time.perf_counter() - started
+        return report
+    if task.scene.period is None:
+        report.add([Finding("no-period", Severity.WARNING,
+                            "the scene gives no control period: the checks assume 10 ms", task.span,
+                            "add `period:` to the task's scene file", "task")])
+    begin = time.perf_counter()
+    controller = compile_task(task, backend=backend)
+    linear = Linearization(task, controller.assembled.context)
+    robot = linear.robot
+    rows = linear.rows(task.start)
+    timings["compile"] = time.perf_counter() - begin
+    run("tolerance", tolerance.analyse_at_start, rows, robot.resolution, robot.nq, linear.period)
+    run("feasibility", feasibility.analyse, rows, robot.nq, report.figures)
+    run("residuals", residuals.analyse, task, linear, rows, task.start)
+    run("hygiene", hygiene.redundant, rows, robot.nq)
+    run("hygiene", hygiene.contradictory, rows, robot.nq)
+    run("kinematics", kinematics.analyse, robot, task, task.start, report.figures)
+    run("handsoff", handsoff.analyse, controller, task, linear, report.figures)
+    if samples > 0:
+        run("sampling", sampling.analyse, controller, task, linear, samples, seed, report.figures)
+    report.figures["seconds"] = time.perf_counter() - started
+    return report

@@ -1,0 +1,97 @@
+"""Hygiene: declarations nothing uses, constraints that add nothing, and pairs that can never both hold.
+
+- **Unused declarations** (VF801): a frame, input or param that no constraint, objective or used param
+  (through ``in``) refers to.
+- **Redundant constraints** (VF802): at the start, constraint c is implied by the other hard geometric
+  constraints and the joint limits when every row a_i dq >= lb_i of c holds at the minimum of a_i dq over
+  the others' rows (an LP per row, HiGHS). Rate limits (joint and frame speeds) are left out: within one
+  tick they make almost every bound look redundant. Later statements are tested first, so of two
+  duplicates the second is reported.
+- **Contradictory tolerances** (VF803): two hard geometric constraints whose rows alone, without any
+  joint limit or speed, have no common motion (their margin LP is negative): e.g. two points to stay at,
+  farther apart than the sum of their tolerances.
+"""
+
+from __future__ import annotations
+
+import itertools
+
+from vfdsl.check.linearized import ConstraintRows, describe, subject, where
+from vfdsl.check.lp import FEASIBLE, LinearSystem
+from vfdsl.check.report import Finding, Severity
+from vfdsl.check.tolerance import RATE_PRIMITIVES
+from vfdsl.ir import model as ir
+
+IMPLIED = 1e-10                  # a row is implied when the others keep it satisfied to this much (m or rad)
+
+
+def unused(task: ir.Task) -> list[Finding]:
+    frames, inputs, params = set(), set(), set()
+    for statement in [*task.constraints, *task.objectives]:
+        if isinstance(statement, ir.Constraint) and statement.frame:
+            frames.add(statement.frame)
+        for arg in statement.args.values():
+            if isinstance(arg, ir.FrameRef):
+                frames.add(arg.name)
+            elif isinstance(arg, ir.InputRef):
+                inputs.add(arg.name)
+            elif isinstance(arg, ir.ParamRef):
+                params.add(arg.name)
+    params |= {task.param(name).frame for name in params if task.param(name).frame}
+    findings = []
+    for kind, decls, used in (("frame", task.frames, frames), ("input", task.inputs, inputs),
+                              ("param", task.params, params)):
+        for decl in decls:
+            if decl.name not in used:
+                findings.append(Finding("unused-declaration", Severity.WARNING,
+                                        f"{kind} '{decl.name}' is declared but nothing uses it", decl.span,
+                                        "remove it, or use it in a constraint or objective", f"{kind} {decl.name}",
+                                        {"kind": kind, "name": decl.name}))
+    return findings
+
+
+def _geometric(rows: list[ConstraintRows]) -> list[ConstraintRows]:
+    return [r for r in rows if not r.constraint.soft and r.constraint.primitive not in RATE_PRIMITIVES]
+
+
+def redundant(rows: list[ConstraintRows], nq: int) -> list[Finding]:
+    kept = _geometric(rows)
+    findings = []
+    for r in reversed([r for r in kept if not r.bounds and len(r.A)]):
+        others = [o for o in kept if o is not r]
+        system = LinearSystem.from_rows(others, nq)
+        if not system.feasible() or not _implied(r, system):
+            continue
+        kept = others
+        names = ", ".join(f"{describe(o.constraint)} at {where(o.constraint)}" for o in others) or "the joint limits"
+        findings.append(Finding("redundant-constraint", Severity.WARNING,
+                                f"at the start every row of this constraint is implied by the others ({names}): "
+                                f"it adds nothing there", r.constraint.span,
+                                "remove it, or check its reference and tolerance", subject(r.constraint),
+                                {"implied_by": [where(o.constraint) for o in others]}))
+    return findings
+
+
+def _implied(r: ConstraintRows, others: LinearSystem) -> bool:
+    for a, lb, ub in zip(r.A, r.lb, r.ub):
+        if lb > -float("inf") and -others.reach(-a) < lb - IMPLIED:
+            return False
+        if ub < float("inf") and others.reach(a) > ub + IMPLIED:
+            return False
+    return True
+
+
+def contradictory(rows: list[ConstraintRows], nq: int) -> list[Finding]:
+    findings = []
+    candidates = [r for r in _geometric(rows) if not r.bounds and len(r.A)]
+    for a, b in itertools.combinations(candidates, 2):
+        t, _ = LinearSystem.from_rows([a, b], nq).margin()
+        if t >= FEASIBLE:
+            continue
+        findings.append(Finding(
+            "contradictory-tolerances", Severity.ERROR,
+            f"this constraint and {describe(b.constraint)} at {where(b.constraint)} cannot both hold at the start, "
+            f"whatever the joints do: their tolerances leave no common motion (they miss by {-t:.3g}, m or rad)",
+            a.constraint.span, "widen one of the tolerances, or fix one of the references", subject(a.constraint),
+            {"other": where(b.constraint), "miss": -t}))
+    return findings

@@ -1,0 +1,160 @@
+"""Residuals at the start: how far each hard constraint is from holding before anything moves.
+
+The rows measure the state at rest (dq = 0): a constraint's error is ``gauge = eps + max(lb, -ub)`` over
+its rows, i.e. max_i u_i . delta for a polytope (between cos(pi/n) ||delta|| and ||delta||), the signed
+depth for a plane. Direction constraints linearize with a cross product, whose length is sin(angle): a
+tool axis pointing exactly the *opposite* way shows no error at all in the rows (and the controller then
+drives it further off). For those the true angle is measured instead:
+
+- keeps_direction: angle(l_t, l_d);
+- cone: | angle(l_t, l_a) - gamma |;
+- rotates_around: | asin(l_t . w) |, the tool axis' angle out of the plane normal to w;
+
+and for stays_at and within_distance the distance || p - P || itself.
+
+A constraint whose error exceeds its tolerance is VF402 (warning); beyond FAR x the tolerance (or
+FAR_ABSOLUTE for exact rows without one) it is VF401 (error), with the likely cause: an opposite
+direction (angle near 180 deg), a wrong frame axis (near 90 deg), a wrong unit (the reference read in mm
+instead of m or the reverse, or an angle in rad instead of deg, would fit), else the start or the reference.
+"""
+
+from __future__ import annotations
+
+import math
+
+import casadi as ca
+import numpy as np
+
+from vfdsl.check.linearized import ConstraintRows, Linearization, subject
+from vfdsl.check.polytope import stated_size
+from vfdsl.check.report import Finding, Severity, quantity
+from vfdsl.compiler.context import Context
+from vfdsl.ir import model as ir
+
+FAR = 10.0                       # x the tolerance: "far outside"
+FAR_ABSOLUTE = 1e-4              # m or rad, for rows without a tolerance (a half-space)
+UNIT_FACTORS = (1e3, 1e-3)       # mm <-> m slips
+
+
+def _angle(a, b):
+    return ca.atan2(ca.norm_2(ca.cross(a, b)), ca.dot(a, b))
+
+
+def _keeps_direction(c, ctx):
+    return _angle(ctx.frame(c.frame).axis, ctx.direction(c.args["direction"]))
+
+
+def _cone(c, ctx):
+    return ca.fabs(_angle(ctx.frame(c.frame).axis, ctx.direction(c.args["axis"])) - ctx.scalar(c.args["angle"]))
+
+
+def _rotates_around(c, ctx):
+    return ca.fabs(ca.asin(ca.fmin(1, ca.fmax(-1, ca.dot(ctx.frame(c.frame).axis, ctx.direction(c.args["axis"]))))))
+
+
+TRUE_ANGLE = {"keeps_direction": _keeps_direction, "cone": _cone, "rotates_around": _rotates_around}
+REFERENCE_POINT = {"stays_at": "target", "within_distance": "center", "passes_through": "port"}
+DISTANCE_TO_REFERENCE = ("stays_at", "within_distance")      # their error is || p - P || itself
+
+
+class Residuals:
+    """Numeric true-angle errors and reference points of a task's constraints, at any q."""
+
+    def __init__(self, task: ir.Task, context: Context):
+        self.context = context
+        symbols = [context.q, context.p]
+        self._angles = {i: ca.Function("angle", symbols, [TRUE_ANGLE[c.primitive](c, context)])
+                        for i, c in enumerate(task.constraints) if c.primitive in TRUE_ANGLE}
+        self._axes = {i: ca.Function("axes", symbols, [context.frame(c.frame).axis,
+                                                        context.direction(c.args["axis"] if "axis" in c.args
+                                                                          else c.args["direction"])])
+                      for i, c in enumerate(task.constraints) if c.primitive in TRUE_ANGLE}
+        self._points = {i: ca.Function("point", symbols, [context.frame(c.frame).p,
+                                                         context.point(c.args[REFERENCE_POINT[c.primitive]])])
+                        for i, c in enumerate(task.constraints) if c.primitive in REFERENCE_POINT}
+
+    def true_angle(self, index: int, q, p) -> float | None:
+        f = self._angles.get(index)
+        return None if f is None else float(f(q, p))
+
+    def between_axes(self, index: int, q, p) -> float:
+        """The angle between the tool axis and the constraint's direction (or axis)."""
+        l_t, l_d = (np.array(v).ravel() for v in self._axes[index](q, p))
+        return math.atan2(np.linalg.norm(np.cross(l_t, l_d)), float(l_t @ l_d))
+
+    def frame_and_reference(self, index: int, q, p) -> tuple[np.ndarray, np.ndarray] | None:
+        f = self._points.get(index)
+        return None if f is None else tuple(np.array(v).ravel() for v in f(q, p))
+
+
+def analyse(task: ir.Task, linear: Linearization, rows: list[ConstraintRows], q) -> list[Finding]:
+    residuals = Residuals(task, linear.context)
+    p = linear.default_params
+    findings = []
+    for r in rows:
+        c = r.constraint
+        stated = stated_size(c, task)
+        if c.soft or r.bounds or not len(r.A) or (stated is not None and stated[0] not in ("length", "angle")):
+            continue
+        kind, limit = stated if stated is not None else (("angle" if c.primitive in TRUE_ANGLE else "length"), 0.0)
+        angle = residuals.true_angle(r.index, q, p)
+        error = angle if angle is not None else limit + r.violation_at_rest
+        if c.primitive in DISTANCE_TO_REFERENCE:
+            frame, reference = residuals.frame_and_reference(r.index, q, p)
+            error = float(np.linalg.norm(frame - reference))
+        if error <= limit * (1 + 1e-6) + 1e-12:
+            continue
+        far = error > (FAR * limit if limit > 0 else FAR_ABSOLUTE)
+        cause = _likely_cause(r.index, c, residuals, q, p, error) if far else None
+        what = f"{quantity(limit, kind)} tolerance" if limit > 0 else "boundary"
+        message = (f"at the start the error is {quantity(error, kind)}, "
+                   f"{error / limit:.3g} x its {what}" if limit > 0 else
+                   f"at the start the frame is {quantity(error, kind)} on the wrong side of its {what}")
+        if angle is not None:
+            message += f" (the rows, which measure sin of the angle, see {quantity(limit + r.violation_at_rest, kind)})"
+        data = {"error": error, "limit": limit, "rows_error": limit + r.violation_at_rest, "cause": cause}
+        if far:
+            findings.append(Finding("residual-far", Severity.ERROR, f"{message}; likely cause: {cause}", c.span,
+                                    "fix the direction, axis or unit named above, or the scene's start",
+                                    subject(c), data))
+        else:
+            findings.append(Finding("residual-outside", Severity.WARNING,
+                                    f"{message}; the first ticks pull it back", c.span,
+                                    "start inside the tolerance (the scene's start or the reference)",
+                                    subject(c), data))
+    return findings
+
+
+def _likely_cause(index: int, c: ir.Constraint, residuals: Residuals, q, p, error: float) -> str:
+    if c.primitive in TRUE_ANGLE:
+        theta = residuals.between_axes(index, q, p)
+        between = math.degrees(theta)
+        if c.primitive == "keeps_direction" and between > 150:
+            return (f"opposite direction: the tool axis points {between:.1f} deg away from the direction "
+                    f"(given the insertion direction instead of the tool axis?)")
+        if c.primitive == "cone":
+            gamma = _gamma(c, residuals, p)
+            if abs(theta - (math.pi - gamma)) < abs(theta - gamma):
+                return (f"opposite direction: the tool axis is {between:.1f} deg from the cone axis, "
+                        f"{math.degrees(math.pi - theta):.1f} deg from its opposite: the axis points the other way?")
+            if abs(theta - math.radians(gamma)) < 0.1 * error:
+                return f"wrong unit: the half-angle reads as {gamma:g} rad; was {gamma:g} deg meant?"
+        if 60 < between < 120:
+            return f"wrong frame axis: the tool axis is {between:.1f} deg from the direction (the frame's axis?)"
+        return f"the start configuration or the direction: the tool axis is {between:.1f} deg from it"
+    points = residuals.frame_and_reference(index, q, p)
+    if points is not None:
+        frame, reference = points
+        distance = np.linalg.norm(frame - reference)
+        for factor in UNIT_FACTORS:
+            if np.linalg.norm(frame - factor * reference) < 0.1 * distance:
+                unit = "m instead of mm" if factor > 1 else "mm instead of m"
+                return (f"wrong unit: the reference {np.round(reference * 1e3, 3).tolist()} mm is {distance * 1e3:.4g} mm "
+                        f"from the frame, but x{factor:g} it would fit (written in {unit}?)")
+        return (f"the start configuration or the reference: the frame is at {np.round(frame * 1e3, 3).tolist()} mm, "
+                f"the reference at {np.round(reference * 1e3, 3).tolist()} mm")
+    return "the start configuration or the reference"
+
+
+def _gamma(c: ir.Constraint, residuals: Residuals, p) -> float:
+    return float(ca.Function("gamma", [residuals.context.p], [residuals.context.scalar(c.args["angle"])])(p))
