@@ -27,6 +27,7 @@ A task file names a robot, task frames on it, the user's inputs, reference param
 
 _EPILOG = """\
 a first session:
+  vfdsl simulate tasks/paper_b_virtual_rcm.vf    run paper experiment B on a simulated robot and hand
   vfdsl show tasks/paper_b_virtual_rcm.vf        check a task and see what the compiler will see
   vfdsl compile tasks/paper_b_virtual_rcm.vf     generate and build its controller
   python -c "import vfdsl; t = vfdsl.load('tasks/paper_b_virtual_rcm.vf'); \\
@@ -111,6 +112,9 @@ def _parser() -> argparse.ArgumentParser:
     build.add_argument("-o", "--output", metavar="DIR",
                        help="where to put the build (default: $VFDSL_CACHE or ~/.cache/vfdsl)")
     build.set_defaults(run=_compile)
+
+    from vfdsl.sim.command import add_parser as add_simulate
+    add_simulate(commands)
     return parser
 
 

@@ -46,12 +46,7 @@ def load_scene(path: Path, task_units: DefaultUnits, pos: SourcePos | None) -> S
                       hint="write it, or point the task at another file with `scene \"file.yaml\"`") from None
     except (OSError, UnicodeDecodeError) as exc:
         raise VfError(f"cannot read scene file {path}: {exc}", pos) from None
-    try:
-        root = yaml.compose(text)
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        where = SourcePos(str(path), mark.line + 1, mark.column + 1) if mark else SourcePos(str(path), 1, 1)
-        raise VfError(f"malformed YAML: {getattr(exc, 'problem', exc)}", where, source_text=text) from None
+    root = compose(text, path)
     file = str(path)
     if root is None:
         return SceneData(path, task_units, None, None, None, {})
@@ -78,6 +73,16 @@ def load_scene(path: Path, task_units: DefaultUnits, pos: SourcePos | None) -> S
             raise VfError("'params' is a mapping from param names to values", _pos(node, file))
         params = {k: (_value(v, file), _span(kn, file)) for k, (kn, v) in _mapping(node, file).items()}
     return SceneData(path, units, period, start, start_span, params)
+
+
+def compose(text: str, path: Path) -> yaml.Node | None:
+    """The YAML node tree of a file's text (positions kept); VfError at the line of a YAML mistake."""
+    try:
+        return yaml.compose(text)
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        where = SourcePos(str(path), mark.line + 1, mark.column + 1) if mark else SourcePos(str(path), 1, 1)
+        raise VfError(f"malformed YAML: {getattr(exc, 'problem', exc)}", where, source_text=text) from None
 
 
 def _mapping(node: yaml.MappingNode, file: str) -> dict[str, tuple[yaml.Node, yaml.Node]]:

@@ -1,0 +1,91 @@
+"""The simulated robot: Pinocchio's numeric kinematics of the task's URDF, with the imperfections the paper
+blames for its errors. Each is a setting, all off by default:
+
+- command latency L: the joint target computed at tick t reaches the servos at t + L;
+- joint resolution: targets and encoder readings are multiples of the URDF sidecar's per-joint
+  resolution (SHR: 10 um on the stage);
+- first-order servo lag T: between events each joint follows its target as
+  q(t + h) = target + (q(t) - target) exp(-h / T) (T = 0: the joint is at its target on arrival);
+- an external push on the tool: the joints move by the least-squares displacement J_v^+ dx that moves a
+  task frame's origin by dx.
+
+The controller commands q_target = q_read + dq, the position it asked for; the robot is purely kinematic
+(stiff, as the SHR), so between commands only the servo lag moves it.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from vfdsl.ir import model as ir
+from vfdsl.kinematics.robot import Robot
+
+_EARLY = 1e-12                       # seconds: an arrival this close to a tick counts as before it
+
+
+def frame_offset(frame: ir.FrameDecl) -> np.ndarray:
+    """The 4x4 transform of a task frame in its link frame."""
+    T = np.eye(4)
+    T[:3, :3] = Rotation.from_euler("xyz", frame.rpy).as_matrix()
+    T[:3, 3] = frame.offset
+    return T
+
+
+class SimRobot:
+    """True joint positions, the commands in flight, and the servos that follow them."""
+
+    def __init__(self, robot: Robot, q0: np.ndarray, latency: float = 0.0, servo_lag: float = 0.0,
+                 resolution: np.ndarray | None = None):
+        self.robot = robot
+        self.latency = latency
+        self.servo_lag = servo_lag
+        self.resolution = resolution
+        self.q = self.quantize(np.array(q0, dtype=float))
+        self.target = self.q.copy()
+        self._in_flight: deque[tuple[float, np.ndarray]] = deque()
+
+    def quantize(self, q: np.ndarray) -> np.ndarray:
+        """The nearest position the joints can hold (and the encoders can read)."""
+        if self.resolution is None:
+            return q
+        return np.round(q / self.resolution) * self.resolution
+
+    def read(self) -> np.ndarray:
+        """The encoders: the joint positions, to the joints' resolution."""
+        return self.quantize(self.q)
+
+    def command(self, t: float, target: np.ndarray) -> None:
+        """Send a joint target at time t; it arrives after the latency."""
+        target = self.quantize(target)
+        if self.latency == 0.0 and self.servo_lag == 0.0:
+            self.q = self.target = target
+        else:
+            self._in_flight.append((t + self.latency, target))
+
+    def advance(self, t0: float, t1: float) -> None:
+        """Move the joints from time t0 to t1: commands arrive, the servos follow."""
+        t = t0
+        while self._in_flight and self._in_flight[0][0] <= t1 + _EARLY:
+            arrival, target = self._in_flight.popleft()
+            self._follow(max(arrival, t) - t)
+            t = max(arrival, t)
+            self.target = target
+            if self.servo_lag == 0.0:
+                self.q = target.copy()
+        self._follow(t1 - t)
+
+    def _follow(self, h: float) -> None:
+        if self.servo_lag > 0.0 and h > 0.0:
+            self.q = self.target + (self.q - self.target) * math.exp(-h / self.servo_lag)
+
+    def push(self, frame: ir.FrameDecl, displacement) -> None:
+        """An external push that moves the frame's origin by ``displacement`` (least-squares joint motion);
+        the servo targets move with it (a stiff, position-controlled robot holds where it was pushed to)."""
+        J = self.robot.frame_jacobian(self.q, frame.link, frame_offset(frame))[:3]
+        dq = np.linalg.lstsq(J, np.asarray(displacement, dtype=float), rcond=None)[0]
+        self.q = self.q + dq
+        self.target = self.target + dq
