@@ -148,3 +148,19 @@ def test_pooled_statistics_match_numpy():
     assert total.mean == pytest.approx(everything.mean(), rel=1e-12)
     assert total.std == pytest.approx(everything.std(), rel=1e-9)
     assert total.worst == everything.max() and total.count == everything.size
+
+
+def test_frame_poses_match_the_robot_model_with_offsets(task_a):
+    """The batch kinematics of the scoring (tip, and the shaft 100 mm up the tool) equal Robot.frame_pose."""
+    from vfdsl.sim.metrics import frame_poses
+    from vfdsl.sim.robot import frame_offset
+
+    robot = Robot.load("shr7")
+    rng = np.random.default_rng(4)
+    qs = task_a.start + rng.normal(scale=0.02, size=(20, 7))
+    poses = frame_poses(robot, task_a, qs)
+    for frame in task_a.frames:
+        for i, q in enumerate(qs):
+            p, R = robot.frame_pose(q, frame.link, frame_offset(frame))
+            np.testing.assert_allclose(poses.p[frame.name][i], p, atol=1e-15)
+            np.testing.assert_allclose(poses.R[frame.name][i], R, atol=1e-15)

@@ -29,7 +29,7 @@ import numpy as np
 from vfdsl.ir import model as ir
 from vfdsl.kinematics.robot import Robot
 from vfdsl.sim.geometry import Curve, Scene, unit
-from vfdsl.sim.robot import frame_offset
+from vfdsl.sim.robot import LinkPose, frame_offset
 from vfdsl.sim.settings import HandSettings, tracked_frame
 
 TREMOR_COMPONENTS = 4
@@ -45,13 +45,11 @@ class Hand:
         self.settings = settings
         self.size = task.input(settings.input).size
         self.rotational = settings.kind == "turn"
-        self.robot = robot
         self.scene = scene
         frame_name = settings.frame or tracked_frame(task, settings.input)
         self.frame = task.frame(frame_name) if frame_name else None
         self.offset = frame_offset(self.frame) if self.frame else None
-        if self.offset is not None and np.array_equal(self.offset, np.eye(4)):
-            self.offset = None                   # the link's own frame: no offset to apply
+        self.link_pose = LinkPose(robot, self.frame.link) if self.frame else None
         self.curve = None
         if settings.curve:
             decl = task.param(settings.curve)
@@ -74,7 +72,8 @@ class Hand:
         s = self.settings
         if s.kind == "push":
             return self.scene.direction(_as_arg(s.direction))
-        p, R = self.robot.frame_pose(q, self.frame.link, self.offset)
+        p_link, R_link = self.link_pose(q)
+        p, R = p_link + R_link @ self.offset[:3, 3], R_link @ self.offset[:3, :3]
         if s.kind == "turn":
             axis = self.scene.direction(_as_arg(s.direction))
             tool = R @ np.asarray(self.frame.tool_axis)

@@ -33,7 +33,7 @@ import numpy as np
 from vfdsl.ir import model as ir
 from vfdsl.kinematics.robot import Robot
 from vfdsl.sim.geometry import Curve, Scene, pose_matrix
-from vfdsl.sim.robot import frame_offset
+from vfdsl.sim.robot import LinkPose, frame_offset
 from vfdsl.sim.settings import MetricSpec, constraint_of
 
 # dimension -> (display unit, factor from SI)
@@ -63,8 +63,11 @@ def frame_poses(robot: Robot, task: ir.Task, qs: np.ndarray) -> Poses:
     per sample, then the frames' offsets (T_world_frame = T_world_link @ offset) for all samples at once."""
     links = {}
     for link in dict.fromkeys(f.link for f in task.frames):
-        poses = [robot.frame_pose(q, link) for q in qs]
-        links[link] = (np.array([x for x, _ in poses]).reshape(-1, 3), np.array([r for _, r in poses]).reshape(-1, 3, 3))
+        pose = LinkPose(robot, link)
+        p_link, R_link = np.empty((len(qs), 3)), np.empty((len(qs), 3, 3))
+        for i, q in enumerate(qs):
+            p_link[i], R_link[i] = pose(q)
+        links[link] = (p_link, R_link)
     p, R = {}, {}
     for frame in task.frames:
         offset = frame_offset(frame)

@@ -19,6 +19,7 @@ import math
 from collections import deque
 
 import numpy as np
+import pinocchio as pin
 from scipy.spatial.transform import Rotation
 
 from vfdsl.ir import model as ir
@@ -33,6 +34,23 @@ def frame_offset(frame: ir.FrameDecl) -> np.ndarray:
     T[:3, :3] = Rotation.from_euler("xyz", frame.rpy).as_matrix()
     T[:3, 3] = frame.offset
     return T
+
+
+class LinkPose:
+    """Pinocchio's forward kinematics of one link, (p, R) in the world, for a stream of configurations:
+    the same numbers as ``Robot.frame_pose(q, link)`` without its per-call checks (q comes from the
+    simulator, already a float vector of the right length)."""
+
+    def __init__(self, robot: Robot, link: str):
+        self.model = robot.model
+        self.data = robot.model.createData()
+        self.frame = robot.frame_id(link)
+        self.convert = robot.to_pinocchio if "continuous" in robot.joint_types else None
+
+    def __call__(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        pin.forwardKinematics(self.model, self.data, q if self.convert is None else self.convert(q))
+        M = pin.updateFramePlacement(self.model, self.data, self.frame)
+        return M.translation, M.rotation
 
 
 class SimRobot:
@@ -55,8 +73,9 @@ class SimRobot:
         return np.round(q / self.resolution) * self.resolution
 
     def read(self) -> np.ndarray:
-        """The encoders: the joint positions, to the joints' resolution."""
-        return self.quantize(self.q)
+        """The encoders: the joint positions, to the joints' resolution (without servo lag the joints only
+        ever hold quantized targets)."""
+        return self.q if self.servo_lag == 0.0 else self.quantize(self.q)
 
     def command(self, t: float, target: np.ndarray) -> None:
         """Send a joint target at time t; it arrives after the latency."""
@@ -84,8 +103,9 @@ class SimRobot:
 
     def push(self, frame: ir.FrameDecl, displacement) -> None:
         """An external push that moves the frame's origin by ``displacement`` (least-squares joint motion);
-        the servo targets move with it (a stiff, position-controlled robot holds where it was pushed to)."""
+        the servo targets move with it (a stiff, position-controlled robot holds where it was pushed to,
+        to its resolution)."""
         J = self.robot.frame_jacobian(self.q, frame.link, frame_offset(frame))[:3]
         dq = np.linalg.lstsq(J, np.asarray(displacement, dtype=float), rcond=None)[0]
-        self.q = self.q + dq
-        self.target = self.target + dq
+        self.q = self.quantize(self.q + dq)
+        self.target = self.quantize(self.target + dq)
