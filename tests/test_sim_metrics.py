@@ -61,13 +61,18 @@ def test_pivot_and_cone_errors_of_hand_computed_poses(task_b):
 def test_curve_distance_matches_a_brute_force_search(task_a):
     curve = Curve(task_a.param("path").value)
     rng = np.random.default_rng(3)
-    s = rng.uniform(0.0, curve.length, 200)
+    s = rng.uniform(0.05 * curve.length, 0.95 * curve.length, 200)
     points = curve.spline(s) + rng.normal(scale=2e-3, size=(200, 3))
     _, distance = curve.closest(points)
     dense = curve.spline(np.linspace(0.0, curve.length, 400_001))
     brute = np.array([np.sqrt(np.min(np.sum((dense - x) ** 2, axis=1))) for x in points])
     assert np.all(distance <= brute + 1e-12)                   # never worse than the dense search
     np.testing.assert_allclose(distance, brute, atol=1e-8)
+    # Past the end: 3 mm along the end tangent and 2 mm across it is 2 mm from the end's tangent line.
+    tangent = curve.tangent(curve.length)
+    across = np.cross(tangent, [0.0, 0.0, 1.0])
+    beyond = curve.spline(curve.length) + 3e-3 * tangent + 2e-3 * across / np.linalg.norm(across)
+    assert curve.closest(beyond)[1][0] == pytest.approx(2e-3, rel=1e-9)
 
 
 def test_joint_limit_metric_of_a_configuration_outside_the_limits(task_b):
@@ -121,21 +126,24 @@ def test_robot_latency_servo_lag_and_resolution():
     robot = Robot.load("shr7")
     q0 = np.zeros(7)
     late = SimRobot(robot, q0, latency=0.025)
-    target = np.full(7, 1e-3)
-    late.command(0.0, target)
+    dq = np.full(7, 1e-3)
+    late.command(0.0, dq)
     late.advance(0.0, 0.01)
     np.testing.assert_array_equal(late.read(), q0)               # still in flight
     late.advance(0.01, 0.02)
     np.testing.assert_array_equal(late.read(), q0)
     late.advance(0.02, 0.03)
-    np.testing.assert_array_equal(late.read(), target)           # arrived at 25 ms
+    np.testing.assert_array_equal(late.read(), dq)               # arrived at 25 ms
     lagging = SimRobot(robot, q0, servo_lag=0.02)
-    lagging.command(0.0, target)
+    lagging.command(0.0, dq)
     lagging.advance(0.0, 0.01)
-    np.testing.assert_allclose(lagging.read(), target * (1 - math.exp(-0.5)), rtol=1e-12)
+    np.testing.assert_allclose(lagging.read(), dq * (1 - math.exp(-0.5)), rtol=1e-12)
     coarse = SimRobot(robot, q0, resolution=robot.resolution)
     coarse.command(0.0, np.array([13e-6, 4e-6, 0, 1.6e-4, 0, 0, 0]))
     np.testing.assert_allclose(coarse.read(), [1e-5, 0, 0, 2e-4, 0, 0, 0], atol=1e-15)
+    for _ in range(2):                                          # 4 um increments add up: 12 um -> 10 um
+        coarse.command(0.0, np.array([0, 4e-6, 0, 0, 0, 0, 0]))
+    np.testing.assert_allclose(coarse.read()[1], 1e-5, atol=1e-15)
 
 
 def test_pooled_statistics_match_numpy():

@@ -4,7 +4,8 @@ A param expressed in a pose param (``param path : curve in plate``) is mapped to
 p_world = R(rpy) p + t, with R the fixed-axis roll-pitch-yaw rotation (URDF convention, scipy's "xyz").
 A curve is the b-spline of its degree interpolating its points with the cumulative chord length as
 parameter (the definition of a ``curve`` value); its closest point to x is found by a dense search over
-samples followed by Newton steps on (C(s) - x) . C'(s) = 0.
+samples followed by Newton steps on (C(s) - x) . C'(s) = 0. Past either end the distance is to the end's
+tangent line, which is where ``follows`` keeps a frame that leaves the curve by an end.
 """
 
 from __future__ import annotations
@@ -44,8 +45,9 @@ class Curve:
         self._squares = np.sum(self._samples ** 2, axis=1)
 
     def closest(self, x: np.ndarray, refine: bool = True) -> tuple[np.ndarray, np.ndarray]:
-        """For points x (N x 3): the parameter s of the closest curve point, and the distance to it
-        (``refine=False``: the nearest sample, 0.05 mm apart, without the Newton steps)."""
+        """For points x (N x 3): the parameter s of the closest curve point, and the distance to the curve
+        (to the end's tangent line past an end); ``refine=False``: the nearest sample, 0.05 mm apart, and
+        the distance to it."""
         x = np.atleast_2d(x)
         t = np.concatenate([self._grid[np.argmin(self._squares[None, :] - 2 * chunk @ self._samples.T, axis=1)]
                             for chunk in np.array_split(x, max(1, len(x) // 256))])
@@ -54,7 +56,13 @@ class Curve:
             f = np.sum(r * self._d1(t), axis=1)
             df = np.sum(self._d1(t) ** 2, axis=1) + np.sum(r * self._d2(t), axis=1)
             t = np.clip(t - f / np.where(df > 0, df, np.inf), 0.0, self.length)
-        return t, np.linalg.norm(self.spline(t) - x, axis=1)
+        r = x - self.spline(t)
+        if refine:                   # past an end, the distance to the end's tangent line
+            tangent = self._d1(t) / np.linalg.norm(self._d1(t), axis=1, keepdims=True)
+            along = np.sum(r * tangent, axis=1)
+            beyond = ((t <= 0.0) & (along < 0)) | ((t >= self.length) & (along > 0))
+            r = np.where(beyond[:, None], r - along[:, None] * tangent, r)
+        return t, np.linalg.norm(r, axis=1)
 
     def tangent(self, s: float) -> np.ndarray:
         return unit(self._d1(s))

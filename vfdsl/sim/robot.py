@@ -1,16 +1,18 @@
 """The simulated robot: Pinocchio's numeric kinematics of the task's URDF, with the imperfections the paper
 blames for its errors. Each is a setting, all off by default:
 
-- command latency L: the joint target computed at tick t reaches the servos at t + L;
-- joint resolution: targets and encoder readings are multiples of the URDF sidecar's per-joint
-  resolution (SHR: 10 um on the stage);
-- first-order servo lag T: between events each joint follows its target as
-  q(t + h) = target + (q(t) - target) exp(-h / T) (T = 0: the joint is at its target on arrival);
+- command latency L: the joint increment computed at tick t reaches the servos at t + L (past one
+  period, the controller does not yet see its last increments, and commands them again);
+- joint resolution: the joints hold, and the encoders read, multiples of the URDF sidecar's per-joint
+  resolution (SHR: 10 um on the stage); the servos keep their own setpoint unquantized, so increments
+  smaller than the resolution add up;
+- first-order servo lag T: between events each joint follows its quantized setpoint s as
+  q(t + h) = s + (q(t) - s) exp(-h / T) (T = 0: the joint is at its setpoint on arrival);
 - an external push on the tool: the joints move by the least-squares displacement J_v^+ dx that moves a
   task frame's origin by dx.
 
-The controller commands q_target = q_read + dq, the position it asked for; the robot is purely kinematic
-(stiff, as the SHR), so between commands only the servo lag moves it.
+The controller commands the joint increment dq (the paper: solve for dq, then move the robot); the robot
+is purely kinematic (stiff, as the SHR), so between commands only the servo lag moves it.
 """
 
 from __future__ import annotations
@@ -54,7 +56,7 @@ class LinkPose:
 
 
 class SimRobot:
-    """True joint positions, the commands in flight, and the servos that follow them."""
+    """True joint positions, the joint increments in flight, and the servos that follow them."""
 
     def __init__(self, robot: Robot, q0: np.ndarray, latency: float = 0.0, servo_lag: float = 0.0,
                  resolution: np.ndarray | None = None):
@@ -62,8 +64,8 @@ class SimRobot:
         self.latency = latency
         self.servo_lag = servo_lag
         self.resolution = resolution
-        self.q = self.quantize(np.array(q0, dtype=float))
-        self.target = self.q.copy()
+        self.setpoint = np.array(q0, dtype=float)          # the servos' own, unquantized setpoint
+        self.q = self.quantize(self.setpoint)
         self._in_flight: deque[tuple[float, np.ndarray]] = deque()
 
     def quantize(self, q: np.ndarray) -> np.ndarray:
@@ -74,38 +76,39 @@ class SimRobot:
 
     def read(self) -> np.ndarray:
         """The encoders: the joint positions, to the joints' resolution (without servo lag the joints only
-        ever hold quantized targets)."""
+        ever hold quantized setpoints)."""
         return self.q if self.servo_lag == 0.0 else self.quantize(self.q)
 
-    def command(self, t: float, target: np.ndarray) -> None:
-        """Send a joint target at time t; it arrives after the latency."""
-        target = self.quantize(target)
+    def command(self, t: float, dq: np.ndarray) -> None:
+        """Send a joint increment at time t; it reaches the servos' setpoint after the latency."""
         if self.latency == 0.0 and self.servo_lag == 0.0:
-            self.q = self.target = target
+            self.setpoint = self.setpoint + dq
+            self.q = self.quantize(self.setpoint)
         else:
-            self._in_flight.append((t + self.latency, target))
+            self._in_flight.append((t + self.latency, dq))
 
     def advance(self, t0: float, t1: float) -> None:
-        """Move the joints from time t0 to t1: commands arrive, the servos follow."""
+        """Move the joints from time t0 to t1: increments arrive, the servos follow the setpoint."""
         t = t0
         while self._in_flight and self._in_flight[0][0] <= t1 + _EARLY:
-            arrival, target = self._in_flight.popleft()
+            arrival, dq = self._in_flight.popleft()
             self._follow(max(arrival, t) - t)
             t = max(arrival, t)
-            self.target = target
+            self.setpoint = self.setpoint + dq
             if self.servo_lag == 0.0:
-                self.q = target.copy()
+                self.q = self.quantize(self.setpoint)
         self._follow(t1 - t)
 
     def _follow(self, h: float) -> None:
         if self.servo_lag > 0.0 and h > 0.0:
-            self.q = self.target + (self.q - self.target) * math.exp(-h / self.servo_lag)
+            target = self.quantize(self.setpoint)
+            self.q = target + (self.q - target) * math.exp(-h / self.servo_lag)
 
     def push(self, frame: ir.FrameDecl, displacement) -> None:
         """An external push that moves the frame's origin by ``displacement`` (least-squares joint motion);
-        the servo targets move with it (a stiff, position-controlled robot holds where it was pushed to,
+        the servos' setpoint moves with it (a stiff, position-controlled robot holds where it was pushed to,
         to its resolution)."""
         J = self.robot.frame_jacobian(self.q, frame.link, frame_offset(frame))[:3]
         dq = np.linalg.lstsq(J, np.asarray(displacement, dtype=float), rcond=None)[0]
         self.q = self.quantize(self.q + dq)
-        self.target = self.quantize(self.target + dq)
+        self.setpoint = self.setpoint + dq

@@ -3,7 +3,7 @@ its metrics; many trials (and a grid of settings) in this process, a local proce
 cluster.
 
 One tick at time t = k dt: apply the disturbances due; read the encoders (q); the hand's input; dq =
-controller.step(q, input, params); command q + dq (it arrives after the latency); advance the robot to
+controller.step(q, input, params); command dq (it arrives after the latency); advance the robot to
 t + dt. The metrics are computed afterwards from the encoder readings, by Pinocchio's kinematics.
 
 Trial i of a run with seed K uses seed K + i (the same in every grid point, so that grid points differ
@@ -138,7 +138,7 @@ def run_trial(job: Job, progress=None) -> TrialResult:
         dq = ctrl.step(q, inputs, params or None, dt)
         if ctrl.status != optimal:
             fallback += 1
-        sim.command(t, q + dq)
+        sim.command(t, dq)
         sim.advance(t, t + dt)
         if progress is not None and (k + 1) % PROGRESS_EVERY == 0:
             progress(PROGRESS_EVERY)
