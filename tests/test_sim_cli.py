@@ -148,3 +148,25 @@ def test_readme_first_command_simulates_experiment_b(capsys, monkeypatch):
     out = capsys.readouterr().out
     for name in ("pivot_error_mm", "tracker_pivot_error_mm", "tool_angle_error_deg", "0.23 ± 0.11"):
         assert name in out
+
+
+def test_hand_toward_a_plane_and_a_push_through_it(tmp_path):
+    """The lecture's forbidden half-space: a hand pushing the tip toward the wall 10 mm below (with tremor)
+    reaches it and never enters it (above's error 0); a push of 0.5 mm through the wall at 3 s is an error of 0.5 mm, and the fixture moves
+    the tip back out within two ticks."""
+    scene = tmp_path / "wall.sim.yaml"
+    scene.write_text("units: mm, deg\nduration: 4 s\n"
+                     "hand: {input: f, kind: toward, target: wall, magnitude: 10 N, tremor: 1 N}\n"
+                     "disturbances:\n  - {at: 3 s, kind: push_tool, frame: tip, by: [0, 0, -0.5]}\n")
+    task = str(TASKS_DIR / "lecture_forbidden_half_space.vf")
+    settings = load_settings(vfdsl.load(task), scene)
+    (result,) = run(make_jobs(task, settings, keep_series=True))
+    t, error = result.series["t"], result.series["metrics"]["tip_above_error_mm"]
+    z = result.series["p"]["tip"][:, 2]
+    push = np.argmax(t >= 3.0)
+    assert z[:push].min() == pytest.approx(0.270, abs=1e-6)     # the hand brought the tip onto the wall
+    assert np.all(error[:push] < 1e-6)
+    assert error[push] == pytest.approx(0.5, abs=1e-3)
+    assert error[push + 1] < error[push]                        # out at the joints' speed limits: z stage and
+    assert np.all(error[push + 2:] < 1e-6)                      # insertion, 0.2 mm a tick each
+    assert result.fallback_ticks >= 1                           # the least-violation step did it
