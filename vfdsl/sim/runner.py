@@ -8,8 +8,9 @@ t + dt. The metrics are computed afterwards from the encoder readings, by Pinocc
 
 Trial i of a run with seed K uses seed K + i (the same in every grid point, so that grid points differ
 only by their settings); a trial's seed fixes its hand and its tracker noise, so a run is repeatable.
-Compiled controllers cannot be pickled: each worker (process or thread) builds its own from the task
-file; the generated library is cached on disk, so that costs a load, not a compile.
+Compiled controllers cannot be pickled: each worker process builds its own from the task file (the
+generated library is cached on disk, so that costs a load, not a compile); the threads of one process take
+turns on it.
 """
 
 from __future__ import annotations
@@ -74,23 +75,29 @@ class _Loaded:
     task: ir.Task
     controller: vfdsl.Controller
     robot: Robot                              # the simulator's own model of the URDF
+    lock: threading.Lock                      # one trial at a time on this controller
 
 
-_local = threading.local()
+_cache: dict[tuple[str, str], _Loaded] = {}
+_cache_lock = threading.Lock()
 
 
 def loaded(task_file: str, backend: str = "auto") -> _Loaded:
-    """The task, its controller and robot models, built once per worker thread."""
-    cache = _local.__dict__.setdefault("cache", {})
+    """The task, its controller and robot models, built once per process.
+
+    Worker threads of one process (a Dask worker with several threads) take turns on it: controllers of one
+    generated library share its working memory inside a process, so two running at once are not safe."""
     key = (str(Path(task_file).resolve()), backend)
-    if key not in cache:
-        task = vfdsl.load(task_file)
-        if len(task.robots) != 1:
-            raise VfError(f"task '{task.name}': the simulator runs tasks with one robot, this one has "
-                          f"{len(task.robots)}")
-        controller = vfdsl.compile(task, backend=backend)
-        cache[key] = _Loaded(task, controller, Robot.load(task.robots[0].urdf, Path(task.file).parent))
-    return cache[key]
+    with _cache_lock:
+        if key not in _cache:
+            task = vfdsl.load(task_file)
+            if len(task.robots) != 1:
+                raise VfError(f"task '{task.name}': the simulator runs tasks with one robot, this one has "
+                              f"{len(task.robots)}")
+            controller = vfdsl.compile(task, backend=backend)
+            _cache[key] = _Loaded(task, controller, Robot.load(task.robots[0].urdf, Path(task.file).parent),
+                                  threading.Lock())
+        return _cache[key]
 
 
 def start_configuration(task: ir.Task, robot: Robot) -> np.ndarray:
@@ -101,7 +108,11 @@ def start_configuration(task: ir.Task, robot: Robot) -> np.ndarray:
 def run_trial(job: Job, progress=None) -> TrialResult:
     """Simulate one trial and score it."""
     ctx = loaded(job.task_file, job.backend)
-    task, ctrl, robot = ctx.task, ctx.controller, ctx.robot
+    with ctx.lock:
+        return _simulate(job, ctx.task, ctx.controller, ctx.robot, progress)
+
+
+def _simulate(job: Job, task: ir.Task, ctrl: vfdsl.Controller, robot: Robot, progress) -> TrialResult:
     s = job.settings
     dt = s.period
     ticks = max(1, int(round(s.duration / dt)))
