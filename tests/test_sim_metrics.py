@@ -172,3 +172,10 @@ def test_frame_poses_match_the_robot_model_with_offsets(task_a):
             p, R = robot.frame_pose(q, frame.link, frame_offset(frame))
             np.testing.assert_allclose(poses.p[frame.name][i], p, atol=1e-15)
             np.testing.assert_allclose(poses.R[frame.name][i], R, atol=1e-15)
+
+
+def test_pooled_std_of_a_near_constant_metric_is_not_lost_to_rounding():
+    rng = np.random.default_rng(6)
+    parts = [1e3 + 1e-6 * rng.standard_normal(n) for n in (300, 700)]
+    total = Stats().add(parts[0]).merge(Stats().add(parts[1]))
+    assert total.std == pytest.approx(np.concatenate(parts).std(), rel=1e-6)

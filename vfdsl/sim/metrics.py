@@ -205,34 +205,36 @@ def _joint_error(c: ir.Constraint, kind: str, robot: Robot, qs: np.ndarray, peri
 
 @dataclass
 class Stats:
-    """Running sums of one metric, pooled over samples (and trials, merged in trial order)."""
+    """One metric pooled over samples (and trials, merged in trial order): count, mean, sum of squared
+    deviations (merged by Chan et al.'s pairwise formula, exact for a near-constant metric) and max."""
 
     count: int = 0
-    total: float = 0.0
-    squares: float = 0.0
+    mean: float = 0.0
+    squares: float = 0.0                     # sum of (x - mean)^2
     worst: float = 0.0
 
     def add(self, values: np.ndarray) -> "Stats":
         if values.size:
-            self.count += int(values.size)
-            self.total += float(values.sum())
-            self.squares += float((values ** 2).sum())
-            self.worst = max(self.worst, float(values.max()))
+            mean = float(values.mean())
+            part = Stats(int(values.size), mean, float(((values - mean) ** 2).sum()), float(values.max()))
+            merged = self.merge(part)
+            self.count, self.mean, self.squares, self.worst = merged.count, merged.mean, merged.squares, merged.worst
         return self
 
     def merge(self, other: "Stats") -> "Stats":
-        return Stats(self.count + other.count, self.total + other.total, self.squares + other.squares,
+        if not other.count:
+            return Stats(self.count, self.mean, self.squares, self.worst)
+        if not self.count:
+            return Stats(other.count, other.mean, other.squares, other.worst)
+        count = self.count + other.count
+        delta = other.mean - self.mean
+        return Stats(count, self.mean + delta * other.count / count,
+                     self.squares + other.squares + delta * delta * self.count * other.count / count,
                      max(self.worst, other.worst))
 
     @property
-    def mean(self) -> float:
-        return self.total / self.count if self.count else 0.0
-
-    @property
     def std(self) -> float:
-        if not self.count:
-            return 0.0
-        return math.sqrt(max(0.0, self.squares / self.count - self.mean ** 2))
+        return math.sqrt(self.squares / self.count) if self.count else 0.0
 
     def summary(self) -> dict:
         return {"mean": self.mean, "std": self.std, "max": self.worst, "samples": self.count}

@@ -67,8 +67,7 @@ def _trial_figure(task: ir.Task, settings: SimSettings, result: TrialResult):
 
 
 def _trajectory(ax, task: ir.Task, settings: SimSettings, series: dict) -> None:
-    follows = next((c for c in task.constraints if c.primitive == "follows" and c.frame
-                    and not any(c.args["shift"].value.xyz) if "shift" in c.args), None)
+    follows = next((c for c in task.constraints if c.primitive == "follows" and _unshifted(c)), None)
     cone = next((c for c in task.constraints if c.primitive == "cone"), None)
     if follows is not None:
         _curve_panel(ax, task, follows, series)
@@ -84,6 +83,12 @@ def _trajectory(ax, task: ir.Task, settings: SimSettings, series: dict) -> None:
         ax.set_title(f"path of frame '{frame}'")
         ax.set_aspect("equal", adjustable="datalim")
         ax.legend(fontsize=8)
+
+
+def _unshifted(c: ir.Constraint) -> bool:
+    """A ``follows`` of the curve itself (not of a copy shifted up the tool)."""
+    shift = c.args.get("shift")
+    return shift is None or not (isinstance(shift, ir.Const) and any(shift.value.xyz))
 
 
 def _curve_panel(ax, task: ir.Task, c: ir.Constraint, series: dict) -> None:

@@ -132,7 +132,7 @@ class SimSettings:
         return data
 
 
-# Scalar settings the command line and sweeps may change: name -> (dimension, check, what a bad value is)
+# Scalar settings the command line and sweeps may change, and their dimensions
 SCALARS: dict[str, u.Dim] = {"duration": u.TIME, "period": u.TIME, "latency": u.TIME, "servo_lag": u.TIME,
                              "noise": u.LENGTH}
 
