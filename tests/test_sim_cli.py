@@ -126,6 +126,8 @@ def test_bad_scene_is_a_clear_error_with_file_and_line(tmp_path, capsys, text, l
     (["--grid", "colour=1,2"], "unknown setting 'colour'"),
     (["--grid", "period"], "write NAME=V1,V2"),
     (["--trials", "0"], "trials must be a positive whole number"),
+    (["--json", "no/such/dir/out.json"], "cannot write no/such/dir/out.json: no directory"),
+    (["--scene", "no_such.sim.yaml"], "cannot read simulation scene no_such.sim.yaml"),
 ])
 def test_bad_setting_on_the_command_line_is_a_clear_error(capsys, args, message):
     assert main(["simulate", B, "--quiet", *args]) == 2
@@ -170,3 +172,12 @@ def test_hand_toward_a_plane_and_a_push_through_it(tmp_path):
     assert error[push + 1] < error[push]                        # out at the joints' speed limits: z stage and
     assert np.all(error[push + 2:] < 1e-6)                      # insertion, 0.2 mm a tick each
     assert result.fallback_ticks >= 1                           # the least-violation step did it
+
+
+def test_unreachable_cluster_is_a_clear_error(capsys, monkeypatch):
+    import vfdsl.sim.runner as runner
+
+    monkeypatch.setattr(runner, "CONNECT_TIMEOUT", "1s")
+    assert main(["simulate", B, "--quiet", "--duration", "0.1s", "--cluster", "tcp://127.0.0.1:9"]) == 2
+    err = capsys.readouterr().err
+    assert "cannot reach a Dask scheduler at 'tcp://127.0.0.1:9'" in err and "Traceback" not in err

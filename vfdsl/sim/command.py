@@ -107,6 +107,9 @@ def main(args: argparse.Namespace) -> int:
     grid = _grid(args.grid)
     if args.workers is not None and args.workers < 1:
         raise VfError(f"--workers must be at least 1, got {args.workers}")
+    for name in (args.json, args.csv, args.plot):
+        if name and not Path(name).resolve().parent.is_dir():
+            raise VfError(f"cannot write {name}: no directory {Path(name).resolve().parent}")
     jobs = make_jobs(args.file, settings, grid, keep_series=bool(args.plot))
     ctx = loaded(args.file)                     # compile (or load from the cache) once, here, before workers
     workers = args.workers or default_workers(jobs)
@@ -126,13 +129,20 @@ def main(args: argparse.Namespace) -> int:
         if doc["fallback_ticks"]:
             print(f"\n{doc['fallback_ticks']} of {doc['ticks']} ticks needed the least-violation fallback")
     if args.json:
-        Path(args.json).write_text(report.to_json(doc))
+        _write(args.json, lambda path: path.write_text(report.to_json(doc)))
     if args.csv:
-        Path(args.csv).write_text(report.to_csv(doc))
+        _write(args.csv, lambda path: path.write_text(report.to_csv(doc)))
     if args.plot:
         from vfdsl.sim.plots import plot_run
-        plot_run(task, settings, results, grid, args.plot)
+        _write(args.plot, lambda path: plot_run(task, settings, results, grid, str(path)))
     return 0
+
+
+def _write(name: str, write) -> None:
+    try:
+        write(Path(name))
+    except OSError as exc:
+        raise VfError(f"cannot write {name}: {exc.strerror or exc}") from None
 
 
 _HAND_UNITS = {u.FORCE: ("N", 1.0), u.TORQUE: ("Nmm", 1e3), u.SPEED: ("mm/s", 1e3),

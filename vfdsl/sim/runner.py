@@ -38,6 +38,7 @@ from vfdsl.sim.settings import SimSettings, hand_dimension
 
 PROGRESS_EVERY = 500                 # ticks between progress updates of an in-process trial
 CHUNKS_PER_WORKER = 4
+CONNECT_TIMEOUT = "10s"              # to reach a Dask scheduler
 PARALLEL_TICKS = 50_000              # runs of at least this many ticks in all use every core by default
 
 
@@ -251,7 +252,11 @@ def _done(results: list[TrialResult], progress) -> list[TrialResult]:
 def _run_dask(jobs: list[Job], cluster, progress) -> list[TrialResult]:
     from distributed import Client, as_completed as dask_completed
 
-    client = cluster if isinstance(cluster, Client) else Client(cluster)
+    try:
+        client = cluster if isinstance(cluster, Client) else Client(cluster, timeout=CONNECT_TIMEOUT)
+    except (OSError, TimeoutError, ValueError) as exc:
+        raise VfError(f"cannot reach a Dask scheduler at {cluster!r}: {exc}",
+                      hint="start one (`dask scheduler`, then `dask worker ADDRESS`) or run without --cluster") from None
     try:
         parts = chunks(jobs, max(1, sum(client.nthreads().values())))
         futures = client.map(run_trials, parts, pure=False)
