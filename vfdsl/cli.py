@@ -28,6 +28,7 @@ A task file names a robot, task frames on it, the user's inputs, reference param
 
 _EPILOG = """\
 a first session:
+  vfdsl simulate tasks/paper_b_virtual_rcm.vf    run paper experiment B on a simulated robot and hand
   vfdsl show tasks/paper_b_virtual_rcm.vf        check a task and see what the compiler will see
   vfdsl check tasks/paper_b_virtual_rcm.vf       prove the fixture sound before it touches a robot
   vfdsl compile tasks/paper_b_virtual_rcm.vf     generate and build its controller
@@ -114,6 +115,8 @@ def _parser() -> argparse.ArgumentParser:
                        help="where to put the build (default: $VFDSL_CACHE or ~/.cache/vfdsl)")
     build.set_defaults(run=_compile)
     check_command.register(commands)
+    from vfdsl.sim.command import add_parser as add_simulate
+    add_simulate(commands)
     return parser
 
 

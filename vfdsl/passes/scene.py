@@ -45,12 +45,7 @@ def load_scene(path: Path, task_units: DefaultUnits, pos: SourcePos | None) -> S
         raise VfError(f"a scene file is YAML (.yaml or .yml), not '{path.name}'", pos)
     text = read_text(path, "scene file", pos,
                      hint="write it, or point the task at another file with `scene \"file.yaml\"`")
-    try:
-        root = yaml.compose(text, Loader=BoundedLoader)
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        where = SourcePos(str(path), mark.line + 1, mark.column + 1) if mark else SourcePos(str(path), 1, 1)
-        raise VfError(f"malformed YAML: {getattr(exc, 'problem', exc)}", where, source_text=text) from None
+    root = compose(text, path)
     file = str(path)
     if root is None:
         return SceneData(path, task_units, None, None, None, {})
@@ -78,6 +73,16 @@ def load_scene(path: Path, task_units: DefaultUnits, pos: SourcePos | None) -> S
             raise VfError("'params' is a mapping from param names to values", _pos(node, file))
         params = {k: (values.read(v), _span(kn, file)) for k, (kn, v) in _mapping(node, file).items()}
     return SceneData(path, units, period, start, start_span, params)
+
+
+def compose(text: str, path: Path) -> yaml.Node | None:
+    """The YAML node tree of a file's text (positions kept); VfError at the line of a YAML mistake."""
+    try:
+        return yaml.compose(text, Loader=BoundedLoader)
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        where = SourcePos(str(path), mark.line + 1, mark.column + 1) if mark else SourcePos(str(path), 1, 1)
+        raise VfError(f"malformed YAML: {getattr(exc, 'problem', exc)}", where, source_text=text) from None
 
 
 def _mapping(node: yaml.MappingNode, file: str) -> dict[str, tuple[yaml.Node, yaml.Node]]:

@@ -1,0 +1,183 @@
+"""``vfdsl simulate`` end to end, on short runs: repeatable JSON, the paper's experiment B within its
+stated bounds in an ideal run, the loop-period trend of experiment A, any task with the generic hand, a
+plot, and clear errors (file, line, exit status 2, no traceback) for bad scenes and settings."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+from conftest import TASKS_DIR
+
+import vfdsl
+from vfdsl.cli import main
+from vfdsl.kinematics.robot import Robot
+from vfdsl.sim.runner import make_jobs, run
+from vfdsl.sim.settings import load_settings
+
+B = str(TASKS_DIR / "paper_b_virtual_rcm.vf")
+A = str(TASKS_DIR / "paper_a_follow_curve.vf")
+
+
+def _simulate(tmp_path, *args, name="run.json") -> dict:
+    out = tmp_path / name
+    assert main(["simulate", *args, "--quiet", "--json", str(out)]) == 0
+    return json.loads(out.read_text())
+
+
+def test_same_seed_gives_identical_json_and_another_seed_does_not(tmp_path):
+    args = [B, "--duration", "2s", "--trials", "2"]
+    first = _simulate(tmp_path, *args, name="1.json")
+    second = _simulate(tmp_path, *args, name="2.json")
+    other = _simulate(tmp_path, *args, "--seed", "7", name="3.json")
+    assert (tmp_path / "1.json").read_text() == (tmp_path / "2.json").read_text()
+    assert first["seed"] == 1 and [t["seed"] for t in first["trials"]] == [1, 2]
+    assert other["metrics"]["tracker_pivot_error_mm"]["mean"] != first["metrics"]["tracker_pivot_error_mm"]["mean"]
+    for name in ("pivot_error_mm", "tracker_pivot_error_mm", "tool_angle_error_deg", "tracker_tool_angle_error_deg"):
+        assert set(first["metrics"][name]) >= {"mean", "std", "max", "unit", "paper"}
+    assert first["settings"]["period"] == 0.01 and first["settings"]["resolution"] == "robot"
+
+
+def test_ideal_run_of_b_stays_within_the_polytope_plus_the_linearization_bound(tmp_path):
+    """Ideal robot (no resolution, latency, lag or tracker), the scene's hand with tremor and drift.
+
+    Polytope: the 4x4 sphere polytope is a cube, corners at sqrt(3) eps; the cone's octagon bounds the
+    angle by eps / (cos(gamma) cos(pi/8)). Linearization (docs/results.md): a tick turns the tool by at
+    most dth = (w_a + w_b) dt (the two RCM joints' speed limits) and inserts it by at most dl = v dt, so
+    the tip, r = 10 mm from the RCM, leaves its first-order position by at most r dth^2 / 2 + dth dl, and
+    the tool axis its first-order direction by at most dth^2 / 2."""
+    doc = _simulate(tmp_path, B, "--resolution", "off", "--noise", "0", "--duration", "20s", "--trials", "1")
+    robot = Robot.load("shr7")
+    dt, eps_p, eps_r, gamma = 0.01, 1e-6, 1e-3, math.radians(15)
+    limit = dict(zip(robot.joint_names, robot.velocity_limit))
+    dth = (limit["rcm_a"] + limit["rcm_b"]) * dt
+    dl = limit["insert"] * dt
+    pivot_bound = math.sqrt(3) * eps_p + 0.01 * dth ** 2 / 2 + dth * dl
+    angle_bound = eps_r / (math.cos(gamma) * math.cos(math.pi / 8)) + dth ** 2 / 2
+    metrics = doc["metrics"]
+    assert doc["fallback_ticks"] == 0
+    assert metrics["pivot_error_mm"]["max"] <= pivot_bound * 1e3
+    assert metrics["tool_angle_error_deg"]["max"] <= math.degrees(angle_bound)
+    assert metrics["pivot_error_mm"]["max"] > 0.2 * eps_p * 1e3          # it measured something
+
+
+def test_longer_loop_period_gives_larger_error_at_the_sharp_turns(tmp_path):
+    """Experiment A by the encoders (no tracker, no latency): the tip's worst error to the curve over the
+    first sharp turns grows with the period (paper, Fig. 7), and so does a latency past one period."""
+    doc = _simulate(tmp_path, A, "--grid", "period=150ms,40ms,10ms", "--latency", "0", "--noise", "0",
+                    "--resolution", "off", "--trials", "1", "--duration", "6s")
+    worst = [g["metrics"]["tip_error_mm"]["max"] for g in doc["groups"]]
+    assert [g["settings"]["period"] for g in doc["groups"]] == [0.15, 0.04, 0.01]
+    assert worst[0] > 2 * worst[1] > 4 * worst[2]
+    late = _simulate(tmp_path, A, "--grid", "latency=0ms,300ms", "--period", "150ms", "--noise", "0",
+                     "--resolution", "off", "--trials", "1", "--duration", "6s", name="late.json")
+    on_time, delayed = (g["metrics"]["tip_error_mm"]["max"] for g in late["groups"])
+    assert delayed > on_time
+
+
+def test_any_task_runs_with_the_generic_hand_and_a_plot(tmp_path, capsys):
+    plot = tmp_path / "run.png"
+    task = str(TASKS_DIR / "lecture_remote_center.vf")
+    assert main(["simulate", task, "--duration", "1s", "--plot", str(plot)]) == 0
+    out = capsys.readouterr().out
+    assert "generic hand" in out and "tip_passes_through_error_mm" in out
+    assert plot.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    doc = _simulate(tmp_path, task, "--duration", "1s")
+    assert doc["hand"]["kind"] == "push" and doc["metrics"]["tip_passes_through_error_mm"]["max"] <= 0.5
+
+
+def test_plate_move_is_absorbed():
+    """Fig. 8: after the plate moves 2 mm and tilts, the fixture brings the tip back to the curve."""
+    settings = load_settings(vfdsl.load(A), TASKS_DIR / "paper_a_plate_moves.sim.yaml").replace(trials=1, duration=9.0)
+    (result,) = run(make_jobs(A, settings, keep_series=True))
+    t, error = result.series["t"], result.series["metrics"]["tip_error_mm"]
+    jump = np.argmax(t >= 6.0)
+    assert error[jump] > 1.0                                    # the plate moved under the tip
+    assert np.all(error[jump + 3:] < 0.2)                       # and the fixture brought it back
+    assert result.fallback_ticks == 0
+
+
+BAD_SCENES = [
+    ("period: -5 ms\n", 1, "period must be a positive time"),
+    ("disturbances:\n  - {at: 1 s, kind: shake, param: pivot}\n", 2, "unknown disturbance 'shake'"),
+    ("hand: {input: force, kind: push, direction: [1, 0, 0], magnitude: 1 N}\n", 1,
+     "the hand drives input 'force', which task 'paper_b_virtual_rcm' does not declare"),
+    ("hand: {input: tau, kind: push, direction: [1, 0, 0], magnitude: 1 N}\n", 1, "needs a force"),
+    ("latnecy: 3 ms\n", 1, "unknown key 'latnecy'"),
+    ("duration: 3 mm\n", 1, "expected a time"),
+    ("metrics:\n  pivot: {error_of: tip stays_near}\n", 2, "no constraint"),
+]
+
+
+@pytest.mark.parametrize("text, line, message", BAD_SCENES)
+def test_bad_scene_is_a_clear_error_with_file_and_line(tmp_path, capsys, text, line, message):
+    scene = tmp_path / "bad.sim.yaml"
+    scene.write_text(text)
+    assert main(["simulate", B, "--scene", str(scene), "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert f"{scene}:{line}:" in err and message in err and "Traceback" not in err
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--period=-5ms"], "--period -5ms: period must be a positive time"),
+    (["--latency", "3 deg"], "expected a time"),
+    (["--grid", "colour=1,2"], "unknown setting 'colour'"),
+    (["--grid", "period"], "write NAME=V1,V2"),
+    (["--trials", "0"], "trials must be a positive whole number"),
+    (["--json", "no/such/dir/out.json"], "cannot write no/such/dir/out.json: no directory"),
+    (["--scene", "no_such.sim.yaml"], "simulation scene not found: no_such.sim.yaml"),
+])
+def test_bad_setting_on_the_command_line_is_a_clear_error(capsys, args, message):
+    assert main(["simulate", B, "--quiet", *args]) == 2
+    err = capsys.readouterr().err
+    assert message in err and "Traceback" not in err
+
+
+def test_readme_first_command_simulates_experiment_b(capsys, monkeypatch):
+    """The README's quick start: install, then `vfdsl simulate` of experiment B, which needs nothing else."""
+    from conftest import REPO
+
+    readme = (REPO / "README.md").read_text()
+    quick_start = readme[readme.index("## Quick start"):]
+    commands = [line.strip() for line in quick_start.splitlines() if line.startswith("    python3 -m venv")]
+    assert commands[0].endswith("pip install . && vfdsl simulate tasks/paper_b_virtual_rcm.vf")
+    assert commands[1].endswith('pip install ".[test]" && pytest')
+    monkeypatch.chdir(REPO)
+    argv = commands[0].split("&& vfdsl ")[1].split()
+    assert main(argv) == 0
+    out = capsys.readouterr().out
+    for name in ("pivot_error_mm", "tracker_pivot_error_mm", "tool_angle_error_deg", "0.23 ± 0.11"):
+        assert name in out
+
+
+def test_hand_toward_a_plane_and_a_push_through_it(tmp_path):
+    """The lecture's forbidden half-space: a hand pushing the tip toward the wall 10 mm below (with tremor)
+    reaches it and never enters it (above's error 0); a push of 0.5 mm through the wall at 3 s is an error of 0.5 mm, and the fixture moves
+    the tip back out within two ticks."""
+    scene = tmp_path / "wall.sim.yaml"
+    scene.write_text("units: mm, deg\nduration: 4 s\n"
+                     "hand: {input: f, kind: toward, target: wall, magnitude: 10 N, tremor: 1 N}\n"
+                     "disturbances:\n  - {at: 3 s, kind: push_tool, frame: tip, by: [0, 0, -0.5]}\n")
+    task = str(TASKS_DIR / "lecture_forbidden_half_space.vf")
+    settings = load_settings(vfdsl.load(task), scene)
+    (result,) = run(make_jobs(task, settings, keep_series=True))
+    t, error = result.series["t"], result.series["metrics"]["tip_above_error_mm"]
+    z = result.series["p"]["tip"][:, 2]
+    push = np.argmax(t >= 3.0)
+    assert z[:push].min() == pytest.approx(0.270, abs=1e-6)     # the hand brought the tip onto the wall
+    assert np.all(error[:push] < 1e-6)
+    assert error[push] == pytest.approx(0.5, abs=1e-3)
+    assert error[push + 1] < error[push]                        # out at the joints' speed limits: z stage and
+    assert np.all(error[push + 2:] < 1e-6)                      # insertion, 0.2 mm a tick each
+    assert result.fallback_ticks >= 1                           # the least-violation step did it
+
+
+def test_unreachable_cluster_is_a_clear_error(capsys, monkeypatch):
+    import vfdsl.sim.runner as runner
+
+    monkeypatch.setattr(runner, "CONNECT_TIMEOUT", "1s")
+    assert main(["simulate", B, "--quiet", "--duration", "0.1s", "--cluster", "tcp://127.0.0.1:9"]) == 2
+    err = capsys.readouterr().err
+    assert "cannot reach a Dask scheduler at 'tcp://127.0.0.1:9'" in err and "Traceback" not in err

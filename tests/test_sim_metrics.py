@@ -1,0 +1,181 @@
+"""The simulator's parts against independent computations: metrics on hand-computed poses, the curve
+distance against a brute-force search, the tracker's noise statistics, the hand's tremor spectrum and drift,
+the robot model's latency, servo lag and resolution, and pooled statistics against numpy."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from conftest import TASKS_DIR
+from scipy.spatial.transform import Rotation
+
+import vfdsl
+from vfdsl.kinematics.robot import Robot
+from vfdsl.sim import tracker
+from vfdsl.sim.geometry import Curve, Scene
+from vfdsl.sim.hand import drift, tremor
+from vfdsl.sim.metrics import Poses, Stats, errors, metric_defs
+from vfdsl.sim.robot import SimRobot
+from vfdsl.sim.settings import MetricSpec
+
+
+@pytest.fixture(scope="module")
+def task_b():
+    return vfdsl.load(TASKS_DIR / "paper_b_virtual_rcm.vf")
+
+
+@pytest.fixture(scope="module")
+def task_a():
+    return vfdsl.load(TASKS_DIR / "paper_a_follow_curve.vf")
+
+
+def _cone_pose(axis: np.ndarray, angle: float, around: float) -> np.ndarray:
+    """A rotation whose z axis is ``angle`` from ``axis``, at phase ``around`` about it."""
+    e1 = np.cross(axis, [1.0, 0.0, 0.0])
+    e1 /= np.linalg.norm(e1)
+    e2 = np.cross(axis, e1)
+    z = math.cos(angle) * axis + math.sin(angle) * (math.cos(around) * e1 + math.sin(around) * e2)
+    return Rotation.align_vectors([z], [[0.0, 0.0, 1.0]])[0].as_matrix()
+
+
+def test_pivot_and_cone_errors_of_hand_computed_poses(task_b):
+    """Tip 3 um and 4 um off the pivot (5 um = 0.005 mm); tool axis 15.5 deg from the cone axis (0.5 deg)."""
+    robot = Robot.load("shr7")
+    axis = np.array([0.0, -0.2, 1.0]) / math.hypot(0.2, 1.0)
+    pivot = np.array([0.0, 0.0, 0.29])
+    p = np.array([pivot + [3e-6, 4e-6, 0.0], pivot])
+    R = np.array([_cone_pose(axis, math.radians(15.5), 0.3), _cone_pose(axis, math.radians(15.0), 2.0)])
+    poses = Poses({"tip": p}, {"tip": R})
+    specs = (MetricSpec("pivot_error", error_of="tip stays_at"), MetricSpec("tool_angle_error", error_of="tip cone"))
+    defs = {d.name: d for d in metric_defs(task_b, robot, specs)}
+    scene = Scene(task_b)
+    pivot_error = errors(defs["pivot_error_mm"], task_b, robot, scene, poses, np.zeros((2, 7)), 0.01)
+    angle_error = errors(defs["tool_angle_error_deg"], task_b, robot, scene, poses, np.zeros((2, 7)), 0.01)
+    np.testing.assert_allclose(pivot_error, [0.005, 0.0], atol=1e-12)
+    np.testing.assert_allclose(angle_error, [0.5, 0.0], atol=1e-9)
+    assert defs["pivot_error_mm"].tolerance == pytest.approx(0.001)
+
+
+def test_curve_distance_matches_a_brute_force_search(task_a):
+    curve = Curve(task_a.param("path").value)
+    rng = np.random.default_rng(3)
+    s = rng.uniform(0.05 * curve.length, 0.95 * curve.length, 200)
+    points = curve.spline(s) + rng.normal(scale=2e-3, size=(200, 3))
+    _, distance = curve.closest(points)
+    dense = curve.spline(np.linspace(0.0, curve.length, 400_001))
+    brute = np.array([np.sqrt(np.min(np.sum((dense - x) ** 2, axis=1))) for x in points])
+    assert np.all(distance <= brute + 1e-12)                   # never worse than the dense search
+    np.testing.assert_allclose(distance, brute, atol=1e-8)
+    # Past the end: 3 mm along the end tangent and 2 mm across it is 2 mm from the end's tangent line.
+    tangent = curve.tangent(curve.length)
+    across = np.cross(tangent, [0.0, 0.0, 1.0])
+    beyond = curve.spline(curve.length) + 3e-3 * tangent + 2e-3 * across / np.linalg.norm(across)
+    assert curve.closest(beyond)[1][0] == pytest.approx(2e-3, rel=1e-9)
+
+
+def test_joint_limit_metric_of_a_configuration_outside_the_limits(task_b):
+    robot = Robot.load("shr7")
+    q = np.zeros((2, 7))
+    q[1, 0] = robot.upper[0] + 2e-3                             # the x stage 2 mm beyond its limit
+    q[1, 3] = robot.lower[3] - math.radians(1.5)                # rcm_a 1.5 deg beyond its limit
+    defs = {d.name: d for d in metric_defs(task_b, robot, ())}
+    poses = Poses({}, {})
+    scene = Scene(task_b)
+    np.testing.assert_allclose(errors(defs["joint_limits_mm"], task_b, robot, scene, poses, q, 0.01), [0, 2.0])
+    np.testing.assert_allclose(errors(defs["joint_limits_deg"], task_b, robot, scene, poses, q, 0.01), [0, 1.5])
+
+
+def test_tracker_noise_has_the_stated_rms(task_b):
+    """Per marker 3-D RMS = noise; the measured tool axis deviates by RMS 2 sigma / d (two markers, two
+    directions across the axis, sigma = noise / sqrt(3) per axis)."""
+    n = 40_000
+    R = np.repeat(np.eye(3)[None], n, axis=0)
+    truth = Poses({"tip": np.zeros((n, 3))}, {"tip": R})
+    noise, d = 2e-4, 0.1
+    seen = tracker.measure(truth, task_b, noise, d, np.random.default_rng(0))
+    rms_position = np.sqrt(np.mean(np.sum(seen.p["tip"] ** 2, axis=1)))
+    tilt = np.arccos(np.clip(seen.axis(task_b.frame("tip")) @ [0.0, 0.0, 1.0], -1, 1))
+    assert rms_position == pytest.approx(noise, rel=0.02)
+    assert np.sqrt(np.mean(tilt ** 2)) == pytest.approx(2 * noise / math.sqrt(3) / d, rel=0.03)
+
+
+def test_tremor_is_in_its_band_with_its_rms_and_repeatable():
+    period, ticks = 0.001, 20_000
+    signal = tremor(np.random.default_rng(5), ticks, period, 0.3, (8.0, 12.0))
+    again = tremor(np.random.default_rng(5), ticks, period, 0.3, (8.0, 12.0))
+    np.testing.assert_array_equal(signal, again)
+    assert np.sqrt(np.mean(np.sum(signal ** 2, axis=1))) == pytest.approx(0.3, rel=0.15)
+    spectrum = np.abs(np.fft.rfft(signal, axis=0)) ** 2
+    frequency = np.fft.rfftfreq(ticks, period)
+    in_band = (frequency >= 7.5) & (frequency <= 12.5)
+    assert spectrum[in_band].sum() / spectrum.sum() > 0.95
+
+
+def test_drift_has_its_rms_and_correlation_time():
+    period, tau = 0.01, 2.0
+    x = drift(np.random.default_rng(1), 400_000, period, 0.3, tau)
+    assert np.sqrt(np.mean(np.sum(x ** 2, axis=1))) == pytest.approx(0.3, rel=0.05)
+    lag = int(tau / period)
+    correlation = np.mean(x[:-lag] * x[lag:]) / np.mean(x * x)
+    assert correlation == pytest.approx(math.exp(-1), abs=0.05)
+
+
+def test_robot_latency_servo_lag_and_resolution():
+    robot = Robot.load("shr7")
+    q0 = np.zeros(7)
+    late = SimRobot(robot, q0, latency=0.025)
+    dq = np.full(7, 1e-3)
+    late.command(0.0, dq)
+    late.advance(0.0, 0.01)
+    np.testing.assert_array_equal(late.read(), q0)               # still in flight
+    late.advance(0.01, 0.02)
+    np.testing.assert_array_equal(late.read(), q0)
+    late.advance(0.02, 0.03)
+    np.testing.assert_array_equal(late.read(), dq)               # arrived at 25 ms
+    lagging = SimRobot(robot, q0, servo_lag=0.02)
+    lagging.command(0.0, dq)
+    lagging.advance(0.0, 0.01)
+    np.testing.assert_allclose(lagging.read(), dq * (1 - math.exp(-0.5)), rtol=1e-12)
+    coarse = SimRobot(robot, q0, resolution=robot.resolution)
+    coarse.command(0.0, np.array([13e-6, 4e-6, 0, 1.6e-4, 0, 0, 0]))
+    np.testing.assert_allclose(coarse.read(), [1e-5, 0, 0, 2e-4, 0, 0, 0], atol=1e-15)
+    for _ in range(2):                                          # 4 um increments add up: 12 um -> 10 um
+        coarse.command(0.0, np.array([0, 4e-6, 0, 0, 0, 0, 0]))
+    np.testing.assert_allclose(coarse.read()[1], 1e-5, atol=1e-15)
+
+
+def test_pooled_statistics_match_numpy():
+    rng = np.random.default_rng(2)
+    parts = [rng.random(n) for n in (5, 17, 1, 40)]
+    total = Stats()
+    for part in parts:
+        total = total.merge(Stats().add(part))
+    everything = np.concatenate(parts)
+    assert total.mean == pytest.approx(everything.mean(), rel=1e-12)
+    assert total.std == pytest.approx(everything.std(), rel=1e-9)
+    assert total.worst == everything.max() and total.count == everything.size
+
+
+def test_frame_poses_match_the_robot_model_with_offsets(task_a):
+    """The batch kinematics of the scoring (tip, and the shaft 100 mm up the tool) equal Robot.frame_pose."""
+    from vfdsl.sim.metrics import frame_poses
+    from vfdsl.sim.robot import frame_offset
+
+    robot = Robot.load("shr7")
+    rng = np.random.default_rng(4)
+    qs = task_a.start + rng.normal(scale=0.02, size=(20, 7))
+    poses = frame_poses(robot, task_a, qs)
+    for frame in task_a.frames:
+        for i, q in enumerate(qs):
+            p, R = robot.frame_pose(q, frame.link, frame_offset(frame))
+            np.testing.assert_allclose(poses.p[frame.name][i], p, atol=1e-15)
+            np.testing.assert_allclose(poses.R[frame.name][i], R, atol=1e-15)
+
+
+def test_pooled_std_of_a_near_constant_metric_is_not_lost_to_rounding():
+    rng = np.random.default_rng(6)
+    parts = [1e3 + 1e-6 * rng.standard_normal(n) for n in (300, 700)]
+    total = Stats().add(parts[0]).merge(Stats().add(parts[1]))
+    assert total.std == pytest.approx(np.concatenate(parts).std(), rel=1e-6)

@@ -1,0 +1,61 @@
+"""Sweeps: a grid of settings times trials gives the same aggregate in this process, in a local process pool
+and on a Dask cluster (a LocalCluster of two workers), for the same seeds; the CSV has one row per trial."""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+
+import distributed
+import pytest
+from conftest import TASKS_DIR
+
+import vfdsl
+from vfdsl.cli import main
+from vfdsl.sim import report
+from vfdsl.sim.runner import make_jobs, run
+from vfdsl.sim.settings import load_settings
+
+B = str(TASKS_DIR / "paper_b_virtual_rcm.vf")
+GRID = [("period", [0.01, 0.02]), ("latency", [0.0, 0.03])]
+
+
+@pytest.fixture(scope="module")
+def sweep():
+    task = vfdsl.load(B)
+    settings = load_settings(task, TASKS_DIR / "paper_b_virtual_rcm.sim.yaml").replace(trials=3, duration=0.5)
+    jobs = make_jobs(B, settings, GRID)
+    sequential = report.to_json(report.document(task.name, B, settings, run(jobs), GRID))
+    return task, settings, jobs, sequential
+
+
+def test_grid_times_trials_in_order_with_seeds(sweep):
+    _, _, jobs, sequential = sweep
+    assert len(jobs) == 2 * 2 * 3
+    assert [dict(j.grid) for j in jobs[:4]] == [{"period": 0.01, "latency": 0.0}] * 3 + [{"period": 0.01, "latency": 0.03}]
+    assert [j.seed for j in jobs[:3]] == [1, 2, 3] and [j.seed for j in jobs[3:6]] == [1, 2, 3]
+    rows = list(csv.DictReader(io.StringIO(report.to_csv(json.loads(sequential)))))
+    assert len(rows) == 12
+    assert rows[4]["seed"] == "2" and rows[4]["latency"] == "0.03" and float(rows[4]["pivot_error_mm.max"]) > 0
+
+
+@pytest.mark.slow
+def test_process_pool_gives_the_sequential_aggregate(sweep):
+    task, settings, jobs, sequential = sweep
+    pooled = report.to_json(report.document(task.name, B, settings, run(jobs, workers=2), GRID))
+    assert pooled == sequential
+
+
+@pytest.mark.slow
+def test_dask_local_cluster_gives_the_sequential_aggregate(sweep, tmp_path):
+    """Through the API (a Client) and through the command line (--cluster ADDRESS)."""
+    task, settings, jobs, sequential = sweep
+    args = ["simulate", B, "--trials", "2", "--duration", "0.5s", "--grid", "period=10ms,20ms", "--quiet", "--json"]
+    assert main([*args, str(tmp_path / "local.json")]) == 0
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=False, dashboard_address=None) as cluster, \
+            distributed.Client(cluster) as client:
+        on_dask = report.to_json(report.document(task.name, B, settings, run(jobs, cluster=client), GRID))
+        assert main([*args, str(tmp_path / "dask.json"), "--cluster", cluster.scheduler_address]) == 0
+    assert on_dask == sequential
+    assert (tmp_path / "dask.json").read_text() == (tmp_path / "local.json").read_text()

@@ -1,0 +1,134 @@
+"""Reference geometry for scoring a run, computed here in numpy and scipy, apart from the compiler.
+
+A param expressed in a pose param (``param path : curve in plate``) is mapped to the world by that pose:
+p_world = R(rpy) p + t, with R the fixed-axis roll-pitch-yaw rotation (URDF convention, scipy's "xyz").
+A curve is the b-spline of its degree interpolating its points with the cumulative chord length as
+parameter (the definition of a ``curve`` value); its closest point to x is found by a dense search over
+samples followed by Newton steps on (C(s) - x) . C'(s) = 0. Past either end the distance is to the end's
+tangent line, which is where ``follows`` keeps a frame that leaves the curve by an end.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.interpolate import make_interp_spline
+from scipy.spatial.transform import Rotation
+
+from vfdsl.ir import model as ir
+
+SAMPLES_PER_METRE = 20000            # dense-search samples: 0.05 mm apart
+NEWTON_STEPS = 8
+
+
+def unit(v) -> np.ndarray:
+    v = np.asarray(v, dtype=float)
+    return v / np.linalg.norm(v)
+
+
+def pose_matrix(pose: ir.PoseValue) -> tuple[np.ndarray, np.ndarray]:
+    """(R, t) of a pose value: p_world = R p + t."""
+    return Rotation.from_euler("xyz", pose.rpy).as_matrix(), np.asarray(pose.translation, dtype=float)
+
+
+class Curve:
+    """A ``curve`` value as a scipy b-spline, in its own coordinates (the frame it is expressed in)."""
+
+    def __init__(self, value: ir.CurveValue, shift=(0.0, 0.0, 0.0)):
+        points = np.asarray(value.points, dtype=float) + np.asarray(shift, dtype=float)
+        s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(points, axis=0), axis=1))])
+        self.length = float(s[-1])
+        self.spline = make_interp_spline(s, points, k=value.degree)
+        self._d1 = self.spline.derivative(1)
+        self._d2 = self.spline.derivative(2)
+        self._grid = np.linspace(0.0, self.length, max(2001, int(self.length * SAMPLES_PER_METRE)))
+        self._samples = self.spline(self._grid)
+        self._squares = np.sum(self._samples ** 2, axis=1)
+
+    def closest(self, x: np.ndarray, refine: bool = True) -> tuple[np.ndarray, np.ndarray]:
+        """For points x (N x 3): the parameter s of the closest curve point, and the distance to the curve
+        (to the end's tangent line past an end); ``refine=False``: the nearest sample, 0.05 mm apart, and
+        the distance to it."""
+        x = np.atleast_2d(x)
+        t = np.concatenate([self._grid[np.argmin(self._squares[None, :] - 2 * chunk @ self._samples.T, axis=1)]
+                            for chunk in np.array_split(x, max(1, len(x) // 256))])
+        for _ in range(NEWTON_STEPS if refine else 0):
+            r = self.spline(t) - x
+            f = np.sum(r * self._d1(t), axis=1)
+            df = np.sum(self._d1(t) ** 2, axis=1) + np.sum(r * self._d2(t), axis=1)
+            t = np.clip(t - f / np.where(df > 0, df, np.inf), 0.0, self.length)
+        r = x - self.spline(t)
+        if refine:                   # past an end, the distance to the end's tangent line
+            tangent = self._d1(t) / np.linalg.norm(self._d1(t), axis=1, keepdims=True)
+            along = np.sum(r * tangent, axis=1)
+            beyond = ((t <= 0.0) & (along < 0)) | ((t >= self.length) & (along > 0))
+            r = np.where(beyond[:, None], r - along[:, None] * tangent, r)
+        return t, np.linalg.norm(r, axis=1)
+
+    def tangent(self, s: float) -> np.ndarray:
+        return unit(self._d1(s))
+
+
+class Scene:
+    """The task's params as the world sees them now (a disturbance may move a pose or point param)."""
+
+    def __init__(self, task: ir.Task):
+        self.task = task
+        self.values: dict[str, ir.Value] = {p.name: p.value for p in task.params}
+        self._frames = {p.name: p.frame for p in task.params}
+        self._poses: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+
+    def with_values(self, values: dict[str, ir.Value]) -> "Scene":
+        """The same task's params with other values (a snapshot taken before or after a disturbance)."""
+        scene = Scene(self.task)
+        scene.values = dict(values)
+        return scene
+
+    def moved(self, name: str, translate, tilt) -> ir.Value:
+        """Move a pose param (translate, then turn it about its origin by the rotation vector ``tilt``, both
+        in world axes) or translate a point param; returns its new value."""
+        value = self.values[name]
+        if isinstance(value, ir.PoseValue):
+            R = Rotation.from_rotvec(tilt) * Rotation.from_euler("xyz", value.rpy)
+            value = ir.PoseValue(translation=list(np.add(value.translation, translate)),
+                                 rpy=list(R.as_euler("xyz")))
+        else:
+            value = ir.PointValue(xyz=list(np.add(value.xyz, translate)))
+        self.values[name] = value
+        self._poses.pop(name, None)
+        return value
+
+    def to_world(self, name: str) -> tuple[np.ndarray, np.ndarray]:
+        """(R, t) mapping param ``name``'s own coordinates to the world (identity for a world param)."""
+        frame = self._frames.get(name)
+        if frame is None:
+            return np.eye(3), np.zeros(3)
+        if frame not in self._poses:
+            self._poses[frame] = pose_matrix(self.values[frame])
+        return self._poses[frame]
+
+    def point(self, arg: ir.Arg) -> np.ndarray:
+        value, (R, t) = self._resolve(arg)
+        return R @ np.asarray(value.xyz, dtype=float) + t
+
+    def direction(self, arg: ir.Arg) -> np.ndarray:
+        value, (R, _) = self._resolve(arg)
+        return unit(R @ np.asarray(value.xyz, dtype=float))
+
+    def line(self, arg: ir.Arg) -> tuple[np.ndarray, np.ndarray]:
+        value, (R, t) = self._resolve(arg)
+        return R @ np.asarray(value.point) + t, unit(R @ np.asarray(value.direction))
+
+    def plane(self, arg: ir.Arg) -> tuple[np.ndarray, np.ndarray]:
+        """(point, unit normal toward the free side)."""
+        value, (R, t) = self._resolve(arg)
+        return R @ np.asarray(value.point) + t, unit(R @ np.asarray(value.normal))
+
+    def value(self, arg: ir.Arg) -> ir.Value:
+        return self._resolve(arg)[0]
+
+    def _resolve(self, arg: ir.Arg) -> tuple[ir.Value, tuple[np.ndarray, np.ndarray]]:
+        if isinstance(arg, ir.ParamRef):
+            return self.values[arg.name], self.to_world(arg.name)
+        if isinstance(arg, ir.Const):
+            return arg.value, (np.eye(3), np.zeros(3))
+        raise TypeError(f"not a value argument: {arg}")

@@ -1,0 +1,240 @@
+"""Scoring a run: each constraint's error in its own units, measured on the simulator's exact kinematics
+(the encoders) and, for frame poses, by the simulated tracker.
+
+The error of a constraint is how far the frame is from the set the constraint describes (0 inside it):
+
+    stays_at          |p - target|                         mm
+    along             distance from p to the line          mm
+    follows           distance from p to the (shifted) curve, in the curve's frame, continued past
+                      its ends by its end tangents (where the constraint keeps p)   mm
+    on_plane          |n . (p - p0)|                       mm
+    above             max(0, -n . (p - p0))                mm
+    within_distance   max(0, |p - c| - distance)           mm
+    passes_through    distance from the port to the tool axis line   mm
+    cone              | angle(l, axis) - angle |           deg
+    keeps_direction   angle(l, direction)                  deg
+    rotates_around    | 90 deg - angle(l, axis) |          deg
+    speed             max(0, |dp| / dt - max)              mm/s
+    angular_speed     max(0, |rotation angle of R_k^T R_k+1| / dt - max)   deg/s
+    joint_limits      max over joints of the distance outside [lower, upper]    mm (prismatic), deg (revolute)
+    joint_speed       max over joints of max(0, |dq| / dt - fraction * velocity limit)   mm/s, deg/s
+
+with p the frame's origin, l its tool axis. A scene may name an error (``pivot_error: {error_of: tip
+stays_at}``) or add the tilt of a frame's tool axis from a pose param's z axis (the plate normal).
+Statistics pool every tick of every trial: mean, std, max.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from vfdsl.ir import model as ir
+from vfdsl.kinematics.robot import Robot
+from vfdsl.sim.geometry import Curve, Scene, pose_matrix
+from vfdsl.sim.robot import LinkPose, frame_offset
+from vfdsl.sim.settings import MetricSpec, constraint_of
+
+# dimension -> (display unit, factor from SI)
+DISPLAY = {"length": ("mm", 1e3), "angle": ("deg", 180 / math.pi), "speed": ("mm/s", 1e3),
+           "angular_speed": ("deg/s", 180 / math.pi)}
+_SUFFIX = {"mm": "mm", "deg": "deg", "mm/s": "mm_s", "deg/s": "deg_s"}
+_DIMENSION = {"stays_at": "length", "along": "length", "follows": "length", "on_plane": "length",
+              "above": "length", "within_distance": "length", "passes_through": "length", "cone": "angle",
+              "keeps_direction": "angle", "rotates_around": "angle", "speed": "speed",
+              "angular_speed": "angular_speed"}
+JOINT_PRIMITIVES = ("joint_limits", "joint_speed")
+
+
+@dataclass
+class Poses:
+    """Frame poses over a run: origin p (N x 3) and rotation R (N x 3 x 3) of each task frame."""
+
+    p: dict[str, np.ndarray]
+    R: dict[str, np.ndarray]
+
+    def axis(self, frame: ir.FrameDecl) -> np.ndarray:
+        return self.R[frame.name] @ np.asarray(frame.tool_axis)
+
+
+def frame_poses(robot: Robot, task: ir.Task, qs: np.ndarray) -> Poses:
+    """Every task frame's pose at every row of ``qs``: Pinocchio's forward kinematics of each link once
+    per sample, then the frames' offsets (T_world_frame = T_world_link @ offset) for all samples at once."""
+    links = {}
+    for link in dict.fromkeys(f.link for f in task.frames):
+        pose = LinkPose(robot, link)
+        p_link, R_link = np.empty((len(qs), 3)), np.empty((len(qs), 3, 3))
+        for i, q in enumerate(qs):
+            p_link[i], R_link[i] = pose(q)
+        links[link] = (p_link, R_link)
+    p, R = {}, {}
+    for frame in task.frames:
+        offset = frame_offset(frame)
+        p_link, R_link = links[frame.link]
+        p[frame.name] = p_link + R_link @ offset[:3, 3]
+        R[frame.name] = R_link @ offset[:3, :3]
+    return Poses(p, R)
+
+
+@dataclass(frozen=True)
+class MetricDef:
+    """One metric: its name, unit, the constraint or spec it scores, and the paper's figures beside it."""
+
+    name: str
+    unit: str
+    dimension: str
+    constraint: ir.Constraint | None = None
+    spec: MetricSpec | None = None
+    joint_kind: str | None = None            # joint metrics: "prismatic" or "revolute"
+    tolerance: float | None = None           # display units
+    pose_based: bool = True                  # measurable by the tracker
+
+
+def metric_defs(task: ir.Task, robot: Robot, specs: tuple[MetricSpec, ...]) -> list[MetricDef]:
+    """The metrics of a task: every constraint's error (named by the scene where it says so), then the
+    scene's tilt metrics."""
+    named = {id(constraint_of(task, s.error_of)): s for s in specs if s.error_of}
+    defs: list[MetricDef] = []
+    for c in task.constraints:
+        spec = named.get(id(c))
+        if c.primitive in JOINT_PRIMITIVES:
+            dims = ("length", "angle") if c.primitive == "joint_limits" else ("speed", "angular_speed")
+            for kind, dim in zip(("prismatic", "revolute"), dims):
+                if any(_joint_kind(t) == kind for t in robot.joint_types):
+                    unit, _ = DISPLAY[dim]
+                    defs.append(MetricDef(f"{c.primitive}_{_SUFFIX[unit]}", unit, dim, c, joint_kind=kind,
+                                          pose_based=False))
+            continue
+        dim = _DIMENSION[c.primitive]
+        unit, factor = DISPLAY[dim]
+        base = spec.name if spec else f"{c.frame}_{c.primitive}_error"
+        tolerance = c.tolerance * factor if c.tolerance is not None else None
+        defs.append(MetricDef(f"{base}_{_SUFFIX[unit]}", unit, dim, c, spec, tolerance=tolerance))
+    for s in specs:
+        if s.tilt_of:
+            defs.append(MetricDef(f"{s.name}_deg", "deg", "angle", spec=s))
+    seen: dict[str, int] = {}
+    unique = []
+    for d in defs:
+        seen[d.name] = seen.get(d.name, 0) + 1
+        if seen[d.name] > 1 and d.constraint is not None:
+            d = MetricDef(**{**d.__dict__, "name": f"{d.name}_line{d.constraint.span.line}"})
+        unique.append(d)
+    return unique
+
+
+def _joint_kind(joint_type: str) -> str:
+    return "prismatic" if joint_type == "prismatic" else "revolute"
+
+
+def errors(d: MetricDef, task: ir.Task, robot: Robot, scene: Scene, poses: Poses, qs: np.ndarray,
+           period: float) -> np.ndarray:
+    """The metric at every sample of one segment (constant scene), in display units."""
+    _, factor = DISPLAY[d.dimension]
+    if d.spec is not None and d.spec.tilt_of:
+        frame = task.frame(d.spec.tilt_of)
+        normal = pose_matrix(scene.values[d.spec.normal_of])[0][:, 2]
+        return np.degrees(np.arccos(np.clip(np.abs(poses.axis(frame) @ normal), -1, 1)))
+    c = d.constraint
+    if c.primitive in JOINT_PRIMITIVES:
+        return factor * _joint_error(c, d.joint_kind, robot, qs, period)
+    return factor * _frame_error(c, task, scene, poses, period)
+
+
+def _frame_error(c: ir.Constraint, task: ir.Task, scene: Scene, poses: Poses, period: float) -> np.ndarray:
+    frame = task.frame(c.frame)
+    p, l = poses.p[c.frame], poses.axis(frame)
+    a = c.args
+    kind = c.primitive
+    if kind == "stays_at":
+        return np.linalg.norm(p - scene.point(a["target"]), axis=1)
+    if kind == "within_distance":
+        return np.maximum(0.0, np.linalg.norm(p - scene.point(a["center"]), axis=1) - scene.value(a["distance"]).value)
+    if kind == "along":
+        point, direction = scene.line(a["line"])
+        return np.linalg.norm(np.cross(p - point, direction), axis=1)
+    if kind in ("on_plane", "above"):
+        point, normal = scene.plane(a["plane"])
+        height = (p - point) @ normal
+        return np.abs(height) if kind == "on_plane" else np.maximum(0.0, -height)
+    if kind == "passes_through":
+        return np.linalg.norm(np.cross(scene.point(a["port"]) - p, l), axis=1)
+    if kind == "follows":
+        curve_arg = a["curve"]
+        R, t = scene.to_world(curve_arg.name) if isinstance(curve_arg, ir.ParamRef) else (np.eye(3), np.zeros(3))
+        curve = _curve(scene.value(curve_arg), tuple(scene.value(a["shift"]).xyz) if "shift" in a else (0, 0, 0))
+        return curve.closest((p - t) @ R)[1]
+    if kind in ("cone", "keeps_direction", "rotates_around"):
+        key = "direction" if kind == "keeps_direction" else "axis"
+        angle = np.arccos(np.clip(l @ scene.direction(a[key]), -1.0, 1.0))
+        if kind == "cone":
+            return np.abs(angle - scene.value(a["angle"]).value)
+        return angle if kind == "keeps_direction" else np.abs(np.pi / 2 - angle)
+    if kind == "speed":
+        speed = np.linalg.norm(np.diff(p, axis=0), axis=1) / period
+        return np.maximum(0.0, speed - scene.value(a["max"]).value)
+    if kind == "angular_speed":
+        R = poses.R[c.frame]
+        relative = np.einsum("nji,njk->nik", R[:-1], R[1:])
+        cos = np.clip((np.trace(relative, axis1=1, axis2=2) - 1) / 2, -1.0, 1.0)
+        return np.maximum(0.0, np.arccos(cos) / period - scene.value(a["max"]).value)
+    raise ValueError(f"no metric for primitive '{kind}'")
+
+
+_CURVES: dict = {}
+
+
+def _curve(value: ir.CurveValue, shift: tuple) -> Curve:
+    key = (value.model_dump_json(), shift)
+    if key not in _CURVES:
+        _CURVES[key] = Curve(value, shift)
+    return _CURVES[key]
+
+
+def _joint_error(c: ir.Constraint, kind: str, robot: Robot, qs: np.ndarray, period: float) -> np.ndarray:
+    mask = np.array([_joint_kind(t) == kind for t in robot.joint_types])
+    if c.primitive == "joint_limits":
+        outside = np.maximum(robot.lower - qs, qs - robot.upper)
+        return np.maximum(0.0, outside[:, mask]).max(axis=1)
+    fraction = c.args["fraction"].value.value if "fraction" in c.args else 1.0
+    speed = np.abs(np.diff(qs, axis=0)) / period
+    return np.maximum(0.0, speed - fraction * robot.velocity_limit)[:, mask].max(axis=1)
+
+
+@dataclass
+class Stats:
+    """One metric pooled over samples (and trials, merged in trial order): count, mean, sum of squared
+    deviations (merged by Chan et al.'s pairwise formula, exact for a near-constant metric) and max."""
+
+    count: int = 0
+    mean: float = 0.0
+    squares: float = 0.0                     # sum of (x - mean)^2
+    worst: float = 0.0
+
+    def add(self, values: np.ndarray) -> "Stats":
+        if values.size:
+            mean = float(values.mean())
+            part = Stats(int(values.size), mean, float(((values - mean) ** 2).sum()), float(values.max()))
+            merged = self.merge(part)
+            self.count, self.mean, self.squares, self.worst = merged.count, merged.mean, merged.squares, merged.worst
+        return self
+
+    def merge(self, other: "Stats") -> "Stats":
+        if not other.count:
+            return Stats(self.count, self.mean, self.squares, self.worst)
+        if not self.count:
+            return Stats(other.count, other.mean, other.squares, other.worst)
+        count = self.count + other.count
+        delta = other.mean - self.mean
+        return Stats(count, self.mean + delta * other.count / count,
+                     self.squares + other.squares + delta * delta * self.count * other.count / count,
+                     max(self.worst, other.worst))
+
+    @property
+    def std(self) -> float:
+        return math.sqrt(self.squares / self.count) if self.count else 0.0
+
+    def summary(self) -> dict:
+        return {"mean": self.mean, "std": self.std, "max": self.worst, "samples": self.count}

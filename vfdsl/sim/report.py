@@ -1,0 +1,132 @@
+"""Aggregating trials into one result: the summary table, the JSON document and the per-trial CSV.
+
+Statistics pool every tick of every trial of a grid point, merged in trial order, so a run gives the same
+numbers however its trials were scheduled (in this process, a process pool or a Dask cluster).
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import math
+
+import vfdsl
+from vfdsl.sim.metrics import Stats
+from vfdsl.sim.runner import TrialResult
+from vfdsl.sim.settings import SimSettings
+
+
+def groups(results: list[TrialResult]) -> list[tuple[tuple, list[TrialResult]]]:
+    """Results by grid point, in the order of the first trial of each."""
+    out: dict[tuple, list[TrialResult]] = {}
+    for r in results:
+        out.setdefault(r.grid, []).append(r)
+    return list(out.items())
+
+
+def pooled(results: list[TrialResult]) -> dict[str, Stats]:
+    total: dict[str, Stats] = {}
+    for r in sorted(results, key=lambda r: r.trial):
+        for name, stats in r.stats.items():
+            total[name] = total.get(name, Stats()).merge(stats)
+    return total
+
+
+def paper_figures(settings: SimSettings) -> dict[str, tuple[float, float]]:
+    """The paper's (mean, std) beside our metric names: encoders for a metric, tracker for tracker_*."""
+    out = {}
+    for spec in settings.metrics:
+        unit = "deg" if spec.tilt_of else None
+        for source, figure in spec.paper.items():
+            for suffix in (("_mm", "_deg") if unit is None else ("_deg",)):
+                name = f"{spec.name}{suffix}"
+                out[name if source == "encoders" else f"tracker_{name}"] = figure
+    return out
+
+
+def document(task_name: str, task_file: str, settings: SimSettings, results: list[TrialResult],
+             grid: list[tuple[str, list]] | None) -> dict:
+    """The whole run as JSON data: settings, seed, metrics (per grid point when there is a grid), trials."""
+    paper = paper_figures(settings)
+    units = results[0].units
+
+    def metrics_of(rs: list[TrialResult]) -> dict:
+        return {name: {**stats.summary(), "unit": units[name],
+                       **({"paper": {"mean": paper[name][0], "std": paper[name][1]}} if name in paper else {})}
+                for name, stats in pooled(rs).items()}
+
+    doc = {"vfdsl": vfdsl.__version__, "task": task_name, "file": task_file, "seed": settings.seed,
+           "settings": settings.summary(), "hand": results[0].hand,
+           "fallback_ticks": sum(r.fallback_ticks for r in results), "ticks": sum(r.ticks for r in results)}
+    if grid:
+        doc["grid"] = {name: values for name, values in grid}
+        doc["groups"] = [{"settings": dict(point), "metrics": metrics_of(rs)} for point, rs in groups(results)]
+    else:
+        doc["metrics"] = metrics_of(results)
+    doc["trials"] = trial_rows(results)
+    return doc
+
+
+def trial_rows(results: list[TrialResult]) -> list[dict]:
+    """One row per trial: its grid settings, seed, and each metric's mean and max."""
+    rows = []
+    for r in results:
+        row = {"trial": r.trial, "seed": r.seed, **dict(r.grid), "fallback_ticks": r.fallback_ticks}
+        for name, stats in r.stats.items():
+            row[f"{name}.mean"] = stats.mean
+            row[f"{name}.max"] = stats.worst
+        rows.append(row)
+    return rows
+
+
+def to_json(doc: dict) -> str:
+    return json.dumps(doc, indent=2, sort_keys=False, default=_plain) + "\n"
+
+
+def to_csv(doc: dict) -> str:
+    rows = doc["trials"]
+    out = io.StringIO()
+    writer = csv.DictWriter(out, fieldnames=list(rows[0]), lineterminator="\n")
+    writer.writeheader()
+    writer.writerows(rows)
+    return out.getvalue()
+
+
+def _plain(value):
+    if hasattr(value, "tolist"):
+        return value.tolist()
+    if isinstance(value, tuple):
+        return list(value)
+    raise TypeError(f"not JSON data: {type(value).__name__}")
+
+
+def table(doc: dict, tolerances: dict[str, float]) -> str:
+    """The summary table a user reads: per grid point, each metric's mean, std and max over the trials,
+    its tolerance, and the paper's figure beside it."""
+    blocks = doc["groups"] if "groups" in doc else [{"settings": {}, "metrics": doc["metrics"]}]
+    lines = []
+    header = f"{'metric':<34} {'unit':<6} {'mean':>10} {'std':>10} {'max':>10} {'tolerance':>10}  paper (mean ± std)"
+    for block in blocks:
+        if block["settings"]:
+            lines.append("")
+            lines.append(", ".join(f"{k} = {_setting(k, v)}" for k, v in block["settings"].items()))
+        lines.append(header)
+        for name, m in block["metrics"].items():
+            paper = f"{m['paper']['mean']:g} ± {m['paper']['std']:g}" if "paper" in m else ""
+            tol = tolerances.get(name.removeprefix("tracker_"))
+            lines.append(f"{name:<34} {m['unit']:<6} {_num(m['mean'])} {_num(m['std'])} {_num(m['max'])} "
+                         f"{_num(tol) if tol is not None else ' ' * 10}  {paper}")
+    return "\n".join(lines)
+
+
+def _num(x: float) -> str:
+    return f"{x:>10.3g}" if math.isfinite(x) else f"{'-':>10}"
+
+
+def _setting(name: str, value) -> str:
+    if name in ("period", "latency", "servo_lag", "duration"):
+        return f"{value * 1e3:g} ms" if value < 1 else f"{value:g} s"
+    if name == "noise":
+        return f"{value * 1e3:g} mm"
+    return str(value)

@@ -1,0 +1,457 @@
+"""Simulation settings: the robot's imperfections, the hand, the tracker, scripted disturbances, metrics.
+
+They come from a simulation scene (``<task>.sim.yaml`` next to the task file, or ``--scene FILE``), and
+the command line overrides the scalar ones. Every value is SI inside; bare numbers in the file take its
+``units`` (default m, rad, s, N). A mistake is a :class:`VfError` at the file, line and column::
+
+    units: mm, deg
+    duration: 60 s
+    period: 10 ms              # default: the task scene's period, else 10 ms
+    latency: 0 ms              # command latency: a command reaches the joints this long after its tick
+    servo_lag: 0 ms            # first-order time constant of the joint servos
+    resolution: off            # off, or robot: the URDF sidecar's per-joint resolution (SHR: 10 um)
+    trials: 5
+    seed: 1
+    tracker: {noise: 0.2 mm, marker_distance: 100 mm}   # optical tracker: RMS 3-D noise per marker
+    hand:                      # the user's input; see vfdsl.sim.hand for the kinds
+      input: tau
+      kind: turn               # push | turn | follow | toward
+      axis: [0, -0.2, 1]       # or the name of a direction param
+      magnitude: 0.3 Nmm
+      tremor: 0.05 Nmm         # RMS of the 8-12 Hz physiological tremor
+      drift: 0.05 Nmm          # RMS of the slow drift (time constant drift_time, default 2 s)
+    disturbances:
+      - {at: 10 s, kind: move_param, param: plate, translate: [0, 2, 0], tilt: [3, 0, 0]}
+      - {at: 20 s, kind: push_tool, frame: tip, by: [0.5, 0, 0]}
+    metrics:                   # names for the errors of the task's constraints, with the paper's figures
+      pivot_error: {error_of: tip stays_at, paper: {encoders: [0.01, 0.01], tracker: [0.23, 0.11]}}
+      tool_tilt: {tilt_of: tip, normal_of: plate}
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+from vfdsl.errors import SourcePos, VfError, suggest
+from vfdsl.ir import model as ir
+from vfdsl.passes import units as u
+from vfdsl.passes.files import read_text
+from vfdsl.passes.scene import _mapping, _span, _units, _Values, compose   # the task scene's YAML reading
+from vfdsl.syntax import ast
+
+DEFAULT_PERIOD = 0.01
+DEFAULT_DURATION = 10.0
+HAND_KINDS = ("push", "turn", "follow", "toward")
+DISTURBANCE_KINDS = ("move_param", "push_tool")
+RESOLUTIONS = ("off", "robot")
+_TOP_KEYS = ("units", "duration", "period", "latency", "servo_lag", "resolution", "trials", "seed", "tracker",
+             "hand", "disturbances", "metrics")
+_HAND_KEYS = ("input", "kind", "magnitude", "direction", "axis", "curve", "frame", "target", "tremor",
+              "tremor_band", "drift", "drift_time", "reaction")
+_TRACKER_KEYS = ("noise", "marker_distance")
+_METRIC_KEYS = ("error_of", "tilt_of", "normal_of", "paper")
+
+
+@dataclass(frozen=True)
+class HandSettings:
+    """The simulated hand (see :mod:`vfdsl.sim.hand`). Vectors and magnitudes in SI input units."""
+
+    input: str
+    kind: str                                   # push | turn | follow | toward
+    magnitude: float                            # N, N m (or m/s, rad/s for a twist)
+    direction: tuple[float, ...] | str | None = None   # push / turn: a vector or a param name
+    curve: str | None = None                    # follow: a curve param
+    frame: str | None = None                    # follow / toward: the task frame the hand guides
+    target: str | None = None                   # toward: a point or plane param
+    tremor: float = 0.0                         # RMS, input units
+    tremor_band: tuple[float, float] = (8.0, 12.0)   # Hz
+    drift: float = 0.0                          # RMS, input units
+    drift_time: float = 2.0                     # s
+    reaction: float = 0.05                      # s between updates of the hand's aim
+
+
+@dataclass(frozen=True)
+class Disturbance:
+    at: float                                   # s
+    kind: str                                   # move_param | push_tool
+    param: str | None = None                    # move_param: a pose or point param
+    translate: tuple[float, float, float] = (0.0, 0.0, 0.0)   # m, world axes
+    tilt: tuple[float, float, float] = (0.0, 0.0, 0.0)        # rad, rotation vector (world axes) of a pose
+    frame: str | None = None                    # push_tool: the task frame pushed
+    by: tuple[float, float, float] = (0.0, 0.0, 0.0)          # push_tool: displacement, m
+    where: SourcePos | None = None
+
+
+@dataclass(frozen=True)
+class MetricSpec:
+    """A named metric: the error of one constraint (``error_of: "tip stays_at"``), or the angle between a
+    frame's tool axis and a pose param's z axis (``tilt_of: tip, normal_of: plate``)."""
+
+    name: str
+    error_of: str | None = None
+    tilt_of: str | None = None
+    normal_of: str | None = None
+    paper: dict[str, tuple[float, float]] = field(default_factory=dict)   # source -> (mean, std), mm or deg
+    where: SourcePos | None = None
+
+
+@dataclass(frozen=True)
+class SimSettings:
+    duration: float = DEFAULT_DURATION
+    period: float = DEFAULT_PERIOD
+    latency: float = 0.0
+    servo_lag: float = 0.0
+    resolution: str = "off"
+    noise: float = 0.0                          # tracker: RMS 3-D error of one marker, m
+    marker_distance: float = 0.1                # tracker: second marker this far up the tool axis, m
+    trials: int = 1
+    seed: int = 0
+    hand: HandSettings | None = None            # None: the generic hand of the task's first tracked input
+    disturbances: tuple[Disturbance, ...] = ()
+    metrics: tuple[MetricSpec, ...] = ()
+    scene: str | None = None                    # the file these came from
+
+    def replace(self, **changes) -> "SimSettings":
+        """A copy with some settings changed, each checked like a value read from a scene."""
+        for name, value in changes.items():
+            check_setting(name, value)
+        return dataclasses.replace(self, **changes)
+
+    def summary(self) -> dict:
+        """The settings as plain JSON data (SI units)."""
+        data = dataclasses.asdict(self)
+        for d in data["disturbances"]:
+            d.pop("where")
+        for m in data["metrics"]:
+            m.pop("where")
+        return data
+
+
+# Scalar settings the command line and sweeps may change, and their dimensions
+SCALARS: dict[str, u.Dim] = {"duration": u.TIME, "period": u.TIME, "latency": u.TIME, "servo_lag": u.TIME,
+                             "noise": u.LENGTH}
+
+
+def check_setting(name: str, value, where: SourcePos | None = None) -> None:
+    """Refuse a value no simulation can use (a non-positive period, a negative latency, ...)."""
+    if name in ("duration", "period"):
+        if not (isinstance(value, float) and math.isfinite(value) and value > 0):
+            raise VfError(f"{name} must be a positive time, got {value!r}", where)
+    elif name in ("latency", "servo_lag", "noise"):
+        if not (isinstance(value, float) and math.isfinite(value) and value >= 0):
+            raise VfError(f"{name} must be zero or positive, got {value!r}", where)
+    elif name == "resolution":
+        if value not in RESOLUTIONS:
+            raise VfError(f"resolution must be {' or '.join(RESOLUTIONS)}, got {value!r}", where,
+                          hint="robot: the URDF sidecar's per-joint resolution")
+    elif name == "trials":
+        if not (isinstance(value, int) and value >= 1):
+            raise VfError(f"trials must be a positive whole number, got {value!r}", where)
+    elif name == "seed":
+        if not (isinstance(value, int) and value >= 0):
+            raise VfError(f"seed must be a whole number >= 0, got {value!r}", where)
+    elif name not in ("hand", "disturbances", "metrics", "scene", "marker_distance"):
+        raise VfError(f"unknown setting '{name}'", where, hint=suggest(name, GRID_NAMES, "settings"))
+
+
+GRID_NAMES = ("duration", "period", "latency", "servo_lag", "noise", "resolution")
+
+
+def parse_setting(name: str, text: str) -> object:
+    """A command-line value: ``"150ms"``, ``"0.2 mm"``, ``"robot"``; bare numbers are SI."""
+    if name not in GRID_NAMES:
+        raise VfError(f"unknown setting '{name}'", hint=suggest(name, GRID_NAMES, "settings"))
+    if name == "resolution":
+        value = text.strip()
+    else:
+        node = yaml.compose(f"'{text.strip()}'") if text.strip() else None
+        if node is None:
+            raise VfError(f"{name}: expected a value like 10ms, got nothing")
+        where = "<command line>"
+        quantity = _Values(where).read(node)
+        value = _si(quantity, SCALARS[name], u.DefaultUnits())
+    check_setting(name, value)
+    return value
+
+
+def default_scene(task_file: str | Path) -> Path | None:
+    """``<task>.sim.yaml`` next to the task file, if there is one."""
+    path = Path(task_file).with_suffix(".sim.yaml")
+    return path if path.is_file() else None
+
+
+def load_settings(task: ir.Task, scene: str | Path | None) -> SimSettings:
+    """The settings of ``scene`` (a ``.sim.yaml`` file), checked against ``task``; defaults without one."""
+    base = SimSettings(period=task.scene.period or DEFAULT_PERIOD)
+    if scene is None:
+        return base
+    path = Path(scene)
+    text = read_text(path, "simulation scene")
+    return _Reader(task, str(path)).settings(compose(text, path), base)
+
+
+def _si(node: ast.Value, dim: u.Dim, units: u.DefaultUnits) -> float:
+    if not isinstance(node, ast.Quantity):
+        raise VfError(f"expected {u.describe(dim)}", node.span.pos())
+    return u.to_si(node.number, node.unit, dim, units, node.span)
+
+
+class _Reader:
+    """Reads one simulation scene's YAML nodes into settings, with positions for every error."""
+
+    def __init__(self, task: ir.Task, file: str):
+        self.task = task
+        self.file = file
+        self.units = u.DefaultUnits()
+
+    def pos(self, node: yaml.Node) -> SourcePos:
+        return _span(node, self.file).pos()
+
+    def mapping(self, node: yaml.Node, keys: tuple[str, ...], what: str) -> dict[str, tuple[yaml.Node, yaml.Node]]:
+        if not isinstance(node, yaml.MappingNode):
+            raise VfError(f"{what} is a mapping with keys {', '.join(keys)}", self.pos(node))
+        fields = _mapping(node, self.file)
+        for key, (key_node, _) in fields.items():
+            if key not in keys:
+                raise VfError(f"unknown key '{key}' in {what}", self.pos(key_node), hint=suggest(key, keys, "keys"))
+        return fields
+
+    def text(self, node: yaml.Node, what: str) -> str:
+        if not isinstance(node, yaml.ScalarNode) or not str(node.value).strip():
+            raise VfError(f"{what} is a name", self.pos(node))
+        return str(node.value).strip()
+
+    def scalar(self, node: yaml.Node, dim: u.Dim) -> float:
+        return _si(_Values(self.file).read(node), dim, self.units)
+
+    def vector(self, node: yaml.Node, dim: u.Dim) -> tuple[float, float, float]:
+        if not isinstance(node, yaml.SequenceNode) or len(node.value) != 3:
+            raise VfError(f"expected 3 numbers ({u.describe(dim)} each), like [0, 1, 0]", self.pos(node))
+        return tuple(self.scalar(item, dim) for item in node.value)
+
+    def integer(self, node: yaml.Node, what: str) -> int:
+        value = self.scalar(node, u.DIMENSIONLESS)
+        if value != int(value):
+            raise VfError(f"{what} must be a whole number, got {value}", self.pos(node))
+        return int(value)
+
+    def settings(self, root: yaml.Node | None, base: SimSettings) -> SimSettings:
+        if root is None:
+            return dataclasses.replace(base, scene=self.file)
+        top = self.mapping(root, _TOP_KEYS, "a simulation scene")
+        if "units" in top:
+            self.units = _units(top["units"][1], self.file, self.units)
+        values: dict = {"scene": self.file}
+        for name, dim in SCALARS.items():
+            if name in top and name != "noise":
+                values[name] = self.scalar(top[name][1], dim)
+        if "resolution" in top:
+            values["resolution"] = self.text(top["resolution"][1], "resolution")
+        for name in ("trials", "seed"):
+            if name in top:
+                values[name] = self.integer(top[name][1], name)
+        for name, value in values.items():
+            if name != "scene":
+                check_setting(name, value, self.pos(top[name][1]))
+        if "tracker" in top:
+            tracker = self.mapping(top["tracker"][1], _TRACKER_KEYS, "tracker")
+            if "noise" in tracker:
+                values["noise"] = self.scalar(tracker["noise"][1], u.LENGTH)
+                check_setting("noise", values["noise"], self.pos(tracker["noise"][1]))
+            if "marker_distance" in tracker:
+                values["marker_distance"] = self.scalar(tracker["marker_distance"][1], u.LENGTH)
+                if values["marker_distance"] <= 0:
+                    raise VfError("marker_distance must be positive", self.pos(tracker["marker_distance"][1]))
+        if "hand" in top:
+            values["hand"] = self.hand(top["hand"][1])
+        if "disturbances" in top:
+            node = top["disturbances"][1]
+            if not isinstance(node, yaml.SequenceNode):
+                raise VfError("disturbances is a list of mappings like {at: 5 s, kind: push_tool, ...}",
+                              self.pos(node))
+            values["disturbances"] = tuple(self.disturbance(item) for item in node.value)
+        if "metrics" in top:
+            node = top["metrics"][1]
+            if not isinstance(node, yaml.MappingNode):
+                raise VfError("metrics is a mapping from names to {error_of: ...} or {tilt_of: ...}", self.pos(node))
+            values["metrics"] = tuple(self.metric(name, key, value)
+                                      for name, (key, value) in _mapping(node, self.file).items())
+        return dataclasses.replace(base, **values)
+
+    # ---------------------------------------------------------------------------------------- hand
+    def hand(self, node: yaml.Node) -> HandSettings:
+        fields = self.mapping(node, _HAND_KEYS, "hand")
+        for key in ("input", "kind", "magnitude"):
+            if key not in fields:
+                raise VfError(f"the hand needs '{key}'", self.pos(node))
+        name = self.text(fields["input"][1], "input")
+        inputs = {i.name: i for i in self.task.inputs}
+        if name not in inputs:
+            raise VfError(f"the hand drives input '{name}', which task '{self.task.name}' does not declare",
+                          self.pos(fields["input"][1]), hint=suggest(name, inputs, "inputs"))
+        kind = self.text(fields["kind"][1], "kind")
+        if kind not in HAND_KINDS:
+            raise VfError(f"unknown hand kind '{kind}'", self.pos(fields["kind"][1]),
+                          hint=suggest(kind, HAND_KINDS, "kinds"))
+        input_type = inputs[name].type
+        if kind == "turn" and input_type == "force":
+            raise VfError(f"a turning hand needs a torque, wrench or twist input; '{name}' is a force",
+                          self.pos(fields["kind"][1]), hint="use kind: push, follow or toward")
+        if kind != "turn" and input_type == "torque":
+            raise VfError(f"a {kind} hand needs a force, wrench or twist input; '{name}' is a torque",
+                          self.pos(fields["kind"][1]), hint="use kind: turn")
+        dim = hand_dimension(input_type, kind)
+        out: dict = {"input": name, "kind": kind, "magnitude": self.scalar(fields["magnitude"][1], dim)}
+        for key in ("tremor", "drift"):
+            if key in fields:
+                out[key] = self.scalar(fields[key][1], dim)
+        for key in ("magnitude", "tremor", "drift"):
+            if key in out and out[key] < 0:
+                raise VfError(f"{key} must be zero or positive", self.pos(fields[key][1]))
+        if "tremor_band" in fields:
+            band_node = fields["tremor_band"][1]
+            if not isinstance(band_node, yaml.SequenceNode) or len(band_node.value) != 2:
+                raise VfError("tremor_band is [low, high] in Hz, like [8, 12]", self.pos(band_node))
+            band = tuple(self.scalar(n, u.DIMENSIONLESS) for n in band_node.value)
+            if not 0 < band[0] <= band[1]:
+                raise VfError("tremor_band needs 0 < low <= high (Hz)", self.pos(band_node))
+            out["tremor_band"] = band
+        for key in ("drift_time", "reaction"):
+            if key in fields:
+                out[key] = self.scalar(fields[key][1], u.TIME)
+                if out[key] <= 0:
+                    raise VfError(f"{key} must be a positive time", self.pos(fields[key][1]))
+        for key in ("direction", "axis"):
+            if key in fields:
+                value = fields[key][1]
+                out["direction"] = (self.param(value, ("direction", "vector"), key) if isinstance(value, yaml.ScalarNode)
+                                    else self.vector(value, u.DIMENSIONLESS))
+                if not isinstance(out["direction"], str) and np.linalg.norm(out["direction"]) == 0:
+                    raise VfError(f"{key} must not be zero", self.pos(value))
+        if "curve" in fields:
+            out["curve"] = self.param(fields["curve"][1], ("curve",), "curve")
+        if "target" in fields:
+            out["target"] = self.param(fields["target"][1], ("point", "plane"), "target")
+        if "frame" in fields:
+            out["frame"] = self.frame(fields["frame"][1])
+        if kind != "push" and "frame" not in out and tracked_frame(self.task, name) is None:
+            raise VfError(f"a {kind} hand needs 'frame': no `minimize track(...)` of task '{self.task.name}' "
+                          f"says which frame input '{name}' moves", self.pos(node))
+        needs = {"push": ("direction",), "turn": ("direction",), "follow": ("curve",), "toward": ("target",)}[kind]
+        for key in needs:
+            if key not in out:
+                raise VfError(f"a {kind} hand needs '{'axis' if kind == 'turn' else key}'", self.pos(node))
+        return HandSettings(**out)
+
+    def param(self, node: yaml.Node, types: tuple[str, ...], what: str) -> str:
+        name = self.text(node, what)
+        params = {p.name: p for p in self.task.params}
+        if name not in params:
+            raise VfError(f"unknown param '{name}'", self.pos(node), hint=suggest(name, params, "params"))
+        if params[name].type not in types:
+            raise VfError(f"{what} must be a {' or '.join(types)} param; '{name}' is a {params[name].type}",
+                          self.pos(node))
+        return name
+
+    def frame(self, node: yaml.Node) -> str:
+        name = self.text(node, "frame")
+        frames = [f.name for f in self.task.frames]
+        if name not in frames:
+            raise VfError(f"unknown frame '{name}'", self.pos(node), hint=suggest(name, frames, "frames"))
+        return name
+
+    # -------------------------------------------------------------------------------- disturbances
+    def disturbance(self, node: yaml.Node) -> Disturbance:
+        fields = self.mapping(node, ("at", "kind", "param", "translate", "tilt", "frame", "by"), "a disturbance")
+        for key in ("at", "kind"):
+            if key not in fields:
+                raise VfError(f"a disturbance needs '{key}'", self.pos(node))
+        at = self.scalar(fields["at"][1], u.TIME)
+        if at < 0:
+            raise VfError("a disturbance time must be zero or positive", self.pos(fields["at"][1]))
+        kind = self.text(fields["kind"][1], "kind")
+        if kind not in DISTURBANCE_KINDS:
+            raise VfError(f"unknown disturbance '{kind}'", self.pos(fields["kind"][1]),
+                          hint=suggest(kind, DISTURBANCE_KINDS, "disturbances"))
+        allowed = {"move_param": ("at", "kind", "param", "translate", "tilt"),
+                   "push_tool": ("at", "kind", "frame", "by")}[kind]
+        for key, (key_node, _) in fields.items():
+            if key not in allowed:
+                raise VfError(f"'{key}' does not apply to a {kind} disturbance", self.pos(key_node),
+                              hint="keys: " + ", ".join(allowed))
+        out: dict = {"at": at, "kind": kind, "where": self.pos(node)}
+        if kind == "move_param":
+            if "param" not in fields:
+                raise VfError("a move_param disturbance needs 'param'", self.pos(node))
+            out["param"] = self.param(fields["param"][1], ("pose", "point"), "param")
+            if "translate" in fields:
+                out["translate"] = self.vector(fields["translate"][1], u.LENGTH)
+            if "tilt" in fields:
+                if self.task.param(out["param"]).type != "pose":
+                    raise VfError("only a pose param can tilt", self.pos(fields["tilt"][0]))
+                out["tilt"] = self.vector(fields["tilt"][1], u.ANGLE)
+        else:
+            if "frame" not in fields or "by" not in fields:
+                raise VfError("a push_tool disturbance needs 'frame' and 'by'", self.pos(node))
+            out["frame"] = self.frame(fields["frame"][1])
+            out["by"] = self.vector(fields["by"][1], u.LENGTH)
+        return Disturbance(**out)
+
+    # ------------------------------------------------------------------------------------- metrics
+    def metric(self, name: str, key_node: yaml.Node, node: yaml.Node) -> MetricSpec:
+        fields = self.mapping(node, _METRIC_KEYS, f"metric '{name}'")
+        out: dict = {"name": name, "where": self.pos(key_node)}
+        if ("error_of" in fields) == ("tilt_of" in fields):
+            raise VfError(f"metric '{name}' needs exactly one of error_of (\"frame primitive\") or tilt_of (a frame)",
+                          self.pos(node))
+        if "error_of" in fields:
+            out["error_of"] = self.text(fields["error_of"][1], "error_of")
+            constraint_of(self.task, out["error_of"], self.pos(fields["error_of"][1]))
+        else:
+            out["tilt_of"] = self.frame(fields["tilt_of"][1])
+            if "normal_of" not in fields:
+                raise VfError(f"metric '{name}' needs normal_of: a pose param", self.pos(node))
+            out["normal_of"] = self.param(fields["normal_of"][1], ("pose",), "normal_of")
+        if "paper" in fields:
+            paper = {}
+            for source, (k, v) in self.mapping(fields["paper"][1], ("encoders", "tracker"), "paper").items():
+                if not isinstance(v, yaml.SequenceNode) or len(v.value) != 2:
+                    raise VfError("the paper's figure is [mean, std] in mm or deg", self.pos(v))
+                paper[source] = tuple(float(self.scalar(n, u.DIMENSIONLESS)) for n in v.value)
+            out["paper"] = paper
+        return MetricSpec(**out)
+
+
+def tracked_frame(task: ir.Task, input_name: str) -> str | None:
+    """The frame that ``minimize track(frame, input)`` moves with this input, if any."""
+    for o in task.objectives:
+        if o.term == "track" and o.args["input"].name == input_name:
+            return o.args["frame"].name
+    return None
+
+
+def hand_dimension(input_type: str, kind: str) -> u.Dim:
+    """The dimension of a hand's magnitude: a force or torque (a speed for a twist input)."""
+    if input_type == "twist":
+        return u.ANGULAR_SPEED if kind == "turn" else u.SPEED
+    return u.TORQUE if kind == "turn" else u.FORCE
+
+
+def constraint_of(task: ir.Task, ref: str, where: SourcePos | None = None) -> ir.Constraint:
+    """The constraint named by ``"frame primitive"`` (``"tip stays_at"``) or ``"primitive"``; exactly one."""
+    words = ref.split()
+    if len(words) not in (1, 2):
+        raise VfError(f"name a constraint as \"frame primitive\", like \"tip stays_at\"; got {ref!r}", where)
+    frame, primitive = (None, words[0]) if len(words) == 1 else words
+    found = [c for c in task.constraints if c.primitive == primitive and (frame is None or c.frame == frame)]
+    if len(found) != 1:
+        known = [f"{c.frame} {c.primitive}" if c.frame else c.primitive for c in task.constraints]
+        problem = "no constraint" if not found else f"{len(found)} constraints"
+        raise VfError(f"{problem} of task '{task.name}' match '{ref}'", where, hint=suggest(ref, known, "constraints"))
+    return found[0]
