@@ -77,6 +77,25 @@ PERSISTENT_DAQP = (Path(__file__).parent / "daqp_persistent.c").read_text()
 MEMORY_SLOTS = (Path(__file__).parent / "memory_slots.c").read_text()
 MAX_SLOTS = 64
 """Controllers of one task that may exist at once in a process (memory slots of its generated code)."""
+HEADER_CONTRACT = """
+/* vfdsl: how to call @PREFIX@ from C (no Python needed).
+ *
+ *   int slot = @PREFIX@_checkout();      one slot per controller: -1 when all @SLOTS@ are taken
+ *   @PREFIX@(arg, res, iw, w, slot);     one tick; arg = {q, u, p, &dt, &recover}, res = {x, &status, violation}
+ *   @PREFIX@_release(slot);              frees the slot's solver memory
+ *
+ * - A slot holds the solvers' workspaces and warm start: give each controller (each thread) its own
+ *   slot and its own arg/res/iw/w arrays (sizes: @PREFIX@_work). Different slots run in parallel.
+ * - One slot used by two threads at once is refused: the second call returns 3 and touches nothing.
+ *   A slot that is not checked out returns 2. 0 means the outputs are valid.
+ * - The function does not check its inputs: pass finite numbers, q within the joint limits (or near
+ *   them), dt > 0, recover = 0 (1 forces the least-violation phase). Whatever they are, x is finite and
+ *   inside the joint bounds, or the rest motion with the FALLBACK bit (4) in status.
+ * - status bits: 0 OPTIMAL, 1 LEAST_VIOLATION, 2 BOUNDS_CLIPPED, 4 FALLBACK; violation[i] is row i's
+ *   excess (the rows are listed in the .json next to this header).
+ * - The first call on a slot allocates the DAQP workspaces; later calls allocate nothing.
+ */
+"""
 _MAX_THREADS = "#ifndef CASADI_MAX_NUM_THREADS\n#define CASADI_MAX_NUM_THREADS 1\n#endif\n"
 _POOL_CHECKOUT = re.compile(r"^int (casadi_f\d+)_checkout\(void\) \{\n.*?^\}\n", re.MULTILINE | re.DOTALL)
 _POOL_RELEASE = re.compile(r"^void (casadi_f\d+)_release\(int mem\) \{\n.*?^\}\n", re.MULTILINE | re.DOTALL)
@@ -180,7 +199,9 @@ def _generate(fn: ca.Function, prefix: str, work: Path, persistent_daqp: bool) -
         source = _with_persistent_daqp(source)
     source = _with_memory_slots(source, prefix)
     c_path.write_text(source)
-    return source, h_path.read_text()
+    header = h_path.read_text() + HEADER_CONTRACT.replace("@PREFIX@", prefix).replace("@SLOTS@", str(MAX_SLOTS))
+    h_path.write_text(header)
+    return source, header
 
 
 def _with_persistent_daqp(source: str) -> str:
