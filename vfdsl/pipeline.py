@@ -28,6 +28,8 @@ from vfdsl.runtime.qp import build_step_function
 # A row or bound is satisfied within this much (m or rad): far below any tolerance a task can express.
 FEASIBILITY_TOLERANCE = 1e-9
 BACKENDS = ("auto", "native", "interpreted")
+NAME_IN_SYMBOL = 48
+"""Characters of the task name kept in its C symbol and file names (the IR hash keeps them unique)."""
 
 
 class InterpretedFallback(UserWarning):
@@ -53,7 +55,8 @@ def symbol_prefix(task: ir.Task, digest: str | None = None) -> str:
     """The C identifier of this task's step function: its name and a short hash of its IR, so that
     several tasks (or versions of one) can be loaded in one process."""
     digest = digest or ir_digest(task)
-    return f"vf_{re.sub(r'[^A-Za-z0-9_]', '_', task.name)}_{digest[:8]}"
+    name = re.sub(r"[^A-Za-z0-9_]", "_", task.name)[:NAME_IN_SYMBOL]   # file names stay short
+    return f"vf_{name}_{digest[:8]}"
 
 
 def compile(task: ir.Task, *, backend: str = "auto", cache_dir: str | Path | None = None) -> Controller:

@@ -52,6 +52,7 @@ import shutil
 import subprocess
 import sysconfig
 import tempfile
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -138,23 +139,55 @@ def build_library(fn: ca.Function, prefix: str, cache_dir: Path, metadata: dict,
     if not _IDENTIFIER.fullmatch(prefix):
         raise ValueError(f"prefix {prefix!r} is not a C identifier")
     cache_dir = Path(cache_dir)
-    cache_dir.mkdir(parents=True, exist_ok=True)
+    if cache_dir.exists() and not cache_dir.is_dir():
+        raise VfError(f"the build directory {cache_dir} is not a directory",
+                      hint="point -o / VFDSL_CACHE at a directory (it is created if missing)")
     compiler = find_compiler()
-    with tempfile.TemporaryDirectory(dir=cache_dir, prefix=f".build-{prefix}-") as tmp:
-        work = Path(tmp)
-        source, header = _generate(fn, prefix, work, persistent_daqp)
-        digest = _digest(source, header, compiler, metadata)
-        entry = cache_dir / f"{prefix}-{digest[:16]}"
-        found = _verified(entry, prefix, digest)
-        if found is not None:
-            return dataclasses.replace(found, reused=True)
-        built = _compile(fn, prefix, work, compiler, digest, metadata)
-        return _publish(work, built, entry, prefix, digest)
+    try:
+        cache_dir.mkdir(parents=True, exist_ok=True)
+        work_dir = tempfile.TemporaryDirectory(dir=cache_dir, prefix=f".build-{prefix}-")
+    except OSError as exc:   # read-only or full: a valid entry is still used, else build elsewhere
+        work_dir, fallback = tempfile.TemporaryDirectory(prefix=f"vfdsl-build-{prefix}-"), exc
+    else:
+        fallback = None
+    try:
+        with work_dir as tmp:
+            work = Path(tmp)
+            source, header = _generate(fn, prefix, work, persistent_daqp)
+            digest = _digest(source, header, compiler, metadata)
+            entry = cache_dir / f"{prefix}-{digest[:16]}"
+            found = _verified(entry, prefix, digest)
+            if found is not None:
+                return dataclasses.replace(found, reused=True)
+            built = _compile(fn, prefix, work, compiler, digest, metadata)
+            if fallback is not None:
+                entry = _private_cache() / entry.name
+                warnings.warn(f"cannot write the build cache {cache_dir} ({fallback.strerror}); "
+                              f"built in {entry.parent} instead", BuildCacheUnwritable, stacklevel=3)
+            return _publish(work, built, entry, prefix, digest)
+    except OSError as exc:
+        raise VfError(f"cannot write the build of {prefix}: {exc.strerror or exc} ({exc.filename or cache_dir})",
+                      hint="free disk space, or point VFDSL_CACHE (or -o) at a writable directory") from None
+
+
+class BuildCacheUnwritable(UserWarning):
+    """The build cache could not be written: the library was built in a private temporary directory."""
+
+
+def _private_cache() -> Path:
+    """A per-user cache under the system's temporary directory (for a cache that cannot be written)."""
+    path = Path(tempfile.gettempdir()) / f"vfdsl-cache-{os.getuid()}"
+    path.mkdir(mode=0o700, exist_ok=True)
+    return path
 
 
 def find_compiler() -> Compiler:
     """The compiler named by ``$CC`` (default ``cc``), identified by version and resolved target."""
-    command = tuple(shlex.split(os.environ.get("CC", "cc")))
+    try:
+        command = tuple(shlex.split(os.environ.get("CC", "cc")))
+    except ValueError as exc:
+        raise CompilerUnavailable(f"CC={os.environ.get('CC')!r} does not parse as a command: {exc}",
+                                  hint="quote CC as a shell would, e.g. CC='gcc -m64'") from None
     path = shutil.which(command[0]) if command else None
     if path is None:
         raise CompilerUnavailable(
@@ -298,6 +331,7 @@ def _compile(fn: ca.Function, prefix: str, work: Path, compiler: Compiler, diges
             "casadi_version": ca.__version__, "max_slots": MAX_SLOTS,
             "created": datetime.datetime.now(datetime.UTC).isoformat(),
             "so_file": so_name, "so_sha256": _sha256(work / so_name),
+            "c_sha256": _sha256(work / f"{prefix}.c"), "h_sha256": _sha256(work / f"{prefix}.h"),
             "python_module_file": module_file,
             "python_module_sha256": _sha256(work / module_file) if module_file else None}
     (work / f"{prefix}.json").write_text(json.dumps(meta, indent=2, sort_keys=True))
@@ -341,7 +375,8 @@ def _verified(entry: Path, prefix: str, digest: str) -> BuiltLibrary | None:
         meta = json.loads((entry / f"{prefix}.json").read_text())
         library = _library(entry, prefix, digest, meta)
         intact = (meta["digest"] == digest and library.so_path.parent == entry
-                  and library.c_path.is_file() and library.h_path.is_file()
+                  and _sha256(library.c_path) == meta["c_sha256"]
+                  and _sha256(library.h_path) == meta["h_sha256"]
                   and _sha256(library.so_path) == meta["so_sha256"]
                   and (library.module_path is None
                        or _sha256(library.module_path) == meta["python_module_sha256"]))

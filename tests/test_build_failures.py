@@ -1,0 +1,93 @@
+"""The build and its cache never crash a command: bad places, bad compilers, damaged entries, long names."""
+
+from __future__ import annotations
+
+import errno
+import os
+import tempfile
+import warnings
+
+import pytest
+
+import vfdsl
+from vfdsl import pipeline
+from vfdsl.cli import main as cli_main
+from vfdsl.codegen import build as codegen
+from vfdsl.errors import VfError
+from conftest import TASKS_DIR
+
+B = TASKS_DIR / "paper_b_virtual_rcm.vf"
+
+
+@pytest.fixture(scope="module")
+def task_b():
+    return vfdsl.load(B)
+
+
+def test_a_cache_path_that_is_a_file_or_device_is_a_clear_error(tmp_path, task_b, capsys):
+    not_a_dir = tmp_path / "cache"
+    not_a_dir.write_text("")
+    with pytest.raises(VfError, match="is not a directory"):
+        pipeline.build(task_b, backend="native", cache_dir=not_a_dir)
+    for target in (str(not_a_dir), os.devnull):
+        assert cli_main(["compile", str(B), "-o", target]) == 2
+        err = capsys.readouterr().err
+        assert "is not a directory" in err and "Traceback" not in err
+
+
+def test_an_unwritable_cache_uses_its_valid_entry_or_builds_elsewhere(tmp_path, task_b, monkeypatch):
+    cache = tmp_path / "cache"
+    _, first = pipeline.build(task_b, backend="native", cache_dir=cache)
+    real = tempfile.TemporaryDirectory
+
+    def read_only(*args, dir=None, **kwargs):      # the tests run as root: simulate EROFS
+        if dir is not None and str(dir).startswith(str(cache)):
+            raise OSError(errno.EROFS, "Read-only file system", str(dir))
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(codegen.tempfile, "TemporaryDirectory", read_only)
+    ctrl, again = pipeline.build(task_b, backend="native", cache_dir=cache)
+    assert again.reused and again.so_path == first.so_path                  # the valid entry is used
+    changed = task_b.model_copy(update={"name": "paper_b_changed"})
+    with pytest.warns(codegen.BuildCacheUnwritable, match="built in"):
+        ctrl, elsewhere = pipeline.build(changed, backend="native", cache_dir=cache)
+    assert not str(elsewhere.so_path).startswith(str(cache))
+    assert ctrl.step(task_b.start, {"tau": [0, 0, 0.01]}).shape == (7,)
+
+
+def test_a_full_disk_is_a_clear_error(tmp_path, task_b, monkeypatch):
+    def full(*args, **kwargs):
+        raise OSError(errno.ENOSPC, "No space left on device", str(tmp_path / "x.o"))
+
+    monkeypatch.setattr(codegen, "_compile", full)
+    with pytest.raises(VfError, match="No space left on device"):
+        pipeline.build(task_b, backend="native", cache_dir=tmp_path / "cache")
+
+
+def test_a_corrupt_cached_source_is_rebuilt(tmp_path, task_b, capsys):
+    cache = tmp_path / "cache"
+    _, first = pipeline.build(task_b, backend="native", cache_dir=cache)
+    first.c_path.write_bytes(b"\xff\xfe\x00 not C")
+    _, second = pipeline.build(task_b, backend="native", cache_dir=cache)
+    assert not second.reused and second.c_path.read_text().startswith("/*")
+    assert cli_main(["compile", str(B), "-o", str(cache)]) == 0
+
+
+def test_a_cc_that_does_not_parse_falls_back_or_is_a_clear_error(tmp_path, task_b, monkeypatch):
+    monkeypatch.setenv("CC", 'gcc "-O2')
+    with pytest.raises(VfError, match="does not parse"):
+        pipeline.build(task_b, backend="native", cache_dir=tmp_path)
+    monkeypatch.setattr(pipeline, "_warned", False)
+    with warnings.catch_warnings(record=True) as seen:
+        warnings.simplefilter("always")
+        ctrl = vfdsl.compile(task_b, cache_dir=tmp_path)
+    assert ctrl.backend == "interpreted" and any("does not parse" in str(w.message) for w in seen)
+
+
+def test_a_task_name_longer_than_a_file_name_builds(tmp_path, task_b):
+    """The front end caps names at 100 characters; an IR built in Python may have any name."""
+    task = task_b.model_copy(update={"name": "long_name_" * 40})
+    prefix = pipeline.symbol_prefix(task)
+    assert len(prefix) <= 3 + pipeline.NAME_IN_SYMBOL + 9
+    _, library = pipeline.build(task, backend="native", cache_dir=tmp_path / "cache")
+    assert library.so_path.is_file()
