@@ -9,8 +9,8 @@ t + dt. The metrics are computed afterwards from the encoder readings, by Pinocc
 Trial i of a run with seed K uses seed K + i (the same in every grid point, so that grid points differ
 only by their settings); a trial's seed fixes its hand and its tracker noise, so a run is repeatable.
 Compiled controllers cannot be pickled: each worker process builds its own from the task file (the
-generated library is cached on disk, so that costs a load, not a compile); the threads of one process take
-turns on it.
+generated library is cached on disk, so that costs a load, not a compile); each thread of a process gets
+its own controller (controllers own their solver memory, so threads run their trials in parallel).
 """
 
 from __future__ import annotations
@@ -79,16 +79,16 @@ class _Loaded:
     lock: threading.Lock                      # one trial at a time on this controller
 
 
-_cache: dict[tuple[str, str], _Loaded] = {}
+_cache: dict[tuple[str, str, int], _Loaded] = {}
 _cache_lock = threading.Lock()
 
 
 def loaded(task_file: str, backend: str = "auto") -> _Loaded:
     """The task, its controller and robot models, built once per process.
 
-    Worker threads of one process (a Dask worker with several threads) take turns on it: controllers of one
-    generated library share its working memory inside a process, so two running at once are not safe."""
-    key = (str(Path(task_file).resolve()), backend)
+    One per thread (a Dask worker may run several threads): each controller owns its solver memory, so the
+    threads' trials run in parallel and give what they give alone."""
+    key = (str(Path(task_file).resolve()), backend, threading.get_ident())
     with _cache_lock:
         if key not in _cache:
             task = vfdsl.load(task_file)
