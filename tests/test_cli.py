@@ -172,3 +172,18 @@ def test_usage_errors_exit_2(args, message):
     assert proc.returncode == 2
     assert message in proc.stderr
     assert "Traceback" not in proc.stderr
+
+
+def test_primitives_lists_every_argument_with_its_allowed_range(capsys):
+    from vfdsl.objectives import OBJECTIVES
+    from vfdsl.primitives import CONSTRAINTS
+    assert main(["primitives"]) == 0
+    out = capsys.readouterr().out
+    for spec in [*CONSTRAINTS.values(), *OBJECTIVES.values()]:
+        assert f" {spec.name}(...)" in out
+        for arg in spec.args:
+            if arg.range is not None:
+                assert f"allowed {arg.range.describe()}" in out
+    assert main(["primitives", "cone"]) == 0 and "allowed (0, 90) deg" in capsys.readouterr().out
+    assert main(["primitives", "cnoe"]) == 2
+    assert "did you mean 'cone'" in capsys.readouterr().err

@@ -114,6 +114,12 @@ def _parser() -> argparse.ArgumentParser:
     build.add_argument("-o", "--output", metavar="DIR",
                        help="where to put the build (default: $VFDSL_CACHE or ~/.cache/vfdsl)")
     build.set_defaults(run=_compile)
+    reference = commands.add_parser(
+        "primitives", help="list every constraint primitive and objective term, its arguments and their ranges",
+        description="The signatures of `require` primitives and `minimize` terms, from their specs: argument "
+                    "kinds, defaults and allowed ranges (the same table the loader checks and docs/language.md shows).")
+    reference.add_argument("name", nargs="?", help="only this primitive or term")
+    reference.set_defaults(run=_primitives)
     check_command.register(commands)
     from vfdsl.sim.command import add_parser as add_simulate
     add_simulate(commands)
@@ -128,6 +134,28 @@ def _show(args: argparse.Namespace) -> int:
         sys.stdout.write("\n")
     else:
         yaml.dump(data, sys.stdout, Dumper=_CompactDumper, sort_keys=False, width=110)
+    return 0
+
+
+def _primitives(args: argparse.Namespace) -> int:
+    from vfdsl.objectives import OBJECTIVES
+    from vfdsl.primitives import CONSTRAINTS
+    from vfdsl.primitives.spec import REQUIRED
+    from vfdsl.errors import suggest
+    specs = [("require", s) for s in CONSTRAINTS.values()] + [("minimize", s) for s in OBJECTIVES.values()]
+    if args.name:
+        specs = [(k, s) for k, s in specs if s.name == args.name]
+        if not specs:
+            known = [*CONSTRAINTS, *OBJECTIVES]
+            raise VfError(f"no primitive or objective term '{args.name}'", hint=suggest(args.name, known, "names"))
+    for keyword, spec in specs:
+        print(f"{keyword} {'FRAME ' if getattr(spec, 'subject', False) else ''}{spec.name}(...)  {spec.summary}")
+        for arg in spec.args:
+            default = "required" if arg.default is REQUIRED else "optional"
+            allowed = f", allowed {arg.range.describe()}" if arg.range is not None else ""
+            print(f"    {arg.name:<14} {arg.kind:<14} {default}{allowed}  {arg.doc}")
+        if getattr(spec, "tolerance", None):
+            print(f"    within         {spec.tolerance:<14} default {spec.default_tolerance:g} (SI)")
     return 0
 
 
