@@ -54,13 +54,14 @@ def built(task_b):
 
 @pytest.fixture(scope="module")
 def walk(task_b, built):
-    """Ticks (q, u, p, dt, recover) as flat vectors: the priming tick, then 300 states alternating between
-    near the start (feasible) and 1 mm-scale perturbations (the rows conflict: least violation)."""
+    """Ticks (q, u, p, dt, recover) as flat vectors: the two priming ticks (recovery forced, then through the
+    priority levels, as the Controller primes), then 300 states alternating between near the start (feasible)
+    and 1 mm-scale perturbations (the rows conflict: least violation)."""
     ctrl, _ = built
     robot = Robot.load(task_b.robots[0].urdf)
     rng = np.random.default_rng(3)
     p, dt = ctrl.assembled.context.layout.defaults, task_b.scene.period
-    ticks = [np.concatenate([task_b.start, np.zeros(3), p, [dt, 1.0]])]
+    ticks = [np.concatenate([task_b.start, np.zeros(3), p, [dt, recover]]) for recover in (1.0, 0.0)]
     for k in range(300):
         spread = 1e-3 if (k // 20) % 2 else 1e-7
         q = np.clip(task_b.start + rng.normal(scale=spread, size=robot.nq), robot.lower, robot.upper)
@@ -73,10 +74,10 @@ def test_steps_allocate_nothing_after_the_priming_tick(built, walk, tmp_path):
     rows = replay(harness(library, tmp_path), walk)
     calls, codes, statuses, xs = rows[:, 0], rows[:, 1], rows[:, 2].astype(int), rows[:, 3:]
     assert not codes.any()
-    assert calls[0] > 0                      # the priming tick sets up the three DAQP workspaces
-    assert not calls[1:].any(), f"heap calls on ticks {np.flatnonzero(calls[1:]) + 1}"
-    assert (statuses[1:] == StepStatus.OPTIMAL).sum() > 50
-    assert (statuses[1:] & StepStatus.LEAST_VIOLATION).sum() > 50
+    assert calls[0] > 0 and calls[1] > 0     # the priming ticks set up every DAQP workspace (recovery, levels)
+    assert not calls[2:].any(), f"heap calls on ticks {np.flatnonzero(calls[2:]) + 2}"
+    assert (statuses[2:] == StepStatus.OPTIMAL).sum() > 50
+    assert (statuses[2:] & StepStatus.LEAST_VIOLATION).sum() > 50
     # The harness runs what the Controller runs (built with other compiler flags: recovery answers, which
     # are solved less precisely, are compared by status only; docs/runtime.md).
     for tick, status, x in zip(walk[1:], statuses[1:], xs[1:], strict=True):

@@ -126,7 +126,8 @@ def test_params_of_one_tick_do_not_stick(task_b, ctrl_b):
     default = ctrl_b.step(task_b.start, tau)
     moved = ctrl_b.step(task_b.start, tau, params={"pivot": [1e-4, 0, 0.29]})
     assert not np.allclose(moved, default)
-    np.testing.assert_array_equal(ctrl_b.step(task_b.start, tau), default)
+    # equal up to the last bits a warm-started solve may differ in after another tick's working set
+    np.testing.assert_allclose(ctrl_b.step(task_b.start, tau), default, rtol=1e-12, atol=1e-18)
 
 
 def test_step_result_is_a_copy(task_b, ctrl_b):

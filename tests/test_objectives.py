@@ -1,8 +1,11 @@
 """Objective terms: the QP's P and g against independent formulas.
 
-Each term is  w || E dq - f ||^2  (lecture slide 47); the QP over x = [dq; slacks] is  1/2 x'Px + g'x  with
+Each term is a rate error  w || E dq/dt - f ||^2  (lecture slide 47, per second instead of per tick); times dt^2
+(the same minimizer) it is w || E dq - f dt ||^2, and the QP over x = [dq; slacks] is  1/2 x'Px + g'x  with
 
-    P = 2 sum_k w_k E_k'E_k + floor I,    g = -2 sum_k w_k E_k'f_k      (floor: HESSIAN_FLOOR, assemble.py)
+    P = 2 sum_k w_k E_k'E_k + floor I,    g = -2 sum_k w_k E_k'f_k dt      (floor: HESSIAN_FLOOR, assemble.py)
+
+(``problem()`` gives the sum over all priority levels; the levels are tested in closed loop, test_priorities.py).
 
 E and f are written here from the seed and the term docstrings, with Jacobians from Pinocchio
 (``Robot.frame_jacobian``, rows [v; w], world axes):
@@ -10,10 +13,11 @@ E and f are written here from the seed and the term docstrings, with Jacobians f
 - track (paper eq. 18, admittance):  E = J,  f = [k_v v_in; k_w w_in] dt, where the input's linear part
   drives translation and its angular part rotation (a force has no angular part, a torque no linear part:
   that part is asked to stay still); a twist input is scaled by the (dimensionless) gains;
-- distance (lecture slide 44):  E = J_v,  f = P - p;
+- distance (lecture slide 44):  E = J_v,  f = (P - p) / max(tau, dt), tau the time constant (default 1 s);
 - direction_change (slide 45, eta || alpha x l ||^2):  E'E = J_w'(I - l l')J_w, f = 0;
 - damping:  E = I, f = 0;
-- centering:  E = diag(1/r_i),  f_i = (c_i - q_i)/r_i  with c, r the middle and half range of joint i.
+- centering:  E = diag(1/r_i),  f_i = (c_i - q_i)/(r_i max(tau, dt))  with c, r the middle and half range of
+  joint i and tau the time constant (default 1 s).
 """
 
 from __future__ import annotations
@@ -107,16 +111,21 @@ def test_track_gain_units(tmp_path):
 # ====================================================================================== other terms
 
 @pytest.mark.parametrize("robot,frame", ROBOT_FRAMES)
-def test_distance(tmp_path, robot, frame):
+@pytest.mark.parametrize("tau", [None, 0.25, 0.004])
+def test_distance(tmp_path, robot, frame, tau):
     w = 0.7
-    ctrl = build(tmp_path, f"param goal : point = [0, 0, 0.3]\nminimize distance({frame}, goal) weight {w}\n", robot)
+    clause = "" if tau is None else f", time_constant = {tau} s"
+    ctrl = build(tmp_path, f"param goal : point = [0, 0, 0.3]\nminimize distance({frame}, goal{clause}) weight {w}\n",
+                 robot)
     rng = np.random.default_rng(43)
     for _ in range(TRIALS):
         q = random_q(robot, rng)
         fs = FrameState(robot, frame, q)
         goal = fs.p + rng.normal(scale=0.01, size=3)
-        qp = ctrl.problem(q, {}, {"goal": goal}, dt=0.01)
-        P, g = term(fs.Jv, goal - fs.p, w)                    # || p + J_v dq - P ||^2
+        dt = rng.uniform(0.001, 0.02)
+        qp = ctrl.problem(q, {}, {"goal": goal}, dt=dt)
+        share = min(dt / (1.0 if tau is None else tau), 1.0)      # of the gap, per tick: never more than all
+        P, g = term(fs.Jv, (goal - fs.p) * share, w)          # || J_v dq - (P - p) dt / tau ||^2
         assert_qp(qp, [P], [g])
 
 
@@ -154,7 +163,7 @@ def test_damping_and_centering(tmp_path, robot):
         qp = ctrl.problem(q, {}, dt=0.01)
         nq = len(q)
         P1, g1 = term(np.eye(nq), np.zeros(nq), 0.01)
-        P2, g2 = term(np.diag(1 / r), (c - q) / r, 0.2)        # sum ((q + dq - c)/r)^2
+        P2, g2 = term(np.diag(1 / r), (c - q) / r * 0.01, 0.2)   # sum ((dq - (c - q) dt / tau) / r)^2, tau = 1 s
         assert_qp(qp, [P1, P2], [g1, g2])
 
 
@@ -182,9 +191,9 @@ def test_sum_of_terms_with_soft_constraint(tmp_path):
         u, goal, dt = rng.normal(size=6), tip.p + rng.normal(scale=0.005, size=3), 0.02
         qp = ctrl.problem(q, {"f": u}, {"goal": goal}, dt=dt)
         parts = [term(tip.J, np.concatenate([0.001 * u[:3], 0.05 * u[3:]]) * dt, 1.0),
-                 term(shaft.Jv, goal - shaft.p, 4.0),
+                 term(shaft.Jv, (goal - shaft.p) * dt, 4.0),
                  (2 * 2.0 * tip.Jw.T @ (np.eye(3) - np.outer(tip.l, tip.l)) @ tip.Jw, np.zeros(7)),
                  term(np.eye(7), np.zeros(7), 1e-4),
-                 term(np.diag(1 / r), (c - q) / r, 1e-3)]
+                 term(np.diag(1 / r), (c - q) / r * dt, 1e-3)]
         assert_qp(qp, [p for p, _ in parts], [g for _, g in parts], n_slack_weights=[50.0])
         assert np.all(qp.g[7:] == 0) and np.all(qp.P[7:, :7] == 0)

@@ -39,6 +39,7 @@ from scipy.interpolate import make_interp_spline
 from scipy.optimize import brentq, linear_sum_assignment, minimize_scalar
 
 import vfdsl
+from vfdsl.compiler.assemble import SOFT_RESTORE_RATE
 from vfdsl.kinematics.robot import ROBOTS_DIR, Robot
 
 compile_task = partial(vfdsl.compile, backend="interpreted")   # rows and solutions; C is tested elsewhere
@@ -630,15 +631,15 @@ def test_soft_constraints_slack_columns(tmp_path):
     for _ in range(4):
         q = random_q("shr7", rng)
         f = FrameState("shr7", "tip", q)
-        qp = ctrl.problem(q, {}, dt=0.01)
+        qp = ctrl.problem(q, {}, dt=0.1)        # restore share min(1, k dt) = 1: the rows of the hard form
         nq, n = qp.nq, qp.P.shape[0]
         assert n == nq + 3
         # variable bounds: the dq are free (joint_limits is soft), the slacks are >= 0
         assert np.array_equal(qp.A[:n], np.eye(n))
         assert np.all(np.isinf(qp.lb[:nq])) and np.all(np.isinf(qp.ub[:nq]))
         assert np.all(qp.lb[nq:n] == 0) and np.all(np.isinf(qp.ub[nq:n]))
-        # costs: 2 w on the slack diagonal (default soft weight 1e3 for `above`), no linear term
-        np.testing.assert_allclose(np.diag(qp.P)[nq:], [2 * 250, 2 * 1e3, 2 * 7])
+        # costs: 2 w on the slack diagonal (default soft weight 1 for `above`), no linear term
+        np.testing.assert_allclose(np.diag(qp.P)[nq:], [2 * 250, 2 * 1, 2 * 7])
         assert np.count_nonzero(qp.P[nq:, :nq]) == 0 and np.count_nonzero(qp.g[nq:]) == 0
         # stays_at: slack 0 with +1, same rows as the hard form
         A, Afull, lb, ub = rows_of(ctrl, qp, "stays_at", "tip")
@@ -666,6 +667,15 @@ def test_soft_constraints_slack_columns(tmp_path):
         # the hard constraint has no slack
         _, Afull, _, _ = rows_of(ctrl, qp, "stays_at", "shaft")
         assert np.count_nonzero(Afull[:, nq:]) == 0
+        # at dt = 10 ms a soft position row is restored at k = SOFT_RESTORE_RATE: its offsets are scaled by k dt;
+        # the hard rows are not
+        fast = ctrl.problem(q, {}, dt=0.01)
+        for name, frame in (("stays_at", "tip"), ("joint_limits", None), ("stays_at", "shaft")):
+            _, _, lb_1, ub_1 = rows_of(ctrl, qp, name, frame)
+            _, _, lb_2, ub_2 = rows_of(ctrl, fast, name, frame)
+            share = min(1.0, SOFT_RESTORE_RATE * 0.01) if frame != "shaft" else 1.0
+            np.testing.assert_allclose(lb_2, lb_1 * share, rtol=1e-12, atol=1e-15)
+            np.testing.assert_allclose(ub_2, ub_1 * share, rtol=1e-12, atol=1e-15)
 
 
 # ============================================================================================= follows

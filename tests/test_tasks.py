@@ -302,7 +302,8 @@ def test_lecture_goal_within_3mm_of_start(name, loaded):
     assert const(c.args["distance"]).value == pytest.approx(3 * MM, rel=1e-12)
     assert c.resolution == [8, 8]
     distance = only([o for o in task.objectives if o.term == "distance"], "distance term")
-    assert distance.args == {"frame": ir.FrameRef(name="tip"), "target": ir.ParamRef(name="goal")}
+    assert distance.args == {"frame": ir.FrameRef(name="tip"), "target": ir.ParamRef(name="goal"),
+                             "time_constant": ir.Const(value=ir.ScalarValue(dimension="time", value=1.0))}
 
 
 def test_lecture_steady_direction_eta(loaded):

@@ -19,8 +19,8 @@ import itertools
 from vfdsl.check.linearized import ConstraintRows, describe, subject, where
 from vfdsl.check.lp import FEASIBLE, LinearSystem
 from vfdsl.check.report import Finding, Severity
-from vfdsl.check.tolerance import RATE_PRIMITIVES
 from vfdsl.ir import model as ir
+from vfdsl.primitives import CONSTRAINTS
 
 IMPLIED = 1e-10                  # a row is implied when the others keep it satisfied to this much (m or rad)
 
@@ -51,7 +51,7 @@ def unused(task: ir.Task) -> list[Finding]:
 
 
 def _geometric(rows: list[ConstraintRows]) -> list[ConstraintRows]:
-    return [r for r in rows if not r.constraint.soft and r.constraint.primitive not in RATE_PRIMITIVES]
+    return [r for r in rows if not r.constraint.soft and not CONSTRAINTS[r.constraint.primitive].rate]
 
 
 def redundant(rows: list[ConstraintRows], nq: int) -> list[Finding]:

@@ -68,10 +68,11 @@ class Linearization:
             self._rows.append(ca.Function("rows", symbols, [ca.densify(ca.SX(x)) for x in (rows.A, rows.lb, rows.ub)]))
             self._facets.append(list(rows.facets))
             self._is_bounds.append(rows.A.shape[0] > 0 and _is_selection(rows.A))
-        self._terms = []
-        for o in task.objectives:
-            term = _module("objectives", o.term).lower(o, context)
-            self._terms.append(ca.Function("term", symbols, [ca.densify(ca.SX(term.E)), ca.densify(ca.SX(term.f))]))
+        self._terms = []            # (objective index, its term's E and f as a Function)
+        for k, o in enumerate(task.objectives):
+            for term in _module("objectives", o.term).lower(o, context):
+                self._terms.append((k, ca.Function("term", symbols, [ca.densify(ca.SX(term.E)),
+                                                                     ca.densify(ca.SX(term.f))])))
         self.default_params = context.layout.defaults.copy()
         self.period = task.scene.period or DEFAULT_PERIOD
         self.n_inputs = context.u.shape[0]
@@ -94,9 +95,9 @@ class Linearization:
     def terms(self, q, u=None, p=None, dt=None) -> list[ObjectiveTerm]:
         args = self._args(q, u, p, dt)
         out = []
-        for k, (o, function) in enumerate(zip(self.task.objectives, self._terms)):
+        for k, function in self._terms:
             E, f = (np.array(v) for v in function(*args))
-            out.append(ObjectiveTerm(k, o, E.reshape(-1, self.robot.nq), f.ravel()))
+            out.append(ObjectiveTerm(k, self.task.objectives[k], E.reshape(-1, self.robot.nq), f.ravel()))
         return out
 
 

@@ -24,7 +24,6 @@ from vfdsl.ir import model as ir
 from vfdsl.primitives import CONSTRAINTS
 
 PLAUSIBLE = {"length": (1e-7, 0.02), "angle": (1e-6, math.radians(20))}
-RATE_PRIMITIVES = ("joint_speed", "speed", "angular_speed")
 SLOW_RESTORE_TICKS = 10      # a restore slower than this many ticks is a warning; 2..10 ticks a note
 
 
@@ -67,7 +66,7 @@ def one_tick_reach(rows: ConstraintRows, rates: LinearSystem) -> float:
 def analyse_at_start(rows: list[ConstraintRows], resolution: np.ndarray | None, nq: int, period: float
                      ) -> list[Finding]:
     findings = []
-    rate_rows = [r for r in rows if r.constraint.primitive in RATE_PRIMITIVES and not r.constraint.soft]
+    rate_rows = [r for r in rows if CONSTRAINTS[r.constraint.primitive].rate and not r.constraint.soft]
     rates = LinearSystem.from_rows(rate_rows, nq) if rate_rows else None
     for r in rows:
         c = r.constraint

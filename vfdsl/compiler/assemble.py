@@ -1,17 +1,26 @@
 """Assembly: a checked task -> one CasADi Function giving the QP of a control tick.
 
-    qp_data(q, u, p, dt) -> (H, g, A, lba, uba, lbx, ubx)
+    qp_data(q, u, p, dt) -> (H, g, A, lba, uba, lbx, ubx, H1, g1, E1, ..., Hk, gk)
 
 is the QP in CasADi conic's standard form over x = [dq; s] (s: one slack per soft constraint):
 
     minimize 1/2 x' H x + g' x   subject to   lba <= A x <= uba,   lbx <= x <= ubx
 
-- objective: H = 2 sum_k w_k E_k' E_k + 2 diag(w_c) on the slacks + rho I (a tiny floor that keeps H
-  positive definite when the terms leave some joint motion free), g = -2 sum_k w_k E_k' f_k;
+- objective: every term is a rate error w || E dq/dt - f ||^2 (:class:`~vfdsl.compiler.rows.Term`); multiplied by
+  dt^2 (which changes no minimizer) it is w || E dq - f dt ||^2, per tick. A soft constraint's slack s (row units
+  per tick) costs w s^2 = w dt^2 (s/dt)^2, a rate too. H = 2 sum_k w_k E_k' E_k + rho I (a tiny floor that keeps
+  H positive definite when the terms leave some motion free), g = -2 sum_k w_k E_k' f_k dt;
+- priority levels: terms are grouped by (priority, after) in increasing order; level j's own cost is Hj, gj, and
+  Ej stacks its terms' rows (for every level but the last), so that the solver can keep level j optimal while it
+  solves the levels below (:mod:`vfdsl.runtime.qp`). H, g are the sum over all levels (the least-violation
+  phase uses them). With a single level, only H and g are given;
 - hard rows that bound one joint each (joint limits, joint speeds) become the variable bounds lbx, ubx
   (their intersection); every other hard row is a row of A;
-- a soft constraint's rows get its slack: A dq + s >= lb (and A dq - s <= ub for two-sided rows), s >= 0,
-  with cost w_c s^2.
+- a soft constraint's rows get its slack: A dq + s >= c lb (and A dq - s <= c ub for two-sided rows), s >= 0.
+  c = min(1, k dt), k = SOFT_RESTORE_RATE, restores a position-like constraint at the rate k rather than in one
+  tick, which makes the slack a rate and the penetration under a steady push independent of dt:
+  w_t v / (w k) for a push asking v m/s through a track term of weight w_t (docs/language.md, weights).
+  Rate constraints (speeds) keep c = 1.
 
 Every row of A and every variable bound keeps a :class:`RowLabel` naming its primitive, frame, facet and
 source line (and the fixture ``use`` sites it came through).
@@ -29,9 +38,12 @@ from vfdsl.compiler.context import Context
 from vfdsl.compiler.rows import Rows
 from vfdsl.ir import model as ir
 from vfdsl.kinematics.robot import Robot
+from vfdsl.primitives import CONSTRAINTS
 from vfdsl.syntax.ast import Span
 
 HESSIAN_FLOOR = 1e-9
+SOFT_RESTORE_RATE = 10.0
+"""k (1/s): a violated soft constraint of a position-like quantity is asked back at rate k (time constant 0.1 s)."""
 
 
 @dataclass(frozen=True)
@@ -63,6 +75,7 @@ class AssembledProblem:
     row_groups: list[int]                    # per row of A, the index of the constraint it comes from
     bound_labels: list[list[RowLabel]]       # per variable, the hard bounds that shaped it (may be empty)
     slack_labels: list[RowLabel] = field(default_factory=list)
+    levels: list[list[str]] = field(default_factory=list)   # per priority level, what it solves ("track(tip) linear")
 
     @property
     def nq(self) -> int:
@@ -81,18 +94,48 @@ def _label(c: ir.Constraint, facet: str) -> RowLabel:
     return RowLabel(c.primitive, c.frame, facet, c.span, tuple(c.via), c.soft)
 
 
+@dataclass
+class _Level:
+    H: ca.SX
+    g: ca.SX
+    E: list
+    names: list[str]
+
+
+def _objective_levels(task: ir.Task, ctx: Context, soft: list[ir.Constraint], n: int) -> list[_Level]:
+    """Each priority level's cost over x = [dq; s] (n entries), levels in the order they are solved."""
+    levels: dict[tuple[int, int], _Level] = {}
+
+    def add(key, weight, E, f, name):
+        level = levels.setdefault(key, _Level(HESSIAN_FLOOR * ca.SX.eye(n), ca.SX.zeros(n), [], []))
+        level.H += 2 * weight * (E.T @ E)
+        level.g -= 2 * weight * (E.T @ f)
+        level.E.append(E)
+        level.names.append(name)
+
+    for objective in task.objectives:
+        for term in _module("objectives", objective.term).lower(objective, ctx):
+            E = ca.horzcat(term.E, ca.SX.zeros(term.E.shape[0], n - ctx.nq))
+            name = f"{objective.term}{_frame_of(objective)}{' ' + term.part if term.part else ''}"
+            add((objective.priority, term.after), objective.weight, E, term.f * ctx.dt, name)
+    for index, c in enumerate(soft):
+        E = ca.SX(1, n)
+        E[ctx.nq + index] = 1
+        add((c.priority, 0), c.weight, E, ca.SX.zeros(1), f"soft {c.primitive}({c.frame or ''}) slack")
+    if not levels:
+        levels[(1, 0)] = _Level(HESSIAN_FLOOR * ca.SX.eye(n), ca.SX.zeros(n), [], [])
+    return [levels[key] for key in sorted(levels)]
+
+
+def _frame_of(objective: ir.Objective) -> str:
+    frame = objective.args.get("frame")
+    return f"({frame.name})" if isinstance(frame, ir.FrameRef) else "()"
+
+
 def assemble(task: ir.Task, robot: Robot) -> AssembledProblem:
     ctx = Context(task, robot)
     nq = ctx.nq
     inf = ca.DM.inf(1)
-
-    # objective over dq
-    H = HESSIAN_FLOOR * ca.SX.eye(nq)
-    g = ca.SX.zeros(nq)
-    for objective in task.objectives:
-        term = _module("objectives", objective.term).lower(objective, ctx)
-        H += 2 * objective.weight * (term.E.T @ term.E)
-        g -= 2 * objective.weight * (term.E.T @ term.f)
 
     lbx, ubx = [-inf] * nq, [inf] * nq
     bound_labels: list[list[RowLabel]] = [[] for _ in range(nq)]
@@ -116,8 +159,6 @@ def assemble(task: ir.Task, robot: Robot) -> AssembledProblem:
 
     # soft constraints: one slack each, appended after dq
     n_slack = len(soft_rows)
-    H = ca.diagcat(H, ca.diag(ca.DM([2 * c.weight for _, _, c, _ in soft_rows]))) if n_slack else H
-    g = ca.vertcat(g, ca.DM.zeros(n_slack))
     A_full = [ca.horzcat(A, ca.SX.zeros(A.shape[0], n_slack)) for A in rows_A]
     slack_labels = []
     for index, rows, c, number in soft_rows:
@@ -125,15 +166,16 @@ def assemble(task: ir.Task, robot: Robot) -> AssembledProblem:
         column[index] = 1
         k = rows.A.shape[0]
         one_sided = rows.ub.is_constant() and bool(np.all(np.isinf(np.array(ca.DM(rows.ub)))))
+        restore = 1 if CONSTRAINTS[c.primitive].rate else ca.fmin(1, SOFT_RESTORE_RATE * ctx.dt)
         A_full.append(ca.horzcat(rows.A, ca.repmat(column, k, 1)))
-        rows_lb.append(rows.lb)
+        rows_lb.append(restore * rows.lb)
         rows_ub.append(ca.DM.inf(k))
         labels += [_label(c, f + " (lower)" if not one_sided else f) for f in rows.facets]
         groups += [number] * k
         if not one_sided:
             A_full.append(ca.horzcat(rows.A, ca.repmat(-column, k, 1)))
             rows_lb.append(-ca.DM.inf(k))
-            rows_ub.append(rows.ub)
+            rows_ub.append(restore * rows.ub)
             labels += [_label(c, f + " (upper)") for f in rows.facets]
             groups += [number] * k
         slack_labels.append(_label(c, "slack"))
@@ -143,7 +185,17 @@ def assemble(task: ir.Task, robot: Robot) -> AssembledProblem:
     A = ca.vertcat(*A_full) if A_full else ca.SX(0, nq + n_slack)
     lba = ca.vertcat(*rows_lb) if rows_lb else ca.SX(0, 1)
     uba = ca.vertcat(*rows_ub) if rows_ub else ca.SX(0, 1)
-    outputs = [ca.densify(x) for x in (H, g, A, lba, uba, ca.vertcat(*lbx), ca.vertcat(*ubx))]
-    function = ca.Function("qp_data", [ctx.q, ctx.u, ctx.p, ctx.dt], outputs,
-                           ["q", "u", "p", "dt"], ["H", "g", "A", "lba", "uba", "lbx", "ubx"])
-    return AssembledProblem(function, ctx, labels, groups, bound_labels, slack_labels)
+    levels = _objective_levels(task, ctx, [c for _, _, c, _ in soft_rows], nq + n_slack)
+    H = HESSIAN_FLOOR * ca.SX.eye(nq + n_slack) + sum(level.H - HESSIAN_FLOOR * ca.SX.eye(nq + n_slack)
+                                                      for level in levels)
+    g = sum(level.g for level in levels)
+    outputs = [H, g, A, lba, uba, ca.vertcat(*lbx), ca.vertcat(*ubx)]
+    names = ["H", "g", "A", "lba", "uba", "lbx", "ubx"]
+    if len(levels) > 1:
+        for j, level in enumerate(levels, start=1):
+            outputs += [level.H, level.g] + ([ca.vertcat(*level.E)] if j < len(levels) else [])
+            names += [f"H{j}", f"g{j}"] + ([f"E{j}"] if j < len(levels) else [])
+    function = ca.Function("qp_data", [ctx.q, ctx.u, ctx.p, ctx.dt], [ca.densify(x) for x in outputs],
+                           ["q", "u", "p", "dt"], names)
+    return AssembledProblem(function, ctx, labels, groups, bound_labels, slack_labels,
+                            [level.names for level in levels])

@@ -28,10 +28,22 @@ class Rows:
 
 @dataclass(frozen=True)
 class Term:
-    """An objective term || E dq - f ||^2 (the weight is applied by the assembly)."""
+    """An objective term || E dq/dt - f ||^2: E dq/dt a rate of the task (m/s, rad/s, 1/s) and f the rate asked
+    for, so that a weight is a plain number whatever the control period (the weight is applied by the assembly).
+
+    ``part`` names it in labels ("linear"); ``after`` = 1 puts it just below its statement's priority level (the
+    part of `track` that yields to the other)."""
 
     E: ca.SX
     f: ca.SX
+    part: str = ""
+    after: int = 0
+
+
+def toward(error, time_constant, dt):
+    """The rate that closes ``error`` with ``time_constant``: error / tau, but never more than the whole error in
+    one tick (error / dt), so a time constant below the period cannot overshoot."""
+    return error / ca.fmax(time_constant, dt)
 
 
 def facets(U, delta, eps, J, name: str = "facet") -> Rows:

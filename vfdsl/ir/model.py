@@ -177,16 +177,18 @@ class Constraint(_Model):
     resolution: list[int] | None = None
     soft: bool = False
     weight: float | None = None      # slack weight of a soft constraint
+    priority: int | None = None      # level of a soft constraint's slack term (1 = solved first)
     span: Span
     via: list[Span] = []
 
 
 class Objective(_Model):
-    """One ``minimize`` term: weight * || E dq - f ||^2."""
+    """One ``minimize`` term: weight * || E dq/dt - f ||^2 (a rate error), solved at level ``priority``."""
 
     term: str
     args: dict[str, Arg]
     weight: float
+    priority: int = 1                # 1 = solved first; a larger level acts in the optimal set of the smaller ones
     span: Span
     via: list[Span] = []
 

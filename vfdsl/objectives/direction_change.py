@@ -1,5 +1,5 @@
-"""Keep the tool direction (lecture, slide 45, the eta term):  weight * || alpha x l_t ||^2,
-alpha = J_w dq the rotation of the step and l_t the tool axis: penalizes any change of the tool direction."""
+"""Keep the tool direction (lecture, slide 45, the eta term):  weight * || omega x l_t ||^2, omega = J_w dq/dt the
+angular velocity and l_t the tool axis (rad/s): penalizes any turning of the tool direction."""
 
 import casadi as ca
 
@@ -15,6 +15,6 @@ SPEC = ObjectiveSpec(
 )
 
 
-def lower(o, ctx) -> Term:
+def lower(o, ctx) -> tuple[Term]:
     f = ctx.frame(o.args["frame"].name)
-    return Term(E=skew(f.axis) @ f.Jw, f=ca.DM.zeros(3))     # l x alpha = -(alpha x l): same norm
+    return (Term(E=skew(f.axis) @ f.Jw, f=ca.DM.zeros(3)),)     # l x omega = -(omega x l): same norm

@@ -1,15 +1,26 @@
-"""Track the user's input (paper II-C, eq. 18; admittance control).
+"""Track the user's input (paper II-C, eq. 18; admittance control), as rates:
 
-The frame's twist follows the input through the admittance law: dx_d = K u dt with
-K = diag(gain I3, angular_gain I3) acting on a wrench [f; tau] (a force drives only translation, a torque
-only rotation, the other part is asked to stay still), or K = gain for a twist input. Term:
-weight * || J_f dq - dx_d ||^2.
+    linear part:   weight * || J_v dq/dt - v_d ||^2     (m/s)
+    angular part:  weight * || J_w dq/dt - w_d ||^2     (rad/s)
+
+v_d = gain f and w_d = angular_gain tau for a wrench [f; tau] (a force gives only f, a torque only tau; a part the
+input does not drive is asked to stay still: v_d = 0 or w_d = 0), or v_d = gain v, w_d = angular_gain w for a twist.
+
+The two parts are solved one after the other: the linear part first, then the angular part among the motions that
+keep the linear part optimal (a priority step just below the statement's level). So the frame origin follows the
+hand even when a constraint couples translation and rotation (a port, a cone, a remote center: the tool has to
+pivot to move its tip sideways), and with the hands off both parts ask for no motion, so the frame stays still.
+
+- ``linear = false`` / ``angular = false`` leaves that part free (not tracked at all);
+- ``lever = L`` solves both parts together instead, on one level, the angular rate error weighing as the speed
+  error of a point at distance L: weight * (|| J_v dq/dt - v_d ||^2 + L^2 || J_w dq/dt - w_d ||^2).
 """
 
 import casadi as ca
 
 from vfdsl.compiler.rows import Term
-from vfdsl.primitives.spec import POSITIVE, ArgSpec, ObjectiveSpec
+from vfdsl.ir import model as ir
+from vfdsl.primitives.spec import POSITIVE, ArgSpec, ObjectiveSpec, flag
 
 SPEC = ObjectiveSpec(
     name="track",
@@ -19,21 +30,39 @@ SPEC = ObjectiveSpec(
           ArgSpec("gain", "gain", "linear admittance (m/s per N, or a scale for a twist)", default=None,
                   range=POSITIVE),
           ArgSpec("angular_gain", "angular_gain", "angular admittance (rad/s per N m, or a scale)",
-                  default=None, range=POSITIVE)),
+                  default=None, range=POSITIVE),
+          ArgSpec("linear", "flag", "track the frame's linear velocity (false: leave it free)",
+                  default=ir.FlagValue(value=True)),
+          ArgSpec("angular", "flag", "track the frame's angular velocity (false: leave it free)",
+                  default=ir.FlagValue(value=True)),
+          ArgSpec("lever", "length", "solve both parts on one level, an angular error weighing as the speed "
+                  "error of a point this far away", default=None, range=POSITIVE)),
     source="Li, Kapoor & Taylor 2005, II-C, eq. (18)",
 )
 
 
-def lower(o, ctx) -> Term:
-    f = ctx.frame(o.args["frame"].name)
+def commanded(o, ctx) -> tuple[ca.SX, ca.SX]:
+    """(v_d, w_d): the linear and angular velocity the input asks for (zero for a part it does not drive)."""
     u = ctx.input(o.args["input"])
     kind = ctx.task.input(o.args["input"].name).type
     gain = ctx.scalar(o.args["gain"]) if "gain" in o.args else 0.0
     angular_gain = ctx.scalar(o.args["angular_gain"]) if "angular_gain" in o.args else 0.0
     if kind == "force":
-        linear, angular = u, ca.DM.zeros(3)
-    elif kind == "torque":
-        linear, angular = ca.DM.zeros(3), u
-    else:
-        linear, angular = u[0:3], u[3:6]
-    return Term(E=f.J, f=ca.vertcat(gain * linear, angular_gain * angular) * ctx.dt)
+        return gain * u, ca.SX.zeros(3)
+    if kind == "torque":
+        return ca.SX.zeros(3), angular_gain * u
+    return gain * u[0:3], angular_gain * u[3:6]
+
+
+def lower(o, ctx) -> tuple[Term, ...]:
+    f = ctx.frame(o.args["frame"].name)
+    v_d, w_d = commanded(o, ctx)
+    linear, angular = flag(o.args, "linear"), flag(o.args, "angular")
+    if "lever" in o.args:
+        lever = ctx.scalar(o.args["lever"])
+        parts = [(f.Jv, v_d)] * linear + [(lever * f.Jw, lever * w_d)] * angular
+        return (Term(E=ca.vertcat(*(E for E, _ in parts)), f=ca.vertcat(*(r for _, r in parts)), part="twist"),)
+    terms = [Term(E=f.Jv, f=v_d, part="linear")] if linear else []
+    if angular:
+        terms.append(Term(E=f.Jw, f=w_d, part="angular", after=int(linear)))
+    return tuple(terms)

@@ -120,9 +120,9 @@ def _bind_use(use: ast.UseStmt, scope: Scope, fixtures: dict[str, Fixture], eval
     if len(active) >= limits.FIXTURE_DEPTH:
         raise limits.exceeded("fixtures nested too deeply", limits.FIXTURE_DEPTH, use.span.pos())
     clauses = use.clauses
-    if clauses.within or clauses.resolution or clauses.weight or clauses.soft:
+    if clauses.within or clauses.resolution or clauses.weight or clauses.priority or clauses.soft:
         raise VfError("`use` takes no clauses", use.span.pos(),
-                      hint="put within/resolution/soft/weight on the statements inside the fixture, "
+                      hint="put within/resolution/soft/weight/priority on the statements inside the fixture, "
                            "or make them formals of the fixture")
     fixture = fixtures[name.text]
     formals = [ArgSpec(f.name.text, f.type.text, "", default=f.default if f.default is not None else REQUIRED)

@@ -21,6 +21,7 @@ EXPANDED_STATEMENTS = 2_000      # statements after expanding every fixture
 CONSTRAINTS = 1_000              # `require` statements after expansion
 ROWS = 8_192                     # constraint rows (an upper estimate from the resolutions), joint bounds excluded
 RESOLUTION = 64                  # directions per angle of a polytope (64 x 64 at most for a sphere)
+PRIORITY_LEVELS = 5                 # `priority` 1..5: each level is one more QP solve per tick
 CURVE_DEGREE = 9
 CURVE_POINTS = 128
 CURVE_SAMPLES = 2_048            # closest-point samples of one curve (about 2 m of curve at 1 mm)

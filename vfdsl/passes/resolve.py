@@ -29,13 +29,15 @@ from vfdsl.primitives import CONSTRAINTS
 from vfdsl.primitives.spec import (
     GEOMETRIC_KINDS,
     SCALAR_DIMENSIONS,
+    TASK_LEVEL,
     ArgSpec,
+    flag,
     gain_dimension,
 )
 from vfdsl.syntax import ast
 
 PARAM_KINDS = GEOMETRIC_KINDS + tuple(SCALAR_DIMENSIONS)
-DEFAULT_SOFT_WEIGHT = 1e3
+DEFAULT_SOFT_WEIGHT = 1.0
 _AXES = {"x": [1.0, 0.0, 0.0], "y": [0.0, 1.0, 0.0], "z": [0.0, 0.0, 1.0]}
 
 
@@ -377,11 +379,27 @@ class Resolver:
                 raise VfError(f"`{word}` applies to constraints, not to objective terms", _span(clause).pos())
         args = self._bind(stmt.call, spec.args, scope, f"{name.text}(...)")
         if name.text == "track":
-            self._check_gains(stmt.call, args)
+            self._check_track(stmt.call, args)
         weight = self._weight(clauses.weight, scope, 1.0)
-        return ir.Objective(term=name.text, args=args, weight=weight, span=stmt.span, via=list(scope.via))
+        priority = self._priority(clauses.priority, scope, spec.priority)
+        return ir.Objective(term=name.text, args=args, weight=weight, priority=priority, span=stmt.span,
+                            via=list(scope.via))
 
-    def _check_gains(self, call: ast.Call, args: dict[str, ir.Arg]) -> None:
+    def _priority(self, value: ast.Value | None, scope: fx.Scope, default: int) -> int:
+        if value is None:
+            return default
+        level = self._scoped_reader(scope).integer(value, "a priority")
+        if level > limits.PRIORITY_LEVELS:
+            raise limits.exceeded(f"priority {level} is too low a level", limits.PRIORITY_LEVELS,
+                                  scope.source_span(value).pos(),
+                                  hint="1 is solved first; each level is one more solve per tick")
+        return level
+
+    def _check_track(self, call: ast.Call, args: dict[str, ir.Arg]) -> None:
+        """Gains the input needs, and something left to track."""
+        if not (flag(args, "linear") or flag(args, "angular")):
+            raise VfError("track with `linear = false` and `angular = false` tracks nothing", call.span.pos(),
+                          hint="leave one part tracked, or remove the term")
         input_type = self.inputs[args["input"].name].type
         for kind in ("gain", "angular_gain"):
             if gain_dimension(input_type, kind) is not None and kind not in args:
@@ -424,14 +442,17 @@ class Resolver:
                 raise VfError(f"{name.text} takes no polytope resolution", clauses.resolution.span.pos())
         else:
             resolution = self._resolution(clauses.resolution, shape, spec)
-        if clauses.weight is not None and clauses.soft is None:
-            raise VfError("`weight` applies to soft constraints", clauses.weight.span.pos(),
-                          hint="add `soft` to make this constraint soft; hard constraints have no weight")
+        for clause, word in ((clauses.weight, "weight"), (clauses.priority, "priority")):
+            if clause is not None and clauses.soft is None:
+                raise VfError(f"`{word}` applies to soft constraints", clause.span.pos(),
+                              hint=f"add `soft` to make this constraint soft; hard constraints have no {word}: "
+                                   "they always hold")
         soft = clauses.soft is not None
         weight = self._weight(clauses.weight, scope, DEFAULT_SOFT_WEIGHT) if soft else None
+        priority = self._priority(clauses.priority, scope, TASK_LEVEL) if soft else None
         return ir.Constraint(primitive=name.text, frame=subject.name if subject else None, args=args,
                              tolerance=tolerance, resolution=resolution, soft=soft, weight=weight,
-                             span=stmt.span, via=list(scope.via))
+                             priority=priority, span=stmt.span, via=list(scope.via))
 
     def _check_tolerance(self, tolerance: float, kind: str, written: ast.Span, units: u.DefaultUnits) -> None:
         """A ``within`` value must be positive and large enough for the solver to honour it."""

@@ -11,6 +11,7 @@ SPEC = ConstraintSpec(
     args=(ArgSpec("max", "angular_speed", "the largest angular speed", range=POSITIVE),),
     resolution="sphere",
     source="Li, Kapoor & Taylor 2005, II-C",
+    rate=True,
 )
 
 

@@ -14,6 +14,7 @@ SPEC = ConstraintSpec(
                   default=ir.ScalarValue(dimension="number", value=1.0),
                   range=Range(0.0, 1.0, low_open=True)),),
     source="Li, Kapoor & Taylor 2005, II-C (an upper bound on the incremental motion)",
+    rate=True,
 )
 
 

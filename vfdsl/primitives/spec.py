@@ -107,19 +107,28 @@ class ConstraintSpec:
     resolution: ResolutionShape | Callable[[dict], ResolutionShape] = None
     default_resolution: dict = field(default_factory=lambda: {"sphere": [4, 4], "polygon": [8]})
     source: str = ""                             # where the math comes from (paper equation, lecture slide)
+    rate: bool = False                           # rows bound a motion per tick (a speed), not a position
 
     def resolution_shape(self, args: dict[str, ir.Arg]) -> ResolutionShape:
         return self.resolution(args) if callable(self.resolution) else self.resolution
 
 
+TASK_LEVEL = 1
+"""Default priority of terms that state what the user wants (track, distance, direction_change)."""
+REDUNDANCY_LEVEL = 2
+"""Default priority of redundancy terms (damping, centering): they act in the optimal set of the task terms."""
+
+
 @dataclass(frozen=True)
 class ObjectiveSpec:
-    """A ``minimize`` term: weight * || E dq - f ||^2."""
+    """A ``minimize`` term: weight * || E dq/dt - f ||^2, a rate error (m/s, rad/s, 1/s); ``priority``: the
+    default level it is solved at."""
 
     name: str
     summary: str
     args: tuple[ArgSpec, ...] = ()
     source: str = ""
+    priority: int = TASK_LEVEL
 
 
 # Input type -> dimensions of (gain, angular_gain): the admittance law maps the input to a frame velocity.

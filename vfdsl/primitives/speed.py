@@ -13,6 +13,7 @@ SPEC = ConstraintSpec(
     args=(ArgSpec("max", "speed", "the largest speed", range=POSITIVE),),
     resolution="sphere",
     source="Li, Kapoor & Taylor 2005, II-C",
+    rate=True,
 )
 
 

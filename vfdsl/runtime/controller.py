@@ -124,7 +124,7 @@ class Controller:
         v = self._values
         p = v.params(params)
         args = (v.q(q), v.inputs(inputs), self.assembled.context.layout.defaults if p is None else p, v.dt(dt))
-        H, g, A, lba, uba, lbx, ubx = (np.array(x) for x in self.assembled.function(*args))
+        H, g, A, lba, uba, lbx, ubx = (np.array(x) for x in self.assembled.function(*args)[:7])
         n = H.shape[0]
         return QuadraticProgram(P=H, g=g.ravel(), A=np.vstack([np.eye(n), A]),
                                 lb=np.concatenate([lbx.ravel(), lba.ravel()]),
@@ -169,11 +169,13 @@ class Controller:
 
     # ------------------------------------------------------------------------------- internals
     def _prime(self) -> None:
-        """One evaluation with phase 2 forced (input ``recover``) at the start configuration: every DAQP
-        workspace of the generated step is allocated now, so that no later step allocates memory."""
+        """Two evaluations at the start configuration, one with phase 2 forced (input ``recover``) and one through
+        the priority levels: every DAQP workspace of the generated step is allocated now, so that no later step
+        allocates memory."""
         start = self.task.start if self.task.start is not None else np.zeros(self.nq)
         u = np.zeros(sum(self.input_sizes.values()))
-        self._runner.run(np.asarray(start, dtype=float), u, None, self.default_dt or 0.01, 1.0)
+        for recover in (1.0, 0.0):
+            self._runner.run(np.asarray(start, dtype=float), u, None, self.default_dt or 0.01, recover)
 
     @cached_property
     def _frames_function(self) -> ca.Function:

@@ -15,6 +15,12 @@ an entry is pinned to whichever of lbx_j, ubx_j is smaller in magnitude -- the p
 interval containing 0 (the speed bound) nearest the other one, i.e. a return toward the limits at
 full allowed speed. Status bit ``BOUNDS_CLIPPED`` reports it. The clipped box B is never empty.
 
+**Priority levels.** The objective may come in levels (``qp_data`` then also gives Hj, gj per level and
+Ej, the stacked rows of level j's terms): phase 1 solves level 1's cost; each lower level j then minimizes its
+own cost over the same rows and box while the rows E_i x of every level above stay within ``BAND_FACTOR *
+feas_tol`` of their values (:func:`_level_chain`), so a lower level (joint centering, damping) acts only in the
+motions that leave the levels above optimal. H, g (the sum of all levels) serve phase 2.
+
 **Phase 1** solves (P) over B. DAQP is a dual active-set method: its iterates are dual feasible
 and it stops when the primal iterate is feasible, so "x is finite and within ``feas_tol`` of every
 row and bound" is equivalent to success; it is checked in the graph (the conic exposes no flag).
@@ -71,6 +77,12 @@ QP_DATA_OUTPUTS = ("H", "g", "A", "lba", "uba", "lbx", "ubx")
 STEP_OUTPUTS = ("x", "status", "violation")
 GRADIENT_SATURATION = 1e3
 """K of :func:`_saturated_gradient`: a user push beyond K box widths is saturated."""
+BAND_FACTOR = 1e-2
+"""A lower priority level keeps each higher level's rows E_i x within BAND_FACTOR * feas_tol of their optimal
+values: twice DAQP's primal tolerance (1e-3 feas_tol), so the band is never thinner than the solver's accuracy;
+about 2e-9 m or rad per tick."""
+LEVEL_REGULARIZATION = 1e-4
+"""Relative Tikhonov term of each priority level's Hessian (see :func:`_regularized`)."""
 PER_ROW_GROUPS_LIMIT = 100
 """Above this many rows one group per row makes phase 2 slow (~30 ms at m = 200; seconds, DAQP
 iteration-limit failures and megabytes of generated C at m = 1000): a warning asks for groups."""
@@ -99,22 +111,30 @@ def build_step_function(qp_data: ca.Function, prefix: str, *,
     absolute tolerance (row units) under which a row or bound counts as satisfied; ``penalty`` is
     rho and ``tie_break`` is mu of phase 2 (see the module docstring).
     """
-    _check_qp_data(qp_data)
+    levels = _check_qp_data(qp_data)
     n, m = qp_data.size1_out(0), qp_data.size1_out(2)
     inputs = [ca.MX.sym(name, qp_data.sparsity_in(i)) for i, name in enumerate(qp_data.name_in())]
     recover = ca.MX.sym("recover")
-    H, g, A, lba, uba, lbx, ubx = (ca.densify(v) for v in qp_data.call(inputs))
+    data = [ca.densify(v) for v in qp_data.call(inputs)]
+    H, g, A, lba, uba, lbx, ubx = data[:7]
     lo, hi, clipped = _safe_box(lbx, ubx)
     g = _saturated_gradient(H, g, lo, hi)
+    if levels > 1:      # (Hj, gj, Ej) per level, the last without Ej
+        Hs, Es = [_regularized(Hj) for Hj in data[7::3]], data[9::3]
+        gs = [_saturated_gradient(Hj, gj, lo, hi) for Hj, gj in zip(Hs, data[8::3])]
+    else:
+        Hs, gs, Es = [H], [g], []
 
-    x1 = _daqp(n, m, feas_tol, "phase1_warm")(H, g, A, lba, uba, lo, hi)
+    x1 = _daqp(n, m, feas_tol, "phase1_warm")(Hs[0], gs[0], A, lba, uba, lo, hi)
+    lower = [*Hs[1:], *gs[1:], *Es]
+    chain = _level_chain(n, m, len(Hs), [E.size1() for E in Es], feas_tol)
     if m == 0:
-        x, status = x1, ca.MX(int(StepStatus.OPTIMAL))
+        x, status = chain(x1, A, lba, uba, lo, hi, *lower), ca.MX(int(StepStatus.OPTIMAL))
     else:
         ok1 = _acceptable(x1, A @ x1, lba, uba, lo, hi, feas_tol)
-        switch = _phase2_switch([H, g, A, lba, uba, lo, hi, x1], _incidence(m, row_groups),
+        switch = _phase2_switch([H, g, A, lba, uba, lo, hi, x1, *lower], chain, _incidence(m, row_groups),
                                 feas_tol, penalty, tie_break)
-        picked = switch(ca.logic_and(ok1, recover == 0), H, g, A, lba, uba, lo, hi, x1)
+        picked = switch(ca.logic_and(ok1, recover == 0), H, g, A, lba, uba, lo, hi, x1, *lower)
         x, status = picked[:n], picked[n]
     # The last line of defence, for every path: x is finite and in B (up to the solver's bound noise,
     # then clipped), or it is the rest motion with FALLBACK.
@@ -128,15 +148,56 @@ def build_step_function(qp_data: ca.Function, prefix: str, *,
                        [*qp_data.name_in(), "recover"], list(STEP_OUTPUTS))
 
 
-def _check_qp_data(qp_data: ca.Function) -> None:
-    if qp_data.n_in() != 4 or qp_data.n_out() != 7:
-        raise ValueError(f"qp_data must map (q, u, p, dt) to {QP_DATA_OUTPUTS}, "
-                         f"got {qp_data.n_in()} inputs and {qp_data.n_out()} outputs")
+def _check_qp_data(qp_data: ca.Function) -> int:
+    """The number of priority levels: 1 for the 7 outputs of QP_DATA_OUTPUTS, k >= 2 for 7 + 3k - 1 outputs
+    (Hj, gj, Ej per level, the last level without Ej)."""
+    n_out = qp_data.n_out()
+    levels = 1 if n_out == 7 else (n_out - 6) // 3
+    if qp_data.n_in() != 4 or n_out < 7 or (n_out != 7 and (levels < 2 or 6 + 3 * levels != n_out)):
+        raise ValueError(f"qp_data must map (q, u, p, dt) to {QP_DATA_OUTPUTS} (+ Hj, gj, Ej per priority level), "
+                         f"got {qp_data.n_in()} inputs and {n_out} outputs")
     n, m = qp_data.size1_out(0), qp_data.size1_out(2)
     expected = [(n, n), (n, 1), (m, n), (m, 1), (m, 1), (n, 1), (n, 1)]
-    got = [(qp_data.size1_out(i), qp_data.size2_out(i)) for i in range(7)]
+    if levels > 1:
+        for j in range(levels):
+            expected += [(n, n), (n, 1)] + ([(qp_data.size1_out(9 + 3 * j), n)] if j < levels - 1 else [])
+    got = [(qp_data.size1_out(i), qp_data.size2_out(i)) for i in range(n_out)]
     if got != expected:
         raise ValueError(f"qp_data output shapes {got} do not match {expected} for n={n}, m={m}")
+    return levels
+
+
+def _regularized(H: ca.MX) -> ca.MX:
+    """H + LEVEL_REGULARIZATION max_i H_ii I: one level's cost often leaves most joint motions free (a tracked
+    point: rank 3 of 7), and the Hessian floor alone left condition numbers near 1e9, at which DAQP's answers
+    missed rows by more than the feasibility tolerance (measured on lecture_remote_center). The bias this adds to
+    the level's optimum is about 1e-4 of its motion (1e-6 still left DAQP in the generated C failing on 13 of 200 random saturated states of lecture_remote_center, 1e-4 on 1); the free motions are the next level's to choose anyway."""
+    return H + LEVEL_REGULARIZATION * ca.mmax(ca.diag(H)) * ca.MX.eye(H.size1())
+
+
+def _level_chain(n: int, m: int, levels: int, e_rows: list[int], tol: float) -> ca.Function:
+    """chain(x1, A, lba, uba, lo, hi, H2..Hk, g2..gk, E1..E(k-1)) -> x: the priority levels below the first.
+
+    Level j minimizes its own cost over the rows and the box, and keeps every level above it optimal: the rows
+    E_i x of the levels i < j stay within BAND of their values at x_(j-1), the answer of the level above
+    (E_i is the stack of level i's terms, so its optimal value set is {x : E_i x = E_i x_i}). A level whose
+    solve is not acceptable leaves x_(j-1) unchanged: a lower level can never undo a higher one."""
+    x1 = ca.MX.sym("x1", n)
+    A = ca.MX.sym("A", m, n)
+    lba, uba, lo, hi = (ca.MX.sym(name, size) for name, size in (("lba", m), ("uba", m), ("lo", n), ("hi", n)))
+    Hs = [ca.MX.sym(f"H{j}", n, n) for j in range(2, levels + 1)]
+    gs = [ca.MX.sym(f"g{j}", n) for j in range(2, levels + 1)]
+    Es = [ca.MX.sym(f"E{j}", rows, n) for j, rows in enumerate(e_rows, start=1)]
+    band = BAND_FACTOR * tol
+    x = x1
+    for j, (Hj, gj) in enumerate(zip(Hs, gs), start=2):
+        kept = ca.vertcat(*Es[:j - 1])
+        at = kept @ x
+        rows = kept.size1()
+        A_j, lb_j, ub_j = ca.vertcat(A, kept), ca.vertcat(lba, at - band), ca.vertcat(uba, at + band)
+        x_j = _daqp(n, m + rows, tol, f"level{j}")(Hj, gj, A_j, lb_j, ub_j, lo, hi)
+        x = ca.if_else(_acceptable(x_j, A_j @ x_j, lb_j, ub_j, lo, hi, tol), x_j, x)
+    return ca.Function("priority_levels", [x1, A, lba, uba, lo, hi, *Hs, *gs, *Es], [x])
 
 
 def _daqp(n: int, m: int, feas_tol: float, name: str) -> Callable[..., ca.MX]:
@@ -218,16 +279,18 @@ def _incidence(m: int, row_groups: Sequence[Hashable] | None) -> ca.DM:
     return ca.sparsify(ca.DM(E))
 
 
-def _phase2_switch(values: list[ca.MX], E: ca.DM, tol, rho, mu) -> ca.Function:
-    """switch(ok, H, g, A, lba, uba, lo, hi, x1) -> [x1; 0] when ok, else phase 2's [x; status].
+def _phase2_switch(values: list[ca.MX], chain: ca.Function, E: ca.DM, tol, rho, mu) -> ca.Function:
+    """switch(ok, H, g, A, lba, uba, lo, hi, x1, *lower) -> [chain(x1, ...); 0] when ok (the priority levels
+    below the first, ``lower`` their data), else phase 2's [x; status].
 
     The branches are Functions of values already computed: a short-circuit ``if_else`` on
     expressions would make each branch recompute them (QP data and phase 1) from the inputs.
     """
     names = ("H", "g", "A", "lba", "uba", "lo", "hi", "x1")
-    args = [ca.MX.sym(name, v.sparsity()) for name, v in zip(names, values, strict=True)]
-    H, g, A, lba, uba, lo, hi, x1 = args
-    keep = ca.Function("keep", args, [ca.vertcat(x1, int(StepStatus.OPTIMAL))])
+    args = [ca.MX.sym(names[k] if k < len(names) else f"level_{k}", v.sparsity()) for k, v in enumerate(values)]
+    H, g, A, lba, uba, lo, hi, x1 = args[:8]
+    keep = ca.Function("keep", args, [ca.vertcat(chain(x1, A, lba, uba, lo, hi, *args[8:]),
+                                                 int(StepStatus.OPTIMAL))])
     recover = ca.Function("recover", args,
                           [_least_violation(H, g, A, lba, uba, lo, hi, E, tol, rho, mu)])
     return ca.Function.if_else("phase2_if_needed", keep, recover)

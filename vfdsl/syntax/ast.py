@@ -98,6 +98,7 @@ class Clauses(BaseModel):
     within: Value | None = None
     resolution: Resolution | None = None
     weight: Value | None = None
+    priority: Value | None = None    # level of an objective term or a soft constraint (1 = solved first)
     soft: Span | None = None         # where `soft` was written
 
 

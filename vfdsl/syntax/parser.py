@@ -307,6 +307,9 @@ class _ToAst(Transformer):
     def weight_clause(self, meta, children):
         return ("weight", children[0], self._span(meta))
 
+    def priority_clause(self, meta, children):
+        return ("priority", children[0], self._span(meta))
+
     def soft_clause(self, meta, children):
         span = self._span(meta)
         return ("soft", span, span)
