@@ -82,7 +82,7 @@ BAND_FACTOR = 1e-2
 values: twice DAQP's primal tolerance (1e-3 feas_tol), so the band is never thinner than the solver's accuracy;
 about 2e-9 m or rad per tick."""
 LEVEL_REGULARIZATION = 1e-4
-"""Relative Tikhonov term of each priority level's Hessian (see :func:`_regularized`)."""
+"""Tikhonov term of each priority level's normalized Hessian (see :func:`_normalized`)."""
 PER_ROW_GROUPS_LIMIT = 100
 """Above this many rows one group per row makes phase 2 slow (~30 ms at m = 200; seconds, DAQP
 iteration-limit failures and megabytes of generated C at m = 1000): a warning asks for groups."""
@@ -120,8 +120,9 @@ def build_step_function(qp_data: ca.Function, prefix: str, *,
     lo, hi, clipped = _safe_box(lbx, ubx)
     g = _saturated_gradient(H, g, lo, hi)
     if levels > 1:      # (Hj, gj, Ej) per level, the last without Ej
-        Hs, Es = [_regularized(Hj) for Hj in data[7::3]], data[9::3]
-        gs = [_saturated_gradient(Hj, gj, lo, hi) for Hj, gj in zip(Hs, data[8::3])]
+        scaled = [_normalized(Hj, gj) for Hj, gj in zip(data[7::3], data[8::3])]
+        Hs, Es = [Hj for Hj, _ in scaled], data[9::3]
+        gs = [_saturated_gradient(Hj, gj, lo, hi) for Hj, gj in scaled]
     else:
         Hs, gs, Es = [H], [g], []
 
@@ -167,12 +168,18 @@ def _check_qp_data(qp_data: ca.Function) -> int:
     return levels
 
 
-def _regularized(H: ca.MX) -> ca.MX:
-    """H + LEVEL_REGULARIZATION max_i H_ii I: one level's cost often leaves most joint motions free (a tracked
-    point: rank 3 of 7), and the Hessian floor alone left condition numbers near 1e9, at which DAQP's answers
-    missed rows by more than the feasibility tolerance (measured on lecture_remote_center). The bias this adds to
-    the level's optimum is about 1e-4 of its motion (1e-6 still left DAQP in the generated C failing on 13 of 200 random saturated states of lecture_remote_center, 1e-4 on 1); the free motions are the next level's to choose anyway."""
-    return H + LEVEL_REGULARIZATION * ca.mmax(ca.diag(H)) * ca.MX.eye(H.size1())
+def _normalized(H: ca.MX, g: ca.MX) -> tuple[ca.MX, ca.MX]:
+    """One level's cost scaled to a unit largest Hessian diagonal, plus LEVEL_REGULARIZATION I.
+
+    The scaling changes no minimizer; it keeps DAQP's data O(1) whatever the weights (with centering at weight
+    1e6 DAQP answered a level's rows only to ~1e-6, which let a redundancy level move a tracked tip 0.2 mm in
+    2 s). The Tikhonov term: one level's cost often leaves most joint motions free (a tracked point: rank 3 of
+    7), and the Hessian floor alone left condition numbers near 1e9, at which DAQP in the generated C missed
+    rows (13 of 200 random saturated states of lecture_remote_center at 1e-6, 1 at 1e-4). The bias it adds to
+    the level's optimum is about LEVEL_REGULARIZATION of its motion; the free motions are the next level's to
+    choose anyway."""
+    scale = ca.mmax(ca.diag(H))
+    return H / scale + LEVEL_REGULARIZATION * ca.MX.eye(H.size1()), g / scale
 
 
 def _level_chain(n: int, m: int, levels: int, e_rows: list[int], tol: float) -> ca.Function:
@@ -181,7 +188,8 @@ def _level_chain(n: int, m: int, levels: int, e_rows: list[int], tol: float) -> 
     Level j minimizes its own cost over the rows and the box, and keeps every level above it optimal: the rows
     E_i x of the levels i < j stay within BAND of their values at x_(j-1), the answer of the level above
     (E_i is the stack of level i's terms, so its optimal value set is {x : E_i x = E_i x_i}). A level whose
-    solve is not acceptable leaves x_(j-1) unchanged: a lower level can never undo a higher one."""
+    solve is not acceptable, or leaves that band by more than another band width, leaves x_(j-1) unchanged: a
+    lower level can never undo a higher one."""
     x1 = ca.MX.sym("x1", n)
     A = ca.MX.sym("A", m, n)
     lba, uba, lo, hi = (ca.MX.sym(name, size) for name, size in (("lba", m), ("uba", m), ("lo", n), ("hi", n)))
@@ -196,7 +204,8 @@ def _level_chain(n: int, m: int, levels: int, e_rows: list[int], tol: float) -> 
         rows = kept.size1()
         A_j, lb_j, ub_j = ca.vertcat(A, kept), ca.vertcat(lba, at - band), ca.vertcat(uba, at + band)
         x_j = _daqp(n, m + rows, tol, f"level{j}")(Hj, gj, A_j, lb_j, ub_j, lo, hi)
-        x = ca.if_else(_acceptable(x_j, A_j @ x_j, lb_j, ub_j, lo, hi, tol), x_j, x)
+        kept_ok = ca.mmax(_row_violation(kept @ x_j, at - band, at + band)) <= band
+        x = ca.if_else(ca.logic_and(_acceptable(x_j, A_j @ x_j, lb_j, ub_j, lo, hi, tol), kept_ok), x_j, x)
     return ca.Function("priority_levels", [x1, A, lba, uba, lo, hi, *Hs, *gs, *Es], [x])
 
 
