@@ -223,6 +223,33 @@ def test_a_tip_at_the_center_of_a_keep_out_ball_retracts_along_the_tool(tmp_path
     assert np.linalg.norm(moved[-1] - moved[-2]) < 1e-12, "out of the ball, hands off: still"
 
 
+def test_a_ball_moved_away_at_run_time_pulls_the_tip_back_onto_it(tmp_path):
+    """The workspace ball is moved at run time so that the tip is 3 mm outside it: hands off, the tip's
+    distance to the center falls every tick (least-violation ticks at the joint speed limits) to the radius,
+    and there it stops. (The least-violation move saturates every joint that helps, so the path is not
+    straight: see docs/runtime.md, phase 2.)"""
+    ctrl = build(tmp_path, """
+        input f : force
+        param c : point = [0, 0, 0.3]
+        minimize track(tip, f, gain = 1 mm/s/N)
+        minimize damping() weight 1e-6
+        require tip within_sphere(c, 4 mm)
+        require joint_limits()
+        require joint_speed()
+        """)
+    robot = ROBOTS["shr7"]
+    q = np.array([0.0, 0.0, 0.0, 0.2, 0.1, 0.0, 0.02])
+    c = robot.frame_pose(q, "tool_tip")[0] + 0.007 * unit([1.0, -2.0, 0.5])
+    distance, statuses = [], []
+    for _ in range(40):
+        q = q + ctrl.step(q, {"f": [0.0, 0.0, 0.0]}, {"c": c}, dt=0.01)
+        statuses.append(ctrl.status)
+        distance.append(np.linalg.norm(robot.frame_pose(q, "tool_tip")[0] - c))
+    assert np.all(np.diff(distance) <= 1e-12) and distance[-1] == pytest.approx(0.004, abs=1e-9)
+    assert distance[-2] == pytest.approx(distance[-1], abs=1e-12), "on the sphere, hands off: still"
+    assert statuses[0] != StepStatus.OPTIMAL and statuses[-1] == StepStatus.OPTIMAL
+
+
 # ================================================================================= bad arguments
 
 HEAD = 'task t\nunits mm, deg\nrobot shr = urdf "shr7"\nframe tip = shr.link("tool_tip")\n'
