@@ -5,10 +5,10 @@ by its tangent plane at the sphere point closest to p, with outward normal n = (
 
     n . (p - c + dx_p) <= r    ->    -n J_v dq >= -r + n . (p - c)
 
-One row, no polytope: at rest (dx_p = 0) it reads || p - c || <= r, the true distance. A step dx_p
-within the plane leaves the ball by sqrt(r^2 + s^2) - r <= s^2 / (2 r), s = || dx_p ||, whatever p
-is; the next tick's plane pulls it back. When p is within COINCIDENT of c, n is the tool axis (any unit
-vector keeps that bound; the row is then far from binding).
+One row, no polytope: at rest (dx_p = 0) it reads || p - c || <= r, the true distance. From any p in the
+ball, a step dx_p that keeps the row leaves it by at most sqrt(r^2 + s^2) - r <= s^2 / (2 r),
+s = || dx_p || <= r; the next tick's plane pulls it back. When p is within COINCIDENT of c, n is the tool
+axis (any unit vector keeps that bound; the row is then far from binding).
 """
 
 import casadi as ca
