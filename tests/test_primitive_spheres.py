@@ -45,6 +45,7 @@ BODY = """
     """
 TRIALS = 8
 STAGE = slice(0, 3)          # shr7's x, y, z stage joints: a pure translation of everything they carry
+HEAD = 'task t\nunits mm, deg\nrobot shr = urdf "shr7"\nframe tip = shr.link("tool_tip")\n'   # 4 lines
 
 
 def spheres(tmp_path, robot="shr7", frame="tip"):
@@ -250,10 +251,38 @@ def test_a_ball_moved_away_at_run_time_pulls_the_tip_back_onto_it(tmp_path):
     assert statuses[0] != StepStatus.OPTIMAL and statuses[-1] == StepStatus.OPTIMAL
 
 
+def test_generated_c_agrees_at_and_near_the_center(tmp_path):
+    """The generated C (its if_else included) takes the same steps as the interpreted path with the tip at
+    the center of both balls (a 0.1 mm keep-out ball: one tick can leave it, along the tool axis), within
+    COINCIDENT of it, and off it."""
+    text = HEAD + textwrap.dedent("""\
+        input f : force
+        param c : point = [0, 0, 300]
+        minimize track(tip, f, gain = 1 mm/s/N)
+        minimize damping() weight 1e-6
+        require tip within_sphere(c, 5 mm)
+        require tip outside_sphere(c, 0.1 mm)
+        require joint_limits()
+        require joint_speed()
+        """)
+    (tmp_path / "t.vf").write_text(text)
+    task = vfdsl.load(tmp_path / "t.vf")
+    native, interpreted = vfdsl.compile(task, backend="native"), compile_task(task)
+    robot = ROBOTS["shr7"]
+    q = np.array([0.003, -0.002, 0.001, 0.3, -0.2, 0.4, 0.03])
+    p, R = robot.frame_pose(q, "tool_tip")
+    for offset in (0.0, 0.5 * COINCIDENT, 1e-5):
+        c = p - offset * unit([1.0, 2.0, 3.0])
+        steps = [ctrl.step(q, {"f": [1.0, -2.0, 0.5]}, {"c": c}, dt=0.01) for ctrl in (native, interpreted)]
+        assert native.status == interpreted.status == StepStatus.OPTIMAL
+        np.testing.assert_allclose(steps[0], steps[1], atol=1e-12)
+        moved = robot.frame_pose(q + steps[0], "tool_tip")[0] - c
+        assert np.linalg.norm(moved) >= 1e-4 - 1e-9
+        if offset < COINCIDENT:
+            assert moved @ R[:, 2] >= 1e-4 - 1e-9, "out along the tool axis"
+
+
 # ================================================================================= bad arguments
-
-HEAD = 'task t\nunits mm, deg\nrobot shr = urdf "shr7"\nframe tip = shr.link("tool_tip")\n'
-
 
 @pytest.mark.parametrize("line,column,message", [
     ("require tip within_sphere([0, 0, 280], 0 mm)", 40, "argument 'radius' must be > 0, got 0 mm"),
