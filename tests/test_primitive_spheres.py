@@ -193,6 +193,33 @@ def test_rows_at_the_center_are_finite_and_use_the_tool_axis(tmp_path, offset):
     np.testing.assert_allclose(lb, [0.005 - offset], atol=1e-12)
 
 
+def test_centers_far_away_do_not_overflow(tmp_path):
+    """|p - c|^2 would overflow for a center 1e200 m away (and underflow at 1e-200 m): the rows stay exact.
+    A step then reports the ball violated and does not move (its least-violation solve fails on numbers
+    that large, and the fallback is the zero motion)."""
+    ctrl = spheres(tmp_path)
+    q = np.array([0.01, -0.02, 0.005, 0.3, -0.2, 0.4, 0.03])
+    f = FrameState("shr7", "tip", q)
+    for offset in ([1e200, -1e200, 3e199], [1e-200, 0, 0]):
+        n = unit(np.asarray(offset) * (1e200 if offset[0] < 1 else 1e-200))
+        qp = ctrl.problem(q, {}, {"c": f.p - np.asarray(offset), "r": 0.005}, dt=0.01)
+        far = offset[0] > 1
+        A, lb = rows(ctrl, qp, "outside_sphere")
+        np.testing.assert_allclose(A, ((n if far else f.l) @ f.Jv)[None], atol=1e-9)
+        assert np.isfinite(lb).all() and (lb[0] < -1e199 if far else lb[0] == pytest.approx(0.005))
+    ctrl = build(tmp_path, """
+        param c : point = [0, 0, 0.3]
+        minimize damping()
+        require tip within_sphere(c, 5 mm)
+        require tip outside_sphere(c, 4 mm)
+        require joint_limits()
+        require joint_speed()
+        """)
+    dq = ctrl.step(q, {}, {"c": [1e200, 0, 0]}, dt=0.01)       # 1e200 m outside the ball: no NaN, no motion
+    assert ctrl.status & StepStatus.LEAST_VIOLATION and np.all(dq == 0)
+    assert [(v.label.primitive, v.amount) for v in ctrl.violations()] == [("within_sphere", 1e200)]
+
+
 def test_a_tip_at_the_center_of_a_keep_out_ball_retracts_along_the_tool(tmp_path):
     """Hands off, the tip exactly at the center of a 2 mm keep-out ball: no NaN; the first (least-violation)
     tick moves it toward the handle, mostly along the tool axis (the joint box lets the stage help); from

@@ -8,8 +8,8 @@ on its outer side (a moving forbidden half-space, as ``above``):
 
 The row is conservative: || x || >= n . x, so a step that keeps it leaves p outside the ball (up to the
 first-order model of the kinematics); motion along the plane slides around the ball. At rest it reads
-|| p - c || >= r. When p is within COINCIDENT of c, n is the frame's tool axis (from the tip toward the
-handle on the shipped robots): the row then asks to retract along the tool by r.
+|| p - c || >= r. When no coordinate of p - c exceeds COINCIDENT (within_sphere), n is the frame's tool
+axis (from the tip toward the handle on the shipped robots): the row then asks to retract along it by r.
 """
 
 from vfdsl.compiler.rows import Rows, lower_bounds

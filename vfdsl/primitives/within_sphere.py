@@ -7,8 +7,8 @@ by its tangent plane at the sphere point closest to p, with outward normal n = (
 
 One row, no polytope: at rest (dx_p = 0) it reads || p - c || <= r, the true distance. From any p in the
 ball, a step dx_p that keeps the row leaves it by at most sqrt(r^2 + s^2) - r <= s^2 / (2 r),
-s = || dx_p || <= r; the next tick's plane pulls it back. When p is within COINCIDENT of c, n is the tool
-axis (any unit vector keeps that bound; the row is then far from binding).
+s = || dx_p || <= r; the next tick's plane pulls it back. When no coordinate of p - c exceeds COINCIDENT,
+n is the tool axis (any unit vector keeps that bound; the row is then far from binding).
 """
 
 import casadi as ca
@@ -17,7 +17,7 @@ from vfdsl.compiler.geometry import normalize
 from vfdsl.compiler.rows import Rows, lower_bounds
 from vfdsl.primitives.spec import POSITIVE, ArgSpec, ConstraintSpec
 
-COINCIDENT = 1e-12     # m: closer to the center than this, the direction p - c is not used
+COINCIDENT = 1e-12     # m: when no coordinate of p - c is larger, the direction p - c is not used
 
 SPEC = ConstraintSpec(
     name="within_sphere",
@@ -30,9 +30,11 @@ SPEC = ConstraintSpec(
 
 
 def radial(f, center):
-    """The unit normal n = (p - c) / || p - c || of the sphere through p, or the tool axis at the center."""
+    """The unit normal n = (p - c) / || p - c || of the sphere through p, or the tool axis at the center.
+    p - c is first divided by its largest coordinate, so that no distance over- or underflows."""
     v = f.p - center
-    return ca.if_else(ca.sumsqr(v) > COINCIDENT ** 2, normalize(v), f.axis)
+    largest = ca.mmax(ca.fabs(v))
+    return ca.if_else(largest > COINCIDENT, normalize(v / ca.fmax(largest, COINCIDENT)), f.axis)
 
 
 def lower(c, ctx) -> Rows:
