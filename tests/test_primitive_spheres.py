@@ -170,6 +170,28 @@ def test_verdicts_on_moves_against_the_true_ball_and_band(tmp_path):
     assert conservative > 0 and optimistic > 0, "the sagitta cases should have been sampled"
 
 
+def test_within_sphere_overshoot_bound_holds_for_any_step(tmp_path):
+    """From anywhere in the ball (the center included), every stage move the row accepts ends within
+    sqrt(r^2 + s^2) of the center, s = |dx|, for steps up to 3 r: the bound the docs state, with no
+    assumption on s."""
+    ctrl = spheres(tmp_path)
+    robot = ROBOTS["shr7"]
+    rng = np.random.default_rng(34)
+    for inside in (0.0, 0.3, 0.999):
+        q = random_q("shr7", rng, shrink=0.5)
+        p, _ = robot.frame_pose(q, "tool_tip")
+        r = 0.005
+        c = p - inside * r * random_unit(rng)
+        qp = ctrl.problem(q, {}, {"c": c, "r": r}, dt=0.01)
+        A, lb = rows(ctrl, qp, "within_sphere")
+        dx = np.array([random_unit(rng) for _ in range(3000)]) * rng.uniform(0, 3 * r, size=(3000, 1))
+        keep = dx @ A[0, STAGE] >= lb[0] - 1e-15
+        moved = np.array([robot.frame_pose(np.r_[q[STAGE] + x, q[3:]], "tool_tip")[0] for x in dx[keep]])
+        s = np.linalg.norm(dx[keep], axis=1)
+        assert keep.sum() > 1000 and s.max() > 2 * r
+        assert np.all(np.linalg.norm(moved - c, axis=1) <= np.sqrt(r ** 2 + s ** 2) + 1e-12)
+
+
 # ============================================================================== degenerate center
 
 @pytest.mark.parametrize("offset", [0.0, 0.1 * COINCIDENT, 1e6 * COINCIDENT])

@@ -7,7 +7,7 @@ by its tangent plane at the sphere point closest to p, with outward normal n = (
 
 One row, no polytope: at rest (dx_p = 0) it reads || p - c || <= r, the true distance. From any p in the
 ball, a step dx_p that keeps the row leaves it by at most sqrt(r^2 + s^2) - r <= s^2 / (2 r),
-s = || dx_p || <= r; the next tick's plane pulls it back. When no coordinate of p - c exceeds COINCIDENT,
+s = || dx_p ||; the next tick's plane pulls it back. When no coordinate of p - c exceeds COINCIDENT,
 n is the tool axis (any unit vector keeps that bound; the row is then far from binding).
 """
 
