@@ -194,6 +194,32 @@ def test_within_sphere_overshoot_bound_holds_for_any_step(tmp_path):
 
 # ============================================================================== degenerate center
 
+GUIDED = """
+    input f : force
+    param c : point = [0, 0, 0.3]
+    minimize track(tip, f, gain = 1 mm/s/N)
+    minimize damping() weight 1e-6
+    require joint_limits()
+    require joint_speed()
+    """
+
+
+def guided(tmp_path, *requirements: str):
+    """An interpreted controller of shr7's tip guided by a force, within its joint limits and speeds."""
+    return build(tmp_path, GUIDED + "".join(f"require tip {r}\n" for r in requirements))
+
+
+def hands_off(ctrl, q, c, ticks):
+    """Tip positions (Pinocchio) and statuses over ``ticks`` ticks of zero force with the center c."""
+    positions, statuses = [], []
+    for _ in range(ticks):
+        dq = ctrl.step(q, {"f": [0.0, 0.0, 0.0]}, {"c": c}, dt=0.01)
+        assert np.all(np.isfinite(dq))
+        q = q + dq
+        statuses.append(ctrl.status)
+        positions.append(ROBOTS["shr7"].frame_pose(q, "tool_tip")[0])
+    return np.array(positions), statuses
+
 @pytest.mark.parametrize("offset", [0.0, 0.1 * COINCIDENT, 1e6 * COINCIDENT])
 def test_rows_at_the_center_are_finite_and_use_the_tool_axis(tmp_path, offset):
     """At p == c (and within COINCIDENT of it) n is the tool axis l: within gives -l J_v dq >= -r (harmless),
@@ -229,15 +255,8 @@ def test_centers_far_away_do_not_overflow(tmp_path):
         A, lb = rows(ctrl, qp, "outside_sphere")
         np.testing.assert_allclose(A, ((n if far else f.l) @ f.Jv)[None], atol=1e-9)
         assert np.isfinite(lb).all() and (lb[0] < -1e199 if far else lb[0] == pytest.approx(0.005))
-    ctrl = build(tmp_path, """
-        param c : point = [0, 0, 0.3]
-        minimize damping()
-        require tip within_sphere(c, 5 mm)
-        require tip outside_sphere(c, 4 mm)
-        require joint_limits()
-        require joint_speed()
-        """)
-    dq = ctrl.step(q, {}, {"c": [1e200, 0, 0]}, dt=0.01)       # 1e200 m outside the ball: no NaN, no motion
+    ctrl = guided(tmp_path, "within_sphere(c, 5 mm)", "outside_sphere(c, 4 mm)")
+    dq = ctrl.step(q, {"f": [1.0, 0, 0]}, {"c": [1e200, 0, 0]}, dt=0.01)   # 1e200 m outside the ball: no motion
     assert ctrl.status & StepStatus.LEAST_VIOLATION and np.all(dq == 0)
     assert [(v.label.primitive, v.amount) for v in ctrl.violations()] == [("within_sphere", 1e200)]
 
@@ -246,26 +265,11 @@ def test_a_tip_at_the_center_of_a_keep_out_ball_retracts_along_the_tool(tmp_path
     """Hands off, the tip exactly at the center of a 2 mm keep-out ball: no NaN; the first (least-violation)
     tick moves it toward the handle, mostly along the tool axis (the joint box lets the stage help); from
     then on n is radial and the tip leaves the ball by the shortest way, then stays still on its surface."""
-    ctrl = build(tmp_path, """
-        input f : force
-        param c : point = [0, 0, 0.3]
-        minimize track(tip, f, gain = 1 mm/s/N)
-        minimize damping() weight 1e-6
-        require tip outside_sphere(c, 2 mm)
-        require joint_limits()
-        require joint_speed()
-        """)
-    robot = ROBOTS["shr7"]
+    ctrl = guided(tmp_path, "outside_sphere(c, 2 mm)")
     q = np.array([0.0, 0.0, 0.0, 0.25, -0.15, 0.0, 0.03])
-    start, R = robot.frame_pose(q, "tool_tip")
-    statuses, positions = [], []
-    for _ in range(30):
-        dq = ctrl.step(q, {"f": [0.0, 0.0, 0.0]}, {"c": start}, dt=0.01)
-        assert np.all(np.isfinite(dq))
-        q = q + dq
-        statuses.append(ctrl.status)
-        positions.append(robot.frame_pose(q, "tool_tip")[0])
-    moved = np.array(positions) - start
+    start, R = ROBOTS["shr7"].frame_pose(q, "tool_tip")
+    positions, statuses = hands_off(ctrl, q, start, 30)
+    moved = positions - start
     distance = np.linalg.norm(moved, axis=1)
     assert unit(moved[0]) @ R[:, 2] > 0.8, "the first tick retracts along the tool axis"
     assert statuses[0] != StepStatus.OPTIMAL and statuses[-1] == StepStatus.OPTIMAL
@@ -278,23 +282,11 @@ def test_a_ball_moved_away_at_run_time_pulls_the_tip_back_onto_it(tmp_path):
     distance to the center falls every tick (least-violation ticks at the joint speed limits) to the radius,
     and there it stops. (The least-violation move saturates every joint that helps, so the path is not
     straight: see docs/runtime.md, phase 2.)"""
-    ctrl = build(tmp_path, """
-        input f : force
-        param c : point = [0, 0, 0.3]
-        minimize track(tip, f, gain = 1 mm/s/N)
-        minimize damping() weight 1e-6
-        require tip within_sphere(c, 4 mm)
-        require joint_limits()
-        require joint_speed()
-        """)
-    robot = ROBOTS["shr7"]
+    ctrl = guided(tmp_path, "within_sphere(c, 4 mm)")
     q = np.array([0.0, 0.0, 0.0, 0.2, 0.1, 0.0, 0.02])
-    c = robot.frame_pose(q, "tool_tip")[0] + 0.007 * unit([1.0, -2.0, 0.5])
-    distance, statuses = [], []
-    for _ in range(40):
-        q = q + ctrl.step(q, {"f": [0.0, 0.0, 0.0]}, {"c": c}, dt=0.01)
-        statuses.append(ctrl.status)
-        distance.append(np.linalg.norm(robot.frame_pose(q, "tool_tip")[0] - c))
+    c = ROBOTS["shr7"].frame_pose(q, "tool_tip")[0] + 0.007 * unit([1.0, -2.0, 0.5])
+    positions, statuses = hands_off(ctrl, q, c, 40)
+    distance = np.linalg.norm(positions - c, axis=1)
     assert np.all(np.diff(distance) <= 1e-12) and distance[-1] == pytest.approx(0.004, abs=1e-9)
     assert distance[-2] == pytest.approx(distance[-1], abs=1e-12), "on the sphere, hands off: still"
     assert statuses[0] != StepStatus.OPTIMAL and statuses[-1] == StepStatus.OPTIMAL
@@ -304,19 +296,8 @@ def test_generated_c_agrees_at_and_near_the_center(tmp_path):
     """The generated C (its if_else included) takes the same steps as the interpreted path with the tip at
     the center of both balls (a 0.1 mm keep-out ball: one tick can leave it, along the tool axis), within
     COINCIDENT of it, and off it."""
-    text = HEAD + textwrap.dedent("""\
-        input f : force
-        param c : point = [0, 0, 300]
-        minimize track(tip, f, gain = 1 mm/s/N)
-        minimize damping() weight 1e-6
-        require tip within_sphere(c, 5 mm)
-        require tip outside_sphere(c, 0.1 mm)
-        require joint_limits()
-        require joint_speed()
-        """)
-    (tmp_path / "t.vf").write_text(text)
-    task = vfdsl.load(tmp_path / "t.vf")
-    native, interpreted = vfdsl.compile(task, backend="native"), compile_task(task)
+    interpreted = guided(tmp_path, "within_sphere(c, 5 mm)", "outside_sphere(c, 0.1 mm)")
+    native = vfdsl.compile(interpreted.task, backend="native")
     robot = ROBOTS["shr7"]
     q = np.array([0.003, -0.002, 0.001, 0.3, -0.2, 0.4, 0.03])
     p, R = robot.frame_pose(q, "tool_tip")
