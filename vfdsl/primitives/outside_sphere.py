@@ -13,21 +13,18 @@ axis (from the tip toward the handle on the shipped robots): the row then asks t
 """
 
 from vfdsl.compiler.rows import Rows, lower_bounds
-from vfdsl.primitives.spec import POSITIVE, ArgSpec, ConstraintSpec
-from vfdsl.primitives.within_sphere import radial
+from vfdsl.primitives.spec import ConstraintSpec
+from vfdsl.primitives.within_sphere import BALL, tangent_plane
 
 SPEC = ConstraintSpec(
     name="outside_sphere",
     summary="keep the frame origin out of a ball (its tangent plane at the closest point every tick)",
     subject=True,
-    args=(ArgSpec("center", "point", "the ball's center c"),
-          ArgSpec("radius", "length", "the ball's radius r", range=POSITIVE)),
+    args=BALL,
     source="Li, Kapoor & Taylor 2005, II-B.5 (a forbidden half-space on the sphere's tangent plane)",
 )
 
 
 def lower(c, ctx) -> Rows:
-    f = ctx.frame(c.frame)
-    center = ctx.point(c.args["center"])
-    n = radial(f, center)
-    return lower_bounds(n.T @ f.Jv, ctx.scalar(c.args["radius"]) - n.T @ (f.p - center), ["tangent plane"])
+    a, height, r = tangent_plane(c, ctx)
+    return lower_bounds(a, r - height, ["tangent plane"])

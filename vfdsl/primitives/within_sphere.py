@@ -19,26 +19,29 @@ from vfdsl.primitives.spec import POSITIVE, ArgSpec, ConstraintSpec
 
 COINCIDENT = 1e-12     # m: when no coordinate of p - c is larger, the direction p - c is not used
 
+BALL = (ArgSpec("center", "point", "the ball's center c"),
+        ArgSpec("radius", "length", "the ball's radius r", range=POSITIVE))
+
 SPEC = ConstraintSpec(
     name="within_sphere",
     summary="keep the frame origin inside a ball, exactly (its tangent plane at the closest point every tick)",
     subject=True,
-    args=(ArgSpec("center", "point", "the ball's center c"),
-          ArgSpec("radius", "length", "the ball's radius r", range=POSITIVE)),
+    args=BALL,
     source="Taylor, lecture notes, slide 44 (the ball linearized at its closest point)",
 )
 
 
-def radial(f, center):
-    """The unit normal n = (p - c) / || p - c || of the sphere through p, or the tool axis at the center.
-    p - c is first divided by its largest coordinate, so that no distance over- or underflows."""
-    v = f.p - center
+def tangent_plane(c, ctx):
+    """(n J_v, n . (p - c), r) of a ball constraint: n = (p - c) / || p - c || (the tool axis at the
+    center) on the step, the frame origin's height along n, the radius. p - c is first divided by its
+    largest coordinate, so that no distance over- or underflows."""
+    f = ctx.frame(c.frame)
+    v = f.p - ctx.point(c.args["center"])
     largest = ca.mmax(ca.fabs(v))
-    return ca.if_else(largest > COINCIDENT, normalize(v / ca.fmax(largest, COINCIDENT)), f.axis)
+    n = ca.if_else(largest > COINCIDENT, normalize(v / ca.fmax(largest, COINCIDENT)), f.axis)
+    return n.T @ f.Jv, n.T @ v, ctx.scalar(c.args["radius"])
 
 
 def lower(c, ctx) -> Rows:
-    f = ctx.frame(c.frame)
-    center = ctx.point(c.args["center"])
-    n = radial(f, center)
-    return lower_bounds(-n.T @ f.Jv, n.T @ (f.p - center) - ctx.scalar(c.args["radius"]), ["tangent plane"])
+    a, height, r = tangent_plane(c, ctx)
+    return lower_bounds(-a, height - r, ["tangent plane"])
