@@ -197,6 +197,7 @@ def test_within_sphere_overshoot_bound_holds_for_any_step(tmp_path):
 GUIDED = """
     input f : force
     param c : point = [0, 0, 0.3]
+    param r : length = 0.005
     minimize track(tip, f, gain = 1 mm/s/N)
     minimize damping() weight 1e-6
     require joint_limits()
@@ -295,8 +296,8 @@ def test_a_ball_moved_away_at_run_time_pulls_the_tip_back_onto_it(tmp_path):
 def test_generated_c_agrees_at_and_near_the_center(tmp_path):
     """The generated C (its if_else included) takes the same steps as the interpreted path with the tip at
     the center of both balls (a 0.1 mm keep-out ball: one tick can leave it, along the tool axis), within
-    COINCIDENT of it, and off it."""
-    interpreted = guided(tmp_path, "within_sphere(c, 5 mm)", "outside_sphere(c, 0.1 mm)")
+    COINCIDENT of it, and off it; its extension refuses a radius out of range."""
+    interpreted = guided(tmp_path, "within_sphere(c, r)", "outside_sphere(c, 0.1 mm)")
     native = vfdsl.compile(interpreted.task, backend="native")
     robot = ROBOTS["shr7"]
     q = np.array([0.003, -0.002, 0.001, 0.3, -0.2, 0.4, 0.03])
@@ -310,6 +311,9 @@ def test_generated_c_agrees_at_and_near_the_center(tmp_path):
         assert np.linalg.norm(moved) >= 1e-4 - 1e-9
         if offset < COINCIDENT:
             assert moved @ R[:, 2] >= 1e-4 - 1e-9, "out along the tool axis"
+    for bad in (0.0, -0.001, math.nan):
+        with pytest.raises(VfError, match="'r'"):
+            native.step(q, {"f": [0.0, 0.0, 0.0]}, {"r": bad}, dt=0.01)
 
 
 # ================================================================================= bad arguments
