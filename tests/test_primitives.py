@@ -786,7 +786,8 @@ def test_follows_paper_a_curve(tmp_path):
 def test_every_primitive_is_covered():
     from vfdsl.primitives import CONSTRAINTS
     covered = {"stays_at", "keeps_direction", "along", "rotates_around", "above", "on_plane", "follows", "cone",
-               "passes_through", "within_distance", "joint_limits", "joint_speed", "speed", "angular_speed"}
+               "passes_through", "within_distance", "joint_limits", "joint_speed", "speed", "angular_speed",
+               "within_sphere", "outside_sphere", "near_plane"}     # the last three: test_primitive_spheres.py
     assert set(CONSTRAINTS) == covered
 
 

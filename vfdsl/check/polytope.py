@@ -30,7 +30,10 @@ from vfdsl.primitives import CONSTRAINTS
 # Kind of the bounded quantity, and where its stated size is, for primitives whose polytope bounds
 # something other than the `within` tolerance.
 _STATED_BY_ARG = {"within_distance": ("length", "distance"), "speed": ("speed", "max"),
-                  "angular_speed": ("angular_speed", "max")}
+                  "angular_speed": ("angular_speed", "max"), "within_sphere": ("length", "radius"),
+                  "near_plane": ("length", "half_width")}
+# How the table names exact rows that are not planes or joint bounds.
+_EXACT = {"within_sphere": "exact (tangent plane)"}
 SEARCH_LIMIT = 24              # largest n (and m) tried for the smallest resolution under an overshoot
 
 
@@ -138,7 +141,7 @@ def bounds_table(task: ir.Task) -> list[Bound]:
         kind, size = stated
         g = constraint_geometry(c)
         if g is None:
-            table.append(Bound(describe(c), where(c), kind, size, "exact", None, size))
+            table.append(Bound(describe(c), where(c), kind, size, _EXACT.get(c.primitive, "exact"), None, size))
         else:
             table.append(Bound(describe(c), where(c), kind, size, g.label, g.unique, g.circumradius * size))
     return table

@@ -95,7 +95,7 @@ class Bound:
     where: str                   # source line (and use sites): "fixtures.vf:10 via task.vf:18"
     kind: str                    # length, angle, speed, angular_speed
     stated: float
-    resolution: str              # "4x4", "8", or "exact"
+    resolution: str              # "4x4", "8", "exact" or "exact (tangent plane)"
     facets: int | None
     worst: float
 

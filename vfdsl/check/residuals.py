@@ -10,7 +10,7 @@ drives it further off). For those the true angle is measured instead:
 - cone: | angle(l_t, l_a) - gamma |;
 - rotates_around: | asin(l_t . w) |, the tool axis' angle out of the plane normal to w;
 
-and for stays_at and within_distance the distance || p - P || itself.
+and for stays_at, within_distance and within_sphere the distance || p - P || itself.
 
 A constraint whose error exceeds its tolerance is VF402 (warning); beyond FAR x the tolerance (or
 FAR_ABSOLUTE for exact rows without one) it is VF401 (error), with the likely cause: an opposite
@@ -53,8 +53,9 @@ def _rotates_around(c, ctx):
 
 
 TRUE_ANGLE = {"keeps_direction": _keeps_direction, "cone": _cone, "rotates_around": _rotates_around}
-REFERENCE_POINT = {"stays_at": "target", "within_distance": "center", "passes_through": "port"}
-DISTANCE_TO_REFERENCE = ("stays_at", "within_distance")      # their error is || p - P || itself
+REFERENCE_POINT = {"stays_at": "target", "within_distance": "center", "passes_through": "port",
+                   "within_sphere": "center"}
+DISTANCE_TO_REFERENCE = ("stays_at", "within_distance", "within_sphere")      # their error is || p - P || itself
 
 
 class Residuals:

@@ -9,16 +9,20 @@ from vfdsl.primitives import (
                               joint_limits,
                               joint_speed,
                               keeps_direction,
+                              near_plane,
                               on_plane,
+                              outside_sphere,
                               passes_through,
                               rotates_around,
                               speed,
                               stays_at,
                               within_distance,
+                              within_sphere,
 )
 from vfdsl.primitives.spec import ConstraintSpec
 
 _MODULES = (stays_at, keeps_direction, along, rotates_around, above, on_plane, follows, cone, passes_through,
-            within_distance, joint_limits, joint_speed, speed, angular_speed)
+            within_distance, joint_limits, joint_speed, speed, angular_speed,
+            within_sphere, outside_sphere, near_plane)
 
 CONSTRAINTS: dict[str, ConstraintSpec] = {m.SPEC.name: m.SPEC for m in _MODULES}

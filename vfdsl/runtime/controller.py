@@ -195,7 +195,8 @@ class Controller:
         return bounds + [str(label) for label in self.assembled.row_labels]
 
 
-_ROW_UNITS = {"above": "m", "within_distance": "m", "speed": "m", "angular_speed": "rad"}
+_ROW_UNITS = {"above": "m", "within_distance": "m", "speed": "m", "angular_speed": "rad", "within_sphere": "m",
+              "outside_sphere": "m", "near_plane": "m"}
 
 
 def _row_unit(primitive: str) -> str:

@@ -10,6 +10,9 @@ The error of a constraint is how far the frame is from the set the constraint de
     on_plane          |n . (p - p0)|                       mm
     above             max(0, -n . (p - p0))                mm
     within_distance   max(0, |p - c| - distance)           mm
+    within_sphere     max(0, |p - c| - radius)             mm
+    outside_sphere    max(0, radius - |p - c|)             mm
+    near_plane        max(0, |n . (p - p0)| - half_width)  mm
     passes_through    distance from the port to the tool axis line   mm
     cone              | angle(l, axis) - angle |           deg
     keeps_direction   angle(l, direction)                  deg
@@ -43,6 +46,7 @@ DISPLAY = {"length": ("mm", 1e3), "angle": ("deg", 180 / math.pi), "speed": ("mm
 _SUFFIX = {"mm": "mm", "deg": "deg", "mm/s": "mm_s", "deg/s": "deg_s"}
 _DIMENSION = {"stays_at": "length", "along": "length", "follows": "length", "on_plane": "length",
               "above": "length", "within_distance": "length", "passes_through": "length", "cone": "angle",
+              "within_sphere": "length", "outside_sphere": "length", "near_plane": "length",
               "keeps_direction": "angle", "rotates_around": "angle", "speed": "speed",
               "angular_speed": "angular_speed"}
 JOINT_PRIMITIVES = ("joint_limits", "joint_speed")
@@ -150,14 +154,18 @@ def _frame_error(c: ir.Constraint, task: ir.Task, scene: Scene, poses: Poses, pe
     kind = c.primitive
     if kind == "stays_at":
         return np.linalg.norm(p - scene.point(a["target"]), axis=1)
-    if kind == "within_distance":
-        return np.maximum(0.0, np.linalg.norm(p - scene.point(a["center"]), axis=1) - scene.value(a["distance"]).value)
+    if kind in ("within_distance", "within_sphere", "outside_sphere"):
+        distance = np.linalg.norm(p - scene.point(a["center"]), axis=1)
+        radius = scene.value(a["radius" if "radius" in a else "distance"]).value
+        return np.maximum(0.0, radius - distance if kind == "outside_sphere" else distance - radius)
     if kind == "along":
         point, direction = scene.line(a["line"])
         return np.linalg.norm(np.cross(p - point, direction), axis=1)
-    if kind in ("on_plane", "above"):
+    if kind in ("on_plane", "above", "near_plane"):
         point, normal = scene.plane(a["plane"])
         height = (p - point) @ normal
+        if kind == "near_plane":
+            return np.maximum(0.0, np.abs(height) - scene.value(a["half_width"]).value)
         return np.abs(height) if kind == "on_plane" else np.maximum(0.0, -height)
     if kind == "passes_through":
         return np.linalg.norm(np.cross(scene.point(a["port"]) - p, l), axis=1)
