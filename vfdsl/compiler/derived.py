@@ -1,0 +1,86 @@
+"""Derived values (:class:`~vfdsl.ir.model.Derived`): the math of each op, on CasADi numbers (DM) or symbols (SX).
+
+Points, vectors and directions are 3-vectors, scalars 1 x 1; a line is (point, unit direction), a plane
+(point, unit normal)::
+
+    add: a + b     sub: a - b     neg: -a     scale: s a     cross: a x b     midpoint: (a + b) / 2
+    normalize: a / |a|     line2 (through a and b): (a, (b - a) / |b - a|)     line, plane: (a, d / |d|)
+
+A vector shorter than ``MIN_NORM`` (SI units of its dimension: 1 nm for a length) has no direction.
+:func:`check_nonzero` refuses it with a VfError at the expression (at load time with the params' values, and
+each tick a caller passes params); in the generated code the division is guarded (no NaN).
+"""
+
+from __future__ import annotations
+
+from typing import Callable
+
+import casadi as ca
+
+from vfdsl.compiler.geometry import normalize
+from vfdsl.errors import VfError
+from vfdsl.ir import model as ir
+
+MIN_NORM = 1e-9
+
+Read = Callable[[ir.Arg], object]                 # a non-derived argument -> its DM/SX value in the world
+Unit = Callable[[object, ir.Derived], object]     # (vector, the node normalizing it) -> the unit vector
+
+
+def evaluate(arg: ir.Arg, read: Read, unit: Unit = lambda v, node: normalize(v)):
+    """The value of ``arg``: ``read(arg)`` for a leaf, else its op applied to its operands' values."""
+    if not isinstance(arg, ir.Derived):
+        return read(arg)
+    x = [evaluate(operand, read, unit) for operand in arg.operands]
+    op = arg.op
+    if op == "add":
+        return x[0] + x[1]
+    if op == "sub":
+        return x[0] - x[1]
+    if op == "neg":
+        return -x[0]
+    if op == "scale":
+        return x[0] * x[1]
+    if op == "cross":
+        return ca.cross(x[0], x[1])
+    if op == "midpoint":
+        return (x[0] + x[1]) / 2
+    if op == "normalize":
+        return unit(x[0], arg)
+    if op == "line2":
+        return x[0], unit(x[1] - x[0], arg)
+    return x[0], unit(x[1], arg)                  # line (point, direction), plane (point, normal)
+
+
+def norms(arg: ir.Arg, read: Read) -> list[tuple[ir.Derived, object]]:
+    """Every normalization inside ``arg`` with the length of the vector it divides by."""
+    found: list[tuple[ir.Derived, object]] = []
+
+    def record(v, node):
+        found.append((node, ca.norm_2(v)))
+        return normalize(v)
+    evaluate(arg, read, record)
+    return found
+
+
+def check_nonzero(arg: ir.Arg, read: Read, when: str = "") -> None:
+    """VfError at the first normalization in ``arg`` (numbers) whose vector is shorter than MIN_NORM."""
+    for node, norm in norms(arg, read):
+        zero_error(node, float(norm), when)
+
+
+def zero_error(node: ir.Derived, norm: float, when: str = "") -> None:
+    """Raise when ``norm`` (the length ``node`` divides by) is too short to give a direction."""
+    if norm >= MIN_NORM:
+        return
+    what = {"line2": "the two points of this line coincide",
+            "normalize": "this vector is zero"}.get(node.op, "this direction is zero")
+    raise VfError(f"{when}{what} (length {norm:.3g} SI): it has no direction", node.span.pos(),
+                  hint="a derived direction needs two distinct points, or a non-zero, non-parallel vector "
+                       f"(at least {MIN_NORM:g} SI)")
+
+
+def derived_args(task: ir.Task) -> list[ir.Derived]:
+    """The derived arguments of the task's constraints and objectives (outermost nodes)."""
+    return [arg for statement in [*task.constraints, *task.objectives] for arg in statement.args.values()
+            if isinstance(arg, ir.Derived)]
