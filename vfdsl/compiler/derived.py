@@ -16,6 +16,7 @@ from __future__ import annotations
 from typing import Callable
 
 import casadi as ca
+import numpy as np
 
 from vfdsl.compiler.geometry import normalize
 from vfdsl.errors import VfError
@@ -84,3 +85,21 @@ def derived_args(task: ir.Task) -> list[ir.Derived]:
     """The derived arguments of the task's constraints and objectives (outermost nodes)."""
     return [arg for statement in [*task.constraints, *task.objectives] for arg in statement.args.values()
             if isinstance(arg, ir.Derived)]
+
+
+def leaves(arg: ir.Arg):
+    """The non-derived arguments ``arg`` is computed from (``arg`` itself when it is not derived)."""
+    if isinstance(arg, ir.Derived):
+        for operand in arg.operands:
+            yield from leaves(operand)
+    else:
+        yield arg
+
+
+def to_value(kind: str, value) -> ir.Value:
+    """A numeric result of :func:`evaluate` (DM) as the IR value of ``kind``."""
+    if kind in ("line", "plane"):
+        point, unit = (np.array(ca.DM(x)).ravel().tolist() for x in value)
+        return ir.LineValue(point=point, direction=unit) if kind == "line" else ir.PlaneValue(point=point, normal=unit)
+    xyz = np.array(ca.DM(value)).ravel().tolist()
+    return {"point": ir.PointValue, "vector": ir.VectorValue, "direction": ir.DirectionValue}[kind](xyz=xyz)

@@ -60,7 +60,7 @@ class Typed:
     def words(self) -> str:
         if self.kind == "vector" and self.dim is not None:
             return "a vector of plain numbers" if self.dim == u.DIMENSIONLESS else \
-                f"a vector of {u.describe(self.dim)[2:] if self.dim == u.LENGTH else u.si_formula(self.dim)}"
+                f"a vector of {'lengths' if self.dim == u.LENGTH else u.si_formula(self.dim)}"
         if self.kind == "scalar":
             return u.describe(self.dim)
         return describe_kind(self.kind)
@@ -147,15 +147,24 @@ class Expressions:
             raise VfError(f"{what} needs vectors, got {t.words()}", t.node.span.pos(), hint=hint)
         return self._settle(t, dim)
 
+    def _literal_point(self, t: Typed) -> Typed:
+        """A literal list of lengths (or of bare numbers, in the file's length unit) read as a point."""
+        if t.kind != "vector" or not isinstance(t.node, ast.Vector) or t.dim not in (None, u.LENGTH):
+            return t
+        xyz = self._settle(t, u.LENGTH).arg.value.xyz
+        return Typed("point", u.LENGTH, ir.Const(value=ir.PointValue(xyz=xyz)), t.node)
+
     def _expect(self, t: Typed, kind: str, dim: u.Dim | None, what: str) -> Typed:
-        if t.kind == "vector" and t.dim is None and kind in ("point", "vector"):
+        if kind == "point":
+            t = self._literal_point(t)
+        elif t.kind == "vector" and t.dim is None and kind == "vector":
             t = self._settle(t, dim)
-            return Typed(kind, dim, ir.Const(value=ir.PointValue(xyz=t.arg.value.xyz)) if kind == "point"
-                         else t.arg, t.node)
         if t.kind == kind and (dim is None or t.dim == dim):
             return t
         hint = None
-        if kind == "vector" and t.kind == "vector" and t.dim != u.LENGTH:
+        if kind == t.kind == "scalar" and t.dim == u.DIMENSIONLESS:
+            hint = "a bare number in an expression is a plain number; give it its unit, e.g. 5 mm + 3 mm"
+        elif kind == "vector" and t.kind == "vector" and t.dim != u.LENGTH:
             hint = "normalize it and scale by a length: 10 mm * normalize(...)"
         elif kind == "point" and t.kind == "vector":
             hint = "add the vector to a point: p + v"
@@ -271,6 +280,8 @@ class Expressions:
         bound = bind_arguments(call, list(names), names, f"{kind}(...)")
         point = self._expect(self.typed(bound["point"]), "point", u.LENGTH, f"{kind}(...) needs a point first")
         second = self.typed(bound[names[1]])
+        if kind == "line" and second.dim == u.LENGTH:
+            second = self._literal_point(second)
         if kind == "line" and second.kind == "point" and not any(k.name.text == "direction" for k in call.kwargs):
             return self._node("line2", "line", [point, second], call, None)
         if kind == "line" and second.kind == "vector" and second.dim == u.LENGTH:
@@ -285,7 +296,7 @@ class Expressions:
         result = ir.Derived(op=op, kind=kind, operands=[t.arg for t in operands], span=node.span)
         if all(isinstance(t.arg, ir.Const) for t in operands):
             value = derived.evaluate(result, ParamReader([]).read, _checked_unit)
-            return Typed(kind, dim, ir.Const(value=_ir_value(kind, value)), node)
+            return Typed(kind, dim, ir.Const(value=derived.to_value(kind, value)), node)
         derived.check_nonzero(result, ParamReader(self.params, ca.DM(ParamReader(self.params).layout.defaults)).read,
                               "with the params' values, ")
         return Typed(kind, dim, result, node)
@@ -312,11 +323,3 @@ def _times(a: u.Dim, b: u.Dim) -> u.Dim:
 def _const_scalar(dim: u.Dim, value: float) -> ir.Const:
     name = next((k for k, d in SCALAR_DIMENSIONS.items() if d == dim), u.si_formula(dim))
     return ir.Const(value=ir.ScalarValue(dimension=name, value=value))
-
-
-def _ir_value(kind: str, value) -> ir.Value:
-    if kind in ("line", "plane"):
-        point, unit = (np.array(ca.DM(x)).ravel().tolist() for x in value)
-        return ir.LineValue(point=point, direction=unit) if kind == "line" else ir.PlaneValue(point=point, normal=unit)
-    xyz = np.array(ca.DM(value)).ravel().tolist()
-    return {"point": ir.PointValue, "vector": ir.VectorValue, "direction": ir.DirectionValue}[kind](xyz=xyz)

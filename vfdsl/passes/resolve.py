@@ -230,7 +230,11 @@ class Resolver:
                               hint=f"give a default (`= ...`) or set params.{stmt.name.text} in the scene file")
             source = _named_mapping(source, kind)
             self.param_values[stmt.name.text] = source
-            value = LiteralReader(units, self._no_names).read(source, kind, curve_degree=degree)
+            if kind in ex.KINDS and ex.is_expression(source):
+                value = ex.Expressions(units, lambda ref: self._no_names(ref, kind), self._arg_kind, []) \
+                    .evaluate(source, kind).value
+            else:
+                value = LiteralReader(units, self._no_names).read(source, kind, curve_degree=degree)
             self.params[stmt.name.text] = ir.ParamDecl(
                 name=stmt.name.text, type=kind, value=value,
                 frame=stmt.frame.text if stmt.frame else None, span=stmt.span)

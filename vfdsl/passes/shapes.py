@@ -209,4 +209,6 @@ def _what(value: ast.Value) -> str:
         return f"the name '{value.name}'"
     if isinstance(value, ast.String):
         return "a string"
+    if isinstance(value, (ast.BinOp, ast.Neg)):
+        return "an expression"
     return "true/false"

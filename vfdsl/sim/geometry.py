@@ -10,10 +10,13 @@ tangent line, which is where ``follows`` keeps a frame that leaves the curve by 
 
 from __future__ import annotations
 
+import casadi as ca
 import numpy as np
 from scipy.interpolate import make_interp_spline
 from scipy.spatial.transform import Rotation
 
+from vfdsl.compiler import derived
+from vfdsl.compiler.context import ParamReader, flatten
 from vfdsl.ir import model as ir
 
 SAMPLES_PER_METRE = 20000            # dense-search samples: 0.05 mm apart
@@ -131,4 +134,7 @@ class Scene:
             return self.values[arg.name], self.to_world(arg.name)
         if isinstance(arg, ir.Const):
             return arg.value, (np.eye(3), np.zeros(3))
+        if isinstance(arg, ir.Derived):           # computed in the world from the params' current values
+            p = ca.DM(np.concatenate([[], *(flatten(self.values[d.name]) for d in self.task.params)]))
+            return derived.to_value(arg.kind, ParamReader(self.task.params, p).derived(arg)), (np.eye(3), np.zeros(3))
         raise TypeError(f"not a value argument: {arg}")

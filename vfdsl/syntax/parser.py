@@ -35,6 +35,7 @@ STATEMENT_KEYWORDS = KEYWORDS[2:]
 
 _FIRST_WORD = re.compile(r"(?:\s|#[^\n]*)*([A-Za-z_]\w*)?")
 _NESTED_RULES = ("vector", "call", "add", "sub", "mul", "neg")
+_OPERATOR_WORDS = {"'+'", "'-'", "'*'"}
 _HINTS_FOR_CHARACTERS = {
     "\u00b5": "write micro as 'u': um, not \u00b5m",
     "\u03bc": "write micro as 'u': um, not \u03bcm",
@@ -125,6 +126,8 @@ def _syntax_error(exc: UnexpectedInput, text: str, file: str, parser: Lark) -> V
     statement_words = [f"'{k}'" for k in STATEMENT_KEYWORDS]
     if sum(w in statement_words for w in words) >= 5:
         words = ["a statement (require, minimize, param, ...)"] + [w for w in words if w not in statement_words]
+    if len(words) > 1 and set(words) - _OPERATOR_WORDS:
+        words = [w for w in words if w not in _OPERATOR_WORDS]   # an operator may follow any value
     width = 1
     hint = None
     if isinstance(exc, UnexpectedToken) and exc.token.type == "$END" or isinstance(exc, UnexpectedEOF):
