@@ -84,7 +84,7 @@ def rotation(rpy) -> np.ndarray:
 def rpy_of(R: np.ndarray) -> list[float]:
     """The fixed-axis rpy of a rotation matrix (inverse of :func:`rpy_matrix`; at pitch +-90 deg, yaw = 0)."""
     pitch = math.atan2(-R[2, 0], math.hypot(R[0, 0], R[1, 0]))
-    if math.hypot(R[0, 0], R[1, 0]) < 1e-12:
+    if math.hypot(R[0, 0], R[1, 0]) < 1e-8:          # at pitch +-90 deg (errors ~1e-8 rad either side)
         return [math.atan2(-R[1, 2], R[1, 1]), pitch, 0.0]
     return [math.atan2(R[2, 1], R[2, 2]), pitch, math.atan2(R[1, 0], R[0, 0])]
 

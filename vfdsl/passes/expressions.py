@@ -148,8 +148,9 @@ class Expressions:
         return self._settle(t, dim)
 
     def _literal_point(self, t: Typed) -> Typed:
-        """A literal list of lengths (or of bare numbers, in the file's length unit) read as a point."""
-        if t.kind != "vector" or not isinstance(t.node, ast.Vector) or t.dim not in (None, u.LENGTH):
+        """A constant vector of lengths (a list of bare numbers in the file's length unit) read as a point:
+        the position it leads to from the world origin."""
+        if t.kind != "vector" or t.dim not in (None, u.LENGTH) or not isinstance(t.arg, (ir.Const, type(None))):
             return t
         xyz = self._settle(t, u.LENGTH).arg.value.xyz
         return Typed("point", u.LENGTH, ir.Const(value=ir.PointValue(xyz=xyz)), t.node)
@@ -164,7 +165,9 @@ class Expressions:
         hint = None
         if kind == t.kind == "scalar" and t.dim == u.DIMENSIONLESS:
             hint = "a bare number in an expression is a plain number; give it its unit, e.g. 5 mm + 3 mm"
-        elif kind == "vector" and t.kind == "vector" and t.dim != u.LENGTH:
+        elif kind == "vector" and t.kind == "vector" and t.dim == u.DIMENSIONLESS:
+            hint = "give the numbers a unit, [x, y, z] mm, or scale by a length: 10 mm * v"
+        elif kind == "vector" and t.kind == "vector":
             hint = "normalize it and scale by a length: 10 mm * normalize(...)"
         elif kind == "point" and t.kind == "vector":
             hint = "add the vector to a point: p + v"

@@ -172,7 +172,7 @@ class Resolver:
             raise VfError(f"frame '{name}' is defined from itself", where,
                           hint=f"build it on a robot link: frame {name} = <robot>.link(\"...\")")
         if self._is_frame_statement(name):
-            raise VfError(f"frame '{name}' is declared later (at {self.declared[name].span}); a frame can only be "
+            raise VfError(f"frame '{name}' is declared later (line {self.declared[name].span.line}); a frame can only be "
                           f"built on a frame declared before it", where, hint=f"move frame '{name}' above this line")
         if name in self.robots:
             raise VfError(f"'{name}' is a robot, not a frame", where,
