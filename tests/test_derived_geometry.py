@@ -306,3 +306,28 @@ def test_composed_rotations_round_trip_through_rpy_also_at_gimbal_lock():
         near = [rng.uniform(-3, 3), rng.choice([-1, 1]) * (np.pi / 2 - 10 ** rng.uniform(-14, -2)), rng.uniform(-3, 3)]
         assert np.abs(rotation(rpy_of(rotation(near))) - rotation(near)).max() < 1e-7
     assert np.abs(rotation(rpy_of(rotation([0.3, np.pi / 2, 0.2]))) - rotation([0.3, np.pi / 2, 0.2])).max() < 1e-12
+
+
+@pytest.mark.parametrize("body, message, column", [
+    ("require tip stays_at([0, 0, 1] m + 1e300 m * [1e300, 0, 0] m)\n", "too large", 36),
+    ("require tip keeps_direction(normalize([1e300, 1e300, 0] m - [-1e300, -1e300, 0] m))\n", "too large", 29),
+    ("require tip keeps_direction(normalize(1e200 m * [1, 0, 0] mm))\n", "too large", 29),
+    ("require tip keeps_direction(normalize([1e-200, 0, 0]))\n", "this vector is zero", 29),
+    ("require tip within_distance(a, 1e300 m * 1e300)\n", "too large", 32),
+])
+def test_overflow_and_underflow_are_errors_not_nan(tmp_path, body, message, column):
+    fails(tmp_path, body, message, 10, column)
+
+
+@pytest.mark.parametrize("constraint, params, column", [
+    ("above(plane(a, normalize(b - a)))", {"a": [1.7e308, 0, 0], "b": [-1.7e308, 0, 0]}, 28),
+    ("stays_at(a + v) within 1 mm", {"a": [1.7e308, 0, 0], "v": [1.7e308, 0, 0]}, 22),
+])
+def test_run_time_overflow_is_refused(tmp_path, constraint, params, column):
+    task = load(tmp_path, f"input f : force\nminimize track(tip, f, gain = 1 mm/s/N)\nrequire tip {constraint}\n")
+    ctrl = vfdsl.compile(task, backend="interpreted")
+    q = np.zeros(ctrl.nq)
+    with pytest.raises(VfError, match="too large") as info:
+        ctrl.step(q, {"f": [0, 0, 0]}, params=params, dt=0.01)
+    assert (info.value.pos.line, info.value.pos.column) == (12, column)
+    assert np.all(np.isfinite(ctrl.step(q, {"f": [0, 0, 0]}, params={"a": [0, 0, 0.2]}, dt=0.01)))

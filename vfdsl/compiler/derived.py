@@ -7,8 +7,9 @@ Points, vectors and directions are 3-vectors, scalars 1 x 1; a line is (point, u
     normalize: a / |a|     line2 (through a and b): (a, (b - a) / |b - a|)     line, plane: (a, d / |d|)
 
 A vector shorter than ``MIN_NORM`` (SI units of its dimension: 1 nm for a length) has no direction.
-:func:`check_nonzero` refuses it with a VfError at the expression (at load time with the params' values, and
-each tick a caller passes params); in the generated code the division is guarded (no NaN).
+:func:`check` refuses it, and any derived value that overflows, with a VfError at the expression (at load
+time with the params' values, and each tick a caller passes params); in the generated code the division is
+guarded (no NaN).
 """
 
 from __future__ import annotations
@@ -53,32 +54,43 @@ def evaluate(arg: ir.Arg, read: Read, unit: Unit = lambda v, node: normalize(v))
     return x[0], unit(x[1], arg)                  # line (point, direction), plane (point, normal)
 
 
-def norms(arg: ir.Arg, read: Read) -> list[tuple[ir.Derived, object]]:
-    """Every normalization inside ``arg`` with the length of the vector it divides by."""
+def norms(arg: ir.Arg, read: Read) -> tuple[list[tuple[ir.Derived, object]], object]:
+    """Every normalization inside ``arg`` with the length of the vector it divides by, and ``arg``'s value
+    as one column (a line or plane: point, then unit vector)."""
     found: list[tuple[ir.Derived, object]] = []
 
     def record(v, node):
         found.append((node, ca.norm_2(v)))
         return normalize(v)
-    evaluate(arg, read, record)
-    return found
+    value = evaluate(arg, read, record)
+    return found, ca.vertcat(*value) if isinstance(value, tuple) else value
 
 
-def check_nonzero(arg: ir.Arg, read: Read, when: str = "") -> None:
-    """VfError at the first normalization in ``arg`` (numbers) whose vector is shorter than MIN_NORM."""
-    for node, norm in norms(arg, read):
+def check(arg: ir.Derived, read: Read, when: str = "") -> None:
+    """VfError at the first normalization in ``arg`` (numbers) whose vector is too short (or not finite), or
+    at ``arg`` when its value is not finite."""
+    found, value = norms(arg, read)
+    for node, norm in found:
         zero_error(node, float(norm), when)
+    finite_error(arg, np.array(ca.DM(value)).ravel(), when)
 
 
 def zero_error(node: ir.Derived, norm: float, when: str = "") -> None:
-    """Raise when ``norm`` (the length ``node`` divides by) is too short to give a direction."""
-    if norm >= MIN_NORM:
+    """Raise when ``norm`` (the length ``node`` divides by) is too short to give a direction, or not finite."""
+    if MIN_NORM <= norm < np.inf:
         return
+    if not norm < np.inf:
+        raise VfError(f"{when}the vector this normalizes is too large (SI numbers overflow)", node.span.pos())
     what = {"line2": "the two points of this line coincide",
             "normalize": "this vector is zero"}.get(node.op, "this direction is zero")
     raise VfError(f"{when}{what} (length {norm:.3g} SI): it has no direction", node.span.pos(),
                   hint="a derived direction needs two distinct points, or a non-zero, non-parallel vector "
                        f"(at least {MIN_NORM:g} SI)")
+
+
+def finite_error(node: ir.Derived, values, when: str = "") -> None:
+    if not np.all(np.isfinite(values)):
+        raise VfError(f"{when}this value is too large (SI numbers overflow)", node.span.pos())
 
 
 def derived_args(task: ir.Task) -> list[ir.Derived]:

@@ -298,11 +298,15 @@ class Expressions:
         """The Derived node of ``op``, folded to a Const when every operand is constant."""
         result = ir.Derived(op=op, kind=kind, operands=[t.arg for t in operands], span=node.span)
         if all(isinstance(t.arg, ir.Const) for t in operands):
-            value = derived.evaluate(result, ParamReader([]).read, _checked_unit)
+            derived.check(result, ParamReader([]).read)
+            value = derived.evaluate(result, ParamReader([]).read)
             return Typed(kind, dim, ir.Const(value=derived.to_value(kind, value)), node)
-        derived.check_nonzero(result, ParamReader(self.params, ca.DM(ParamReader(self.params).layout.defaults)).read,
-                              "with the params' values, ")
+        derived.check(result, self._defaults().read, "with the params' values, ")
         return Typed(kind, dim, result, node)
+
+    def _defaults(self) -> ParamReader:
+        """The params at their values (numbers)."""
+        return ParamReader(self.params, ca.DM(ParamReader(self.params).layout.defaults))
 
     def _scalar(self, node: ast.Value, a: Typed, b: Typed | None, op) -> Typed:
         if not all(isinstance(t.arg, ir.Const) for t in (a, b) if t is not None):
@@ -310,13 +314,11 @@ class Expressions:
                           hint="compute the value in the scene, or use constants here")
         numbers = [t.arg.value.value for t in (a, b) if t is not None]
         dim = _times(a.dim, b.dim) if op is np.multiply else a.dim
-        return Typed("scalar", dim, _const_scalar(dim, float(op(*numbers))), node)
-
-
-def _checked_unit(v, node: ir.Derived):
-    norm = float(ca.norm_2(v))
-    derived.zero_error(node, norm)
-    return v / norm
+        with np.errstate(over="ignore"):
+            value = float(op(*numbers))
+        if not np.isfinite(value):
+            raise VfError("this value is too large (SI numbers overflow)", node.span.pos())
+        return Typed("scalar", dim, _const_scalar(dim, value), node)
 
 
 def _times(a: u.Dim, b: u.Dim) -> u.Dim:

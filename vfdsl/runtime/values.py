@@ -122,7 +122,7 @@ class RuntimeValues:
         self.q_min, self.q_max = lower - span, upper + span
         self.default_period = task.scene.period
         self.ranges = _param_ranges(task)
-        self._norms = _derived_norms(task)
+        self._derived = _derived_checks(task)
 
     # ------------------------------------------------------------------------------------------ q
     def q(self, value) -> np.ndarray:
@@ -168,11 +168,20 @@ class RuntimeValues:
                 known = [n for n, s in self.layout.slots.items() if s.size]
                 raise VfError(f"unknown run-time param {name!r}", hint=suggest(str(name), known, "params"))
             p[slot.offset:slot.offset + slot.size] = self.param(name, slot.type, slot.size, given)
-        if self._norms is not None:
-            nodes, function = self._norms
-            for node, norm in zip(nodes, np.array(function(p)).ravel()):
-                derived.zero_error(node, float(norm), f"with params {', '.join(map(repr, value))}, ")
+        if self._derived is not None:
+            self._check_derived(p, f"with params {', '.join(map(repr, value))}, ")
         return p
+
+    def _check_derived(self, p: np.ndarray, when: str) -> None:
+        """Every derived direction has a direction and every derived value is finite, at these params."""
+        lengths, values, function = self._derived
+        out = np.array(function(p)).ravel()
+        for node, norm in zip(lengths, out):
+            derived.zero_error(node, float(norm), when)
+        at = len(lengths)
+        for node, size in values:
+            derived.finite_error(node, out[at:at + size], when)
+            at += size
 
     def param(self, name: str, kind: str, size: int, value) -> np.ndarray:
         what = f"param '{name}'"
@@ -220,13 +229,21 @@ def _article(kind: str) -> str:
     return ("an " if kind[:1] in "aeiou" else "a ") + kind
 
 
-def _derived_norms(task: ir.Task) -> tuple[list[ir.Derived], ca.Function] | None:
-    """The task's derived normalizations and a function p -> the lengths they divide by (None: there are none)."""
+def _derived_checks(task: ir.Task) -> tuple[list[tuple[ir.Derived, int]], list[tuple[ir.Derived, int]],
+                                              ca.Function] | None:
+    """The task's derived normalizations and derived arguments, each with the index of its length (or the
+    size of its value) in the output of a function p -> [lengths; values] (None: the task has none)."""
     reader = ParamReader(task.params)
-    found = [pair for arg in derived.derived_args(task) for pair in derived.norms(arg, reader.read)]
-    if not found:
+    lengths, values, outputs = [], [], []
+    for arg in derived.derived_args(task):
+        found, value = derived.norms(arg, reader.read)
+        lengths += [node for node, _ in found]
+        outputs += [norm for _, norm in found]
+        values.append((arg, value.numel()))
+        outputs.append(value)
+    if not values:
         return None
-    return [node for node, _ in found], ca.Function("derived_norms", [reader.p], [ca.vertcat(*(n for _, n in found))])
+    return lengths, values, ca.Function("derived_checks", [reader.p], [ca.vertcat(*outputs)])
 
 
 def _param_ranges(task: ir.Task) -> dict[str, list]:
