@@ -331,3 +331,23 @@ def test_run_time_overflow_is_refused(tmp_path, constraint, params, column):
         ctrl.step(q, {"f": [0, 0, 0]}, params=params, dt=0.01)
     assert (info.value.pos.line, info.value.pos.column) == (12, column)
     assert np.all(np.isfinite(ctrl.step(q, {"f": [0, 0, 0]}, params={"a": [0, 0, 0.2]}, dt=0.01)))
+
+
+def test_lists_take_their_dimension_from_their_use(tmp_path):
+    """Bare lists are lengths where a point or vector is wanted (also summed or negated), plain numbers when
+    normalized; a constant, or a vector placed by a literal (literal + v, literal - v), stands where a point is
+    expected."""
+    task = load(tmp_path, """require tip stays_at([0, 0, 290] + [0, 0, 10] - -[1, 0, 0])
+require tip keeps_direction(normalize([1, 0, 0] + [0, 1, 0]))
+require tip stays_at([0, 0, 290] + v)
+require tip stays_at([0, 0, 290] mm - v + 2 * v)
+require tip along(line(a, [0, 0, 290] + v))
+require tip follows([[0, 0, 0], [10, 0, 0], [20, 5, 0], [30, 0, 0]], shift = -[0, 0, 10])
+""")
+    assert arg(task, 0, "target").value == ir.PointValue(xyz=[0.001, 0.0, 0.3])
+    assert np.allclose(arg(task, 1, "direction").value.xyz, unit([1, 1, 0]))
+    assert [arg(task, k, "target").kind for k in (2, 3)] == ["point", "point"]
+    assert arg(task, 4, "line").op == "line2"
+    assert arg(task, 5, "shift").value == ir.VectorValue(xyz=[0.0, 0.0, -0.01])
+    fails(tmp_path, "require tip stays_at(v + v)\n", "expected a point, got a vector of lengths", 10, 22)
+    fails(tmp_path, "require tip stays_at(v - [0, 0, 290])\n", "expected a point, got a vector of lengths", 10, 22)

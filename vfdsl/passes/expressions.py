@@ -22,7 +22,7 @@ param becomes an :class:`~vfdsl.ir.model.Derived`, checked here at the params' v
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Callable
 
 import casadi as ca
@@ -56,6 +56,7 @@ class Typed:
     dim: u.Dim | None            # None for a list of bare numbers whose dimension is set by its use
     arg: ir.Arg | None           # None while dim is None
     node: ast.Value
+    placeable: bool = False      # a vector that reads as a point where one is expected (see _as_point)
 
     def words(self) -> str:
         if self.kind == "vector" and self.dim is not None:
@@ -76,6 +77,7 @@ class Expressions:
         self.name = name
         self.kind_of = kind_of
         self.params = params
+        self._bare: u.Dim | None = None      # while set, the dimension every list of bare numbers takes
 
     # ---------------------------------------------------------------------------------------- entry
     def evaluate(self, value: ast.Value, kind: str) -> ir.Arg:
@@ -102,9 +104,9 @@ class Expressions:
             return Typed("scalar", dim, _const_scalar(dim, number), value)
         if isinstance(value, ast.Vector):
             if value.unit is None and all(isinstance(i, ast.Quantity) and i.unit is None for i in value.items):
-                return Typed("vector", None, None, value)
+                return self._settle(Typed("vector", None, None, value, placeable=True), self._bare)
             unit = value.unit or next(i.unit for i in value.items if isinstance(i, ast.Quantity) and i.unit)
-            return self._settle(Typed("vector", None, None, value), u.parse_unit(unit, value.span)[0])
+            return self._settle(Typed("vector", None, None, value, placeable=True), u.parse_unit(unit, value.span)[0])
         if isinstance(value, ast.Neg):
             return self._neg(value)
         if isinstance(value, ast.BinOp):
@@ -131,12 +133,19 @@ class Expressions:
                       hint="expressions combine points, vectors, directions and numbers"
                            + ("; a frame moves with the robot" if kind == "frame" else ""))
 
-    def _settle(self, t: Typed, dim: u.Dim) -> Typed:
-        """A list of bare numbers read with dimension ``dim`` (a Typed with a dimension is returned as is)."""
-        if t.dim is not None or t.kind != "vector":
+    def _settle(self, t: Typed, dim: u.Dim | None) -> Typed:
+        """A list of bare numbers (or a sum or negation of such lists) read with dimension ``dim`` (a Typed
+        with a dimension, or dim None, is returned as is)."""
+        if t.dim is not None or t.kind != "vector" or dim is None:
             return t
+        if not isinstance(t.node, ast.Vector):
+            outer, self._bare = self._bare, dim
+            try:
+                return self.typed(t.node)
+            finally:
+                self._bare = outer
         xyz = self.reader._numbers3(t.node, dim, "vector")
-        return Typed("vector", dim, ir.Const(value=ir.VectorValue(xyz=xyz)), t.node)
+        return Typed("vector", dim, ir.Const(value=ir.VectorValue(xyz=xyz)), t.node, t.placeable)
 
     def _vector(self, t: Typed, dim: u.Dim, at: ast.Value, what: str) -> Typed:
         """``t`` as a vector (a direction is one of plain numbers); ``dim`` settles a bare list."""
@@ -147,17 +156,19 @@ class Expressions:
             raise VfError(f"{what} needs vectors, got {t.words()}", t.node.span.pos(), hint=hint)
         return self._settle(t, dim)
 
-    def _literal_point(self, t: Typed) -> Typed:
-        """A constant vector of lengths (a list of bare numbers in the file's length unit) read as a point:
-        the position it leads to from the world origin."""
-        if t.kind != "vector" or t.dim not in (None, u.LENGTH) or not isinstance(t.arg, (ir.Const, type(None))):
+    def _as_point(self, t: Typed) -> Typed:
+        """A constant vector of lengths, or one that a list literal places (literal + v, literal - v), read as
+        the point it reaches from the world origin: the same numbers, labelled a point."""
+        if t.kind != "vector" or t.dim not in (None, u.LENGTH) or not (t.placeable or isinstance(t.arg, ir.Const)):
             return t
-        xyz = self._settle(t, u.LENGTH).arg.value.xyz
-        return Typed("point", u.LENGTH, ir.Const(value=ir.PointValue(xyz=xyz)), t.node)
+        t = self._settle(t, u.LENGTH)
+        arg = (ir.Const(value=ir.PointValue(xyz=t.arg.value.xyz)) if isinstance(t.arg, ir.Const)
+               else t.arg.model_copy(update={"kind": "point"}))
+        return Typed("point", u.LENGTH, arg, t.node)
 
     def _expect(self, t: Typed, kind: str, dim: u.Dim | None, what: str) -> Typed:
         if kind == "point":
-            t = self._literal_point(t)
+            t = self._as_point(t)
         elif t.kind == "vector" and t.dim is None and kind == "vector":
             t = self._settle(t, dim)
         if t.kind == kind and (dim is None or t.dim == dim):
@@ -215,6 +226,8 @@ class Expressions:
         return t
 
     def _same_dims(self, op: str, node: ast.BinOp, a: Typed, b: Typed) -> Typed:
+        if a.kind == b.kind == "vector" and a.dim is None and b.dim is None:
+            return Typed("vector", None, None, node, placeable=True)     # bare lists: settled by their use
         a = self._vector(a, b.dim if b.kind == "vector" and b.dim is not None else u.DIMENSIONLESS, node,
                          f"'{node.op}'") if a.kind != "scalar" else a
         b = self._vector(b, a.dim if a.kind == "vector" else u.DIMENSIONLESS, node, f"'{node.op}'") \
@@ -224,7 +237,8 @@ class Expressions:
         if a.kind != b.kind or a.dim != b.dim:
             raise VfError(f"cannot {'add' if op == 'add' else 'subtract'} {b.words()} "
                           f"{'to' if op == 'add' else 'from'} {a.words()}", node.span.pos())
-        return self._node(op, "vector", [a, b], node, a.dim)
+        placeable = a.dim == u.LENGTH and (a.placeable or (op == "add" and b.placeable))
+        return replace(self._node(op, "vector", [a, b], node, a.dim), placeable=placeable)
 
     def _neg(self, node: ast.Neg) -> Typed:
         t = self.typed(node.operand)
@@ -234,6 +248,8 @@ class Expressions:
             raise VfError("negating a point has no meaning", node.span.pos(), hint="negate a vector: -(b - a)")
         if t.kind == "direction":
             return self._node("neg", "direction", [t], node, u.DIMENSIONLESS)
+        if t.kind == "vector" and t.dim is None:
+            return Typed("vector", None, None, node)                   # a bare list: settled by its use
         t = self._vector(t, u.DIMENSIONLESS, node, "'-'")
         return self._node("neg", "vector", [t], node, t.dim)
 
@@ -284,7 +300,7 @@ class Expressions:
         point = self._expect(self.typed(bound["point"]), "point", u.LENGTH, f"{kind}(...) needs a point first")
         second = self.typed(bound[names[1]])
         if kind == "line" and second.dim == u.LENGTH:
-            second = self._literal_point(second)
+            second = self._as_point(second)
         if kind == "line" and second.kind == "point" and not any(k.name.text == "direction" for k in call.kwargs):
             return self._node("line2", "line", [point, second], call, None)
         if kind == "line" and second.kind == "vector" and second.dim == u.LENGTH:
