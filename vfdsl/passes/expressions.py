@@ -99,7 +99,7 @@ class Expressions:
         if isinstance(value, ast.NameRef):
             return self._name(value)
         if isinstance(value, ast.Quantity):
-            dim, factor = (u.DIMENSIONLESS, 1.0) if value.unit is None else u.parse_unit(value.unit, value.span)
+            dim = u.DIMENSIONLESS if value.unit is None else u.parse_unit(value.unit, value.span)[0]
             number = u.to_si(value.number, value.unit, dim, self.reader.units, value.span)
             return Typed("scalar", dim, _const_scalar(dim, number), value)
         if isinstance(value, ast.Vector):
@@ -144,10 +144,10 @@ class Expressions:
                 return self.typed(t.node)
             finally:
                 self._bare = outer
-        xyz = self.reader._numbers3(t.node, dim, "vector")
+        xyz = self.reader.numbers3(t.node, dim, "vector")
         return Typed("vector", dim, ir.Const(value=ir.VectorValue(xyz=xyz)), t.node, t.placeable)
 
-    def _vector(self, t: Typed, dim: u.Dim, at: ast.Value, what: str) -> Typed:
+    def _vector(self, t: Typed, dim: u.Dim, what: str) -> Typed:
         """``t`` as a vector (a direction is one of plain numbers); ``dim`` settles a bare list."""
         if t.kind == "direction":
             return Typed("vector", u.DIMENSIONLESS, t.arg, t.node)
@@ -159,7 +159,8 @@ class Expressions:
     def _as_point(self, t: Typed) -> Typed:
         """A constant vector of lengths, or one that a list literal places (literal + v, literal - v), read as
         the point it reaches from the world origin: the same numbers, labelled a point."""
-        if t.kind != "vector" or t.dim not in (None, u.LENGTH) or not (t.placeable or isinstance(t.arg, ir.Const)):
+        constant = t.arg is None or isinstance(t.arg, ir.Const)       # None: bare lists, not settled yet
+        if t.kind != "vector" or t.dim not in (None, u.LENGTH) or not (t.placeable or constant):
             return t
         t = self._settle(t, u.LENGTH)
         arg = (ir.Const(value=ir.PointValue(xyz=t.arg.value.xyz)) if isinstance(t.arg, ir.Const)
@@ -219,7 +220,7 @@ class Expressions:
         return self._same_dims("sub", node, a, b)
 
     def _length_vector(self, t: Typed, why: str) -> Typed:
-        t = self._vector(t, u.LENGTH, t.node, "+ and -")
+        t = self._vector(t, u.LENGTH, "+ and -")
         if t.dim != u.LENGTH:
             raise VfError(f"{why}, got {t.words()}", t.node.span.pos(),
                           hint="scale it by a length: 10 mm * v" if t.dim == u.DIMENSIONLESS else None)
@@ -228,9 +229,9 @@ class Expressions:
     def _same_dims(self, op: str, node: ast.BinOp, a: Typed, b: Typed) -> Typed:
         if a.kind == b.kind == "vector" and a.dim is None and b.dim is None:
             return Typed("vector", None, None, node, placeable=True)     # bare lists: settled by their use
-        a = self._vector(a, b.dim if b.kind == "vector" and b.dim is not None else u.DIMENSIONLESS, node,
+        a = self._vector(a, b.dim if b.kind == "vector" and b.dim is not None else u.DIMENSIONLESS,
                          f"'{node.op}'") if a.kind != "scalar" else a
-        b = self._vector(b, a.dim if a.kind == "vector" else u.DIMENSIONLESS, node, f"'{node.op}'") \
+        b = self._vector(b, a.dim if a.kind == "vector" else u.DIMENSIONLESS, f"'{node.op}'") \
             if b.kind != "scalar" else b
         if a.kind == "scalar" and b.kind == "scalar" and a.dim == b.dim:
             return self._scalar(node, a, b, np.add if op == "add" else np.subtract)
@@ -250,7 +251,7 @@ class Expressions:
             return self._node("neg", "direction", [t], node, u.DIMENSIONLESS)
         if t.kind == "vector" and t.dim is None:
             return Typed("vector", None, None, node)                   # a bare list: settled by its use
-        t = self._vector(t, u.DIMENSIONLESS, node, "'-'")
+        t = self._vector(t, u.DIMENSIONLESS, "'-'")
         return self._node("neg", "vector", [t], node, t.dim)
 
     def _mul(self, node: ast.BinOp, a: Typed, b: Typed) -> Typed:
@@ -263,7 +264,7 @@ class Expressions:
         if vector.kind == "point":
             raise VfError("scaling a point has no meaning", vector.node.span.pos(),
                           hint="scale a vector, e.g. 2 * (b - a)")
-        vector = self._vector(vector, u.DIMENSIONLESS, node, "'*'")
+        vector = self._vector(vector, u.DIMENSIONLESS, "'*'")
         return self._node("scale", "vector", [scalar, vector], node, _times(scalar.dim, vector.dim))
 
     # ------------------------------------------------------------------------------------------ calls
@@ -272,7 +273,7 @@ class Expressions:
         return [self.typed(bound[n]) for n in ["a", "b"][:count]]
 
     def _cross(self, call: ast.Call) -> Typed:
-        a, b = (self._vector(t, u.DIMENSIONLESS, call, "cross(a, b)") for t in self._args(call, 2))
+        a, b = (self._vector(t, u.DIMENSIONLESS, "cross(a, b)") for t in self._args(call, 2))
         return self._node("cross", "vector", [a, b], call, _times(a.dim, b.dim))
 
     def _normalize(self, call: ast.Call) -> Typed:
@@ -280,7 +281,7 @@ class Expressions:
         if t.kind == "point":
             raise VfError("normalize(...) needs a vector; a point has no direction", t.node.span.pos(),
                           hint="did you mean normalize(b - a)?")
-        t = self._vector(t, u.DIMENSIONLESS, call, "normalize(v)")
+        t = self._vector(t, u.DIMENSIONLESS, "normalize(v)")
         return self._node("normalize", "direction", [t], call, u.DIMENSIONLESS)
 
     def _midpoint(self, call: ast.Call) -> Typed:
