@@ -354,6 +354,7 @@ require tip follows([[0, 0, 0], [10, 0, 0], [20, 5, 0], [30, 0, 0]], shift = -[0
 
 
 def test_a_negated_list_is_a_constant_point(tmp_path):
-    task = load(tmp_path, "require tip stays_at(-[0, 0, -290])\nrequire tip stays_at(midpoint(-[0, 0, -280], [10, 0, 300]))\n")
+    task = load(tmp_path, "require tip stays_at(-[0, 0, -290])\n"
+                          "require tip stays_at(midpoint(-[0, 0, -280], [10, 0, 300]))\n")
     assert arg(task, 0, "target").value == ir.PointValue(xyz=[0.0, 0.0, 0.29])
     assert arg(task, 1, "target").value.xyz == pytest.approx([0.005, 0.0, 0.29])

@@ -148,12 +148,11 @@ class Resolver:
             if link not in robot.link_names():
                 raise VfError(f"robot '{robot_name}' has no link '{link}'", stmt.link.span.pos(),
                               hint=suggest(link, robot.link_names(), "links"))
-        reader = LiteralReader(self.units, self._no_names)
-        offset = self._frame_value(stmt.offset, "vector") if stmt.offset else [0.0, 0.0, 0.0]
-        rpy = reader.read(stmt.rotate, "rpy").xyz if stmt.rotate else [0.0, 0.0, 0.0]
+        offset = self._literal(stmt.offset, "vector", self.units).xyz if stmt.offset else [0.0, 0.0, 0.0]
+        rpy = self._literal(stmt.rotate, "rpy", self.units).xyz if stmt.rotate else [0.0, 0.0, 0.0]
         if stmt.axis is not None:
             axis = (_AXES[stmt.axis.name] if isinstance(stmt.axis, ast.NameRef) and stmt.axis.name in _AXES
-                    else self._frame_value(stmt.axis, "direction"))
+                    else self._literal(stmt.axis, "direction", self.units).xyz)
         elif stmt.base is not None:
             axis = (rotation(rpy).T @ base.tool_axis).tolist()
         else:
@@ -172,8 +171,9 @@ class Resolver:
             raise VfError(f"frame '{name}' is defined from itself", where,
                           hint=f"build it on a robot link: frame {name} = <robot>.link(\"...\")")
         if self._is_frame_statement(name):
-            raise VfError(f"frame '{name}' is declared later (line {self.declared[name].span.line}); a frame can only be "
-                          f"built on a frame declared before it", where, hint=f"move frame '{name}' above this line")
+            raise VfError(f"frame '{name}' is declared later (line {self.declared[name].span.line}); a frame can "
+                          f"only be built on a frame declared before it", where,
+                          hint=f"move frame '{name}' above this line")
         if name in self.robots:
             raise VfError(f"'{name}' is a robot, not a frame", where,
                           hint=f'a frame on one of its links is written: frame {stmt.name.text} = {name}.link("...")')
@@ -184,12 +184,13 @@ class Resolver:
     def _is_frame_statement(self, name: str) -> bool:
         return any(isinstance(s, ast.FrameStmt) and s.name.text == name for s in self.module.statements)
 
-    def _frame_value(self, value: ast.Value, kind: str) -> list[float]:
-        """An offset or axis clause: a literal, or an expression of constants."""
-        if ex.is_expression(value):
-            return ex.Expressions(self.units, lambda ref: self._no_names(ref, kind), self._arg_kind, []) \
-                .evaluate(value, kind).value.xyz
-        return LiteralReader(self.units, self._no_names).read(value, kind).xyz
+    def _literal(self, value: ast.Value, kind: str, units: u.DefaultUnits,
+                 curve_degree: int | None = None) -> ir.Value:
+        """A value without names (a param's value, a frame clause): a literal, or an expression of literals."""
+        if kind in ex.KINDS and ex.is_expression(value):
+            return ex.Expressions(units, lambda ref: self._no_names(ref, kind), self._arg_kind, []) \
+                .evaluate(value, kind).value
+        return LiteralReader(units, self._no_names).read(value, kind, curve_degree=curve_degree)
 
     def _input(self, stmt: ast.InputStmt) -> None:
         if stmt.type.text not in ir.INPUT_SIZES:
@@ -230,11 +231,7 @@ class Resolver:
                               hint=f"give a default (`= ...`) or set params.{stmt.name.text} in the scene file")
             source = _named_mapping(source, kind)
             self.param_values[stmt.name.text] = source
-            if kind in ex.KINDS and ex.is_expression(source):
-                value = ex.Expressions(units, lambda ref: self._no_names(ref, kind), self._arg_kind, []) \
-                    .evaluate(source, kind).value
-            else:
-                value = LiteralReader(units, self._no_names).read(source, kind, curve_degree=degree)
+            value = self._literal(source, kind, units, degree)
             self.params[stmt.name.text] = ir.ParamDecl(
                 name=stmt.name.text, type=kind, value=value,
                 frame=stmt.frame.text if stmt.frame else None, span=stmt.span)
