@@ -14,6 +14,7 @@ guarded (no NaN).
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Callable
 
 import casadi as ca
@@ -54,25 +55,48 @@ def evaluate(arg: ir.Arg, read: Read, unit: Unit = lambda v, node: normalize(v))
     return x[0], unit(x[1], arg)                  # line (point, direction), plane (point, normal)
 
 
-def norms(arg: ir.Arg, read: Read) -> tuple[list[tuple[ir.Derived, object]], object]:
-    """Every normalization inside ``arg`` with the length of the vector it divides by, and ``arg``'s value
-    as one column (a line or plane: point, then unit vector)."""
-    found: list[tuple[ir.Derived, object]] = []
+@dataclass(frozen=True)
+class Checks:
+    """What the entries of a check column are: the length each normalization divides by, then the value
+    of each derived argument (a line or plane as point, then unit vector)."""
+
+    lengths: list[ir.Derived]
+    values: list[tuple[ir.Derived, int]]              # (argument, size of its value)
+
+
+def checks(args: list[ir.Derived], read: Read) -> tuple[Checks, object]:
+    """The check column of ``args`` (DM numbers, or SX to build a function of p) and what its entries are."""
+    lengths, values, column = [], [], []
 
     def record(v, node):
-        found.append((node, ca.norm_2(v)))
+        lengths.append(node)
+        column.append(ca.norm_2(v))
         return normalize(v)
-    value = evaluate(arg, read, record)
-    return found, ca.vertcat(*value) if isinstance(value, tuple) else value
+    for arg in args:
+        value = evaluate(arg, read, record)
+        value = ca.vertcat(*value) if isinstance(value, tuple) else value
+        values.append((arg, value.numel()))
+        column.append(value)
+    return Checks(lengths, values), ca.vertcat(*column)
+
+
+def verify(what: Checks, column, when: str = "") -> None:
+    """VfError at the first normalization whose vector is too short (or not finite), or at the first derived
+    argument whose value is not finite; ``when`` prefixes the message."""
+    numbers = np.asarray(column, dtype=float).ravel()
+    for node, norm in zip(what.lengths, numbers):
+        zero_error(node, float(norm), when)
+    at = len(what.lengths)
+    for node, size in what.values:
+        if not np.all(np.isfinite(numbers[at:at + size])):
+            raise VfError(f"{when}this value is too large (SI numbers overflow)", node.span.pos())
+        at += size
 
 
 def check(arg: ir.Derived, read: Read, when: str = "") -> None:
-    """VfError at the first normalization in ``arg`` (numbers) whose vector is too short (or not finite), or
-    at ``arg`` when its value is not finite."""
-    found, value = norms(arg, read)
-    for node, norm in found:
-        zero_error(node, float(norm), when)
-    finite_error(arg, np.array(ca.DM(value)).ravel(), when)
+    """:func:`verify` of one argument, with numbers."""
+    what, column = checks([arg], read)
+    verify(what, ca.DM(column), when)
 
 
 def zero_error(node: ir.Derived, norm: float, when: str = "") -> None:
@@ -86,11 +110,6 @@ def zero_error(node: ir.Derived, norm: float, when: str = "") -> None:
     raise VfError(f"{when}{what} (length {norm:.3g} SI): it has no direction", node.span.pos(),
                   hint="a derived direction needs two distinct points, or a non-zero, non-parallel vector "
                        f"(at least {MIN_NORM:g} SI)")
-
-
-def finite_error(node: ir.Derived, values, when: str = "") -> None:
-    if not np.all(np.isfinite(values)):
-        raise VfError(f"{when}this value is too large (SI numbers overflow)", node.span.pos())
 
 
 def derived_args(task: ir.Task) -> list[ir.Derived]:

@@ -169,19 +169,9 @@ class RuntimeValues:
                 raise VfError(f"unknown run-time param {name!r}", hint=suggest(str(name), known, "params"))
             p[slot.offset:slot.offset + slot.size] = self.param(name, slot.type, slot.size, given)
         if self._derived is not None:
-            self._check_derived(p, f"with params {', '.join(map(repr, value))}, ")
+            what, function = self._derived
+            derived.verify(what, function(p), f"with params {', '.join(map(repr, value))}, ")
         return p
-
-    def _check_derived(self, p: np.ndarray, when: str) -> None:
-        """Every derived direction has a direction and every derived value is finite, at these params."""
-        lengths, values, function = self._derived
-        out = np.array(function(p)).ravel()
-        for node, norm in zip(lengths, out):
-            derived.zero_error(node, float(norm), when)
-        at = len(lengths)
-        for node, size in values:
-            derived.finite_error(node, out[at:at + size], when)
-            at += size
 
     def param(self, name: str, kind: str, size: int, value) -> np.ndarray:
         what = f"param '{name}'"
@@ -229,21 +219,15 @@ def _article(kind: str) -> str:
     return ("an " if kind[:1] in "aeiou" else "a ") + kind
 
 
-def _derived_checks(task: ir.Task) -> tuple[list[tuple[ir.Derived, int]], list[tuple[ir.Derived, int]],
-                                              ca.Function] | None:
-    """The task's derived normalizations and derived arguments, each with the index of its length (or the
-    size of its value) in the output of a function p -> [lengths; values] (None: the task has none)."""
+def _derived_checks(task: ir.Task) -> tuple[derived.Checks, ca.Function] | None:
+    """The checks of the task's derived arguments and a function p -> their check column (None: no derived
+    argument)."""
     reader = ParamReader(task.params)
-    lengths, values, outputs = [], [], []
-    for arg in derived.derived_args(task):
-        found, value = derived.norms(arg, reader.read)
-        lengths += [node for node, _ in found]
-        outputs += [norm for _, norm in found]
-        values.append((arg, value.numel()))
-        outputs.append(value)
-    if not values:
+    args = derived.derived_args(task)
+    if not args:
         return None
-    return lengths, values, ca.Function("derived_checks", [reader.p], [ca.vertcat(*outputs)])
+    what, column = derived.checks(args, reader.read)
+    return what, ca.Function("derived_checks", [reader.p], [column])
 
 
 def _param_ranges(task: ir.Task) -> dict[str, list]:
