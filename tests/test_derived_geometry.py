@@ -358,3 +358,57 @@ def test_a_negated_list_is_a_constant_point(tmp_path):
                           "require tip stays_at(midpoint(-[0, 0, -280], [10, 0, 300]))\n")
     assert arg(task, 0, "target").value == ir.PointValue(xyz=[0.0, 0.0, 0.29])
     assert arg(task, 1, "target").value.xyz == pytest.approx([0.005, 0.0, 0.29])
+
+
+# ------------------------------------------------------------------------------------------------- fuzz
+
+_LEAVES = ["a", "b", "v", "n", "depth", "tip", "[1, 2, 3]", "[0, 0, 0]", "[1, 0, 0] mm", "[1e300, 0, 0] m", "2",
+           "3 mm", "0", "-1e-300", "1e308", "line(a, b)", "plane(a, n)", "10 deg", "true"]
+
+
+def _expressions():
+    from hypothesis import strategies as st
+    leaves = st.sampled_from(_LEAVES)
+
+    def extend(inner):
+        return st.one_of(
+            st.tuples(inner, st.sampled_from([" + ", " - ", " * "]), inner).map("".join),
+            inner.map(lambda x: f"-({x})"),
+            st.tuples(st.sampled_from(["cross", "midpoint", "line", "plane"]), inner, inner)
+            .map(lambda t: f"{t[0]}({t[1]}, {t[2]})"),
+            inner.map(lambda x: f"normalize({x})"),
+            inner.map(lambda x: f"({x})"))
+    return st.recursive(leaves, extend, max_leaves=6)
+
+
+_USES = ["require tip stays_at({})", "require tip keeps_direction({})", "require tip along({})",
+         "require tip above({})", "require tip within_distance(a, {})", "param x : point = {}",
+         "frame s = tip offset {}", "require tip follows([[0, 0, 0], [10, 0, 0], [20, 5, 0], [30, 0, 0]], shift = {})"]
+
+
+def test_any_expression_loads_or_is_a_clean_error(tmp_path):
+    """Random expressions in every place a value stands: load succeeds (then every derived argument is finite
+    at the params' values and the IR round-trips through JSON) or raises VfError inside the file."""
+    from hypothesis import HealthCheck, given, settings
+    from hypothesis import strategies as st
+
+    @settings(max_examples=300, derandomize=True, deadline=None, suppress_health_check=list(HealthCheck))
+    @given(_expressions(), st.sampled_from(_USES))
+    def run(expression, use):
+        try:
+            task = load(tmp_path, use.format(expression) + "\n")
+        except VfError as err:
+            assert err.pos is not None and err.pos.line == 10, err.render()
+            err.render()
+            return
+        assert ir.Task.model_validate_json(task.model_dump_json()) == task
+        p = np.concatenate([np.atleast_1d(flat) for flat in
+                            (ParamReader(task.params).layout.defaults,)])
+        reader = ParamReader(task.params, ca.DM(p))
+        for c in task.constraints:
+            for value in c.args.values():
+                if isinstance(value, ir.Derived):
+                    out = reader.derived(value)
+                    flat = np.concatenate([np.array(x).ravel() for x in (out if isinstance(out, tuple) else (out,))])
+                    assert np.all(np.isfinite(flat)), (expression, use)
+    run()

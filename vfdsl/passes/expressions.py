@@ -153,7 +153,7 @@ class Expressions:
             return Typed("vector", u.DIMENSIONLESS, t.arg, t.node)
         if t.kind != "vector":
             hint = "subtract two points to get a vector: b - a" if t.kind == "point" else None
-            raise VfError(f"{what} needs vectors, got {t.words()}", t.node.span.pos(), hint=hint)
+            raise VfError(f"{what} needs a vector here, got {t.words()}", t.node.span.pos(), hint=hint)
         return self._settle(t, dim)
 
     def _as_point(self, t: Typed) -> Typed:
@@ -204,7 +204,7 @@ class Expressions:
             raise VfError("adding two points has no meaning", node.span.pos(), hint="did you mean midpoint(a, b)?")
         if "point" in (a.kind, b.kind):
             point, vector = (a, b) if a.kind == "point" else (b, a)
-            vector = self._length_vector(vector, "a point moves by a vector of lengths")
+            vector = self._length_vector(vector, node.op)
             return self._node("add", "point", [point, vector], node, u.LENGTH)
         return self._same_dims("add", node, a, b)
 
@@ -212,17 +212,18 @@ class Expressions:
         if a.kind == "point" and b.kind == "point":
             return self._node("sub", "vector", [a, b], node, u.LENGTH)
         if a.kind == "point":
-            b = self._length_vector(b, "a point moves by a vector of lengths")
+            b = self._length_vector(b, node.op)
             return self._node("sub", "point", [a, b], node, u.LENGTH)
         if b.kind == "point":
             raise VfError("subtracting a point from a vector has no meaning", node.span.pos(),
                           hint="write point - vector, or point - point for the vector between them")
         return self._same_dims("sub", node, a, b)
 
-    def _length_vector(self, t: Typed, why: str) -> Typed:
-        t = self._vector(t, u.LENGTH, "+ and -")
+    def _length_vector(self, t: Typed, op: str) -> Typed:
+        """The vector a point moves by (``op`` + or -): lengths."""
+        t = self._vector(t, u.LENGTH, f"'{op}'")
         if t.dim != u.LENGTH:
-            raise VfError(f"{why}, got {t.words()}", t.node.span.pos(),
+            raise VfError(f"a point moves by a vector of lengths, got {t.words()}", t.node.span.pos(),
                           hint="scale it by a length: 10 mm * v" if t.dim == u.DIMENSIONLESS else None)
         return t
 
@@ -273,7 +274,7 @@ class Expressions:
         return [self.typed(bound[n]) for n in ["a", "b"][:count]]
 
     def _cross(self, call: ast.Call) -> Typed:
-        a, b = (self._vector(t, u.DIMENSIONLESS, "cross(a, b)") for t in self._args(call, 2))
+        a, b = (self._vector(t, u.DIMENSIONLESS, "cross(...)") for t in self._args(call, 2))
         return self._node("cross", "vector", [a, b], call, _times(a.dim, b.dim))
 
     def _normalize(self, call: ast.Call) -> Typed:
@@ -281,7 +282,7 @@ class Expressions:
         if t.kind == "point":
             raise VfError("normalize(...) needs a vector; a point has no direction", t.node.span.pos(),
                           hint="did you mean normalize(b - a)?")
-        t = self._vector(t, u.DIMENSIONLESS, "normalize(v)")
+        t = self._vector(t, u.DIMENSIONLESS, "normalize(...)")
         return self._node("normalize", "direction", [t], call, u.DIMENSIONLESS)
 
     def _midpoint(self, call: ast.Call) -> Typed:
