@@ -275,23 +275,25 @@ def test_frames_from_frames_match_pinocchio(tmp_path):
             assert np.allclose(got.tool_axis, axis, atol=1e-12)
 
 
-@pytest.mark.parametrize("line, message, column, hint", [
-    ("frame s = s offset [0, 0, 1]", "frame 's' is defined from itself", 11, "link"),
+@pytest.mark.parametrize("text, message, line, column, hint", [
+    ("frame s = s offset [0, 0, 1]", "frame 's' is defined from itself", 5, 11, "link"),
     ("frame s = later offset [0, 0, 1]\nframe later = shr.link(\"tool_tip\")",
-     "frame 'later' is declared later (line 6)", 11, "move frame 'later' above"),
-    ("frame s = shr offset [0, 0, 1]", "'shr' is a robot, not a frame", 11, 'shr.link("...")'),
-    ("frame s = tip.link(\"tool_tip\")", "unknown robot 'tip'", 11, "frame s = tip offset"),
-    ("frame s = tpi offset [0, 0, 1]", "unknown frame 'tpi'", 11, "'tip'"),
-    ("input f : force\nframe s = f", "'f' is not a frame", 11, None),
-    ("frame s = tip offset [0, 0, 1] axis [0, 0, 0]", "a direction cannot be zero", 37, None),
-    ("frame s = tip offset [0, 0, 1] offset [0, 0, 2]", "the 'offset' clause is given twice", 39, None),
+     "frame 'later' is declared later (line 6)", 5, 11, "move frame 'later' above"),
+    ("frame s = shr offset [0, 0, 1]", "'shr' is a robot, not a frame", 5, 11, 'shr.link("...")'),
+    ("frame s = tip.link(\"tool_tip\")", "unknown robot 'tip'", 5, 11, "frame s = tip offset"),
+    ("frame s = tpi offset [0, 0, 1]", "unknown frame 'tpi'", 5, 11, "'tip'"),
+    ("input f : force\nframe s = f", "'f' is not a frame", 6, 11, None),
+    ("frame s = tip offset [0, 0, 1] axis [0, 0, 0]", "a direction cannot be zero", 5, 37, None),
+    ("frame s = tip offset [0, 0, 1] offset [0, 0, 2]", "the 'offset' clause is given twice", 5, 39, None),
     ("frame s = tip offset [0, 0, 1] m * 2 - [0, 0, 1] mm axis normalize([1, 0, 0] - [1, 0, 0])",
-     "this vector is zero", 58, None),
-    ("frame s = tip offset 2 * [0, 0, 1]", "expected a vector, got a vector of plain numbers", 22, "[x, y, z] mm"),
+     "this vector is zero", 5, 58, None),
+    ("frame s = tip offset 2 * [0, 0, 1]", "expected a vector, got a vector of plain numbers", 5, 22, "[x, y, z] mm"),
+    ("frame s = tip offset [1e308, 0, 0] m\nframe s2 = s offset [1e308, 0, 0] m",
+     "its offset composed with frame 's''s overflows", 6, 1, None),
 ])
-def test_frame_mistakes(tmp_path, line, message, column, hint):
-    body = 'task t\nunits mm, deg\nrobot shr = urdf "shr7"\nframe tip = shr.link("tool_tip")\n' + line + "\n"
-    err = fails(tmp_path, body, message, 5 if not line.startswith("input") else 6, column, hint)
+def test_frame_mistakes(tmp_path, text, message, line, column, hint):
+    body = 'task t\nunits mm, deg\nrobot shr = urdf "shr7"\nframe tip = shr.link("tool_tip")\n' + text + "\n"
+    err = fails(tmp_path, body, message, line, column, hint)
     assert err.pos.file.endswith("t.vf")
 
 

@@ -90,6 +90,9 @@ def rpy_of(R: np.ndarray) -> list[float]:
 
 
 def compose(offset_a, rpy_a, offset_b, rpy_b) -> tuple[list[float], list[float]]:
-    """Pose b given in frame a, in a's parent: (t_a + R_a t_b, rpy(R_a R_b))."""
+    """Pose b given in frame a, in a's parent: (t_a + R_a t_b, rpy(R_a R_b)); an offset that overflows comes
+    out inf (the caller refuses it)."""
     R_a = rotation(rpy_a)
-    return (np.asarray(offset_a) + R_a @ np.asarray(offset_b)).tolist(), rpy_of(R_a @ rotation(rpy_b))
+    with np.errstate(over="ignore", invalid="ignore"):
+        offset = np.asarray(offset_a) + R_a @ np.asarray(offset_b)
+    return offset.tolist(), rpy_of(R_a @ rotation(rpy_b))

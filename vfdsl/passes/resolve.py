@@ -159,6 +159,9 @@ class Resolver:
             axis = _AXES[robot.tool_axis.get(link, "z")]
         if stmt.base is not None:
             offset, rpy = compose(base.offset, base.rpy, offset, rpy)
+            if not all(map(math.isfinite, offset)):
+                raise VfError(f"frame '{stmt.name.text}' is too far from its link: its offset composed with frame "
+                              f"'{base.name}''s overflows", stmt.span.pos())
         self.frames[stmt.name.text] = ir.FrameDecl(name=stmt.name.text, robot=robot_name, link=link,
                                                    offset=offset, rpy=rpy, tool_axis=axis, span=stmt.span)
 
