@@ -5,7 +5,9 @@ p_world = R(rpy) p + t, with R the fixed-axis roll-pitch-yaw rotation (URDF conv
 A curve is the b-spline of its degree interpolating its points with the cumulative chord length as
 parameter (the definition of a ``curve`` value); its closest point to x is found by a dense search over
 samples followed by Newton steps on (C(s) - x) . C'(s) = 0. Past either end the distance is to the end's
-tangent line, which is where ``follows`` keeps a frame that leaves the curve by an end.
+tangent line, which is where ``follows`` keeps a frame that leaves the curve by an end. A derived argument
+(``line(entry, target)``) is computed from the params' current values by :mod:`vfdsl.compiler.derived`: its
+few vector operations are the definition of the value, not a model of the robot.
 """
 
 from __future__ import annotations
