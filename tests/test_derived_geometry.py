@@ -143,6 +143,8 @@ require tip within_distance([0, 0, 290], 2 * 3 mm - 1 mm)
     ("require tip stays_at(a + [1, 2] mm)\n", "needs 3 numbers", 10, 26, None),
     ("require tip stays_at(v)\n", "expected a point, but 'v' is a vector", 10, 22, None),
     ("require tip stays_at(v + v)\n", "expected a point, got a vector of lengths", 10, 22, "p + v"),
+    ("require tip stays_at([0, 0, 290] + 2 * [0, 0, 5])\n", "expected a point, got a vector of plain numbers", 10,
+     22, "[x, y, z] mm"),
     ("require tip within_distance(a, depth * 2)\n", "arithmetic on run-time scalars", 10, 32, None),
     ("require tip within_distance(a, 2 mm + 3 deg)\n", "cannot add an angle to a length", 10, 32, None),
     ("require tip stays_at(a + bspline(points = [[0, 0, 0]]))\n", "bspline(...) cannot be used", 10, 26, None),

@@ -177,7 +177,7 @@ class Expressions:
         hint = None
         if kind == t.kind == "scalar" and t.dim == u.DIMENSIONLESS:
             hint = "a bare number in an expression is a plain number; give it its unit, e.g. 5 mm + 3 mm"
-        elif kind == "vector" and t.kind == "vector" and t.dim == u.DIMENSIONLESS:
+        elif kind in ("point", "vector") and t.kind == "vector" and t.dim == u.DIMENSIONLESS:
             hint = "give the numbers a unit, [x, y, z] mm, or scale by a length: 10 mm * v"
         elif kind == "vector" and t.kind == "vector":
             hint = "normalize it and scale by a length: 10 mm * normalize(...)"
