@@ -416,3 +416,9 @@ def test_any_expression_loads_or_is_a_clean_error(tmp_path):
                     flat = np.concatenate([np.array(x).ravel() for x in (out if isinstance(out, tuple) else (out,))])
                     assert np.all(np.isfinite(flat)), (expression, use)
     run()
+
+
+def test_an_expression_error_in_a_fixture_names_the_use(tmp_path):
+    err = fails(tmp_path, "fixture f(t: frame, p: point, q: point) {\n    require t along(line(p, q))\n}\n"
+                          "use f(tip, a, a + 0 * v)\n", "the two points of this line coincide", 11, 21)
+    assert any("in a fixture used at" in note and ":13:1" in note for note in err.notes), err.render()
