@@ -302,7 +302,7 @@ def test_files_that_are_not_task_files_are_not_echoed(tmp_path):
 
 def test_hints_fit_the_mistake(tmp_path):
     assert "um" in fails(tmp_path, "param d : length = 5 \u00b5m\n", "unexpected character").hint
-    assert "arithmetic" in fails(tmp_path, "param d : length = 5 + 3\n", "unexpected").hint
+    assert "5 mm + 3 mm" in fails(tmp_path, "param d : length = 5 + 3\n", "expected a length, got a plain number").hint
     assert "plain number" in fails(tmp_path, "minimize damping() weight 2 mm\n", "expected a plain number").hint
 
 

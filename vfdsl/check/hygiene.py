@@ -19,6 +19,7 @@ import itertools
 from vfdsl.check.linearized import ConstraintRows, describe, subject, where
 from vfdsl.check.lp import FEASIBLE, LinearSystem
 from vfdsl.check.report import Finding, Severity
+from vfdsl.compiler import derived
 from vfdsl.ir import model as ir
 from vfdsl.primitives import CONSTRAINTS
 
@@ -30,7 +31,7 @@ def unused(task: ir.Task) -> list[Finding]:
     for statement in [*task.constraints, *task.objectives]:
         if isinstance(statement, ir.Constraint) and statement.frame:
             frames.add(statement.frame)
-        for arg in statement.args.values():
+        for arg in (leaf for value in statement.args.values() for leaf in derived.leaves(value)):
             if isinstance(arg, ir.FrameRef):
                 frames.add(arg.name)
             elif isinstance(arg, ir.InputRef):

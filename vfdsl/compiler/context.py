@@ -3,7 +3,8 @@
 Symbols: q (nq joint coordinates), u (every input, concatenated in declaration order), p (every run-time
 param, flattened in declaration order; see :class:`ParamLayout`), dt (the control period). A param declared
 ``in`` a pose param is transformed to the world each tick: points by R x + t, directions by R d, curves by
-searching in the curve's own frame.
+searching in the curve's own frame. A derived argument (``normalize(target - entry)``) is computed from its
+operands' world values (:mod:`vfdsl.compiler.derived`).
 """
 
 from __future__ import annotations
@@ -14,6 +15,7 @@ from functools import cached_property
 import casadi as ca
 import numpy as np
 
+from vfdsl.compiler import derived
 from vfdsl.compiler.curve import SplineCurve
 from vfdsl.compiler.geometry import homogeneous, normalize, rpy_matrix
 from vfdsl.ir import model as ir
@@ -106,63 +108,51 @@ class PlacedCurve:
         return self.R @ point + self.t, self.R @ tangent
 
 
-class Context:
-    """Symbols and symbolic geometry for lowering one task."""
+class ParamReader:
+    """The task's argument values in world coordinates, from the flat params p (SX symbols, or DM numbers
+    to evaluate them at given values). Derived arguments are evaluated by :mod:`vfdsl.compiler.derived`."""
 
-    def __init__(self, task: ir.Task, robot: Robot):
-        self.task = task
-        self.robot = robot
-        self.nq = robot.nq
-        self.q = ca.SX.sym("q", robot.nq)
-        self.input_offsets: dict[str, tuple[int, int]] = {}
-        offset = 0
-        for decl in task.inputs:
-            self.input_offsets[decl.name] = (offset, decl.size)
-            offset += decl.size
-        self.u = ca.SX.sym("u", offset)
-        self.layout = ParamLayout(task.params)
-        self.p = ca.SX.sym("p", self.layout.size)
-        self.dt = ca.SX.sym("dt")
-        self._frames: dict[str, FrameSymbols] = {}
-        self._closest: dict[tuple[str, str], tuple[ca.SX, ca.SX]] = {}
+    def __init__(self, params: list[ir.ParamDecl], p=None):
+        self.params = {decl.name: decl for decl in params}
+        self.layout = ParamLayout(params)
+        self.p = ca.SX.sym("p", self.layout.size) if p is None else p
 
-    @cached_property
-    def kinematics(self) -> SymbolicKinematics:
-        return SymbolicKinematics(self.robot, self.q)
-
-    def frame(self, name: str) -> FrameSymbols:
-        if name not in self._frames:
-            decl = self.task.frame(name)
-            kin = self.kinematics.frame(decl.link, homogeneous(decl.offset, decl.rpy))
-            self._frames[name] = FrameSymbols(kin.p, kin.R, kin.R @ ca.DM(decl.tool_axis), kin.J)
-        return self._frames[name]
-
-    def input(self, arg: ir.InputRef) -> ca.SX:
-        offset, size = self.input_offsets[arg.name]
-        return self.u[offset:offset + size]
-
-    # ----------------------------------------------------------------------------------- references
     def _raw(self, arg: ir.ParamRef | ir.Const) -> tuple[object, ir.Value]:
         """(flat symbols or numbers, IR value) of an argument, before placing it in the world."""
         if isinstance(arg, ir.Const):
             flat = flatten(arg.value)
             return (ca.DM(flat) if flat else None), arg.value
-        decl = self.task.param(arg.name)
+        decl = self.params[arg.name]
         slot = self.layout.slots[arg.name]
         return self.p[slot.offset:slot.offset + slot.size], decl.value
 
     def _pose_of(self, arg: ir.ParamRef | ir.Const) -> tuple[ca.SX, ca.SX] | None:
-        if isinstance(arg, ir.ParamRef) and self.task.param(arg.name).frame is not None:
-            flat, _ = self._raw(ir.ParamRef(name=self.task.param(arg.name).frame))
+        if isinstance(arg, ir.ParamRef) and self.params[arg.name].frame is not None:
+            flat, _ = self._raw(ir.ParamRef(name=self.params[arg.name].frame))
             return rpy_matrix(flat[3:6]), flat[0:3]
         return None
 
+    def read(self, arg: ir.Arg):
+        """A non-derived value argument, read as its own kind (lines and planes as (point, unit))."""
+        kind = self.params[arg.name].type if isinstance(arg, ir.ParamRef) else arg.value.kind
+        if kind in ("line", "plane"):
+            line = self.line(arg)
+            return line.point, line.direction
+        return getattr(self, kind if kind in ("point", "vector", "direction") else "scalar")(arg)
+
+    def derived(self, arg: ir.Derived):
+        return derived.evaluate(arg, self.read)
+
     def point(self, arg) -> ca.SX:
+        if isinstance(arg, ir.Derived):
+            return self.derived(arg)
         flat, _ = self._raw(arg)
         pose = self._pose_of(arg)
         return flat if pose is None else pose[0] @ flat + pose[1]
 
     def vector(self, arg) -> ca.SX:
+        if isinstance(arg, ir.Derived):
+            return self.derived(arg)
         flat, _ = self._raw(arg)
         pose = self._pose_of(arg)
         return flat if pose is None else pose[0] @ flat
@@ -171,6 +161,8 @@ class Context:
         return normalize(self.vector(arg))
 
     def line(self, arg) -> Line:
+        if isinstance(arg, ir.Derived):
+            return Line(*self.derived(arg))
         flat, _ = self._raw(arg)
         point, direction = flat[0:3], normalize(flat[3:6])
         pose = self._pose_of(arg)
@@ -192,6 +184,41 @@ class Context:
         pose = self._pose_of(arg)
         R, t = pose if pose is not None else (ca.SX.eye(3), ca.SX.zeros(3))
         return PlacedCurve(spline, R, t)
+
+
+class Context(ParamReader):
+    """Symbols and symbolic geometry for lowering one task."""
+
+    def __init__(self, task: ir.Task, robot: Robot):
+        super().__init__(task.params)
+        self.task = task
+        self.robot = robot
+        self.nq = robot.nq
+        self.q = ca.SX.sym("q", robot.nq)
+        self.input_offsets: dict[str, tuple[int, int]] = {}
+        offset = 0
+        for decl in task.inputs:
+            self.input_offsets[decl.name] = (offset, decl.size)
+            offset += decl.size
+        self.u = ca.SX.sym("u", offset)
+        self.dt = ca.SX.sym("dt")
+        self._frames: dict[str, FrameSymbols] = {}
+        self._closest: dict[tuple[str, str], tuple[ca.SX, ca.SX]] = {}
+
+    @cached_property
+    def kinematics(self) -> SymbolicKinematics:
+        return SymbolicKinematics(self.robot, self.q)
+
+    def frame(self, name: str) -> FrameSymbols:
+        if name not in self._frames:
+            decl = self.task.frame(name)
+            kin = self.kinematics.frame(decl.link, homogeneous(decl.offset, decl.rpy))
+            self._frames[name] = FrameSymbols(kin.p, kin.R, kin.R @ ca.DM(decl.tool_axis), kin.J)
+        return self._frames[name]
+
+    def input(self, arg: ir.InputRef) -> ca.SX:
+        offset, size = self.input_offsets[arg.name]
+        return self.u[offset:offset + size]
 
     def closest_point(self, curve_arg, anchor: str, curve: PlacedCurve, x) -> tuple[ca.SX, ca.SX]:
         """The curve's closest point and tangent to frame ``anchor``, built once per (curve, anchor)."""

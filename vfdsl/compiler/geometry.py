@@ -74,3 +74,25 @@ def homogeneous(xyz, rpy) -> np.ndarray:
     T[:3, :3] = np.array(ca.DM(rpy_matrix(ca.DM(rpy))))
     T[:3, 3] = xyz
     return T
+
+
+def rotation(rpy) -> np.ndarray:
+    """The numeric 3x3 rotation of a fixed-axis rpy."""
+    return np.array(ca.DM(rpy_matrix(ca.DM(list(rpy)))))
+
+
+def rpy_of(R: np.ndarray) -> list[float]:
+    """The fixed-axis rpy of a rotation matrix (inverse of :func:`rpy_matrix`; at pitch +-90 deg, yaw = 0)."""
+    pitch = math.atan2(-R[2, 0], math.hypot(R[0, 0], R[1, 0]))
+    if math.hypot(R[0, 0], R[1, 0]) < 1e-8:          # at pitch +-90 deg (errors ~1e-8 rad either side)
+        return [math.atan2(-R[1, 2], R[1, 1]), pitch, 0.0]
+    return [math.atan2(R[2, 1], R[2, 2]), pitch, math.atan2(R[1, 0], R[0, 0])]
+
+
+def compose(offset_a, rpy_a, offset_b, rpy_b) -> tuple[list[float], list[float]]:
+    """Pose b given in frame a, in a's parent: (t_a + R_a t_b, rpy(R_a R_b)); an offset that overflows comes
+    out inf (the caller refuses it)."""
+    R_a = rotation(rpy_a)
+    with np.errstate(over="ignore", invalid="ignore"):
+        offset = np.asarray(offset_a) + R_a @ np.asarray(offset_b)
+    return offset.tolist(), rpy_of(R_a @ rotation(rpy_b))

@@ -117,7 +117,20 @@ class Const(_Model):
     value: Value
 
 
-Arg = Annotated[Union[ParamRef, FrameRef, InputRef, Const], Field(discriminator="ref")]
+class Derived(_Model):
+    """A value computed from other arguments (derived geometry), evaluated each tick because an operand is a
+    run-time param (all-constant expressions are folded to :class:`Const` at load time). Vectors inside may
+    have any dimension (checked at load time); the math of each op is in :mod:`vfdsl.ir.derived`."""
+
+    ref: Literal["derived"] = "derived"
+    op: Literal["add", "sub", "neg", "scale", "cross", "normalize", "midpoint", "line", "line2", "plane"]
+    kind: Literal["point", "vector", "direction", "line", "plane"]
+    operands: list["Arg"]
+    span: Span                       # where the expression is written (run-time errors point here)
+
+
+Arg = Annotated[Union[ParamRef, FrameRef, InputRef, Const, Derived], Field(discriminator="ref")]
+Derived.model_rebuild()
 
 
 # --------------------------------------------------------------------------------------------- declarations

@@ -14,11 +14,13 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
+from vfdsl.compiler.geometry import compose, rotation
 from vfdsl.errors import VfError, suggest
 from vfdsl.ir import model as ir
 from vfdsl.kinematics.robot import ROBOTS_DIR, Robot
 from vfdsl.objectives import OBJECTIVES
 from vfdsl.passes import clause_ranges
+from vfdsl.passes import expressions as ex
 from vfdsl.passes import fixtures as fx
 from vfdsl.passes import limits
 from vfdsl.passes import units as u
@@ -132,24 +134,68 @@ class Resolver:
         self.robots[stmt.name.text] = (decl, robot)
 
     def _frame(self, stmt: ast.FrameStmt) -> None:
-        if stmt.robot.text not in self.robots:
-            raise VfError(f"unknown robot '{stmt.robot.text}'", stmt.robot.span.pos(),
-                          hint=suggest(stmt.robot.text, self.robots, "robots"))
-        robot = self.robots[stmt.robot.text][1]
-        if stmt.link.text not in robot.link_names():
-            raise VfError(f"robot '{stmt.robot.text}' has no link '{stmt.link.text}'", stmt.link.span.pos(),
-                          hint=suggest(stmt.link.text, robot.link_names(), "links"))
-        reader = LiteralReader(self.units, self._no_names)
-        offset = reader.read(stmt.offset, "vector").xyz if stmt.offset else [0.0, 0.0, 0.0]
-        rpy = reader.read(stmt.rotate, "rpy").xyz if stmt.rotate else [0.0, 0.0, 0.0]
-        if stmt.axis is None:
-            axis = _AXES[robot.tool_axis.get(stmt.link.text, "z")]
-        elif isinstance(stmt.axis, ast.NameRef) and stmt.axis.name in _AXES:
-            axis = _AXES[stmt.axis.name]
+        """A frame on a robot link, or on an earlier frame (composed: the base's link, offset and rotation,
+        then this frame's; the tool axis is the base's, in the new frame's coordinates, unless given)."""
+        if stmt.base is not None:
+            base = self._base_frame(stmt)
+            robot_name, link = base.robot, base.link
+            robot = self.robots[robot_name][1]
         else:
-            axis = reader.read(stmt.axis, "direction").xyz
-        self.frames[stmt.name.text] = ir.FrameDecl(name=stmt.name.text, robot=stmt.robot.text, link=stmt.link.text,
+            if stmt.robot.text not in self.robots:
+                hint = (f"'{stmt.robot.text}' is a frame; a frame on it is written `frame {stmt.name.text} = "
+                        f"{stmt.robot.text} offset [...]`" if self._is_frame_statement(stmt.robot.text)
+                        else suggest(stmt.robot.text, self.robots, "robots"))
+                raise VfError(f"unknown robot '{stmt.robot.text}'", stmt.robot.span.pos(), hint=hint)
+            robot_name, link, robot = stmt.robot.text, stmt.link.text, self.robots[stmt.robot.text][1]
+            if link not in robot.link_names():
+                raise VfError(f"robot '{robot_name}' has no link '{link}'", stmt.link.span.pos(),
+                              hint=suggest(link, robot.link_names(), "links"))
+        offset = self._literal(stmt.offset, "vector", self.units).xyz if stmt.offset else [0.0, 0.0, 0.0]
+        rpy = self._literal(stmt.rotate, "rpy", self.units).xyz if stmt.rotate else [0.0, 0.0, 0.0]
+        if stmt.axis is not None:
+            axis = (_AXES[stmt.axis.name] if isinstance(stmt.axis, ast.NameRef) and stmt.axis.name in _AXES
+                    else self._literal(stmt.axis, "direction", self.units).xyz)
+        elif stmt.base is not None:
+            axis = (rotation(rpy).T @ base.tool_axis).tolist()
+        else:
+            axis = _AXES[robot.tool_axis.get(link, "z")]
+        if stmt.base is not None:
+            offset, rpy = compose(base.offset, base.rpy, offset, rpy)
+            if not all(map(math.isfinite, offset)):
+                raise VfError(f"frame '{stmt.name.text}' is too far from its link: its offset composed with frame "
+                              f"'{base.name}''s overflows", stmt.span.pos())
+        self.frames[stmt.name.text] = ir.FrameDecl(name=stmt.name.text, robot=robot_name, link=link,
                                                    offset=offset, rpy=rpy, tool_axis=axis, span=stmt.span)
+
+    def _base_frame(self, stmt: ast.FrameStmt) -> ir.FrameDecl:
+        name = stmt.base.text
+        if name in self.frames:
+            return self.frames[name]
+        where = stmt.base.span.pos()
+        if name == stmt.name.text:
+            raise VfError(f"frame '{name}' is defined from itself", where,
+                          hint=f"build it on a robot link: frame {name} = <robot>.link(\"...\")")
+        if self._is_frame_statement(name):
+            raise VfError(f"frame '{name}' is declared later (line {self.declared[name].span.line}); a frame can "
+                          f"only be built on a frame declared before it", where,
+                          hint=f"move frame '{name}' above this line")
+        if name in self.robots:
+            raise VfError(f"'{name}' is a robot, not a frame", where,
+                          hint=f'a frame on one of its links is written: frame {stmt.name.text} = {name}.link("...")')
+        if name in self.declared:
+            raise VfError(f"'{name}' is not a frame", where, hint=suggest(name, self.frames, "frames"))
+        raise VfError(f"unknown frame '{name}'", where, hint=suggest(name, self.frames, "frames"))
+
+    def _is_frame_statement(self, name: str) -> bool:
+        return any(isinstance(s, ast.FrameStmt) and s.name.text == name for s in self.module.statements)
+
+    def _literal(self, value: ast.Value, kind: str, units: u.DefaultUnits,
+                 curve_degree: int | None = None) -> ir.Value:
+        """A value without names (a param's value, a frame clause): a literal, or an expression of literals."""
+        if kind in ex.KINDS and ex.is_expression(value):
+            return ex.Expressions(units, lambda ref: self._no_names(ref, kind), self._arg_kind, []) \
+                .evaluate(value, kind).value
+        return LiteralReader(units, self._no_names).read(value, kind, curve_degree=curve_degree)
 
     def _input(self, stmt: ast.InputStmt) -> None:
         if stmt.type.text not in ir.INPUT_SIZES:
@@ -190,7 +236,7 @@ class Resolver:
                               hint=f"give a default (`= ...`) or set params.{stmt.name.text} in the scene file")
             source = _named_mapping(source, kind)
             self.param_values[stmt.name.text] = source
-            value = LiteralReader(units, self._no_names).read(source, kind, curve_degree=degree)
+            value = self._literal(source, kind, units, degree)
             self.params[stmt.name.text] = ir.ParamDecl(
                 name=stmt.name.text, type=kind, value=value,
                 frame=stmt.frame.text if stmt.frame else None, span=stmt.span)
@@ -266,6 +312,9 @@ class Resolver:
         if kind in ("frame", "input"):
             raise VfError(f"expected the name of {describe_kind(kind)}", value.span.pos(),
                           hint=suggest("", self._names_of(kind, scope), f"{kind}s"))
+        if kind in ex.KINDS and ex.is_expression(value):
+            return ex.Expressions(scope.units, lambda ref: self._lookup(ref, "name", scope), self._arg_kind,
+                                  list(self.params.values())).evaluate(value, kind)
         reader = self._scoped_reader(scope)
         if kind in ("gain", "angular_gain"):
             dim = gain_dimension(input_type, kind)
@@ -284,6 +333,15 @@ class Resolver:
         return [n for n, p in self.params.items() if p.type == kind] or list(self.params)
 
     def _resolve_name(self, ref: ast.NameRef, kind: str, scope: fx.Scope) -> ir.Arg:
+        arg = self._lookup(ref, kind, scope)
+        actual = self._arg_kind(arg)
+        if not _compatible(actual, kind):
+            raise VfError(f"expected {describe_kind(kind)}, but '{ref.name}' is {describe_kind(actual)}",
+                          ref.span.pos())
+        return arg
+
+    def _lookup(self, ref: ast.NameRef, kind: str, scope: fx.Scope) -> ir.Arg:
+        """The argument a name stands for in ``scope`` (``kind``: what is expected, for messages)."""
         if scope.bindings is not None:
             if ref.name not in scope.bindings:
                 raise VfError(f"unknown name '{ref.name}' in fixture '{scope.fixture}'", ref.span.pos(),
@@ -301,10 +359,6 @@ class Resolver:
         else:
             raise VfError(f"unknown {kind.replace('_', ' ')} '{ref.name}'", ref.span.pos(),
                           hint=suggest(ref.name, self._names_of(kind, scope), f"{kind.replace('_', ' ')}s"))
-        actual = self._arg_kind(arg)
-        if not _compatible(actual, kind):
-            raise VfError(f"expected {describe_kind(kind)}, but '{ref.name}' is {describe_kind(actual)}",
-                          ref.span.pos())
         return arg
 
     def _scoped_reader(self, scope: fx.Scope) -> LiteralReader:
@@ -326,6 +380,8 @@ class Resolver:
             return "input"
         if isinstance(arg, ir.ParamRef):
             return self.params[arg.name].type
+        if isinstance(arg, ir.Derived):
+            return arg.kind
         value = arg.value
         return value.dimension if isinstance(value, ir.ScalarValue) else value.kind
 

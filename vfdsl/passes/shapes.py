@@ -59,12 +59,12 @@ class LiteralReader:
         if isinstance(value, ast.NameRef):
             return self.lookup(value, kind)
         if kind in ("point", "vector"):
-            xyz = self._numbers3(value, u.LENGTH, kind)
+            xyz = self.numbers3(value, u.LENGTH, kind)
             return ir.PointValue(xyz=xyz) if kind == "point" else ir.VectorValue(xyz=xyz)
         if kind == "direction":
             return ir.DirectionValue(xyz=self._direction(value))
         if kind == "rpy":
-            return ir.VectorValue(xyz=self._numbers3(value, u.ANGLE, "rpy"))
+            return ir.VectorValue(xyz=self.numbers3(value, u.ANGLE, "rpy"))
         if kind in _COMPOSITES:
             return self._composite(value, kind)
         if kind == "curve":
@@ -92,7 +92,7 @@ class LiteralReader:
         return VfError(f"expected {describe_kind(kind)}, got {_what(value)}", value.span.pos(),
                        hint=f"write {_WRITE_AS[kind]}" if kind in _WRITE_AS else None)
 
-    def _numbers3(self, value: ast.Value, dim: u.Dim, kind: str) -> list[float]:
+    def numbers3(self, value: ast.Value, dim: u.Dim, kind: str) -> list[float]:
         if not isinstance(value, ast.Vector):
             raise self._wrong(value, kind)
         if len(value.items) != 3:
@@ -110,7 +110,7 @@ class LiteralReader:
         if isinstance(value, ast.Vector) and value.unit is not None:
             raise VfError(f"a direction is plain numbers; remove the unit '{value.unit}'", value.span.pos(),
                           hint="write it like [0, -0.2, 1]")
-        xyz = self._numbers3(value, u.DIMENSIONLESS, "direction")
+        xyz = self.numbers3(value, u.DIMENSIONLESS, "direction")
         norm = math.hypot(*xyz)
         if norm < 1e-12:
             raise VfError("a direction cannot be zero", value.span.pos(), hint="give a non-zero vector, e.g. [0, 0, 1]")
@@ -159,7 +159,7 @@ class LiteralReader:
         if len(points_value.items) > limits.CURVE_POINTS:
             raise limits.exceeded(f"a curve of {len(points_value.items):,} points", limits.CURVE_POINTS,
                                   points_value.span.pos())
-        points = [self._numbers3(p if p.unit else p.model_copy(update={"unit": points_value.unit}), u.LENGTH, "point")
+        points = [self.numbers3(p if p.unit else p.model_copy(update={"unit": points_value.unit}), u.LENGTH, "point")
                   for p in points_value.items]
         if len(points) < degree + 1:
             raise VfError(f"a degree-{degree} b-spline needs at least {degree + 1} points, got {len(points)}",
@@ -209,4 +209,6 @@ def _what(value: ast.Value) -> str:
         return f"the name '{value.name}'"
     if isinstance(value, ast.String):
         return "a string"
+    if isinstance(value, (ast.BinOp, ast.Neg)):
+        return "an expression"
     return "true/false"

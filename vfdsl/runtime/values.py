@@ -10,6 +10,9 @@ argument (``q``, ``input 'tau'``, ``param 'axis'``, ``dt``). Everything is SI.
 - directions, line directions and plane normals: not zero (|v| >= 1e-12, computed without under- or
   overflow), normalized here;
 - scalar params: the ranges of every argument they feed (``vfdsl.primitives.spec``);
+- derived directions (``normalize(target - entry)``, ``line(entry, target)``): with the given params, every
+  vector they normalize is at least ``vfdsl.compiler.derived.MIN_NORM`` long (the default params were
+  checked at load time, so the fast path, which runs only on them, needs no check);
 - dt: in (0, MAX_PERIOD].
 """
 
@@ -19,10 +22,12 @@ import math
 import numbers
 from collections.abc import Mapping
 
+import casadi as ca
 import numpy as np
 from pydantic import BaseModel
 
-from vfdsl.compiler.context import flatten
+from vfdsl.compiler import derived
+from vfdsl.compiler.context import ParamReader, flatten
 from vfdsl.errors import VfError, suggest
 from vfdsl.ir import model as ir
 
@@ -117,6 +122,7 @@ class RuntimeValues:
         self.q_min, self.q_max = lower - span, upper + span
         self.default_period = task.scene.period
         self.ranges = _param_ranges(task)
+        self._derived = _derived_checks(task)
 
     # ------------------------------------------------------------------------------------------ q
     def q(self, value) -> np.ndarray:
@@ -162,6 +168,9 @@ class RuntimeValues:
                 known = [n for n, s in self.layout.slots.items() if s.size]
                 raise VfError(f"unknown run-time param {name!r}", hint=suggest(str(name), known, "params"))
             p[slot.offset:slot.offset + slot.size] = self.param(name, slot.type, slot.size, given)
+        if self._derived is not None:
+            what, function = self._derived
+            derived.verify(what, function(p), f"with params {', '.join(map(repr, value))}, ")
         return p
 
     def param(self, name: str, kind: str, size: int, value) -> np.ndarray:
@@ -208,6 +217,17 @@ def _ir_kind(kind: str) -> str:
 
 def _article(kind: str) -> str:
     return ("an " if kind[:1] in "aeiou" else "a ") + kind
+
+
+def _derived_checks(task: ir.Task) -> tuple[derived.Checks, ca.Function] | None:
+    """The checks of the task's derived arguments and a function p -> their check column (None: no derived
+    argument)."""
+    reader = ParamReader(task.params)
+    args = derived.derived_args(task)
+    if not args:
+        return None
+    what, column = derived.checks(args, reader.read)
+    return what, ca.Function("derived_checks", [reader.p], [column])
 
 
 def _param_ranges(task: ir.Task) -> dict[str, list]:

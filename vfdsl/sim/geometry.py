@@ -5,15 +5,20 @@ p_world = R(rpy) p + t, with R the fixed-axis roll-pitch-yaw rotation (URDF conv
 A curve is the b-spline of its degree interpolating its points with the cumulative chord length as
 parameter (the definition of a ``curve`` value); its closest point to x is found by a dense search over
 samples followed by Newton steps on (C(s) - x) . C'(s) = 0. Past either end the distance is to the end's
-tangent line, which is where ``follows`` keeps a frame that leaves the curve by an end.
+tangent line, which is where ``follows`` keeps a frame that leaves the curve by an end. A derived argument
+(``line(entry, target)``) is computed from the params' current values by :mod:`vfdsl.compiler.derived`: its
+few vector operations are the definition of the value, not a model of the robot.
 """
 
 from __future__ import annotations
 
+import casadi as ca
 import numpy as np
 from scipy.interpolate import make_interp_spline
 from scipy.spatial.transform import Rotation
 
+from vfdsl.compiler import derived
+from vfdsl.compiler.context import ParamReader, flatten
 from vfdsl.ir import model as ir
 
 SAMPLES_PER_METRE = 20000            # dense-search samples: 0.05 mm apart
@@ -131,4 +136,7 @@ class Scene:
             return self.values[arg.name], self.to_world(arg.name)
         if isinstance(arg, ir.Const):
             return arg.value, (np.eye(3), np.zeros(3))
+        if isinstance(arg, ir.Derived):           # computed in the world from the params' current values
+            p = ca.DM(np.concatenate([[], *(flatten(self.values[d.name]) for d in self.task.params)]))
+            return derived.to_value(arg.kind, ParamReader(self.task.params, p).derived(arg)), (np.eye(3), np.zeros(3))
         raise TypeError(f"not a value argument: {arg}")

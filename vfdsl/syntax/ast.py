@@ -72,6 +72,22 @@ class NameRef(Node):
     name: str
 
 
+class BinOp(Node):
+    """``left + right``, ``left - right`` or ``left * right`` (derived geometry, :mod:`vfdsl.passes.expressions`)."""
+
+    node: Literal["binop"] = "binop"
+    op: Literal["+", "-", "*"]
+    left: "Value"
+    right: "Value"
+
+
+class Neg(Node):
+    """``-operand``."""
+
+    node: Literal["neg"] = "neg"
+    operand: "Value"
+
+
 class String(Node):
     node: Literal["string"] = "string"
     text: str
@@ -82,7 +98,7 @@ class Bool(Node):
     value: bool
 
 
-Value = Annotated[Union[Quantity, Vector, Call, NameRef, String, Bool], Field(discriminator="node")]
+Value = Annotated[Union[Quantity, Vector, Call, NameRef, BinOp, Neg, String, Bool], Field(discriminator="node")]
 
 
 # ------------------------------------------------------------------------------------------ statements
@@ -124,10 +140,13 @@ class RobotStmt(Node):
 
 
 class FrameStmt(Node):
+    """``frame NAME = ROBOT.link("LINK") clauses`` or ``frame NAME = BASE clauses`` (a frame from a frame)."""
+
     kind: Literal["frame"] = "frame"
     name: Name
-    robot: Name
-    link: Name
+    robot: Name | None = None        # with link: a frame on a robot link
+    link: Name | None = None
+    base: Name | None = None         # or: a frame composed with an earlier frame
     offset: Value | None = None
     rotate: Value | None = None
     axis: Value | None = None

@@ -34,9 +34,9 @@ KEYWORDS = ("task", "library", "units", "import", "scene", "robot", "frame", "in
 STATEMENT_KEYWORDS = KEYWORDS[2:]
 
 _FIRST_WORD = re.compile(r"(?:\s|#[^\n]*)*([A-Za-z_]\w*)?")
-_NESTED_RULES = ("vector", "call")
+_NESTED_RULES = ("vector", "call", "add", "sub", "mul", "neg")
+_OPERATOR_WORDS = {"'+'", "'-'", "'*'"}
 _HINTS_FOR_CHARACTERS = {
-    "+": "arithmetic (+, -, *) is not supported yet: write the computed value",
     "\u00b5": "write micro as 'u': um, not \u00b5m",
     "\u03bc": "write micro as 'u': um, not \u03bcm",
 }
@@ -90,7 +90,7 @@ def _check_limits(tree: Tree, text: str, file: str) -> None:
             depth += 1
             if depth > limits.NESTING:
                 raise limits.exceeded("values nested too deeply", limits.NESTING, _pos_of_meta(node.meta, file),
-                                      hint="lists and calls nest at most this deep") \
+                                      hint="lists, calls and operators (+ - *) nest at most this deep") \
                     .with_source(text)
         for child in node.children:
             if isinstance(child, Tree):
@@ -126,6 +126,8 @@ def _syntax_error(exc: UnexpectedInput, text: str, file: str, parser: Lark) -> V
     statement_words = [f"'{k}'" for k in STATEMENT_KEYWORDS]
     if sum(w in statement_words for w in words) >= 5:
         words = ["a statement (require, minimize, param, ...)"] + [w for w in words if w not in statement_words]
+    if len(words) > 1 and set(words) - _OPERATOR_WORDS:
+        words = [w for w in words if w not in _OPERATOR_WORDS]   # an operator may follow any value
     width = 1
     hint = None
     if isinstance(exc, UnexpectedToken) and exc.token.type == "$END" or isinstance(exc, UnexpectedEOF):
@@ -148,8 +150,6 @@ def _syntax_error(exc: UnexpectedInput, text: str, file: str, parser: Lark) -> V
         elif swallowed:
             hint = (f"'{previous}' (line {previous.line}) was read as a unit; did you mean the statement "
                     f"'{swallowed[0]}'?")
-        if found.startswith("+"):
-            hint = _HINTS_FOR_CHARACTERS["+"]
     elif isinstance(exc, UnexpectedCharacters):
         char = text[exc.pos_in_stream] if 0 <= exc.pos_in_stream < len(text) else "?"
         message = f"unexpected character {char!r}"
@@ -235,16 +235,25 @@ class _ToAst(Transformer):
     def robot_stmt(self, meta, children):
         return ast.RobotStmt(span=self._span(meta), name=self._name(children[0]), urdf=_string_value(children[1], self.file))
 
-    def frame_stmt(self, meta, children):
+    def link_frame(self, meta, children):
         name, robot, link, *clauses = children
+        return ast.FrameStmt(span=self._span(meta), name=self._name(name), robot=self._name(robot),
+                             link=ast.Name(span=_span_of_token(link, self.file), text=_string_value(link, self.file)),
+                             **self._frame_clauses(clauses))
+
+    def derived_frame(self, meta, children):
+        name, base, *clauses = children
+        return ast.FrameStmt(span=self._span(meta), name=self._name(name), base=self._name(base),
+                             **self._frame_clauses(clauses))
+
+    @staticmethod
+    def _frame_clauses(clauses) -> dict:
         fields = {}
         for key, value in clauses:
             if key in fields:
                 raise VfError(f"the '{key}' clause is given twice", value.span.pos())
             fields[key] = value
-        return ast.FrameStmt(span=self._span(meta), name=self._name(name), robot=self._name(robot),
-                             link=ast.Name(span=_span_of_token(link, self.file), text=_string_value(link, self.file)),
-                             **fields)
+        return fields
 
     def offset_clause(self, meta, children):
         return ("offset", children[0])
@@ -361,6 +370,24 @@ class _ToAst(Transformer):
         unit = children[-1] if children and isinstance(children[-1], str) else None
         items = [c for c in children if c is not None and not isinstance(c, str)]
         return ast.Vector(span=self._span(meta), items=items, unit=unit)
+
+    def _binary(self, meta, children, op: str):
+        return ast.BinOp(span=self._span(meta), op=op, left=children[0], right=children[1])
+
+    def add(self, meta, children):
+        return self._binary(meta, children, "+")
+
+    def sub(self, meta, children):
+        return self._binary(meta, children, "-")
+
+    def mul(self, meta, children):
+        return self._binary(meta, children, "*")
+
+    def neg(self, meta, children):
+        operand = children[0]
+        if isinstance(operand, ast.Quantity):        # - 5 mm is the number -5 mm
+            return operand.model_copy(update={"number": -operand.number, "span": self._span(meta)})
+        return ast.Neg(span=self._span(meta), operand=operand)
 
     def unit(self, meta, children):
         return "".join(str(c) for c in children)
