@@ -3,7 +3,7 @@
 Symbols: q (nq joint coordinates), u (every input, concatenated in declaration order), p (every run-time
 param, flattened in declaration order; see :class:`ParamLayout`), dt (the control period). A param declared
 ``in`` a pose param is transformed to the world each tick: points by R x + t, directions by R d, curves by
-searching in the curve's own frame.
+searching in the curve's own frame. A ``runtime`` curve's points are run-time params too (3 numbers a point).
 """
 
 from __future__ import annotations
@@ -14,13 +14,14 @@ from functools import cached_property
 import casadi as ca
 import numpy as np
 
-from vfdsl.compiler.curve import SplineCurve
+from vfdsl.compiler.curve import Closest, SplineCurve
 from vfdsl.compiler.geometry import homogeneous, normalize, rpy_matrix
 from vfdsl.ir import model as ir
 from vfdsl.kinematics.robot import Robot
 from vfdsl.kinematics.symbolic import SymbolicKinematics
 
-# Run-time size of each param type (curves are fixed at compile time; they move through their `in` pose).
+# Run-time size of each param type (a curve's size is its points' when declared `runtime`, else 0: fixed at
+# compile time, it moves through its `in` pose).
 PARAM_SIZES = {"point": 3, "vector": 3, "direction": 3, "line": 6, "plane": 6, "pose": 6, "curve": 0,
                "length": 1, "angle": 1, "speed": 1, "angular_speed": 1, "number": 1, "time": 1, "force": 1}
 
@@ -37,6 +38,8 @@ def flatten(value: ir.Value) -> list[float]:
         return [*value.translation, *value.rpy]
     if isinstance(value, ir.ScalarValue):
         return [value.value]
+    if isinstance(value, ir.CurveValue) and value.runtime:
+        return [x for point in value.points for x in point]
     return []
 
 
@@ -55,7 +58,7 @@ class ParamLayout:
         self.slots: dict[str, ParamSlot] = {}
         offset = 0
         for decl in params:
-            size = PARAM_SIZES[decl.type]
+            size = PARAM_SIZES[decl.type] or len(flatten(decl.value))
             self.slots[decl.name] = ParamSlot(decl.name, decl.type, offset, size)
             offset += size
         self.size = offset
@@ -102,8 +105,12 @@ class PlacedCurve:
     t: ca.SX
 
     def closest(self, x_world) -> tuple[ca.SX, ca.SX]:
-        point, tangent = self.curve.closest(self.R.T @ (x_world - self.t))
-        return self.R @ point + self.t, self.R @ tangent
+        found = self.locate(x_world)
+        return found.point, found.tangent
+
+    def locate(self, x_world) -> Closest:
+        found = self.curve.locate(self.R.T @ (x_world - self.t))
+        return Closest(self.R @ found.point + self.t, self.R @ found.tangent, found.behind, found.ahead)
 
 
 class Context:
@@ -124,7 +131,7 @@ class Context:
         self.p = ca.SX.sym("p", self.layout.size)
         self.dt = ca.SX.sym("dt")
         self._frames: dict[str, FrameSymbols] = {}
-        self._closest: dict[tuple[str, str], tuple[ca.SX, ca.SX]] = {}
+        self._closest: dict[tuple[str, str], Closest] = {}
 
     @cached_property
     def kinematics(self) -> SymbolicKinematics:
@@ -187,15 +194,17 @@ class Context:
         return flat[0]
 
     def curve(self, arg) -> PlacedCurve:
-        _, value = self._raw(arg)
+        flat, value = self._raw(arg)
         spline = SplineCurve.interpolate(np.array(value.points), value.degree)
+        if value.runtime:
+            spline = spline.moving(ca.reshape(flat, 3, len(value.points)).T)
         pose = self._pose_of(arg)
         R, t = pose if pose is not None else (ca.SX.eye(3), ca.SX.zeros(3))
         return PlacedCurve(spline, R, t)
 
-    def closest_point(self, curve_arg, anchor: str, curve: PlacedCurve, x) -> tuple[ca.SX, ca.SX]:
+    def closest_point(self, curve_arg, anchor: str, curve: PlacedCurve, x) -> Closest:
         """The curve's closest point and tangent to frame ``anchor``, built once per (curve, anchor)."""
         key = (curve_arg.model_dump_json(), anchor)
         if key not in self._closest:
-            self._closest[key] = curve.closest(x)
+            self._closest[key] = curve.locate(x)
         return self._closest[key]

@@ -11,6 +11,9 @@ argument (``q``, ``input 'tau'``, ``param 'axis'``, ``dt``). Everything is SI.
   overflow), normalized here;
 - scalar params: the ranges of every argument they feed (``vfdsl.primitives.spec``);
 - dt: in (0, MAX_PERIOD].
+- run-time curve points: the declared number of points (N x 3, finite); consecutive points at least
+  MIN_CHORD apart, and for a b-spline (interpolated with the chord lengths of its default points) each
+  chord within a factor CHORD_RATIO of its default chord, so the fixed parameters and search samples still fit.
 """
 
 from __future__ import annotations
@@ -30,6 +33,11 @@ MAX_PERIOD = 1.0
 """Longest control period accepted (s): a longer tick lets the speed bounds allow large jumps."""
 MIN_DIRECTION_NORM = 1e-12
 """A direction shorter than this (before normalization) is taken for zero, at load and at run time."""
+
+MIN_CHORD = 1e-6
+"""Shortest distance (m) between consecutive run-time curve points: closer, they are taken for a repeated point."""
+CHORD_RATIO = 2.0
+"""A run-time b-spline's chords may shrink or grow by at most this factor from its default points' chords."""
 
 _FIELDS = {"line": ("point", "direction"), "plane": ("point", "normal"), "pose": ("translation", "rpy")}
 _UNIT_PARTS = {"direction": (slice(0, 3),), "line": (slice(3, 6),), "plane": (slice(3, 6),)}
@@ -166,6 +174,8 @@ class RuntimeValues:
 
     def param(self, name: str, kind: str, size: int, value) -> np.ndarray:
         what = f"param '{name}'"
+        if kind == "curve":
+            return self._curve(what, self.task.param(name).value, value)
         if isinstance(value, BaseModel):
             if getattr(value, "kind", None) != _ir_kind(kind):
                 raise VfError(f"{what} is {_article(kind)}, got {_article(getattr(value, 'kind', '?'))} value")
@@ -182,6 +192,33 @@ class RuntimeValues:
             if problem:
                 raise VfError(f"{what} = {flat[0]:.6g} (SI) {problem}, as the {use} it feeds")
         return flat
+
+    def _curve(self, what: str, default: ir.CurveValue, value) -> np.ndarray:
+        """Run-time points of a ``runtime`` curve: N x 3 (a list of points, an array, or a curve value)."""
+        n = len(default.points)
+        if isinstance(value, ir.CurveValue):
+            if value.degree != default.degree:
+                raise VfError(f"{what} is a degree-{default.degree} curve, got a degree-{value.degree} one")
+            value = value.points
+        if isinstance(value, np.ndarray) and value.ndim == 2 and value.shape[1] == 3:
+            value = list(value)
+        if not isinstance(value, (list, tuple)) or len(value) != n:
+            got = f"{len(value)} points" if isinstance(value, (list, tuple)) else _describe(value)
+            raise VfError(f"{what} must be {n} points [x, y, z] (its declared count), got {got}",
+                          hint="a run-time curve keeps the number of points of its default value")
+        points = np.array([real_vector(point, 3, f"{what}'s point {i + 1}") for i, point in enumerate(value)])
+        chords = np.linalg.norm(np.diff(points, axis=0), axis=1)
+        defaults = np.linalg.norm(np.diff(np.array(default.points), axis=0), axis=1)
+        for k, (chord, was) in enumerate(zip(chords, defaults), start=1):
+            if not chord >= MIN_CHORD:
+                raise VfError(f"{what}'s points {k} and {k + 1} are {chord:.3g} m apart: a repeated point",
+                              hint=f"consecutive points must be at least {MIN_CHORD:g} m apart")
+            if default.degree > 1 and not was / CHORD_RATIO <= chord <= was * CHORD_RATIO:
+                raise VfError(f"{what}'s points {k} and {k + 1} are {chord:.6g} m apart, {chord / was:.3g} x their "
+                              f"default distance ({was:.6g} m); a run-time b-spline may stretch each span by at "
+                              f"most {CHORD_RATIO:g} x", hint="its parameters are fixed from the default points: "
+                              "give the curve default points close to the shapes it takes, or use degree 1")
+        return points.reshape(-1)
 
     def _from_mapping(self, what: str, kind: str, value: Mapping) -> list:
         fields = _FIELDS.get(kind)
