@@ -777,6 +777,7 @@ def test_every_primitive_is_covered():
     from vfdsl.primitives import CONSTRAINTS
     covered = {"stays_at", "keeps_direction", "along", "rotates_around", "above", "on_plane", "follows", "cone",
                "passes_through", "within_distance", "joint_limits", "joint_speed", "speed", "angular_speed"}
+    covered |= {"tilt_at_most"}                  # its rows: tests/test_tilt_at_most.py
     assert set(CONSTRAINTS) == covered
 
 

@@ -30,7 +30,7 @@ SPEC = ConstraintSpec(
     args=(ArgSpec("axis", "direction", "the cone axis a"),
           ArgSpec("angle", "angle", "the largest tilt gamma from the axis",
                   range=Range(0.0, math.pi, low_open=True, high_open=True, unit="deg"))),
-    source="cone (Li, Kapoor & Taylor 2005, III-B) as an inequality; linearized as in DESIGN (rows)",
+    source="the cone of Li, Kapoor & Taylor 2005, III-B, as an inequality",
 )
 
 
