@@ -244,6 +244,8 @@ def test_runtime_defaults_are_the_declared_points(tmp_path):
     ("organ", np.where(np.arange(15).reshape(5, 3) == 7, np.nan, CUT), r"param 'organ''s point 3 contains NaN"),
     ("organ", "points", r"param 'organ' must be 5 points"),
     ("organ", [[0, 0, 0]] * 4 + [[0, 0, "a"]], r"point 5 must be 3 real numbers; item 2 is the string 'a'"),
+    ("organ", CUT * 1e3, r"param 'organ''s point 2 is \[20, 0, 0\] m: beyond 10 m from its frame's origin"),
+    ("organ", CUT * 1e200, r"param 'organ''s point 2 is \[2e\+198, 0, 0\] m: beyond 10 m"),
     ("vessel", VESSEL * 3, r"param 'vessel''s points 1 and 2 are .* 3 x their default distance"),
     ("vessel", VESSEL * 0.4, r"0.4 x their default distance"),
     ("vessel", ir.CurveValue(degree=1, points=VESSEL.tolist(), runtime=True), r"is a degree-3 curve, got a degree-1"),
@@ -266,3 +268,66 @@ def test_runtime_flag_syntax(tmp_path):
                            "require tip follows(c)\n")
     with pytest.raises(VfError, match="unknown run-time param 'c'"):
         ctrl.step(np.zeros(7), {}, {"c": [[0, 0, 0], [0.01, 0, 0]]}, dt=0.01)
+
+
+def test_runtime_spline_stretched_to_the_limits():
+    """Points moved so that spans stretch or shrink by up to the allowed factor: the closest point is still the
+    reference's (queries within ~1 mm of the curve), as near as the reference resolves it."""
+    curve = SplineCurve.interpolate(VESSEL, 3)
+    P, x = ca.SX.sym("P", len(VESSEL), 3), ca.SX.sym("x", 3)
+    f = ca.Function("closest", [P, x], [curve.moving(P).locate(x).point])
+    rng = np.random.default_rng(56)
+    defaults = np.linalg.norm(np.diff(VESSEL, axis=0), axis=1)
+    checked = 0
+    for scale in (0.55, 0.7, 1.4, 1.9):
+        points = VESSEL * scale + rng.normal(scale=0.001, size=VESSEL.shape)
+        ratio = np.linalg.norm(np.diff(points, axis=0), axis=1) / defaults
+        assert 0.5 <= ratio.min() and ratio.max() <= 2.0
+        ref = FixedParameterSpline(VESSEL, points, 3)
+        for s in rng.uniform(0, ref.grid[-1], 15):
+            query = ref.spline(s) + rng.normal(scale=0.001, size=3)
+            point = np.array(f(points, query)).ravel()
+            p_ref, _ = ref.closest(query)
+            assert np.linalg.norm(query - point) <= np.linalg.norm(query - p_ref) + 1e-12
+            np.testing.assert_allclose(point, p_ref, atol=1e-9)
+            checked += 1
+    assert checked == 60
+
+
+@pytest.mark.slow
+def test_closed_loop_follows_a_moving_deforming_polyline(tmp_path):
+    """A tracked polyline (in a tracked pose) translates at 2 mm/s and bends while a hand pushes the tip along it:
+    after every tick the tip is within the octagon's bound (eps / cos(pi/8)) of the polyline the controller
+    was given that tick (brute force on the segments, Pinocchio for the tip), and it passes a corner."""
+    base = np.array([[-0.02, 0.0, 0.0], [0.0, 0.0, 0.0], [0.01, 0.015, 0.0], [0.03, 0.015, 0.0]])
+    ctrl = build(tmp_path, f"""
+        input f : force
+        param plate : pose = pose(translation = [0, 0, 0.28], rpy = [0, 0, 0])
+        param organ : curve(degree = 1, runtime = true) in plate = [{_literal(base)}]
+        minimize track(tip, f, gain = 0.001)
+        minimize damping() weight 1e-6
+        require tip follows(organ) within 0.0001 resolution 8
+        require tip keeps_direction([0, 0, 1]) within 0.01
+        require joint_limits()
+        require joint_speed()
+        """, units="m, rad")
+    q = np.array([-0.02, 0.0, 0.0, 0.0, 0.0, 0.0, 0.02])        # the tip on the first point
+    eps = 1e-4
+    distances, segments = [], set()
+    for k in range(1500):
+        points = base + np.array([0.0, 0.002 * k * 0.01, 0.0])     # 2 mm/s across
+        points[2:, 1] += 0.002 * math.sin(0.004 * k)              # and the far end swings by 2 mm
+        yaw = 0.05 * math.sin(0.003 * k)                          # the tracked plate turns a little
+        R, t = pin.rpy.rpyToMatrix(0.0, 0.0, yaw), np.array([0.0, 0.0, 0.28])
+        local = R.T @ (FrameState("shr7", "tip", q).p - t)
+        _, k_seg, _ = brute_force_segments(points, local)
+        goal = k_seg + 1 if np.linalg.norm(points[k_seg + 1] - local) > 2e-5 else min(k_seg + 2, len(points) - 1)
+        push = 4.0 * R @ unit(points[goal] - local)
+        q = q + ctrl.step(q, {"f": push}, {"organ": points, "plate": {"translation": t, "rpy": [0, 0, yaw]}},
+                          dt=0.01)
+        local = R.T @ (FrameState("shr7", "tip", q).p - t)
+        point, k_seg, _ = brute_force_segments(points, local)
+        distances.append(np.linalg.norm(local - point))
+        segments.add(k_seg)
+    assert max(distances) <= eps / math.cos(math.pi / 8), max(distances)
+    assert segments == {0, 1, 2}, "the tip should pass both corners"

@@ -11,8 +11,8 @@ argument (``q``, ``input 'tau'``, ``param 'axis'``, ``dt``). Everything is SI.
   overflow), normalized here;
 - scalar params: the ranges of every argument they feed (``vfdsl.primitives.spec``);
 - dt: in (0, MAX_PERIOD].
-- run-time curve points: the declared number of points (N x 3, finite); consecutive points at least
-  MIN_CHORD apart, and for a b-spline (interpolated with the chord lengths of its default points) each
+- run-time curve points: the declared number of points (N x 3, finite), no coordinate beyond
+  MAX_CURVE_COORDINATE; consecutive points at least MIN_CHORD apart, and for a b-spline (interpolated with the chord lengths of its default points) each
   chord within a factor CHORD_RATIO of its default chord, so the fixed parameters and search samples still fit.
 """
 
@@ -36,6 +36,8 @@ MIN_DIRECTION_NORM = 1e-12
 
 MIN_CHORD = 1e-6
 """Shortest distance (m) between consecutive run-time curve points: closer, they are taken for a repeated point."""
+MAX_CURVE_COORDINATE = 10.0
+"""Largest run-time curve coordinate (m): no robot reaches 10 m, and a point in mm read as m lands beyond it."""
 CHORD_RATIO = 2.0
 """A run-time b-spline's chords may shrink or grow by at most this factor from its default points' chords."""
 
@@ -207,6 +209,11 @@ class RuntimeValues:
             raise VfError(f"{what} must be {n} points [x, y, z] (its declared count), got {got}",
                           hint="a run-time curve keeps the number of points of its default value")
         points = np.array([real_vector(point, 3, f"{what}'s point {i + 1}") for i, point in enumerate(value)])
+        far = np.flatnonzero(np.abs(points).max(axis=1) > MAX_CURVE_COORDINATE)
+        if far.size:
+            raise VfError(f"{what}'s point {far[0] + 1} is {_show(points[far[0]])} m: beyond "
+                          f"{MAX_CURVE_COORDINATE:g} m from its frame's origin",
+                          hint="run-time values are in metres (millimetres given as metres?)")
         chords = np.linalg.norm(np.diff(points, axis=0), axis=1)
         defaults = np.linalg.norm(np.diff(np.array(default.points), axis=0), axis=1)
         for k, (chord, was) in enumerate(zip(chords, defaults), start=1):
