@@ -171,3 +171,22 @@ def test_closed_loop_a_torque_pushes_past_the_limit(tmp_path):
     worst = math.acos(math.cos(gamma) - (1 - math.cos(phi)) - (phi - math.sin(phi)))
     assert max(tilts) <= worst + 1e-9, (max(tilts) - gamma, worst - gamma)
     assert worst - gamma < 3e-5                # ~ phi^2 / (2 sin gamma)
+
+
+@pytest.mark.parametrize("axis, tilt, code, cause", [
+    ("[0, 0, 1]", "20 deg", None, None),                          # the tool axis (+z) 3 deg from the axis: inside
+    ("[0, 0, 1]", "2.995 deg", "residual-outside", None),         # 87 urad out: the first ticks pull it back
+    ("[0, 0, 1]", "2.9 deg", "residual-far", "start configuration"),  # beyond 1e-4 rad: an error (as `above`)
+    ("[0, 0, -1]", "20 deg", "residual-far", "opposite direction"),   # 177 deg out: the axis reversed
+])
+def test_check_measures_the_true_tilt_at_the_start(tmp_path, axis, tilt, code, cause):
+    from test_check import PROBE, STAYS_AT, TILTED, codes, probe
+    found = codes(probe(tmp_path, PROBE.replace(STAYS_AT, f"require tip tilt_at_most({axis}, {tilt})"), TILTED))
+    residuals = {name: f for name, f in found.items() if name.startswith("residual")}
+    if code is None:
+        assert not residuals
+        return
+    [finding] = residuals[code]
+    expected = math.radians(3) - float(tilt.split()[0]) * DEG if axis == "[0, 0, 1]" else math.radians(157)
+    assert finding.data["error"] == pytest.approx(expected, abs=1e-9)
+    assert cause is None or cause in finding.message

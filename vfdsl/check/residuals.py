@@ -116,7 +116,9 @@ def analyse(task: ir.Task, linear: Linearization, rows: list[ConstraintRows], q)
         message = (f"at the start the error is {quantity(error, kind)}, "
                    f"{error / limit:.3g} x its {what}" if limit > 0 else
                    f"at the start the frame is {quantity(error, kind)} on the wrong side of its {what}")
-        if angle is not None:
+        if c.primitive == "tilt_at_most":
+            message += f" (the row, which measures cos gamma - cos of the angle, sees {r.violation_at_rest:.3g})"
+        elif angle is not None:
             message += f" (the rows, which measure sin of the angle, see {quantity(limit + r.violation_at_rest, kind)})"
         data = {"error": error, "limit": limit, "rows_error": limit + r.violation_at_rest, "cause": cause}
         if far:
