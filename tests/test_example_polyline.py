@@ -62,3 +62,20 @@ def test_pushed_along_the_cut_past_its_corners():
     assert reached == [1, 2, 3, 4], "the tip should pass every corner and reach the end"
     # the octagon's corners: eps / cos(pi/8) = 108.2 um (measured: 100.2 um)
     assert max(distances) <= EPS / math.cos(math.pi / 8)
+
+
+def test_simulator_scores_a_polyline_exactly():
+    """``vfdsl simulate``'s follows metric (vfdsl.sim.geometry.Curve) on a polyline: the brute-force distance
+    wherever the closest point lies between the ends (past them it is the distance to the end tangent)."""
+    from vfdsl.sim.geometry import Curve
+    task = vfdsl.load(TASK)
+    value = task.param("cut").value
+    points = np.array(value.points)
+    rng = np.random.default_rng(61)
+    x = points[rng.integers(0, len(points), 300)] + rng.normal(scale=0.003, size=(300, 3))
+    _, distance = Curve(value).closest(x)
+    s, _ = Curve(value).closest(x)
+    inside = (s > 0) & (s < np.sum(np.linalg.norm(np.diff(points, axis=0), axis=1)))
+    expected = np.array([distance_to_polyline(points, p) for p in x])
+    assert inside.sum() > 250
+    np.testing.assert_allclose(distance[inside], expected[inside], atol=1e-15)
