@@ -73,9 +73,8 @@ def test_simulator_scores_a_polyline_exactly():
     points = np.array(value.points)
     rng = np.random.default_rng(61)
     x = points[rng.integers(0, len(points), 300)] + rng.normal(scale=0.003, size=(300, 3))
-    _, distance = Curve(value).closest(x)
-    s, _ = Curve(value).closest(x)
+    s, distance = Curve(value).closest(x)
     inside = (s > 0) & (s < np.sum(np.linalg.norm(np.diff(points, axis=0), axis=1)))
     expected = np.array([distance_to_polyline(points, p) for p in x])
-    assert inside.sum() > 250
+    assert inside.sum() > 200                     # the corners' neighbourhoods, and the two ends
     np.testing.assert_allclose(distance[inside], expected[inside], atol=1e-15)
