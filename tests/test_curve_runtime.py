@@ -331,3 +331,28 @@ def test_closed_loop_follows_a_moving_deforming_polyline(tmp_path):
         segments.add(k_seg)
     assert max(distances) <= eps / math.cos(math.pi / 8), max(distances)
     assert segments == {0, 1, 2}, "the tip should pass both corners"
+
+
+@pytest.mark.slow
+def test_generated_code_reads_the_runtime_points(tmp_path):
+    """The generated C and the interpreted graph give the same step for moved points (both take the points from
+    the run-time param vector)."""
+    import vfdsl
+    origin = np.array([0.0, 0.0, 0.25])
+    path = tmp_path / "rt.vf"
+    path.write_text('task rt\nunits m, rad\nrobot rb = urdf "shr7"\nframe tip = rb.link("tool_tip")\n'
+                    'input f : force\nminimize track(tip, f, gain = 0.001)\nminimize damping() weight 1e-6\n'
+                    + RUNTIME_TASK.format(cut=_literal(CUT + origin), vessel=_literal(VESSEL + origin))
+                    .replace("require shaft", "require tip").replace("\n    ", "\n"))
+    task = vfdsl.load(path)
+    native, interpreted = vfdsl.compile(task, backend="native"), vfdsl.compile(task, backend="interpreted")
+    assert native.backend == "native"
+    rng = np.random.default_rng(57)
+    for _ in range(5):
+        q = random_q("shr7", rng, 0.2)
+        params = {"organ": moved(CUT - CUT[2], rng, origin, 0.001), "vessel": moved(VESSEL - VESSEL[2], rng, origin, 5e-4)}
+        f = rng.normal(size=3)
+        a = native.step(q, {"f": f}, params, dt=0.01)
+        b = interpreted.step(q, {"f": f}, params, dt=0.01)
+        np.testing.assert_allclose(a, b, atol=1e-12)
+        assert native.status == interpreted.status
