@@ -239,7 +239,10 @@ def test_runtime_defaults_are_the_declared_points(tmp_path):
 
 
 @pytest.mark.parametrize("name,value,message", [
-    ("organ", CUT[:4], r"param 'organ' must be 5 points \[x, y, z\] \(its declared count\), got 4 points"),
+    ("organ", CUT[:4].tolist(), r"param 'organ' must be 5 points \[x, y, z\] \(its declared count\), got 4 points"),
+    ("organ", CUT[:4], r"must be 5 points \[x, y, z\] \(its declared count\), got an array of float64, shape \(4, 3\)"),
+    ("organ", CUT.reshape(-1), r"got an array of float64, shape \(15,\)"),
+    ("organ", CUT.astype(complex), r"got an array of complex128"),
     ("organ", np.vstack([CUT[:2], CUT[1:4]]), r"param 'organ''s points 2 and 3 are 0 m apart: a repeated point"),
     ("organ", np.where(np.arange(15).reshape(5, 3) == 7, np.nan, CUT), r"param 'organ''s point 3 contains NaN"),
     ("organ", "points", r"param 'organ' must be 5 points"),

@@ -59,14 +59,15 @@ class SplineCurve:
     """A curve as per-span polynomials C(s) = sum_j coeffs[k, j] (s - breaks[k])^j on [breaks[k], breaks[k+1]].
 
     ``weights`` (S, degree + 1, N) gives the coefficients as linear maps of the N points (coeffs = weights @
-    points); ``points`` is None for a curve fixed at compile time, or an N x 3 CasADi matrix of run-time points.
+    points); ``moving`` is None for a curve fixed at compile time, or the coefficients as expressions of the
+    run-time points (per span, per order: 3-vectors).
     """
 
     degree: int
     breaks: np.ndarray           # (S + 1,)
     coeffs: np.ndarray           # (S, degree + 1, 3), at the default points
     weights: np.ndarray | None = None
-    points: ca.SX | None = None
+    moving_coeffs: tuple | None = None
 
     @classmethod
     def interpolate(cls, points: np.ndarray, degree: int) -> "SplineCurve":
@@ -83,7 +84,7 @@ class SplineCurve:
 
     def moving(self, points) -> "SplineCurve":
         """The same curve with run-time points (N x 3 CasADi) in place of the default ones."""
-        return replace(self, points=points)
+        return replace(self, moving_coeffs=tuple(tuple(points.T @ ca.DM(w) for w in span) for span in self.weights))
 
     @property
     def length_parameter(self) -> float:
@@ -160,9 +161,7 @@ class SplineCurve:
 
     def _coeff(self, k: int, j: int):
         """coeffs[k, j] as a 3-vector: numbers, or linear in the run-time points."""
-        if self.points is None:
-            return ca.DM(self.coeffs[k, j])
-        return self.points.T @ ca.DM(self.weights[k, j])
+        return ca.DM(self.coeffs[k, j]) if self.moving_coeffs is None else self.moving_coeffs[k][j]
 
     def _end(self):
         """C at the curve's last parameter."""
@@ -170,7 +169,7 @@ class SplineCurve:
 
     def _position(self, t: float):
         """C(t) at a numeric parameter t: numbers, or an expression of the run-time points."""
-        if self.points is None:
+        if self.moving_coeffs is None:
             return ca.DM(self.evaluate(t))
         k = int(np.clip(np.searchsorted(self.breaks, t, side="right") - 1, 0, len(self.breaks) - 2))
         return sum((self._coeff(k, j) * (t - self.breaks[k]) ** j for j in range(self.degree + 1)), ca.DM.zeros(3))

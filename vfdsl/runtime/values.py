@@ -202,29 +202,37 @@ class RuntimeValues:
             if value.degree != default.degree:
                 raise VfError(f"{what} is a degree-{default.degree} curve, got a degree-{value.degree} one")
             value = value.points
-        if isinstance(value, np.ndarray) and value.ndim == 2 and value.shape[1] == 3:
-            value = list(value)
-        if not isinstance(value, (list, tuple)) or len(value) != n:
-            got = f"{len(value)} points" if isinstance(value, (list, tuple)) else _describe(value)
+        if isinstance(value, np.ndarray) and value.shape == (n, 3) and value.dtype.kind in "fiu":
+            points = value.astype(float)
+            bad = np.flatnonzero(~np.isfinite(points).all(axis=1))
+            if bad.size:
+                real_vector(points[bad[0]], 3, f"{what}'s point {bad[0] + 1}")      # raises, naming the point
+        elif isinstance(value, (list, tuple)) and len(value) == n:
+            points = np.array([real_vector(point, 3, f"{what}'s point {i + 1}") for i, point in enumerate(value)])
+        else:
+            got = (f"{len(value)} points" if isinstance(value, (list, tuple)) else
+                   f"an array of {value.dtype}, shape {value.shape}" if isinstance(value, np.ndarray) else _describe(value))
             raise VfError(f"{what} must be {n} points [x, y, z] (its declared count), got {got}",
                           hint="a run-time curve keeps the number of points of its default value")
-        points = np.array([real_vector(point, 3, f"{what}'s point {i + 1}") for i, point in enumerate(value)])
         far = np.flatnonzero(np.abs(points).max(axis=1) > MAX_CURVE_COORDINATE)
         if far.size:
             raise VfError(f"{what}'s point {far[0] + 1} is {_show(points[far[0]])} m: beyond "
                           f"{MAX_CURVE_COORDINATE:g} m from its frame's origin",
                           hint="run-time values are in metres (millimetres given as metres?)")
         chords = np.linalg.norm(np.diff(points, axis=0), axis=1)
-        defaults = np.linalg.norm(np.diff(np.array(default.points), axis=0), axis=1)
-        for k, (chord, was) in enumerate(zip(chords, defaults), start=1):
-            if not chord >= MIN_CHORD:
-                raise VfError(f"{what}'s points {k} and {k + 1} are {chord:.3g} m apart: a repeated point",
+        repeated = ~(chords >= MIN_CHORD)
+        ratio = chords / np.linalg.norm(np.diff(np.array(default.points), axis=0), axis=1)
+        stretched = ~((ratio >= 1 / CHORD_RATIO) & (ratio <= CHORD_RATIO)) if default.degree > 1 else repeated
+        bad = np.flatnonzero(repeated | stretched)
+        if bad.size:
+            k = int(bad[0])
+            if repeated[k]:
+                raise VfError(f"{what}'s points {k + 1} and {k + 2} are {chords[k]:.3g} m apart: a repeated point",
                               hint=f"consecutive points must be at least {MIN_CHORD:g} m apart")
-            if default.degree > 1 and not was / CHORD_RATIO <= chord <= was * CHORD_RATIO:
-                raise VfError(f"{what}'s points {k} and {k + 1} are {chord:.6g} m apart, {chord / was:.3g} x their "
-                              f"default distance ({was:.6g} m); a run-time b-spline may stretch each span by at "
-                              f"most {CHORD_RATIO:g} x", hint="its parameters are fixed from the default points: "
-                              "give the curve default points close to the shapes it takes, or use degree 1")
+            raise VfError(f"{what}'s points {k + 1} and {k + 2} are {chords[k]:.6g} m apart, {ratio[k]:.3g} x their "
+                          f"default distance ({chords[k] / ratio[k]:.6g} m); a run-time b-spline may stretch each "
+                          f"span by at most {CHORD_RATIO:g} x", hint="its parameters are fixed from the default "
+                          "points: give the curve default points close to the shapes it takes, or use degree 1")
         return points.reshape(-1)
 
     def _from_mapping(self, what: str, kind: str, value: Mapping) -> list:
