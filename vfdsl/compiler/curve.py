@@ -36,7 +36,7 @@ import casadi as ca
 import numpy as np
 from scipy.interpolate import make_interp_spline
 
-from vfdsl.compiler.geometry import _TINY, normalize
+from vfdsl.compiler.geometry import normalize
 
 NEWTON_STEPS = 6
 SAMPLE_SPACING = 1e-3           # metres of arc length between coarse samples
@@ -147,8 +147,8 @@ class SplineCurve:
         last = len(vertices) - 2
         best = None
         for k, (a, b) in enumerate(zip(vertices, vertices[1:])):
-            length = ca.sqrt(ca.sumsqr(b - a) + _TINY)
-            d = (b - a) / length
+            d = normalize(b - a)
+            length = ca.dot(b - a, d)
             t = ca.fmin(ca.fmax(ca.dot(x - a, d), 0.0), length)
             point = a + t * d
             found = (ca.sumsqr(x - point), point, d, ca.inf if k == 0 else t, ca.inf if k == last else length - t)
