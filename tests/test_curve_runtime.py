@@ -102,6 +102,16 @@ def test_polyline_vertex_takes_the_next_segment():
         assert behind[0] == pytest.approx(0.0, abs=1e-15)
 
 
+def test_one_segment_is_a_line():
+    """Two points: no corner, so no room to report (follows adds no segment row), the tangent is the segment's."""
+    found = SplineCurve.interpolate(CUT[:2], 1).locate(ca.SX.sym("x", 3))
+    assert found.behind is None and found.ahead is None
+    f = locate_function(SplineCurve.interpolate(CUT[:2], 1))
+    point, tangent = (np.array(v).ravel() for v in f(np.array([0.03, 0.001, 0.0])))
+    np.testing.assert_allclose(point, CUT[1], atol=1e-15)
+    np.testing.assert_allclose(tangent, [1.0, 0.0, 0.0], atol=1e-15)
+
+
 def test_follows_polyline_rows(tmp_path):
     """Rows of `follows` on a polyline: the octagon around the closest segment's line and the segment row
     -behind <= l . (p + dx - P_c) <= ahead, against numpy."""

@@ -157,7 +157,7 @@ class SplineCurve:
             else:
                 closer = found[0] <= best[0]
                 best = tuple(ca.if_else(closer, new, old) for new, old in zip(found, best))
-        return Closest(*best[1:])
+        return Closest(*best[1:]) if last else Closest(best[1], best[2])      # one segment: a line, no corner
 
     def _coeff(self, k: int, j: int):
         """coeffs[k, j] as a 3-vector: numbers, or linear in the run-time points."""
