@@ -128,8 +128,8 @@ def test_follows_polyline_rows(tmp_path):
         tip = FrameState("shr7", "tip", q)
         rpy = rng.uniform(-0.3, 0.3, 3)
         R = pin.rpy.rpyToMatrix(*rpy)
-        anchor = CUT[trial % len(CUT)] if trial % 3 == 0 else CUT[rng.integers(0, len(CUT) - 1)] + rng.uniform(
-            0, 1) * (CUT[1] - CUT[0])
+        k = rng.integers(0, len(CUT) - 1)          # near a vertex every third trial, else near a random segment
+        anchor = CUT[trial % len(CUT)] if trial % 3 == 0 else CUT[k] + rng.uniform(0, 1) * (CUT[k + 1] - CUT[k])
         t = tip.p - R @ (anchor + rng.normal(scale=0.002, size=3))
         qp = ctrl.problem(q, {}, {"plate": {"translation": t, "rpy": rpy}}, dt=0.01)
         A, _, lb, ub = rows_of(ctrl, qp, "follows", "tip")
