@@ -788,6 +788,7 @@ def test_every_primitive_is_covered():
     covered = {"stays_at", "keeps_direction", "along", "rotates_around", "above", "on_plane", "follows", "cone",
                "passes_through", "within_distance", "joint_limits", "joint_speed", "speed", "angular_speed",
                "within_sphere", "outside_sphere", "near_plane"}     # the last three: test_primitive_spheres.py
+    covered |= {"tilt_at_most"}                  # its rows: tests/test_tilt_at_most.py
     assert set(CONSTRAINTS) == covered
 
 

@@ -8,6 +8,7 @@ drives it further off). For those the true angle is measured instead:
 
 - keeps_direction: angle(l_t, l_d);
 - cone: | angle(l_t, l_a) - gamma |;
+- tilt_at_most: max(0, angle(l_t, a) - gamma);
 - rotates_around: | asin(l_t . w) |, the tool axis' angle out of the plane normal to w;
 
 and for stays_at, within_distance and within_sphere the distance || p - P || itself.
@@ -48,11 +49,16 @@ def _cone(c, ctx):
     return ca.fabs(_angle(ctx.frame(c.frame).axis, ctx.direction(c.args["axis"])) - ctx.scalar(c.args["angle"]))
 
 
+def _tilt_at_most(c, ctx):
+    return ca.fmax(0, _angle(ctx.frame(c.frame).axis, ctx.direction(c.args["axis"])) - ctx.scalar(c.args["angle"]))
+
+
 def _rotates_around(c, ctx):
     return ca.fabs(ca.asin(ca.fmin(1, ca.fmax(-1, ca.dot(ctx.frame(c.frame).axis, ctx.direction(c.args["axis"]))))))
 
 
-TRUE_ANGLE = {"keeps_direction": _keeps_direction, "cone": _cone, "rotates_around": _rotates_around}
+TRUE_ANGLE = {"keeps_direction": _keeps_direction, "cone": _cone, "rotates_around": _rotates_around,
+              "tilt_at_most": _tilt_at_most}
 REFERENCE_POINT = {"stays_at": "target", "within_distance": "center", "passes_through": "port",
                    "within_sphere": "center"}
 DISTANCE_TO_REFERENCE = ("stays_at", "within_distance", "within_sphere")      # their error is || p - P || itself
@@ -111,7 +117,9 @@ def analyse(task: ir.Task, linear: Linearization, rows: list[ConstraintRows], q)
         message = (f"at the start the error is {quantity(error, kind)}, "
                    f"{error / limit:.3g} x its {what}" if limit > 0 else
                    f"at the start the frame is {quantity(error, kind)} on the wrong side of its {what}")
-        if angle is not None:
+        if c.primitive == "tilt_at_most":
+            message += f" (the row, which measures cos gamma - cos of the angle, sees {r.violation_at_rest:.3g})"
+        elif angle is not None:
             message += f" (the rows, which measure sin of the angle, see {quantity(limit + r.violation_at_rest, kind)})"
         data = {"error": error, "limit": limit, "rows_error": limit + r.violation_at_rest, "cause": cause}
         if far:
@@ -133,7 +141,7 @@ def _likely_cause(index: int, c: ir.Constraint, residuals: Residuals, q, p, erro
         if c.primitive == "keeps_direction" and between > 150:
             return (f"opposite direction: the tool axis points {between:.1f} deg away from the direction "
                     f"(given the insertion direction instead of the tool axis?)")
-        if c.primitive == "cone":
+        if c.primitive in ("cone", "tilt_at_most"):
             gamma = _gamma(c, residuals, p)
             if abs(theta - (math.pi - gamma)) < abs(theta - gamma):
                 return (f"opposite direction: the tool axis is {between:.1f} deg from the cone axis, "

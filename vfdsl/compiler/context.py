@@ -4,7 +4,8 @@ Symbols: q (nq joint coordinates), u (every input, concatenated in declaration o
 param, flattened in declaration order; see :class:`ParamLayout`), dt (the control period). A param declared
 ``in`` a pose param is transformed to the world each tick: points by R x + t, directions by R d, curves by
 searching in the curve's own frame. A derived argument (``normalize(target - entry)``) is computed from its
-operands' world values (:mod:`vfdsl.compiler.derived`).
+operands' world values (:mod:`vfdsl.compiler.derived`). A ``runtime`` curve's points are run-time params
+too (3 numbers a point).
 """
 
 from __future__ import annotations
@@ -16,13 +17,14 @@ import casadi as ca
 import numpy as np
 
 from vfdsl.compiler import derived
-from vfdsl.compiler.curve import SplineCurve
+from vfdsl.compiler.curve import Closest, SplineCurve
 from vfdsl.compiler.geometry import homogeneous, normalize, rpy_matrix
 from vfdsl.ir import model as ir
 from vfdsl.kinematics.robot import Robot
 from vfdsl.kinematics.symbolic import SymbolicKinematics
 
-# Run-time size of each param type (curves are fixed at compile time; they move through their `in` pose).
+# Run-time size of each param type (a curve's size is its points' when declared `runtime`, else 0: fixed at
+# compile time, it moves through its `in` pose).
 PARAM_SIZES = {"point": 3, "vector": 3, "direction": 3, "line": 6, "plane": 6, "pose": 6, "curve": 0,
                "length": 1, "angle": 1, "speed": 1, "angular_speed": 1, "number": 1, "time": 1, "force": 1}
 
@@ -39,6 +41,8 @@ def flatten(value: ir.Value) -> list[float]:
         return [*value.translation, *value.rpy]
     if isinstance(value, ir.ScalarValue):
         return [value.value]
+    if isinstance(value, ir.CurveValue) and value.runtime:
+        return [x for point in value.points for x in point]
     return []
 
 
@@ -57,7 +61,7 @@ class ParamLayout:
         self.slots: dict[str, ParamSlot] = {}
         offset = 0
         for decl in params:
-            size = PARAM_SIZES[decl.type]
+            size = PARAM_SIZES[decl.type] or len(flatten(decl.value))
             self.slots[decl.name] = ParamSlot(decl.name, decl.type, offset, size)
             offset += size
         self.size = offset
@@ -104,8 +108,12 @@ class PlacedCurve:
     t: ca.SX
 
     def closest(self, x_world) -> tuple[ca.SX, ca.SX]:
-        point, tangent = self.curve.closest(self.R.T @ (x_world - self.t))
-        return self.R @ point + self.t, self.R @ tangent
+        found = self.locate(x_world)
+        return found.point, found.tangent
+
+    def locate(self, x_world) -> Closest:
+        found = self.curve.locate(self.R.T @ (x_world - self.t))
+        return Closest(self.R @ found.point + self.t, self.R @ found.tangent, found.behind, found.ahead)
 
 
 class ParamReader:
@@ -179,8 +187,10 @@ class ParamReader:
         return flat[0]
 
     def curve(self, arg) -> PlacedCurve:
-        _, value = self._raw(arg)
+        flat, value = self._raw(arg)
         spline = SplineCurve.interpolate(np.array(value.points), value.degree)
+        if value.runtime:
+            spline = spline.moving(ca.reshape(flat, 3, len(value.points)).T)
         pose = self._pose_of(arg)
         R, t = pose if pose is not None else (ca.SX.eye(3), ca.SX.zeros(3))
         return PlacedCurve(spline, R, t)
@@ -203,7 +213,7 @@ class Context(ParamReader):
         self.u = ca.SX.sym("u", offset)
         self.dt = ca.SX.sym("dt")
         self._frames: dict[str, FrameSymbols] = {}
-        self._closest: dict[tuple[str, str], tuple[ca.SX, ca.SX]] = {}
+        self._closest: dict[tuple[str, str], Closest] = {}
 
     @cached_property
     def kinematics(self) -> SymbolicKinematics:
@@ -220,9 +230,9 @@ class Context(ParamReader):
         offset, size = self.input_offsets[arg.name]
         return self.u[offset:offset + size]
 
-    def closest_point(self, curve_arg, anchor: str, curve: PlacedCurve, x) -> tuple[ca.SX, ca.SX]:
+    def closest_point(self, curve_arg, anchor: str, curve: PlacedCurve, x) -> Closest:
         """The curve's closest point and tangent to frame ``anchor``, built once per (curve, anchor)."""
         key = (curve_arg.model_dump_json(), anchor)
         if key not in self._closest:
-            self._closest[key] = curve.closest(x)
+            self._closest[key] = curve.locate(x)
         return self._closest[key]

@@ -64,11 +64,13 @@ class PoseValue(_Model):
 
 
 class CurveValue(_Model):
-    """A b-spline of ``degree`` interpolating ``points`` (in order)."""
+    """A b-spline of ``degree`` interpolating ``points`` (in order); ``runtime``: the points are run-time
+    params (these are their defaults), interpolated with the chord-length parameters of these points."""
 
     kind: Literal["curve"] = "curve"
     degree: int
     points: list[Vec3]
+    runtime: bool = False
 
 
 class ScalarValue(_Model):

@@ -215,7 +215,7 @@ class Resolver:
             if kind not in PARAM_KINDS:
                 raise VfError(f"unknown param type '{kind}'", stmt.type.span.pos(),
                               hint=suggest(kind, PARAM_KINDS, "param types"))
-            degree = self._curve_degree(stmt)
+            degree, runtime = self._curve_type(stmt)
             if stmt.frame is not None:
                 target = by_name.get(stmt.frame.text)
                 if target is None or target.type.text != "pose":
@@ -237,22 +237,29 @@ class Resolver:
             source = _named_mapping(source, kind)
             self.param_values[stmt.name.text] = source
             value = self._literal(source, kind, units, degree)
+            if runtime:
+                value = value.model_copy(update={"runtime": True})
             self.params[stmt.name.text] = ir.ParamDecl(
                 name=stmt.name.text, type=kind, value=value,
                 frame=stmt.frame.text if stmt.frame else None, span=stmt.span)
 
-    def _curve_degree(self, stmt: ast.ParamStmt) -> int | None:
+    def _curve_type(self, stmt: ast.ParamStmt) -> tuple[int | None, bool]:
+        """(degree, runtime) of a curve param's type, e.g. curve(degree = 1, runtime = true)."""
         if stmt.type.text != "curve":
             if stmt.type_args:
                 raise VfError(f"a {stmt.type.text} param takes no type arguments", stmt.type_args[0].span.pos())
-            return None
-        degree = None
+            return None, False
+        degree, runtime = None, False
+        reader = LiteralReader(self.units, self._no_names)
         for kw in stmt.type_args:
-            if kw.name.text != "degree":
+            if kw.name.text == "degree":
+                degree = reader.integer(kw.value, "degree")
+            elif kw.name.text == "runtime":
+                runtime = reader.read(kw.value, "flag").value
+            else:
                 raise VfError(f"curve has no type argument '{kw.name.text}'", kw.name.span.pos(),
-                              hint="write curve(degree = 5)")
-            degree = LiteralReader(self.units, self._no_names).integer(kw.value, "degree")
-        return degree
+                              hint="write curve(degree = 5), or curve(degree = 1, runtime = true)")
+        return degree, runtime
 
     # ---------------------------------------------------------------------------------------- scene
     def _scene(self, statements) -> SceneData | None:

@@ -16,6 +16,7 @@ from vfdsl.primitives import (
                               rotates_around,
                               speed,
                               stays_at,
+                              tilt_at_most,
                               within_distance,
                               within_sphere,
 )
@@ -23,6 +24,6 @@ from vfdsl.primitives.spec import ConstraintSpec
 
 _MODULES = (stays_at, keeps_direction, along, rotates_around, above, on_plane, follows, cone, passes_through,
             within_distance, joint_limits, joint_speed, speed, angular_speed,
-            within_sphere, outside_sphere, near_plane)
+            within_sphere, outside_sphere, near_plane, tilt_at_most)
 
 CONSTRAINTS: dict[str, ConstraintSpec] = {m.SPEC.name: m.SPEC for m in _MODULES}

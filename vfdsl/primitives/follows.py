@@ -3,6 +3,11 @@
 Every tick, find the point P_c of the curve closest to the anchor frame's origin and the unit tangent l_c
 there; shift P_c by ``shift`` (given in the curve's own frame, e.g. 100 mm along the plate normal for the
 tool shaft) and apply "move along a line" (II-B.3) with the line through P_c + shift along l_c.
+
+On a polyline (degree 1) one more row keeps the frame on its segment: with b and a the room behind and ahead
+of P_c on the segment (inf past the polyline's ends), -b <= l_c . (p + dx_p - P_c - shift) <= a, so the frame
+stops at a corner instead of running past it along the old segment; it turns the corner when pushed toward
+the next segment (the closest point moves there, ties going to the later segment).
 """
 
 import casadi as ca
@@ -29,6 +34,12 @@ SPEC = ConstraintSpec(
 def lower(c, ctx) -> Rows:
     curve = ctx.curve(c.args["curve"])
     anchor = ctx.frame(c.args["anchor"].name)
-    point, tangent = ctx.closest_point(c.args["curve"], c.args["anchor"].name, curve, anchor.p)
-    shift = curve.R @ ca.DM(c.args["shift"].value.xyz)
-    return along_line(ctx.frame(c.frame), point + shift, tangent, c.tolerance, c.resolution[0])
+    found = ctx.closest_point(c.args["curve"], c.args["anchor"].name, curve, anchor.p)
+    frame = ctx.frame(c.frame)
+    point = found.point + curve.R @ ca.DM(c.args["shift"].value.xyz)
+    rows = along_line(frame, point, found.tangent, c.tolerance, c.resolution[0])
+    if found.behind is None:
+        return rows
+    progress = ca.dot(found.tangent, frame.p - point)
+    return Rows(A=ca.vertcat(rows.A, found.tangent.T @ frame.Jv), lb=ca.vertcat(rows.lb, -found.behind - progress),
+                ub=ca.vertcat(rows.ub, found.ahead - progress), facets=rows.facets + ["segment"])

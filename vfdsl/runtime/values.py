@@ -14,6 +14,9 @@ argument (``q``, ``input 'tau'``, ``param 'axis'``, ``dt``). Everything is SI.
   vector they normalize is at least ``vfdsl.compiler.derived.MIN_NORM`` long (the default params were
   checked at load time, so the fast path, which runs only on them, needs no check);
 - dt: in (0, MAX_PERIOD].
+- run-time curve points: the declared number of points (N x 3, finite), no coordinate beyond
+  MAX_CURVE_COORDINATE; consecutive points at least MIN_CHORD apart, and for a b-spline (interpolated with the chord lengths of its default points) each
+  chord within a factor CHORD_RATIO of its default chord, so the fixed parameters and search samples still fit.
 """
 
 from __future__ import annotations
@@ -35,6 +38,13 @@ MAX_PERIOD = 1.0
 """Longest control period accepted (s): a longer tick lets the speed bounds allow large jumps."""
 MIN_DIRECTION_NORM = 1e-12
 """A direction shorter than this (before normalization) is taken for zero, at load and at run time."""
+
+MIN_CHORD = 1e-6
+"""Shortest distance (m) between consecutive run-time curve points: closer, they are taken for a repeated point."""
+MAX_CURVE_COORDINATE = 10.0
+"""Largest run-time curve coordinate (m): no robot reaches 10 m, and a point in mm read as m lands beyond it."""
+CHORD_RATIO = 2.0
+"""A run-time b-spline's chords may shrink or grow by at most this factor from its default points' chords."""
 
 _FIELDS = {"line": ("point", "direction"), "plane": ("point", "normal"), "pose": ("translation", "rpy")}
 _UNIT_PARTS = {"direction": (slice(0, 3),), "line": (slice(3, 6),), "plane": (slice(3, 6),)}
@@ -175,6 +185,8 @@ class RuntimeValues:
 
     def param(self, name: str, kind: str, size: int, value) -> np.ndarray:
         what = f"param '{name}'"
+        if kind == "curve":
+            return self._curve(what, self.task.param(name).value, value)
         if isinstance(value, BaseModel):
             if getattr(value, "kind", None) != _ir_kind(kind):
                 raise VfError(f"{what} is {_article(kind)}, got {_article(getattr(value, 'kind', '?'))} value")
@@ -191,6 +203,46 @@ class RuntimeValues:
             if problem:
                 raise VfError(f"{what} = {flat[0]:.6g} (SI) {problem}, as the {use} it feeds")
         return flat
+
+    def _curve(self, what: str, default: ir.CurveValue, value) -> np.ndarray:
+        """Run-time points of a ``runtime`` curve: N x 3 (a list of points, an array, or a curve value)."""
+        n = len(default.points)
+        if isinstance(value, ir.CurveValue):
+            if value.degree != default.degree:
+                raise VfError(f"{what} is a degree-{default.degree} curve, got a degree-{value.degree} one")
+            value = value.points
+        if isinstance(value, np.ndarray) and value.shape == (n, 3) and value.dtype.kind in "fiu":
+            points = value.astype(float)
+            bad = np.flatnonzero(~np.isfinite(points).all(axis=1))
+            if bad.size:
+                real_vector(points[bad[0]], 3, f"{what}'s point {bad[0] + 1}")      # raises, naming the point
+        elif isinstance(value, (list, tuple)) and len(value) == n:
+            points = np.array([real_vector(point, 3, f"{what}'s point {i + 1}") for i, point in enumerate(value)])
+        else:
+            got = (f"{len(value)} points" if isinstance(value, (list, tuple)) else
+                   f"an array of {value.dtype}, shape {value.shape}" if isinstance(value, np.ndarray) else _describe(value))
+            raise VfError(f"{what} must be {n} points [x, y, z] (its declared count), got {got}",
+                          hint="a run-time curve keeps the number of points of its default value")
+        far = np.flatnonzero(np.abs(points).max(axis=1) > MAX_CURVE_COORDINATE)
+        if far.size:
+            raise VfError(f"{what}'s point {far[0] + 1} is {_show(points[far[0]])} m: beyond "
+                          f"{MAX_CURVE_COORDINATE:g} m from its frame's origin",
+                          hint="run-time values are in metres (millimetres given as metres?)")
+        chords = np.linalg.norm(np.diff(points, axis=0), axis=1)
+        repeated = ~(chords >= MIN_CHORD)
+        ratio = chords / np.linalg.norm(np.diff(np.array(default.points), axis=0), axis=1)
+        stretched = ~((ratio >= 1 / CHORD_RATIO) & (ratio <= CHORD_RATIO)) if default.degree > 1 else repeated
+        bad = np.flatnonzero(repeated | stretched)
+        if bad.size:
+            k = int(bad[0])
+            if repeated[k]:
+                raise VfError(f"{what}'s points {k + 1} and {k + 2} are {chords[k]:.3g} m apart: a repeated point",
+                              hint=f"consecutive points must be at least {MIN_CHORD:g} m apart")
+            raise VfError(f"{what}'s points {k + 1} and {k + 2} are {chords[k]:.6g} m apart, {ratio[k]:.3g} x their "
+                          f"default distance ({chords[k] / ratio[k]:.6g} m); a run-time b-spline may stretch each "
+                          f"span by at most {CHORD_RATIO:g} x", hint="its parameters are fixed from the default "
+                          "points: give the curve default points close to the shapes it takes, or use degree 1")
+        return points.reshape(-1)
 
     def _from_mapping(self, what: str, kind: str, value: Mapping) -> list:
         fields = _FIELDS.get(kind)

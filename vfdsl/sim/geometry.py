@@ -4,8 +4,9 @@ A param expressed in a pose param (``param path : curve in plate``) is mapped to
 p_world = R(rpy) p + t, with R the fixed-axis roll-pitch-yaw rotation (URDF convention, scipy's "xyz").
 A curve is the b-spline of its degree interpolating its points with the cumulative chord length as
 parameter (the definition of a ``curve`` value); its closest point to x is found by a dense search over
-samples followed by Newton steps on (C(s) - x) . C'(s) = 0. Past either end the distance is to the end's
-tangent line, which is where ``follows`` keeps a frame that leaves the curve by an end. A derived argument
+samples followed by Newton steps on (C(s) - x) . C'(s) = 0; on a polyline (degree 1) by projecting x on
+every segment (the later segment on a tie). Past either end the distance is to the end's tangent line,
+which is where ``follows`` keeps a frame that leaves the curve by an end. A derived argument
 (``line(entry, target)``) is computed from the params' current values by :mod:`vfdsl.compiler.derived`: its
 few vector operations are the definition of the value, not a model of the robot.
 """
@@ -44,7 +45,8 @@ class Curve:
         self.length = float(s[-1])
         self.spline = make_interp_spline(s, points, k=value.degree)
         self._d1 = self.spline.derivative(1)
-        self._d2 = self.spline.derivative(2)
+        self._d2 = self.spline.derivative(2) if value.degree > 1 else None
+        self._breaks, self._corners = s, points
         self._grid = np.linspace(0.0, self.length, max(2001, int(self.length * SAMPLES_PER_METRE)))
         self._samples = self.spline(self._grid)
         self._squares = np.sum(self._samples ** 2, axis=1)
@@ -54,6 +56,8 @@ class Curve:
         (to the end's tangent line past an end); ``refine=False``: the nearest sample, 0.05 mm apart, and
         the distance to it."""
         x = np.atleast_2d(x)
+        if self._d2 is None:
+            return self._closest_on_segments(x, refine)
         t = np.concatenate([self._grid[np.argmin(self._squares[None, :] - 2 * chunk @ self._samples.T, axis=1)]
                             for chunk in np.array_split(x, max(1, len(x) // 256))])
         for _ in range(NEWTON_STEPS if refine else 0):
@@ -61,13 +65,28 @@ class Curve:
             f = np.sum(r * self._d1(t), axis=1)
             df = np.sum(self._d1(t) ** 2, axis=1) + np.sum(r * self._d2(t), axis=1)
             t = np.clip(t - f / np.where(df > 0, df, np.inf), 0.0, self.length)
+        return t, self._distance(x, t, refine)
+
+    def _closest_on_segments(self, x: np.ndarray, refine: bool) -> tuple[np.ndarray, np.ndarray]:
+        """A polyline's exact closest points: x projected on every segment, the later segment on a tie."""
+        a, b = self._corners[:-1], self._corners[1:]
+        lengths = np.diff(self._breaks)
+        d = (b - a) / lengths[:, None]
+        t = np.clip(np.einsum("nsk,sk->ns", x[:, None, :] - a[None], d), 0.0, lengths)      # N x S
+        distance = np.linalg.norm(x[:, None, :] - a[None] - t[..., None] * d[None], axis=2)
+        k = len(lengths) - 1 - np.argmin(distance[:, ::-1], axis=1)
+        t = self._breaks[k] + t[np.arange(len(x)), k]
+        return t, self._distance(x, t, refine)
+
+    def _distance(self, x: np.ndarray, t: np.ndarray, refine: bool) -> np.ndarray:
+        """|x - C(t)|, or past an end (``refine``) the distance to the end's tangent line."""
         r = x - self.spline(t)
-        if refine:                   # past an end, the distance to the end's tangent line
+        if refine:
             tangent = self._d1(t) / np.linalg.norm(self._d1(t), axis=1, keepdims=True)
             along = np.sum(r * tangent, axis=1)
             beyond = ((t <= 0.0) & (along < 0)) | ((t >= self.length) & (along > 0))
             r = np.where(beyond[:, None], r - along[:, None] * tangent, r)
-        return t, np.linalg.norm(r, axis=1)
+        return np.linalg.norm(r, axis=1)
 
     def tangent(self, s: float) -> np.ndarray:
         return unit(self._d1(s))

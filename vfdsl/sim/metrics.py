@@ -15,6 +15,7 @@ The error of a constraint is how far the frame is from the set the constraint de
     near_plane        max(0, |n . (p - p0)| - half_width)  mm
     passes_through    distance from the port to the tool axis line   mm
     cone              | angle(l, axis) - angle |           deg
+    tilt_at_most      max(0, angle(l, axis) - angle)       deg
     keeps_direction   angle(l, direction)                  deg
     rotates_around    | 90 deg - angle(l, axis) |          deg
     speed             max(0, |dp| / dt - max)              mm/s
@@ -47,7 +48,7 @@ _SUFFIX = {"mm": "mm", "deg": "deg", "mm/s": "mm_s", "deg/s": "deg_s"}
 _DIMENSION = {"stays_at": "length", "along": "length", "follows": "length", "on_plane": "length",
               "above": "length", "within_distance": "length", "passes_through": "length", "cone": "angle",
               "within_sphere": "length", "outside_sphere": "length", "near_plane": "length",
-              "keeps_direction": "angle", "rotates_around": "angle", "speed": "speed",
+              "keeps_direction": "angle", "rotates_around": "angle", "tilt_at_most": "angle", "speed": "speed",
               "angular_speed": "angular_speed"}
 JOINT_PRIMITIVES = ("joint_limits", "joint_speed")
 
@@ -174,11 +175,13 @@ def _frame_error(c: ir.Constraint, task: ir.Task, scene: Scene, poses: Poses, pe
         R, t = scene.to_world(curve_arg.name) if isinstance(curve_arg, ir.ParamRef) else (np.eye(3), np.zeros(3))
         curve = _curve(scene.value(curve_arg), tuple(scene.value(a["shift"]).xyz) if "shift" in a else (0, 0, 0))
         return curve.closest((p - t) @ R)[1]
-    if kind in ("cone", "keeps_direction", "rotates_around"):
+    if kind in ("cone", "keeps_direction", "rotates_around", "tilt_at_most"):
         key = "direction" if kind == "keeps_direction" else "axis"
         angle = np.arccos(np.clip(l @ scene.direction(a[key]), -1.0, 1.0))
         if kind == "cone":
             return np.abs(angle - scene.value(a["angle"]).value)
+        if kind == "tilt_at_most":
+            return np.maximum(0.0, angle - scene.value(a["angle"]).value)
         return angle if kind == "keeps_direction" else np.abs(np.pi / 2 - angle)
     if kind == "speed":
         speed = np.linalg.norm(np.diff(p, axis=0), axis=1) / period

@@ -1,0 +1,41 @@
+"""Tilt at most an angle from an axis: the tool axis stays inside a cone (cf. ``cone``, which holds a fixed angle).
+
+Keep the tool axis l within the cone of half-angle gamma around the unit axis a:  g = cos gamma - l . a <= 0.
+The step turns l by the rotation vector alpha = J_w dq:  d(l . a) = (alpha x l) . a = alpha . (l x a), so the
+one exact row (a half-space of rotations, like ``above``, with no tolerance and no polytope) is
+
+    (l x a)^T J_w dq >= cos gamma - l . a.
+
+At l = a the gradient l x a is zero and the row reads 0 >= cos gamma - 1 < 0: inactive, as it should be (the
+axis is the cone's centre). At l = -a it reads 0 >= cos gamma + 1 > 0, which no step can meet: the solver's
+least-violation fallback reports it and ``check`` flags such a start (the true angle, not the rows).
+
+Bound: a step that turns l by an angle phi about any axis and meets the row ends with
+l' . a >= cos gamma - (1 - cos phi) - (phi - sin phi)  (Rodrigues' formula; |(k x l) . a|, |k x (k x l) . a| <= 1),
+so the tilt passes gamma by at most arccos(cos gamma - phi^2/2 - phi^3/6) - gamma ~ phi^2 / (2 sin gamma) per
+tick, and the next tick's row pulls it back.
+"""
+
+import math
+
+import casadi as ca
+
+from vfdsl.compiler.rows import Rows, lower_bounds
+from vfdsl.primitives.spec import ArgSpec, ConstraintSpec, Range
+
+SPEC = ConstraintSpec(
+    name="tilt_at_most",
+    summary="keep the tool axis within an angle of an axis (a cone it may move inside)",
+    subject=True,
+    args=(ArgSpec("axis", "direction", "the cone axis a"),
+          ArgSpec("angle", "angle", "the largest tilt gamma from the axis",
+                  range=Range(0.0, math.pi, low_open=True, high_open=True, unit="deg"))),
+    source="the cone of Li, Kapoor & Taylor 2005, III-B, as an inequality",
+)
+
+
+def lower(c, ctx) -> Rows:
+    f = ctx.frame(c.frame)
+    a = ctx.direction(c.args["axis"])
+    gradient = ca.cross(f.axis, a)                       # d(l . a) = alpha . (l x a)
+    return lower_bounds(gradient.T @ f.Jw, ca.cos(ctx.scalar(c.args["angle"])) - ca.dot(f.axis, a), ["tilt"])
