@@ -73,7 +73,8 @@ def _reference_distance(points: np.ndarray, degree: int, tips: np.ndarray) -> tu
 def test_paper_a_follows_the_curve_when_pushed_along_it(period):
     """Experiment A: a hand pushes the tip along the curve (3 N along the tangent, with a sideways wobble);
     the tip reaches the end of the curve, stays within 2 eps of it (the octagon's circumradius is 1.08 eps,
-    the rest is the first-order model's error on the curved path), and the tool stays perpendicular."""
+    the rest is the first-order model's error on the curved path), and the tool stays perpendicular (within what
+    the two fixtures allow)."""
     task = vfdsl.load(TASKS_DIR / "paper_a_follow_curve.vf")
     ctrl = compile_task(task)
     robot = Robot.load("shr7")
@@ -103,4 +104,6 @@ def test_paper_a_follows_the_curve_when_pushed_along_it(period):
     assert t[-1] >= s[-1] - 1e-4, "the tip should reach the end of the curve"
     assert inside.sum() > 3000
     assert distance[inside].max() <= 2 * 1e-6
-    assert max(tilts) <= 1e-5
+    # the tool is held perpendicular by the shaft's copy of the fixture 100 mm up: with tip and shaft each within
+    # 2 eps of their curves, the tilt is at most 4 eps / 100 mm (the hand's rotation is ranked below its push)
+    assert max(tilts) <= 4 * 1e-6 / 0.1

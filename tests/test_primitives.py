@@ -815,3 +815,32 @@ def test_docs_examples_compile(tmp_path):
     used = {lab.primitive for lab in ctrl.row_labels} | {"joint_limits", "joint_speed"}
     from vfdsl.primitives import CONSTRAINTS
     assert used == set(CONSTRAINTS), set(CONSTRAINTS) - used
+
+
+def test_follows_takes_a_run_time_shift(tmp_path):
+    """A `shift` given by a param gives the rows of the same literal shift, and follows the param at run time."""
+    scene = (Path(__file__).parent.parent / "tasks" / "paper_a_follow_curve.yaml").resolve()
+    body = """task shifted
+units mm, deg
+robot shr = urdf "shr7"
+frame tip = shr.link("tool_tip")
+frame shaft = shr.link("tool_tip") offset [0, 0, 100]
+param plate : pose
+param path : curve(degree = 5) in plate
+{decl}
+require tip follows(path) within 0.001 resolution 8
+require shaft follows(path, shift = {shift}, anchor = tip) within 0.001 resolution 8
+scene "{scene}"
+"""
+    (tmp_path / "param.vf").write_text(body.format(decl="param up : vector = [0, 0, 100]", shift="up", scene=scene))
+    (tmp_path / "literal.vf").write_text(body.format(decl="", shift="[0, 0, 100]", scene=scene))
+    (tmp_path / "moved.vf").write_text(body.format(decl="", shift="[0, 0, 90]", scene=scene))
+    tasks = {name: vfdsl.load(tmp_path / f"{name}.vf") for name in ("param", "literal", "moved")}
+    ctrls = {name: compile_task(task) for name, task in tasks.items()}
+    q = tasks["param"].start
+    qp = {name: ctrl.problem(q, {}) for name, ctrl in ctrls.items()}
+    np.testing.assert_allclose(qp["param"].A, qp["literal"].A, atol=1e-12)
+    np.testing.assert_allclose(qp["param"].lb, qp["literal"].lb, atol=1e-12)
+    moved = ctrls["param"].problem(q, {}, {"up": [0.0, 0.0, 0.09]})
+    np.testing.assert_allclose(moved.lb, qp["moved"].lb, atol=1e-12)
+    assert not np.allclose(moved.lb, qp["param"].lb)

@@ -73,7 +73,7 @@ def _tracked_frames(task) -> set[str]:
 def _with_lines(tmp_path: Path, task_file: Path, lines: str) -> Path:
     """A copy of an example task (beside its scene and library) with ``lines`` appended."""
     text = task_file.read_text()
-    if "scene " not in text and task_file.with_suffix(".yaml").exists():
+    if not any(line.startswith("scene ") for line in text.splitlines()) and task_file.with_suffix(".yaml").exists():
         text += f'\nscene "{task_file.with_suffix(".yaml").resolve()}"\n'
     text = text.replace('import "library/', f'import "{(task_file.parent / "library").resolve()}/')
     text = text.replace('scene "', f'scene "{task_file.parent.resolve()}/').replace(
@@ -243,6 +243,6 @@ def test_bad_objective_clauses_are_clear_errors(tmp_path, text, message):
 def test_levels_of_the_examples():
     """What each example solves first: the levels the assembly builds (track's parts ranked, redundancy last)."""
     ctrl = vfdsl.compile(vfdsl.load(TASKS_DIR / "paper_b_virtual_rcm.vf"), backend="interpreted")
-    assert ctrl.assembled.levels == [["track(tip) linear"], ["track(tip) angular"], ["damping()"]]
+    assert ctrl.assembled.levels == [["track(tip) angular"], ["track(tip) linear"], ["damping()"]]   # a torque
     ctrl = vfdsl.compile(vfdsl.load(TASKS_DIR / "lecture_steady_direction.vf"), backend="interpreted")
     assert ctrl.assembled.levels == [["distance(tip)", "direction_change(tip)"], ["damping()"]]

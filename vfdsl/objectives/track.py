@@ -6,10 +6,12 @@
 v_d = gain f and w_d = angular_gain tau for a wrench [f; tau] (a force gives only f, a torque only tau; a part the
 input does not drive is asked to stay still: v_d = 0 or w_d = 0), or v_d = gain v, w_d = angular_gain w for a twist.
 
-The two parts are solved one after the other: the linear part first, then the angular part among the motions that
-keep the linear part optimal (a priority step just below the statement's level). So the frame origin follows the
-hand even when a constraint couples translation and rotation (a port, a cone, a remote center: the tool has to
-pivot to move its tip sideways), and with the hands off both parts ask for no motion, so the frame stays still.
+The two parts are solved one after the other: the part the input drives first, then the other among the motions
+that keep the first optimal (a priority step just below the statement's level): for a force, a wrench or a twist
+the linear part first, for a torque the angular part first. So the frame follows the hand even when a constraint
+couples translation and rotation (a port, a cone, a remote center: the tool has to pivot to move its tip
+sideways, or its tip has to move to turn the tool about a remote point), and with the hands off both parts ask
+for no motion, so the frame stays still.
 
 - ``linear = false`` / ``angular = false`` leaves that part free (not tracked at all);
 - ``lever = L`` solves both parts together instead, on one level, the angular rate error weighing as the speed
@@ -62,7 +64,7 @@ def lower(o, ctx) -> tuple[Term, ...]:
         lever = ctx.scalar(o.args["lever"])
         parts = [(f.Jv, v_d)] * linear + [(lever * f.Jw, lever * w_d)] * angular
         return (Term(E=ca.vertcat(*(E for E, _ in parts)), f=ca.vertcat(*(r for _, r in parts)), part="twist"),)
-    terms = [Term(E=f.Jv, f=v_d, part="linear")] if linear else []
-    if angular:
-        terms.append(Term(E=f.Jw, f=w_d, part="angular", after=int(linear)))
-    return tuple(terms)
+    parts = [Term(E=f.Jv, f=v_d, part="linear")] * linear + [Term(E=f.Jw, f=w_d, part="angular")] * angular
+    if ctx.task.input(o.args["input"].name).type == "torque":
+        parts.reverse()                 # the driven part first
+    return tuple(Term(t.E, t.f, t.part, after=k) for k, t in enumerate(parts))

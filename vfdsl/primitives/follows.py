@@ -36,7 +36,7 @@ def lower(c, ctx) -> Rows:
     anchor = ctx.frame(c.args["anchor"].name)
     found = ctx.closest_point(c.args["curve"], c.args["anchor"].name, curve, anchor.p)
     frame = ctx.frame(c.frame)
-    point = found.point + curve.R @ ca.DM(c.args["shift"].value.xyz)
+    point = found.point + curve.R @ ctx.vector(c.args["shift"])     # a param shift too (read in the curve's frame)
     rows = along_line(frame, point, found.tangent, c.tolerance, c.resolution[0])
     if found.behind is None:
         return rows

@@ -79,8 +79,9 @@ GRADIENT_SATURATION = 1e3
 """K of :func:`_saturated_gradient`: a user push beyond K box widths is saturated."""
 BAND_FACTOR = 1e-2
 """A lower priority level keeps each higher level's rows E_i x within BAND_FACTOR * feas_tol of their optimal
-values: twice DAQP's primal tolerance (1e-3 feas_tol), so the band is never thinner than the solver's accuracy;
-about 2e-9 m or rad per tick."""
+values: ten times DAQP's primal tolerance (1e-3 feas_tol; at twice, DAQP in the generated C failed levels that the
+interpreted path solved), so the band is never thinner than the solver's accuracy; 1e-11 m or rad per tick at
+vfdsl.compile's feas_tol of 1e-9."""
 LEVEL_REGULARIZATION = 1e-4
 """Tikhonov term of each priority level's normalized Hessian (see :func:`_normalized`)."""
 PER_ROW_GROUPS_LIMIT = 100
