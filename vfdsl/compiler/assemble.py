@@ -13,7 +13,9 @@ is the QP in CasADi conic's standard form over x = [dq; s] (s: one slack per sof
 - priority levels: terms are grouped by (priority, after) in increasing order; level j's own cost is Hj, gj, and
   Ej stacks its terms' rows (for every level but the last), so that the solver can keep level j optimal while it
   solves the levels below (:mod:`vfdsl.runtime.qp`). H, g are the sum over all levels (the least-violation
-  phase uses them). With a single level, only H and g are given;
+  phase uses them). With a single level, only H and g are given. A last level made only of `damping` terms is
+  not solved on its own: it asks for the smallest motion among the optimal ones, which the solver's Tikhonov
+  term on every level (``LEVEL_REGULARIZATION I``, the same damping) already picks; one QP solve fewer;
 - hard rows that bound one joint each (joint limits, joint speeds) become the variable bounds lbx, ubx
   (their intersection); every other hard row is a row of A;
 - a soft constraint's rows get its slack: A dq + s >= c lb (and A dq - s <= c ub for two-sided rows), s >= 0.
@@ -189,6 +191,8 @@ def assemble(task: ir.Task, robot: Robot) -> AssembledProblem:
     H = HESSIAN_FLOOR * ca.SX.eye(nq + n_slack) + sum(level.H - HESSIAN_FLOOR * ca.SX.eye(nq + n_slack)
                                                       for level in levels)
     g = sum(level.g for level in levels)
+    if len(levels) > 1 and all(name == "damping()" for name in levels[-1].names):
+        levels = levels[:-1]        # solved by every level's Tikhonov term already (qp.LEVEL_REGULARIZATION)
     outputs = [H, g, A, lba, uba, ca.vertcat(*lbx), ca.vertcat(*ubx)]
     names = ["H", "g", "A", "lba", "uba", "lbx", "ubx"]
     if len(levels) > 1:
