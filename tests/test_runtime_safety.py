@@ -259,11 +259,14 @@ def test_a_float32_max_push_on_a_bounds_only_task_saturates_along_the_push(tmp_p
 @pytest.mark.parametrize("backend", ["native", "interpreted"])
 def test_an_unreachable_pivot_falls_back_safely_and_names_the_rows(task_b, backend):
     ctrl = vfdsl.compile(task_b, backend=backend)
-    for pivot in ([0, 0, 1e300], [1e154, -1e154, 0.29], [0.05, 0, 0.29]):
+    for pivot in ([0, 0, 1.8], [-1.5, 1.5, 0.29], [0.05, 0, 0.29]):       # plausible (within 1.86 m), not reachable
         dq = ctrl.step(task_b.start, TAU, params={"pivot": pivot})
         assert np.all(np.isfinite(dq)) and _in_bounds(ctrl, task_b.start, TAU, dq)
         assert ctrl.status & StepStatus.LEAST_VIOLATION
         assert any(v.label.primitive == "stays_at" and v.unit == "m" for v in ctrl.violations())
+    for pivot in ([0, 0, 1e300], [1e154, -1e154, 0.29], [0, 0, 1.9]):      # beyond: refused before anything moves
+        with pytest.raises(VfError, match="param 'pivot' is .* m: beyond 1.86 m, the largest coordinate plausible"):
+            ctrl.step(task_b.start, TAU, params={"pivot": pivot})
 
 
 # ---------------------------------------------------------------------------------- observability

@@ -17,12 +17,14 @@ from pathlib import Path
 
 import vfdsl
 from vfdsl.codegen.build import BuiltLibrary, CompilerUnavailable, build_library, load_module
+from vfdsl.compiler.admissible import Admissible
 from vfdsl.compiler.assemble import AssembledProblem, assemble
 from vfdsl.errors import VfError
 from vfdsl.ir import model as ir
 from vfdsl.kinematics.robot import Robot
 from vfdsl.runtime.controller import Controller
 from vfdsl.runtime.native import BufferedFunction, LockedRunner, StepperRunner
+from vfdsl.runtime.values import RuntimeValues
 from vfdsl.runtime.qp import build_step_function
 
 # A row or bound is satisfied within this much (m or rad): far below any tolerance a task can express.
@@ -74,7 +76,11 @@ def build(task: ir.Task, *, backend: str = "auto", cache_dir: str | Path | None 
     global _warned
     if backend not in BACKENDS:
         raise VfError(f"unknown backend '{backend}'; use one of {', '.join(BACKENDS)}")
-    problem = assemble(task, Robot.load(task.robots[0].urdf))
+    robot = Robot.load(task.robots[0].urdf)
+    problem = assemble(task, robot)
+    admissible = Admissible(task, robot.reach)
+    values = RuntimeValues(task, problem.context.input_offsets, admissible, robot.lower, robot.upper,
+                           robot.joint_names)
     digest = ir_digest(task)
     prefix = symbol_prefix(task, digest)
     step = build_step_function(problem.function, prefix, row_groups=problem.row_groups,
@@ -82,8 +88,9 @@ def build(task: ir.Task, *, backend: str = "auto", cache_dir: str | Path | None 
     if backend != "interpreted":
         try:
             library = build_library(step, prefix, Path(cache_dir or default_cache_dir()),
-                                    metadata(task, problem, digest), persistent_daqp=persistent_daqp)
-            return Controller(task, problem, _native_runner(task, problem, library, prefix),
+                                    metadata(task, problem, admissible, digest), persistent_daqp=persistent_daqp,
+                                    companions=(admissible.function,))
+            return Controller(task, problem, values, _native_runner(values, problem, library, prefix),
                               FEASIBILITY_TOLERANCE), library
         except CompilerUnavailable as exc:
             if backend == "native":
@@ -92,20 +99,20 @@ def build(task: ir.Task, *, backend: str = "auto", cache_dir: str | Path | None 
                 warnings.warn(f"{exc.message}; running the controller interpreted (same answers, slower)",
                               InterpretedFallback, stacklevel=2)
                 _warned = True
-    runner = LockedRunner(BufferedFunction.interpreted(step), problem.nq, problem.context.layout.defaults)
-    return Controller(task, problem, runner, FEASIBILITY_TOLERANCE), None
+    runner = LockedRunner(BufferedFunction.interpreted(step), values)
+    return Controller(task, problem, values, runner, FEASIBILITY_TOLERANCE), None
 
 
-def _native_runner(task: ir.Task, problem: AssembledProblem, library: BuiltLibrary, prefix: str):
+def _native_runner(values: RuntimeValues, problem: AssembledProblem, library: BuiltLibrary, prefix: str):
     """The generated step through the task's Python extension, or, when it could not be built (no
     Python headers), through CasADi's loader of the C library (same answers, the checks in Python)."""
     if library.module_path is not None:
-        return StepperRunner(load_module(library.module_path), **Controller.runner_layout(task, problem))
-    return LockedRunner(BufferedFunction.native(library.so_path, prefix), problem.nq,
-                        problem.context.layout.defaults)
+        return StepperRunner(load_module(library.module_path), values, problem.nq + problem.n_slack,
+                             len(problem.row_labels))
+    return LockedRunner(BufferedFunction.native(library.so_path, prefix), values)
 
 
-def metadata(task: ir.Task, problem: AssembledProblem, digest: str) -> dict:
+def metadata(task: ir.Task, problem: AssembledProblem, admissible: Admissible, digest: str) -> dict:
     """What a caller of the generated library needs to know: layouts, rows and where they come from."""
     ctx = problem.context
     return {
@@ -121,6 +128,7 @@ def metadata(task: ir.Task, problem: AssembledProblem, digest: str) -> dict:
         "param_layout": [{"name": s.name, "type": s.type, "offset": s.offset, "size": s.size}
                    for s in ctx.layout.slots.values() if s.size],
         "default_params": ctx.layout.defaults.tolist(),
+        "param_checks": {"count": len(admissible.margins), "strict": admissible.strict.tolist()},
         "period": task.scene.period,
         "rows": [{"label": str(label), "primitive": label.primitive, "frame": label.frame,
                   "file": label.span.file, "line": label.span.line, "group": group}

@@ -92,6 +92,9 @@ HEADER_CONTRACT = """
  * - The function does not check its inputs: pass finite numbers, q within the joint limits (or near
  *   them), dt > 0, recover = 0 (1 forces the least-violation phase). Whatever they are, x is finite and
  *   inside the joint bounds, or the rest motion with the FALLBACK bit (4) in status.
+ * - Params other than the defaults: check them first with @PREFIX@_admissible(arg = {p}, res = {margins},
+ *   iw, w, 0) (sizes: @PREFIX@_admissible_work); check i holds iff margins[i] is finite and >= 0 (> 0 where
+ *   "strict" in the .json), and the .json lists what each check means. Step only when every check holds.
  * - status bits: 0 OPTIMAL, 1 LEAST_VIOLATION, 2 BOUNDS_CLIPPED, 4 FALLBACK; violation[i] is row i's
  *   excess (the rows are listed in the .json next to this header).
  * - The first call on a slot allocates the DAQP workspaces; later calls allocate nothing.
@@ -131,11 +134,12 @@ class Compiler:
 
 
 def build_library(fn: ca.Function, prefix: str, cache_dir: Path, metadata: dict, *,
-                  persistent_daqp: bool = True) -> BuiltLibrary:
+                  persistent_daqp: bool = True, companions: tuple[ca.Function, ...] = ()) -> BuiltLibrary:
     """The cached library of ``fn``, exported as C symbol ``prefix``; built if needed.
 
     ``persistent_daqp``: replace CasADi's DAQP interface by the allocation-free, warm-started one
-    (module docstring)."""
+    (module docstring). ``companions``: more functions in the same C file, each exported as
+    ``<prefix>_<its name>`` (e.g. the task's run-time checks, ``<prefix>_admissible``)."""
     if not _IDENTIFIER.fullmatch(prefix):
         raise ValueError(f"prefix {prefix!r} is not a C identifier")
     cache_dir = Path(cache_dir)
@@ -153,7 +157,7 @@ def build_library(fn: ca.Function, prefix: str, cache_dir: Path, metadata: dict,
     try:
         with work_dir as tmp:
             work = Path(tmp)
-            source, header = _generate(fn, prefix, work, persistent_daqp)
+            source, header = _generate(fn, prefix, work, persistent_daqp, companions)
             digest = _digest(source, header, compiler, metadata)
             entry = cache_dir / f"{prefix}-{digest[:16]}"
             found = _verified(entry, prefix, digest)
@@ -217,13 +221,14 @@ def _tail(text: str, lines: int = 25) -> str:
     return "\n".join(text.strip().splitlines()[-lines:])
 
 
-def _generate(fn: ca.Function, prefix: str, work: Path, persistent_daqp: bool) -> tuple[str, str]:
-    """Write ``<prefix>.c``/``.h`` into ``work`` (the function exported as ``prefix``)."""
-    if fn.name() != prefix:
-        args = fn.mx_in()
-        fn = ca.Function(prefix, args, fn.call(args), fn.name_in(), fn.name_out())
+def _generate(fn: ca.Function, prefix: str, work: Path, persistent_daqp: bool,
+              companions: tuple[ca.Function, ...] = ()) -> tuple[str, str]:
+    """Write ``<prefix>.c``/``.h`` into ``work`` (the function exported as ``prefix``, its companions as
+    ``<prefix>_<name>``)."""
     generator = ca.CodeGenerator(f"{prefix}.c", {"with_header": True})
-    generator.add(fn)
+    generator.add(_renamed(fn, prefix))
+    for companion in companions:
+        generator.add(_renamed(companion, f"{prefix}_{companion.name()}"))
     generator.generate(str(work) + os.sep)
     c_path, h_path = work / f"{prefix}.c", work / f"{prefix}.h"
     source = _NONFATAL_FAILURE.sub("/* vfdsl: solver failure reported through the outputs */",
@@ -235,6 +240,13 @@ def _generate(fn: ca.Function, prefix: str, work: Path, persistent_daqp: bool) -
     header = h_path.read_text() + HEADER_CONTRACT.replace("@PREFIX@", prefix).replace("@SLOTS@", str(MAX_SLOTS))
     h_path.write_text(header)
     return source, header
+
+
+def _renamed(fn: ca.Function, name: str) -> ca.Function:
+    if fn.name() == name:
+        return fn
+    args = fn.mx_in()
+    return ca.Function(name, args, fn.call(args), fn.name_in(), fn.name_out())
 
 
 def _with_persistent_daqp(source: str) -> str:

@@ -18,7 +18,7 @@ import numpy as np
 
 from vfdsl.compiler import derived
 from vfdsl.compiler.curve import Closest, SplineCurve
-from vfdsl.compiler.geometry import homogeneous, normalize, rpy_matrix
+from vfdsl.compiler.geometry import homogeneous, normalize, normalize_scaled, rpy_matrix
 from vfdsl.ir import model as ir
 from vfdsl.kinematics.robot import Robot
 from vfdsl.kinematics.symbolic import SymbolicKinematics
@@ -166,13 +166,13 @@ class ParamReader:
         return flat if pose is None else pose[0] @ flat
 
     def direction(self, arg) -> ca.SX:
-        return normalize(self.vector(arg))
+        return (normalize if isinstance(arg, ir.Derived) else normalize_scaled)(self.vector(arg))
 
     def line(self, arg) -> Line:
         if isinstance(arg, ir.Derived):
             return Line(*self.derived(arg))
         flat, _ = self._raw(arg)
-        point, direction = flat[0:3], normalize(flat[3:6])
+        point, direction = flat[0:3], normalize_scaled(flat[3:6])
         pose = self._pose_of(arg)
         if pose is not None:
             point, direction = pose[0] @ point + pose[1], pose[0] @ direction

@@ -7,24 +7,25 @@ Points, vectors and directions are 3-vectors, scalars 1 x 1; a line is (point, u
     normalize: a / |a|     line2 (through a and b): (a, (b - a) / |b - a|)     line, plane: (a, d / |d|)
 
 A vector shorter than ``MIN_NORM`` (SI units of its dimension: 1 nm for a length) has no direction.
-:func:`check` refuses it, and any derived value that overflows, with a VfError at the expression (at load
-time with the params' values, and each tick a caller passes params); in the generated code the division is
-guarded (no NaN).
+:func:`add_checks` writes these checks into a task's column of margins (:mod:`vfdsl.compiler.admissible`):
+a VfError at the expression at load time with the params' values, and each tick a caller passes params, in
+Python and in the generated C alike; in the step itself the division is guarded (no NaN).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from functools import partial
 from typing import Callable
 
 import casadi as ca
 import numpy as np
 
 from vfdsl.compiler.geometry import normalize
-from vfdsl.errors import VfError
+from vfdsl.compiler.margins import Check, Margins
 from vfdsl.ir import model as ir
 
 MIN_NORM = 1e-9
+_LARGEST = float(np.finfo(float).max)
 
 Read = Callable[[ir.Arg], object]                 # a non-derived argument -> its DM/SX value in the world
 Unit = Callable[[object, ir.Derived], object]     # (vector, the node normalizing it) -> the unit vector
@@ -55,61 +56,36 @@ def evaluate(arg: ir.Arg, read: Read, unit: Unit = lambda v, node: normalize(v))
     return x[0], unit(x[1], arg)                  # line (point, direction), plane (point, normal)
 
 
-@dataclass(frozen=True)
-class Checks:
-    """What the entries of a check column are: the length each normalization divides by, then the value
-    of each derived argument (a line or plane as point, then unit vector)."""
-
-    lengths: list[ir.Derived]
-    values: list[tuple[ir.Derived, int]]              # (argument, size of its value)
-
-
-def checks(args: list[ir.Derived], read: Read) -> tuple[Checks, object]:
-    """The check column of ``args`` (DM numbers, or SX to build a function of p) and what its entries are."""
-    lengths, values, column = [], [], []
-
-    def record(v, node):
-        lengths.append(node)
-        column.append(ca.norm_2(v))
+def add_checks(margins: Margins, arg: ir.Derived, read: Read) -> None:
+    """Append the checks of ``arg`` to ``margins`` (:mod:`vfdsl.compiler.margins`), in evaluation order: every
+    vector it normalizes at least ``MIN_NORM`` long and finite, then its value finite."""
+    def unit(v, node: ir.Derived):
+        margins.add(ca.norm_2(v) - MIN_NORM, Check(partial(_zero_message, node), node.span.pos(), _ZERO_HINT))
         return normalize(v)
-    for arg in args:
-        value = evaluate(arg, read, record)
-        value = ca.vertcat(*value) if isinstance(value, tuple) else value
-        values.append((arg, value.numel()))
-        column.append(value)
-    return Checks(lengths, values), ca.vertcat(*column)
-
-
-def verify(what: Checks, column, when: str = "") -> None:
-    """VfError at the first normalization whose vector is too short (or not finite), or at the first derived
-    argument whose value is not finite; ``when`` prefixes the message."""
-    numbers = np.asarray(column, dtype=float).ravel()
-    for node, norm in zip(what.lengths, numbers):
-        zero_error(node, float(norm), when)
-    at = len(what.lengths)
-    for node, size in what.values:
-        if not np.all(np.isfinite(numbers[at:at + size])):
-            raise VfError(f"{when}this value is too large (SI numbers overflow)", node.span.pos())
-        at += size
+    value = evaluate(arg, read, unit)
+    numbers = ca.vertcat(*value) if isinstance(value, tuple) else value
+    margins.add(_LARGEST - ca.mmax(ca.fabs(numbers)),          # not 0 * |v|: CasADi folds that to 0
+                Check(lambda margin, p: "this value is too large (SI numbers overflow)", arg.span.pos()))
 
 
 def check(arg: ir.Derived, read: Read, when: str = "") -> None:
-    """:func:`verify` of one argument, with numbers."""
-    what, column = checks([arg], read)
-    verify(what, ca.DM(column), when)
+    """VfError (prefixed by ``when``) at the first check of ``arg`` that fails, with numbers (``read`` gives DM)."""
+    margins = Margins()
+    add_checks(margins, arg, read)
+    margins.verify(ca.DM(margins.symbolic()), when=when)
 
 
-def zero_error(node: ir.Derived, norm: float, when: str = "") -> None:
-    """Raise when ``norm`` (the length ``node`` divides by) is too short to give a direction, or not finite."""
-    if MIN_NORM <= norm < np.inf:
-        return
-    if not norm < np.inf:
-        raise VfError(f"{when}the vector this normalizes is too large (SI numbers overflow)", node.span.pos())
+_ZERO_HINT = ("a derived direction needs two distinct points, or a non-zero, non-parallel vector "
+              f"(at least {MIN_NORM:g} SI)")
+
+
+def _zero_message(node: ir.Derived, margin: float, p) -> str:
+    """What is wrong when the length ``node`` divides by is ``margin + MIN_NORM``."""
+    if not np.isfinite(margin):
+        return "the vector this normalizes is too large (SI numbers overflow)"
     what = {"line2": "the two points of this line coincide",
             "normalize": "this vector is zero"}.get(node.op, "this direction is zero")
-    raise VfError(f"{when}{what} (length {norm:.3g} SI): it has no direction", node.span.pos(),
-                  hint="a derived direction needs two distinct points, or a non-zero, non-parallel vector "
-                       f"(at least {MIN_NORM:g} SI)")
+    return f"{what} (length {margin + MIN_NORM:.3g} SI): it has no direction"
 
 
 def derived_args(task: ir.Task) -> list[ir.Derived]:

@@ -43,6 +43,19 @@ def normalize(v):
     return v / ca.sqrt(ca.sumsqr(v) + _TINY)
 
 
+def scaled_norm(v):
+    """|v| computed from v / max|v_i|, so that neither 1e-160 nor 1e160 components under- or overflow
+    (NaN for v = 0)."""
+    largest = ca.mmax(ca.fabs(v))
+    return largest * ca.norm_2(v / largest)
+
+
+def normalize_scaled(v):
+    """v / |v| for a value given from outside (a run-time direction), scaled first as in :func:`scaled_norm`
+    (0 for v = 0)."""
+    return normalize(v / (ca.mmax(ca.fabs(v)) + 1e-300))
+
+
 def plane_basis(l):
     """v1, v2 spanning the plane normal to the unit vector l (paper eq. 8), with l' = x unless l is near x."""
     helper = ca.if_else(ca.fabs(l[0]) < 0.9, ca.DM([1.0, 0.0, 0.0]), ca.DM([0.0, 1.0, 0.0]))

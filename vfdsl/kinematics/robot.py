@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from functools import cached_property
 from pathlib import Path
 from xml.parsers import expat
 
@@ -144,6 +145,19 @@ class Robot:
     def link_names(self) -> list[str]:
         """The URDF's link names (Pinocchio BODY frames), in model order."""
         return list(self._links)
+
+    @cached_property
+    def reach(self) -> float:
+        """An upper bound (m) of how far any link frame can be from the base: along each chain, the sum of
+        the joints' placement offsets, each prismatic joint's longest extension and the frame's offset."""
+        model = self.model
+        joint_reach = np.zeros(model.njoints)
+        for j in range(1, model.njoints):
+            k = j - 1
+            extension = max(abs(self.lower[k]), abs(self.upper[k])) if self.joint_types[k] == "prismatic" else 0.0
+            joint_reach[j] = (joint_reach[model.parents[j]] + np.linalg.norm(model.jointPlacements[j].translation)
+                              + extension)
+        return float(max(joint_reach[f.parentJoint] + np.linalg.norm(f.placement.translation) for f in model.frames))
 
     def frame_id(self, link: str) -> int:
         """Pinocchio frame index of ``link``; VfError with close matches if there is no such link."""

@@ -14,6 +14,7 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
+from vfdsl.compiler.admissible import Admissible
 from vfdsl.compiler.geometry import compose, rotation
 from vfdsl.errors import VfError, suggest
 from vfdsl.ir import model as ir
@@ -111,11 +112,29 @@ class Resolver:
             except VfError as error:
                 raise scope.note(error) from None
         robot_decl, robot = next(iter(self.robots.values()))
-        return ir.Task(
+        task = ir.Task(
             name=self.module.name.text, file=str(self.path), span=self.module.span,
             robots=[robot_decl], frames=list(self.frames.values()), inputs=list(self.inputs.values()),
             params=list(self.params.values()), objectives=objectives, constraints=constraints,
             scene=self._scene_ir(scene, robot), imports=imports)
+        self._check_param_values(task, robot)
+        return task
+
+    def _check_param_values(self, task: ir.Task, robot: Robot) -> None:
+        """The params' values (the task's defaults, or the scene's) pass the checks a run-time value gets
+        (:mod:`vfdsl.compiler.admissible`); an error points at the value, in the task or the scene file."""
+        admissible = Admissible(task, robot.reach)
+        p = admissible.layout.defaults
+        numbers = admissible.function(p)
+        i = admissible.margins.first_failure(numbers)
+        if i < 0:
+            return
+        error = admissible.margins.error(i, numbers, p, "with the params' values, ")
+        name = admissible.margins.checks[i].param
+        if name is not None:
+            error = VfError(error.message, self.param_values[name].span.pos(), error.hint,
+                            notes=(f"param '{name}' is declared at {self.params[name].span}",))
+        raise error
 
     # ---------------------------------------------------------------------------------- declarations
     def _declare(self, name: ast.Name) -> None:

@@ -14,6 +14,7 @@ from __future__ import annotations
 import math
 from typing import Callable
 
+from vfdsl.compiler.admissible import MIN_DIRECTION_NORM
 from vfdsl.compiler.curve import MIN_SAMPLES, SAMPLE_SPACING
 from vfdsl.errors import VfError
 from vfdsl.ir import model as ir
@@ -112,7 +113,7 @@ class LiteralReader:
                           hint="write it like [0, -0.2, 1]")
         xyz = self.numbers3(value, u.DIMENSIONLESS, "direction")
         norm = math.hypot(*xyz)
-        if norm < 1e-12:
+        if not norm >= MIN_DIRECTION_NORM:
             raise VfError("a direction cannot be zero", value.span.pos(), hint="give a non-zero vector, e.g. [0, 0, 1]")
         return [c / norm for c in xyz]
 

@@ -20,7 +20,7 @@ from vfdsl.compiler.assemble import AssembledProblem, RowLabel
 from vfdsl.ir import model as ir
 from vfdsl.primitives import CONSTRAINTS
 from vfdsl.runtime.qp import StepStatus
-from vfdsl.runtime.values import MAX_PERIOD, RuntimeValues
+from vfdsl.runtime.values import RuntimeValues
 
 _UNITS = {"length": "m", "angle": "rad"}
 
@@ -71,18 +71,17 @@ class Controller:
     of one task run in parallel threads and give the same dq as alone; one controller called from two
     threads at once serialises the calls (a lock), never mixes them."""
 
-    def __init__(self, task: ir.Task, problem: AssembledProblem, runner, feasibility_tolerance: float):
+    def __init__(self, task: ir.Task, problem: AssembledProblem, values: RuntimeValues, runner,
+                 feasibility_tolerance: float):
         self.task = task
         self.assembled = problem
         self.nq = problem.nq
         ctx = problem.context
-        robot = ctx.robot
         self.input_sizes = {d.name: d.size for d in task.inputs}
         self.param_names = [name for name, slot in ctx.layout.slots.items() if slot.size]
         self.param_defaults = {d.name: d.value for d in task.params if d.name in self.param_names}
         self.default_dt = task.scene.period
-        self._values = RuntimeValues(task, ctx.input_offsets, ctx.layout, robot.lower, robot.upper,
-                                     robot.joint_names)
+        self._values = values
         self._runner = runner
         self._fast = runner.fast_step
         self._tolerance = feasibility_tolerance
@@ -91,17 +90,6 @@ class Controller:
         self._slack_units = [_row_unit(label.primitive) for label in problem.slack_labels]
         if runner.kind == "native":
             self._prime()
-
-    @classmethod
-    def runner_layout(cls, task: ir.Task, problem: AssembledProblem) -> dict:
-        """What a :class:`~vfdsl.runtime.native.StepperRunner` needs to know of the task."""
-        ctx = problem.context
-        values = RuntimeValues(task, ctx.input_offsets, ctx.layout, ctx.robot.lower, ctx.robot.upper,
-                               ctx.robot.joint_names)
-        return {"nq": problem.nq, "n": problem.nq + problem.n_slack, "m": len(problem.row_labels),
-                "input_offsets": dict(ctx.input_offsets), "p_default": ctx.layout.defaults,
-                "q_range": (values.q_min, values.q_max), "dt_default": task.scene.period,
-                "dt_max": MAX_PERIOD}
 
     # -------------------------------------------------------------------------------------- API
     def step(self, q, inputs=None, params=None, dt=None) -> np.ndarray:
@@ -117,12 +105,12 @@ class Controller:
             if dq is not NotImplemented:
                 return dq
         v = self._values
-        return self._runner.run(v.q(q), v.inputs(inputs), v.params(params), v.dt(dt), 0.0)
+        return self._runner.run(v.q(q), v.inputs(inputs), v.params(params, self._runner.margins), v.dt(dt), 0.0)
 
     def problem(self, q, inputs=None, params=None, dt=None) -> QuadraticProgram:
         """The numeric QP of this tick (before the solver's safeguards), one label per row."""
         v = self._values
-        p = v.params(params)
+        p = v.params(params, self._runner.margins)
         args = (v.q(q), v.inputs(inputs), self.assembled.context.layout.defaults if p is None else p, v.dt(dt))
         H, g, A, lba, uba, lbx, ubx = (np.array(x) for x in self.assembled.function(*args)[:7])
         n = H.shape[0]

@@ -15,7 +15,8 @@ serialises its callers.
 
 A *runner* is what a :class:`~vfdsl.runtime.controller.Controller` calls each tick:
 ``run(q, u, p, dt, recover) -> dq`` on checked float64 arrays (``p`` None: the task's default params),
-the arrays ``x``, ``status`` and ``violation`` of its last evaluation, and ``fast_step``, an optional
+the arrays ``x``, ``status`` and ``violation`` of its last evaluation, ``margins`` (p -> the task's column of
+checks, :mod:`vfdsl.compiler.admissible`), and ``fast_step``, an optional
 ``(q, inputs, params, dt) -> dq or NotImplemented`` that takes plain arguments without the Python
 checks. :class:`StepperRunner` runs the generated C through the task's Python extension
 (``vfdsl/codegen/stepper.c``): own memory slot, GIL released during the solve, a fast path in C;
@@ -32,6 +33,7 @@ import casadi as ca
 import numpy as np
 
 from vfdsl.errors import VfError
+from vfdsl.runtime.values import MAX_PERIOD, RuntimeValues
 
 
 class BufferedFunction:
@@ -118,11 +120,12 @@ class LockedRunner:
 
     fast_step = None
 
-    def __init__(self, function: BufferedFunction, nq: int, p_default: np.ndarray):
+    def __init__(self, function: BufferedFunction, values: RuntimeValues):
         self.kind = function.kind
-        self.nq = nq
+        self.nq = values.nq
+        self.margins = values.admissible.function        # p -> the column of checks, interpreted
         self._function = function
-        self._p_default = p_default
+        self._p_default = values.layout.defaults
         self._lock = threading.Lock()
         self.x, self.status, self.violation = function.outputs
 
@@ -137,26 +140,30 @@ class LockedRunner:
 
 
 class StepperRunner:
-    """The task's Python extension: a ``Stepper`` with its own memory slot of the generated code."""
+    """The task's Python extension: a ``Stepper`` with its own memory slot of the generated code, whose fast
+    path checks params with the generated column of checks (``margins``)."""
 
     kind = "native"
 
-    def __init__(self, module, nq: int, n: int, m: int, input_offsets: dict[str, tuple[int, int]],
-                 p_default: np.ndarray, q_range: tuple[np.ndarray, np.ndarray], dt_default: float | None,
-                 dt_max: float):
-        nu = sum(size for _, size in input_offsets.values())
-        arrays = tuple(np.zeros(k) for k in (nq, nu, p_default.size, 1, 1, n, 1, m))
+    def __init__(self, module, values: RuntimeValues, n: int, m: int):
+        layout = values.layout
+        arrays = tuple(np.zeros(k) for k in (values.nq, values.n_inputs, layout.size, 1, 1, n, 1, m))
         self.x, self.status, self.violation = arrays[5:]
-        names = tuple(input_offsets)
+        names = tuple(values.input_offsets)
+        slots = [slot for slot in layout.slots.values() if slot.size]
+        dt_default = values.default_period
         try:
-            self.stepper = module.Stepper(arrays, np.ascontiguousarray(p_default, dtype=float), names,
-                                          tuple(input_offsets[k][0] for k in names),
-                                          tuple(input_offsets[k][1] for k in names),
-                                          np.concatenate(q_range).astype(float),
+            self.stepper = module.Stepper(arrays, np.ascontiguousarray(layout.defaults, dtype=float), names,
+                                          tuple(values.input_offsets[k][0] for k in names),
+                                          tuple(values.input_offsets[k][1] for k in names),
+                                          np.concatenate([values.q_min, values.q_max]).astype(float),
                                           float("nan") if dt_default is None else float(dt_default),
-                                          float(dt_max))
+                                          float(MAX_PERIOD), tuple(slot.name for slot in slots),
+                                          tuple(slot.offset for slot in slots), tuple(slot.size for slot in slots),
+                                          values.admissible.strict)
         except RuntimeError as e:
             raise VfError(f"cannot start another controller of this task: {e}",
                           hint="close (delete) controllers you no longer use") from None
         self.fast_step = self.stepper.step
         self.run = self.stepper.run
+        self.margins = self.stepper.margins

@@ -7,16 +7,10 @@ argument (``q``, ``input 'tau'``, ``param 'axis'``, ``dt``). Everything is SI.
 
 - q: within the joint limits widened by the joint's span on each side (a value further out is a
   faulty encoder or a unit mistake, e.g. degrees for radians, not a state to recover from);
-- directions, line directions and plane normals: not zero (|v| >= 1e-12, computed without under- or
-  overflow), normalized here;
-- scalar params: the ranges of every argument they feed (``vfdsl.primitives.spec``);
-- derived directions (``normalize(target - entry)``, ``line(entry, target)``): with the given params, every
-  vector they normalize is at least ``vfdsl.compiler.derived.MIN_NORM`` long (the default params were
-  checked at load time, so the fast path, which runs only on them, needs no check);
+- params: read here (types, shapes, finiteness), then checked by the task's column of margins
+  (:mod:`vfdsl.compiler.admissible`: zero directions, implausible points, lengths and angles, scalar
+  ranges, run-time curves, degenerate derived values), the same checks as at load time and in the generated C;
 - dt: in (0, MAX_PERIOD].
-- run-time curve points: the declared number of points (N x 3, finite), no coordinate beyond
-  MAX_CURVE_COORDINATE; consecutive points at least MIN_CHORD apart, and for a b-spline (interpolated with the chord lengths of its default points) each
-  chord within a factor CHORD_RATIO of its default chord, so the fixed parameters and search samples still fit.
 """
 
 from __future__ import annotations
@@ -25,39 +19,17 @@ import math
 import numbers
 from collections.abc import Mapping
 
-import casadi as ca
 import numpy as np
 from pydantic import BaseModel
 
-from vfdsl.compiler import derived
-from vfdsl.compiler.context import ParamReader, flatten
+from vfdsl.compiler.admissible import Admissible
+from vfdsl.compiler.context import flatten
 from vfdsl.errors import VfError, suggest
 from vfdsl.ir import model as ir
 
 MAX_PERIOD = 1.0
 """Longest control period accepted (s): a longer tick lets the speed bounds allow large jumps."""
-MIN_DIRECTION_NORM = 1e-12
-"""A direction shorter than this (before normalization) is taken for zero, at load and at run time."""
-
-MIN_CHORD = 1e-6
-"""Shortest distance (m) between consecutive run-time curve points: closer, they are taken for a repeated point."""
-MAX_CURVE_COORDINATE = 10.0
-"""Largest run-time curve coordinate (m): no robot reaches 10 m, and a point in mm read as m lands beyond it."""
-CHORD_RATIO = 2.0
-"""A run-time b-spline's chords may shrink or grow by at most this factor from its default points' chords."""
-
 _FIELDS = {"line": ("point", "direction"), "plane": ("point", "normal"), "pose": ("translation", "rpy")}
-_UNIT_PARTS = {"direction": (slice(0, 3),), "line": (slice(3, 6),), "plane": (slice(3, 6),)}
-
-
-def unit_direction(xyz, what: str) -> list[float]:
-    """``xyz`` normalized; VfError when it is (numerically) zero. math.hypot scales internally, so
-    neither 1e-160 nor 1e160 components under- or overflow."""
-    norm = math.hypot(*xyz)
-    if not norm >= MIN_DIRECTION_NORM:
-        raise VfError(f"{what} is a zero direction ({_show(xyz)}, length {norm:.3g})",
-                      hint="give a non-zero vector, e.g. [0, 0, 1]")
-    return [float(c) / norm for c in xyz]
 
 
 def real_vector(value, size: int, what: str) -> np.ndarray:
@@ -119,20 +91,19 @@ def _show(values) -> str:
 class RuntimeValues:
     """The checks of one task's run-time values (its inputs, params, joints and period)."""
 
-    def __init__(self, task: ir.Task, input_offsets: dict[str, tuple[int, int]], layout,
+    def __init__(self, task: ir.Task, input_offsets: dict[str, tuple[int, int]], admissible: Admissible,
                  lower: np.ndarray, upper: np.ndarray, joint_names: list[str]):
         self.task = task
         self.nq = len(lower)
         self.input_offsets = input_offsets
         self.n_inputs = sum(size for _, size in input_offsets.values())
-        self.layout = layout
+        self.admissible = admissible
+        self.layout = admissible.layout
         self.joint_names = joint_names
         span = np.where(np.isfinite(upper - lower), upper - lower, np.inf)
         self.lower, self.upper = lower, upper
         self.q_min, self.q_max = lower - span, upper + span
         self.default_period = task.scene.period
-        self.ranges = _param_ranges(task)
-        self._derived = _derived_checks(task)
 
     # ------------------------------------------------------------------------------------------ q
     def q(self, value) -> np.ndarray:
@@ -163,8 +134,9 @@ class RuntimeValues:
         return u
 
     # ------------------------------------------------------------------------------------- params
-    def params(self, value) -> np.ndarray | None:
-        """The full param vector with ``value``'s entries replaced, or None for the defaults."""
+    def params(self, value, margins=None) -> np.ndarray | None:
+        """The full param vector with ``value``'s entries replaced, or None for the defaults. ``margins``:
+        p -> the task's column of checks (default: evaluated by CasADi; a runner gives its generated C's)."""
         if value is None:
             return None
         if not isinstance(value, Mapping):
@@ -178,9 +150,7 @@ class RuntimeValues:
                 known = [n for n, s in self.layout.slots.items() if s.size]
                 raise VfError(f"unknown run-time param {name!r}", hint=suggest(str(name), known, "params"))
             p[slot.offset:slot.offset + slot.size] = self.param(name, slot.type, slot.size, given)
-        if self._derived is not None:
-            what, function = self._derived
-            derived.verify(what, function(p), f"with params {', '.join(map(repr, value))}, ")
+        self.admissible.verify(p, (margins or self.admissible.function)(p), f"with params {', '.join(map(repr, value))}, ")
         return p
 
     def param(self, name: str, kind: str, size: int, value) -> np.ndarray:
@@ -195,17 +165,11 @@ class RuntimeValues:
             value = self._from_mapping(what, kind, value)
         elif size == 1 and not isinstance(value, (list, tuple, np.ndarray)):
             value = [real_scalar(value, what)]          # a scalar param given as a number
-        flat = real_vector(value, size, what)
-        for part in _UNIT_PARTS.get(kind, ()):
-            flat[part] = unit_direction(flat[part], what if kind == "direction" else f"{what}'s {_FIELDS[kind][1]}")
-        for low_high, use in self.ranges.get(name, ()):
-            problem = low_high.violation(float(flat[0]))
-            if problem:
-                raise VfError(f"{what} = {flat[0]:.6g} (SI) {problem}, as the {use} it feeds")
-        return flat
+        return real_vector(value, size, what)
 
     def _curve(self, what: str, default: ir.CurveValue, value) -> np.ndarray:
-        """Run-time points of a ``runtime`` curve: N x 3 (a list of points, an array, or a curve value)."""
+        """Run-time points of a ``runtime`` curve: N x 3 (a list of points, an array, or a curve value), read
+        (their geometry is checked with the other params)."""
         n = len(default.points)
         if isinstance(value, ir.CurveValue):
             if value.degree != default.degree:
@@ -223,25 +187,6 @@ class RuntimeValues:
                    f"an array of {value.dtype}, shape {value.shape}" if isinstance(value, np.ndarray) else _describe(value))
             raise VfError(f"{what} must be {n} points [x, y, z] (its declared count), got {got}",
                           hint="a run-time curve keeps the number of points of its default value")
-        far = np.flatnonzero(np.abs(points).max(axis=1) > MAX_CURVE_COORDINATE)
-        if far.size:
-            raise VfError(f"{what}'s point {far[0] + 1} is {_show(points[far[0]])} m: beyond "
-                          f"{MAX_CURVE_COORDINATE:g} m from its frame's origin",
-                          hint="run-time values are in metres (millimetres given as metres?)")
-        chords = np.linalg.norm(np.diff(points, axis=0), axis=1)
-        repeated = ~(chords >= MIN_CHORD)
-        ratio = chords / np.linalg.norm(np.diff(np.array(default.points), axis=0), axis=1)
-        stretched = ~((ratio >= 1 / CHORD_RATIO) & (ratio <= CHORD_RATIO)) if default.degree > 1 else repeated
-        bad = np.flatnonzero(repeated | stretched)
-        if bad.size:
-            k = int(bad[0])
-            if repeated[k]:
-                raise VfError(f"{what}'s points {k + 1} and {k + 2} are {chords[k]:.3g} m apart: a repeated point",
-                              hint=f"consecutive points must be at least {MIN_CHORD:g} m apart")
-            raise VfError(f"{what}'s points {k + 1} and {k + 2} are {chords[k]:.6g} m apart, {ratio[k]:.3g} x their "
-                          f"default distance ({chords[k] / ratio[k]:.6g} m); a run-time b-spline may stretch each "
-                          f"span by at most {CHORD_RATIO:g} x", hint="its parameters are fixed from the default "
-                          "points: give the curve default points close to the shapes it takes, or use degree 1")
         return points.reshape(-1)
 
     def _from_mapping(self, what: str, kind: str, value: Mapping) -> list:
@@ -269,31 +214,3 @@ def _ir_kind(kind: str) -> str:
 
 def _article(kind: str) -> str:
     return ("an " if kind[:1] in "aeiou" else "a ") + kind
-
-
-def _derived_checks(task: ir.Task) -> tuple[derived.Checks, ca.Function] | None:
-    """The checks of the task's derived arguments and a function p -> their check column (None: no derived
-    argument)."""
-    reader = ParamReader(task.params)
-    args = derived.derived_args(task)
-    if not args:
-        return None
-    what, column = derived.checks(args, reader.read)
-    return what, ca.Function("derived_checks", [reader.p], [column])
-
-
-def _param_ranges(task: ir.Task) -> dict[str, list]:
-    """param name -> [(Range, 'argument x of y'), ...]: the allowed range (``ArgSpec.range``) of every
-    argument the param feeds, so that a run-time value meets the same range as a literal."""
-    from vfdsl.objectives import OBJECTIVES
-    from vfdsl.primitives import CONSTRAINTS
-    out: dict[str, list] = {}
-    for statement in [*task.constraints, *task.objectives]:
-        name = statement.primitive if isinstance(statement, ir.Constraint) else statement.term
-        spec = CONSTRAINTS.get(name) or OBJECTIVES.get(name)
-        for arg_spec in spec.args if spec else ():
-            arg = statement.args.get(arg_spec.name)
-            allowed = getattr(arg_spec, "range", None)
-            if isinstance(arg, ir.ParamRef) and allowed is not None:
-                out.setdefault(arg.name, []).append((allowed, f"argument '{arg_spec.name}' of {name}"))
-    return out
