@@ -75,6 +75,19 @@ PINK_RATIO_TARGET = 20.0
 STEP_RATIO_TARGET = 1.3       # Controller.step() / bare generated call, median
 ROWS_TARGET = (1000, 150.0)
 COMPILE_TARGET = 10.0
+PARAMS_RATIO_TARGET = 2.0     # step() with params updated every tick / step() without, median
+# Section 6: a tracked vessel, a 20-point run-time b-spline 10 mm under the paper B tip, followed by the tip.
+VESSEL_TASK = """task vessel_20
+robot shr = urdf "shr7"
+frame tip = shr.link("tool_tip")
+input f : force
+param vessel : curve(degree = 3, runtime = true) = [{points}]
+minimize track(tip, f, gain = 0.002)
+minimize damping() weight 1e-6
+require tip follows(vessel) within 0.0005 resolution 8
+require joint_limits()
+require joint_speed()
+"""
 
 
 def log(msg: str) -> None:
@@ -317,6 +330,74 @@ def experiment(name: str, task, driver, ticks: int, record_ticks: int, cache: Pa
             "_states": (qs, dicts)}
 
 
+def time_params(ctrl, qs, inputs: list[dict], dt: float, ticks: int, params: dict, move) -> dict:
+    """Controller.step with ``params`` (preallocated arrays, or lists) changed by move(i) before the tick at
+    recorded state i (as they were when the states were recorded)."""
+    step, pc, m = ctrl.step, time.perf_counter_ns, len(qs)
+    out = np.empty(ticks, np.int64)
+    gc.disable()
+    try:
+        for k in range(WARMUP + ticks):
+            i = k % m
+            q, u = qs[i], inputs[i]
+            move(i)
+            t0 = pc()
+            step(q, u, params, dt)
+            t1 = pc()
+            if k >= WARMUP:
+                out[k - WARMUP] = t1 - t0
+    finally:
+        gc.enable()
+    return stats(out)
+
+
+def params_section(exps: dict, ticks: int, cache: Path) -> dict:
+    """Section 6: B with its pivot re-registered every tick (1 um circle), as an array and as a list, and a
+    20-point run-time curve moved every tick (a 0.25 Hz, 2 mm breathing), against the same states without."""
+    out = {}
+    task = vfdsl.load(TASKS / "paper_b_virtual_rcm.vf")
+    native, _ = pipeline.build(task, backend="native", cache_dir=cache)
+    qs, dicts = exps["paper_b_virtual_rcm"]["_states"]
+    dt = task.scene.period
+    pivot0 = np.array(task.param("pivot").value.xyz)
+    array = {"pivot": pivot0.copy()}
+    listed = {"pivot": pivot0.tolist()}
+
+    def move_array(k):
+        array["pivot"][0] = pivot0[0] + 1e-6 * np.cos(0.01 * k)
+
+    def move_list(k):
+        listed["pivot"] = [pivot0[0] + 1e-6 * np.cos(0.01 * k), pivot0[1], pivot0[2]]
+    log(f"[params] B with a re-registered pivot ({ticks} ticks each)")
+    out["B pivot"] = {"without": time_step(native, qs, dicts, dt, ticks),
+                      "array": time_params(native, qs, dicts, dt, ticks, array, move_array),
+                      "list": time_params(native, qs, dicts, dt, ticks, listed, move_list)}
+    s = np.linspace(0, 1, 20)
+    vessel0 = np.column_stack([0.06 * (s - 0.5), 0.004 * np.sin(3 * s), np.full(20, 0.28)])
+    vessel_task_path = cache / "vessel_20.vf"
+    vessel_task_path.write_text(VESSEL_TASK.format(points=", ".join(f"[{x!r}, {y!r}, {z!r}]" for x, y, z in vessel0.tolist())))
+    vessel = vfdsl.load(vessel_task_path)
+    ctrl, _ = pipeline.build(vessel, backend="native", cache_dir=cache)
+    start = np.array(task.start, dtype=float)
+    moving = {"vessel": vessel0.copy()}
+
+    def breathe(k):
+        moving["vessel"][:, 2] = vessel0[:, 2] + 0.002 * np.sin(2 * np.pi * 0.25 * k * dt)
+
+    def drive(k, q):
+        return {"f": np.array([2.0 * np.cos(0.002 * k), 0.5, 0.0])}
+
+    def drive_breathing(k, q):
+        breathe(k)
+        return drive(k, q)
+    still_qs, _, still_dicts, _ = record(ctrl, start, drive, dt, 4_000, None)
+    vqs, _, vdicts, _ = record(ctrl, start, drive_breathing, dt, 4_000, moving)   # closed loop on the moving curve
+    log(f"[params] a 20-point run-time curve moved every tick ({ticks} ticks each)")
+    out["curve 20 points"] = {"without": time_step(ctrl, still_qs, still_dicts, dt, ticks),
+                              "array": time_params(ctrl, vqs, vdicts, dt, ticks, moving, breathe)}
+    return out
+
+
 def panda_tip_error(task, states, dt) -> float:
     """vfdsl's open-loop tracking: largest distance of the tip from the circle target over the recording (mm)."""
     robot = Robot.load("panda7")
@@ -380,7 +461,7 @@ def verdict(ok: bool) -> str:
     return "PASS" if ok else "MISS"
 
 
-def report(m: dict, exps: dict, pink: dict, rows: list[dict], compiles: list[dict], quick: bool,
+def report(m: dict, exps: dict, pink: dict, rows: list[dict], compiles: list[dict], params: dict, quick: bool,
            elapsed: float) -> str:
     out = []
     w = out.append
@@ -481,6 +562,18 @@ def report(m: dict, exps: dict, pink: dict, rows: list[dict], compiles: list[dic
         w(f"{c['task']:<34}{c['rows']:>5}{c['fresh_s']:9.2f}{c['cached_s']:10.2f}{c['c_source_mb']:7.2f}   "
           f"fresh <= {COMPILE_TARGET:g} s: {verdict(c['fresh_s'] <= COMPILE_TARGET)}")
     w("")
+    w("6. Run-time params: step() with params changed every tick, against step() on the same states without")
+    w("-" * 100)
+    w(f"{'task':<22}{'params':<24}{'median':>8}{'p99':>8}{'max':>9}   ratio to without (median)")
+    for name, variants in params.items():
+        base = variants["without"]["median_us"]
+        for kind, v in variants.items():
+            ratio = v["median_us"] / base
+            target = "" if kind == "without" else (f"{ratio:.2f}  target <= {PARAMS_RATIO_TARGET:g}: "
+                                                   f"{verdict(ratio <= PARAMS_RATIO_TARGET)}")
+            what = {"without": "none (defaults)", "array": "preallocated arrays", "list": "a new list"}[kind]
+            w(f"{name:<22}{what:<24}{v['median_us']:8.2f}{v['p99_us']:8.2f}{v['max_us']:9.1f}   {target}")
+    w("")
     w(f"total run time {elapsed:.0f} s")
     return "\n".join(out)
 
@@ -508,6 +601,7 @@ def main(argv=None) -> int:
                                                               panda.scene.period)
         log(f"[pink] timing ({ticks} ticks)")
         pink = pink_baseline(ticks, 0.01)
+        params = params_section(exps, ticks, cache)
         rows = sweep(SWEEP_QUICK if args.quick else SWEEP_FULL, sweep_ticks, tmp)
         compiles = compile_times(sorted(TASKS.glob("*.vf")), tmp)
     for e in exps.values():
@@ -517,8 +611,9 @@ def main(argv=None) -> int:
     if args.json:
         Path(args.json).write_text(json.dumps({"machine": m, "quick": args.quick, "experiments": exps,
                                                "pink": pink, "rows_sweep": rows, "compile": compiles,
+                                               "params": params,
                                                "elapsed_s": elapsed}, indent=2))
-    print(report(m, exps, pink, rows, compiles, args.quick, elapsed))
+    print(report(m, exps, pink, rows, compiles, params, args.quick, elapsed))
     return 0
 
 

@@ -16,6 +16,7 @@ from vfdsl.codegen import build as build_module
 from vfdsl.errors import VfError
 from vfdsl.runtime import BufferedFunction, build_step_function
 
+NO_CHECKS = ca.Function("admissible", [ca.SX.sym("p", 0)], [ca.SX(0, 1)])   # params that need no check
 ARGS = (np.array([0.3, -0.2]), np.array([0.2, 0.05]), np.array([0.05]), np.array([0.01]), 0.0)
 
 
@@ -53,9 +54,9 @@ def interpreted_x() -> np.ndarray:
 
 
 def test_build_then_hit(tmp_path, compiles, interpreted_x):
-    first = build_library(small_step("vf_a"), "vf_a", tmp_path, {"task": "a"})
+    first = build_library(small_step("vf_a"), "vf_a", tmp_path, {"task": "a"}, NO_CHECKS)
     mtime = first.so_path.stat().st_mtime_ns
-    second = build_library(small_step("vf_a"), "vf_a", tmp_path, {"task": "a"})  # rebuilt graph
+    second = build_library(small_step("vf_a"), "vf_a", tmp_path, {"task": "a"}, NO_CHECKS)  # rebuilt graph
     assert compiles == ["vf_a"]
     assert not first.reused and second.reused
     assert second.so_path == first.so_path and second.digest == first.digest
@@ -71,9 +72,9 @@ def test_build_then_hit(tmp_path, compiles, interpreted_x):
 
 
 def test_changed_function_or_metadata_gets_a_new_entry(tmp_path, compiles):
-    base = build_library(small_step("vf_b"), "vf_b", tmp_path, {})
-    heavier = build_library(small_step("vf_b", weight=2.0), "vf_b", tmp_path, {})
-    relabelled = build_library(small_step("vf_b"), "vf_b", tmp_path, {"labels": ["r0"]})
+    base = build_library(small_step("vf_b"), "vf_b", tmp_path, {}, NO_CHECKS)
+    heavier = build_library(small_step("vf_b", weight=2.0), "vf_b", tmp_path, {}, NO_CHECKS)
+    relabelled = build_library(small_step("vf_b"), "vf_b", tmp_path, {"labels": ["r0"]}, NO_CHECKS)
     assert len({base.digest, heavier.digest, relabelled.digest}) == 3
     assert len(compiles) == 3
 
@@ -100,7 +101,7 @@ def remove_header(library):
 
 @pytest.mark.parametrize("damage", [truncate, corrupt_metadata, edit_digest, remove_header])
 def test_damaged_entry_is_rebuilt(tmp_path, compiles, interpreted_x, damage):
-    library = build_library(small_step("vf_c"), "vf_c", tmp_path, {})
+    library = build_library(small_step("vf_c"), "vf_c", tmp_path, {}, NO_CHECKS)
     damage(library)
     assert_rebuilt(library, tmp_path, interpreted_x)
     assert compiles == ["vf_c", "vf_c"]
@@ -123,7 +124,7 @@ def test_unloadable_library_is_rebuilt(tmp_path, compiles, interpreted_x):
 
 
 def assert_rebuilt(library, cache_dir, interpreted_x):
-    rebuilt = build_library(small_step("vf_c"), "vf_c", cache_dir, {})
+    rebuilt = build_library(small_step("vf_c"), "vf_c", cache_dir, {}, NO_CHECKS)
     assert rebuilt.digest == library.digest and rebuilt.so_path != library.so_path
     assert [p.name for p in cache_dir.iterdir()] == [library.so_path.parent.name]  # no leftovers
     np.testing.assert_allclose(evaluate(rebuilt, "vf_c"), interpreted_x, atol=1e-12)
@@ -131,7 +132,7 @@ def assert_rebuilt(library, cache_dir, interpreted_x):
 
 def build_in_child(cache_dir: str, prefix: str, start, results) -> None:
     start.wait()
-    library = build_library(small_step(prefix), prefix, Path(cache_dir), {})
+    library = build_library(small_step(prefix), prefix, Path(cache_dir), {}, NO_CHECKS)
     results.put((library, evaluate(library, prefix)))
 
 
@@ -161,19 +162,19 @@ def test_two_processes_build_the_same_entry(tmp_path, interpreted_x):
 def test_missing_compiler(tmp_path, monkeypatch):
     monkeypatch.setenv("CC", str(tmp_path / "no-such-cc"))
     with pytest.raises(CompilerUnavailable, match="not found"):
-        build_library(small_step("vf_d"), "vf_d", tmp_path, {})
+        build_library(small_step("vf_d"), "vf_d", tmp_path, {}, NO_CHECKS)
 
 
 def test_compiler_error_carries_its_stderr(tmp_path, monkeypatch):
     monkeypatch.setenv("CC", "cc -include /nonexistent/header.h")
     with pytest.raises(VfError, match="nonexistent/header.h") as error:
-        build_library(small_step("vf_e"), "vf_e", tmp_path, {})
+        build_library(small_step("vf_e"), "vf_e", tmp_path, {}, NO_CHECKS)
     assert not isinstance(error.value, CompilerUnavailable)
 
 
 def test_bad_prefix(tmp_path):
     with pytest.raises(ValueError, match="C identifier"):
-        build_library(small_step("x"), "not-an-identifier", tmp_path, {})
+        build_library(small_step("x"), "not-an-identifier", tmp_path, {}, NO_CHECKS)
 
 
 def test_two_prefixes_in_one_process(tmp_path):
@@ -181,8 +182,8 @@ def test_two_prefixes_in_one_process(tmp_path):
 
     The second function is named differently from its prefix, so it is exported under the prefix.
     """
-    light = build_library(small_step("vf_light"), "vf_light", tmp_path, {})
-    heavy = build_library(small_step("other_name", weight=4.0), "vf_heavy", tmp_path, {})
+    light = build_library(small_step("vf_light"), "vf_light", tmp_path, {}, NO_CHECKS)
+    heavy = build_library(small_step("other_name", weight=4.0), "vf_heavy", tmp_path, {}, NO_CHECKS)
     light_fn = BufferedFunction.native(light.so_path, "vf_light")
     heavy_fn = BufferedFunction.native(heavy.so_path, "vf_heavy")
     expected_light = BufferedFunction.interpreted(small_step("l"))(*ARGS)[0].copy()

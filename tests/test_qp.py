@@ -15,6 +15,7 @@ from vfdsl.runtime import BufferedFunction, StepStatus, build_step_function
 from vfdsl.runtime.qp import PER_ROW_GROUPS_LIMIT
 
 N, M, DT = 6, 30, 0.01
+NO_CHECKS = ca.Function("admissible", [ca.SX.sym("p", 0)], [ca.SX(0, 1)])   # params that need no check
 SPEED = 10.0  # |dq| <= SPEED * dt = 0.1
 FEAS_TOL = 1e-6
 
@@ -97,7 +98,7 @@ def instance(seed: int, infeasible: bool):
 def random_paths(tmp_path_factory):
     qp_data = random_qp_data(7)
     step = build_step_function(qp_data, "vf_test_random")
-    library = build_library(step, "vf_test_random", tmp_path_factory.mktemp("cache"), {})
+    library = build_library(step, "vf_test_random", tmp_path_factory.mktemp("cache"), {}, NO_CHECKS)
     return (qp_data, BufferedFunction.native(library.so_path, "vf_test_random"),
             BufferedFunction.interpreted(step))
 
@@ -105,7 +106,7 @@ def random_paths(tmp_path_factory):
 @pytest.fixture(scope="module")
 def conflict_paths(tmp_path_factory):
     step = build_step_function(conflict_qp_data(), "vf_test_conflict")
-    library = build_library(step, "vf_test_conflict", tmp_path_factory.mktemp("cache"), {})
+    library = build_library(step, "vf_test_conflict", tmp_path_factory.mktemp("cache"), {}, NO_CHECKS)
     native = BufferedFunction.native(library.so_path, "vf_test_conflict")
     return native, BufferedFunction.interpreted(step)
 

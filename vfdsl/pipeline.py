@@ -88,8 +88,8 @@ def build(task: ir.Task, *, backend: str = "auto", cache_dir: str | Path | None 
     if backend != "interpreted":
         try:
             library = build_library(step, prefix, Path(cache_dir or default_cache_dir()),
-                                    metadata(task, problem, admissible, digest), persistent_daqp=persistent_daqp,
-                                    companions=(admissible.function,))
+                                    metadata(task, problem, admissible, digest), admissible.function,
+                                    persistent_daqp=persistent_daqp)
             return Controller(task, problem, values, _native_runner(values, problem, library, prefix),
                               FEASIBILITY_TOLERANCE), library
         except CompilerUnavailable as exc:

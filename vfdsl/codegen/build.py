@@ -133,13 +133,14 @@ class Compiler:
     target: str
 
 
-def build_library(fn: ca.Function, prefix: str, cache_dir: Path, metadata: dict, *,
-                  persistent_daqp: bool = True, companions: tuple[ca.Function, ...] = ()) -> BuiltLibrary:
-    """The cached library of ``fn``, exported as C symbol ``prefix``; built if needed.
+def build_library(fn: ca.Function, prefix: str, cache_dir: Path, metadata: dict, checks: ca.Function, *,
+                  persistent_daqp: bool = True) -> BuiltLibrary:
+    """The cached library of the step ``fn`` (arguments q, u, p, dt, recover), exported as C symbol ``prefix``,
+    with ``checks`` (p -> the column of checks of the params, :mod:`vfdsl.compiler.admissible`) exported as
+    ``<prefix>_admissible``; built if needed.
 
     ``persistent_daqp``: replace CasADi's DAQP interface by the allocation-free, warm-started one
-    (module docstring). ``companions``: more functions in the same C file, each exported as
-    ``<prefix>_<its name>`` (e.g. the task's run-time checks, ``<prefix>_admissible``)."""
+    (module docstring)."""
     if not _IDENTIFIER.fullmatch(prefix):
         raise ValueError(f"prefix {prefix!r} is not a C identifier")
     cache_dir = Path(cache_dir)
@@ -157,7 +158,7 @@ def build_library(fn: ca.Function, prefix: str, cache_dir: Path, metadata: dict,
     try:
         with work_dir as tmp:
             work = Path(tmp)
-            source, header = _generate(fn, prefix, work, persistent_daqp, companions)
+            source, header = _generate(fn, prefix, work, persistent_daqp, checks)
             digest = _digest(source, header, compiler, metadata)
             entry = cache_dir / f"{prefix}-{digest[:16]}"
             found = _verified(entry, prefix, digest)
@@ -222,13 +223,12 @@ def _tail(text: str, lines: int = 25) -> str:
 
 
 def _generate(fn: ca.Function, prefix: str, work: Path, persistent_daqp: bool,
-              companions: tuple[ca.Function, ...] = ()) -> tuple[str, str]:
-    """Write ``<prefix>.c``/``.h`` into ``work`` (the function exported as ``prefix``, its companions as
-    ``<prefix>_<name>``)."""
+              checks: ca.Function) -> tuple[str, str]:
+    """Write ``<prefix>.c``/``.h`` into ``work`` (the step exported as ``prefix``, the checks as
+    ``<prefix>_admissible``)."""
     generator = ca.CodeGenerator(f"{prefix}.c", {"with_header": True})
     generator.add(_renamed(fn, prefix))
-    for companion in companions:
-        generator.add(_renamed(companion, f"{prefix}_{companion.name()}"))
+    generator.add(_renamed(checks, f"{prefix}_admissible"))
     generator.generate(str(work) + os.sep)
     c_path, h_path = work / f"{prefix}.c", work / f"{prefix}.h"
     source = _NONFATAL_FAILURE.sub("/* vfdsl: solver failure reported through the outputs */",
