@@ -20,12 +20,31 @@ the command line overrides the scalar ones. Every value is SI inside; bare numbe
       magnitude: 0.3 Nmm
       tremor: 0.05 Nmm         # RMS of the 8-12 Hz physiological tremor
       drift: 0.05 Nmm          # RMS of the slow drift (time constant drift_time, default 2 s)
-    disturbances:
+    disturbances:              # one-off events, at a time
       - {at: 10 s, kind: move_param, param: plate, translate: [0, 2, 0], tilt: [3, 0, 0]}
       - {at: 20 s, kind: push_tool, frame: tip, by: [0.5, 0, 0]}
+    motions:                   # run-time params moved over time (breathing, re-registration, a drifting target)
+      - {param: vessel, kind: sine, amplitude: [0, 0, 2], frequency: 0.25 Hz, phase: 0 deg}
+      - {param: entry, kind: step, at: 5 s, offset: [1, 0, 0]}
+      - {param: target, kind: ramp, start: 2 s, end: 4 s, offset: [0, 0.5, 0]}
+      - {param: margin, kind: sine, amplitude: 0.5, frequency: 1 Hz}   # a scalar: one number of its dimension
     metrics:                   # names for the errors of the task's constraints, with the paper's figures
       pivot_error: {error_of: tip stays_at, paper: {encoders: [0.01, 0.01], tracker: [0.23, 0.11]}}
       tool_tilt: {tilt_of: tip, normal_of: plate}
+
+Motions and disturbances are separate lists: a disturbance is an event (the world changes once, at ``at``);
+a motion is a law of time that moves one run-time param every tick (:class:`Motion`). A motion displaces
+the param in its own coordinates (the numbers ``Controller.step`` takes): a point or vector, the point of a
+line or plane, a pose's translation, and every point of a ``curve(..., runtime = true)`` by a 3-vector of
+lengths; a scalar param (a length, an angle, ...) by one number of its dimension. Several motions of one
+param add up, on top of its scene value and of ``move_param`` disturbances. ``sine`` takes an amplitude, a
+frequency in Hz (positive, below the Nyquist frequency 1 / (2 period), checked again when ``--period``
+changes the period) and an optional phase; ``step`` an offset from time ``at`` on; ``ramp`` an offset
+reached linearly from ``start`` to ``end`` and then held. A motion moves only run-time params (not a curve
+fixed at compile time: move the pose it is expressed in) and not directions (a direction has no position:
+move the points it is derived from); a displacement is at most ``MAX_MOTION`` (100 mm). A moved value the
+controller refuses at run time (a radius swung below zero) stops the run with an error at the motion's line.
+The metrics score every tick against the geometry in force at that tick (:mod:`vfdsl.sim.geometry`).
 """
 
 from __future__ import annotations
