@@ -51,7 +51,8 @@ def test_motions_are_read_in_the_scene_units(tmp_path):
 
 
 def test_a_scalar_param_moves_by_a_number_of_its_dimension(tmp_path):
-    s = _settings(KEEP_OUT, tmp_path, "units: mm\nmotions:\n  - {param: margin, kind: sine, amplitude: 1, frequency: 1 Hz}\n")
+    s = _settings(KEEP_OUT, tmp_path,
+                  "units: mm\nmotions:\n  - {param: margin, kind: sine, amplitude: 1, frequency: 1 Hz}\n")
     assert s.motions[0].amplitude == pytest.approx((0.001,))
     assert s.motions[0].displacement([0.25]).shape == (1, 1)
 
@@ -122,7 +123,8 @@ def test_the_controller_refusing_a_moved_value_is_reported_at_the_motion(tmp_pat
     """keep_out's margin (5 mm) swung by 6 mm goes negative: the controller's run-time check refuses it, and
     the error names the motion's line in the scene and the time."""
     scene = tmp_path / "m.sim.yaml"
-    scene.write_text("units: mm\nduration: 1 s\nmotions:\n  - {param: margin, kind: sine, amplitude: 6, frequency: 1 Hz}\n")
+    scene.write_text("units: mm\nduration: 1 s\nmotions:\n"
+                     "  - {param: margin, kind: sine, amplitude: 6, frequency: 1 Hz}\n")
     assert main(["simulate", str(KEEP_OUT), "--scene", str(scene), "--quiet"]) == 2
     err = capsys.readouterr().err
     assert f"{scene}:4:5" in err and "sine motion gives param 'margin' a value the controller refuses" in err
@@ -236,3 +238,31 @@ def test_scene_shift_types():
     artery = ir.ParamRef(name="artery")
     assert scene.point(artery) == pytest.approx(np.array(task.param("artery").value.xyz) + rows)
     assert scene.scalar(ir.ParamRef(name="margin")) == pytest.approx([0.005, 0.007])
+
+
+def test_a_moving_pose_carries_its_curve_and_lines_and_planes_move_their_points():
+    """Paper A's curve is expressed in the plate: with the plate's translation displaced per sample, tips
+    placed on the displaced curve score 0 and the frozen plate scores the displacement. A line param and a
+    plane param move their points; their directions stay."""
+    from vfdsl.kinematics.robot import Robot
+    from vfdsl.sim.geometry import Curve
+
+    task = vfdsl.load(A)
+    [d] = [d for d in metric_defs(task, Robot.load("shr7"), ()) if d.constraint is not None
+           and d.constraint.primitive == "follows" and d.constraint.frame == "tip"]
+    shifts = np.array([[0.0, 0.0, 0.0], [0.001, -0.0005, 0.002], [0.0, 0.0, -0.003]])
+    scene = Scene(task).with_values(Scene(task).values, {"plate": shifts})
+    R, t = Scene(task).to_world("path")                      # the plate's pose
+    curve = Curve(task.param("path").value)
+    p = curve.spline(np.array([0.01, 0.05, 0.09])) @ R.T + t + shifts
+    poses = Poses({"tip": p}, {"tip": np.tile(np.eye(3), (3, 1, 1))})
+    assert errors(d, task, None, scene, poses, None, 0.01) == pytest.approx(0.0, abs=1e-6)      # mm
+    frozen = errors(d, task, None, Scene(task), poses, None, 0.01)
+    assert frozen[1] > 1.5 and frozen[2] > 2.5
+    for task_file, name, accessor in ((TASKS_DIR / "lecture_follow_path.vf", "path", "line"),
+                                      (TASKS_DIR / "lecture_forbidden_half_space.vf", "wall", "plane")):
+        task = vfdsl.load(task_file)
+        arg = ir.ParamRef(name=name)
+        rest_point, rest_unit = getattr(Scene(task), accessor)(arg)
+        point, unit = getattr(Scene(task).with_values(Scene(task).values, {name: shifts}), accessor)(arg)
+        assert point == pytest.approx(rest_point + shifts) and unit == pytest.approx(rest_unit)

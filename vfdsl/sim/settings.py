@@ -513,7 +513,8 @@ class _Reader:
         if kind == "sine":
             out["frequency"] = self.scalar(fields["frequency"][1], u.FREQUENCY)
             if not out["frequency"] > 0:
-                raise VfError(f"frequency must be positive, got {out['frequency']:g} Hz", self.pos(fields["frequency"][1]))
+                raise VfError(f"frequency must be positive, got {out['frequency']:g} Hz",
+                              self.pos(fields["frequency"][1]))
             if "phase" in fields:
                 out["phase"] = self.scalar(fields["phase"][1], u.ANGLE)
         for key in ("at", "start", "end"):
