@@ -266,3 +266,19 @@ def test_a_moving_pose_carries_its_curve_and_lines_and_planes_move_their_points(
         rest_point, rest_unit = getattr(Scene(task), accessor)(arg)
         point, unit = getattr(Scene(task).with_values(Scene(task).values, {name: shifts}), accessor)(arg)
         assert point == pytest.approx(rest_point + shifts) and unit == pytest.approx(rest_unit)
+
+
+def test_needle_entry_re_registered_mid_insertion():
+    """tasks/needle_insertion_reregistered.sim.yaml: at 2 s (10 mm in) the entry moves 1 mm sideways. The
+    line and the direction, derived from the entry, jump with it (the errors against the new geometry jump at
+    that tick), and two ticks later both are back within their octagons' bounds (eps / cos(pi/8)): 0.541 mm
+    and 1.082 deg."""
+    task = vfdsl.load(NEEDLE)
+    settings = load_settings(task, TASKS_DIR / "needle_insertion_reregistered.sim.yaml").replace(trials=1, duration=4.0)
+    [result] = run(make_jobs(str(NEEDLE), settings, keep_series=True, backend="interpreted"))
+    path, direction = (result.series["metrics"][n] for n in ("path_error_mm", "direction_error_deg"))
+    step = 200
+    assert path[:step].max() < 0.5 and direction[:step].max() < 1e-3
+    assert path[step] > 0.7 and direction[step] > 1.0
+    octagon = 1 / math.cos(math.pi / 8)
+    assert path[step + 2:].max() <= 0.5 * octagon and direction[step + 2:].max() <= 1.0 * octagon
