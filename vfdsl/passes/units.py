@@ -25,12 +25,13 @@ FORCE: Dim = (0, 0, 0, 1)
 TORQUE: Dim = (1, 0, 0, 1)
 SPEED: Dim = (1, 0, -1, 0)
 ANGULAR_SPEED: Dim = (0, 1, -1, 0)
+FREQUENCY: Dim = (0, 0, -1, 0)
 
 # name -> (dimension, factor to SI)
 UNITS: dict[str, tuple[Dim, float]] = {
     "m": (LENGTH, 1.0), "cm": (LENGTH, 1e-2), "mm": (LENGTH, 1e-3), "um": (LENGTH, 1e-6),
     "rad": (ANGLE, 1.0), "mrad": (ANGLE, 1e-3), "deg": (ANGLE, math.pi / 180.0),
-    "s": (TIME, 1.0), "ms": (TIME, 1e-3),
+    "s": (TIME, 1.0), "ms": (TIME, 1e-3), "Hz": (FREQUENCY, 1.0),
     "N": (FORCE, 1.0), "Nm": (TORQUE, 1.0), "Nmm": (TORQUE, 1e-3),
 }
 
@@ -38,9 +39,10 @@ _BASE_NAMES = ("length", "angle", "time", "force")
 _DIM_WORDS = {
     DIMENSIONLESS: "a plain number", LENGTH: "a length", ANGLE: "an angle", TIME: "a time",
     FORCE: "a force", TORQUE: "a torque", SPEED: "a speed", ANGULAR_SPEED: "an angular speed",
+    FREQUENCY: "a frequency",
 }
 _EXAMPLE_UNIT = {LENGTH: "mm", ANGLE: "deg", TIME: "s", FORCE: "N", TORQUE: "Nmm", SPEED: "mm/s",
-                 ANGULAR_SPEED: "deg/s", DIMENSIONLESS: ""}
+                 ANGULAR_SPEED: "deg/s", FREQUENCY: "Hz", DIMENSIONLESS: ""}
 
 
 def describe(dim: Dim) -> str:

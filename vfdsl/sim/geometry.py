@@ -9,9 +9,16 @@ every segment (the later segment on a tie). Past either end the distance is to t
 which is where ``follows`` keeps a frame that leaves the curve by an end. A derived argument
 (``line(entry, target)``) is computed from the params' current values by :mod:`vfdsl.compiler.derived`: its
 few vector operations are the definition of the value, not a model of the robot.
+
+A scene's motions (:class:`~vfdsl.sim.settings.Motion`) displace run-time params tick by tick; a
+:class:`Scene` carries those displacements and adds them in every accessor, so each tick is scored against
+the geometry in force at that tick (a moved curve by searching the unmoved one for x - d; a derived argument
+by its definition evaluated on the moved params).
 """
 
 from __future__ import annotations
+
+from types import SimpleNamespace
 
 import casadi as ca
 import numpy as np
@@ -19,7 +26,7 @@ from scipy.interpolate import make_interp_spline
 from scipy.spatial.transform import Rotation
 
 from vfdsl.compiler import derived
-from vfdsl.compiler.context import ParamReader, flatten
+from vfdsl.compiler.context import ParamLayout, ParamReader, flatten
 from vfdsl.ir import model as ir
 
 SAMPLES_PER_METRE = 20000            # dense-search samples: 0.05 mm apart
@@ -27,8 +34,9 @@ NEWTON_STEPS = 8
 
 
 def unit(v) -> np.ndarray:
+    """v normalized (each row of an N x 3 array)."""
     v = np.asarray(v, dtype=float)
-    return v / np.linalg.norm(v)
+    return v / np.linalg.norm(v, axis=-1, keepdims=True)
 
 
 def pose_matrix(pose: ir.PoseValue) -> tuple[np.ndarray, np.ndarray]:
@@ -93,18 +101,26 @@ class Curve:
 
 
 class Scene:
-    """The task's params as the world sees them now (a disturbance may move a pose or point param)."""
+    """The task's params as the world sees them: their values (a disturbance may move a pose or point
+    param) and, for the params a scene's motions move, their displacements (:class:`~vfdsl.sim.settings.Motion`),
+    in each param's own coordinates: one row (3 numbers, or 1 for a scalar) in a running trial's live scene,
+    N rows when a segment of N ticks is scored. Every accessor adds them, so where a param moves its geometry
+    has a leading axis of N samples (and broadcasts against N frame poses), and where none moves it is one
+    value."""
 
     def __init__(self, task: ir.Task):
         self.task = task
         self.values: dict[str, ir.Value] = {p.name: p.value for p in task.params}
+        self.shifts: dict[str, np.ndarray] = {}
         self._frames = {p.name: p.frame for p in task.params}
         self._poses: dict[str, tuple[np.ndarray, np.ndarray]] = {}
 
-    def with_values(self, values: dict[str, ir.Value]) -> "Scene":
-        """The same task's params with other values (a snapshot taken before or after a disturbance)."""
+    def with_values(self, values: dict[str, ir.Value], shifts: dict[str, np.ndarray] | None = None) -> "Scene":
+        """The same task's params with other values (a snapshot taken before or after a disturbance), and
+        the displacements of the moving ones (rows of ticks)."""
         scene = Scene(self.task)
         scene.values = dict(values)
+        scene.shifts = dict(shifts or {})
         return scene
 
     def moved(self, name: str, translate, tilt) -> ir.Value:
@@ -121,33 +137,56 @@ class Scene:
         self._poses.pop(name, None)
         return value
 
+    def shift(self, arg: ir.Arg | None):
+        """The displacement of a param argument (0 when it does not move): 3 numbers or N x 3 in its own
+        coordinates; 1 number or N x 1 for a scalar."""
+        if isinstance(arg, ir.ParamRef):
+            return self.shifts.get(arg.name, 0.0)
+        return 0.0
+
     def to_world(self, name: str) -> tuple[np.ndarray, np.ndarray]:
-        """(R, t) mapping param ``name``'s own coordinates to the world (identity for a world param)."""
+        """(R, t) mapping param ``name``'s own coordinates to the world (identity for a world param): x_world
+        = x @ R.T + t, t N x 3 where the pose moves."""
         frame = self._frames.get(name)
         if frame is None:
             return np.eye(3), np.zeros(3)
         if frame not in self._poses:
             self._poses[frame] = pose_matrix(self.values[frame])
-        return self._poses[frame]
+        R, t = self._poses[frame]
+        return R, t + self.shifts.get(frame, 0.0)
+
+    def local(self, arg: ir.Arg, x: np.ndarray) -> np.ndarray:
+        """World points x in the coordinates of the (undisplaced) value of ``arg``: a curve's closest point
+        to x moved by d is the unmoved curve's closest point to x - d."""
+        if not isinstance(arg, ir.ParamRef):
+            return x
+        R, t = self.to_world(arg.name)
+        return (x - t) @ R - self.shift(arg)
 
     def point(self, arg: ir.Arg) -> np.ndarray:
         value, (R, t) = self._resolve(arg)
-        return R @ np.asarray(value.xyz, dtype=float) + t
+        return (np.asarray(value.xyz, dtype=float) + self.shift(arg)) @ R.T + t
 
     def direction(self, arg: ir.Arg) -> np.ndarray:
         value, (R, _) = self._resolve(arg)
-        return unit(R @ np.asarray(value.xyz, dtype=float))
+        return unit(np.asarray(value.xyz, dtype=float) @ R.T)
 
     def line(self, arg: ir.Arg) -> tuple[np.ndarray, np.ndarray]:
         value, (R, t) = self._resolve(arg)
-        return R @ np.asarray(value.point) + t, unit(R @ np.asarray(value.direction))
+        return (np.asarray(value.point) + self.shift(arg)) @ R.T + t, unit(np.asarray(value.direction) @ R.T)
 
     def plane(self, arg: ir.Arg) -> tuple[np.ndarray, np.ndarray]:
         """(point, unit normal toward the free side)."""
         value, (R, t) = self._resolve(arg)
-        return R @ np.asarray(value.point) + t, unit(R @ np.asarray(value.normal))
+        return (np.asarray(value.point) + self.shift(arg)) @ R.T + t, unit(np.asarray(value.normal) @ R.T)
+
+    def scalar(self, arg: ir.Arg):
+        """A scalar argument's value: a number, or N numbers where a motion changes it."""
+        shift = self.shift(arg)
+        return self.value(arg).value + (shift[..., 0] if np.ndim(shift) else shift)
 
     def value(self, arg: ir.Arg) -> ir.Value:
+        """The value of an argument as written (without its displacement)."""
         return self._resolve(arg)[0]
 
     def _resolve(self, arg: ir.Arg) -> tuple[ir.Value, tuple[np.ndarray, np.ndarray]]:
@@ -156,6 +195,41 @@ class Scene:
         if isinstance(arg, ir.Const):
             return arg.value, (np.eye(3), np.zeros(3))
         if isinstance(arg, ir.Derived):           # computed in the world from the params' current values
+            if self.shifts:
+                return self._derived_rows(arg), (np.eye(3), np.zeros(3))
             p = ca.DM(np.concatenate([[], *(flatten(self.values[d.name]) for d in self.task.params)]))
             return derived.to_value(arg.kind, ParamReader(self.task.params, p).derived(arg)), (np.eye(3), np.zeros(3))
         raise TypeError(f"not a value argument: {arg}")
+
+    def _derived_rows(self, arg: ir.Derived) -> SimpleNamespace:
+        """A derived argument at every row of the displacements: its definition (a CasADi function of the flat
+        params, built once) evaluated on the params' values plus their displacements, all rows in one call."""
+        layout = ParamLayout(self.task.params)
+        rows = max((len(s) for s in self.shifts.values() if np.ndim(s) == 2), default=0)
+        P = np.tile(np.concatenate([[], *(flatten(self.values[d.name]) for d in self.task.params)]), (max(rows, 1), 1))
+        for name, shift in self.shifts.items():
+            slot = layout.slots[name]
+            shift = np.atleast_2d(shift)
+            if slot.type == "curve":
+                P[:, slot.offset:slot.offset + slot.size] += np.tile(shift, slot.size // 3)
+            else:
+                P[:, slot.offset:slot.offset + shift.shape[1]] += shift
+        outputs = _derived_function(self.task, arg).map(len(P))(P.T)
+        parts = [np.array(x).T for x in (outputs if isinstance(outputs, (list, tuple)) else [outputs])]
+        if not rows:
+            parts = [x[0] for x in parts]
+        fields = {"line": ("point", "direction"), "plane": ("point", "normal")}.get(arg.kind, ("xyz",))
+        return SimpleNamespace(**dict(zip(fields, parts)))
+
+
+_FUNCTIONS: dict = {}
+
+
+def _derived_function(task: ir.Task, arg: ir.Derived) -> ca.Function:
+    """p (the flat run-time params) -> the value of a derived argument (a point, or a line's point and unit)."""
+    key = (tuple((d.name, d.type, len(flatten(d.value))) for d in task.params), arg.model_dump_json())
+    if key not in _FUNCTIONS:
+        p = ca.SX.sym("p", ParamLayout(task.params).size)
+        value = ParamReader(task.params, p).derived(arg)
+        _FUNCTIONS[key] = ca.Function("derived", [p], list(value) if isinstance(value, tuple) else [value])
+    return _FUNCTIONS[key]

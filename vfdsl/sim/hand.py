@@ -80,8 +80,8 @@ class Hand:
             tilt = axis - (axis @ tool) * tool
             return unit(tilt) if np.linalg.norm(tilt) > 1e-9 else axis
         if s.kind == "follow":
-            R, t = self.scene.to_world(s.curve)
-            (param,), _ = self.curve.closest(R.T @ (p - t), refine=False)
+            R, _ = self.scene.to_world(s.curve)
+            (param,), _ = self.curve.closest(self.scene.local(ir.ParamRef(name=s.curve), p), refine=False)
             return R @ self.curve.tangent(param) if param < self.curve.length else np.zeros(3)
         decl = self.scene.task.param(s.target)
         if decl.type == "plane":

@@ -23,7 +23,9 @@ The error of a constraint is how far the frame is from the set the constraint de
     joint_limits      max over joints of the distance outside [lower, upper]    mm (prismatic), deg (revolute)
     joint_speed       max over joints of max(0, |dq| / dt - fraction * velocity limit)   mm/s, deg/s
 
-with p the frame's origin, l its tool axis. A scene may name an error (``pivot_error: {error_of: tip
+with p the frame's origin, l its tool axis, and the geometry the one in force at each sample: where a scene's
+motions move a param, every sample is scored against its moved value (:class:`~vfdsl.sim.geometry.Scene`).
+A scene may name an error (``pivot_error: {error_of: tip
 stays_at}``) or add the tilt of a frame's tool axis from a pose param's z axis (the plate normal).
 Statistics pool every tick of every trial: mean, std, max.
 """
@@ -157,41 +159,45 @@ def _frame_error(c: ir.Constraint, task: ir.Task, scene: Scene, poses: Poses, pe
         return np.linalg.norm(p - scene.point(a["target"]), axis=1)
     if kind in ("within_distance", "within_sphere", "outside_sphere"):
         distance = np.linalg.norm(p - scene.point(a["center"]), axis=1)
-        radius = scene.value(a["radius" if "radius" in a else "distance"]).value
+        radius = scene.scalar(a["radius" if "radius" in a else "distance"])
         return np.maximum(0.0, radius - distance if kind == "outside_sphere" else distance - radius)
     if kind == "along":
         point, direction = scene.line(a["line"])
-        return np.linalg.norm(np.cross(p - point, direction), axis=1)
+        return np.linalg.norm(np.cross(p - point, direction), axis=-1)
     if kind in ("on_plane", "above", "near_plane"):
         point, normal = scene.plane(a["plane"])
-        height = (p - point) @ normal
+        height = np.sum((p - point) * normal, axis=-1)
         if kind == "near_plane":
-            return np.maximum(0.0, np.abs(height) - scene.value(a["half_width"]).value)
+            return np.maximum(0.0, np.abs(height) - scene.scalar(a["half_width"]))
         return np.abs(height) if kind == "on_plane" else np.maximum(0.0, -height)
     if kind == "passes_through":
         return np.linalg.norm(np.cross(scene.point(a["port"]) - p, l), axis=1)
     if kind == "follows":
-        curve_arg = a["curve"]
-        R, t = scene.to_world(curve_arg.name) if isinstance(curve_arg, ir.ParamRef) else (np.eye(3), np.zeros(3))
-        curve = _curve(scene.value(curve_arg), tuple(scene.value(a["shift"]).xyz) if "shift" in a else (0, 0, 0))
-        return curve.closest((p - t) @ R)[1]
+        curve_arg, shift = a["curve"], a.get("shift")
+        curve = _curve(scene.value(curve_arg), tuple(scene.value(shift).xyz) if shift is not None else (0, 0, 0))
+        return curve.closest(np.atleast_2d(scene.local(curve_arg, p) - scene.shift(shift)))[1]
     if kind in ("cone", "keeps_direction", "rotates_around", "tilt_at_most"):
         key = "direction" if kind == "keeps_direction" else "axis"
-        angle = np.arccos(np.clip(l @ scene.direction(a[key]), -1.0, 1.0))
+        angle = np.arccos(np.clip(np.sum(l * scene.direction(a[key]), axis=-1), -1.0, 1.0))
         if kind == "cone":
-            return np.abs(angle - scene.value(a["angle"]).value)
+            return np.abs(angle - scene.scalar(a["angle"]))
         if kind == "tilt_at_most":
-            return np.maximum(0.0, angle - scene.value(a["angle"]).value)
+            return np.maximum(0.0, angle - scene.scalar(a["angle"]))
         return angle if kind == "keeps_direction" else np.abs(np.pi / 2 - angle)
     if kind == "speed":
         speed = np.linalg.norm(np.diff(p, axis=0), axis=1) / period
-        return np.maximum(0.0, speed - scene.value(a["max"]).value)
+        return np.maximum(0.0, speed - _per_step(scene.scalar(a["max"])))
     if kind == "angular_speed":
         R = poses.R[c.frame]
         relative = np.einsum("nji,njk->nik", R[:-1], R[1:])
         cos = np.clip((np.trace(relative, axis1=1, axis2=2) - 1) / 2, -1.0, 1.0)
-        return np.maximum(0.0, np.arccos(cos) / period - scene.value(a["max"]).value)
+        return np.maximum(0.0, np.arccos(cos) / period - _per_step(scene.scalar(a["max"])))
     raise ValueError(f"no metric for primitive '{kind}'")
+
+
+def _per_step(limit):
+    """A limit on the step from sample k to k + 1: the one in force at k + 1 where it changes."""
+    return limit[1:] if np.ndim(limit) else limit
 
 
 _CURVES: dict = {}

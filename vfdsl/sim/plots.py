@@ -92,7 +92,8 @@ def _unshifted(c: ir.Constraint) -> bool:
 
 
 def _curve_panel(ax, task: ir.Task, c: ir.Constraint, series: dict) -> None:
-    """The tip in the curve's own frame (segment by segment, as the plate moves) and the curve."""
+    """The tip in the curve's own frame (segment by segment, as the plate moves; less the curve's displacement
+    where a motion moves it) and the curve."""
     curve_arg = c.args["curve"]
     curve = Curve(task.param(curve_arg.name).value)
     s = np.linspace(0, curve.length, 800)
@@ -101,8 +102,8 @@ def _curve_panel(ax, task: ir.Task, c: ir.Constraint, series: dict) -> None:
     bounds = [k for k, _ in series["segments"]] + [len(series["t"])]
     local = []
     for (start, values), end in zip(series["segments"], bounds[1:]):
-        R, t = Scene(task).with_values(values).to_world(curve_arg.name)
-        local.append((series["p"][c.frame][start:end] - t) @ R)
+        scene = Scene(task).with_values(values, {name: table[start:end] for name, table in series["shifts"].items()})
+        local.append(scene.local(curve_arg, series["p"][c.frame][start:end]))
     local = np.concatenate(local) * MM
     ax.plot(local[:, 0], local[:, 1], color="C0", lw=1, label=f"{c.frame} (encoders)")
     ax.set_xlabel("x on the plate (mm)")

@@ -2,9 +2,11 @@
 its metrics; many trials (and a grid of settings) in this process, a local process pool, or on a Dask
 cluster.
 
-One tick at time t = k dt: apply the disturbances due; read the encoders (q); the hand's input; dq =
-controller.step(q, input, params); command dq (it arrives after the latency); advance the robot to
-t + dt. The metrics are computed afterwards from the encoder readings, by Pinocchio's kinematics.
+One tick at time t = k dt: apply the disturbances due; move the params of the scene's motions (their scene
+value plus the displacement at t, written in place into arrays allocated once); read the encoders (q); the
+hand's input (aimed at the moved geometry); dq = controller.step(q, input, params); command dq (it arrives
+after the latency); advance the robot to t + dt. The metrics are computed afterwards from the encoder
+readings, by Pinocchio's kinematics, each tick against the geometry in force at that tick.
 
 Trial i of a run with seed K uses seed K + i (the same in every grid point, so that grid points differ
 only by their settings); a trial's seed fixes its hand and its tracker noise, so a run is repeatable.
@@ -25,6 +27,7 @@ from pathlib import Path
 import numpy as np
 
 import vfdsl
+from vfdsl.compiler.context import flatten
 from vfdsl.errors import VfError
 from vfdsl.ir import model as ir
 from vfdsl.kinematics.robot import Robot
@@ -130,6 +133,7 @@ def _simulate(job: Job, task: ir.Task, ctrl: vfdsl.Controller, robot: Robot, pro
     events = sorted(s.disturbances, key=lambda d: d.at)
     segments = [(0, dict(scene.values))]
     params: dict = {}
+    moving = Moving(task, scene, s.motions, np.arange(ticks) * dt)
     qs = np.empty((ticks, robot.nq))
     fallback = 0
     optimal = StepStatus.OPTIMAL
@@ -140,14 +144,20 @@ def _simulate(job: Job, task: ir.Task, ctrl: vfdsl.Controller, robot: Robot, pro
                 d = events.pop(0)
                 if d.kind == "move_param":
                     params[d.param] = scene.moved(d.param, d.translate, d.tilt)
+                    moving.rebase(d.param, scene.values[d.param], params)
                 else:
                     sim.push(task.frame(d.frame), d.by)
             segments.append((k, dict(scene.values)))
+        if moving.tables:
+            moving.update(k, scene, params)
         q = sim.read()
         qs[k] = q
         if hand is not None:
             inputs[hand_settings.input] = hand.input(k, q)
-        dq = ctrl.step(q, inputs, params or None, dt)
+        try:
+            dq = ctrl.step(q, inputs, params or None, dt)
+        except VfError as err:
+            raise moving.explain(err, t) from None
         if ctrl.status != optimal:
             fallback += 1
         sim.command(t, dq)
@@ -156,11 +166,57 @@ def _simulate(job: Job, task: ir.Task, ctrl: vfdsl.Controller, robot: Robot, pro
             progress(PROGRESS_EVERY)
     if progress is not None:
         progress(ticks % PROGRESS_EVERY)
-    return _score(job, task, robot, qs, segments, tracker_rng, fallback, hand_settings)
+    return _score(job, task, robot, qs, segments, tracker_rng, fallback, hand_settings, moving.tables)
+
+
+class Moving:
+    """The params a scene's motions move: the displacement of each at every tick (the sum of its motions,
+    computed once: ticks x 3, or ticks x 1 for a scalar), and the arrays handed to the controller, allocated
+    once and rewritten in place every tick (scene value + displacement; a curve N x 3, every point moved)."""
+
+    def __init__(self, task: ir.Task, scene: Scene, motions, times: np.ndarray):
+        self.motions = motions
+        self.tables: dict[str, np.ndarray] = {}
+        for m in motions:
+            self.tables[m.param] = self.tables.get(m.param, 0.0) + m.displacement(times)
+        self._base: dict[str, np.ndarray] = {}
+        self._out: dict[str, np.ndarray] = {}
+        self.arrays: dict[str, np.ndarray] = {}
+        for name, table in self.tables.items():
+            flat = np.array(flatten(scene.values[name]), dtype=float)
+            curve = task.param(name).type == "curve"
+            self.arrays[name] = flat.reshape(-1, 3) if curve else flat
+            self._out[name] = self.arrays[name] if curve else flat[:table.shape[1]]   # the part that moves
+            self._base[name] = self._out[name].copy()
+
+    def rebase(self, name: str, value: ir.Value, params: dict) -> None:
+        """A disturbance moved param ``name``: its motions now displace the new value."""
+        if name in self.tables:
+            flat = np.array(flatten(value), dtype=float)
+            self.arrays[name][...] = flat.reshape(self.arrays[name].shape)
+            self._base[name][...] = self._out[name]
+            params[name] = self.arrays[name]
+
+    def update(self, k: int, scene: Scene, params: dict) -> None:
+        """Tick k: every moving param's value in its array, and its displacement in the live scene."""
+        for name, table in self.tables.items():
+            row = table[k]
+            np.add(self._base[name], row, out=self._out[name])
+            scene.shifts[name] = row
+            params[name] = self.arrays[name]
+
+    def explain(self, err: VfError, t: float) -> VfError:
+        """A controller's refusal of a moved value, at the motion that caused it (its scene line)."""
+        culprit = next((m for m in self.motions if f"'{m.param}'" in err.message), None)
+        if culprit is None:
+            return err
+        return VfError(f"at t = {t:g} s the scene's {culprit.kind} motion gives param '{culprit.param}' a value the "
+                       f"controller refuses: {err.message}", culprit.where,
+                       hint="make the motion smaller, or move the param's scene value away from the limit")
 
 
 def _score(job: Job, task: ir.Task, robot: Robot, qs: np.ndarray, segments, rng, fallback: int,
-           hand_settings) -> TrialResult:
+           hand_settings, shifts: dict[str, np.ndarray]) -> TrialResult:
     s = job.settings
     poses = frame_poses(robot, task, qs)
     seen = tracker.measure(poses, task, s.noise, s.marker_distance, rng) if s.noise > 0 else None
@@ -169,8 +225,8 @@ def _score(job: Job, task: ir.Task, robot: Robot, qs: np.ndarray, segments, rng,
     units: dict[str, str] = {}
     bounds = [k for k, _ in segments] + [len(qs)]
     for (start, snapshot), end in zip(segments, bounds[1:]):
-        scene = Scene(task).with_values(snapshot)
         part = slice(start, end)
+        scene = Scene(task).with_values(snapshot, {name: table[part] for name, table in shifts.items()})
         view = _slice(poses, part)
         for d in defs:
             values.setdefault(d.name, []).append(errors(d, task, robot, scene, view, qs[part], s.period))
@@ -184,7 +240,7 @@ def _score(job: Job, task: ir.Task, robot: Robot, qs: np.ndarray, segments, rng,
     stats = {name: Stats().add(v) for name, v in series_values.items()}
     series = None
     if job.keep_series:
-        series = {"t": np.arange(len(qs)) * s.period, "metrics": series_values, "p": poses.p,
+        series = {"t": np.arange(len(qs)) * s.period, "metrics": series_values, "p": poses.p, "shifts": shifts,
                   "axis": {f.name: poses.axis(f) for f in task.frames}, "segments": segments,
                   "tracker_p": seen.p if seen is not None else None}
     hand = None

@@ -20,12 +20,31 @@ the command line overrides the scalar ones. Every value is SI inside; bare numbe
       magnitude: 0.3 Nmm
       tremor: 0.05 Nmm         # RMS of the 8-12 Hz physiological tremor
       drift: 0.05 Nmm          # RMS of the slow drift (time constant drift_time, default 2 s)
-    disturbances:
+    disturbances:              # one-off events, at a time
       - {at: 10 s, kind: move_param, param: plate, translate: [0, 2, 0], tilt: [3, 0, 0]}
       - {at: 20 s, kind: push_tool, frame: tip, by: [0.5, 0, 0]}
+    motions:                   # run-time params moved over time (breathing, re-registration, a drifting target)
+      - {param: vessel, kind: sine, amplitude: [0, 0, 2], frequency: 0.25 Hz, phase: 0 deg}
+      - {param: entry, kind: step, at: 5 s, offset: [1, 0, 0]}
+      - {param: target, kind: ramp, start: 2 s, end: 4 s, offset: [0, 0.5, 0]}
+      - {param: margin, kind: sine, amplitude: 0.5, frequency: 1 Hz}   # a scalar: one number of its dimension
     metrics:                   # names for the errors of the task's constraints, with the paper's figures
       pivot_error: {error_of: tip stays_at, paper: {encoders: [0.01, 0.01], tracker: [0.23, 0.11]}}
       tool_tilt: {tilt_of: tip, normal_of: plate}
+
+Motions and disturbances are separate lists: a disturbance is an event (the world changes once, at ``at``);
+a motion is a law of time that moves one run-time param every tick (:class:`Motion`). A motion displaces
+the param in its own coordinates (the numbers ``Controller.step`` takes): a point or vector, the point of a
+line or plane, a pose's translation, and every point of a ``curve(..., runtime = true)`` by a 3-vector of
+lengths; a scalar param (a length, an angle, ...) by one number of its dimension. Several motions of one
+param add up, on top of its scene value and of ``move_param`` disturbances. ``sine`` takes an amplitude, a
+frequency in Hz (positive, below the Nyquist frequency 1 / (2 period), checked again when ``--period``
+changes the period) and an optional phase; ``step`` an offset from time ``at`` on; ``ramp`` an offset
+reached linearly from ``start`` to ``end`` and then held. A motion moves only run-time params (not a curve
+fixed at compile time: move the pose it is expressed in) and not directions (a direction has no position:
+move the points it is derived from); a displacement is at most ``MAX_MOTION`` (100 mm). A moved value the
+controller refuses at run time (a radius swung below zero) stops the run with an error at the motion's line.
+The metrics score every tick against the geometry in force at that tick (:mod:`vfdsl.sim.geometry`).
 """
 
 from __future__ import annotations
@@ -43,15 +62,26 @@ from vfdsl.ir import model as ir
 from vfdsl.passes import units as u
 from vfdsl.passes.files import read_text
 from vfdsl.passes.scene import _mapping, _span, _units, _Values, compose   # the task scene's YAML reading
+from vfdsl.primitives.spec import SCALAR_DIMENSIONS
 from vfdsl.syntax import ast
 
 DEFAULT_PERIOD = 0.01
 DEFAULT_DURATION = 10.0
 HAND_KINDS = ("push", "turn", "follow", "toward")
 DISTURBANCE_KINDS = ("move_param", "push_tool")
+MOTION_KINDS = ("sine", "step", "ramp")
+MAX_MOTION = 0.1
+"""Largest displacement (m) a motion may give a point, curve, line, plane, pose or vector param: a breath or a
+re-registration moves anatomy by millimetres, and a bigger number is a unit mistake."""
 RESOLUTIONS = ("off", "robot")
 _TOP_KEYS = ("units", "duration", "period", "latency", "servo_lag", "resolution", "trials", "seed", "tracker",
-             "hand", "disturbances", "metrics")
+             "hand", "disturbances", "motions", "metrics")
+_MOTION_KEYS = {"sine": ("param", "kind", "amplitude", "frequency", "phase"),
+                "step": ("param", "kind", "at", "offset"),
+                "ramp": ("param", "kind", "start", "end", "offset")}
+# Param types a motion displaces, and the part of their run-time value it adds to: 3 numbers (a position in
+# the param's own coordinates) or 1 (a scalar). Directions have no position: a motion cannot move them.
+MOVABLE = ("point", "vector", "line", "plane", "pose", "curve")
 _HAND_KEYS = ("input", "kind", "magnitude", "direction", "axis", "curve", "frame", "target", "tremor",
               "tremor_band", "drift", "drift_time", "reaction")
 _TRACKER_KEYS = ("noise", "marker_distance")
@@ -89,6 +119,50 @@ class Disturbance:
 
 
 @dataclass(frozen=True)
+class Motion:
+    """A run-time param moved over time: its value plus a displacement d(t), in the param's own coordinates
+    (the numbers ``Controller.step`` takes). A point or vector, the point of a line or plane, the translation
+    of a pose and every point of a run-time curve move by the 3-vector d(t); a scalar param changes by the
+    number d(t) (in its own dimension). Several motions of one param add up, on top of its scene value (and
+    of ``move_param`` disturbances)::
+
+        sine:  d(t) = amplitude sin(2 pi frequency t + phase)
+        step:  d(t) = offset from time ``at`` on, else 0
+        ramp:  d(t) = offset clip((t - start) / (end - start), 0, 1)
+    """
+
+    param: str
+    kind: str                                   # sine | step | ramp
+    amplitude: tuple[float, ...] = ()           # sine: m (3 numbers), or 1 number in the scalar's dimension
+    frequency: float = 0.0                      # sine: Hz, below the Nyquist frequency of the period
+    phase: float = 0.0                          # sine: rad
+    at: float = 0.0                             # step: s
+    start: float = 0.0                          # ramp: s
+    end: float = 0.0                            # ramp: s, after start
+    offset: tuple[float, ...] = ()              # step, ramp: like amplitude
+    where: SourcePos | None = None
+
+    def displacement(self, t) -> np.ndarray:
+        """d at the times ``t`` (N numbers, s): N x 3, or N x 1 for a scalar param."""
+        t = np.asarray(t, dtype=float).reshape(-1, 1)
+        if self.kind == "sine":
+            return np.asarray(self.amplitude) * np.sin(2 * np.pi * self.frequency * t + self.phase)
+        if self.kind == "step":
+            return np.asarray(self.offset) * (t >= self.at - 1e-12)
+        return np.asarray(self.offset) * np.clip((t - self.start) / (self.end - self.start), 0.0, 1.0)
+
+
+def check_motions(motions: tuple[Motion, ...], period: float) -> None:
+    """Refuse a periodic motion the control period cannot sample: at or above its Nyquist frequency."""
+    nyquist = 0.5 / period
+    for m in motions:
+        if m.kind == "sine" and not m.frequency < nyquist:
+            raise VfError(f"the {m.frequency:g} Hz motion of param '{m.param}' is at or above the Nyquist frequency "
+                          f"of the {period * 1e3:g} ms period ({nyquist:g} Hz): the ticks cannot sample it", m.where,
+                          hint="lower the frequency, or shorten the period")
+
+
+@dataclass(frozen=True)
 class MetricSpec:
     """A named metric: the error of one constraint (``error_of: "tip stays_at"``), or the angle between a
     frame's tool axis and a pose param's z axis (``tilt_of: tip, normal_of: plate``)."""
@@ -114,6 +188,7 @@ class SimSettings:
     seed: int = 0
     hand: HandSettings | None = None            # None: the generic hand of the task's first tracked input
     disturbances: tuple[Disturbance, ...] = ()
+    motions: tuple[Motion, ...] = ()
     metrics: tuple[MetricSpec, ...] = ()
     scene: str | None = None                    # the file these came from
 
@@ -121,12 +196,14 @@ class SimSettings:
         """A copy with some settings changed, each checked like a value read from a scene."""
         for name, value in changes.items():
             check_setting(name, value)
-        return dataclasses.replace(self, **changes)
+        out = dataclasses.replace(self, **changes)
+        check_motions(out.motions, out.period)
+        return out
 
     def summary(self) -> dict:
         """The settings as plain JSON data (SI units)."""
         data = dataclasses.asdict(self)
-        for d in data["disturbances"]:
+        for d in data["disturbances"] + data["motions"]:
             d.pop("where")
         for m in data["metrics"]:
             m.pop("where")
@@ -156,7 +233,7 @@ def check_setting(name: str, value, where: SourcePos | None = None) -> None:
     elif name == "seed":
         if not (isinstance(value, int) and value >= 0):
             raise VfError(f"seed must be a whole number >= 0, got {value!r}", where)
-    elif name not in ("hand", "disturbances", "metrics", "scene", "marker_distance"):
+    elif name not in ("hand", "disturbances", "motions", "metrics", "scene", "marker_distance"):
         raise VfError(f"unknown setting '{name}'", where, hint=suggest(name, GRID_NAMES, "settings"))
 
 
@@ -276,6 +353,13 @@ class _Reader:
                 raise VfError("disturbances is a list of mappings like {at: 5 s, kind: push_tool, ...}",
                               self.pos(node))
             values["disturbances"] = tuple(self.disturbance(item) for item in node.value)
+        if "motions" in top:
+            node = top["motions"][1]
+            if not isinstance(node, yaml.SequenceNode):
+                raise VfError("motions is a list of mappings like {param: vessel, kind: sine, amplitude: [0, 0, 2], "
+                              "frequency: 0.25 Hz}", self.pos(node))
+            values["motions"] = tuple(self.motion(item) for item in node.value)
+            check_motions(values["motions"], values.get("period", base.period))
         if "metrics" in top:
             node = top["metrics"][1]
             if not isinstance(node, yaml.MappingNode):
@@ -402,6 +486,78 @@ class _Reader:
             out["frame"] = self.frame(fields["frame"][1])
             out["by"] = self.vector(fields["by"][1], u.LENGTH)
         return Disturbance(**out)
+
+    # ------------------------------------------------------------------------------------- motions
+    def motion(self, node: yaml.Node) -> Motion:
+        keys = tuple(dict.fromkeys(k for ks in _MOTION_KEYS.values() for k in ks))
+        fields = self.mapping(node, keys, "a motion")
+        for key in ("param", "kind"):
+            if key not in fields:
+                raise VfError(f"a motion needs '{key}'", self.pos(node))
+        kind = self.text(fields["kind"][1], "kind")
+        if kind not in MOTION_KINDS:
+            raise VfError(f"unknown motion '{kind}'", self.pos(fields["kind"][1]),
+                          hint=suggest(kind, MOTION_KINDS, "motions"))
+        allowed = _MOTION_KEYS[kind]
+        for key, (key_node, _) in fields.items():
+            if key not in allowed:
+                raise VfError(f"'{key}' does not apply to a {kind} motion", self.pos(key_node),
+                              hint="keys: " + ", ".join(allowed))
+        for key in allowed:
+            if key not in fields and key != "phase":
+                raise VfError(f"a {kind} motion needs '{key}'", self.pos(node), hint="keys: " + ", ".join(allowed))
+        name = self.moving_param(fields["param"][1])
+        out: dict = {"param": name, "kind": kind, "where": self.pos(node)}
+        size_key = "amplitude" if kind == "sine" else "offset"
+        out[size_key] = self.displacement(fields[size_key][1], self.task.param(name))
+        if kind == "sine":
+            out["frequency"] = self.scalar(fields["frequency"][1], u.FREQUENCY)
+            if not out["frequency"] > 0:
+                raise VfError(f"frequency must be positive, got {out['frequency']:g} Hz",
+                              self.pos(fields["frequency"][1]))
+            if "phase" in fields:
+                out["phase"] = self.scalar(fields["phase"][1], u.ANGLE)
+        for key in ("at", "start", "end"):
+            if key in fields:
+                out[key] = self.scalar(fields[key][1], u.TIME)
+                if out[key] < 0:
+                    raise VfError(f"{key} must be a time >= 0", self.pos(fields[key][1]))
+        if kind == "ramp" and not out["end"] > out["start"]:
+            raise VfError(f"a ramp's end ({out['end']:g} s) must come after its start ({out['start']:g} s)",
+                          self.pos(fields["end"][1]))
+        return Motion(**out)
+
+    def moving_param(self, node: yaml.Node) -> str:
+        """A param a motion can move: run-time, and with a position (or a scalar)."""
+        name = self.text(node, "param")
+        params = {p.name: p for p in self.task.params}
+        if name not in params:
+            raise VfError(f"unknown param '{name}'", self.pos(node), hint=suggest(name, params, "params"))
+        decl = params[name]
+        if decl.type == "curve" and not decl.value.runtime:
+            raise VfError(f"param '{name}' is a curve fixed at compile time: a motion can move only run-time params",
+                          self.pos(node), hint=f"declare it `param {name} : curve(degree = {decl.value.degree}, "
+                                               "runtime = true)`, or move the pose it is expressed in")
+        if decl.type not in MOVABLE and decl.type not in SCALAR_DIMENSIONS:
+            raise VfError(f"param '{name}' is a {decl.type}: a motion displaces positions and scalars, and a "
+                          f"{decl.type} has no position", self.pos(node),
+                          hint="move the points it is derived from, or the pose it is expressed in")
+        return name
+
+    def displacement(self, node: yaml.Node, decl: ir.ParamDecl) -> tuple[float, ...]:
+        """A motion's amplitude or offset: 3 lengths for a param with a position, one scalar of the param's
+        dimension for a scalar param; at most MAX_MOTION long."""
+        if decl.type in SCALAR_DIMENSIONS:
+            if isinstance(node, yaml.SequenceNode):
+                raise VfError(f"param '{decl.name}' is a scalar ({decl.type}): give one number, like "
+                              f"{u.example(SCALAR_DIMENSIONS[decl.type]).split('e.g. ')[-1]}", self.pos(node))
+            return (self.scalar(node, SCALAR_DIMENSIONS[decl.type]),)
+        vector = self.vector(node, u.LENGTH)
+        if not np.linalg.norm(vector) <= MAX_MOTION:
+            raise VfError(f"a motion of {np.linalg.norm(vector) * 1e3:.6g} mm is beyond the {MAX_MOTION * 1e3:g} mm a "
+                          "simulated motion may move a param", self.pos(node),
+                          hint="bare numbers take the scene's units (units: mm?)")
+        return vector
 
     # ------------------------------------------------------------------------------------- metrics
     def metric(self, name: str, key_node: yaml.Node, node: yaml.Node) -> MetricSpec:
