@@ -17,6 +17,7 @@ from vfdsl.compiler.admissible import Admissible
 from vfdsl.errors import VfError
 from vfdsl.ir import model as ir
 from vfdsl.kinematics.robot import Robot
+from vfdsl.runtime.qp import StepStatus
 
 TASKS = Path(__file__).resolve().parent.parent / "tasks"
 BACKENDS = ("native", "interpreted")
@@ -45,6 +46,8 @@ USES = {
     "middle": ("require tip stays_at(midpoint({a}, {c})) within 2 mm\n", "ac"),
 }
 POINTS, DIRECTIONS = "abc", "uv"
+DEFAULTS = {"a": np.array([0.0, 0.0, 0.29]), "b": np.array([0.01, 0.0, 0.29]), "c": np.array([0.0, 0.01, 0.3]),
+            "u": np.array([1.0, 0.0, 0.0]), "v": np.array([0.0, 1.0, 0.0])}
 
 
 def _literal(name: str, value: np.ndarray) -> str:
@@ -56,9 +59,8 @@ def _task(tmp_path: Path, uses: list[str], values: dict[str, np.ndarray] | None,
     """The generated task; ``values`` given: every param written as a constant in the expressions."""
     names = sorted({n for use in uses for n in USES[use][1]})
     if values is None:
-        params = "".join(f"param {n} : {'point' if n in POINTS else 'direction'} = "
-                         f"{_literal(n, np.array([0.0, 0.01 * k, 0.29]) if n in POINTS else np.eye(3)[k % 3])}\n"
-                         for k, n in enumerate(names))
+        params = "".join(f"param {n} : {'point' if n in POINTS else 'direction'} = {_literal(n, DEFAULTS[n])}\n"
+                         for n in names)
         fill = {n: n for n in names}
     else:
         params, fill = "", {n: _literal(n, values[n]) for n in names}
@@ -93,6 +95,19 @@ def _degenerate(use: str, values: dict[str, np.ndarray], rng) -> dict[str, np.nd
     return bad
 
 
+def assert_same_tick(ctrl, constants, q, inputs, params, what: str) -> None:
+    """The tick with ``params`` equals the tick of the task with them written as constants (on the same backend:
+    the two backends' agreement is tests/test_generated.py's and test_priorities.py's): the QP's data to
+    1e-10, and dq to 1e-10 where both solves are OPTIMAL. (Where the hard rows cannot all hold, the least-violation
+    answer of a saturated, degenerate QP moves by up to ~1e-8 rad under 1e-16 changes of its data: 1e-7 there.)"""
+    dq, expected = ctrl.step(q, inputs, params=params, dt=DT), constants.step(q, inputs, dt=DT)
+    a, b = ctrl.problem(q, inputs, params, dt=DT), constants.problem(q, inputs, dt=DT)
+    for name in ("P", "g", "A", "lb", "ub"):
+        np.testing.assert_allclose(getattr(a, name), getattr(b, name), rtol=1e-10, atol=1e-10, err_msg=f"{what} {name}")
+    optimal = ctrl.status == StepStatus.OPTIMAL and constants.status == StepStatus.OPTIMAL
+    np.testing.assert_allclose(dq, expected, rtol=0, atol=1e-10 if optimal else 1e-7, err_msg=what)
+
+
 def _compile(task: ir.Task, backend: str) -> vfdsl.Controller:
     return vfdsl.compile(task, backend=backend)
 
@@ -102,19 +117,17 @@ def test_generated_tasks_accept_sound_values_as_constants_and_refuse_degenerate_
     rng = np.random.default_rng(18)
     degenerate_uses = ("line2", "midplane", "cross", "tilt", "plane3")
     cases = [["middle", "cross"], ["midplane", "tilt", "line2"], ["plane3"], ["cross", "plane3", "middle", "tilt"]]
-    cases += [list(rng.permutation(list(USES))[:k]) for k in (1, 2, 3, 4)]
+    cases += [list(rng.permutation(list(USES))[:k]) for k in (2, 4)]
     refused = accepted = 0
     for case_index, uses in enumerate(cases):
         task = _task(tmp_path, uses, None, f"p{case_index}")
         controllers = {backend: _compile(task, backend) for backend in BACKENDS}
-        for trial in range(3):
+        for trial in range(2):
             values = _sound(rng)
             given = {n: values[n] for n in (d.name for d in task.params)}
-            constants = _compile(_task(tmp_path, uses, values, f"c{case_index}_{trial}"), "native")
-            expected = constants.step(START, PUSH, dt=DT)
+            constants = _task(tmp_path, uses, values, f"c{case_index}_{trial}")
             for backend, ctrl in controllers.items():
-                dq = ctrl.step(START, PUSH, params=given, dt=DT)
-                np.testing.assert_allclose(dq, expected, rtol=0, atol=1e-10, err_msg=f"{uses} {backend}")
+                assert_same_tick(ctrl, _compile(constants, backend), START, PUSH, given, f"{uses} {backend}")
                 accepted += 1
             for use in set(uses) & set(degenerate_uses):
                 bad = {n: v for n, v in _degenerate(use, values, rng).items() if n in given}
@@ -123,16 +136,23 @@ def test_generated_tasks_accept_sound_values_as_constants_and_refuse_degenerate_
                         ctrl.step(START, PUSH, params=bad, dt=DT)
                     assert info.value.pos is not None and info.value.pos.line > 6, info.value.render()
                     refused += 1
-    assert accepted >= 40 and refused >= 40
+    assert accepted >= 24 and refused >= 30
 
 
-def _example_tasks() -> list[Path]:
+def _example_tasks(kinds=None) -> list[Path]:
+    """The example tasks with run-time params (of ``kinds``, if given)."""
     out = []
     for path in sorted(TASKS.glob("*.vf")):
         task = vfdsl.load(path)
-        if Admissible(task, Robot.load(task.robots[0].urdf).reach).layout.size:
+        slots = Admissible(task, Robot.load(task.robots[0].urdf).reach).layout.slots
+        if any(slots[d.name].size and (kinds is None or d.type in kinds) for d in task.params):
             out.append(path)
     return out
+
+
+# A run-time b-spline is interpolated with the parameters of its default points, so moved points are not the
+# curve whose default they would be: tests/test_curve_runtime.py checks moved curves against scipy instead.
+NOT_CURVES = ("point", "vector", "direction", "line", "plane", "pose", "length", "angle", "speed", "number")
 
 
 def _perturbed(decl: ir.ParamDecl, rng) -> ir.Value:
@@ -206,20 +226,20 @@ def _inputs(task: ir.Task) -> dict:
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("path", _example_tasks(), ids=lambda p: p.stem)
+@pytest.mark.parametrize("path", _example_tasks(NOT_CURVES), ids=lambda p: p.stem)
 def test_example_tasks_accept_sound_values_as_constants(path):
     task = vfdsl.load(path)
     rng = np.random.default_rng(len(path.stem))
-    runtime = [d for d in task.params if Admissible(task, 1.0).layout.slots[d.name].size]
+    slots = Admissible(task, 1.0).layout.slots
+    runtime = [d for d in task.params if slots[d.name].size and d.type in NOT_CURVES]
     controllers = {backend: _compile(task, backend) for backend in BACKENDS}
     inputs = _inputs(task)
     for _ in range(2):
         values = {d.name: _perturbed(d, rng) for d in runtime}
-        expected = _compile(_with_values(task, values), "native").step(task.start, inputs, dt=DT)
+        constants = _with_values(task, values)
         given = {name: _si(value) for name, value in values.items()}
         for backend, ctrl in controllers.items():
-            np.testing.assert_allclose(ctrl.step(task.start, inputs, params=given, dt=DT), expected, rtol=0, atol=1e-10,
-                                       err_msg=backend)
+            assert_same_tick(ctrl, _compile(constants, backend), task.start, inputs, given, f"{path.stem} {backend}")
 
 
 # --------------------------------------------------------------------------- the repros of the defect
@@ -426,3 +446,19 @@ def test_the_checks_are_documented():
     for words in ("vfdsl.compiler.admissible", "MIN_DIRECTION_NORM", "plausible", "CHORD_RATIO", "full turn",
                   "preallocated"):
         assert words in doc, words
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_the_needle_task_takes_sound_registrations_and_refuses_unit_slips(backend):
+    """tasks/needle_insertion.vf: an entry point at x = -1 mm or within 1e-9 m of x = 0 was refused as a zero
+    vector (a coordinate read as a length); millimetres given as metres passed."""
+    task = vfdsl.load(TASKS / "needle_insertion.vf")
+    ctrl = vfdsl.compile(task, backend=backend)
+    hand = {"hand": [0.0, 0.0, 0.0]}
+    target = [0.020, -0.005, 0.235]
+    for x in (-0.001, 1e-10, 0.0, 0.010):
+        dq = ctrl.step(task.start, hand, params={"entry": [x, 0.005, 0.285], "target": target})
+        assert np.all(np.isfinite(dq))
+    with pytest.raises(VfError, match=r"param 'entry' is \[10, 5, 285\] m: beyond 1.86 m") as info:
+        ctrl.step(task.start, hand, params={"entry": [10, 5, 285], "target": [20, -5, 235]})
+    assert "millimetres given as metres" in info.value.hint
