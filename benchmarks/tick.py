@@ -179,8 +179,11 @@ def time_raw(step, qs, us, p, dt: float, ticks: int) -> tuple[dict, dict]:
     return stats(out), statuses
 
 
-def time_step(ctrl, qs, inputs: list[dict], dt: float, ticks: int) -> dict:
-    """The whole Controller.step API per tick (the input mappings are built beforehand, as a caller's are)."""
+def time_step(ctrl, qs, inputs: list[dict], dt: float, ticks: int, params: dict | None = None,
+              move=lambda i: None) -> dict:
+    """The whole Controller.step API per tick (the input mappings are built beforehand, as a caller's are);
+    ``params`` (preallocated arrays, or lists) are changed by move(i) before the tick at recorded state i, as
+    they were when the states were recorded."""
     step, pc, m = ctrl.step, time.perf_counter_ns, len(qs)
     out = np.empty(ticks, np.int64)
     gc.disable()
@@ -188,8 +191,9 @@ def time_step(ctrl, qs, inputs: list[dict], dt: float, ticks: int) -> dict:
         for k in range(WARMUP + ticks):
             i = k % m
             q, u = qs[i], inputs[i]
+            move(i)
             t0 = pc()
-            step(q, u, None, dt)
+            step(q, u, params, dt)
             t1 = pc()
             if k >= WARMUP:
                 out[k - WARMUP] = t1 - t0
@@ -330,27 +334,6 @@ def experiment(name: str, task, driver, ticks: int, record_ticks: int, cache: Pa
             "_states": (qs, dicts)}
 
 
-def time_params(ctrl, qs, inputs: list[dict], dt: float, ticks: int, params: dict, move) -> dict:
-    """Controller.step with ``params`` (preallocated arrays, or lists) changed by move(i) before the tick at
-    recorded state i (as they were when the states were recorded)."""
-    step, pc, m = ctrl.step, time.perf_counter_ns, len(qs)
-    out = np.empty(ticks, np.int64)
-    gc.disable()
-    try:
-        for k in range(WARMUP + ticks):
-            i = k % m
-            q, u = qs[i], inputs[i]
-            move(i)
-            t0 = pc()
-            step(q, u, params, dt)
-            t1 = pc()
-            if k >= WARMUP:
-                out[k - WARMUP] = t1 - t0
-    finally:
-        gc.enable()
-    return stats(out)
-
-
 def params_section(exps: dict, ticks: int, cache: Path) -> dict:
     """Section 6: B with its pivot re-registered every tick (1 um circle), as an array and as a list, and a
     20-point run-time curve moved every tick (a 0.25 Hz, 2 mm breathing), against the same states without."""
@@ -370,8 +353,8 @@ def params_section(exps: dict, ticks: int, cache: Path) -> dict:
         listed["pivot"] = [pivot0[0] + 1e-6 * np.cos(0.01 * k), pivot0[1], pivot0[2]]
     log(f"[params] B with a re-registered pivot ({ticks} ticks each)")
     out["B pivot"] = {"without": time_step(native, qs, dicts, dt, ticks),
-                      "array": time_params(native, qs, dicts, dt, ticks, array, move_array),
-                      "list": time_params(native, qs, dicts, dt, ticks, listed, move_list)}
+                      "array": time_step(native, qs, dicts, dt, ticks, array, move_array),
+                      "list": time_step(native, qs, dicts, dt, ticks, listed, move_list)}
     s = np.linspace(0, 1, 20)
     vessel0 = np.column_stack([0.06 * (s - 0.5), 0.004 * np.sin(3 * s), np.full(20, 0.28)])
     vessel_task_path = cache / "vessel_20.vf"
@@ -394,7 +377,7 @@ def params_section(exps: dict, ticks: int, cache: Path) -> dict:
     vqs, _, vdicts, _ = record(ctrl, start, drive_breathing, dt, 4_000, moving)   # closed loop on the moving curve
     log(f"[params] a 20-point run-time curve moved every tick ({ticks} ticks each)")
     out["curve 20 points"] = {"without": time_step(ctrl, still_qs, still_dicts, dt, ticks),
-                              "array": time_params(ctrl, vqs, vdicts, dt, ticks, moving, breathe)}
+                              "array": time_step(ctrl, vqs, vdicts, dt, ticks, moving, breathe)}
     return out
 
 

@@ -62,6 +62,7 @@ import casadi as ca
 from vfdsl.errors import VfError
 
 FLAGS = ("-O3", "-march=native", "-fPIC", "-pthread", "-fvisibility=hidden", "-fno-math-errno",
+         "-Werror=implicit-function-declaration",
          "-DGCC_HASCLASSVISIBILITY")
 """Speed flags. Never ``-ffast-math``: the step's NaN/inf checks must survive optimisation."""
 STEPPER = Path(__file__).parent / "stepper.c"
