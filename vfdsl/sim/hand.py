@@ -5,7 +5,9 @@ input(t) = aim(t) + tremor(t) + drift(t), where
 - aim is ``magnitude`` times a unit vector, re-aimed every ``reaction`` seconds from what the user sees:
   push: a fixed direction; turn: a torque about a fixed axis, less its component along the guided frame's
   tool axis (a hand turning a pen around a cone tilts the pen, it does not twist it); follow: along the tangent of a curve at the
-  guided frame's closest point (zero past its end); toward: toward a point, or the closest point of a
+  guided frame's closest point, until the last ``STOP_DISTANCE`` (1 mm) of the curve, where the hand aims at
+  the curve's end point with a magnitude falling in proportion to the distance to it (it slows down and
+  stops there, and holds the frame at the end against its own tremor and drift); toward: toward a point, or the closest point of a
   plane;
 - tremor is physiological tremor: per axis, four sinusoids with frequencies drawn in the 8-12 Hz band and
   random phases, scaled so that the 3-D RMS is ``tremor``;
@@ -37,6 +39,7 @@ GENERIC_SPEED = 5e-3                 # m/s commanded by the generic hand's push
 GENERIC_ANGULAR_SPEED = math.radians(10)
 FREE_FRACTION = 0.5                  # an axis is free if the frame moves at least this much of what is asked
 PROBE_TICKS = 400                    # at most this many ticks to find whether an axis is free
+STOP_DISTANCE = 1e-3                 # m: a following hand slows down over the curve's last millimetre
 
 
 class Hand:
@@ -81,8 +84,13 @@ class Hand:
             return unit(tilt) if np.linalg.norm(tilt) > 1e-9 else axis
         if s.kind == "follow":
             R, _ = self.scene.to_world(s.curve)
-            (param,), _ = self.curve.closest(self.scene.local(ir.ParamRef(name=s.curve), p), refine=False)
-            return R @ self.curve.tangent(param) if param < self.curve.length else np.zeros(3)
+            local = self.scene.local(ir.ParamRef(name=s.curve), p)
+            (param,), _ = self.curve.closest(local, refine=False)
+            if self.curve.length - param > STOP_DISTANCE:
+                return R @ self.curve.tangent(param)
+            to_end = np.ravel(self.curve.spline(self.curve.length) - local)
+            distance = np.linalg.norm(to_end)
+            return R @ to_end / STOP_DISTANCE if distance < STOP_DISTANCE else R @ to_end / distance
         decl = self.scene.task.param(s.target)
         if decl.type == "plane":
             point, normal = self.scene.plane(ir.ParamRef(name=s.target))
