@@ -167,7 +167,12 @@ def _heading(name: str, s, doc: dict, trials: int, seconds: float, simulated: fl
         aim = aim if isinstance(aim, str) else "[" + ", ".join(f"{x:.3g}" for x in aim) + "]"
         hand_text = (f"hand: {hand['kind']} {aim} with input '{hand['input']}', {hand['magnitude'] * factor:.3g} "
                      f"{unit}, tremor {hand['tremor'] * factor:.3g} {unit} RMS, drift {hand['drift'] * factor:.3g} "
-                     f"{unit} RMS" + ("" if s.hand else "  (the generic hand: the scene gives none)"))
+                     f"{unit} RMS" + (f"\n  {hand['assumed']}" if hand.get("assumed") else ""))
+    moved = doc.get("motion")
+    if moved:
+        hand_text += (f"\nachieved: the hand moved '{moved['frame']}' {moved['path_mm']:.3g} mm along its path (net "
+                      f"{moved['net_mm']:.3g} mm) and turned its tool axis {moved['turn_deg']:.3g} deg"
+                      + (f" (mean of {moved['trials']} trials)" if moved["trials"] > 1 else ""))
     speed = f", {simulated / seconds:.0f}x real time" if simulated else ""
     return (f"{name}: {trials} trial(s) of {s.duration:g} s at a {s.period * 1e3:g} ms period, latency "
             f"{s.latency * 1e3:g} ms, servo lag {s.servo_lag * 1e3:g} ms, resolution {s.resolution}, tracker "

@@ -38,7 +38,7 @@ from vfdsl.sim.geometry import Scene
 from vfdsl.sim.hand import Hand, generic_hand
 from vfdsl.sim.metrics import Stats, errors, frame_poses, metric_defs
 from vfdsl.sim.robot import SimRobot
-from vfdsl.sim.settings import SimSettings, hand_dimension
+from vfdsl.sim.settings import SimSettings, hand_dimension, tracked_frame
 
 PROGRESS_EVERY = 500                 # ticks between progress updates of an in-process trial
 CHUNKS_PER_WORKER = 4
@@ -75,6 +75,7 @@ class TrialResult:
     series: dict | None = None                # time series of the trial, for plots
     hand: dict | None = None                  # the hand that ran (the generic one when the scene has none)
     trace: dict | None = None                 # column -> one value per tick (vfdsl.sim.trace)
+    motion: dict | None = None                # how far the hand's frame moved (achieved_motion)
 
 
 @dataclass
@@ -300,7 +301,21 @@ def _score(job: Job, task: ir.Task, robot: Robot, qs: np.ndarray, segments, rng,
     if hand_settings is not None:
         hand = {**hand_settings.__dict__,
                 "dimension": hand_dimension(task.input(hand_settings.input).type, hand_settings.kind)}
-    return TrialResult(job.trial, job.seed, job.grid, len(qs), fallback, stats, units, series, hand, trace)
+    motion = None
+    if hand_settings is not None:
+        name = hand_settings.frame or tracked_frame(task, hand_settings.input)
+        if name is not None:
+            motion = achieved_motion(poses.p[name], poses.axis(task.frame(name)))
+            motion["frame"] = name
+    return TrialResult(job.trial, job.seed, job.grid, len(qs), fallback, stats, units, series, hand, trace, motion)
+
+
+def achieved_motion(p: np.ndarray, axis: np.ndarray) -> dict:
+    """How far a frame moved over a trial, by the encoders: the length of its origin's path and the distance
+    from its first to its last position (m), and the angle between its first and last tool axis (rad)."""
+    return {"path": float(np.linalg.norm(np.diff(p, axis=0), axis=1).sum()),
+            "net": float(np.linalg.norm(p[-1] - p[0])),
+            "turn": float(np.arccos(np.clip(axis[0] @ axis[-1], -1.0, 1.0)))}
 
 
 def _slice(poses, part: slice):
