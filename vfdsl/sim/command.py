@@ -23,7 +23,8 @@ Run a task's controller in closed loop on a simulated robot (Pinocchio kinematic
 latency, servo lag, joint resolution) pushed by a simulated hand (with tremor and drift), and score
 it: each constraint's error in mm or deg, by the robot's exact kinematics and, with tracker noise, by a
 simulated optical tracker. Settings come from the simulation scene <task>.sim.yaml next to the task
-(or --scene); the options below override it."""
+(or --scene); the options below override it. The scene's format, with an example of every kind, is in
+docs/simulate.md (JSON Schema: docs/simulate.schema.json)."""
 
 EPILOG = """\
 examples:
