@@ -122,3 +122,19 @@ def test_bad_trace_path_is_refused_before_the_run(tmp_path, capsys, name, messag
     assert main(["simulate", VESSEL, "--quiet", "--duration", "0.1s", "--trace", str(tmp_path / name)]) == 2
     err = capsys.readouterr().err
     assert message in err and "Traceback" not in err
+
+
+def test_trace_params_carry_a_disturbance_that_moves_a_pose(tmp_path):
+    """paper_a_plate_moves: at 6 s the plate moves by (1.5, -1, 1) mm and tilts by (2, -2, 0) deg; the trace's
+    plate columns hold the scene value before and the moved pose from that tick on."""
+    scene = str(TASKS_DIR / "paper_a_plate_moves.sim.yaml")
+    _run(tmp_path, str(TASKS_DIR / "paper_a_follow_curve.vf"), "--scene", scene, "--duration", "6.6s", "--trials", "1")
+    t = _read_csv(tmp_path / "t.csv")
+    before, after = t["t_s"] < 6 - 1e-9, t["t_s"] >= 6 - 1e-9
+    for axis, shift in zip("xyz", (1.5e-3, -1e-3, 1e-3)):
+        column = t[f"param.plate.{axis}_m"]
+        assert np.ptp(column[before]) == 0 and np.ptp(column[after]) == 0
+        assert column[after][0] - column[before][0] == pytest.approx(shift, abs=1e-12)
+    assert np.ptp(t["param.plate.yaw_rad"][before]) == 0 and t["param.plate.yaw_rad"][after][0] != t["param.plate.yaw_rad"][0]
+    # the tip error jumps at the move
+    assert np.nanmax(t["metric.tip_error_m"][after][:1]) > 1e-3
