@@ -148,7 +148,8 @@ def tables(data: dict) -> dict[str, str]:
     done, ticks = fallback(data, "vessel")
     out["vessel"] = "\n".join([
         "| run | vessel error: mean | std | max | ticks on the least-violation fallback |", "|---|---|---|---|---|",
-        f"| the scene as shipped | {_g(vessel.mean)} mm | {_g(vessel.std)} mm | {_g(vessel.worst)} mm | {done} of {ticks} |"])
+        f"| the scene as shipped | {_g(vessel.mean)} mm | {_g(vessel.std)} mm | {_g(vessel.worst)} mm | "
+        f"{done} of {ticks} |"])
     pivot, angle = p("B_ideal", "pivot_error_mm"), p("B_ideal", "tool_angle_error_deg")
     done, ticks = fallback(data, "B_ideal")
     out["ideal_b"] = "\n".join([

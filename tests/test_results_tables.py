@@ -71,6 +71,7 @@ def test_the_json_is_what_the_code_gives_now(script, data):
         assert set(now["stats"]) == set(recorded["stats"]), name
         for metric, values in now["stats"].items():
             for a, b in zip(values, recorded["stats"][metric]):
-                assert math.isclose(a, b, rel_tol=1e-9, abs_tol=1e-15), (name, metric, values, recorded["stats"][metric])
+                assert math.isclose(a, b, rel_tol=1e-9, abs_tol=1e-15), (name, metric, values,
+                                                                          recorded["stats"][metric])
         checked += 1
     assert checked >= len(script.runs()) - 2

@@ -7,8 +7,8 @@ input(t) = aim(t) + tremor(t) + drift(t), where
   tool axis (a hand turning a pen around a cone tilts the pen, it does not twist it); follow: along the tangent of a curve at the
   guided frame's closest point, until the last ``STOP_DISTANCE`` (1 mm) of the curve, where the hand aims at
   the curve's end point with a magnitude falling in proportion to the distance to it (it slows down and
-  stops there, and holds the frame at the end against its own tremor and drift); toward: toward a point, or the closest point of a
-  plane;
+  stops there, and holds the frame at the end against its own tremor and drift); toward: toward a point,
+  or the closest point of a plane;
 - tremor is physiological tremor: per axis, four sinusoids with frequencies drawn in the 8-12 Hz band and
   random phases, scaled so that the 3-D RMS is ``tremor``;
 - drift is slow wandering: per axis an Ornstein-Uhlenbeck process with time constant ``drift_time``,

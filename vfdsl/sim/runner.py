@@ -288,8 +288,9 @@ def _score(job: Job, task: ir.Task, robot: Robot, qs: np.ndarray, segments, rng,
         trace = record.columns(qs, s.period)
         lengths = [end - start for (start, _), end in zip(segments, bounds[1:])]
         for name, parts in values.items():
-            source, metric = ("tracker", name.removeprefix("tracker_")) if name.startswith("tracker_") else ("metric", name)
-            column = tr.metric_column(source, metric, units[name])
+            tracked = name.startswith("tracker_")
+            column = tr.metric_column("tracker" if tracked else "metric", name.removeprefix("tracker_") if tracked
+                                      else name, units[name])
             trace[column] = tr.per_tick(parts, lengths) * tr.metric_factor(units[name])
     stats = {name: Stats().add(v) for name, v in series_values.items()}
     series = None

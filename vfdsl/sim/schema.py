@@ -73,7 +73,8 @@ _MOTION = {"param": (NAME, "a run-time param"), "kind": (None, ""),
            "frequency": (QUANTITY, "sine: in Hz, below the Nyquist frequency of the period"),
            "phase": (QUANTITY, "sine: an angle (default 0)"),
            "at": (QUANTITY, "step: d(t) = offset from this time on"), "offset": (_SIZE, "step, ramp: the displacement"),
-           "start": (QUANTITY, "ramp: offset reached linearly from start to end"), "end": (QUANTITY, "ramp: after start")}
+           "start": (QUANTITY, "ramp: offset reached linearly from start to end"),
+           "end": (QUANTITY, "ramp: after start")}
 _METRIC = {"error_of": (NAME, "the constraint scored, \"frame primitive\" like \"tip stays_at\""),
            "tilt_of": (NAME, "a frame whose tool axis is measured from a pose param's z axis"),
            "normal_of": (NAME, "tilt_of: the pose param"),

@@ -144,7 +144,8 @@ def check_path(name: str) -> str:
         try:
             import pyarrow  # noqa: F401
         except ImportError:
-            raise VfError(f"--trace {name}: Parquet needs pyarrow", hint="pip install pyarrow, or write a .csv") from None
+            raise VfError(f"--trace {name}: Parquet needs pyarrow",
+                          hint="pip install pyarrow, or write a .csv") from None
     return suffix
 
 
