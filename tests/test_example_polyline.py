@@ -71,7 +71,7 @@ def test_pushed_along_the_cut_past_its_corners(backward):
 
 def test_simulator_scores_a_polyline_exactly():
     """``vfdsl simulate``'s follows metric (vfdsl.sim.geometry.Curve) on a polyline: the brute-force distance
-    wherever the closest point lies between the ends (past them it is the distance to the end tangent)."""
+    everywhere, past its ends included (there: the distance to the end point)."""
     from vfdsl.sim.geometry import Curve
     task = vfdsl.load(TASK)
     value = task.param("cut").value
@@ -83,3 +83,5 @@ def test_simulator_scores_a_polyline_exactly():
     expected = np.array([distance_to_polyline(points, p) for p in x])
     assert inside.sum() > 200                     # the corners' neighbourhoods, and the two ends
     np.testing.assert_allclose(distance[inside], expected[inside], atol=1e-15)
+    np.testing.assert_allclose(distance, expected, atol=1e-15)
+    assert (~inside).sum() > 10                   # points past the two ends were scored too

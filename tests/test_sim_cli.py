@@ -181,3 +181,30 @@ def test_unreachable_cluster_is_a_clear_error(capsys, monkeypatch):
     assert main(["simulate", B, "--quiet", "--duration", "0.1s", "--cluster", "tcp://127.0.0.1:9"]) == 2
     err = capsys.readouterr().err
     assert "cannot reach a Dask scheduler at 'tcp://127.0.0.1:9'" in err and "Traceback" not in err
+
+
+def test_experiment_a_is_scored_by_the_distance_to_the_curve_and_the_hand_stops_at_its_end():
+    """Experiment A's full trial (24 s at 150 ms, the scene's hand with tremor and drift): the tip error is the
+    distance to the curve itself, recomputed here by a dense search of the curve mapped to the world by the plate
+    pose; the hand brings the tip to the curve's end and holds it there, so it never runs past the end."""
+    from scipy.interpolate import make_interp_spline
+    from scipy.spatial.transform import Rotation
+
+    task = vfdsl.load(A)
+    settings = load_settings(task, TASKS_DIR / "paper_a_follow_curve.sim.yaml").replace(trials=1)
+    (result,) = run(make_jobs(A, settings, keep_series=True))
+    plate, path = task.param("plate").value, task.param("path").value
+    R, t = Rotation.from_euler("xyz", plate.rpy).as_matrix(), np.asarray(plate.translation)
+    points = np.asarray(path.points)
+    s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(points, axis=0), axis=1))])
+    dense = make_interp_spline(s, points, k=path.degree)(np.linspace(0, s[-1], 200_001)) @ R.T + t
+    tip = result.series["p"]["tip"]
+    brute = np.array([np.sqrt(np.min(np.sum((dense - x) ** 2, axis=1))) for x in tip])
+    np.testing.assert_allclose(result.series["metrics"]["tip_error_mm"], brute * 1e3, atol=2e-4)
+    end, tangent = dense[-1], (dense[-1] - dense[-2]) / np.linalg.norm(dense[-1] - dense[-2])
+    near = np.linalg.norm(tip - end, axis=1) < 1e-3                  # the tip within 1 mm of the end
+    assert near[-4:].all()                          # the hand got there before the trial ended
+    beyond = (tip[near] - end) @ tangent
+    assert beyond.max() < 0.05e-3                   # never more than 0.05 mm past the end (was 0.4-0.67 mm)
+    assert np.linalg.norm(tip[-1] - end) < 0.1e-3   # at the end when the trial stops
+    assert brute[-3:].max() < 0.01e-3               # and on the curve there, not on its tangent beyond it

@@ -68,11 +68,15 @@ def test_curve_distance_matches_a_brute_force_search(task_a):
     brute = np.array([np.sqrt(np.min(np.sum((dense - x) ** 2, axis=1))) for x in points])
     assert np.all(distance <= brute + 1e-12)                   # never worse than the dense search
     np.testing.assert_allclose(distance, brute, atol=1e-8)
-    # Past the end: 3 mm along the end tangent and 2 mm across it is 2 mm from the end's tangent line.
-    tangent = curve.tangent(curve.length)
-    across = np.cross(tangent, [0.0, 0.0, 1.0])
-    beyond = curve.spline(curve.length) + 3e-3 * tangent + 2e-3 * across / np.linalg.norm(across)
-    assert curve.closest(beyond)[1][0] == pytest.approx(2e-3, rel=1e-9)
+    # Past an end the distance is to the curve (the paper's figure), not to its end tangent: 3 mm along the
+    # end tangent and 2 mm across it is sqrt(13) mm from the end point, and the closest point is the end.
+    for s_end, sign in ((curve.length, 1.0), (0.0, -1.0)):
+        tangent = curve.tangent(s_end)
+        across = np.cross(tangent, [0.0, 0.0, 1.0])
+        beyond = curve.spline(s_end) + sign * 3e-3 * tangent + 2e-3 * across / np.linalg.norm(across)
+        (s_found,), (distance,) = curve.closest(beyond)
+        assert distance == pytest.approx(math.sqrt(13) * 1e-3, rel=1e-9)
+        assert s_found == s_end
 
 
 def test_joint_limit_metric_of_a_configuration_outside_the_limits(task_b):

@@ -13,7 +13,7 @@ from tqdm import tqdm
 import vfdsl
 from vfdsl.errors import VfError
 from vfdsl.passes import units as u
-from vfdsl.sim import report
+from vfdsl.sim import report, trace
 from vfdsl.sim.metrics import metric_defs
 from vfdsl.sim.runner import default_workers, loaded, make_jobs, run
 from vfdsl.sim.settings import GRID_NAMES, default_scene, load_settings, parse_setting
@@ -23,7 +23,8 @@ Run a task's controller in closed loop on a simulated robot (Pinocchio kinematic
 latency, servo lag, joint resolution) pushed by a simulated hand (with tremor and drift), and score
 it: each constraint's error in mm or deg, by the robot's exact kinematics and, with tracker noise, by a
 simulated optical tracker. Settings come from the simulation scene <task>.sim.yaml next to the task
-(or --scene); the options below override it."""
+(or --scene); the options below override it. The scene's format, with an example of every kind, is in
+docs/simulate.md (JSON Schema: docs/simulate.schema.json)."""
 
 EPILOG = """\
 examples:
@@ -37,8 +38,9 @@ examples:
   vfdsl simulate tasks/paper_b_virtual_rcm.vf --trials 1000 --duration 1s --cluster tcp://host:8786
 
 Values take units (10ms, 0.2mm); bare numbers are SI. --json writes every metric by name
-(metrics.<name>.mean / std / max) with the settings and the seed; --csv one row per trial. The same
-seed gives the same numbers, whatever runs the trials."""
+(metrics.<name>.mean / std / max) with the settings and the seed; --csv one row per trial; --trace
+one row per tick per trial (.csv or .parquet, SI units). The same seed gives the same numbers, whatever
+runs the trials. The scene format, the trace's columns and the defaults: docs/simulate.md."""
 
 
 def add_parser(commands) -> None:
@@ -63,6 +65,9 @@ def add_parser(commands) -> None:
     p.add_argument("--json", metavar="OUT.json", help="write every metric, the settings and the seeds")
     p.add_argument("--csv", metavar="OUT.csv", help="write one row per trial (settings, seed, metrics)")
     p.add_argument("--plot", metavar="OUT.png", help="write a plot of the first trial (PNG)")
+    p.add_argument("--trace", metavar="OUT.csv|OUT.parquet",
+                   help="write every tick of every trial: time, q, dq, inputs, params, status, violations, metrics "
+                        "(SI units; columns in docs/simulate.md)")
     p.add_argument("--quiet", action="store_true", help="no progress bar and no table")
     p.set_defaults(run=main)
 
@@ -107,10 +112,12 @@ def main(args: argparse.Namespace) -> int:
     grid = _grid(args.grid)
     if args.workers is not None and args.workers < 1:
         raise VfError(f"--workers must be at least 1, got {args.workers}")
-    for name in (args.json, args.csv, args.plot):
+    if args.trace:
+        trace.check_path(args.trace)
+    for name in (args.json, args.csv, args.plot, args.trace):
         if name and not Path(name).resolve().parent.is_dir():
             raise VfError(f"cannot write {name}: no directory {Path(name).resolve().parent}")
-    jobs = make_jobs(args.file, settings, grid, keep_series=bool(args.plot))
+    jobs = make_jobs(args.file, settings, grid, keep_series=bool(args.plot), keep_trace=bool(args.trace))
     ctx = loaded(args.file)                     # compile (or load from the cache) once, here, before workers
     workers = args.workers or default_workers(jobs)
     total = sum(max(1, round(j.settings.duration / j.settings.period)) for j in jobs)
@@ -132,6 +139,8 @@ def main(args: argparse.Namespace) -> int:
         _write(args.json, lambda path: path.write_text(report.to_json(doc)))
     if args.csv:
         _write(args.csv, lambda path: path.write_text(report.to_csv(doc)))
+    if args.trace:
+        _write(args.trace, lambda path: trace.write(path, results, task.name, str(args.file)))
     if args.plot:
         from vfdsl.sim.plots import plot_run
         _write(args.plot, lambda path: plot_run(task, settings, results, grid, str(path)))
@@ -159,7 +168,12 @@ def _heading(name: str, s, doc: dict, trials: int, seconds: float, simulated: fl
         aim = aim if isinstance(aim, str) else "[" + ", ".join(f"{x:.3g}" for x in aim) + "]"
         hand_text = (f"hand: {hand['kind']} {aim} with input '{hand['input']}', {hand['magnitude'] * factor:.3g} "
                      f"{unit}, tremor {hand['tremor'] * factor:.3g} {unit} RMS, drift {hand['drift'] * factor:.3g} "
-                     f"{unit} RMS" + ("" if s.hand else "  (the generic hand: the scene gives none)"))
+                     f"{unit} RMS" + (f"\n  {hand['assumed']}" if hand.get("assumed") else ""))
+    moved = doc.get("motion")
+    if moved:
+        hand_text += (f"\nachieved: the hand moved '{moved['frame']}' {moved['path_mm']:.3g} mm along its path (net "
+                      f"{moved['net_mm']:.3g} mm) and turned its tool axis {moved['turn_deg']:.3g} deg"
+                      + (f" (mean of {moved['trials']} trials)" if moved["trials"] > 1 else ""))
     speed = f", {simulated / seconds:.0f}x real time" if simulated else ""
     return (f"{name}: {trials} trial(s) of {s.duration:g} s at a {s.period * 1e3:g} ms period, latency "
             f"{s.latency * 1e3:g} ms, servo lag {s.servo_lag * 1e3:g} ms, resolution {s.resolution}, tracker "

@@ -5,8 +5,10 @@ p_world = R(rpy) p + t, with R the fixed-axis roll-pitch-yaw rotation (URDF conv
 A curve is the b-spline of its degree interpolating its points with the cumulative chord length as
 parameter (the definition of a ``curve`` value); its closest point to x is found by a dense search over
 samples followed by Newton steps on (C(s) - x) . C'(s) = 0; on a polyline (degree 1) by projecting x on
-every segment (the later segment on a tie). Past either end the distance is to the end's tangent line,
-which is where ``follows`` keeps a frame that leaves the curve by an end. A derived argument
+every segment (the later segment on a tie). The distance is to the curve itself, ends included: a point
+past an end is as far from the curve as from the end point (the paper's "distance to the curve"; the
+``follows`` constraint continues the curve by its end tangents, and a frame pushed along that continuation
+is off the curve by the distance it went). A derived argument
 (``line(entry, target)``) is computed from the params' current values by :mod:`vfdsl.compiler.derived`: its
 few vector operations are the definition of the value, not a model of the robot.
 
@@ -60,9 +62,8 @@ class Curve:
         self._squares = np.sum(self._samples ** 2, axis=1)
 
     def closest(self, x: np.ndarray, refine: bool = True) -> tuple[np.ndarray, np.ndarray]:
-        """For points x (N x 3): the parameter s of the closest curve point, and the distance to the curve
-        (to the end's tangent line past an end); ``refine=False``: the nearest sample, 0.05 mm apart, and
-        the distance to it."""
+        """For points x (N x 3): the parameter s of the closest curve point (0 <= s <= length), and the
+        distance to it; ``refine=False``: the nearest sample, 0.05 mm apart, and the distance to it."""
         x = np.atleast_2d(x)
         if self._d2 is None:
             return self._closest_on_segments(x, refine)
@@ -73,7 +74,7 @@ class Curve:
             f = np.sum(r * self._d1(t), axis=1)
             df = np.sum(self._d1(t) ** 2, axis=1) + np.sum(r * self._d2(t), axis=1)
             t = np.clip(t - f / np.where(df > 0, df, np.inf), 0.0, self.length)
-        return t, self._distance(x, t, refine)
+        return t, np.linalg.norm(x - self.spline(t), axis=1)
 
     def _closest_on_segments(self, x: np.ndarray, refine: bool) -> tuple[np.ndarray, np.ndarray]:
         """A polyline's exact closest points: x projected on every segment, the later segment on a tie."""
@@ -84,17 +85,7 @@ class Curve:
         distance = np.linalg.norm(x[:, None, :] - a[None] - t[..., None] * d[None], axis=2)
         k = len(lengths) - 1 - np.argmin(distance[:, ::-1], axis=1)
         t = self._breaks[k] + t[np.arange(len(x)), k]
-        return t, self._distance(x, t, refine)
-
-    def _distance(self, x: np.ndarray, t: np.ndarray, refine: bool) -> np.ndarray:
-        """|x - C(t)|, or past an end (``refine``) the distance to the end's tangent line."""
-        r = x - self.spline(t)
-        if refine:
-            tangent = self._d1(t) / np.linalg.norm(self._d1(t), axis=1, keepdims=True)
-            along = np.sum(r * tangent, axis=1)
-            beyond = ((t <= 0.0) & (along < 0)) | ((t >= self.length) & (along > 0))
-            r = np.where(beyond[:, None], r - along[:, None] * tangent, r)
-        return np.linalg.norm(r, axis=1)
+        return t, np.linalg.norm(x - self.spline(t), axis=1)
 
     def tangent(self, s: float) -> np.ndarray:
         return unit(self._d1(s))

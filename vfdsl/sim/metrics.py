@@ -5,8 +5,8 @@ The error of a constraint is how far the frame is from the set the constraint de
 
     stays_at          |p - target|                         mm
     along             distance from p to the line          mm
-    follows           distance from p to the (shifted) curve, in the curve's frame, continued past
-                      its ends by its end tangents (where the constraint keeps p)   mm
+    follows           distance from p to the (shifted) curve, in the curve's frame, ends included
+                      (past an end: the distance to the end point, as the paper scores)   mm
     on_plane          |n . (p - p0)|                       mm
     above             max(0, -n . (p - p0))                mm
     within_distance   max(0, |p - c| - distance)           mm

@@ -64,8 +64,21 @@ def document(task_name: str, task_file: str, settings: SimSettings, results: lis
         doc["groups"] = [{"settings": dict(point), "metrics": metrics_of(rs)} for point, rs in groups(results)]
     else:
         doc["metrics"] = metrics_of(results)
+    doc["motion"] = motion(results)
     doc["trials"] = trial_rows(results)
     return doc
+
+
+def motion(results: list[TrialResult]) -> dict | None:
+    """How far the hand moved its frame, by the encoders, as the mean over the trials: its origin's path
+    length and net displacement (mm), and the angle its tool axis turned from start to end (deg)."""
+    moved = [r.motion for r in results if r.motion is not None]
+    if not moved:
+        return None
+    return {"frame": moved[0]["frame"], "trials": len(moved),
+            "path_mm": 1e3 * sum(m["path"] for m in moved) / len(moved),
+            "net_mm": 1e3 * sum(m["net"] for m in moved) / len(moved),
+            "turn_deg": math.degrees(sum(m["turn"] for m in moved) / len(moved))}
 
 
 def trial_rows(results: list[TrialResult]) -> list[dict]:
@@ -73,6 +86,9 @@ def trial_rows(results: list[TrialResult]) -> list[dict]:
     rows = []
     for r in results:
         row = {"trial": r.trial, "seed": r.seed, **dict(r.grid), "fallback_ticks": r.fallback_ticks}
+        if r.motion is not None:
+            row.update({"motion.path_mm": 1e3 * r.motion["path"], "motion.net_mm": 1e3 * r.motion["net"],
+                        "motion.turn_deg": math.degrees(r.motion["turn"])})
         for name, stats in r.stats.items():
             row[f"{name}.mean"] = stats.mean
             row[f"{name}.max"] = stats.worst

@@ -32,12 +32,13 @@ from vfdsl.errors import VfError
 from vfdsl.ir import model as ir
 from vfdsl.kinematics.robot import Robot
 from vfdsl.runtime.qp import StepStatus
+from vfdsl.sim import trace as tr
 from vfdsl.sim import tracker
 from vfdsl.sim.geometry import Scene
 from vfdsl.sim.hand import Hand, generic_hand
 from vfdsl.sim.metrics import Stats, errors, frame_poses, metric_defs
 from vfdsl.sim.robot import SimRobot
-from vfdsl.sim.settings import SimSettings, hand_dimension
+from vfdsl.sim.settings import SimSettings, hand_dimension, tracked_frame
 
 PROGRESS_EVERY = 500                 # ticks between progress updates of an in-process trial
 CHUNKS_PER_WORKER = 4
@@ -55,6 +56,7 @@ class Job:
     grid: tuple[tuple[str, object], ...] = ()
     keep_series: bool = False
     backend: str = "auto"
+    keep_trace: bool = False                  # record every tick (vfdsl.sim.trace)
 
     @property
     def seed(self) -> int:
@@ -72,6 +74,8 @@ class TrialResult:
     units: dict[str, str]
     series: dict | None = None                # time series of the trial, for plots
     hand: dict | None = None                  # the hand that ran (the generic one when the scene has none)
+    trace: dict | None = None                 # column -> one value per tick (vfdsl.sim.trace)
+    motion: dict | None = None                # how far the hand's frame moved (achieved_motion)
 
 
 @dataclass
@@ -135,6 +139,7 @@ def _simulate(job: Job, task: ir.Task, ctrl: vfdsl.Controller, robot: Robot, pro
     params: dict = {}
     moving = Moving(task, scene, s.motions, np.arange(ticks) * dt)
     qs = np.empty((ticks, robot.nq))
+    record = _Recorder(task, robot, ctrl, ticks) if job.keep_trace else None
     fallback = 0
     optimal = StepStatus.OPTIMAL
     for k in range(ticks):
@@ -160,13 +165,54 @@ def _simulate(job: Job, task: ir.Task, ctrl: vfdsl.Controller, robot: Robot, pro
             raise moving.explain(err, t) from None
         if ctrl.status != optimal:
             fallback += 1
+        if record is not None:
+            record.tick(k, inputs, dq, params, scene, ctrl)
         sim.command(t, dq)
         sim.advance(t, t + dt)
         if progress is not None and (k + 1) % PROGRESS_EVERY == 0:
             progress(PROGRESS_EVERY)
     if progress is not None:
         progress(ticks % PROGRESS_EVERY)
-    return _score(job, task, robot, qs, segments, tracker_rng, fallback, hand_settings, moving.tables)
+    return _score(job, task, robot, qs, segments, tracker_rng, fallback, hand_settings, moving.tables, record)
+
+
+class _Recorder:
+    """A trial's per-tick record (:mod:`vfdsl.sim.trace`): inputs, command, params, status and violations,
+    written into arrays allocated once."""
+
+    def __init__(self, task: ir.Task, robot: Robot, ctrl: vfdsl.Controller, ticks: int):
+        self.task, self.robot = task, robot
+        self.params = tr.runtime_params(task)
+        self.input_columns = tr.input_columns(task)
+        self.param_columns = [c for d in self.params for c in tr.param_columns(d)]
+        self.inputs = np.zeros((ticks, len(self.input_columns)))
+        self.dq = np.zeros((ticks, robot.nq))
+        self.values = np.zeros((ticks, len(self.param_columns)))
+        self.status = np.zeros(ticks, dtype=np.int64)
+        self.violations = [""] * ticks
+
+    def tick(self, k: int, inputs: dict, dq: np.ndarray, params: dict, scene: Scene, ctrl) -> None:
+        self.inputs[k] = np.concatenate([inputs[i.name] for i in self.task.inputs]) if self.task.inputs else []
+        self.dq[k] = dq
+        at = 0
+        for d in self.params:
+            flat = tr.flat_param(params.get(d.name, scene.values[d.name]))
+            self.values[k, at:at + len(flat)] = flat
+            at += len(flat)
+        self.status[k] = int(ctrl.status)
+        found = ctrl.violations()
+        if found:
+            self.violations[k] = "; ".join(map(str, found))
+
+    def columns(self, qs: np.ndarray, period: float) -> dict:
+        names, types = self.robot.joint_names, self.robot.joint_types
+        out: dict = {"tick": np.arange(len(qs)), "t_s": np.arange(len(qs)) * period}
+        for table, cols in ((qs, tr.joint_columns("q", names, types)), (self.dq, tr.joint_columns("dq", names, types)),
+                            (self.inputs, self.input_columns), (self.values, self.param_columns)):
+            out.update({c: table[:, i] for i, c in enumerate(cols)})
+        out["status"] = self.status
+        out["violations"] = self.violations
+        return out
 
 
 class Moving:
@@ -216,7 +262,7 @@ class Moving:
 
 
 def _score(job: Job, task: ir.Task, robot: Robot, qs: np.ndarray, segments, rng, fallback: int,
-           hand_settings, shifts: dict[str, np.ndarray]) -> TrialResult:
+           hand_settings, shifts: dict[str, np.ndarray], record: _Recorder | None = None) -> TrialResult:
     s = job.settings
     poses = frame_poses(robot, task, qs)
     seen = tracker.measure(poses, task, s.noise, s.marker_distance, rng) if s.noise > 0 else None
@@ -237,6 +283,15 @@ def _score(job: Job, task: ir.Task, robot: Robot, qs: np.ndarray, segments, rng,
                                                           s.period))
                 units[name] = d.unit
     series_values = {name: np.concatenate(v) for name, v in values.items()}
+    trace = None
+    if record is not None:
+        trace = record.columns(qs, s.period)
+        lengths = [end - start for (start, _), end in zip(segments, bounds[1:])]
+        for name, parts in values.items():
+            tracked = name.startswith("tracker_")
+            column = tr.metric_column("tracker" if tracked else "metric", name.removeprefix("tracker_") if tracked
+                                      else name, units[name])
+            trace[column] = tr.per_tick(parts, lengths) * tr.metric_factor(units[name])
     stats = {name: Stats().add(v) for name, v in series_values.items()}
     series = None
     if job.keep_series:
@@ -247,7 +302,21 @@ def _score(job: Job, task: ir.Task, robot: Robot, qs: np.ndarray, segments, rng,
     if hand_settings is not None:
         hand = {**hand_settings.__dict__,
                 "dimension": hand_dimension(task.input(hand_settings.input).type, hand_settings.kind)}
-    return TrialResult(job.trial, job.seed, job.grid, len(qs), fallback, stats, units, series, hand)
+    motion = None
+    if hand_settings is not None:
+        name = hand_settings.frame or tracked_frame(task, hand_settings.input)
+        if name is not None:
+            motion = achieved_motion(poses.p[name], poses.axis(task.frame(name)))
+            motion["frame"] = name
+    return TrialResult(job.trial, job.seed, job.grid, len(qs), fallback, stats, units, series, hand, trace, motion)
+
+
+def achieved_motion(p: np.ndarray, axis: np.ndarray) -> dict:
+    """How far a frame moved over a trial, by the encoders: the length of its origin's path and the distance
+    from its first to its last position (m), and the angle between its first and last tool axis (rad)."""
+    return {"path": float(np.linalg.norm(np.diff(p, axis=0), axis=1).sum()),
+            "net": float(np.linalg.norm(p[-1] - p[0])),
+            "turn": float(np.arccos(np.clip(axis[0] @ axis[-1], -1.0, 1.0)))}
 
 
 def _slice(poses, part: slice):
@@ -255,7 +324,7 @@ def _slice(poses, part: slice):
 
 
 def make_jobs(task_file: str, settings: SimSettings, grid: list[tuple[str, list]] | None = None,
-              keep_series: bool = False, backend: str = "auto") -> list[Job]:
+              keep_series: bool = False, backend: str = "auto", keep_trace: bool = False) -> list[Job]:
     """Every trial of every grid point (the grid's product, first name slowest), in a fixed order."""
     points: list[tuple[tuple[str, object], ...]] = [()]
     for name, values in grid or []:
@@ -265,7 +334,7 @@ def make_jobs(task_file: str, settings: SimSettings, grid: list[tuple[str, list]
         point_settings = settings.replace(**dict(point))
         for trial in range(settings.trials):
             jobs.append(Job(str(task_file), point_settings, trial, point,
-                            keep_series and trial == 0, backend))
+                            keep_series and trial == 0, backend, keep_trace))
     return jobs
 
 

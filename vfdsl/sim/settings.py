@@ -104,6 +104,7 @@ class HandSettings:
     drift: float = 0.0                          # RMS, input units
     drift_time: float = 2.0                     # s
     reaction: float = 0.05                      # s between updates of the hand's aim
+    assumed: str = ""                           # the generic hand: what it assumed (empty for a scene's hand)
 
 
 @dataclass(frozen=True)
