@@ -12,6 +12,8 @@
  *     set is linearly dependent for the new data, start cold (equality rows only);
  *   - reports a failed solve as x = NaN, never as a stale or internal iterate.
  */
+#include <daqp/utils.h>        /* update_ldp (DAQP's api.h does not declare the update functions) */
+#include <daqp/auxiliary.h>    /* activate_constraints */
 static void vfdsl_daqp_cold_sense(const struct casadi_qp_prob* p_qp, const struct casadi_qp_data* d_qp,
                                   int* sense) {
   casadi_int i;
