@@ -31,8 +31,14 @@ def check(task: ir.Task, *, overshoot: float = DEFAULT_OVERSHOOT, samples: int =
     over its tolerance (0.10 = 10%); ``samples``, ``seed``: the random walk of the sampled analysis (0
     samples skips it); ``backend``: how the closed-loop analyses run the controller (see
     :func:`vfdsl.compile`)."""
+    from vfdsl.errors import VfError
+    from vfdsl.passes import limits
     from vfdsl.pipeline import compile as compile_task
 
+    if not (isinstance(samples, int) and 0 <= samples <= limits.CHECK_SAMPLES):
+        raise VfError(f"samples must be a whole number from 0 to {limits.CHECK_SAMPLES:,}, got {samples!r}")
+    if not (isinstance(seed, int) and 0 <= seed <= limits.SEED):
+        raise VfError(f"seed must be a whole number from 0 to {limits.SEED:,}, got {seed!r}")
     started = time.perf_counter()
     report = Report(task.name, task.file)
     timings = report.figures.setdefault("timings", {})

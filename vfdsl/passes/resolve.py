@@ -280,6 +280,10 @@ class Resolver:
             period = reader.scalar(scene.period, u.TIME, "period")
             if period <= 0:
                 raise VfError("the period must be positive", scene.period.span.pos())
+            if period < limits.MIN_PERIOD:
+                raise limits.exceeded(f"a period of {period:g} s is too short", limits.MIN_PERIOD,
+                                      scene.period.span.pos(), hint="the shortest control period is 10 us (100 kHz)",
+                                      unit="s")
         start = None
         if scene.start is not None:
             start = self._start(scene.start, scene.start_span, reader, robot)
