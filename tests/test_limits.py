@@ -186,14 +186,29 @@ def test_check_through_the_api_refuses_the_same_values():
         vfdsl.check(task, seed=-1)
 
 
-@pytest.mark.parametrize("value, shown", [("1e300", "1e+297 m"), ("2000 m", "2000 m")])
-def test_a_length_beyond_a_kilometre_is_refused_at_its_column(tmp_path, capsys, value, shown):
+FAR = ("task far\nunits mm, deg\nrobot shr = urdf \"shr7\"\nframe tip = shr.link(\"tool_tip\")OFFSET\n"
+       "input f : force\nparam p : point = POINT\nminimize track(tip, f, gain = 1 mm/s/N)\n"
+       "require tip stays_at(p) within 0.1\n")
+
+
+def _far(tmp_path, offset: str = "", point: str = "[0, 0, 290]"):
     task = tmp_path / "far.vf"
-    task.write_text("task far\nunits mm, deg\nrobot shr = urdf \"shr7\"\n"
-                    f"frame tip = shr.link(\"tool_tip\") offset [{value}, 0, 0]\n"
-                    "input f : force\nminimize track(tip, f, gain = 1 mm/s/N)\nrequire tip speed(10 mm/s)\n")
+    task.write_text(FAR.replace("OFFSET", offset).replace("POINT", point))
     (tmp_path / "far.yaml").write_text("units: mm, deg\nperiod: 10 ms\n"
-                                       "start: {x: 0, y: 0, z: 0, rcm_a: 0, rcm_b: 0, roll: 0, insert: 5}\n")
+                                       "start: {x: 0, y: 0, z: 0, rcm_a: 0, rcm_b: 0, roll: 0, insert: 10}\n")
+    return task
+
+
+@pytest.mark.parametrize("offset, shown", [("[1e300, 0, 0]", "1e+297 m"), ("[0, 2000, 0] m", "2000 m")])
+def test_a_frame_a_kilometre_from_its_link_is_refused_at_its_offset(tmp_path, capsys, offset, shown):
+    task = _far(tmp_path, f" offset {offset}")
     for command in ("check", "show"):
         err = _refused(capsys, command, str(task))
-        assert f"far.vf:4:42: error: a length of {shown}: the limit is 1000 m" in err
+        assert f"far.vf:4:41: error: frame 'tip' is {shown} from its link: the limit is 1000 m" in err
+
+
+def test_check_refuses_rows_beyond_the_linear_programs_range_at_the_constraint(tmp_path, capsys):
+    """A point 1e300 m away: the rows hold numbers HiGHS refuses (it was a 'Model error' traceback)."""
+    err = _refused(capsys, "check", str(_far(tmp_path, point="[1e300, 0, 0]")))
+    assert "far.vf:8:1: error: at the start, the rows of stays_at(tip) hold 1e+297 (m or rad): the limit is 1e+06" in err
+    assert main(["show", str(_far(tmp_path, point="[1e300, 0, 0]"))]) == 0

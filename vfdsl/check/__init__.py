@@ -70,6 +70,7 @@ def check(task: ir.Task, *, overshoot: float = DEFAULT_OVERSHOOT, samples: int =
     linear = Linearization(task, controller.assembled.context)
     robot = linear.robot
     rows = linear.rows(task.start)
+    _check_magnitudes(rows)
     timings["compile"] = time.perf_counter() - begin
     run("tolerance", tolerance.analyse_at_start, rows, robot.resolution, robot.nq, linear.period)
     run("feasibility", feasibility.analyse, rows, robot.nq, report.figures)
@@ -82,3 +83,25 @@ def check(task: ir.Task, *, overshoot: float = DEFAULT_OVERSHOOT, samples: int =
         run("sampling", sampling.analyse, controller, task, linear, samples, seed, report.figures)
     report.figures["seconds"] = time.perf_counter() - started
     return report
+
+
+def _check_magnitudes(rows) -> None:
+    """Refuse rows the linear programs cannot hold (a number beyond ``limits.ROW_VALUE`` m or rad, or not
+    finite where it must be): geometry kilometres from the robot, most likely a unit slip, at the
+    constraint's line."""
+    import numpy as np
+
+    from vfdsl.check.linearized import describe
+    from vfdsl.errors import VfError
+    from vfdsl.passes import limits
+
+    for r in rows:
+        values = np.concatenate([r.A.ravel(), r.lb[np.isfinite(r.lb) | np.isnan(r.lb)],
+                                 r.ub[np.isfinite(r.ub) | np.isnan(r.ub)]])
+        if not values.size:
+            continue
+        worst = float(np.max(np.abs(values))) if not np.isnan(values).any() else float("nan")
+        if not worst <= limits.ROW_VALUE:
+            raise VfError(f"at the start, the rows of {describe(r.constraint)} hold {worst:g} (m or rad): the limit "
+                          f"is {limits.ROW_VALUE:g}; its geometry lies far beyond any robot's reach",
+                          r.constraint.span.pos(), hint="is a point, a distance or a frame offset in the wrong unit?")

@@ -27,7 +27,7 @@ CURVE_POINTS = 128
 CURVE_SAMPLES = 2_048            # closest-point samples of one curve (about 2 m of curve at 1 mm)
 YAML_NODES = 100_000             # nodes of a scene after alias expansion
 YAML_DEPTH = 16                  # nesting of lists and mappings in a scene
-LENGTH = 1_000.0                 # m: any length written in a task or scene (a frame offset, a point, ...)
+LENGTH = 1_000.0                 # m: a task frame's distance from its link (its offset, composed)
 
 # Work a command may be asked to do (`vfdsl simulate`, `vfdsl check`): a mistaken option or scene value
 # must not fill the memory or run for days before anything is printed.
@@ -36,6 +36,7 @@ TRIAL_TICKS = 1_000_000          # control ticks of one trial (duration / period
 RUN_TICKS = 20_000_000           # control ticks of one `simulate` run, all trials and grid points
 TRIALS = 100_000                 # trials per setting
 GRID_POINTS = 1_000              # settings of one sweep (the product of every --grid)
+ROW_VALUE = 1e6                  # m or rad: the largest number in a constraint's rows `check` analyses (LPs)
 CHECK_SAMPLES = 10_000           # states of check's random walk (200 take about 0.5 s)
 SEED = 2 ** 32 - 1               # the largest seed (seeds are 0 or more)
 CONNECT_TIMEOUT = 10.0           # s: to reach a Dask scheduler and hear its handshake

@@ -164,6 +164,11 @@ class Resolver:
             if not all(map(math.isfinite, offset)):
                 raise VfError(f"frame '{stmt.name.text}' is too far from its link: its offset composed with frame "
                               f"'{base.name}''s overflows", stmt.span.pos())
+        distance = math.hypot(*offset)
+        if distance > limits.LENGTH:
+            raise limits.exceeded(f"frame '{stmt.name.text}' is {distance:g} m from its link", limits.LENGTH,
+                                  (stmt.offset.span if stmt.offset is not None else stmt.span).pos(),
+                                  hint="is the unit right? (bare numbers take the file's `units`)", unit="m")
         self.frames[stmt.name.text] = ir.FrameDecl(name=stmt.name.text, robot=robot_name, link=link,
                                                    offset=offset, rpy=rpy, tool_axis=axis, span=stmt.span)
 

@@ -13,7 +13,6 @@ import math
 from dataclasses import dataclass
 
 from vfdsl.errors import VfError
-from vfdsl.passes import limits
 from vfdsl.syntax.ast import Span
 
 Dim = tuple[int, int, int, int]          # exponents of (length, angle, time, force)
@@ -144,7 +143,7 @@ def to_si(number: float, unit: str | None, expected: Dim, defaults: DefaultUnits
     if not math.isfinite(number):
         raise VfError("numbers must be finite", span.pos())
     if unit is None:
-        return _bounded(number * defaults.factor(expected), expected, span)
+        return number * defaults.factor(expected)
     dim, factor = parse_unit(unit, span)
     if dim != expected:
         example = _EXAMPLE_UNIT.get(expected)
@@ -155,12 +154,4 @@ def to_si(number: float, unit: str | None, expected: Dim, defaults: DefaultUnits
     value = number * factor
     if not math.isfinite(value):
         raise VfError("this number is too large", span.pos())
-    return _bounded(value, expected, span)
-
-
-def _bounded(value: float, dim: Dim, span: Span) -> float:
-    """A length within ``limits.LENGTH`` (1 km): beyond it the analyses' linear programs lose every digit."""
-    if dim == LENGTH and abs(value) > limits.LENGTH:
-        raise limits.exceeded(f"a length of {value:g} m", limits.LENGTH, span.pos(),
-                              hint="is the unit right? (bare numbers take the file's `units`)", unit="m")
     return value
