@@ -1,7 +1,7 @@
 """Hygiene: declarations nothing uses, constraints that add nothing, and pairs that can never both hold.
 
-- **Unused declarations** (VF801): a frame, input or param that no constraint, objective or used param
-  (through ``in``) refers to.
+- **Unused declarations** (VF801): a frame, input or param that no constraint, objective, used param
+  (through ``in``) or other frame (as its base, ``frame b = a ...``) refers to.
 - **Redundant constraints** (VF802): at the start, constraint c is implied by the other hard geometric
   constraints and the joint limits when every row a_i dq >= lb_i of c holds at the minimum of a_i dq over
   the others' rows (an LP per row, HiGHS). Rate limits (joint and frame speeds) are left out: within one
@@ -39,6 +39,7 @@ def unused(task: ir.Task) -> list[Finding]:
             elif isinstance(arg, ir.ParamRef):
                 params.add(arg.name)
     params |= {task.param(name).frame for name in params if task.param(name).frame}
+    frames |= {f.base for f in task.frames if f.base}          # `frame b = a ...` uses a (b is judged itself)
     findings = []
     for kind, decls, used in (("frame", task.frames, frames), ("input", task.inputs, inputs),
                               ("param", task.params, params)):

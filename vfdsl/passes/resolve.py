@@ -170,7 +170,8 @@ class Resolver:
                                   (stmt.offset.span if stmt.offset is not None else stmt.span).pos(),
                                   hint="is the unit right? (bare numbers take the file's `units`)", unit="m")
         self.frames[stmt.name.text] = ir.FrameDecl(name=stmt.name.text, robot=robot_name, link=link,
-                                                   offset=offset, rpy=rpy, tool_axis=axis, span=stmt.span)
+                                                   offset=offset, rpy=rpy, tool_axis=axis, span=stmt.span,
+                                                   base=stmt.base.text if stmt.base is not None else None)
 
     def _base_frame(self, stmt: ast.FrameStmt) -> ir.FrameDecl:
         name = stmt.base.text
