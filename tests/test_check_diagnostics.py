@@ -5,11 +5,17 @@ finding and one that must not."""
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
+from conftest import TASKS_DIR
 from test_check import PROBE, SCENE, codes, probe
 
+import vfdsl
 from vfdsl.check import hygiene
+from vfdsl.check.linearized import ConstraintRows, Linearization
 from vfdsl.check.report import Severity
+from vfdsl.ir import model as ir
+from vfdsl.syntax.ast import Span
 
 # ------------------------------------------------------------------------------ D: frames built on frames
 
@@ -30,3 +36,56 @@ def test_an_unused_frame_built_on_another_is_reported_and_its_base_is_not(tmp_pa
                              "frame bur = tip axis [0, 0, -1]\nframe spare = tip offset [0, 0, 5]")
     [finding] = hygiene.unused(probe(tmp_path, text))
     assert finding.data == {"kind": "frame", "name": "spare"} and finding.span.line == 6
+
+
+# ------------------------------------------------------------------ E: redundancy over the reached region
+
+ORBIT_ON_AXIS = """units: mm, deg
+period: 10 ms
+start: [0, -45, 0, -135, 0, 90, 45]              # the scope points straight down: on the tilt limit's axis
+params:
+  target: [306.890567, 0, 286.882052]             # on the optical axis, 200 mm below the scope
+"""
+
+
+def _orbit_on_axis(tmp_path):
+    (tmp_path / "orbit.vf").write_text((TASKS_DIR / "tilt_limited_orbit.vf").read_text())
+    (tmp_path / "orbit.yaml").write_text(ORBIT_ON_AXIS)
+    return vfdsl.load(tmp_path / "orbit.vf")
+
+
+@pytest.mark.parametrize("samples", [0, 40])
+def test_tilt_at_most_on_its_axis_is_not_redundant(tmp_path, samples):
+    """On the axis the tilt row's gradient l x a is zero: it holds trivially at that one point, and was
+    called redundant; it is the task's only tilt limit."""
+    task = _orbit_on_axis(tmp_path)
+    found = codes(task, samples=samples)
+    assert "redundant-constraint" not in found
+    # the row is indeed degenerate at the start
+    ctrl = vfdsl.compile(task, backend="interpreted")
+    [tilt] = [r for r in Linearization(task, ctrl.assembled.context).rows(task.start)
+              if r.constraint.primitive == "tilt_at_most"]
+    assert np.linalg.norm(tilt.A) < 1e-12 and tilt.lb[0] < 0
+
+
+def _rows(index: int, lb: float, line: int) -> ConstraintRows:
+    span = Span(file="t.vf", line=line, column=1, end_line=line, end_column=10)
+    c = ir.Constraint(primitive="above", frame="tip", args={}, span=span)
+    return ConstraintRows(index, c, np.array([[1.0]]), np.array([lb]), np.array([np.inf]), ["half-space"], False)
+
+
+def test_redundancy_is_judged_at_every_reached_state():
+    """dq >= -1 is implied by dq >= 0 at the start; at a reached state it reads dq >= 0.5, which is not."""
+    start = [_rows(0, 0.0, 1), _rows(1, -1.0, 2)]
+    [finding] = hygiene.redundant(start, 1)
+    assert finding.span.line == 2 and finding.data["states"] == 1
+    later = {"q1": [_rows(0, 0.0, 1), _rows(1, 0.5, 2)], "q2": start}
+    assert hygiene.redundant(start, 1, ["q1"], later.__getitem__) == []
+    [finding] = hygiene.redundant(start, 1, ["q2", "q2"], later.__getitem__)
+    assert finding.data["states"] == 3 and "and at 2 states the task reaches" in finding.message
+
+
+def test_a_degenerate_row_is_never_redundant():
+    zero = ConstraintRows(1, _rows(1, 0, 2).constraint, np.array([[0.0]]), np.array([-0.1]), np.array([np.inf]),
+                          ["tilt"], False)
+    assert hygiene.redundant([_rows(0, 0.0, 1), zero], 1) == []

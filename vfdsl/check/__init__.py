@@ -75,12 +75,18 @@ def check(task: ir.Task, *, overshoot: float = DEFAULT_OVERSHOOT, samples: int =
     run("tolerance", tolerance.analyse_at_start, rows, robot.resolution, robot.nq, linear.period)
     run("feasibility", feasibility.analyse, rows, robot.nq, report.figures)
     run("residuals", residuals.analyse, task, linear, rows, task.start)
-    run("hygiene", hygiene.redundant, rows, robot.nq)
+    walked = None
+    if samples > 0:                            # the states the fixture reaches: for sampling and redundancy
+        begin = time.perf_counter()
+        walked = sampling.walk(controller, task, linear, samples, seed)
+        timings["sampling"] = time.perf_counter() - begin
+    reached = list(walked[0][sampling.HOLD::sampling.HOLD]) if walked else []
+    run("hygiene", hygiene.redundant, rows, robot.nq, reached, linear.rows)
     run("hygiene", hygiene.contradictory, rows, robot.nq)
     run("kinematics", kinematics.analyse, robot, task, task.start, report.figures)
     run("handsoff", handsoff.analyse, controller, task, linear, report.figures)
-    if samples > 0:
-        run("sampling", sampling.analyse, controller, task, linear, samples, seed, report.figures)
+    if walked is not None:
+        run("sampling", sampling.analyse, controller, task, linear, samples, seed, report.figures, walked)
     report.figures["seconds"] = time.perf_counter() - started
     return report
 
