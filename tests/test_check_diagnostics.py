@@ -89,3 +89,42 @@ def test_a_degenerate_row_is_never_redundant():
     zero = ConstraintRows(1, _rows(1, 0, 2).constraint, np.array([[0.0]]), np.array([-0.1]), np.array([np.inf]),
                           ["tilt"], False)
     assert hygiene.redundant([_rows(0, 0.0, 1), zero], 1) == []
+
+
+# --------------------------------------------------------------------------- F: implausible speed limits
+
+@pytest.mark.parametrize("statement, severity, message", [
+    ("require tip speed(0.001 mm/s)", Severity.ERROR,
+     "a limit of 1 um/s is below the plausible range [10 um/s, 5 m/s]: at it a correction of 1 mm takes 1e+03 s"),
+    ("require tip speed(0.001)", Severity.ERROR, "a limit of 1 um/s is below"),          # `units mm`: 1 um/s
+    ("require tip angular_speed(0.001 deg/s)", Severity.ERROR, "a limit of 0.01745 mrad/s is below"),
+    ("require tip speed(0.001 mm/s) soft weight 1", Severity.WARNING, "a limit of 1 um/s is below"),
+    ("require tip speed(50 m/s)", Severity.WARNING, "a limit of 50 m/s is above the plausible range"),
+])
+def test_implausible_cartesian_speed_limits_are_named(tmp_path, statement, severity, message):
+    [finding] = codes(probe(tmp_path, PROBE + statement + "\n"), samples=0)["speed-implausible"]
+    assert finding.severity == severity and message in finding.message and finding.span.line == 12
+
+
+def test_a_tiny_joint_speed_fraction_is_an_error_and_slow_corrections_name_it(tmp_path):
+    text = PROBE.replace("require joint_speed()", "require joint_speed(fraction = 0.00001)")
+    found = codes(probe(tmp_path, text), samples=0)
+    [finding] = found["speed-implausible"]
+    assert finding.severity == Severity.ERROR and finding.span.line == 11
+    assert "fraction = 1e-05 of the URDF velocity limits is below the plausible range [0.001, 1]" in finding.message
+    [slow] = found["tolerance-restore-ticks"]
+    assert slow.span.line == 9 and "the limit: joint_speed(fraction = 1e-05) at probe.vf:11" in slow.message
+    assert slow.data["limited_by"] == ["probe.vf:11"]
+
+
+def test_slow_corrections_name_the_speed_limit_that_causes_them(tmp_path):
+    found = codes(probe(tmp_path, PROBE + "require tip speed(0.001 mm/s)\n"), samples=0)
+    [slow] = found["tolerance-restore-ticks"]
+    assert slow.span.line == 9 and "the limit: speed(tip) of 1 um/s at probe.vf:12" in slow.message
+    assert slow.data["limited_by"] == ["probe.vf:12"]
+
+
+def test_plausible_speed_limits_pass(tmp_path):
+    text = PROBE + "require tip speed(5 mm/s)\nrequire tip angular_speed(10 deg/s)\n"
+    text = text.replace("require joint_speed()", "require joint_speed(fraction = 0.5)")
+    assert "speed-implausible" not in codes(probe(tmp_path, text), samples=0)

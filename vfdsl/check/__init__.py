@@ -53,6 +53,7 @@ def check(task: ir.Task, *, overshoot: float = DEFAULT_OVERSHOOT, samples: int =
     report.bounds = polytope.bounds_table(task)
     run("polytope", polytope.analyse, task, overshoot)
     run("tolerance", tolerance.analyse_values, task)
+    run("tolerance", tolerance.analyse_speeds, task)
     run("hygiene", hygiene.unused, task)
     if task.start is None:
         report.add([Finding("no-start", Severity.WARNING,

@@ -29,6 +29,7 @@ CODES: dict[str, str] = {
     "tolerance-implausible": "VF202",
     "tolerance-below-resolution": "VF203",
     "tolerance-restore-ticks": "VF204",
+    "speed-implausible": "VF205",
     "start-infeasible": "VF301",
     "residual-far": "VF401",
     "residual-outside": "VF402",
