@@ -11,7 +11,7 @@ from conftest import TASKS_DIR
 from test_check import PROBE, SCENE, codes, probe
 
 import vfdsl
-from vfdsl.check import hygiene
+from vfdsl.check import check, hygiene
 from vfdsl.check.linearized import ConstraintRows, Linearization
 from vfdsl.check.report import Severity
 from vfdsl.ir import model as ir
@@ -128,3 +128,30 @@ def test_plausible_speed_limits_pass(tmp_path):
     text = PROBE + "require tip speed(5 mm/s)\nrequire tip angular_speed(10 deg/s)\n"
     text = text.replace("require joint_speed()", "require joint_speed(fraction = 0.5)")
     assert "speed-implausible" not in codes(probe(tmp_path, text), samples=0)
+
+
+# ------------------------------------------------------------------- G: soft constraints unmet at the start
+
+SOFT_ONLY = PROBE.replace("require tip stays_at(target) within 0.05 resolution 12x12",
+                          "require tip stays_at(target) within 0.5 soft weight 1 priority 1")
+
+
+@pytest.mark.parametrize("target, severity", [("[300, 0, 290]", Severity.WARNING), ("[20, 0, 290]", Severity.NOTE)])
+def test_a_soft_constraint_unmet_at_the_start_is_reported_with_its_error(tmp_path, target, severity):
+    task = probe(tmp_path, SOFT_ONLY.replace("[0, 0, 290]", target))
+    report = check(task, backend="interpreted", samples=0)
+    [finding] = [f for f in report.findings if f.name == "soft-unmet-at-start"]
+    assert finding.severity == severity and finding.span.line == 9 and finding.code == "VF403"
+    x = float(target[1:].split(",")[0]) * 1e-3
+    assert finding.data["error"] == pytest.approx(x, rel=1e-6)          # the tip starts at (0, 0, 290) mm
+    assert f"its error is {x * 1e3:.4g} mm against its 500 um tolerance" in finding.message
+    assert report.figures["soft_at_start"]["probe.vf:9"]["error"] == pytest.approx(x, rel=1e-6)
+    if severity == Severity.WARNING:
+        # x stage +-60 mm plus the tool's first-order swing: about 70 mm of reach toward +x; 229 mm short
+        assert "cannot be met at the start" in finding.message and 0.2 < finding.data["short"] < 0.25
+    else:
+        assert finding.data["meetable"] and finding.data["short"] < 1e-9
+
+
+def test_a_soft_constraint_met_at_the_start_is_not_reported(tmp_path):
+    assert "soft-unmet-at-start" not in codes(probe(tmp_path, SOFT_ONLY), samples=0)

@@ -76,6 +76,7 @@ def check(task: ir.Task, *, overshoot: float = DEFAULT_OVERSHOOT, samples: int =
     run("tolerance", tolerance.analyse_at_start, rows, robot.resolution, robot.nq, linear.period)
     run("feasibility", feasibility.analyse, rows, robot.nq, report.figures)
     run("residuals", residuals.analyse, task, linear, rows, task.start)
+    run("residuals", residuals.soft_at_start, task, linear, rows, task.start, robot.nq, report.figures)
     walked = None
     if samples > 0:                            # the states the fixture reaches: for sampling and redundancy
         begin = time.perf_counter()

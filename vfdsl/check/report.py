@@ -33,6 +33,7 @@ CODES: dict[str, str] = {
     "start-infeasible": "VF301",
     "residual-far": "VF401",
     "residual-outside": "VF402",
+    "soft-unmet-at-start": "VF403",
     "handsoff-drift": "VF501",
     "kinematics-near-singular": "VF601",
     "frame-fixed": "VF602",
