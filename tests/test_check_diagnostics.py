@@ -155,3 +155,28 @@ def test_a_soft_constraint_unmet_at_the_start_is_reported_with_its_error(tmp_pat
 
 def test_a_soft_constraint_met_at_the_start_is_not_reported(tmp_path):
     assert "soft-unmet-at-start" not in codes(probe(tmp_path, SOFT_ONLY), samples=0)
+
+
+# --------------------------------------------------------------- H: which cost a hands-off turn is blamed on
+
+TURNING = PROBE.replace("minimize damping() weight 1e-6", "minimize centering() weight 1e-3").replace(
+    "require tip stays_at(target) within 0.05 resolution 12x12",
+    "require tip keeps_direction([0, 0.2, 1]) within 1 deg soft weight 1")
+
+
+@pytest.mark.parametrize("with_centering", [True, False])
+def test_a_turn_made_by_a_soft_constraint_is_blamed_on_it_not_on_centering(tmp_path, with_centering):
+    """The tool axis starts 11.3 deg from the soft keeps_direction's direction: the soft constraint turns
+    it (level 1); centering (level 2) only gains along the way. Removing centering changes nothing."""
+    text = TURNING if with_centering else TURNING.replace("minimize centering() weight 1e-3\n", "")
+    [finding] = codes(probe(tmp_path, text), samples=0)["handsoff-drift"]
+    assert finding.data["turned"] > 0.17                      # about 10 deg in 0.5 s
+    assert finding.data["cause"].startswith("soft `keeps_direction` at probe.vf:")
+    assert "centering" not in finding.data["cause"]
+
+
+def test_centering_alone_is_still_blamed_for_its_own_motion(tmp_path):
+    text = PROBE.replace("minimize track(tip, f, gain = 1 mm/s/N)\n", "").replace(
+        "minimize damping() weight 1e-6", "minimize centering() weight 1")
+    [finding] = codes(probe(tmp_path, text, SCENE.replace("x: 0", "x: 30")), samples=0)["handsoff-drift"]
+    assert finding.data["cause"].startswith("`minimize centering` at probe.vf:7 (priority 2")
