@@ -5,9 +5,9 @@
 - **Redundant constraints** (VF802): constraint c is implied by the other hard geometric constraints and
   the joint limits when every row a_i dq >= lb_i of c holds at the minimum of a_i dq over the others' rows
   (an LP per row, HiGHS), at the start and at every 10th state of check's random walk (the region the
-  task reaches); never when a row of c is degenerate (zero gradient) at one of them. Rate limits (joint and frame speeds) are left out: within one
-  tick they make almost every bound look redundant. Later statements are tested first, so of two
-  duplicates the second is reported.
+  task reaches); never when a row of c is degenerate (zero gradient) at one of them. Rate limits (joint
+  and frame speeds) are left out: within one tick they make almost every bound look redundant. Later
+  statements are tested first, so of two duplicates the second is reported.
 - **Contradictory tolerances** (VF803): two hard geometric constraints whose rows alone, without any
   joint limit or speed, have no common motion (their margin LP is negative): e.g. two points to stay at,
   farther apart than the sum of their tolerances.

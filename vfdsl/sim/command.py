@@ -16,8 +16,8 @@ from vfdsl.errors import VfError
 from vfdsl.passes import limits
 from vfdsl.passes import units as u
 from vfdsl.sim import report
-from vfdsl.sim.metrics import metric_defs
 from vfdsl.sim.cluster import connect
+from vfdsl.sim.metrics import metric_defs
 from vfdsl.sim.runner import default_workers, loaded, make_jobs, run
 from vfdsl.sim.settings import GRID_NAMES, check_setting, check_ticks, default_scene, load_settings, parse_setting
 
