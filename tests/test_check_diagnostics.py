@@ -180,3 +180,16 @@ def test_centering_alone_is_still_blamed_for_its_own_motion(tmp_path):
         "minimize damping() weight 1e-6", "minimize centering() weight 1")
     [finding] = codes(probe(tmp_path, text, SCENE.replace("x: 0", "x: 30")), samples=0)["handsoff-drift"]
     assert finding.data["cause"].startswith("`minimize centering` at probe.vf:7 (priority 2")
+
+
+def test_redundancy_is_confirmed_at_a_bounded_number_of_states():
+    start = [_rows(0, 0.0, 1), _rows(1, -1.0, 2)]
+    asked = []
+
+    def rows_at(q):
+        asked.append(q)
+        return start
+
+    [finding] = hygiene.redundant(start, 1, list(range(1000)), rows_at)
+    assert finding.data["states"] == 1 + hygiene.REDUNDANCY_STATES and len(asked) == hygiene.REDUNDANCY_STATES
+    assert asked[0] == 0 and asked[-1] == 999

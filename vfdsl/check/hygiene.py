@@ -5,7 +5,7 @@
 - **Redundant constraints** (VF802): constraint c is implied by the other hard geometric constraints and
   the joint limits when every row a_i dq >= lb_i of c holds at the minimum of a_i dq over the others' rows
   (an LP per row, HiGHS), at the start and at every 10th state of check's random walk (the region the
-  task reaches); never when a row of c is degenerate (zero gradient) at one of them. Rate limits (joint
+  task reaches; at most REDUNDANCY_STATES of them, evenly spaced); never when a row of c is degenerate (zero gradient) at one of them. Rate limits (joint
   and frame speeds) are left out: within one tick they make almost every bound look redundant. Later
   statements are tested first, so of two duplicates the second is reported.
 - **Contradictory tolerances** (VF803): two hard geometric constraints whose rows alone, without any
@@ -27,6 +27,7 @@ from vfdsl.ir import model as ir
 from vfdsl.primitives import CONSTRAINTS
 
 DEGENERATE = 1e-9               # a row whose gradient is this small (relative) measures nothing about dq
+REDUNDANCY_STATES = 20          # reached states (besides the start) at which a redundancy is confirmed
 IMPLIED = 1e-10                  # a row is implied when the others keep it satisfied to this much (m or rad)
 
 
@@ -66,6 +67,10 @@ def redundant(rows: list[ConstraintRows], nq: int, reached: list = (), rows_at=N
     rows there). A constraint with a degenerate row (zero gradient: the row measures nothing about the
     motion, e.g. ``tilt_at_most`` exactly on its axis) at any of these states is never called redundant:
     what it adds shows only away from that point."""
+    reached = list(reached)
+    if len(reached) > REDUNDANCY_STATES:        # evenly spaced, the last included: bounded LPs at any --samples
+        picks = np.linspace(0, len(reached) - 1, REDUNDANCY_STATES).round().astype(int)
+        reached = [reached[k] for k in picks]
     kept = _geometric(rows)
     states = [{r.index: r for r in rows}] + [None] * len(reached)
 
