@@ -168,7 +168,7 @@ def test_cluster_at_a_silent_server_times_out_within_the_limit():
 
 
 @pytest.mark.parametrize("args, message", [
-    (["--samples", "1000000000"], "argument --samples: expected a whole number from 0 to 10,000, got 1,000,000,000"),
+    (["--samples", "1000000000"], "argument --samples: expected a whole number from 0 to 5,000, got 1,000,000,000"),
     (["--seed", "-1"], "argument --seed: expected a whole number from 0 to 4,294,967,295, got -1"),
 ])
 def test_check_options_beyond_a_limit_exit_2(capsys, args, message):
@@ -180,7 +180,7 @@ def test_check_options_beyond_a_limit_exit_2(capsys, args, message):
 
 def test_check_through_the_api_refuses_the_same_values():
     task = vfdsl.load(B)
-    with pytest.raises(VfError, match="samples must be a whole number from 0 to 10,000"):
+    with pytest.raises(VfError, match="samples must be a whole number from 0 to 5,000"):
         vfdsl.check(task, samples=limits.CHECK_SAMPLES + 1)
     with pytest.raises(VfError, match="seed must be a whole number"):
         vfdsl.check(task, seed=-1)
