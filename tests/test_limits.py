@@ -73,12 +73,13 @@ def test_simulate_options_beyond_a_limit_exit_2_before_any_work(capsys, no_run, 
     ("period: 1e-12 s", 9, "a period of 1e-12 s is too short: the limit is 1e-05 s"),
     ("trials: 1000000000000", 9, "1,000,000,000,000 trials per setting"),
     ("seed: -1", 7, "seed must be a whole number from 0"),
+    ("duration: 10 s\ntrials: 100000", 9, "100,000 trial(s) of 1,000 control ticks is 100,000,000 ticks: the limit is 20,000,000"),
 ])
 def test_scene_values_beyond_a_limit_point_at_their_line(tmp_path, capsys, no_run, line, column, message):
     scene = tmp_path / "s.sim.yaml"
     scene.write_text(f"units: mm, deg\n{line}\n")
     err = _refused(capsys, "simulate", B, "--scene", str(scene), "--quiet")
-    assert f"s.sim.yaml:2:{column}: error: {message}" in err
+    assert f"s.sim.yaml:{1 + line.count(chr(10)) + 1}:{column}: error: {message}" in err
 
 
 def test_a_short_period_in_the_task_scene_points_at_its_line(tmp_path, capsys):

@@ -277,8 +277,14 @@ class _Reader:
             if name != "scene":
                 check_setting(name, value, self.pos(top[name][1]))
         ticks_at = next((top[n][1] for n in ("duration", "period") if n in top), None)
-        check_ticks(values.get("duration", base.duration), values.get("period", base.period),
-                    self.pos(ticks_at) if ticks_at is not None else None)
+        ticks = check_ticks(values.get("duration", base.duration), values.get("period", base.period),
+                            self.pos(ticks_at) if ticks_at is not None else None)
+        trials = values.get("trials", base.trials)
+        if ticks * trials > limits.RUN_TICKS:
+            at = top["trials"][1] if "trials" in top else ticks_at
+            raise limits.exceeded(f"{trials:,} trial(s) of {ticks:,} control ticks is {ticks * trials:,} ticks",
+                                  limits.RUN_TICKS, self.pos(at) if at is not None else None,
+                                  hint="fewer trials, a shorter duration or a longer period")
         if "tracker" in top:
             tracker = self.mapping(top["tracker"][1], _TRACKER_KEYS, "tracker")
             if "noise" in tracker:
