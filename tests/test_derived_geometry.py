@@ -291,7 +291,9 @@ def test_frames_from_frames_match_pinocchio(tmp_path):
      "this vector is zero", 5, 58, None),
     ("frame s = tip offset 2 * [0, 0, 1]", "expected a vector, got a vector of plain numbers", 5, 22, "[x, y, z] mm"),
     ("frame s = tip offset [1e308, 0, 0] m\nframe s2 = s offset [1e308, 0, 0] m",
-     "its offset composed with frame 's''s overflows", 6, 1, None),
+     "frame 's' is 1e+308 m from its link: the limit is 1000 m", 5, 22, None),
+    ("frame s = tip offset [600, 0, 0] m\nframe s2 = s offset [600, 0, 0] m",
+     "frame 's2' is 1200 m from its link: the limit is 1000 m", 6, 21, None),
 ])
 def test_frame_mistakes(tmp_path, text, message, line, column, hint):
     body = 'task t\nunits mm, deg\nrobot shr = urdf "shr7"\nframe tip = shr.link("tool_tip")\n' + text + "\n"

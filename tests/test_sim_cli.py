@@ -175,9 +175,9 @@ def test_hand_toward_a_plane_and_a_push_through_it(tmp_path):
 
 
 def test_unreachable_cluster_is_a_clear_error(capsys, monkeypatch):
-    import vfdsl.sim.runner as runner
+    from vfdsl.passes import limits
 
-    monkeypatch.setattr(runner, "CONNECT_TIMEOUT", "1s")
+    monkeypatch.setattr(limits, "CONNECT_TIMEOUT", 1.0)
     assert main(["simulate", B, "--quiet", "--duration", "0.1s", "--cluster", "tcp://127.0.0.1:9"]) == 2
     err = capsys.readouterr().err
     assert "cannot reach a Dask scheduler at 'tcp://127.0.0.1:9'" in err and "Traceback" not in err

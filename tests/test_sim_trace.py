@@ -56,8 +56,8 @@ def test_csv_trace_has_a_row_per_tick_per_trial_and_agrees_with_the_summary(tmp_
         assert len(values) == m["samples"], name
         assert np.isclose(values.mean(), m["mean"] * scale, rtol=1e-9, atol=1e-15), name
         assert np.isclose(values.max(), m["max"] * scale, rtol=1e-9, atol=1e-15), name
-    # the speed metric of tick k is the step from k - 1 to k: none at a trial's first tick
-    assert math.isnan(t["metric.joint_speed_rad_s"][0]) and math.isnan(t["metric.joint_speed_rad_s"][50])
+    # the speed metric of tick k is the step from k - 1 to k: 0 at a trial's first tick, which has no step before it
+    assert t["metric.joint_speed_rad_s"][0] == 0 and t["metric.joint_speed_rad_s"][50] == 0
 
 
 def test_trace_params_are_the_moved_values_and_q_follows_dq(tmp_path):

@@ -96,7 +96,7 @@ class VfError(Exception):
         text = self._source_text
         if text is None:
             try:
-                text = Path(self.pos.file).read_text()
+                text = Path(self.pos.file).read_text(encoding="utf-8-sig")
             except (OSError, ValueError):
                 return None
         all_lines = text.split("\n")

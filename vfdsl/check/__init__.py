@@ -31,8 +31,14 @@ def check(task: ir.Task, *, overshoot: float = DEFAULT_OVERSHOOT, samples: int =
     over its tolerance (0.10 = 10%); ``samples``, ``seed``: the random walk of the sampled analysis (0
     samples skips it); ``backend``: how the closed-loop analyses run the controller (see
     :func:`vfdsl.compile`)."""
+    from vfdsl.errors import VfError
+    from vfdsl.passes import limits
     from vfdsl.pipeline import compile as compile_task
 
+    if not (isinstance(samples, int) and 0 <= samples <= limits.CHECK_SAMPLES):
+        raise VfError(f"samples must be a whole number from 0 to {limits.CHECK_SAMPLES:,}, got {samples!r}")
+    if not (isinstance(seed, int) and 0 <= seed <= limits.SEED):
+        raise VfError(f"seed must be a whole number from 0 to {limits.SEED:,}, got {seed!r}")
     started = time.perf_counter()
     report = Report(task.name, task.file)
     timings = report.figures.setdefault("timings", {})
@@ -47,6 +53,7 @@ def check(task: ir.Task, *, overshoot: float = DEFAULT_OVERSHOOT, samples: int =
     report.bounds = polytope.bounds_table(task)
     run("polytope", polytope.analyse, task, overshoot)
     run("tolerance", tolerance.analyse_values, task)
+    run("tolerance", tolerance.analyse_speeds, task)
     run("hygiene", hygiene.unused, task)
     if task.start is None:
         report.add([Finding("no-start", Severity.WARNING,
@@ -64,15 +71,45 @@ def check(task: ir.Task, *, overshoot: float = DEFAULT_OVERSHOOT, samples: int =
     linear = Linearization(task, controller.assembled.context)
     robot = linear.robot
     rows = linear.rows(task.start)
+    _check_magnitudes(rows)
     timings["compile"] = time.perf_counter() - begin
     run("tolerance", tolerance.analyse_at_start, rows, robot.resolution, robot.nq, linear.period)
     run("feasibility", feasibility.analyse, rows, robot.nq, report.figures)
     run("residuals", residuals.analyse, task, linear, rows, task.start)
-    run("hygiene", hygiene.redundant, rows, robot.nq)
+    run("residuals", residuals.soft_at_start, task, linear, rows, task.start, robot.nq, report.figures)
+    walked = None
+    if samples > 0:                            # the states the fixture reaches: for sampling and redundancy
+        begin = time.perf_counter()
+        walked = sampling.walk(controller, task, linear, samples, seed)
+        timings["sampling"] = time.perf_counter() - begin
+    reached = list(walked[0][sampling.HOLD::sampling.HOLD]) if walked else []
+    run("hygiene", hygiene.redundant, rows, robot.nq, reached, linear.rows)
     run("hygiene", hygiene.contradictory, rows, robot.nq)
     run("kinematics", kinematics.analyse, robot, task, task.start, report.figures)
     run("handsoff", handsoff.analyse, controller, task, linear, report.figures)
-    if samples > 0:
-        run("sampling", sampling.analyse, controller, task, linear, samples, seed, report.figures)
+    if walked is not None:
+        run("sampling", sampling.analyse, controller, task, linear, samples, seed, report.figures, walked)
     report.figures["seconds"] = time.perf_counter() - started
     return report
+
+
+def _check_magnitudes(rows) -> None:
+    """Refuse rows the linear programs cannot hold (a number beyond ``limits.ROW_VALUE`` m or rad, or not
+    finite where it must be): geometry kilometres from the robot, most likely a unit slip, at the
+    constraint's line."""
+    import numpy as np
+
+    from vfdsl.check.linearized import describe
+    from vfdsl.errors import VfError
+    from vfdsl.passes import limits
+
+    for r in rows:
+        values = np.concatenate([r.A.ravel(), r.lb[np.isfinite(r.lb) | np.isnan(r.lb)],
+                                 r.ub[np.isfinite(r.ub) | np.isnan(r.ub)]])
+        if not values.size:
+            continue
+        worst = float(np.max(np.abs(values))) if not np.isnan(values).any() else float("nan")
+        if not worst <= limits.ROW_VALUE:
+            raise VfError(f"at the start, the rows of {describe(r.constraint)} hold {worst:g} (m or rad): the limit "
+                          f"is {limits.ROW_VALUE:g}; its geometry lies far beyond any robot's reach",
+                          r.constraint.span.pos(), hint="is a point, a distance or a frame offset in the wrong unit?")

@@ -10,6 +10,7 @@ from pathlib import Path
 from vfdsl.check import DEFAULT_OVERSHOOT
 from vfdsl.check.sampling import DEFAULT_SAMPLES
 from vfdsl.errors import VfError
+from vfdsl.passes import limits
 
 EXIT_NOT_SOUND = 1
 
@@ -43,10 +44,11 @@ def register(commands: argparse._SubParsersAction) -> None:
     parser.add_argument("--overshoot", metavar="PCT", default=DEFAULT_OVERSHOOT, type=_fraction,
                         help="largest accepted excess of a polytope's worst error over its tolerance "
                              f"(default: {DEFAULT_OVERSHOOT * 100:.0f}%%)")
-    parser.add_argument("--samples", metavar="N", type=_count, default=DEFAULT_SAMPLES,
+    parser.add_argument("--samples", metavar="N", type=_counter(limits.CHECK_SAMPLES), default=DEFAULT_SAMPLES,
                         help=f"states of the random walk under random input to check (default: {DEFAULT_SAMPLES}; "
-                             "0 skips it)")
-    parser.add_argument("--seed", metavar="S", type=int, default=0, help="seed of the random walk (default: 0)")
+                             f"0 skips it; at most {limits.CHECK_SAMPLES:,})")
+    parser.add_argument("--seed", metavar="S", type=_counter(limits.SEED), default=0,
+                        help=f"seed of the random walk (default: 0; 0 to {limits.SEED:,})")
     parser.set_defaults(run=run)
 
 
@@ -84,14 +86,17 @@ def load_with_scene(path: str | Path, scene: str | Path):
         [str(lib.path) for lib in libraries])
 
 
-def _count(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"expected 0 or more, got {value}")
-    return value
+def _counter(limit: int):
+    """An argparse type: a whole number from 0 to ``limit`` (a limit of vfdsl/passes/limits.py)."""
+    def count(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
+        if not 0 <= value <= limit:
+            raise argparse.ArgumentTypeError(f"expected a whole number from 0 to {limit:,}, got {value:,}")
+        return value
+    return count
 
 
 def _fraction(text: str) -> float:

@@ -4,11 +4,12 @@ The compiled controller runs for HANDS_OFF_SECONDS of the scene's period (at lea
 q <- q + step(q, 0), with the robot's numeric kinematics (Pinocchio) measuring every task frame's
 displacement || p_t - p_0 || and rotation angle(R_0^T R_t). With zero input, tracking terms ask for no
 motion (their stated rate is gain x input = 0); a frame that moves more than DRIFT_LENGTH or
-DRIFT_ANGLE is reported (VF501) with the objective term that causes it: the term whose cost
-w_k || E_k dq - f_k ||^2 decreases most along the loop's total motion dq (its linear part at the start,
-2 w_k f_k^T E_k dq). A `distance` term pulls toward its target by design (a note); any other cause (a
-redundancy term moving a tracked frame, or the constraints pulling the frame into tolerance when no
-term gains) is a warning.
+DRIFT_ANGLE is reported (VF501) with the cost that causes it: among the objective terms
+w_k || E_k dq/dt - f_k ||^2 and the soft constraints' slack costs, those that fall along the loop's total
+motion dq (their linear part at the start), the one at the first priority level, and within it the one
+that falls most. A `distance` term pulls toward its target by design (a note); any other cause (a
+redundancy term moving a tracked frame, a soft constraint pulling it into tolerance, or the hard
+constraints doing so when no cost falls) is a warning.
 """
 
 from __future__ import annotations
@@ -79,19 +80,47 @@ def analyse(controller, task: ir.Task, linear: Linearization, figures: dict) -> 
 
 
 def _cause(linear: Linearization, task: ir.Task, dq: np.ndarray) -> tuple[str, bool]:
-    """The objective term that gains most along dq (and whether moving is its purpose), else the rows."""
-    gains = [(2 * term.objective.weight * float(term.f @ (term.E @ dq)), term)
-             for term in linear.terms(task.start)]
-    gain, term = max(gains, key=lambda g: g[0], default=(0.0, None))
-    if term is not None and gain > 0:
-        o = term.objective
-        return (f"`minimize {o.term}` at {o.span.file.rsplit('/', 1)[-1]}:{o.span.line} "
-                f"(its cost falls most along the motion)", o.term in INTENDED)
-    pulling = [r.constraint for r in linear.rows(task.start) if r.violation_at_rest > 0]
+    """What drives the motion dq: among the objective terms and the soft constraints' slack costs whose cost
+    falls along dq, the one at the first priority level (levels are lexicographic: a later level acts only
+    in the motions that leave the earlier ones optimal), and within it the one whose cost falls most;
+    whether moving is its purpose; else the hard constraints pulling the frame into tolerance."""
+    candidates = [(gain, priority, label, intended) for gain, priority, label, intended in _gains(linear, task, dq)
+                  if gain > 0]
+    if candidates:
+        gain, priority, label, intended = min(candidates, key=lambda c: (c[1], -c[0]))
+        return f"{label} (priority {priority}; its cost falls most along the motion)", intended
+    pulling = [r.constraint for r in linear.rows(task.start) if r.violation_at_rest > 0 and not r.constraint.soft]
     if pulling:
         return ("the constraints pulling the frame into tolerance: " +
                 ", ".join(f"{c.primitive} at line {c.span.line}" for c in pulling), False)
     return "no objective term or violated constraint explains it", False
+
+
+def _gains(linear: Linearization, task: ir.Task, dq: np.ndarray):
+    """(the linear decrease of each cost along dq, its priority level, its name, intended) in rate units:
+    a term w || E dq/dt - f ||^2 falls by 2 w f' E dq / dt; a soft constraint's slack cost w (s/dt)^2, with
+    s the largest violation of its rows at rest, falls by 2 w (s/dt) (a dq/dt) along its most violated row."""
+    dt = linear.period
+    for term in linear.terms(task.start):
+        o = term.objective
+        yield (2 * o.weight * float(term.f @ (term.E @ dq)) / dt, o.priority,
+               f"`minimize {o.term}` at {_at(o.span)}", o.term in INTENDED)
+    for r in linear.rows(task.start):
+        c = r.constraint
+        if not c.soft or not len(r.A):
+            continue
+        violations = np.concatenate([r.lb, -r.ub])
+        k = int(np.argmax(violations))
+        s = float(violations[k])
+        if not s > 0 or not np.isfinite(s):
+            continue
+        rate = float(r.A[k % len(r.A)] @ dq) * (1 if k < len(r.lb) else -1)
+        yield (2 * (c.weight or 1.0) * (s / dt) * (rate / dt), c.priority or 1,
+               f"soft `{c.primitive}` at {_at(c.span)}", False)
+
+
+def _at(span) -> str:
+    return f"{span.file.rsplit('/', 1)[-1]}:{span.line}"
 
 
 def _rotation_angle(R: np.ndarray) -> float:

@@ -1,12 +1,13 @@
 """Hygiene: declarations nothing uses, constraints that add nothing, and pairs that can never both hold.
 
-- **Unused declarations** (VF801): a frame, input or param that no constraint, objective or used param
-  (through ``in``) refers to.
-- **Redundant constraints** (VF802): at the start, constraint c is implied by the other hard geometric
-  constraints and the joint limits when every row a_i dq >= lb_i of c holds at the minimum of a_i dq over
-  the others' rows (an LP per row, HiGHS). Rate limits (joint and frame speeds) are left out: within one
-  tick they make almost every bound look redundant. Later statements are tested first, so of two
-  duplicates the second is reported.
+- **Unused declarations** (VF801): a frame, input or param that no constraint, objective, used param
+  (through ``in``) or other frame (as its base, ``frame b = a ...``) refers to.
+- **Redundant constraints** (VF802): constraint c is implied by the other hard geometric constraints and
+  the joint limits when every row a_i dq >= lb_i of c holds at the minimum of a_i dq over the others' rows
+  (an LP per row, HiGHS), at the start and at every 10th state of check's random walk (the region the
+  task reaches; at most REDUNDANCY_STATES of them, evenly spaced); never when a row of c is degenerate (zero gradient) at one of them. Rate limits (joint
+  and frame speeds) are left out: within one tick they make almost every bound look redundant. Later
+  statements are tested first, so of two duplicates the second is reported.
 - **Contradictory tolerances** (VF803): two hard geometric constraints whose rows alone, without any
   joint limit or speed, have no common motion (their margin LP is negative): e.g. two points to stay at,
   farther apart than the sum of their tolerances.
@@ -16,6 +17,8 @@ from __future__ import annotations
 
 import itertools
 
+import numpy as np
+
 from vfdsl.check.linearized import ConstraintRows, describe, subject, where
 from vfdsl.check.lp import FEASIBLE, LinearSystem
 from vfdsl.check.report import Finding, Severity
@@ -23,6 +26,8 @@ from vfdsl.compiler import derived
 from vfdsl.ir import model as ir
 from vfdsl.primitives import CONSTRAINTS
 
+DEGENERATE = 1e-9               # a row whose gradient is this small (relative) measures nothing about dq
+REDUNDANCY_STATES = 20          # reached states (besides the start) at which a redundancy is confirmed
 IMPLIED = 1e-10                  # a row is implied when the others keep it satisfied to this much (m or rad)
 
 
@@ -39,6 +44,7 @@ def unused(task: ir.Task) -> list[Finding]:
             elif isinstance(arg, ir.ParamRef):
                 params.add(arg.name)
     params |= {task.param(name).frame for name in params if task.param(name).frame}
+    frames |= {f.base for f in task.frames if f.base}          # `frame b = a ...` uses a (b is judged itself)
     findings = []
     for kind, decls, used in (("frame", task.frames, frames), ("input", task.inputs, inputs),
                               ("param", task.params, params)):
@@ -55,22 +61,56 @@ def _geometric(rows: list[ConstraintRows]) -> list[ConstraintRows]:
     return [r for r in rows if not r.constraint.soft and not CONSTRAINTS[r.constraint.primitive].rate]
 
 
-def redundant(rows: list[ConstraintRows], nq: int) -> list[Finding]:
+def redundant(rows: list[ConstraintRows], nq: int, reached: list = (), rows_at=None) -> list[Finding]:
+    """VF802 over the region the task reaches: a constraint is redundant when it is implied by the others
+    at the start and at every state of ``reached`` (states of check's random walk; ``rows_at(q)`` gives the
+    rows there). A constraint with a degenerate row (zero gradient: the row measures nothing about the
+    motion, e.g. ``tilt_at_most`` exactly on its axis) at any of these states is never called redundant:
+    what it adds shows only away from that point."""
+    reached = list(reached)
+    if len(reached) > REDUNDANCY_STATES:        # evenly spaced, the last included: bounded LPs at any --samples
+        picks = np.linspace(0, len(reached) - 1, REDUNDANCY_STATES).round().astype(int)
+        reached = [reached[k] for k in picks]
     kept = _geometric(rows)
+    states = [{r.index: r for r in rows}] + [None] * len(reached)
+
+    def at(k: int) -> dict[int, ConstraintRows]:
+        if states[k] is None:
+            states[k] = {r.index: r for r in rows_at(reached[k - 1])}
+        return states[k]
+
     findings = []
     for r in reversed([r for r in kept if not r.bounds and len(r.A)]):
         others = [o for o in kept if o is not r]
-        system = LinearSystem.from_rows(others, nq)
-        if not system.feasible() or not _implied(r, system):
+        if not all(_implied_at(at(k)[r.index], [at(k)[o.index] for o in others], nq)
+                   for k in range(len(states))):
             continue
         kept = others
         names = ", ".join(f"{describe(o.constraint)} at {where(o.constraint)}" for o in others) or "the joint limits"
+        region = (f"at the start and at {len(reached)} states the task reaches under random input"
+                  if reached else "at the start")
         findings.append(Finding("redundant-constraint", Severity.WARNING,
-                                f"at the start every row of this constraint is implied by the others ({names}): "
+                                f"{region} every row of this constraint is implied by the others ({names}): "
                                 f"it adds nothing there", r.constraint.span,
                                 "remove it, or check its reference and tolerance", subject(r.constraint),
-                                {"implied_by": [where(o.constraint) for o in others]}))
+                                {"implied_by": [where(o.constraint) for o in others], "states": 1 + len(reached)}))
     return findings
+
+
+def _implied_at(r: ConstraintRows, others: list[ConstraintRows], nq: int) -> bool:
+    """At one state: r has no degenerate row, the others can hold, and they keep every row of r."""
+    if _degenerate(r):
+        return False
+    system = LinearSystem.from_rows(others, nq)
+    return system.feasible() and _implied(r, system)
+
+
+def _degenerate(r: ConstraintRows) -> bool:
+    """A bounded row with (numerically) zero gradient: it says nothing about the motion at this state."""
+    scale = max(1.0, float(np.max(np.abs(r.A)))) if r.A.size else 1.0
+    norms = np.linalg.norm(r.A, axis=1)
+    bounded = np.isfinite(r.lb) | np.isfinite(r.ub)
+    return bool(np.any(bounded & (norms <= DEGENERATE * scale)))
 
 
 def _implied(r: ConstraintRows, others: LinearSystem) -> bool:

@@ -26,11 +26,12 @@ import math
 import casadi as ca
 import numpy as np
 
-from vfdsl.check.linearized import ConstraintRows, Linearization, subject
+from vfdsl.check.linearized import ConstraintRows, Linearization, subject, where
 from vfdsl.check.polytope import stated_size
 from vfdsl.check.report import Finding, Severity, quantity
 from vfdsl.compiler.context import Context
 from vfdsl.ir import model as ir
+from vfdsl.primitives import CONSTRAINTS
 
 FAR = 10.0                       # x the tolerance: "far outside"
 FAR_ABSOLUTE = 1e-4              # m or rad, for rows without a tolerance (a half-space)
@@ -94,22 +95,36 @@ class Residuals:
         return None if f is None else tuple(np.array(v).ravel() for v in f(q, p))
 
 
+def _error(task: ir.Task, r: ConstraintRows, residuals: Residuals, q, p):
+    """(kind, stated limit, error, true angle or None) of a constraint at q; None when it has no such error."""
+    c = r.constraint
+    stated = stated_size(c, task)
+    if r.bounds or not len(r.A) or (stated is not None and stated[0] not in ("length", "angle")):
+        return None
+    kind, limit = stated if stated is not None else (("angle" if c.primitive in TRUE_ANGLE else "length"), 0.0)
+    angle = residuals.true_angle(r.index, q, p)
+    error = angle if angle is not None else limit + r.violation_at_rest
+    if c.primitive in DISTANCE_TO_REFERENCE:
+        frame, reference = residuals.frame_and_reference(r.index, q, p)
+        error = float(np.linalg.norm(frame - reference))
+    return kind, limit, error, angle
+
+
+def _outside(error: float, limit: float) -> bool:
+    return error > limit * (1 + 1e-6) + 1e-12
+
+
 def analyse(task: ir.Task, linear: Linearization, rows: list[ConstraintRows], q) -> list[Finding]:
     residuals = Residuals(task, linear.context)
     p = linear.default_params
     findings = []
     for r in rows:
         c = r.constraint
-        stated = stated_size(c, task)
-        if c.soft or r.bounds or not len(r.A) or (stated is not None and stated[0] not in ("length", "angle")):
+        measured = None if c.soft else _error(task, r, residuals, q, p)
+        if measured is None:
             continue
-        kind, limit = stated if stated is not None else (("angle" if c.primitive in TRUE_ANGLE else "length"), 0.0)
-        angle = residuals.true_angle(r.index, q, p)
-        error = angle if angle is not None else limit + r.violation_at_rest
-        if c.primitive in DISTANCE_TO_REFERENCE:
-            frame, reference = residuals.frame_and_reference(r.index, q, p)
-            error = float(np.linalg.norm(frame - reference))
-        if error <= limit * (1 + 1e-6) + 1e-12:
+        kind, limit, error, angle = measured
+        if not _outside(error, limit):
             continue
         far = error > (FAR * limit if limit > 0 else FAR_ABSOLUTE)
         cause = _likely_cause(r.index, c, residuals, q, p, error) if far else None
@@ -167,3 +182,80 @@ def _likely_cause(index: int, c: ir.Constraint, residuals: Residuals, q, p, erro
 
 def _gamma(c: ir.Constraint, residuals: Residuals, p) -> float:
     return float(ca.Function("gamma", [residuals.context.p], [residuals.context.scalar(c.args["angle"])])(p))
+
+
+def soft_at_start(task: ir.Task, linear: Linearization, rows: list[ConstraintRows], q, nq: int,
+                  figures: dict) -> list[Finding]:
+    """VF403: a soft constraint that does not hold at the start, with its error there; and whether any
+    motion within the joint limits that keeps the hard geometric constraints could meet it (to first
+    order: its rows at the start, the joint box q_lo - q <= dq <= q_hi - q, no rate limits). One that no
+    such motion meets is a warning: its slack pulls at the tool every tick, hands off included, and never
+    lets go; one that can be met is a note (the controller's slack brings it in over the first ticks)."""
+    residuals = Residuals(task, linear.context)
+    p = linear.default_params
+    hard = [r for r in rows if not r.constraint.soft and not CONSTRAINTS[r.constraint.primitive].rate]
+    findings = []
+    for r in rows:
+        c = r.constraint
+        measured = _error(task, r, residuals, q, p) if c.soft else None
+        if measured is None:
+            continue
+        kind, limit, error, _ = measured
+        if not _outside(error, limit):
+            continue
+        short = _shortfall(r, hard, nq)
+        level = f"priority {c.priority or 1}"
+        what = f"{quantity(limit, kind)} tolerance" if limit > 0 else "boundary"
+        data = {"error": error, "limit": limit, "priority": c.priority or 1,
+                "short": short, "meetable": short is not None and short <= SHORT}
+        figures.setdefault("soft_at_start", {})[where(c)] = data
+        if short is None:
+            continue                                   # the hard rows themselves conflict: VF301 says so
+        if short > SHORT:
+            findings.append(Finding(
+                "soft-unmet-at-start", Severity.WARNING,
+                f"this soft constraint ({level}) cannot be met at the start: its error is {quantity(error, kind)} "
+                f"against its {what}, and no motion within the joint limits that keeps the hard constraints "
+                f"meets it (to first order it stays {quantity(short, kind)} short): its slack pulls at the tool "
+                f"every tick, with the hands off too", c.span,
+                "move the reference within reach, or make it a lower priority or a hard constraint's job",
+                subject(c), data))
+        else:
+            findings.append(Finding(
+                "soft-unmet-at-start", Severity.NOTE,
+                f"this soft constraint ({level}) does not hold at the start: its error is {quantity(error, kind)} "
+                f"against its {what}; a motion within the joint limits meets it, and its slack pulls the tool "
+                f"there over the first ticks, with the hands off too", c.span,
+                "start inside its tolerance if the tool should stay still", subject(c), data))
+    return findings
+
+
+SHORT = 1e-9                     # m or rad: a first-order shortfall above this is "cannot be met"
+
+
+def _shortfall(r: ConstraintRows, hard: list[ConstraintRows], nq: int) -> float | None:
+    """min s >= 0 such that r's rows hold within s while every hard row and the joint box hold exactly
+    (an LP over [dq, s]); None when the hard rows alone cannot hold."""
+    from scipy.optimize import linprog
+
+    from vfdsl.check.lp import _HIGHS, LinearSystem
+
+    system = LinearSystem.from_rows(hard, nq)
+    if np.any(system.lo > system.hi):
+        return None
+    blocks, bounds = [], []
+    for A, lb, ub, slack in ((system.A, system.lb, system.ub, 0.0), (r.A, r.lb, r.ub, 1.0)):
+        low, up = np.isfinite(lb), np.isfinite(ub)
+        blocks.append(np.hstack([-A[low], -slack * np.ones((low.sum(), 1))]))     # -a dq - s <= -lb
+        bounds.append(-lb[low])
+        blocks.append(np.hstack([A[up], -slack * np.ones((up.sum(), 1))]))        #  a dq - s <= ub
+        bounds.append(ub[up])
+    A_ub, b_ub = np.vstack(blocks), np.concatenate(bounds)
+    box = [(None if not np.isfinite(a) else a, None if not np.isfinite(b) else b)
+           for a, b in zip(system.lo, system.hi)]
+    c = np.zeros(nq + 1)
+    c[-1] = 1.0
+    result = linprog(c, A_ub=A_ub, b_ub=b_ub, bounds=box + [(0, None)], method="highs", options=_HIGHS)
+    if result.status != 0:
+        return None
+    return float(result.x[-1])

@@ -65,12 +65,18 @@ def random_inputs(task: ir.Task, ticks: int, seed: int) -> list[dict[str, np.nda
     return out
 
 
-def analyse(controller, task: ir.Task, linear: Linearization, samples: int, seed: int,
-            figures: dict) -> list[Finding]:
-    robot = linear.robot
+def walk(controller, task: ir.Task, linear: Linearization, samples: int, seed: int) -> tuple[list, list]:
+    """The seeded random walk: (the states, start first; the controller's status at each tick)."""
     inputs = random_inputs(task, samples, seed)
-    statuses = []
+    statuses: list = []
     trajectory = run(controller, task, task.start, samples, linear.period, inputs.__getitem__, statuses)
+    return trajectory, statuses
+
+
+def analyse(controller, task: ir.Task, linear: Linearization, samples: int, seed: int,
+            figures: dict, walked: tuple[list, list] | None = None) -> list[Finding]:
+    robot = linear.robot
+    trajectory, statuses = walked or walk(controller, task, linear, samples, seed)
     margins, conditioning = [], []
     for q in trajectory[1:]:
         margins.append(feasibility.margin(linear.rows(q), robot.nq))

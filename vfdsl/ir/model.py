@@ -153,6 +153,7 @@ class FrameDecl(_Model):
     rpy: Vec3                        # radians, fixed-axis roll-pitch-yaw of the frame in the link frame
     tool_axis: Vec3                  # unit vector in the frame's own coordinates
     span: Span
+    base: str | None = None          # the frame it was built on (`frame b = a offset ...`), already composed in
 
 
 INPUT_SIZES = {"force": 3, "torque": 3, "wrench": 6, "twist": 6}

@@ -1,8 +1,8 @@
 """Reading the user's files (tasks, libraries, scenes, URDFs and their sidecars) within the limits.
 
 A file must be a regular file (not a directory, FIFO or device: those could block or never end) of at most
-:data:`~vfdsl.passes.limits.FILE_BYTES`, in UTF-8; the check is made on the opened descriptor, so the file
-cannot be swapped between the check and the read. YAML is composed by a loader that refuses nesting deeper
+:data:`~vfdsl.passes.limits.FILE_BYTES`, in UTF-8 (a leading byte-order mark is dropped); the check is
+made on the opened descriptor, so the file cannot be swapped between the check and the read. YAML is composed by a loader that refuses nesting deeper
 than :data:`~vfdsl.passes.limits.YAML_DEPTH` before Python's own recursion limit could be reached.
 """
 
@@ -40,7 +40,7 @@ def read_text(path: Path, what: str, pos: SourcePos | None = None, hint: str | N
         raise limits.exceeded(f"{what} {path} is too large", limits.FILE_BYTES, pos,
                               hint="the limit is in bytes")
     try:
-        return data.decode("utf-8")
+        return data.decode("utf-8-sig")          # a leading byte-order mark (some Windows editors) is not text
     except UnicodeDecodeError as exc:
         raise VfError(f"{what} {path} is not UTF-8 text (byte {exc.start})", pos) from None
 

@@ -27,8 +27,23 @@ CURVE_POINTS = 128
 CURVE_SAMPLES = 2_048            # closest-point samples of one curve (about 2 m of curve at 1 mm)
 YAML_NODES = 100_000             # nodes of a scene after alias expansion
 YAML_DEPTH = 16                  # nesting of lists and mappings in a scene
+LENGTH = 1_000.0                 # m: a task frame's distance from its link (its offset, composed)
 
-def exceeded(what: str, limit: int, pos: SourcePos | None, hint: str | None = None) -> VfError:
+# Work a command may be asked to do (`vfdsl simulate`, `vfdsl check`): a mistaken option or scene value
+# must not fill the memory or run for days before anything is printed.
+MIN_PERIOD = 1e-5                # s: the shortest control period (100 kHz)
+TRIAL_TICKS = 1_000_000          # control ticks of one trial (duration / period; 10,000 s at 10 ms)
+RUN_TICKS = 20_000_000           # control ticks of one `simulate` run, all trials and grid points
+TRIALS = 100_000                 # trials per setting
+GRID_POINTS = 1_000              # settings of one sweep (the product of every --grid)
+ROW_VALUE = 1e6                  # m or rad: the largest number in a constraint's rows `check` analyses (LPs)
+CHECK_SAMPLES = 5_000            # states of check's random walk (about 7 ms each on a loaded 2-core machine)
+SEED = 2 ** 32 - 1               # the largest seed (seeds are 0 or more)
+CONNECT_TIMEOUT = 10.0           # s: to reach a Dask scheduler and hear its handshake
+
+def exceeded(what: str, limit: int | float, pos: SourcePos | None, hint: str | None = None,
+             unit: str = "") -> VfError:
     """The error for a resource limit: which one was hit, and its value."""
-    return VfError(f"{what}: the limit is {limit:,}", pos,
+    value = f"{limit:,}" if isinstance(limit, int) else f"{limit:g}"
+    return VfError(f"{what}: the limit is {value}{' ' + unit if unit else ''}", pos,
                    hint=hint or "this limit sits far above any real task; split the task or simplify it")

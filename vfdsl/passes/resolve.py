@@ -183,8 +183,14 @@ class Resolver:
             if not all(map(math.isfinite, offset)):
                 raise VfError(f"frame '{stmt.name.text}' is too far from its link: its offset composed with frame "
                               f"'{base.name}''s overflows", stmt.span.pos())
+        distance = math.hypot(*offset)
+        if distance > limits.LENGTH:
+            raise limits.exceeded(f"frame '{stmt.name.text}' is {distance:g} m from its link", limits.LENGTH,
+                                  (stmt.offset.span if stmt.offset is not None else stmt.span).pos(),
+                                  hint="is the unit right? (bare numbers take the file's `units`)", unit="m")
         self.frames[stmt.name.text] = ir.FrameDecl(name=stmt.name.text, robot=robot_name, link=link,
-                                                   offset=offset, rpy=rpy, tool_axis=axis, span=stmt.span)
+                                                   offset=offset, rpy=rpy, tool_axis=axis, span=stmt.span,
+                                                   base=stmt.base.text if stmt.base is not None else None)
 
     def _base_frame(self, stmt: ast.FrameStmt) -> ir.FrameDecl:
         name = stmt.base.text
@@ -299,6 +305,10 @@ class Resolver:
             period = reader.scalar(scene.period, u.TIME, "period")
             if period <= 0:
                 raise VfError("the period must be positive", scene.period.span.pos())
+            if period < limits.MIN_PERIOD:
+                raise limits.exceeded(f"a period of {period:g} s is too short", limits.MIN_PERIOD,
+                                      scene.period.span.pos(), hint="the shortest control period is 10 us (100 kHz)",
+                                      unit="s")
         start = None
         if scene.start is not None:
             start = self._start(scene.start, scene.start_span, reader, robot)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
 import sys
 import time
 from pathlib import Path
@@ -12,11 +13,13 @@ from tqdm import tqdm
 
 import vfdsl
 from vfdsl.errors import VfError
+from vfdsl.passes import limits
 from vfdsl.passes import units as u
 from vfdsl.sim import report, trace
+from vfdsl.sim.cluster import connect
 from vfdsl.sim.metrics import metric_defs
 from vfdsl.sim.runner import default_workers, loaded, make_jobs, run
-from vfdsl.sim.settings import GRID_NAMES, default_scene, load_settings, parse_setting
+from vfdsl.sim.settings import GRID_NAMES, check_setting, check_ticks, default_scene, load_settings, parse_setting
 
 DESCRIPTION = """\
 Run a task's controller in closed loop on a simulated robot (Pinocchio kinematics, with optional
@@ -36,6 +39,11 @@ examples:
       --plot fig8.png                                               the plate moves and tilts (Fig. 8)
   vfdsl simulate tasks/lecture_remote_center.vf --duration 5s      any task: a generic hand
   vfdsl simulate tasks/paper_b_virtual_rcm.vf --trials 1000 --duration 1s --cluster tcp://host:8786
+
+limits (exit status 2 before any work; docs/language.md, "Limits"): at most 1,000,000 ticks per trial
+(duration / period) and 20,000,000 in a run, a period of 10 us at least, 100,000 trials, 1,000 grid
+points; --workers is capped at the trials and the cores; --cluster must answer as a Dask scheduler
+within 10 s; the output files are checked writable before the run.
 
 Values take units (10ms, 0.2mm); bare numbers are SI. --json writes every metric by name
 (metrics.<name>.mean / std / max) with the settings and the seed; --csv one row per trial; --trace
@@ -60,7 +68,8 @@ def add_parser(commands) -> None:
     p.add_argument("--grid", action="append", metavar="NAME=V1,V2,...", default=[],
                    help=f"sweep a setting ({', '.join(GRID_NAMES)}); repeat for a product")
     p.add_argument("--workers", type=int, metavar="N",
-                   help="local processes (default: all cores for long runs, else 1)")
+                   help="local processes (default: all cores for long runs, else 1; at most one per trial "
+                        "and per core)")
     p.add_argument("--cluster", metavar="ADDRESS", help="run the trials on this Dask distributed scheduler")
     p.add_argument("--json", metavar="OUT.json", help="write every metric, the settings and the seeds")
     p.add_argument("--csv", metavar="OUT.csv", help="write one row per trial (settings, seed, metrics)")
@@ -79,16 +88,22 @@ def _overrides(args: argparse.Namespace) -> dict:
         if text is not None:
             out[name] = _option(name, text)
     for name in ("trials", "seed"):
-        if getattr(args, name) is not None:
-            out[name] = getattr(args, name)
+        value = getattr(args, name)
+        if value is not None:
+            try:
+                check_setting(name, value)
+            except VfError as err:
+                raise VfError(f"--{name} {value}: {err.message}", hint=err.hint) from None
+            out[name] = value
     return out
 
 
-def _option(name: str, text: str):
+def _option(name: str, text: str, option: str | None = None):
     try:
         return parse_setting(name, text)
     except VfError as err:
-        raise VfError(f"--{name.replace('_', '-')} {text}: {err.message}", hint=err.hint) from None
+        label = f"{option}{text}" if option else f"--{name.replace('_', '-')} {text}"
+        raise VfError(f"{label}: {err.message}", hint=err.hint) from None
 
 
 def _grid(specs: list[str]) -> list[tuple[str, list]]:
@@ -100,7 +115,7 @@ def _grid(specs: list[str]) -> list[tuple[str, list]]:
             raise VfError(f"--grid {spec}: write NAME=V1,V2,..., like period=150ms,40ms")
         if name in dict(grid):
             raise VfError(f"--grid {spec}: '{name}' is swept twice")
-        grid.append((name, [_option(name, v) for v in values.split(",")]))
+        grid.append((name, [_option(name, v, f"--grid {name}=") for v in values.split(",")]))
     return grid
 
 
@@ -114,17 +129,25 @@ def main(args: argparse.Namespace) -> int:
         raise VfError(f"--workers must be at least 1, got {args.workers}")
     if args.trace:
         trace.check_path(args.trace)
-    for name in (args.json, args.csv, args.plot, args.trace):
-        if name and not Path(name).resolve().parent.is_dir():
-            raise VfError(f"cannot write {name}: no directory {Path(name).resolve().parent}")
-    jobs = make_jobs(args.file, settings, grid, keep_series=bool(args.plot), keep_trace=bool(args.trace))
-    ctx = loaded(args.file)                     # compile (or load from the cache) once, here, before workers
-    workers = args.workers or default_workers(jobs)
-    total = sum(max(1, round(j.settings.duration / j.settings.period)) for j in jobs)
-    start = time.perf_counter()
-    with tqdm(total=total, unit="tick", unit_scale=True, delay=1.0, disable=True if args.quiet else None,
-              leave=False, file=sys.stderr) as bar:
-        results = run(jobs, workers=workers, cluster=args.cluster, progress=bar.update)
+    _check_work(settings, grid)
+    for name in (args.json, args.csv, args.trace):
+        if name:
+            _check_writable(name)
+    if args.plot:
+        _check_writable(args.plot, plot=True)
+    client = connect(args.cluster) if args.cluster else None   # before any work: a wrong address fails fast
+    try:
+        jobs = make_jobs(args.file, settings, grid, keep_series=bool(args.plot), keep_trace=bool(args.trace))
+        ctx = loaded(args.file)                 # compile (or load from the cache) once, here, before workers
+        workers = min(args.workers, len(jobs), os.cpu_count() or 1) if args.workers else default_workers(jobs)
+        total = sum(max(1, round(j.settings.duration / j.settings.period)) for j in jobs)
+        start = time.perf_counter()
+        with tqdm(total=total, unit="tick", unit_scale=True, delay=1.0, disable=True if args.quiet else None,
+                  leave=False, file=sys.stderr) as bar:
+            results = run(jobs, workers=workers, cluster=client, progress=bar.update)
+    finally:
+        if client is not None:
+            client.close()
     seconds = time.perf_counter() - start
     doc = report.document(task.name, str(args.file), settings, results, grid)
     tolerances = {d.name: d.tolerance for d in metric_defs(task, ctx.robot, settings.metrics)
@@ -145,6 +168,54 @@ def main(args: argparse.Namespace) -> int:
         from vfdsl.sim.plots import plot_run
         _write(args.plot, lambda path: plot_run(task, settings, results, grid, str(path)))
     return 0
+
+
+def _check_work(settings, grid: list[tuple[str, list]]) -> None:
+    """Refuse a run beyond the limits of vfdsl/passes/limits.py before any work starts: ticks per trial (at
+    every grid point), grid points, and ticks of the whole run."""
+    points: list[dict] = [{}]
+    for name, values in grid:
+        if len(points) * len(values) > limits.GRID_POINTS:
+            raise limits.exceeded("the --grid sweep has too many settings", limits.GRID_POINTS, None,
+                                  hint="sweep fewer values, or run the sweep in parts")
+        points = [{**p, name: v} for p in points for v in values]
+    total = 0
+    for point in points:
+        duration, period = point.get("duration", settings.duration), point.get("period", settings.period)
+        where = " ".join(f"--grid {k}={v:g}" if isinstance(v, float) else f"--grid {k}={v}" for k, v in point.items())
+        total += check_ticks(duration, period, None, f"{where}: " if where else "") * settings.trials
+    if total > limits.RUN_TICKS:
+        raise limits.exceeded(f"this run is {total:,} control ticks ({settings.trials:,} trial(s) x "
+                              f"{len(points):,} setting(s))", limits.RUN_TICKS, None,
+                              hint="fewer trials, a shorter duration or a longer period")
+
+
+def _check_writable(name: str, plot: bool = False) -> None:
+    """An output file that can be written, found out before the run rather than after it: its directory
+    exists, it is not a directory, it can be opened for writing (a file it creates is removed again), and
+    a plot's extension is a format matplotlib writes."""
+    path = Path(name)
+    try:
+        if not path.resolve().parent.is_dir():
+            raise VfError(f"cannot write {name}: no directory {path.resolve().parent}")
+        if path.is_dir():
+            raise VfError(f"cannot write {name}: it is a directory")
+        existed = path.exists()
+    except OSError as exc:                     # e.g. a name too long for the file system
+        raise VfError(f"cannot write {name}: {exc.strerror or exc}") from None
+    if plot and path.suffix:
+        from matplotlib.backend_bases import FigureCanvasBase
+        formats = FigureCanvasBase.get_supported_filetypes()
+        if path.suffix[1:].lower() not in formats:
+            raise VfError(f"cannot write {name}: matplotlib writes no '{path.suffix}' files",
+                          hint="use one of " + ", ".join(f".{f}" for f in sorted(formats)))
+    try:
+        with open(path, "ab"):
+            pass
+    except OSError as exc:
+        raise VfError(f"cannot write {name}: {exc.strerror or exc}") from None
+    if not existed:
+        path.unlink(missing_ok=True)
 
 
 def _write(name: str, write) -> None:

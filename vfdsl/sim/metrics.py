@@ -18,14 +18,16 @@ The error of a constraint is how far the frame is from the set the constraint de
     tilt_at_most      max(0, angle(l, axis) - angle)       deg
     keeps_direction   angle(l, direction)                  deg
     rotates_around    | 90 deg - angle(l, axis) |          deg
-    speed             max(0, |dp| / dt - max)              mm/s
-    angular_speed     max(0, |rotation angle of R_k^T R_k+1| / dt - max)   deg/s
+    speed             max(0, |p_k - p_k-1| / dt - max)     mm/s
+    angular_speed     max(0, |rotation angle of R_k-1^T R_k| / dt - max)   deg/s
     joint_limits      max over joints of the distance outside [lower, upper]    mm (prismatic), deg (revolute)
-    joint_speed       max over joints of max(0, |dq| / dt - fraction * velocity limit)   mm/s, deg/s
+    joint_speed       max over joints of max(0, |q_k - q_k-1| / dt - fraction * velocity limit)   mm/s, deg/s
 
 with p the frame's origin, l its tool axis, and the geometry the one in force at each sample: where a scene's
 motions move a param, every sample is scored against its moved value (:class:`~vfdsl.sim.geometry.Scene`).
-A scene may name an error (``pivot_error: {error_of: tip
+Every metric has one sample per tick, on the ticks' time base t_k = k dt: a speed at tick k is that of the step
+that ended there (backward differences), and the first tick of a segment (the run's start, or a disturbance)
+has no step before it in the segment and scores 0. A scene may name an error (``pivot_error: {error_of: tip
 stays_at}``) or add the tilt of a frame's tool axis from a pose param's z axis (the plate normal).
 Statistics pool every tick of every trial: mean, std, max.
 """
@@ -185,19 +187,19 @@ def _frame_error(c: ir.Constraint, task: ir.Task, scene: Scene, poses: Poses, pe
             return np.maximum(0.0, angle - scene.scalar(a["angle"]))
         return angle if kind == "keeps_direction" else np.abs(np.pi / 2 - angle)
     if kind == "speed":
-        speed = np.linalg.norm(np.diff(p, axis=0), axis=1) / period
-        return np.maximum(0.0, speed - _per_step(scene.scalar(a["max"])))
+        speed = np.linalg.norm(_steps(p), axis=1) / period
+        return np.maximum(0.0, speed - scene.scalar(a["max"]))
     if kind == "angular_speed":
         R = poses.R[c.frame]
-        relative = np.einsum("nji,njk->nik", R[:-1], R[1:])
+        relative = np.einsum("nji,njk->nik", np.concatenate([R[:1], R[:-1]]), R)
         cos = np.clip((np.trace(relative, axis1=1, axis2=2) - 1) / 2, -1.0, 1.0)
-        return np.maximum(0.0, np.arccos(cos) / period - _per_step(scene.scalar(a["max"])))
+        return np.maximum(0.0, np.arccos(cos) / period - scene.scalar(a["max"]))
     raise ValueError(f"no metric for primitive '{kind}'")
 
 
-def _per_step(limit):
-    """A limit on the step from sample k to k + 1: the one in force at k + 1 where it changes."""
-    return limit[1:] if np.ndim(limit) else limit
+def _steps(x: np.ndarray) -> np.ndarray:
+    """The step that ended at each sample, x_k - x_k-1 (zero at the first): one per tick, like the others."""
+    return np.diff(x, axis=0, prepend=x[:1])
 
 
 _CURVES: dict = {}
@@ -216,7 +218,7 @@ def _joint_error(c: ir.Constraint, kind: str, robot: Robot, qs: np.ndarray, peri
         outside = np.maximum(robot.lower - qs, qs - robot.upper)
         return np.maximum(0.0, outside[:, mask]).max(axis=1)
     fraction = c.args["fraction"].value.value if "fraction" in c.args else 1.0
-    speed = np.abs(np.diff(qs, axis=0)) / period
+    speed = np.abs(_steps(qs)) / period
     return np.maximum(0.0, speed - fraction * robot.velocity_limit)[:, mask].max(axis=1)
 
 

@@ -59,6 +59,7 @@ import yaml
 
 from vfdsl.errors import SourcePos, VfError, suggest
 from vfdsl.ir import model as ir
+from vfdsl.passes import limits
 from vfdsl.passes import units as u
 from vfdsl.passes.files import read_text
 from vfdsl.passes.scene import _mapping, _span, _units, _Values, compose   # the task scene's YAML reading
@@ -221,6 +222,9 @@ def check_setting(name: str, value, where: SourcePos | None = None) -> None:
     if name in ("duration", "period"):
         if not (isinstance(value, float) and math.isfinite(value) and value > 0):
             raise VfError(f"{name} must be a positive time, got {value!r}", where)
+        if name == "period" and value < limits.MIN_PERIOD:
+            raise limits.exceeded(f"a period of {value:g} s is too short", limits.MIN_PERIOD, where,
+                                  hint="the shortest control period is 10 us (100 kHz)", unit="s")
     elif name in ("latency", "servo_lag", "noise"):
         if not (isinstance(value, float) and math.isfinite(value) and value >= 0):
             raise VfError(f"{name} must be zero or positive, got {value!r}", where)
@@ -231,11 +235,24 @@ def check_setting(name: str, value, where: SourcePos | None = None) -> None:
     elif name == "trials":
         if not (isinstance(value, int) and value >= 1):
             raise VfError(f"trials must be a positive whole number, got {value!r}", where)
+        if value > limits.TRIALS:
+            raise limits.exceeded(f"{value:,} trials per setting", limits.TRIALS, where,
+                                  hint="run fewer trials, or the run in parts with different seeds")
     elif name == "seed":
-        if not (isinstance(value, int) and value >= 0):
-            raise VfError(f"seed must be a whole number >= 0, got {value!r}", where)
+        if not (isinstance(value, int) and 0 <= value <= limits.SEED):
+            raise VfError(f"seed must be a whole number from 0 to {limits.SEED:,}, got {value!r}", where)
     elif name not in ("hand", "disturbances", "motions", "metrics", "scene", "marker_distance"):
         raise VfError(f"unknown setting '{name}'", where, hint=suggest(name, GRID_NAMES, "settings"))
+
+
+def check_ticks(duration: float, period: float, where: SourcePos | None = None, what: str = "") -> int:
+    """The control ticks of one trial, refused above ``limits.TRIAL_TICKS``."""
+    ticks = duration / period
+    if ticks > limits.TRIAL_TICKS:
+        raise limits.exceeded(f"{what}{duration:g} s at a {period * 1e3:g} ms period is {ticks:,.0f} control ticks "
+                              "per trial", limits.TRIAL_TICKS, where,
+                              hint="shorten the duration or lengthen the period")
+    return max(1, round(ticks))
 
 
 GRID_NAMES = ("duration", "period", "latency", "servo_lag", "noise", "resolution")
@@ -337,6 +354,15 @@ class _Reader:
         for name, value in values.items():
             if name != "scene":
                 check_setting(name, value, self.pos(top[name][1]))
+        ticks_at = next((top[n][1] for n in ("duration", "period") if n in top), None)
+        ticks = check_ticks(values.get("duration", base.duration), values.get("period", base.period),
+                            self.pos(ticks_at) if ticks_at is not None else None)
+        trials = values.get("trials", base.trials)
+        if ticks * trials > limits.RUN_TICKS:
+            at = top["trials"][1] if "trials" in top else ticks_at
+            raise limits.exceeded(f"{trials:,} trial(s) of {ticks:,} control ticks is {ticks * trials:,} ticks",
+                                  limits.RUN_TICKS, self.pos(at) if at is not None else None,
+                                  hint="fewer trials, a shorter duration or a longer period")
         if "tracker" in top:
             tracker = self.mapping(top["tracker"][1], _TRACKER_KEYS, "tracker")
             if "noise" in tracker:

@@ -105,15 +105,11 @@ def metric_factor(unit: str) -> float:
 
 
 def per_tick(parts: list[np.ndarray], lengths: list[int]) -> np.ndarray:
-    """A metric's values, scored segment by segment, as one value per tick: a segment's metric of one
-    sample fewer than its ticks (a speed: the step from tick k - 1 to k) starts with a missing value."""
-    out = []
+    """A metric's values, scored segment by segment (one sample per tick, vfdsl.sim.metrics), as one array."""
     for part, n in zip(parts, lengths):
-        part = np.asarray(part, dtype=float)
-        if len(part) < n:
-            part = np.concatenate([np.full(n - len(part), np.nan), part])
-        out.append(part[:n])
-    return np.concatenate(out) if out else np.zeros(0)
+        if len(part) != n:
+            raise ValueError(f"a metric of {len(part)} samples for a segment of {n} ticks")
+    return np.concatenate([np.asarray(part, dtype=float) for part in parts]) if parts else np.zeros(0)
 
 
 def columns(results) -> tuple[list[str], list[list]]:

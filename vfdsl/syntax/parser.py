@@ -64,6 +64,7 @@ def _lark() -> Lark:
 def parse_module(text: str, file: str) -> ast.Module:
     """Parse one ``.vf`` file's text. Raises VfError on any syntax error."""
     parser = _lark()
+    text = text.removeprefix("\ufeff")         # a byte-order mark, when the caller read the file itself
     first = _FIRST_WORD.match(text).group(1) or ""
     if not difflib.get_close_matches(first, ["task", "library"], n=1, cutoff=0.6):
         raise VfError(f"{file} is not a .vf file: it does not start with `task NAME` or `library NAME`")
