@@ -30,7 +30,7 @@ from vfdsl import VfError
 from vfdsl.compiler.assemble import assemble
 from vfdsl.kinematics.robot import Robot
 from vfdsl.objectives import OBJECTIVES
-from vfdsl.passes.units import UNITS
+from vfdsl.units import UNITS
 from vfdsl.primitives import CONSTRAINTS
 
 FILES = 2500

@@ -18,7 +18,7 @@ import vfdsl
 from vfdsl import VfError
 from vfdsl.compiler.curve import SplineCurve
 from vfdsl.kinematics.robot import ROBOTS_DIR
-from vfdsl.passes import limits
+from vfdsl import limits
 
 HEAD = 'task t\nunits mm, deg\nrobot shr = urdf "shr7"\nframe tip = shr.link("tool_tip")\n'
 # Appended lines start at line 5.

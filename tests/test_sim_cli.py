@@ -175,7 +175,7 @@ def test_hand_toward_a_plane_and_a_push_through_it(tmp_path):
 
 
 def test_unreachable_cluster_is_a_clear_error(capsys, monkeypatch):
-    from vfdsl.passes import limits
+    from vfdsl import limits
 
     monkeypatch.setattr(limits, "CONNECT_TIMEOUT", 1.0)
     assert main(["simulate", B, "--quiet", "--duration", "0.1s", "--cluster", "tcp://127.0.0.1:9"]) == 2

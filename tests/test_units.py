@@ -1,7 +1,7 @@
 """Units: every literal reaches the IR in SI (m, rad, s, N), whatever unit it was written in.
 
 Expected values are worked out by hand here (1 mm = 1e-3 m, 1 deg = pi/180 rad, ...), not taken from
-``vfdsl.passes.units``, so a wrong factor in the front end's table fails these tests.
+``vfdsl.units``, so a wrong factor in the front end's table fails these tests.
 """
 
 from __future__ import annotations

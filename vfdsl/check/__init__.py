@@ -32,7 +32,7 @@ def check(task: ir.Task, *, overshoot: float = DEFAULT_OVERSHOOT, samples: int =
     samples skips it); ``backend``: how the closed-loop analyses run the controller (see
     :func:`vfdsl.compile`)."""
     from vfdsl.errors import VfError
-    from vfdsl.passes import limits
+    from vfdsl import limits
     from vfdsl.pipeline import compile as compile_task
 
     if not (isinstance(samples, int) and 0 <= samples <= limits.CHECK_SAMPLES):
@@ -101,7 +101,7 @@ def _check_magnitudes(rows) -> None:
 
     from vfdsl.check.linearized import describe
     from vfdsl.errors import VfError
-    from vfdsl.passes import limits
+    from vfdsl import limits
 
     for r in rows:
         values = np.concatenate([r.A.ravel(), r.lb[np.isfinite(r.lb) | np.isnan(r.lb)],

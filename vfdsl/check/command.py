@@ -10,7 +10,7 @@ from pathlib import Path
 from vfdsl.check import DEFAULT_OVERSHOOT
 from vfdsl.check.sampling import DEFAULT_SAMPLES
 from vfdsl.errors import VfError
-from vfdsl.passes import limits
+from vfdsl import limits
 
 EXIT_NOT_SOUND = 1
 
@@ -87,7 +87,7 @@ def load_with_scene(path: str | Path, scene: str | Path):
 
 
 def _counter(limit: int):
-    """An argparse type: a whole number from 0 to ``limit`` (a limit of vfdsl/passes/limits.py)."""
+    """An argparse type: a whole number from 0 to ``limit`` (a limit of vfdsl/limits.py)."""
     def count(text: str) -> int:
         try:
             value = int(text)

@@ -36,7 +36,7 @@ import pinocchio as pin
 import yaml
 
 from vfdsl.errors import VfError, suggest
-from vfdsl.passes.files import BoundedLoader, read_text
+from vfdsl.files import BoundedLoader, read_text
 
 ROBOTS_DIR = Path(__file__).resolve().parent.parent / "robots"
 

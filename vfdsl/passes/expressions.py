@@ -32,7 +32,7 @@ from vfdsl.compiler import derived
 from vfdsl.compiler.context import ParamReader
 from vfdsl.errors import VfError
 from vfdsl.ir import model as ir
-from vfdsl.passes import units as u
+from vfdsl import units as u
 from vfdsl.passes.calls import bind_arguments
 from vfdsl.passes.shapes import LiteralReader, describe_kind
 from vfdsl.primitives.spec import SCALAR_DIMENSIONS

@@ -20,9 +20,9 @@ from typing import Callable
 
 from vfdsl.errors import VfError, suggest
 from vfdsl.ir import model as ir
-from vfdsl.passes import limits
+from vfdsl import limits
 from vfdsl.passes.calls import bind_arguments
-from vfdsl.passes.units import DefaultUnits
+from vfdsl.units import DefaultUnits
 from vfdsl.primitives.spec import ARG_KINDS, REQUIRED, ArgSpec
 from vfdsl.syntax import ast
 

@@ -13,8 +13,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from vfdsl.errors import VfError
-from vfdsl.passes import limits
-from vfdsl.passes.files import read_text
+from vfdsl import limits
+from vfdsl.files import read_text
 from vfdsl.syntax import ast
 from vfdsl.syntax.parser import parse_module
 

@@ -3,9 +3,9 @@
 The pass walks the task's declarations in order (one namespace for robots, frames, inputs and params;
 a name may be declared once), expands fixtures, then checks every ``require``/``minimize`` call against its
 primitive's signature (:mod:`vfdsl.primitives.spec`): argument names and kinds, units (via
-:mod:`vfdsl.passes.units`), shapes (via :mod:`vfdsl.passes.shapes`) and the argument's allowed range (for a
+:mod:`vfdsl.units`), shapes (via :mod:`vfdsl.passes.shapes`) and the argument's allowed range (for a
 literal, at the literal; for a param, at the param's value and naming the use), then the clauses ``within``,
-``resolution``, ``soft`` and ``weight`` against :mod:`vfdsl.passes.limits`. Any mistake raises
+``resolution``, ``soft`` and ``weight`` against :mod:`vfdsl.limits`. Any mistake raises
 :class:`~vfdsl.errors.VfError` at its position.
 """
 
@@ -23,8 +23,8 @@ from vfdsl.objectives import OBJECTIVES
 from vfdsl.passes import clause_ranges
 from vfdsl.passes import expressions as ex
 from vfdsl.passes import fixtures as fx
-from vfdsl.passes import limits
-from vfdsl.passes import units as u
+from vfdsl import limits
+from vfdsl import units as u
 from vfdsl.passes.calls import bind_arguments
 from vfdsl.passes.scene import SceneData, load_scene
 from vfdsl.passes.shapes import LiteralReader, describe_kind

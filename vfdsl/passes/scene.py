@@ -21,9 +21,9 @@ from pathlib import Path
 import yaml
 
 from vfdsl.errors import SourcePos, VfError, suggest
-from vfdsl.passes import limits
-from vfdsl.passes.files import BoundedLoader, read_text
-from vfdsl.passes.units import DefaultUnits, default_units
+from vfdsl import limits
+from vfdsl.files import BoundedLoader, read_text
+from vfdsl.units import DefaultUnits, default_units
 from vfdsl.syntax import ast
 
 _QUANTITY = re.compile(r"^\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*([A-Za-z][A-Za-z*/]*)?\s*$")

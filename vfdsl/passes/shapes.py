@@ -18,8 +18,8 @@ from vfdsl.compiler.admissible import MIN_DIRECTION_NORM
 from vfdsl.compiler.curve import MIN_SAMPLES, SAMPLE_SPACING
 from vfdsl.errors import VfError
 from vfdsl.ir import model as ir
-from vfdsl.passes import limits
-from vfdsl.passes import units as u
+from vfdsl import limits
+from vfdsl import units as u
 from vfdsl.passes.calls import bind_arguments
 from vfdsl.primitives.spec import SCALAR_DIMENSIONS
 from vfdsl.syntax import ast

@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 from typing import Callable, Literal
 
 from vfdsl.ir import model as ir
-from vfdsl.passes import units as u
+from vfdsl import units as u
 
 GEOMETRIC_KINDS = ("point", "vector", "direction", "line", "plane", "pose", "curve")
 SCALAR_DIMENSIONS: dict[str, u.Dim] = {
@@ -39,7 +39,7 @@ REQUIRED = object()
 class Range:
     """Allowed values of a scalar argument, in SI units; None = unbounded on that side.
 
-    ``unit`` (a name from :data:`vfdsl.passes.units.UNITS`, e.g. "deg") only changes how the bounds are
+    ``unit`` (a name from :data:`vfdsl.units.UNITS`, e.g. "deg") only changes how the bounds are
     written in messages and docs. Non-finite values are never allowed.
     """
 

@@ -12,7 +12,7 @@ from __future__ import annotations
 import asyncio
 
 from vfdsl.errors import VfError
-from vfdsl.passes import limits
+from vfdsl import limits
 
 _HINT = "start one (`dask scheduler`, then `dask worker ADDRESS`) or run without --cluster"
 

@@ -13,8 +13,8 @@ from tqdm import tqdm
 
 import vfdsl
 from vfdsl.errors import VfError
-from vfdsl.passes import limits
-from vfdsl.passes import units as u
+from vfdsl import limits
+from vfdsl import units as u
 from vfdsl.sim import report, trace
 from vfdsl.sim.cluster import connect
 from vfdsl.sim.metrics import metric_defs
@@ -171,7 +171,7 @@ def main(args: argparse.Namespace) -> int:
 
 
 def _check_work(settings, grid: list[tuple[str, list]]) -> None:
-    """Refuse a run beyond the limits of vfdsl/passes/limits.py before any work starts: ticks per trial (at
+    """Refuse a run beyond the limits of vfdsl/limits.py before any work starts: ticks per trial (at
     every grid point), grid points, and ticks of the whole run."""
     points: list[dict] = [{}]
     for name, values in grid:

@@ -59,9 +59,9 @@ import yaml
 
 from vfdsl.errors import SourcePos, VfError, suggest
 from vfdsl.ir import model as ir
-from vfdsl.passes import limits
-from vfdsl.passes import units as u
-from vfdsl.passes.files import read_text
+from vfdsl import limits
+from vfdsl import units as u
+from vfdsl.files import read_text
 from vfdsl.passes.scene import _mapping, _span, _units, _Values, compose   # the task scene's YAML reading
 from vfdsl.primitives.spec import SCALAR_DIMENSIONS
 from vfdsl.syntax import ast

@@ -4,7 +4,7 @@ Lark's errors become :class:`~vfdsl.errors.VfError` with the position, what was 
 "did you mean" when a keyword is misspelt. A file that does not start like a ``.vf`` file (``task NAME`` or
 ``library NAME``, or a near miss of those words) is refused without printing any of its text, since it may
 be any file on the machine. Before the tree is transformed, nesting of values, number length and name
-length are checked against :mod:`vfdsl.passes.limits`, so no recursion can reach Python's own limit.
+length are checked against :mod:`vfdsl.limits`, so no recursion can reach Python's own limit.
 """
 
 from __future__ import annotations
@@ -26,7 +26,7 @@ from lark.exceptions import (
 )
 
 from vfdsl.errors import SourcePos, VfError
-from vfdsl.passes import limits
+from vfdsl import limits
 from vfdsl.syntax import ast
 
 KEYWORDS = ("task", "library", "units", "import", "scene", "robot", "frame", "input", "param",

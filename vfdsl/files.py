@@ -1,9 +1,9 @@
 """Reading the user's files (tasks, libraries, scenes, URDFs and their sidecars) within the limits.
 
 A file must be a regular file (not a directory, FIFO or device: those could block or never end) of at most
-:data:`~vfdsl.passes.limits.FILE_BYTES`, in UTF-8 (a leading byte-order mark is dropped); the check is
+:data:`~vfdsl.limits.FILE_BYTES`, in UTF-8 (a leading byte-order mark is dropped); the check is
 made on the opened descriptor, so the file cannot be swapped between the check and the read. YAML is composed by a loader that refuses nesting deeper
-than :data:`~vfdsl.passes.limits.YAML_DEPTH` before Python's own recursion limit could be reached.
+than :data:`~vfdsl.limits.YAML_DEPTH` before Python's own recursion limit could be reached.
 """
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ from pathlib import Path
 import yaml
 
 from vfdsl.errors import SourcePos, VfError
-from vfdsl.passes import limits
+from vfdsl import limits
 
 
 def read_text(path: Path, what: str, pos: SourcePos | None = None, hint: str | None = None) -> str:
