@@ -92,7 +92,7 @@ def main() -> None:
     args = parser.parse_args()
     os.environ.setdefault("VFDSL_CACHE", tempfile.mkdtemp(prefix="vfdsl-bench-"))
     import vfdsl
-    from vfdsl.sim.settings import load_settings
+    from vfdsl.sim.scene_file import load_settings
 
     settings = load_settings(vfdsl.load(TASK), SCENE).replace(trials=1, duration=60.0)
     print("warming up (compile, first trial)", file=sys.stderr)

@@ -25,7 +25,7 @@ from pathlib import Path
 import vfdsl
 from vfdsl.sim.metrics import Stats
 from vfdsl.sim.runner import make_jobs, run
-from vfdsl.sim.settings import load_settings
+from vfdsl.sim.scene_file import load_settings
 
 ROOT = Path(__file__).resolve().parent.parent
 PAGE = ROOT / "docs" / "results.md"

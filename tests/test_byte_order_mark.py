@@ -12,7 +12,7 @@ from conftest import TASKS_DIR
 import vfdsl
 from vfdsl.cli import main
 from vfdsl.errors import VfError
-from vfdsl.sim.settings import load_settings
+from vfdsl.sim.scene_file import load_settings
 from vfdsl.syntax.parser import parse_module
 
 BOM = "\ufeff".encode("utf-8")

@@ -15,7 +15,7 @@ import vfdsl
 from vfdsl.cli import main
 from vfdsl.kinematics.robot import Robot
 from vfdsl.sim.runner import make_jobs, run
-from vfdsl.sim.settings import load_settings
+from vfdsl.sim.scene_file import load_settings
 
 B = str(TASKS_DIR / "paper_b_virtual_rcm.vf")
 A = str(TASKS_DIR / "paper_a_follow_curve.vf")

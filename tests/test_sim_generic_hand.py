@@ -17,7 +17,7 @@ import vfdsl
 from vfdsl.cli import main
 from vfdsl.sim.hand import HAND_SPEED
 from vfdsl.sim.runner import make_jobs, run
-from vfdsl.sim.settings import load_settings
+from vfdsl.sim.scene_file import load_settings
 
 NEEDLE = str(TASKS_DIR / "needle_insertion.vf")
 

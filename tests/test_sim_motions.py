@@ -18,7 +18,7 @@ from vfdsl.ir import model as ir
 from vfdsl.sim.geometry import Scene
 from vfdsl.sim.metrics import Poses, errors, metric_defs
 from vfdsl.sim.runner import Moving, loaded, make_jobs, run
-from vfdsl.sim.settings import load_settings
+from vfdsl.sim.scene_file import load_settings
 
 VESSEL = TASKS_DIR / "breathing_vessel.vf"
 NEEDLE = TASKS_DIR / "needle_insertion.vf"

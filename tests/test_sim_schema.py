@@ -14,9 +14,10 @@ from conftest import TASKS_DIR
 import vfdsl
 from vfdsl.cli import main
 from vfdsl.errors import VfError
+from vfdsl.sim import scene_file
 from vfdsl.sim import settings as s
 from vfdsl.sim.schema import DISTURBANCE_KEYS, scene_schema
-from vfdsl.sim.settings import load_settings
+from vfdsl.sim.scene_file import load_settings
 
 DOCS = TASKS_DIR.parent / "docs"
 EXAMPLE = re.compile(r"```yaml\n# task: (\S+)[^\n]*\n(.*?)```", re.S)
@@ -55,17 +56,17 @@ def test_the_examples_use_every_key_and_every_kind_the_reader_accepts():
     disturbances = [x for d in docs for x in d.get("disturbances", [])]
     motions = [x for d in docs for x in d.get("motions", [])]
     metrics = [m for d in docs for m in d.get("metrics", {}).values()]
-    assert top == set(s._TOP_KEYS)
+    assert top == set(scene_file.TOP_KEYS)
     assert {h["kind"] for h in hands} == set(s.HAND_KINDS)
-    assert set().union(*hands) == set(s._HAND_KEYS)
-    assert set().union(*(d["tracker"] for d in docs if "tracker" in d)) == set(s._TRACKER_KEYS)
+    assert set().union(*hands) == set(scene_file.HAND_KEYS)
+    assert set().union(*(d["tracker"] for d in docs if "tracker" in d)) == set(scene_file.TRACKER_KEYS)
     assert {x["kind"] for x in disturbances} == set(s.DISTURBANCE_KINDS)
     for kind in s.DISTURBANCE_KINDS:
         assert set().union(*(x for x in disturbances if x["kind"] == kind)) == set(DISTURBANCE_KEYS[kind])
     assert {x["kind"] for x in motions} == set(s.MOTION_KINDS)
     for kind in s.MOTION_KINDS:
-        assert set().union(*(x for x in motions if x["kind"] == kind)) == set(s._MOTION_KEYS[kind])
-    assert set().union(*metrics) == set(s._METRIC_KEYS)
+        assert set().union(*(x for x in motions if x["kind"] == kind)) == set(scene_file.MOTION_KEYS[kind])
+    assert set().union(*metrics) == set(scene_file.METRIC_KEYS)
 
 
 # A valid scene for each section of lecture_follow_path (force input f, line param path, frame tip) and of
@@ -92,8 +93,8 @@ SECTIONS = {   # task, a valid scene, the section in it, the section's schema
     "ramp": (PAPER_A, {"motions": [{"param": "plate", "kind": "ramp", "start": 1, "end": 2, "offset": [0, 0, 0.001]}]},
              lambda d: d["motions"][0], lambda sc: _KINDS(sc, "motions", "ramp")),
 }
-ALL_KEYS = sorted(set(s._TOP_KEYS) | set(s._HAND_KEYS) | set(s._TRACKER_KEYS) | set(s._METRIC_KEYS)
-                  | {k for keys in s._MOTION_KEYS.values() for k in keys}
+ALL_KEYS = sorted(set(scene_file.TOP_KEYS) | set(scene_file.HAND_KEYS) | set(scene_file.TRACKER_KEYS) | set(scene_file.METRIC_KEYS)
+                  | {k for keys in scene_file.MOTION_KEYS.values() for k in keys}
                   | {k for keys in DISTURBANCE_KEYS.values() for k in keys} | {"bogus"})
 REFUSED = "unknown key|does not apply"
 

@@ -15,7 +15,7 @@ import vfdsl
 from vfdsl.cli import main
 from vfdsl.sim import report
 from vfdsl.sim.runner import make_jobs, run
-from vfdsl.sim.settings import load_settings
+from vfdsl.sim.scene_file import load_settings
 
 B = str(TASKS_DIR / "paper_b_virtual_rcm.vf")
 GRID = [("period", [0.01, 0.02]), ("latency", [0.0, 0.03])]

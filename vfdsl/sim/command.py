@@ -19,7 +19,8 @@ from vfdsl.sim import report, trace
 from vfdsl.sim.cluster import connect
 from vfdsl.sim.metrics import metric_defs
 from vfdsl.sim.runner import default_workers, loaded, make_jobs, run
-from vfdsl.sim.settings import GRID_NAMES, check_setting, check_ticks, default_scene, load_settings, parse_setting
+from vfdsl.sim.scene_file import default_scene, load_settings, parse_setting
+from vfdsl.sim.settings import GRID_NAMES, check_setting, check_ticks
 
 DESCRIPTION = """\
 Run a task's controller in closed loop on a simulated robot (Pinocchio kinematics, with optional
