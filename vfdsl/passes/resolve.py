@@ -1,7 +1,7 @@
 """Name resolution and checking: syntax tree (+ scene, + libraries) -> the checked :class:`~vfdsl.ir.model.Task`.
 
-The pass walks the task's declarations in order (one namespace for robots, frames, inputs and params;
-a name may be declared once), expands fixtures, then checks every ``require``/``minimize`` call against its
+The pass reads the task's declarations (:mod:`vfdsl.passes.declarations`), expands fixtures, then checks
+every ``require``/``minimize`` call against its
 primitive's signature (:mod:`vfdsl.primitives.spec`): argument names and kinds, units (via
 :mod:`vfdsl.units`), shapes (via :mod:`vfdsl.passes.shapes`) and the argument's allowed range (for a
 literal, at the literal; for a param, at the param's value and naming the use), then the clauses ``within``,
@@ -14,23 +14,19 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
-from vfdsl.compiler.admissible import Admissible
-from vfdsl.compiler.geometry import compose, rotation
+from vfdsl import limits
+from vfdsl import units as u
 from vfdsl.errors import VfError, suggest
 from vfdsl.ir import model as ir
-from vfdsl.kinematics.robot import ROBOTS_DIR, Robot
 from vfdsl.objectives import OBJECTIVES
 from vfdsl.passes import clause_ranges
 from vfdsl.passes import expressions as ex
 from vfdsl.passes import fixtures as fx
-from vfdsl import limits
-from vfdsl import units as u
 from vfdsl.passes.calls import bind_arguments
-from vfdsl.passes.scene import SceneData, load_scene
+from vfdsl.passes.declarations import Declarations
 from vfdsl.passes.shapes import LiteralReader, describe_kind
 from vfdsl.primitives import CONSTRAINTS
 from vfdsl.primitives.spec import (
-    GEOMETRIC_KINDS,
     SCALAR_DIMENSIONS,
     TASK_LEVEL,
     ArgSpec,
@@ -39,9 +35,7 @@ from vfdsl.primitives.spec import (
 )
 from vfdsl.syntax import ast
 
-PARAM_KINDS = GEOMETRIC_KINDS + tuple(SCALAR_DIMENSIONS)
 DEFAULT_SOFT_WEIGHT = 1.0
-_AXES = {"x": [1.0, 0.0, 0.0], "y": [0.0, 1.0, 0.0], "z": [0.0, 0.0, 1.0]}
 
 
 def file_units(module: ast.Module) -> u.DefaultUnits:
@@ -55,45 +49,19 @@ def file_units(module: ast.Module) -> u.DefaultUnits:
     return u.default_units([(name.text, name.span) for name in statements[0].names])
 
 
-class Resolver:
-    """Builds the IR of one task. Use :func:`resolve`."""
+class Resolver(Declarations):
+    """Builds the IR of one task: its declarations (:class:`~vfdsl.passes.declarations.Declarations`), then
+    every ``require``/``minimize`` call, fixtures expanded. Use :func:`resolve`."""
 
     def __init__(self, module: ast.Module, path: Path, libraries: list[tuple[ast.Module, u.DefaultUnits]]):
-        self.module = module
-        self.path = path
-        self.units = file_units(module)
+        super().__init__(module, path, file_units(module))
         self.fixtures = fx.collect(libraries + [(module, self.units)])
-        self.declared: dict[str, ast.Node] = {}            # name -> its declaring statement
-        self.robots: dict[str, tuple[ir.RobotDecl, Robot]] = {}
-        self.frames: dict[str, ir.FrameDecl] = {}
-        self.inputs: dict[str, ir.InputDecl] = {}
-        self.params: dict[str, ir.ParamDecl] = {}
-        self.param_values: dict[str, ast.Value] = {}        # param -> the literal its value was read from
         self.task_scope = fx.Scope(units=self.units)
 
     # ----------------------------------------------------------------------------------- entry point
     def run(self, imports: list[str]) -> ir.Task:
         statements = self.module.statements
-        scene = self._scene(statements)
-        for stmt in statements:
-            if isinstance(stmt, (ast.RobotStmt, ast.FrameStmt, ast.InputStmt, ast.ParamStmt)):
-                self._declare(stmt.name)
-        for stmt in statements:
-            if isinstance(stmt, ast.RobotStmt):
-                self._robot(stmt)
-        if not self.robots:
-            raise VfError("a task drives exactly one robot; none is declared", self.module.name.span.pos(),
-                          hint='declare it with: robot shr = urdf "shr7"')
-        if len(self.robots) > 1:
-            first, second = (decl.span for decl, _ in list(self.robots.values())[:2])
-            raise VfError("a task drives exactly one robot", second.pos(),
-                          hint=f"the first is declared at {first}; split the task, one per robot")
-        for stmt in statements:
-            if isinstance(stmt, ast.FrameStmt):
-                self._frame(stmt)
-            elif isinstance(stmt, ast.InputStmt):
-                self._input(stmt)
-        self._params([s for s in statements if isinstance(s, ast.ParamStmt)], scene)
+        scene = self.read()
         body = [s for s in statements if isinstance(s, (ast.MinimizeStmt, ast.RequireStmt, ast.UseStmt))]
         objectives, constraints = [], []
         rows = 0
@@ -116,231 +84,11 @@ class Resolver:
             name=self.module.name.text, file=str(self.path), span=self.module.span,
             robots=[robot_decl], frames=list(self.frames.values()), inputs=list(self.inputs.values()),
             params=list(self.params.values()), objectives=objectives, constraints=constraints,
-            scene=self._scene_ir(scene, robot), imports=imports)
-        self._check_param_values(task, robot)
+            scene=self.scene_ir(scene, robot), imports=imports)
+        self.check_param_values(task, robot)
         return task
 
-    def _check_param_values(self, task: ir.Task, robot: Robot) -> None:
-        """The params' values (the task's defaults, or the scene's) pass the checks a run-time value gets
-        (:mod:`vfdsl.compiler.admissible`); an error points at the value, in the task or the scene file."""
-        admissible = Admissible(task, robot.reach)
-        p = admissible.layout.defaults
-        numbers = admissible.function(p)
-        i = admissible.margins.first_failure(numbers)
-        if i < 0:
-            return
-        error = admissible.margins.error(i, numbers, p, "with the params' values, ")
-        name = admissible.margins.checks[i].param
-        if name is not None:
-            error = VfError(error.message, self.param_values[name].span.pos(), error.hint,
-                            notes=(f"param '{name}' is declared at {self.params[name].span}",))
-        raise error
-
-    # ---------------------------------------------------------------------------------- declarations
-    def _declare(self, name: ast.Name) -> None:
-        if name.text in self.declared:
-            raise VfError(f"'{name.text}' is declared twice", name.span.pos(),
-                          hint=f"first declared at {self.declared[name.text].span}")
-        self.declared[name.text] = name
-
-    def _robot(self, stmt: ast.RobotStmt) -> None:
-        try:
-            robot = Robot.load(stmt.urdf, base_dir=self.path.parent)
-        except VfError as exc:
-            raise VfError(exc.message, stmt.span.pos(), exc.hint) from None
-        shipped = robot.urdf_path.parent == ROBOTS_DIR
-        decl = ir.RobotDecl(name=stmt.name.text, urdf=robot.name if shipped else str(robot.urdf_path), span=stmt.span)
-        self.robots[stmt.name.text] = (decl, robot)
-
-    def _frame(self, stmt: ast.FrameStmt) -> None:
-        """A frame on a robot link, or on an earlier frame (composed: the base's link, offset and rotation,
-        then this frame's; the tool axis is the base's, in the new frame's coordinates, unless given)."""
-        if stmt.base is not None:
-            base = self._base_frame(stmt)
-            robot_name, link = base.robot, base.link
-            robot = self.robots[robot_name][1]
-        else:
-            if stmt.robot.text not in self.robots:
-                hint = (f"'{stmt.robot.text}' is a frame; a frame on it is written `frame {stmt.name.text} = "
-                        f"{stmt.robot.text} offset [...]`" if self._is_frame_statement(stmt.robot.text)
-                        else suggest(stmt.robot.text, self.robots, "robots"))
-                raise VfError(f"unknown robot '{stmt.robot.text}'", stmt.robot.span.pos(), hint=hint)
-            robot_name, link, robot = stmt.robot.text, stmt.link.text, self.robots[stmt.robot.text][1]
-            if link not in robot.link_names():
-                raise VfError(f"robot '{robot_name}' has no link '{link}'", stmt.link.span.pos(),
-                              hint=suggest(link, robot.link_names(), "links"))
-        offset = self._literal(stmt.offset, "vector", self.units).xyz if stmt.offset else [0.0, 0.0, 0.0]
-        rpy = self._literal(stmt.rotate, "rpy", self.units).xyz if stmt.rotate else [0.0, 0.0, 0.0]
-        if stmt.axis is not None:
-            axis = (_AXES[stmt.axis.name] if isinstance(stmt.axis, ast.NameRef) and stmt.axis.name in _AXES
-                    else self._literal(stmt.axis, "direction", self.units).xyz)
-        elif stmt.base is not None:
-            axis = (rotation(rpy).T @ base.tool_axis).tolist()
-        else:
-            axis = _AXES[robot.tool_axis.get(link, "z")]
-        if stmt.base is not None:
-            offset, rpy = compose(base.offset, base.rpy, offset, rpy)
-            if not all(map(math.isfinite, offset)):
-                raise VfError(f"frame '{stmt.name.text}' is too far from its link: its offset composed with frame "
-                              f"'{base.name}''s overflows", stmt.span.pos())
-        distance = math.hypot(*offset)
-        if distance > limits.LENGTH:
-            raise limits.exceeded(f"frame '{stmt.name.text}' is {distance:g} m from its link", limits.LENGTH,
-                                  (stmt.offset.span if stmt.offset is not None else stmt.span).pos(),
-                                  hint="is the unit right? (bare numbers take the file's `units`)", unit="m")
-        self.frames[stmt.name.text] = ir.FrameDecl(name=stmt.name.text, robot=robot_name, link=link,
-                                                   offset=offset, rpy=rpy, tool_axis=axis, span=stmt.span,
-                                                   base=stmt.base.text if stmt.base is not None else None)
-
-    def _base_frame(self, stmt: ast.FrameStmt) -> ir.FrameDecl:
-        name = stmt.base.text
-        if name in self.frames:
-            return self.frames[name]
-        where = stmt.base.span.pos()
-        if name == stmt.name.text:
-            raise VfError(f"frame '{name}' is defined from itself", where,
-                          hint=f"build it on a robot link: frame {name} = <robot>.link(\"...\")")
-        if self._is_frame_statement(name):
-            raise VfError(f"frame '{name}' is declared later (line {self.declared[name].span.line}); a frame can "
-                          f"only be built on a frame declared before it", where,
-                          hint=f"move frame '{name}' above this line")
-        if name in self.robots:
-            raise VfError(f"'{name}' is a robot, not a frame", where,
-                          hint=f'a frame on one of its links is written: frame {stmt.name.text} = {name}.link("...")')
-        if name in self.declared:
-            raise VfError(f"'{name}' is not a frame", where, hint=suggest(name, self.frames, "frames"))
-        raise VfError(f"unknown frame '{name}'", where, hint=suggest(name, self.frames, "frames"))
-
-    def _is_frame_statement(self, name: str) -> bool:
-        return any(isinstance(s, ast.FrameStmt) and s.name.text == name for s in self.module.statements)
-
-    def _literal(self, value: ast.Value, kind: str, units: u.DefaultUnits,
-                 curve_degree: int | None = None) -> ir.Value:
-        """A value without names (a param's value, a frame clause): a literal, or an expression of literals."""
-        if kind in ex.KINDS and ex.is_expression(value):
-            return ex.Expressions(units, lambda ref: self._no_names(ref, kind), self._arg_kind, []) \
-                .evaluate(value, kind).value
-        return LiteralReader(units, self._no_names).read(value, kind, curve_degree=curve_degree)
-
-    def _input(self, stmt: ast.InputStmt) -> None:
-        if stmt.type.text not in ir.INPUT_SIZES:
-            raise VfError(f"unknown input type '{stmt.type.text}'", stmt.type.span.pos(),
-                          hint=suggest(stmt.type.text, ir.INPUT_SIZES, "input types"))
-        self.inputs[stmt.name.text] = ir.InputDecl(name=stmt.name.text, type=stmt.type.text, span=stmt.span)
-
-    def _params(self, statements: list[ast.ParamStmt], scene: SceneData | None) -> None:
-        by_name = {s.name.text: s for s in statements}
-        if scene is not None:
-            for name, (_, key_span) in scene.params.items():
-                if name not in by_name:
-                    raise VfError(f"the scene sets '{name}', which is not a param of this task", key_span.pos(),
-                                  hint=suggest(name, by_name, "params"))
-        for stmt in statements:
-            kind = stmt.type.text
-            if kind not in PARAM_KINDS:
-                raise VfError(f"unknown param type '{kind}'", stmt.type.span.pos(),
-                              hint=suggest(kind, PARAM_KINDS, "param types"))
-            degree, runtime = self._curve_type(stmt)
-            if stmt.frame is not None:
-                target = by_name.get(stmt.frame.text)
-                if target is None or target.type.text != "pose":
-                    poses = [s.name.text for s in statements if s.type.text == "pose"]
-                    raise VfError(f"'{stmt.frame.text}' is not a pose param", stmt.frame.span.pos(),
-                                  hint=suggest(stmt.frame.text, poses, "pose params"))
-                if kind == "pose":
-                    raise VfError("a pose cannot be expressed `in` another pose", stmt.frame.span.pos(),
-                                  hint="nested frames are not supported: give the pose in the robot's base frame")
-                if kind not in ("point", "vector", "direction", "line", "plane", "curve"):
-                    raise VfError(f"a {kind} cannot be expressed in a frame", stmt.frame.span.pos())
-            if scene is not None and stmt.name.text in scene.params:
-                source, units = scene.params[stmt.name.text][0], scene.units
-            elif stmt.default is not None:
-                source, units = stmt.default, self.units
-            else:
-                raise VfError(f"param '{stmt.name.text}' has no value", stmt.name.span.pos(),
-                              hint=f"give a default (`= ...`) or set params.{stmt.name.text} in the scene file")
-            source = _named_mapping(source, kind)
-            self.param_values[stmt.name.text] = source
-            value = self._literal(source, kind, units, degree)
-            if runtime:
-                value = value.model_copy(update={"runtime": True})
-            self.params[stmt.name.text] = ir.ParamDecl(
-                name=stmt.name.text, type=kind, value=value,
-                frame=stmt.frame.text if stmt.frame else None, span=stmt.span)
-
-    def _curve_type(self, stmt: ast.ParamStmt) -> tuple[int | None, bool]:
-        """(degree, runtime) of a curve param's type, e.g. curve(degree = 1, runtime = true)."""
-        if stmt.type.text != "curve":
-            if stmt.type_args:
-                raise VfError(f"a {stmt.type.text} param takes no type arguments", stmt.type_args[0].span.pos())
-            return None, False
-        degree, runtime = None, False
-        reader = LiteralReader(self.units, self._no_names)
-        for kw in stmt.type_args:
-            if kw.name.text == "degree":
-                degree = reader.integer(kw.value, "degree")
-            elif kw.name.text == "runtime":
-                runtime = reader.read(kw.value, "flag").value
-            else:
-                raise VfError(f"curve has no type argument '{kw.name.text}'", kw.name.span.pos(),
-                              hint="write curve(degree = 5), or curve(degree = 1, runtime = true)")
-        return degree, runtime
-
-    # ---------------------------------------------------------------------------------------- scene
-    def _scene(self, statements) -> SceneData | None:
-        explicit = [s for s in statements if isinstance(s, ast.SceneStmt)]
-        if len(explicit) > 1:
-            raise VfError("only one `scene` statement per task", explicit[1].span.pos())
-        if explicit:
-            return load_scene(self.path.parent / explicit[0].path, self.units, explicit[0].span.pos())
-        default = self.path.with_suffix(".yaml")
-        return load_scene(default, self.units, None) if default.is_file() else None
-
-    def _scene_ir(self, scene: SceneData | None, robot: Robot) -> ir.Scene:
-        if scene is None:
-            return ir.Scene()
-        reader = LiteralReader(scene.units, self._no_names)
-        period = None
-        if scene.period is not None:
-            period = reader.scalar(scene.period, u.TIME, "period")
-            if period <= 0:
-                raise VfError("the period must be positive", scene.period.span.pos())
-            if period < limits.MIN_PERIOD:
-                raise limits.exceeded(f"a period of {period:g} s is too short", limits.MIN_PERIOD,
-                                      scene.period.span.pos(), hint="the shortest control period is 10 us (100 kHz)",
-                                      unit="s")
-        start = None
-        if scene.start is not None:
-            start = self._start(scene.start, scene.start_span, reader, robot)
-        return ir.Scene(file=str(scene.file), start=start, period=period)
-
-    def _start(self, value, span: ast.Span, reader: LiteralReader, robot: Robot) -> list[float]:
-        dims = [u.LENGTH if t == "prismatic" else u.ANGLE for t in robot.joint_types]
-        if isinstance(value, dict):
-            for name, (_, key_span) in value.items():
-                if name not in robot.joint_names:
-                    raise VfError(f"robot '{robot.name}' has no joint '{name}'", key_span.pos(),
-                                  hint=suggest(name, robot.joint_names, "joints"))
-            missing = [n for n in robot.joint_names if n not in value]
-            if missing:
-                raise VfError(f"the start configuration misses joint{'s' if len(missing) > 1 else ''} "
-                              f"{', '.join(missing)}", span.pos(), hint="give a value for every joint")
-            values = [value[n][0] for n in robot.joint_names]
-        else:
-            if not isinstance(value, ast.Vector) or len(value.items) != robot.nq:
-                raise VfError(f"the start configuration needs {robot.nq} joint values "
-                              f"({', '.join(robot.joint_names)})", span.pos())
-            values = value.items
-        q = [reader.scalar(v, d, "joint value") for v, d in zip(values, dims)]
-        for name, x, lo, hi, v in zip(robot.joint_names, q, robot.lower, robot.upper, values):
-            if not lo - 1e-12 <= x <= hi + 1e-12:
-                raise VfError(f"joint {name} starts outside its limits [{lo:g}, {hi:g}] (SI units)", v.span.pos())
-        return q
-
     # ------------------------------------------------------------------------------------- names
-    def _no_names(self, ref: ast.NameRef, kind: str) -> ir.Value:
-        raise VfError(f"a name ('{ref.name}') cannot stand here; write the value itself", ref.span.pos())
-
     def evaluate(self, value: ast.Value, kind: str, scope: fx.Scope, input_type: str | None = None) -> ir.Arg:
         """The IR argument for ``value`` read as ``kind`` in ``scope`` (names resolve lexically)."""
         if isinstance(value, ast.NameRef):
@@ -602,14 +350,6 @@ def _lookup_spec(name: ast.Name, table: dict, what: str, other: dict, other_hint
 
 def _compatible(actual: str, expected: str) -> bool:
     return actual == expected or (expected == "vector" and actual == "point")
-
-
-def _named_mapping(value: ast.Value, kind: str) -> ast.Value:
-    """A scene mapping reads as the composite of the param's kind: {point: .., normal: ..} -> plane(...)."""
-    if isinstance(value, ast.Call) and value.name.text == "{mapping}":
-        name = "bspline" if kind == "curve" else kind
-        return value.model_copy(update={"name": value.name.model_copy(update={"text": name})})
-    return value
 
 
 def _row_estimate(c: ir.Constraint) -> int:
