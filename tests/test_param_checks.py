@@ -462,3 +462,18 @@ def test_the_needle_task_takes_sound_registrations_and_refuses_unit_slips(backen
     with pytest.raises(VfError, match=r"param 'entry' is \[10, 5, 285\] m: beyond 1.86 m") as info:
         ctrl.step(task.start, hand, params={"entry": [10, 5, 285], "target": [20, -5, 235]})
     assert "millimetres given as metres" in info.value.hint
+
+
+def test_a_degenerate_value_inside_a_fixture_names_its_use_site(tmp_path):
+    (tmp_path / "lib.vf").write_text("library lib\nunits mm\n"
+                                     "fixture guide(f: frame, a: point, b: point) {\n"
+                                     "    require f along(line(a, b)) within 1 mm\n}\n")
+    (tmp_path / "t.vf").write_text(REPRO.replace("units mm, deg\n", 'units mm, deg\nimport "lib.vf"\n')
+                                   .replace("require tip keeps_direction(cross(a, b)) within 2 deg\n",
+                                            "use guide(tip, entry, target)\n"))
+    for backend in BACKENDS:
+        ctrl = vfdsl.compile(vfdsl.load(tmp_path / "t.vf"), backend=backend)
+        with pytest.raises(VfError, match="the two points of this line coincide") as info:
+            ctrl.step(START, PUSH, params={"entry": [0, 0, 0.25]}, dt=DT)
+        assert info.value.pos.file.endswith("lib.vf") and info.value.pos.line == 4
+        assert any(note.startswith("in a fixture used at") and "t.vf:13" in note for note in info.value.notes)

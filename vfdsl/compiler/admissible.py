@@ -75,8 +75,11 @@ class Admissible:
             slot = reader.layout.slots[decl.name]
             if slot.size:
                 self._param(decl, slot, reader.p[slot.offset:slot.offset + slot.size], ranges.get(decl.name, []))
-        for arg in derived.derived_args(task):
-            derived.add_checks(self.margins, arg, reader.read)
+        for statement in [*task.constraints, *task.objectives]:
+            notes = tuple(f"in a fixture used at {span}" for span in reversed(statement.via))
+            for arg in statement.args.values():
+                if isinstance(arg, ir.Derived):
+                    derived.add_checks(self.margins, arg, reader.read, notes)
         self.function = ca.Function("admissible", [reader.p], [self.margins.symbolic()], ["p"], ["margins"])
 
     @cached_property

@@ -56,16 +56,19 @@ def evaluate(arg: ir.Arg, read: Read, unit: Unit = lambda v, node: normalize(v))
     return x[0], unit(x[1], arg)                  # line (point, direction), plane (point, normal)
 
 
-def add_checks(margins: Margins, arg: ir.Derived, read: Read) -> None:
+def add_checks(margins: Margins, arg: ir.Derived, read: Read, notes: tuple[str, ...] = ()) -> None:
     """Append the checks of ``arg`` to ``margins`` (:mod:`vfdsl.compiler.margins`), in evaluation order: every
-    vector it normalizes at least ``MIN_NORM`` long and finite, then its value finite."""
+    vector it normalizes at least ``MIN_NORM`` long and finite, then its value finite. ``notes`` go with every
+    error (the use site of the fixture that wrote ``arg``)."""
     def unit(v, node: ir.Derived):
-        margins.add(ca.norm_2(v) - MIN_NORM, Check(partial(_zero_message, node), node.span.pos(), _ZERO_HINT))
+        margins.add(ca.norm_2(v) - MIN_NORM,
+                    Check(partial(_zero_message, node), node.span.pos(), _ZERO_HINT, notes=notes))
         return normalize(v)
     value = evaluate(arg, read, unit)
     numbers = ca.vertcat(*value) if isinstance(value, tuple) else value
     margins.add(_LARGEST - ca.mmax(ca.fabs(numbers)),          # not 0 * |v|: CasADi folds that to 0
-                Check(lambda margin, p: "this value is too large (SI numbers overflow)", arg.span.pos()))
+                Check(lambda margin, p: "this value is too large (SI numbers overflow)", arg.span.pos(),
+                      notes=notes))
 
 
 def check(arg: ir.Derived, read: Read, when: str = "") -> None:
@@ -86,12 +89,6 @@ def _zero_message(node: ir.Derived, margin: float, p) -> str:
     what = {"line2": "the two points of this line coincide",
             "normalize": "this vector is zero"}.get(node.op, "this direction is zero")
     return f"{what} (length {margin + MIN_NORM:.3g} SI): it has no direction"
-
-
-def derived_args(task: ir.Task) -> list[ir.Derived]:
-    """The derived arguments of the task's constraints and objectives (outermost nodes)."""
-    return [arg for statement in [*task.constraints, *task.objectives] for arg in statement.args.values()
-            if isinstance(arg, ir.Derived)]
 
 
 def leaves(arg: ir.Arg):

@@ -30,6 +30,7 @@ class Check:
     hint: str | None = None
     strict: bool = False             # True: the margin must be > 0, not only >= 0
     param: str | None = None         # the param whose own value is checked (None: a derived argument)
+    notes: tuple[str, ...] = ()      # e.g. the fixture's use site of a derived argument written in a library
 
 
 class Margins:
@@ -67,7 +68,7 @@ class Margins:
         check = self.checks[i]
         margin = float(np.asarray(numbers, dtype=float).ravel()[i])
         prefix = "" if check.param else when
-        return VfError(prefix + check.message(margin, p), check.pos, hint=check.hint)
+        return VfError(prefix + check.message(margin, p), check.pos, hint=check.hint, notes=check.notes)
 
     def verify(self, numbers, p: np.ndarray | None = None, when: str = "") -> None:
         """Raise the error of the first check that fails."""
