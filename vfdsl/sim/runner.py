@@ -258,7 +258,8 @@ class Moving:
             return err
         return VfError(f"at t = {t:g} s the scene's {culprit.kind} motion gives param '{culprit.param}' a value the "
                        f"controller refuses: {err.message}", culprit.where,
-                       hint="make the motion smaller, or move the param's scene value away from the limit")
+                       hint="make the motion smaller, or move the param's scene value away from the limit",
+                       notes=((f"the refusing check is written at {err.pos}",) if err.pos else ()) + err.notes)
 
 
 def _score(job: Job, task: ir.Task, robot: Robot, qs: np.ndarray, segments, rng, fallback: int,
