@@ -1,0 +1,252 @@
+"""`vfdsl view`: the fixture geometry it draws, the trace it replays, and the viewer itself in a real browser.
+
+The browser test starts `vfdsl view` in a subprocess on a free port, loads the page in headless Chromium,
+reads the viewer's server-side state through its (hidden) `--control` channel on stdin, takes a
+screenshot, pushes the hand, and stops the viewer with SIGINT. It skips, saying why, only where no
+Chromium is installed (`.ci/run` installs Debian's `chromium` where it is missing).
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import math
+import os
+import queue
+import signal
+import subprocess
+import sys
+import threading
+import time
+
+import numpy as np
+import pytest
+
+import vfdsl
+from vfdsl.errors import VfError
+from vfdsl.sim.geometry import Scene
+from vfdsl.view import replay, shapes
+from vfdsl.view.browser import Browser, find_chromium
+from vfdsl.view.command import STATE_PREFIX, free_port
+
+from conftest import REPO, TASKS_DIR
+
+TASK_A = TASKS_DIR / "paper_a_follow_curve.vf"
+TASK_B = TASKS_DIR / "paper_b_virtual_rcm.vf"
+
+
+# ------------------------------------------------------------------------------------------------ shapes
+def test_every_constraint_of_every_example_is_a_fixture_with_its_source_line():
+    for path in sorted(TASKS_DIR.glob("*.vf")):
+        task = vfdsl.load(path)
+        if task.start is None:
+            continue
+        frames = vfdsl.compile(task).frames(task.start)
+        fixtures = shapes.build(task, Scene(task), frames)
+        assert [f.index for f in fixtures] == list(range(len(task.constraints)))
+        for f, c in zip(fixtures, task.constraints):
+            assert f.where.startswith(f"{c.span.file.rsplit('/', 1)[-1]}:{c.span.line}")
+            if c.primitive not in shapes.NO_GEOMETRY:
+                assert f.shapes, f"{path.name}: {f.title} draws nothing"
+                assert all(np.isfinite(s.vertices).all() for s in f.shapes)
+
+
+def test_paper_b_pivot_polytope_is_the_cube_and_its_bound_the_circumradius():
+    task = vfdsl.load(TASK_B)
+    frames = vfdsl.compile(task).frames(task.start)
+    stays = shapes.build(task, Scene(task), frames)[0]
+    by_name = {s.name: s for s in stays.shapes}
+    pivot = np.array(task.param("pivot").value.xyz)
+    corners = np.linalg.norm(by_name["polytope"].vertices - pivot, axis=1)
+    assert len(by_name["polytope"].vertices) == 8                      # the 4x4 parametrization: a cube
+    assert np.allclose(corners, math.sqrt(3) * 1e-6)                   # its corners at sqrt(3) eps
+    bound = np.linalg.norm(by_name["bound"].vertices - pivot, axis=1)
+    assert np.allclose(bound, math.sqrt(3) * 1e-6)
+    assert "guaranteed 1.73 um" in stays.tolerance_text
+
+
+def test_paper_a_curves_pass_through_their_points_in_the_plate():
+    task = vfdsl.load(TASK_A)
+    ctrl = vfdsl.compile(task)
+    fixtures = shapes.build(task, Scene(task), ctrl.frames(task.start))
+    tip_curve = next(s for s in fixtures[0].shapes if s.name == "curve").vertices
+    shaft_curve = next(s for s in fixtures[1].shapes if s.name == "curve").vertices
+    tip = ctrl.frames(task.start)["tip"].position
+    assert np.min(np.linalg.norm(tip_curve.reshape(-1, 3) - tip, axis=1)) < 1e-4    # the tip starts on its curve
+    shift = shaft_curve.reshape(-1, 3).mean(axis=0) - tip_curve.reshape(-1, 3).mean(axis=0)
+    assert abs(np.linalg.norm(shift) - 0.1) < 1e-9                     # the copy 100 mm along the plate normal
+
+
+# ------------------------------------------------------------------------------------------------ replay
+def test_replay_reads_the_simulate_trace_columns_and_picks_a_trial(tmp_path):
+    joints = ["x", "y", "z", "rcm_a", "rcm_b", "roll", "insert"]
+    header = ["trial", "seed", "tick", "t_s"] + [f"q.{j}_{'rad' if j.startswith('r') else 'm'}" for j in joints] \
+        + ["status", "violations", "metric.tip_error_m", "tracker.tip_error_m"]
+    rows = []
+    for trial in (0, 1):
+        for k in range(5):
+            q = [0.001 * k, 0, 0, 0.01 * trial, 0, 0, 0.01]
+            rows.append([trial, 7, k, 0.01 * k, *q, 0, "", 1e-6 * k, 2e-6 * k])
+    path = tmp_path / "run.csv"
+    path.write_text("\n".join(",".join(map(str, r)) for r in [header, *rows]) + "\n")
+    trace = replay.read(path, joints)
+    assert trace.trial == "0" and len(trace.t) == 5
+    assert np.allclose(trace.q[:, 0], 0.001 * np.arange(5))
+    assert trace.error_name == "metric.tip_error_m" and np.allclose(trace.error, 1e-6 * np.arange(5))
+    assert np.allclose(replay.read(path, joints, trial="1").q[:, 3], 0.01)
+    with pytest.raises(VfError, match="no trial"):
+        replay.read(path, joints, trial="9")
+
+
+def test_replay_reads_indexed_and_named_joint_columns_in_mm_and_deg(tmp_path):
+    path = tmp_path / "run.csv"
+    path.write_text("time,q[0],q_b_deg,error_mm\n0,1,90,0.5\n0.1,2,180,\n")
+    trace = replay.read(path, ["a", "b"])
+    assert np.allclose(trace.q, [[1, math.pi / 2], [2, math.pi]])
+    assert trace.error[0] == pytest.approx(5e-4) and np.isnan(trace.error[1])
+    path.write_text("time,q[0]\n0,1\n")
+    with pytest.raises(VfError, match=r"no column for joint 1 \(b\)"):
+        replay.read(path, ["a", "b"])
+
+
+def test_replay_viewer_shows_the_row_at_a_time(tmp_path):
+    from vfdsl.view.app import Viewer
+    task = vfdsl.load(TASK_B)
+    ctrl = vfdsl.compile(task)
+    q0 = task.start
+    lines = ["t," + ",".join(f"q[{i}]" for i in range(7)) + ",tip_error"]
+    for k in range(20):
+        q = q0.copy()
+        q[3] += 0.002 * k
+        lines.append(f"{0.01 * k}," + ",".join(map(str, q)) + f",{1e-6 * k}")
+    (tmp_path / "b.csv").write_text("\n".join(lines) + "\n")
+    trace = replay.read(tmp_path / "b.csv", ctrl.assembled.context.robot.joint_names)
+    viewer = Viewer(task, ctrl, port=free_port(), replay=trace)
+    try:
+        viewer.show_time(0.105)
+        state = viewer.state()
+        assert state["ticks"] == 10 and np.allclose(state["q"], trace.q[10])
+        assert "/trace" in state["scene_nodes"] and "tip_error = 0.01 mm" in state["readout"]
+    finally:
+        viewer.close()
+
+
+def test_a_refused_param_is_shown_and_the_controller_keeps_running():
+    from vfdsl.view.app import Viewer
+    task = vfdsl.load(TASK_B)
+    viewer = Viewer(task, vfdsl.compile(task), port=free_port())
+    try:
+        assert not viewer.set_param("axis", [0.0, 0.0, 0.0])
+        assert "axis" in viewer.message and "refused" in viewer.message
+        assert viewer.set_param("pivot", [0.0, 0.0, 0.291])
+        assert viewer.message == ""
+        viewer.push([0.0, 0.01, 0.0])
+        for _ in range(5):
+            viewer.tick()
+        assert viewer.state()["ticks"] == 5
+    finally:
+        viewer.close()
+
+
+# ------------------------------------------------------------------------------------ in a real browser
+class ViewerProcess:
+    """`vfdsl view TASK --no-browser --control` in a subprocess; its stdout read on a thread."""
+
+    def __init__(self, task, port: int):
+        env = dict(os.environ, PYTHONUNBUFFERED="1")
+        self.proc = subprocess.Popen([sys.executable, "-m", "vfdsl.cli", "view", str(task), "--port", str(port),
+                                      "--no-browser", "--control"], stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                                     stderr=subprocess.PIPE, text=True, env=env, cwd=REPO)
+        self.lines: queue.Queue[str] = queue.Queue()
+        self.output = io.StringIO()
+        threading.Thread(target=self._read, daemon=True).start()
+
+    def _read(self):
+        for line in self.proc.stdout:
+            self.output.write(line)
+            self.lines.put(line)
+
+    def wait_for(self, prefix: str, timeout: float = 30.0) -> str:
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            try:
+                line = self.lines.get(timeout=0.2)
+            except queue.Empty:
+                if self.proc.poll() is not None:
+                    raise AssertionError(f"viewer exited ({self.proc.returncode}): {self.proc.stderr.read()}")
+                continue
+            if line.startswith(prefix):
+                return line
+        raise AssertionError(f"no line starting {prefix!r} in {timeout} s; output:\n{self.output.getvalue()}")
+
+    def command(self, **command) -> dict:
+        self.proc.stdin.write(json.dumps(command) + "\n")
+        self.proc.stdin.flush()
+        return json.loads(self.wait_for(STATE_PREFIX)[len(STATE_PREFIX):])
+
+    def stop(self):
+        if self.proc.poll() is None:
+            self.proc.kill()
+            self.proc.wait()
+
+
+@pytest.fixture(scope="module")
+def chromium():
+    path = find_chromium()
+    if path is None:
+        pytest.skip("no Chromium: install Debian's `chromium` (apt-get install -y chromium; .ci/run does this "
+                    "where it is missing) or set VFDSL_CHROMIUM to a Chromium or Chrome binary")
+    return path
+
+
+def test_viewer_in_headless_chromium_shows_the_task_moves_the_tool_and_stops_on_sigint(chromium, tmp_path):
+    port = free_port()
+    viewer = ViewerProcess(TASK_A, port)
+    try:
+        url_line = viewer.wait_for("vfdsl view:", timeout=60)
+        url = f"http://127.0.0.1:{port}/"
+        assert url in url_line
+
+        with Browser(960, 640, timeout=40) as browser:
+            browser.open(url)
+            deadline = time.monotonic() + 30
+            state = viewer.command(cmd="state")
+            while state["clients"] < 1 and time.monotonic() < deadline:
+                time.sleep(0.3)
+                state = viewer.command(cmd="state")
+            assert state["clients"] >= 1, "the page never connected to the viewer"
+            nodes = set(state["scene_nodes"])
+            expected = {"/robot", "/robot/link_0", "/frames/tip", "/frames/tip/tool_axis", "/frames/shaft",
+                        "/fixtures/c0_follows_tip", "/fixtures/c0_follows_tip/curve",
+                        "/fixtures/c0_follows_tip/tube", "/fixtures/c0_follows_tip/label",
+                        "/fixtures/c1_follows_shaft", "/fixtures/c2_joint_limits", "/fixtures/c3_joint_speed",
+                        "/hand", "/params/plate"}
+            assert expected <= nodes, f"missing scene nodes: {sorted(expected - nodes)}"
+            time.sleep(1.5)
+            png = browser.screenshot()
+            assert browser.evaluate("document.body.innerText.includes('paper_a_follow_curve')")
+        (tmp_path / "view.png").write_bytes(png)
+        import matplotlib.image
+        pixels = matplotlib.image.imread(tmp_path / "view.png")
+        assert pixels.shape[:2] == (640, 960)
+        assert float(pixels[..., :3].std()) > 0.02, "the screenshot is blank"
+        scene_part = pixels[:, : int(0.6 * pixels.shape[1]), :3]                # left of the GUI panel
+        assert float(scene_part.std()) > 0.02, "nothing drawn in the 3-D view"
+
+        # Push the hand 5 mm along x: the controller steps and the tip moves along its curve.
+        before = viewer.command(cmd="state")
+        viewer.command(cmd="push", offset=[0.005, 0.0, 0.0])
+        time.sleep(2.0)
+        after = viewer.command(cmd="state")
+        assert after["ticks"] > before["ticks"] + 5
+        moved = np.linalg.norm(np.subtract(after["tool"], before["tool"]))
+        assert moved > 1e-4, f"the tool moved only {moved * 1e3:.3f} mm"
+        assert "asked" in after["readout"] and after["message"] == ""
+
+        viewer.proc.send_signal(signal.SIGINT)
+        started = time.monotonic()
+        code = viewer.proc.wait(timeout=10)
+        assert code in (0, 130), viewer.proc.stderr.read()
+        assert time.monotonic() - started < 5
+    finally:
+        viewer.stop()
