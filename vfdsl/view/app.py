@@ -247,7 +247,7 @@ class Viewer:
                 f"/robot/{part.name}", part.vertices, part.faces, color=(150, 150, 160), flat_shading=False)
         joints = self.drawing.joints(self.q)
         self.nodes["/robot/joints"] = scene.add_point_cloud("/robot/joints", joints, colors=(90, 90, 100),
-                                                            point_size=0.006, point_shape="circle")
+                                                            point_size=0.004, point_shape="circle")
         for f in self.task.frames:
             name = f"/frames/{f.name}"
             self.nodes[name] = scene.add_frame(name, axes_length=0.015, axes_radius=0.0006, origin_radius=0.0015)
@@ -272,21 +272,23 @@ class Viewer:
             self._build_replay()
         self._camera()
 
-    def _camera(self) -> None:
+    def _camera(self, direction=(0.7, -1.0, 1.1), distance: float = 2.2) -> None:
+        """Point the initial camera at the frames and fixtures, from ``direction`` (world), ``distance`` times
+        their extent away."""
         points = [p.position for p in self.frames.values()]
         points += [f.anchor for f in self.fixtures if f.shapes]
         points = np.array(points) if points else np.zeros((1, 3))
         center = points.mean(axis=0)
-        extent = max(0.08, 2.5 * float(np.max(np.linalg.norm(points - center, axis=1))))
-        direction = np.array([0.7, -1.0, 1.1])
+        extent = max(0.06, 1.6 * float(np.max(np.linalg.norm(points - center, axis=1))))
+        direction = np.asarray(direction, dtype=float)
         self.server.initial_camera.look_at = center
-        self.server.initial_camera.position = center + extent * 2.2 * direction / np.linalg.norm(direction)
+        self.server.initial_camera.position = center + extent * distance * direction / np.linalg.norm(direction)
         self.server.initial_camera.up = (0.0, 0.0, 1.0)
         self.server.initial_camera.near = 0.001
 
     def _build_gui(self) -> None:
         gui = self.server.gui
-        gui.configure_theme(control_width="large")
+        gui.configure_theme(control_width="medium")
         gui.add_markdown(f"**{self.task.name}** · `{self.task.file.rsplit('/', 1)[-1]}` · "
                          f"period {self.period * 1e3:g} ms · {self.ctrl.backend}")
         self.status_md = gui.add_markdown("")
@@ -604,7 +606,7 @@ class Viewer:
             else:
                 colors, legend = (240, 120, 0), f"trace of `{frame}`"
             self.nodes["/trace"] = self.server.scene.add_line_segments(
-                "/trace", segments.astype(np.float32), colors=colors, thickness=3.0, thickness_units="screen")
+                "/trace", segments.astype(np.float32), colors=colors, thickness=5.0, thickness_units="screen")
         gui = self.server.gui
         with gui.add_folder("Replay"):
             gui.add_markdown(legend if len(points) > 1 else "one row")
@@ -617,7 +619,10 @@ class Viewer:
         self._thread.start()
 
     def show_time(self, t: float) -> None:
+        """Show the replayed row at time t (the slider follows)."""
         with self.lock:
+            if abs(self.time_slider.value - t) > 1e-9:
+                self.time_slider.value = float(np.clip(t, self.time_slider.min, self.time_slider.max))
             trace = self.replay
             i = trace.index_at(t)
             self.q = trace.q[i].copy()
@@ -638,7 +643,7 @@ class Viewer:
                 t = self.time_slider.value + 1.0 / DRAW_RATE
                 if t > self.replay.t[-1]:
                     t = float(self.replay.t[0])
-                self.time_slider.value = t        # its callback draws
+                self.show_time(t)
             self._stop.wait(1.0 / DRAW_RATE)
 
 

@@ -120,13 +120,16 @@ def _screenshot(viewer, args) -> int:
                 viewer.tick(draw=k == ticks - 1)
         elif viewer.replay is not None:
             viewer.show_time(float(viewer.replay.t[0]) + args.seconds)
+    for name, node in viewer.nodes.items():          # pictures show the scene, not the handles
+        if name == "/hand" or name.startswith("/params/"):
+            node.visible = False
     png = take_picture(viewer, width, height)
     Path(args.screenshot).write_bytes(png)
     print(f"vfdsl view: {viewer.task.name}: wrote {args.screenshot} ({width}x{height})")
     return 0
 
 
-def take_picture(viewer, width: int = 1280, height: int = 800, settle: float = 2.0, timeout: float = 30.0) -> bytes:
+def take_picture(viewer, width: int = 1280, height: int = 800, settle: float = 3.0, timeout: float = 30.0) -> bytes:
     """Load the viewer's page in headless Chromium, wait until it is connected and drawn, and return a PNG."""
     from vfdsl.view.browser import Browser
     start = time.monotonic()
