@@ -148,6 +148,25 @@ def test_a_refused_param_is_shown_and_the_controller_keeps_running():
         viewer.close()
 
 
+def test_a_violated_fixture_is_marked():
+    from vfdsl.view.app import VIOLATED, Viewer
+    task = vfdsl.load(TASKS_DIR / "keep_out.vf")
+    viewer = Viewer(task, vfdsl.compile(task), port=free_port())
+    try:
+        assert viewer.state()["violated_fixtures"] == []
+        tip = viewer.frames["tip"].position
+        assert viewer.set_param("artery", list(tip + [0.001, 0.0, 0.0]))     # the keep-out ball now holds the tip
+        viewer.tick()
+        state = viewer.state()
+        assert state["violated_fixtures"] == ["c1_outside_sphere_tip"]
+        assert any("keep_out.vf:21" in v for v in state["violations"])
+        label = viewer.nodes["/fixtures/c1_outside_sphere_tip/label"]
+        assert label.text.startswith("VIOLATED outside_sphere(tip) keep_out.vf:21")
+        assert tuple(viewer.nodes["/fixtures/c1_outside_sphere_tip/ball"].color) == VIOLATED
+    finally:
+        viewer.close()
+
+
 # ------------------------------------------------------------------------------------ in a real browser
 class ViewerProcess:
     """`vfdsl view TASK --no-browser --control` in a subprocess; its stdout read on a thread."""

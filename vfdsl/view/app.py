@@ -469,7 +469,7 @@ class Viewer:
         self.nodes[base].visible = True if box is None else bool(box.value)
         palette = COLORS[f.soft]
         for s in f.shapes:
-            color = VIOLATED if violated and s.role in ("reference", "tolerance") else palette[s.role]
+            color = VIOLATED if violated and s.role != "bound" else palette[s.role]
             name = f"{base}/{s.name}"
             if s.kind == "mesh":
                 opacity = OPACITY[s.role] if not s.wireframe else None
