@@ -167,6 +167,47 @@ def test_a_violated_fixture_is_marked():
         viewer.close()
 
 
+def test_a_runtime_curve_point_dragged_moves_the_curve_the_controller_follows():
+    from vfdsl.view.app import Viewer
+    task = vfdsl.load(TASKS_DIR / "breathing_vessel.vf")
+    viewer = Viewer(task, vfdsl.compile(task), port=free_port())
+    try:
+        n = len(task.param("vessel").value.points)
+        gizmos = [f"/params/vessel/p{i}" for i in range(n)]
+        assert set(gizmos) <= set(viewer.state()["scene_nodes"])
+        node = viewer.nodes[gizmos[1]]
+        node.position = np.asarray(node.position) + [0.0, 0.002, 0.0]           # a user drags point 2 by 2 mm
+        viewer._gizmo_moved("vessel")
+        assert viewer.message == ""
+        assert np.allclose(viewer.overrides["vessel"].points[1],
+                           np.add(task.param("vessel").value.points[1], [0.0, 0.002, 0.0]))
+        curve = next(s for s in viewer.fixtures[0].shapes if s.name == "points").vertices
+        assert np.allclose(curve[1], viewer.overrides["vessel"].points[1])
+        viewer.tick()
+        assert viewer.state()["ticks"] == 1
+    finally:
+        viewer.close()
+
+
+def test_a_urdf_with_visual_geometry_is_drawn_from_it(tmp_path):
+    from vfdsl.kinematics.robot import ROBOTS_DIR, Robot
+    from vfdsl.view.robot import RobotDrawing
+    text = (ROBOTS_DIR / "shr7.urdf").read_text()
+    text = text.replace('<link name="tool_tip">', '<link name="tool_tip"><visual><origin xyz="0 0 0.05"/>'
+                        '<geometry><cylinder radius="0.002" length="0.1"/></geometry></visual>', 1)
+    text = text.replace('<link name="stage_x">', '<link name="stage_x"><visual>'
+                        '<geometry><box size="0.1 0.02 0.01"/></geometry></visual>', 1)
+    (tmp_path / "shr7v.urdf").write_text(text)
+    robot = Robot(tmp_path / "shr7v.urdf")
+    drawing = RobotDrawing(robot)
+    assert drawing.kind == "urdf" and len(drawing.parts) == 2
+    q = vfdsl.load(TASK_B).start
+    poses = drawing.poses(q)
+    tip_p, tip_R = robot.frame_pose(q, "tool_tip")
+    shaft = [p for (R, p, _), part in zip(poses, drawing.parts) if np.ptp(part.vertices[:, 2]) > 0.09]
+    assert len(shaft) == 1 and np.allclose(shaft[0], tip_p + tip_R @ [0, 0, 0.05])
+
+
 # ------------------------------------------------------------------------------------ in a real browser
 class ViewerProcess:
     """`vfdsl view TASK --no-browser --control` in a subprocess; its stdout read on a thread."""

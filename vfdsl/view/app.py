@@ -19,6 +19,8 @@ LEVER up the tool axis (the torque of the spring force about the frame); a twist
 
 from __future__ import annotations
 
+import contextlib
+import io
 import math
 import threading
 import time
@@ -157,7 +159,8 @@ class Viewer:
         self.readout = ""
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
-        self.server = viser.ViserServer(host=host, port=port, verbose=False)
+        with contextlib.redirect_stdout(io.StringIO()):          # viser prints a banner; the command prints the URL
+            self.server = viser.ViserServer(host=host, port=port, verbose=False)
         self.server.scene.set_up_direction("+z")
         self.q = self.start.copy()
         self.frames = controller.frames(self.q)
@@ -179,7 +182,8 @@ class Viewer:
         self._stop.set()
         if self._thread is not None:
             self._thread.join(timeout=2.0)
-        self.server.stop()
+        with contextlib.redirect_stdout(io.StringIO()):
+            self.server.stop()
 
     def push(self, offset) -> None:
         """Put the hand at the tool's rest pose plus ``offset`` (m, world), as a user dragging it would."""
@@ -240,7 +244,7 @@ class Viewer:
 
     # ------------------------------------------------------------------------------------ building
     def _build(self) -> None:
-        scene, gui = self.server.scene, self.server.gui
+        scene = self.server.scene
         self.nodes["/robot"] = scene.add_frame("/robot", show_axes=False)
         for part in self.drawing.parts:
             self.nodes[f"/robot/{part.name}"] = scene.add_mesh_simple(

@@ -108,7 +108,6 @@ def _vector(text: str, what: str):
 
 
 def _screenshot(viewer, args) -> int:
-    from vfdsl.view.browser import Browser
     try:
         width, height = (int(x) for x in args.size.lower().split("x"))
     except ValueError:
