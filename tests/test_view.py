@@ -131,6 +131,29 @@ def test_replay_viewer_shows_the_row_at_a_time(tmp_path):
         viewer.close()
 
 
+def test_replay_moves_the_params_the_trace_records(tmp_path):
+    from vfdsl.compiler.context import flatten
+    from vfdsl.view.app import Viewer
+    task = vfdsl.load(TASKS_DIR / "breathing_vessel.vf")
+    ctrl = vfdsl.compile(task)
+    points = np.array(task.param("vessel").value.points)
+    header = ["t_s"] + [f"q.{j}" for j in ctrl.assembled.context.robot.joint_names] \
+        + [f"param.vessel.p{i}.{a}_m" for i in range(len(points)) for a in "xyz"]
+    rows = [[0.01 * k, *task.start, *(points + [0.0, 0.001 * k, 0.0]).ravel()] for k in range(3)]
+    path = tmp_path / "vessel.csv"
+    path.write_text("\n".join(",".join(map(str, r)) for r in [header, *rows]) + "\n")
+    sizes = {n: len(flatten(ctrl.param_defaults[n])) for n in ctrl.param_names}
+    trace = replay.read(path, ctrl.assembled.context.robot.joint_names, params=sizes)
+    assert trace.params["vessel"].shape == (3, points.size)
+    viewer = Viewer(task, ctrl, port=free_port(), replay=trace)
+    try:
+        viewer.show_time(0.02)
+        knots = next(s for s in viewer.fixtures[0].shapes if s.name == "points").vertices
+        assert np.allclose(knots, points + [0.0, 0.002, 0.0])
+    finally:
+        viewer.close()
+
+
 def test_a_refused_param_is_shown_and_the_controller_keeps_running():
     from vfdsl.view.app import Viewer
     task = vfdsl.load(TASK_B)

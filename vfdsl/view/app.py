@@ -36,6 +36,8 @@ from vfdsl.ir import model as ir
 from vfdsl.kinematics.robot import Robot
 from vfdsl.runtime.qp import StepStatus
 from vfdsl.sim.geometry import Scene
+from vfdsl.compiler.context import flatten
+from vfdsl.view import replay as replay_module
 from vfdsl.view import shapes as sh
 from vfdsl.view.robot import RobotDrawing, rotation_to_z
 
@@ -632,6 +634,13 @@ class Viewer:
             self.q = trace.q[i].copy()
             self.time, self.ticks = float(trace.t[i]), i
             self.frames = self.ctrl.frames(self.q)
+            moved = False
+            for name, rows in trace.params.items():
+                row = rows[i]
+                if np.all(np.isfinite(row)) and not np.allclose(row, flatten(self.scene.values[name]), rtol=0, atol=1e-12):
+                    self.scene.values[name] = replay_module.unflatten(self.scene.values[name], row)
+                    self.scene._poses.clear()
+                    moved = True
             parts = []
             if trace.error is not None and np.isfinite(trace.error[i]):
                 parts.append(f"{trace.error_name} = {trace.error[i] * 1e3:.4g} mm")
@@ -639,7 +648,7 @@ class Viewer:
                 parts.append(f"status {int(trace.status[i])}")
             self.readout = " · ".join(parts)
             self._draw_state()
-            self._draw_fixtures()
+            self._draw_fixtures(force=moved)
 
     def _replay_loop(self) -> None:
         while not self._stop.is_set():

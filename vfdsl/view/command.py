@@ -71,9 +71,11 @@ def run(args: argparse.Namespace) -> int:
     trace = None
     if args.replay:
         from vfdsl.view import replay
+        from vfdsl.compiler.context import flatten
         from vfdsl.kinematics.robot import Robot
         robot = Robot.load(task.robots[0].urdf)
-        trace = replay.read(args.replay, robot.joint_names, controller.default_dt, args.trial)
+        sizes = {name: len(flatten(controller.param_defaults[name])) for name in controller.param_names}
+        trace = replay.read(args.replay, robot.joint_names, controller.default_dt, args.trial, sizes)
     push = _vector(args.push, "--push") if args.push else None
     port = args.port or free_port(args.host)
     viewer = Viewer(task, controller, host=args.host, port=port, replay=trace, magnify=args.magnify)

@@ -11,7 +11,11 @@ Accepted format: a CSV file with a header row, one row per tick (extra columns a
   first); rows whose time goes backwards start another run (grid points), and only the first is kept;
 - error (optional): the first column whose name contains ``error`` (those starting with ``metric.`` first,
   ``tracker.`` columns last), in m (or mm / deg / rad by its suffix); it colours the tool's trace;
-- status (optional): the step status flags (0 optimal, 1 least violation, 2 bounds clipped, 4 fallback).
+- status (optional): the step status flags (0 optimal, 1 least violation, 2 bounds clipped, 4 fallback);
+- params (optional): a run-time param's value at each tick, as the columns starting ``param.<name>.`` in
+  the order of its flat value (point x y z; direction x y z; line point then direction; plane point then
+  normal; pose x y z roll pitch yaw; a run-time curve's points one after the other; a scalar), SI, or mm /
+  deg by a ``_mm`` / ``_deg`` suffix; used when there are exactly as many as the param has numbers.
 
 Empty cells are missing values; rows without a time or with a missing joint are dropped.
 """
@@ -21,7 +25,7 @@ from __future__ import annotations
 import csv
 import math
 import re
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -41,6 +45,7 @@ class Trace:
     status: np.ndarray | None = None
     trial: str | None = None
     columns: tuple[str, ...] = ()
+    params: dict[str, np.ndarray] = field(default_factory=dict)   # name -> N x size (SI)
 
     def index_at(self, t: float) -> int:
         """The row at or just before time t."""
@@ -73,8 +78,29 @@ def _number(cell: str) -> float:
         return math.nan
 
 
-def read(path: str | Path, joint_names: list[str], period: float | None = None, trial: str | None = None) -> Trace:
-    """The trace in ``path`` for a robot with joints ``joint_names`` (see the module's docstring)."""
+def unflatten(old, flat):
+    """A param value of the same kind as ``old`` (an IR value) from the numbers of its flat run-time value."""
+    from vfdsl.ir import model as ir
+    v = [float(x) for x in flat]
+    if isinstance(old, (ir.PointValue, ir.VectorValue, ir.DirectionValue)):
+        return type(old)(xyz=v)
+    if isinstance(old, ir.LineValue):
+        return ir.LineValue(point=v[:3], direction=v[3:])
+    if isinstance(old, ir.PlaneValue):
+        return ir.PlaneValue(point=v[:3], normal=v[3:])
+    if isinstance(old, ir.PoseValue):
+        return ir.PoseValue(translation=v[:3], rpy=v[3:])
+    if isinstance(old, ir.CurveValue):
+        return ir.CurveValue(degree=old.degree, points=[v[i:i + 3] for i in range(0, len(v), 3)], runtime=True)
+    if isinstance(old, ir.ScalarValue):
+        return ir.ScalarValue(dimension=old.dimension, value=v[0])
+    return old
+
+
+def read(path: str | Path, joint_names: list[str], period: float | None = None, trial: str | None = None,
+         params: dict[str, int] | None = None) -> Trace:
+    """The trace in ``path`` for a robot with joints ``joint_names`` (see the module's docstring); ``params``:
+    the run-time params to read (name -> number of values)."""
     path = Path(path)
     try:
         with path.open(newline="") as handle:
@@ -123,6 +149,14 @@ def read(path: str | Path, joint_names: list[str], period: float | None = None, 
     if "status" in lower:
         k = lower.index("status")
         status = np.array([_number(r[k]) if len(r) > k else math.nan for r in data])
+    values = {}
+    for name, size in (params or {}).items():
+        found = [k for k, c in enumerate(header) if c.startswith(f"param.{name}.")]
+        if len(found) == size:
+            scale = [_SCALE.get(header[k].rsplit("_", 1)[-1].lower(), 1.0) if "_" in header[k] else 1.0
+                     for k in found]
+            values[name] = np.array([[_number(r[k]) * f if len(r) > k else math.nan for k, f in zip(found, scale)]
+                                     for r in data]).reshape(len(data), size)
     keep = np.isfinite(t) & np.all(np.isfinite(q), axis=1)
     backwards = np.flatnonzero(np.diff(t[keep]) < 0)
     if backwards.size:                                    # another run follows: keep the first
@@ -131,4 +165,5 @@ def read(path: str | Path, joint_names: list[str], period: float | None = None, 
     if not keep.any():
         raise VfError(f"{path}: no row with a time and every joint")
     return Trace(t=t[keep], q=q[keep], error=None if error is None else error[keep], error_name=error_name,
-                 status=None if status is None else status[keep], trial=trial, columns=tuple(header))
+                 status=None if status is None else status[keep], trial=trial, columns=tuple(header),
+                 params={name: v[keep] for name, v in values.items()})
