@@ -520,12 +520,15 @@ class Viewer:
                 next_tick = time.perf_counter()
 
     def tick(self, draw: bool = True) -> None:
-        """One control tick: the hand's input, one controller step, the new state."""
+        """One control tick: the hand's input (zero inputs for a task without one), one controller step, the
+        new state."""
         with self.lock:
-            pose = self.frames[self.hand.frame]
-            u = self.hand.value(pose, self.hand_node.position, matrix(self.hand_node.wxyz))
             inputs = self._zero_inputs()
-            inputs[self.hand.input.name] = u
+            hand = self.hand
+            if hand is not None:
+                before = self.frames[hand.frame]
+                u = hand.value(before, self.hand_node.position, matrix(self.hand_node.wxyz))
+                inputs[hand.input.name] = u
             try:
                 dq = self.ctrl.step(self.q, inputs, params=self.overrides or None, dt=self.period)
             except VfError as err:
@@ -534,14 +537,16 @@ class Viewer:
             self.q = self.q + dq
             self.ticks += 1
             self.time += self.period
-            before = pose
             self.frames = self.ctrl.frames(self.q)
-            after = self.frames[self.hand.frame]
             self._read_status()
-            v_cmd, w_cmd = self.hand.commanded(u)
-            v = (after.position - before.position) / self.period
-            w = Rotation.from_matrix(after.rotation @ before.rotation.T).as_rotvec() / self.period
-            self.readout = _tracking(v_cmd, v, w_cmd, w, self.hand.linear or self.hand.input.type == "twist")
+            if hand is not None:
+                after = self.frames[hand.frame]
+                v_cmd, w_cmd = hand.commanded(u)
+                v = (after.position - before.position) / self.period
+                w = Rotation.from_matrix(after.rotation @ before.rotation.T).as_rotvec() / self.period
+                self.readout = _tracking(v_cmd, v, w_cmd, w, hand.linear)
+            else:
+                self.readout = "no input: the task runs hands off"
             if draw:
                 self._draw_state()
                 self._draw_fixtures()
