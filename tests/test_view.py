@@ -212,6 +212,24 @@ def test_a_runtime_curve_point_dragged_moves_the_curve_the_controller_follows():
         viewer.close()
 
 
+def test_a_plane_tilted_by_its_gizmo_tilts_the_wall():
+    from vfdsl.view.app import Viewer, wxyz
+    from vfdsl.view.robot import rotation_to_z
+    task = vfdsl.load(TASKS_DIR / "lecture_forbidden_half_space.vf")
+    viewer = Viewer(task, vfdsl.compile(task), port=free_port())
+    try:
+        normal = np.array([0.2, 0.0, 1.0]) / np.hypot(0.2, 1.0)
+        viewer.nodes["/params/wall"].wxyz = wxyz(rotation_to_z(normal))        # a user tilts the plane's gizmo
+        viewer._gizmo_moved("wall")
+        assert viewer.message == "" and np.allclose(viewer.overrides["wall"].normal, normal)
+        square = next(s for s in viewer.fixtures[0].shapes if s.name == "plane").vertices
+        assert np.allclose((square - square[0]) @ normal, 0.0, atol=1e-12)
+        viewer.tick()
+        assert viewer.state()["ticks"] == 1
+    finally:
+        viewer.close()
+
+
 def test_a_urdf_with_visual_geometry_is_drawn_from_it(tmp_path):
     from vfdsl.kinematics.robot import ROBOTS_DIR, Robot
     from vfdsl.view.robot import RobotDrawing
@@ -229,6 +247,16 @@ def test_a_urdf_with_visual_geometry_is_drawn_from_it(tmp_path):
     tip_p, tip_R = robot.frame_pose(q, "tool_tip")
     shaft = [p for (R, p, _), part in zip(poses, drawing.parts) if np.ptp(part.vertices[:, 2]) > 0.09]
     assert len(shaft) == 1 and np.allclose(shaft[0], tip_p + tip_R @ [0, 0, 0.05])
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--push", "1,2"], "--push takes three numbers"),
+    (["--replay", "missing.csv"], "cannot read the trace"),
+])
+def test_view_usage_errors_exit_2_with_a_message(args, message):
+    proc = subprocess.run([sys.executable, "-m", "vfdsl.cli", "view", str(TASK_B), "--no-browser", *args],
+                          capture_output=True, text=True, cwd=REPO, timeout=60)
+    assert proc.returncode == 2 and message in proc.stderr and "Traceback" not in proc.stderr
 
 
 # ------------------------------------------------------------------------------------ in a real browser

@@ -51,7 +51,8 @@ def add_parser(commands) -> None:
     view.add_argument("--push", metavar="X,Y,Z",
                       help="start with the hand held this far from the tool (mm, world axes), e.g. 5,0,0")
     view.add_argument("--seconds", type=float, default=None,
-                      help="with --screenshot: run the controller this long (s) before the picture")
+                      help="with --screenshot: run the controller this long (s) before the picture (with "
+                           "--replay: show this time)")
     view.add_argument("--control", action="store_true", help=argparse.SUPPRESS)   # JSON commands on stdin
     view.set_defaults(run=run)
 
