@@ -212,6 +212,23 @@ def test_a_runtime_curve_point_dragged_moves_the_curve_the_controller_follows():
         viewer.close()
 
 
+def test_hard_and_soft_fixtures_look_different(tmp_path):
+    from vfdsl.view.app import COLORS, Viewer
+    text = (TASKS_DIR / "keep_out.vf").read_text().replace("require tip outside_sphere(artery, margin)",
+                                                           "require tip outside_sphere(artery, margin) soft weight 10")
+    (tmp_path / "soft.vf").write_text(text.replace('import "library/fixtures.vf"',
+                                                   f'import "{TASKS_DIR / "library" / "fixtures.vf"}"'))
+    (tmp_path / "soft.yaml").write_text((TASKS_DIR / "keep_out.yaml").read_text())
+    task = vfdsl.load(tmp_path / "soft.vf")
+    viewer = Viewer(task, vfdsl.compile(task), port=free_port())
+    try:
+        hard, soft = viewer.nodes["/fixtures/c0_within_sphere_tip/ball"], viewer.nodes["/fixtures/c1_outside_sphere_tip/ball"]
+        assert tuple(hard.color) == COLORS[False]["allowed"] and tuple(soft.color) == COLORS[True]["forbidden"]
+        assert viewer.nodes["/fixtures/c1_outside_sphere_tip/label"].text.startswith("soft outside_sphere(tip)")
+    finally:
+        viewer.close()
+
+
 def test_a_plane_tilted_by_its_gizmo_tilts_the_wall():
     from vfdsl.view.app import Viewer, wxyz
     from vfdsl.view.robot import rotation_to_z
