@@ -53,7 +53,7 @@ def test_every_constraint_of_every_example_is_a_fixture_with_its_source_line():
 
 def test_paper_b_pivot_polytope_is_the_cube_and_its_bound_the_circumradius():
     task = vfdsl.load(TASK_B)
-    frames = vfdsl.compile(task).frames(task.start)
+    frames = vfdsl.compile(task, backend="interpreted").frames(task.start)
     stays = shapes.build(task, Scene(task), frames)[0]
     by_name = {s.name: s for s in stays.shapes}
     pivot = np.array(task.param("pivot").value.xyz)
@@ -67,7 +67,7 @@ def test_paper_b_pivot_polytope_is_the_cube_and_its_bound_the_circumradius():
 
 def test_paper_a_curves_pass_through_their_points_in_the_plate():
     task = vfdsl.load(TASK_A)
-    ctrl = vfdsl.compile(task)
+    ctrl = vfdsl.compile(task, backend="interpreted")      # the generated C is tested elsewhere
     fixtures = shapes.build(task, Scene(task), ctrl.frames(task.start))
     tip_curve = next(s for s in fixtures[0].shapes if s.name == "curve").vertices
     shaft_curve = next(s for s in fixtures[1].shapes if s.name == "curve").vertices
@@ -112,7 +112,7 @@ def test_replay_reads_indexed_and_named_joint_columns_in_mm_and_deg(tmp_path):
 def test_replay_viewer_shows_the_row_at_a_time(tmp_path):
     from vfdsl.view.app import Viewer
     task = vfdsl.load(TASK_B)
-    ctrl = vfdsl.compile(task)
+    ctrl = vfdsl.compile(task, backend="interpreted")      # the generated C is tested elsewhere
     q0 = task.start
     lines = ["t," + ",".join(f"q[{i}]" for i in range(7)) + ",tip_error"]
     for k in range(20):
@@ -135,7 +135,7 @@ def test_replay_moves_the_params_the_trace_records(tmp_path):
     from vfdsl.compiler.context import flatten
     from vfdsl.view.app import Viewer
     task = vfdsl.load(TASKS_DIR / "breathing_vessel.vf")
-    ctrl = vfdsl.compile(task)
+    ctrl = vfdsl.compile(task, backend="interpreted")      # the generated C is tested elsewhere
     points = np.array(task.param("vessel").value.points)
     header = ["t_s"] + [f"q.{j}" for j in ctrl.assembled.context.robot.joint_names] \
         + [f"param.vessel.p{i}.{a}_m" for i in range(len(points)) for a in "xyz"]
@@ -157,7 +157,7 @@ def test_replay_moves_the_params_the_trace_records(tmp_path):
 def test_a_refused_param_is_shown_and_the_controller_keeps_running():
     from vfdsl.view.app import Viewer
     task = vfdsl.load(TASK_B)
-    viewer = Viewer(task, vfdsl.compile(task), port=free_port())
+    viewer = Viewer(task, vfdsl.compile(task, backend="interpreted"), port=free_port())
     try:
         assert not viewer.set_param("axis", [0.0, 0.0, 0.0])
         assert "axis" in viewer.message and "refused" in viewer.message
@@ -174,7 +174,7 @@ def test_a_refused_param_is_shown_and_the_controller_keeps_running():
 def test_a_violated_fixture_is_marked():
     from vfdsl.view.app import VIOLATED, Viewer
     task = vfdsl.load(TASKS_DIR / "keep_out.vf")
-    viewer = Viewer(task, vfdsl.compile(task), port=free_port())
+    viewer = Viewer(task, vfdsl.compile(task, backend="interpreted"), port=free_port())
     try:
         assert viewer.state()["violated_fixtures"] == []
         tip = viewer.frames["tip"].position
@@ -193,7 +193,7 @@ def test_a_violated_fixture_is_marked():
 def test_a_runtime_curve_point_dragged_moves_the_curve_the_controller_follows():
     from vfdsl.view.app import Viewer
     task = vfdsl.load(TASKS_DIR / "breathing_vessel.vf")
-    viewer = Viewer(task, vfdsl.compile(task), port=free_port())
+    viewer = Viewer(task, vfdsl.compile(task, backend="interpreted"), port=free_port())
     try:
         n = len(task.param("vessel").value.points)
         gizmos = [f"/params/vessel/p{i}" for i in range(n)]
@@ -220,7 +220,7 @@ def test_hard_and_soft_fixtures_look_different(tmp_path):
                                                    f'import "{TASKS_DIR / "library" / "fixtures.vf"}"'))
     (tmp_path / "soft.yaml").write_text((TASKS_DIR / "keep_out.yaml").read_text())
     task = vfdsl.load(tmp_path / "soft.vf")
-    viewer = Viewer(task, vfdsl.compile(task), port=free_port())
+    viewer = Viewer(task, vfdsl.compile(task, backend="interpreted"), port=free_port())
     try:
         hard, soft = viewer.nodes["/fixtures/c0_within_sphere_tip/ball"], viewer.nodes["/fixtures/c1_outside_sphere_tip/ball"]
         assert tuple(hard.color) == COLORS[False]["allowed"] and tuple(soft.color) == COLORS[True]["forbidden"]
@@ -233,7 +233,7 @@ def test_a_plane_tilted_by_its_gizmo_tilts_the_wall():
     from vfdsl.view.app import Viewer, wxyz
     from vfdsl.view.robot import rotation_to_z
     task = vfdsl.load(TASKS_DIR / "lecture_forbidden_half_space.vf")
-    viewer = Viewer(task, vfdsl.compile(task), port=free_port())
+    viewer = Viewer(task, vfdsl.compile(task, backend="interpreted"), port=free_port())
     try:
         normal = np.array([0.2, 0.0, 1.0]) / np.hypot(0.2, 1.0)
         viewer.nodes["/params/wall"].wxyz = wxyz(rotation_to_z(normal))        # a user tilts the plane's gizmo
