@@ -165,8 +165,12 @@ class Viewer:
             self.server = viser.ViserServer(host=host, port=port, verbose=False)
         self.server.scene.set_up_direction("+z")
         self.q = self.start.copy()
-        self.frames = controller.frames(self.q)
-        self._build()
+        try:
+            self.frames = controller.frames(self.q)
+            self._build()
+        except BaseException:
+            self.close()
+            raise
 
     # ---------------------------------------------------------------------------------------- public
     @property
@@ -189,6 +193,8 @@ class Viewer:
 
     def push(self, offset) -> None:
         """Put the hand at the tool's rest pose plus ``offset`` (m, world), as a user dragging it would."""
+        if self.hand is None:
+            raise VfError(f"task '{self.task.name}' has no input: there is no hand to push")
         with self.lock:
             pose = self.frames[self.hand.frame]
             p0, R0 = self.hand.rest(pose)
@@ -209,7 +215,7 @@ class Viewer:
                 return False
             self.overrides = candidate
             self.scene.values[name] = candidate[name]
-            self.scene._poses.pop(name, None)
+            self.scene._poses.clear()                      # a pose param moves what is expressed in it
             self._show_error("")
             self._draw_fixtures(force=True)
             self._place_param_gizmos()
@@ -227,6 +233,12 @@ class Viewer:
             self._draw_state()
             self._draw_fixtures(force=True)
             self._place_param_gizmos()
+            for name, handle in getattr(self, "param_inputs", {}).items():
+                value = self.task.param(name).value
+                if isinstance(value, ir.ScalarValue):
+                    handle.value = value.value / {"length": 1e-3, "angle": math.pi / 180}.get(value.dimension, 1.0)
+                else:
+                    handle.value = tuple(np.array(value.xyz) * (1e3 if isinstance(value, (ir.PointValue, ir.VectorValue)) else 1.0))
             if self.hand is not None:
                 self.push(np.zeros(3))
 
