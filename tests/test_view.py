@@ -2,7 +2,7 @@
 
 The browser test starts `vfdsl view` in a subprocess on a free port, loads the page in headless Chromium,
 reads the viewer's server-side state through its (hidden) `--control` channel on stdin, takes a
-screenshot, pushes the hand, and stops the viewer with SIGINT. It skips, saying why, only where no
+screenshot, pushes the hand, clicks the panel's Reset button in the page, and stops the viewer with SIGINT. It skips, saying why, only where no
 Chromium is installed (`.ci/run` installs Debian's `chromium` where it is missing).
 """
 
@@ -353,6 +353,29 @@ def test_viewer_in_headless_chromium_shows_the_task_moves_the_tool_and_stops_on_
             time.sleep(1.5)
             png = browser.screenshot()
             assert browser.evaluate("document.body.innerText.includes('paper_a_follow_curve')")
+
+            # Push the hand 5 mm along x (server-side, as a drag would set it): the controller steps and the
+            # tip moves along its curve.
+            before = viewer.command(cmd="state")
+            viewer.command(cmd="push", offset=[0.005, 0.0, 0.0])
+            time.sleep(2.0)
+            after = viewer.command(cmd="state")
+            assert after["ticks"] > before["ticks"] + 5
+            moved = np.linalg.norm(np.subtract(after["tool"], before["tool"]))
+            assert moved > 1e-4, f"the tool moved only {moved * 1e3:.3f} mm"
+            assert "asked" in after["readout"] and after["message"] == ""
+
+            # The panel's Reset button, clicked in the page, puts the tool back at the start.
+            assert browser.evaluate("(() => { for (const b of document.querySelectorAll('button')) "
+                                    "if (b.textContent.trim() == 'Reset') { b.click(); return true; } "
+                                    "return false; })()")
+            deadline = time.monotonic() + 10
+            reset = viewer.command(cmd="state")
+            while reset["ticks"] >= after["ticks"] and time.monotonic() < deadline:
+                time.sleep(0.2)
+                reset = viewer.command(cmd="state")
+            assert reset["ticks"] < after["ticks"]
+            assert np.linalg.norm(np.subtract(reset["tool"], before["tool"])) < 1e-5
         (tmp_path / "view.png").write_bytes(png)
         import matplotlib.image
         pixels = matplotlib.image.imread(tmp_path / "view.png")
@@ -360,16 +383,6 @@ def test_viewer_in_headless_chromium_shows_the_task_moves_the_tool_and_stops_on_
         assert float(pixels[..., :3].std()) > 0.02, "the screenshot is blank"
         scene_part = pixels[:, : int(0.6 * pixels.shape[1]), :3]                # left of the GUI panel
         assert float(scene_part.std()) > 0.02, "nothing drawn in the 3-D view"
-
-        # Push the hand 5 mm along x: the controller steps and the tip moves along its curve.
-        before = viewer.command(cmd="state")
-        viewer.command(cmd="push", offset=[0.005, 0.0, 0.0])
-        time.sleep(2.0)
-        after = viewer.command(cmd="state")
-        assert after["ticks"] > before["ticks"] + 5
-        moved = np.linalg.norm(np.subtract(after["tool"], before["tool"]))
-        assert moved > 1e-4, f"the tool moved only {moved * 1e3:.3f} mm"
-        assert "asked" in after["readout"] and after["message"] == ""
 
         viewer.proc.send_signal(signal.SIGINT)
         started = time.monotonic()
