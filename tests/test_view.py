@@ -2,8 +2,9 @@
 
 The browser test starts `vfdsl view` in a subprocess on a free port, loads the page in headless Chromium,
 reads the viewer's server-side state through its (hidden) `--control` channel on stdin, takes a
-screenshot, pushes the hand, clicks the panel's Reset button in the page, and stops the viewer with SIGINT. It skips, saying why, only where no
-Chromium is installed (`.ci/run` installs Debian's `chromium` where it is missing).
+screenshot, pushes the hand, clicks the panel's Reset button in the page, and stops the viewer with
+SIGINT. It skips, saying why, only where no Chromium is installed (`.ci/run` installs Debian's `chromium`
+where it is missing).
 """
 
 from __future__ import annotations
