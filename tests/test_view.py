@@ -2,8 +2,8 @@
 
 The browser test starts `vfdsl view` in a subprocess on a free port, loads the page in headless Chromium,
 reads the viewer's server-side state through its (hidden) `--control` channel on stdin, takes a
-screenshot, pushes the hand, clicks the panel's Reset button in the page, and stops the viewer with
-SIGINT. It skips, saying why, only where no Chromium is installed (`.ci/run` installs Debian's `chromium`
+screenshot, pushes the hand (server-side), drags it with the mouse in the page, clicks the panel's Reset
+button, and stops the viewer with SIGINT. It skips, saying why, only where no Chromium is installed (`.ci/run` installs Debian's `chromium`
 where it is missing).
 """
 
@@ -319,6 +319,31 @@ class ViewerProcess:
             self.proc.wait()
 
 
+def drag_hand(browser: Browser, state: dict, width: int, height: int) -> None:
+    """Press on the hand's x arrow (projected with the page's camera, OpenCV convention) and drag 80 px along it."""
+    from vfdsl.view.app import HAND_SCALE, matrix
+    camera = state["camera"]
+    R, eye = matrix(camera["wxyz"]), np.asarray(camera["position"])
+    focal = (height / 2) / math.tan(camera["fov"] / 2)
+
+    def pixel(p):
+        c = R.T @ (np.asarray(p) - eye)
+        return np.array([width / 2 + focal * c[0] / c[2], height / 2 + focal * c[1] / c[2]])
+
+    hand = np.asarray(state["hand"])
+    x_axis = matrix(state["hand_wxyz"])[:, 0]
+    start = pixel(hand + 0.7 * HAND_SCALE * x_axis)
+    along = start - pixel(hand)
+    along /= np.linalg.norm(along)
+    browser.call("Input.dispatchMouseEvent", type="mouseMoved", x=start[0], y=start[1])
+    browser.call("Input.dispatchMouseEvent", type="mousePressed", x=start[0], y=start[1], button="left", clickCount=1)
+    for k in range(1, 11):
+        x, y = start + 8 * k * along
+        browser.call("Input.dispatchMouseEvent", type="mouseMoved", x=x, y=y, button="left", buttons=1)
+        time.sleep(0.05)
+    browser.call("Input.dispatchMouseEvent", type="mouseReleased", x=x, y=y, button="left", clickCount=1)
+
+
 @pytest.fixture(scope="module")
 def chromium():
     path = find_chromium()
@@ -365,6 +390,15 @@ def test_viewer_in_headless_chromium_shows_the_task_moves_the_tool_and_stops_on_
             moved = np.linalg.norm(np.subtract(after["tool"], before["tool"]))
             assert moved > 1e-4, f"the tool moved only {moved * 1e3:.3f} mm"
             assert "asked" in after["readout"] and after["message"] == ""
+
+            # A real drag in the page: the mouse takes the hand's x arrow and pulls it 80 pixels along it.
+            drag_hand(browser, after, 960, 640)
+            deadline = time.monotonic() + 10
+            dragged = viewer.command(cmd="state")
+            while np.allclose(dragged["hand"], after["hand"]) and time.monotonic() < deadline:
+                time.sleep(0.2)
+                dragged = viewer.command(cmd="state")
+            assert np.linalg.norm(np.subtract(dragged["hand"], after["hand"])) > 0.002, "the drag did not move the hand"
 
             # The panel's Reset button, clicked in the page, puts the tool back at the start.
             assert browser.evaluate("(() => { for (const b of document.querySelectorAll('button')) "

@@ -44,6 +44,7 @@ from vfdsl.view.robot import RobotDrawing, rotation_to_z
 REACH_TIME = 0.5            # s: the hand's spring brings the tool to a still hand in about this time
 LEVER = 0.05                # m: where a torque-only hand holds the tool, up its axis
 DRAW_RATE = 25.0            # Hz: scene updates while running
+HAND_SCALE = 0.025          # m: size of the hand's transform controls
 FRAME_DEPENDENT = {"along", "above", "on_plane", "near_plane", "keeps_direction", "cone", "tilt_at_most",
                    "rotates_around", "passes_through"}
 
@@ -247,11 +248,18 @@ class Viewer:
         with self.lock:
             names = getattr(self.server.scene, "_handle_from_node_name", None)
             frame = self.hand.frame if self.hand else (self.task.frames[0].name if self.task.frames else None)
-            return {"url": self.url, "clients": len(self.server.get_clients()),
+            clients = list(self.server.get_clients().values())
+            camera = None
+            if clients:
+                c = clients[0].camera
+                camera = {"position": np.asarray(c.position).tolist(), "wxyz": np.asarray(c.wxyz).tolist(),
+                          "fov": float(c.fov), "aspect": float(c.aspect)}
+            return {"url": self.url, "clients": len(clients), "camera": camera,
                     "scene_nodes": sorted(names) if isinstance(names, dict) else sorted(self.nodes),
                     "ticks": self.ticks, "time": self.time, "q": self.q.tolist(),
                     "tool": None if frame is None else self.frames[frame].position.tolist(),
                     "hand": None if self.hand is None else np.asarray(self.hand_node.position).tolist(),
+                    "hand_wxyz": None if self.hand is None else np.asarray(self.hand_node.wxyz).tolist(),
                     "status": int(self.status), "violations": [str(v) for v in self.violations],
                     "violated_fixtures": sorted(self._key(k) for k in self._violated),
                     "message": self.message, "readout": self.readout}
@@ -282,7 +290,7 @@ class Viewer:
             pose = self.frames[self.hand.frame]
             p0, R0 = self.hand.rest(pose)
             self.hand_node = scene.add_transform_controls(
-                "/hand", scale=0.025, position=p0, wxyz=wxyz(R0), disable_rotations=not self.hand.angular,
+                "/hand", scale=HAND_SCALE, position=p0, wxyz=wxyz(R0), disable_rotations=not self.hand.angular,
                 depth_test=False)
             self.nodes["/hand"] = self.hand_node
             self._place_param_gizmos()
