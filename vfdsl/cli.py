@@ -32,6 +32,7 @@ a first session:
   vfdsl show tasks/paper_b_virtual_rcm.vf        check a task and see what the compiler will see
   vfdsl check tasks/paper_b_virtual_rcm.vf       prove the fixture sound before it touches a robot
   vfdsl compile tasks/paper_b_virtual_rcm.vf     generate and build its controller
+  vfdsl view tasks/paper_b_virtual_rcm.vf        see the fixture in 3-D in the browser and push the tool
   python -c "import vfdsl; t = vfdsl.load('tasks/paper_b_virtual_rcm.vf'); \\
              print(vfdsl.compile(t).step(t.start, {'tau': [0, 0, 0.01]}))"
 
@@ -123,6 +124,8 @@ def _parser() -> argparse.ArgumentParser:
     check_command.register(commands)
     from vfdsl.sim.command import add_parser as add_simulate
     add_simulate(commands)
+    from vfdsl.view.command import add_parser as add_view
+    add_view(commands)
     return parser
 
 

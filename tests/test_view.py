@@ -1,0 +1,428 @@
+"""`vfdsl view`: the fixture geometry it draws, the trace it replays, and the viewer itself in a real browser.
+
+The browser test starts `vfdsl view` in a subprocess on a free port, loads the page in headless Chromium,
+reads the viewer's server-side state through its (hidden) `--control` channel on stdin, takes a
+screenshot, pushes the hand (server-side), drags it with the mouse in the page, clicks the panel's Reset
+button, and stops the viewer with SIGINT. It skips, saying why, only where no Chromium is installed (`.ci/run` installs Debian's `chromium`
+where it is missing).
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import math
+import os
+import queue
+import signal
+import subprocess
+import sys
+import threading
+import time
+
+import numpy as np
+import pytest
+
+import vfdsl
+from vfdsl.errors import VfError
+from vfdsl.sim.geometry import Scene
+from vfdsl.view import replay, shapes
+from vfdsl.view.browser import Browser, find_chromium
+from vfdsl.view.command import STATE_PREFIX, free_port
+
+from conftest import REPO, TASKS_DIR
+
+TASK_A = TASKS_DIR / "paper_a_follow_curve.vf"
+TASK_B = TASKS_DIR / "paper_b_virtual_rcm.vf"
+
+
+# ------------------------------------------------------------------------------------------------ shapes
+def test_every_constraint_of_every_example_is_a_fixture_with_its_source_line():
+    for path in sorted(TASKS_DIR.glob("*.vf")):
+        task = vfdsl.load(path)
+        if task.start is None:
+            continue
+        frames = vfdsl.compile(task, backend="interpreted").frames(task.start)     # no C build: fast
+        fixtures = shapes.build(task, Scene(task), frames)
+        assert [f.index for f in fixtures] == list(range(len(task.constraints)))
+        for f, c in zip(fixtures, task.constraints):
+            assert f.where.startswith(f"{c.span.file.rsplit('/', 1)[-1]}:{c.span.line}")
+            if c.primitive not in shapes.NO_GEOMETRY:
+                assert f.shapes, f"{path.name}: {f.title} draws nothing"
+                assert all(np.isfinite(s.vertices).all() for s in f.shapes)
+
+
+def test_paper_b_pivot_polytope_is_the_cube_and_its_bound_the_circumradius():
+    task = vfdsl.load(TASK_B)
+    frames = vfdsl.compile(task, backend="interpreted").frames(task.start)
+    stays = shapes.build(task, Scene(task), frames)[0]
+    by_name = {s.name: s for s in stays.shapes}
+    pivot = np.array(task.param("pivot").value.xyz)
+    corners = np.linalg.norm(by_name["polytope"].vertices - pivot, axis=1)
+    assert len(by_name["polytope"].vertices) == 8                      # the 4x4 parametrization: a cube
+    assert np.allclose(corners, math.sqrt(3) * 1e-6)                   # its corners at sqrt(3) eps
+    bound = np.linalg.norm(by_name["bound"].vertices - pivot, axis=1)
+    assert np.allclose(bound, math.sqrt(3) * 1e-6)
+    assert "guaranteed 1.73 um" in stays.tolerance_text
+
+
+def test_paper_a_curves_pass_through_their_points_in_the_plate():
+    task = vfdsl.load(TASK_A)
+    ctrl = vfdsl.compile(task, backend="interpreted")      # the generated C is tested elsewhere
+    fixtures = shapes.build(task, Scene(task), ctrl.frames(task.start))
+    tip_curve = next(s for s in fixtures[0].shapes if s.name == "curve").vertices
+    shaft_curve = next(s for s in fixtures[1].shapes if s.name == "curve").vertices
+    tip = ctrl.frames(task.start)["tip"].position
+    assert np.min(np.linalg.norm(tip_curve.reshape(-1, 3) - tip, axis=1)) < 1e-4    # the tip starts on its curve
+    shift = shaft_curve.reshape(-1, 3).mean(axis=0) - tip_curve.reshape(-1, 3).mean(axis=0)
+    assert abs(np.linalg.norm(shift) - 0.1) < 1e-9                     # the copy 100 mm along the plate normal
+
+
+# ------------------------------------------------------------------------------------------------ replay
+def test_replay_reads_the_simulate_trace_columns_and_picks_a_trial(tmp_path):
+    joints = ["x", "y", "z", "rcm_a", "rcm_b", "roll", "insert"]
+    header = ["trial", "seed", "tick", "t_s"] + [f"q.{j}_{'rad' if j.startswith('r') else 'm'}" for j in joints] \
+        + ["status", "violations", "metric.tip_error_m", "tracker.tip_error_m"]
+    rows = []
+    for trial in (0, 1):
+        for k in range(5):
+            q = [0.001 * k, 0, 0, 0.01 * trial, 0, 0, 0.01]
+            rows.append([trial, 7, k, 0.01 * k, *q, 0, "", 1e-6 * k, 2e-6 * k])
+    path = tmp_path / "run.csv"
+    path.write_text("\n".join(",".join(map(str, r)) for r in [header, *rows]) + "\n")
+    trace = replay.read(path, joints)
+    assert trace.trial == "0" and len(trace.t) == 5
+    assert np.allclose(trace.q[:, 0], 0.001 * np.arange(5))
+    assert trace.error_name == "metric.tip_error_m" and np.allclose(trace.error, 1e-6 * np.arange(5))
+    assert np.allclose(replay.read(path, joints, trial="1").q[:, 3], 0.01)
+    with pytest.raises(VfError, match="no trial"):
+        replay.read(path, joints, trial="9")
+
+
+def test_replay_reads_indexed_and_named_joint_columns_in_mm_and_deg(tmp_path):
+    path = tmp_path / "run.csv"
+    path.write_text("time,q[0],q_b_deg,error_mm\n0,1,90,0.5\n0.1,2,180,\n")
+    trace = replay.read(path, ["a", "b"])
+    assert np.allclose(trace.q, [[1, math.pi / 2], [2, math.pi]])
+    assert trace.error[0] == pytest.approx(5e-4) and np.isnan(trace.error[1])
+    path.write_text("time,q[0]\n0,1\n")
+    with pytest.raises(VfError, match=r"no column for joint 1 \(b\)"):
+        replay.read(path, ["a", "b"])
+
+
+def test_replay_viewer_shows_the_row_at_a_time(tmp_path):
+    from vfdsl.view.app import Viewer
+    task = vfdsl.load(TASK_B)
+    ctrl = vfdsl.compile(task, backend="interpreted")      # the generated C is tested elsewhere
+    q0 = task.start
+    lines = ["t," + ",".join(f"q[{i}]" for i in range(7)) + ",tip_error"]
+    for k in range(20):
+        q = q0.copy()
+        q[3] += 0.002 * k
+        lines.append(f"{0.01 * k}," + ",".join(map(str, q)) + f",{1e-6 * k}")
+    (tmp_path / "b.csv").write_text("\n".join(lines) + "\n")
+    trace = replay.read(tmp_path / "b.csv", ctrl.assembled.context.robot.joint_names)
+    viewer = Viewer(task, ctrl, port=free_port(), replay=trace)
+    try:
+        viewer.show_time(0.105)
+        state = viewer.state()
+        assert state["ticks"] == 10 and np.allclose(state["q"], trace.q[10])
+        assert "/trace" in state["scene_nodes"] and "tip_error = 0.01 mm" in state["readout"]
+    finally:
+        viewer.close()
+
+
+def test_replay_moves_the_params_the_trace_records(tmp_path):
+    from vfdsl.compiler.context import flatten
+    from vfdsl.view.app import Viewer
+    task = vfdsl.load(TASKS_DIR / "breathing_vessel.vf")
+    ctrl = vfdsl.compile(task, backend="interpreted")      # the generated C is tested elsewhere
+    points = np.array(task.param("vessel").value.points)
+    header = ["t_s"] + [f"q.{j}" for j in ctrl.assembled.context.robot.joint_names] \
+        + [f"param.vessel.p{i}.{a}_m" for i in range(len(points)) for a in "xyz"]
+    rows = [[0.01 * k, *task.start, *(points + [0.0, 0.001 * k, 0.0]).ravel()] for k in range(3)]
+    path = tmp_path / "vessel.csv"
+    path.write_text("\n".join(",".join(map(str, r)) for r in [header, *rows]) + "\n")
+    sizes = {n: len(flatten(ctrl.param_defaults[n])) for n in ctrl.param_names}
+    trace = replay.read(path, ctrl.assembled.context.robot.joint_names, params=sizes)
+    assert trace.params["vessel"].shape == (3, points.size)
+    viewer = Viewer(task, ctrl, port=free_port(), replay=trace)
+    try:
+        viewer.show_time(0.02)
+        knots = next(s for s in viewer.fixtures[0].shapes if s.name == "points").vertices
+        assert np.allclose(knots, points + [0.0, 0.002, 0.0])
+    finally:
+        viewer.close()
+
+
+def test_a_refused_param_is_shown_and_the_controller_keeps_running():
+    from vfdsl.view.app import Viewer
+    task = vfdsl.load(TASK_B)
+    viewer = Viewer(task, vfdsl.compile(task, backend="interpreted"), port=free_port())
+    try:
+        assert not viewer.set_param("axis", [0.0, 0.0, 0.0])
+        assert "axis" in viewer.message and "refused" in viewer.message
+        assert viewer.set_param("pivot", [0.0, 0.0, 0.291])
+        assert viewer.message == ""
+        viewer.push([0.0, 0.01, 0.0])
+        for _ in range(5):
+            viewer.tick()
+        assert viewer.state()["ticks"] == 5
+    finally:
+        viewer.close()
+
+
+def test_a_violated_fixture_is_marked():
+    from vfdsl.view.app import VIOLATED, Viewer
+    task = vfdsl.load(TASKS_DIR / "keep_out.vf")
+    viewer = Viewer(task, vfdsl.compile(task, backend="interpreted"), port=free_port())
+    try:
+        assert viewer.state()["violated_fixtures"] == []
+        tip = viewer.frames["tip"].position
+        assert viewer.set_param("artery", list(tip + [0.001, 0.0, 0.0]))     # the keep-out ball now holds the tip
+        viewer.tick()
+        state = viewer.state()
+        assert state["violated_fixtures"] == ["c1_outside_sphere_tip"]
+        assert any("keep_out.vf:21" in v for v in state["violations"])
+        label = viewer.nodes["/fixtures/c1_outside_sphere_tip/label"]
+        assert label.text.startswith("VIOLATED outside_sphere(tip) keep_out.vf:21")
+        assert tuple(viewer.nodes["/fixtures/c1_outside_sphere_tip/ball"].color) == VIOLATED
+    finally:
+        viewer.close()
+
+
+def test_a_runtime_curve_point_dragged_moves_the_curve_the_controller_follows():
+    from vfdsl.view.app import Viewer
+    task = vfdsl.load(TASKS_DIR / "breathing_vessel.vf")
+    viewer = Viewer(task, vfdsl.compile(task, backend="interpreted"), port=free_port())
+    try:
+        n = len(task.param("vessel").value.points)
+        gizmos = [f"/params/vessel/p{i}" for i in range(n)]
+        assert set(gizmos) <= set(viewer.state()["scene_nodes"])
+        node = viewer.nodes[gizmos[1]]
+        node.position = np.asarray(node.position) + [0.0, 0.002, 0.0]           # a user drags point 2 by 2 mm
+        viewer._gizmo_moved("vessel")
+        assert viewer.message == ""
+        assert np.allclose(viewer.overrides["vessel"].points[1],
+                           np.add(task.param("vessel").value.points[1], [0.0, 0.002, 0.0]))
+        curve = next(s for s in viewer.fixtures[0].shapes if s.name == "points").vertices
+        assert np.allclose(curve[1], viewer.overrides["vessel"].points[1])
+        viewer.tick()
+        assert viewer.state()["ticks"] == 1
+    finally:
+        viewer.close()
+
+
+def test_hard_and_soft_fixtures_look_different(tmp_path):
+    from vfdsl.view.app import COLORS, Viewer
+    text = (TASKS_DIR / "keep_out.vf").read_text().replace("require tip outside_sphere(artery, margin)",
+                                                           "require tip outside_sphere(artery, margin) soft weight 10")
+    (tmp_path / "soft.vf").write_text(text.replace('import "library/fixtures.vf"',
+                                                   f'import "{TASKS_DIR / "library" / "fixtures.vf"}"'))
+    (tmp_path / "soft.yaml").write_text((TASKS_DIR / "keep_out.yaml").read_text())
+    task = vfdsl.load(tmp_path / "soft.vf")
+    viewer = Viewer(task, vfdsl.compile(task, backend="interpreted"), port=free_port())
+    try:
+        hard, soft = viewer.nodes["/fixtures/c0_within_sphere_tip/ball"], viewer.nodes["/fixtures/c1_outside_sphere_tip/ball"]
+        assert tuple(hard.color) == COLORS[False]["allowed"] and tuple(soft.color) == COLORS[True]["forbidden"]
+        assert viewer.nodes["/fixtures/c1_outside_sphere_tip/label"].text.startswith("soft outside_sphere(tip)")
+    finally:
+        viewer.close()
+
+
+def test_a_plane_tilted_by_its_gizmo_tilts_the_wall():
+    from vfdsl.view.app import Viewer, wxyz
+    from vfdsl.view.robot import rotation_to_z
+    task = vfdsl.load(TASKS_DIR / "lecture_forbidden_half_space.vf")
+    viewer = Viewer(task, vfdsl.compile(task, backend="interpreted"), port=free_port())
+    try:
+        normal = np.array([0.2, 0.0, 1.0]) / np.hypot(0.2, 1.0)
+        viewer.nodes["/params/wall"].wxyz = wxyz(rotation_to_z(normal))        # a user tilts the plane's gizmo
+        viewer._gizmo_moved("wall")
+        assert viewer.message == "" and np.allclose(viewer.overrides["wall"].normal, normal)
+        square = next(s for s in viewer.fixtures[0].shapes if s.name == "plane").vertices
+        assert np.allclose((square - square[0]) @ normal, 0.0, atol=1e-12)
+        viewer.tick()
+        assert viewer.state()["ticks"] == 1
+    finally:
+        viewer.close()
+
+
+def test_a_urdf_with_visual_geometry_is_drawn_from_it(tmp_path):
+    from vfdsl.kinematics.robot import ROBOTS_DIR, Robot
+    from vfdsl.view.robot import RobotDrawing
+    text = (ROBOTS_DIR / "shr7.urdf").read_text()
+    text = text.replace('<link name="tool_tip">', '<link name="tool_tip"><visual><origin xyz="0 0 0.05"/>'
+                        '<geometry><cylinder radius="0.002" length="0.1"/></geometry></visual>', 1)
+    text = text.replace('<link name="stage_x">', '<link name="stage_x"><visual>'
+                        '<geometry><box size="0.1 0.02 0.01"/></geometry></visual>', 1)
+    (tmp_path / "shr7v.urdf").write_text(text)
+    robot = Robot(tmp_path / "shr7v.urdf")
+    drawing = RobotDrawing(robot)
+    assert drawing.kind == "urdf" and len(drawing.parts) == 2
+    q = vfdsl.load(TASK_B).start
+    poses = drawing.poses(q)
+    tip_p, tip_R = robot.frame_pose(q, "tool_tip")
+    shaft = [p for (R, p, _), part in zip(poses, drawing.parts) if np.ptp(part.vertices[:, 2]) > 0.09]
+    assert len(shaft) == 1 and np.allclose(shaft[0], tip_p + tip_R @ [0, 0, 0.05])
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--push", "1,2"], "--push takes three numbers"),
+    (["--replay", "missing.csv"], "cannot read the trace"),
+])
+def test_view_usage_errors_exit_2_with_a_message(args, message):
+    proc = subprocess.run([sys.executable, "-m", "vfdsl.cli", "view", str(TASK_B), "--no-browser", *args],
+                          capture_output=True, text=True, cwd=REPO, timeout=60)
+    assert proc.returncode == 2 and message in proc.stderr and "Traceback" not in proc.stderr
+
+
+# ------------------------------------------------------------------------------------ in a real browser
+class ViewerProcess:
+    """`vfdsl view TASK --no-browser --control` in a subprocess; its stdout read on a thread."""
+
+    def __init__(self, task, port: int):
+        env = dict(os.environ, PYTHONUNBUFFERED="1")
+        self.proc = subprocess.Popen([sys.executable, "-m", "vfdsl.cli", "view", str(task), "--port", str(port),
+                                      "--no-browser", "--control"], stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                                     stderr=subprocess.PIPE, text=True, env=env, cwd=REPO)
+        self.lines: queue.Queue[str] = queue.Queue()
+        self.output = io.StringIO()
+        threading.Thread(target=self._read, daemon=True).start()
+
+    def _read(self):
+        for line in self.proc.stdout:
+            self.output.write(line)
+            self.lines.put(line)
+
+    def wait_for(self, prefix: str, timeout: float = 30.0) -> str:
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            try:
+                line = self.lines.get(timeout=0.2)
+            except queue.Empty:
+                if self.proc.poll() is not None:
+                    raise AssertionError(f"viewer exited ({self.proc.returncode}): {self.proc.stderr.read()}")
+                continue
+            if line.startswith(prefix):
+                return line
+        raise AssertionError(f"no line starting {prefix!r} in {timeout} s; output:\n{self.output.getvalue()}")
+
+    def command(self, **command) -> dict:
+        self.proc.stdin.write(json.dumps(command) + "\n")
+        self.proc.stdin.flush()
+        return json.loads(self.wait_for(STATE_PREFIX)[len(STATE_PREFIX):])
+
+    def stop(self):
+        if self.proc.poll() is None:
+            self.proc.kill()
+            self.proc.wait()
+
+
+def drag_hand(browser: Browser, state: dict, width: int, height: int) -> None:
+    """Press on the hand's x arrow (projected with the page's camera, OpenCV convention) and drag 80 px along it."""
+    from vfdsl.view.app import HAND_SCALE, matrix
+    camera = state["camera"]
+    R, eye = matrix(camera["wxyz"]), np.asarray(camera["position"])
+    focal = (height / 2) / math.tan(camera["fov"] / 2)
+
+    def pixel(p):
+        c = R.T @ (np.asarray(p) - eye)
+        return np.array([width / 2 + focal * c[0] / c[2], height / 2 + focal * c[1] / c[2]])
+
+    hand = np.asarray(state["hand"])
+    x_axis = matrix(state["hand_wxyz"])[:, 0]
+    start = pixel(hand + 0.7 * HAND_SCALE * x_axis)
+    along = start - pixel(hand)
+    along /= np.linalg.norm(along)
+    browser.call("Input.dispatchMouseEvent", type="mouseMoved", x=start[0], y=start[1])
+    browser.call("Input.dispatchMouseEvent", type="mousePressed", x=start[0], y=start[1], button="left", clickCount=1)
+    for k in range(1, 11):
+        x, y = start + 8 * k * along
+        browser.call("Input.dispatchMouseEvent", type="mouseMoved", x=x, y=y, button="left", buttons=1)
+        time.sleep(0.05)
+    browser.call("Input.dispatchMouseEvent", type="mouseReleased", x=x, y=y, button="left", clickCount=1)
+
+
+@pytest.fixture(scope="module")
+def chromium():
+    path = find_chromium()
+    if path is None:
+        pytest.skip("no Chromium: install Debian's `chromium` (apt-get install -y chromium; .ci/run does this "
+                    "where it is missing) or set VFDSL_CHROMIUM to a Chromium or Chrome binary")
+    return path
+
+
+def test_viewer_in_headless_chromium_shows_the_task_moves_the_tool_and_stops_on_sigint(chromium, tmp_path):
+    port = free_port()
+    viewer = ViewerProcess(TASK_A, port)
+    try:
+        url_line = viewer.wait_for("vfdsl view:", timeout=60)
+        url = f"http://127.0.0.1:{port}/"
+        assert url in url_line
+
+        with Browser(960, 640, timeout=40) as browser:
+            browser.open(url)
+            deadline = time.monotonic() + 30
+            state = viewer.command(cmd="state")
+            while state["clients"] < 1 and time.monotonic() < deadline:
+                time.sleep(0.3)
+                state = viewer.command(cmd="state")
+            assert state["clients"] >= 1, "the page never connected to the viewer"
+            nodes = set(state["scene_nodes"])
+            expected = {"/robot", "/robot/link_0", "/frames/tip", "/frames/tip/tool_axis", "/frames/shaft",
+                        "/fixtures/c0_follows_tip", "/fixtures/c0_follows_tip/curve",
+                        "/fixtures/c0_follows_tip/tube", "/fixtures/c0_follows_tip/label",
+                        "/fixtures/c1_follows_shaft", "/fixtures/c2_joint_limits", "/fixtures/c3_joint_speed",
+                        "/hand", "/params/plate"}
+            assert expected <= nodes, f"missing scene nodes: {sorted(expected - nodes)}"
+            time.sleep(1.5)
+            png = browser.screenshot()
+            assert browser.evaluate("document.body.innerText.includes('paper_a_follow_curve')")
+
+            # Push the hand 5 mm along x (server-side, as a drag would set it): the controller steps and the
+            # tip moves along its curve.
+            before = viewer.command(cmd="state")
+            viewer.command(cmd="push", offset=[0.005, 0.0, 0.0])
+            time.sleep(2.0)
+            after = viewer.command(cmd="state")
+            assert after["ticks"] > before["ticks"] + 5
+            moved = np.linalg.norm(np.subtract(after["tool"], before["tool"]))
+            assert moved > 1e-4, f"the tool moved only {moved * 1e3:.3f} mm"
+            assert "asked" in after["readout"] and after["message"] == ""
+
+            # A real drag in the page: the mouse takes the hand's x arrow and pulls it 80 pixels along it.
+            drag_hand(browser, after, 960, 640)
+            deadline = time.monotonic() + 10
+            dragged = viewer.command(cmd="state")
+            while np.allclose(dragged["hand"], after["hand"]) and time.monotonic() < deadline:
+                time.sleep(0.2)
+                dragged = viewer.command(cmd="state")
+            assert np.linalg.norm(np.subtract(dragged["hand"], after["hand"])) > 0.002, "the drag did not move the hand"
+
+            # The panel's Reset button, clicked in the page, puts the tool back at the start.
+            assert browser.evaluate("(() => { for (const b of document.querySelectorAll('button')) "
+                                    "if (b.textContent.trim() == 'Reset') { b.click(); return true; } "
+                                    "return false; })()")
+            deadline = time.monotonic() + 10
+            reset = viewer.command(cmd="state")
+            while reset["ticks"] >= after["ticks"] and time.monotonic() < deadline:
+                time.sleep(0.2)
+                reset = viewer.command(cmd="state")
+            assert reset["ticks"] < after["ticks"]
+            assert np.linalg.norm(np.subtract(reset["tool"], before["tool"])) < 1e-5
+        (tmp_path / "view.png").write_bytes(png)
+        import matplotlib.image
+        pixels = matplotlib.image.imread(tmp_path / "view.png")
+        assert pixels.shape[:2] == (640, 960)
+        assert float(pixels[..., :3].std()) > 0.02, "the screenshot is blank"
+        scene_part = pixels[:, : int(0.6 * pixels.shape[1]), :3]                # left of the GUI panel
+        assert float(scene_part.std()) > 0.02, "nothing drawn in the 3-D view"
+
+        viewer.proc.send_signal(signal.SIGINT)
+        started = time.monotonic()
+        code = viewer.proc.wait(timeout=10)
+        assert code in (0, 130), viewer.proc.stderr.read()
+        assert time.monotonic() - started < 5
+    finally:
+        viewer.stop()
