@@ -513,7 +513,8 @@ def test_json_report_has_the_documented_fields(tmp_path):
     assert set(data) == {"schema", "task", "file", "sound", "exit_status", "counts", "findings", "bounds", "figures"}
     assert set(data["counts"]) == {"error", "warning", "note"}
     for finding in data["findings"]:
-        assert set(finding) == {"code", "name", "severity", "message", "suggestion", "subject", "location", "data"}
+        assert set(finding) == {"code", "name", "severity", "message", "suggestion", "subject", "location", "data",
+                                "notes"}
         assert CODES[finding["name"]] == finding["code"]
     assert set(data["bounds"][0]) == {"subject", "where", "kind", "stated", "resolution", "facets", "worst"}
     json.dumps(data, allow_nan=False)                      # no inf or NaN

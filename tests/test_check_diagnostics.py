@@ -193,3 +193,21 @@ def test_redundancy_is_confirmed_at_a_bounded_number_of_states():
     [finding] = hygiene.redundant(start, 1, list(range(1000)), rows_at)
     assert finding.data["states"] == 1 + hygiene.REDUNDANCY_STATES and len(asked) == hygiene.REDUNDANCY_STATES
     assert asked[0] == 0 and asked[-1] == 999
+
+
+def test_a_mistaken_scene_value_names_the_param_and_the_scene_line(tasks_copy):
+    """A flipped normal set in the scene: check names the constraint that fails at the start and, in notes,
+    the param's declaration and the scene line where its value is written (where the user must edit)."""
+    scene = tasks_copy / "lecture_forbidden_half_space.yaml"
+    scene.write_text(scene.read_text() + "params:\n  wall: {point: [0, 0, 270], normal: [0, 0, -1]}\n")
+    report = vfdsl.check(vfdsl.load(tasks_copy / "lecture_forbidden_half_space.vf"), samples=0)
+    serious = [f for f in report.findings if f.severity != Severity.NOTE and "above" in f.subject]
+    assert serious, report.render_text()
+    for finding in serious:
+        assert any("reads param 'wall', declared at" in note and "lecture_forbidden_half_space.vf:12:1" in note
+                   and "its value set at" in note and "lecture_forbidden_half_space.yaml:5" in note
+                   for note in finding.notes), finding.render()
+        assert "lecture_forbidden_half_space.yaml:5" in finding.render()
+    default = vfdsl.check(vfdsl.load(TASKS_DIR / "lecture_forbidden_half_space.vf"), samples=0)
+    for finding in default.findings:      # a default written at the declaration: no 'value set at' note
+        assert not any("its value set at" in note for note in finding.notes)

@@ -90,7 +90,34 @@ def check(task: ir.Task, *, overshoot: float = DEFAULT_OVERSHOOT, samples: int =
     if walked is not None:
         run("sampling", sampling.analyse, controller, task, linear, samples, seed, report.figures, walked)
     report.figures["seconds"] = time.perf_counter() - started
+    report.findings = [_with_param_sources(finding, task) for finding in report.findings]
     return report
+
+
+def _with_param_sources(finding: Finding, task: ir.Task) -> Finding:
+    """An error or warning about a constraint, with a note per param the constraint reads: where it is declared
+    and where its value is set (the task's default, or the scene file), since that is where a mistaken value
+    (a flipped normal, a pivot out of reach) is mended."""
+    from dataclasses import replace
+
+    from vfdsl.compiler.derived import leaves
+
+    if finding.severity == Severity.NOTE or finding.span is None:
+        return finding
+    notes = []
+    for c in task.constraints:
+        if c.span != finding.span:
+            continue
+        for name in dict.fromkeys(leaf.name for arg in c.args.values() for leaf in leaves(arg)
+                                  if isinstance(leaf, ir.ParamRef)):
+            decl = task.param(name)
+            for d in ([decl] + ([task.param(decl.frame)] if decl.frame else [])):
+                elsewhere = d.value_span and (d.value_span.file, d.value_span.line) != (d.span.file, d.span.line)
+                set_at = f", its value set at {d.value_span}" if elsewhere else ""
+                note = f"reads param '{d.name}', declared at {d.span}{set_at}"
+                if note not in notes:
+                    notes.append(note)
+    return replace(finding, notes=finding.notes + tuple(notes)) if notes else finding
 
 
 def _check_magnitudes(rows) -> None:

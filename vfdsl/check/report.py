@@ -66,6 +66,7 @@ class Finding:
     suggestion: str | None = None
     subject: str = "task"
     data: dict = field(default_factory=dict)
+    notes: tuple[str, ...] = ()      # e.g. where the params a constraint reads are declared and set
 
     @property
     def code(self) -> str:
@@ -73,7 +74,8 @@ class Finding:
 
     def render(self) -> str:
         """file:line:col, severity and code, message, the source line with a caret, the suggestion."""
-        diagnostic = VfError(self.message, self.span.pos() if self.span else None, hint=self.suggestion)
+        diagnostic = VfError(self.message, self.span.pos() if self.span else None, hint=self.suggestion,
+                             notes=self.notes)
         return diagnostic.render(f"{self.severity.value} {self.code} {self.name}")
 
     def to_json(self) -> dict:
@@ -83,7 +85,7 @@ class Finding:
                 "location": None if span is None else {"file": span.file, "line": span.line,
                                                         "column": span.column, "end_line": span.end_line,
                                                         "end_column": span.end_column},
-                "data": _finite(self.data)}
+                "data": _finite(self.data), "notes": list(self.notes)}
 
 
 @dataclass(frozen=True)

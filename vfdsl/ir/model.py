@@ -179,6 +179,7 @@ class ParamDecl(_Model):
     value: Value
     frame: str | None = None
     span: Span
+    value_span: Span | None = None   # where the value is written: the task's default, or the scene file
 
 
 # --------------------------------------------------------------------------------- constraints, objectives

@@ -212,7 +212,7 @@ class Declarations:
                 value = value.model_copy(update={"runtime": True})
             self.params[stmt.name.text] = ir.ParamDecl(
                 name=stmt.name.text, type=kind, value=value,
-                frame=stmt.frame.text if stmt.frame else None, span=stmt.span)
+                frame=stmt.frame.text if stmt.frame else None, span=stmt.span, value_span=source.span)
 
     def _curve_type(self, stmt: ast.ParamStmt) -> tuple[int | None, bool]:
         """(degree, runtime) of a curve param's type, e.g. curve(degree = 1, runtime = true)."""
