@@ -93,6 +93,9 @@ the rows (1e-7 m or rad): at epsilon = 1e-6 DAQP meets rows only to ~1e-10..1e-9
 factor of a Hessian of condition 1e6), and a borderline check made the two paths decide differently. The last
 level, whose Hessian is the damping's, answers to ~1e-12 and is held to feas_tol; an upper level's answer only
 gives the band centres (its E_i x), which are well determined.""" 
+WIDE_BAND = 10.0
+"""When no solve of a level is acceptable within the band, the level is solved again with the bands of the levels
+above WIDE_BAND times wider (1e-8 m or rad per tick, 1 um/s at 10 ms) before it is given up."""
 UPPER_CURVATURE = 1.0
 """A lower level's Hessian also gets the (scaled) Hessians of the levels above it: their costs depend on x only
 through E_i x, which the band holds, so no minimizer changes; the directions the levels above fix are no longer
@@ -208,8 +211,9 @@ def _level_chain(n: int, m: int, levels: int, e_rows: list[int], tol: float) -> 
     is multiplied by that factor again. The last level (the redundancy terms, usually damping) keeps its
     epsilon: it only chooses among motions the levels above leave free.
 
-    A solve whose answer is not acceptable (rows, bounds, or its band by more than another band width) keeps
-    the answer before it: a lower level can never undo a higher one."""
+    A level none of whose solves is acceptable (rows, bounds, or its bands by more than another band width) is
+    solved again with WIDE_BAND times wider bands, and if that fails too it keeps the answer before it: a lower
+    level can never undo a higher one."""
     x1 = ca.MX.sym("x1", n)
     A = ca.MX.sym("A", m, n)
     lba, uba, lo, hi = (ca.MX.sym(name, size) for name, size in (("lba", m), ("uba", m), ("lo", n), ("hi", n)))
@@ -218,23 +222,43 @@ def _level_chain(n: int, m: int, levels: int, e_rows: list[int], tol: float) -> 
     Es = [ca.MX.sym(f"E{j}", rows, n) for j, rows in enumerate(e_rows, start=1)]
     band = BAND_FACTOR * tol
     eps = LEVEL_REGULARIZATION
-    x, centers = x1, []
-    for j, (Hj, gj) in enumerate(zip(Hs, gs), start=1):
-        kept = ca.vertcat(*Es[:j - 1]) if j > 1 else ca.MX(0, n)
+
+    def level(j, x_prev, centers, width, tag):
+        """Level j's answer within bands of ``width`` (x_prev when no solve is acceptable), and whether a solve
+        was acceptable."""
+        Hj, gj = Hs[j - 1], gs[j - 1]
+        kept = ca.vertcat(*Es[:j - 1])
+        at = ca.vertcat(*centers)
         rows = kept.size1()
-        at = ca.vertcat(*centers) if j > 1 else ca.MX(0, 1)
-        A_j, lb_j, ub_j = ca.vertcat(A, kept), ca.vertcat(lba, at - band), ca.vertcat(uba, at + band)
+        A_j, lb_j, ub_j = ca.vertcat(A, kept), ca.vertcat(lba, at - width), ca.vertcat(uba, at + width)
 
-        def accept(x_new, x_old):
-            ok = _acceptable(x_new, A_j @ x_new, lb_j, ub_j, lo, hi, tol if j == levels else tol * LEVEL_ACCEPTANCE)
-            if rows:
-                ok = ca.logic_and(ok, ca.mmax(_row_violation(kept @ x_new, at - band, at + band)) <= band)
-            return ca.if_else(ok, x_new, x_old)
+        def acceptable(x_new):
+            rows_tol = tol if j == levels else tol * LEVEL_ACCEPTANCE
+            return ca.logic_and(_acceptable(x_new, A_j @ x_new, lb_j, ub_j, lo, hi, rows_tol),
+                                ca.mmax(_row_violation(kept @ x_new, at - width, at + width)) <= width)
 
-        if j > 1:
-            x = accept(_daqp(n, m + rows, tol, f"level{j}")(Hj, gj, A_j, lb_j, ub_j, lo, hi), x)
+        x_a = _daqp(n, m + rows, tol, f"level{j}{tag}")(Hj, gj, A_j, lb_j, ub_j, lo, hi)
+        ok = acceptable(x_a)
+        x = ca.if_else(ok, x_a, x_prev)
         if j < levels:      # the proximal step from the level's first answer
-            x = accept(_daqp(n, m + rows, tol, f"level{j}_prox")(Hj, gj - eps * x, A_j, lb_j, ub_j, lo, hi), x)
+            x_b = _daqp(n, m + rows, tol, f"level{j}{tag}_prox")(Hj, gj - eps * x, A_j, lb_j, ub_j, lo, hi)
+            ok_b = acceptable(x_b)
+            x = ca.if_else(ok_b, x_b, x)
+            ok = ca.logic_or(ok, ok_b)
+        return x, ok
+
+    x = x1
+    if levels > 1:          # level 1's proximal step (its first answer is phase 1's)
+        x_b = _daqp(n, m, tol, "level1_prox")(Hs[0], gs[0] - eps * x1, A, lba, uba, lo, hi)
+        x = ca.if_else(_acceptable(x_b, A @ x_b, lba, uba, lo, hi, tol * LEVEL_ACCEPTANCE), x_b, x1)
+    centers = [Es[0] @ x] if levels > 1 else []
+    for j in range(2, levels + 1):
+        x_narrow, ok = level(j, x, centers, band, "")
+        # DAQP (CasADi's) can call a feasible level infeasible, or miss its rows, where the band pins a
+        # degenerate vertex (every joint at its speed bound): solved again with bands ten times wider
+        # (short-circuit: only on such ticks)
+        x = ca.if_else(ok, x_narrow, level(j, x, centers, WIDE_BAND * band, "_wide")[0], True)
+        if j < levels:
             centers.append(Es[j - 1] @ x)       # level j's optimal values, held by every level below
     return ca.Function("priority_levels", [x1, A, lba, uba, lo, hi, *Hs, *gs, *Es], [x])
 
