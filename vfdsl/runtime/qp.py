@@ -250,7 +250,9 @@ def _level_chain(n: int, m: int, levels: int, e_rows: list[int], tol: float) -> 
     x = x1
     if levels > 1:          # level 1's proximal step (its first answer is phase 1's)
         x_b = _daqp(n, m, tol, "level1_prox")(Hs[0], gs[0] - eps * x1, A, lba, uba, lo, hi)
-        x = ca.if_else(_acceptable(x_b, A @ x_b, lba, uba, lo, hi, tol * LEVEL_ACCEPTANCE), x_b, x1)
+        ok_b = (_acceptable(x_b, A @ x_b, lba, uba, lo, hi, tol * LEVEL_ACCEPTANCE) if m
+                else _in_box(x_b, lo, hi, tol * LEVEL_ACCEPTANCE))
+        x = ca.if_else(ok_b, x_b, x1)
     centers = [Es[0] @ x] if levels > 1 else []
     for j in range(2, levels + 1):
         x_narrow, ok = level(j, x, centers, band, "")
