@@ -246,7 +246,7 @@ def test_levels_of_the_examples(tmp_path):
     # a torque drives the angular part; a last level of damping alone is solved as a level of its own
     assert ctrl.assembled.levels == [["track(tip) angular"], ["track(tip) linear"], ["damping()"]]
     ctrl = vfdsl.compile(vfdsl.load(TASKS_DIR / "lecture_steady_direction.vf"), backend="interpreted")
-    assert ctrl.assembled.levels == [["distance(tip)", "direction_change(tip)"]]
+    assert ctrl.assembled.levels == [["distance(tip)", "direction_change(tip)"], ["damping()"]]
     task = vfdsl.load(_with_lines(tmp_path, TASKS_DIR / "lecture_remote_center.vf", "minimize centering()"))
     ctrl = vfdsl.compile(task, backend="interpreted")
     assert ctrl.assembled.levels == [["track(tip) linear"], ["track(tip) angular"], ["damping()", "centering()"]]
