@@ -223,43 +223,49 @@ def _level_chain(n: int, m: int, levels: int, e_rows: list[int], tol: float) -> 
     band = BAND_FACTOR * tol
     eps = LEVEL_REGULARIZATION
 
-    def level(j, x_prev, centers, width, tag):
-        """Level j's answer within bands of ``width`` (x_prev when no solve is acceptable), and whether a solve
-        was acceptable."""
-        Hj, gj = Hs[j - 1], gs[j - 1]
-        kept = ca.vertcat(*Es[:j - 1])
-        at = ca.vertcat(*centers)
-        rows = kept.size1()
-        A_j, lb_j, ub_j = ca.vertcat(A, kept), ca.vertcat(lba, at - width), ca.vertcat(uba, at + width)
+    def level(j, width, tag) -> ca.Function:
+        """level(x_prev, at, kept, A, lba, uba, lo, hi, Hj, gj) -> (x, ok): level j within bands of ``width``
+        around ``at`` on the rows ``kept`` (x_prev when no solve is acceptable; ok: a solve was). A Function of its
+        own, so that a switch can call it without recomputing the levels above."""
+        rows = sum(e_rows[:j - 1])
+        x_prev, at, kept = ca.MX.sym("x_prev", n), ca.MX.sym("at", rows), ca.MX.sym("kept", rows, n)
+        A_, lba_, uba_ = ca.MX.sym("A", m, n), ca.MX.sym("lba", m), ca.MX.sym("uba", m)
+        lo_, hi_, Hj, gj = ca.MX.sym("lo", n), ca.MX.sym("hi", n), ca.MX.sym("H", n, n), ca.MX.sym("g", n)
+        A_j, lb_j, ub_j = ca.vertcat(A_, kept), ca.vertcat(lba_, at - width), ca.vertcat(uba_, at + width)
 
         def acceptable(x_new):
             rows_tol = tol if j == levels else tol * LEVEL_ACCEPTANCE
-            return ca.logic_and(_acceptable(x_new, A_j @ x_new, lb_j, ub_j, lo, hi, rows_tol),
+            return ca.logic_and(_acceptable(x_new, A_j @ x_new, lb_j, ub_j, lo_, hi_, rows_tol),
                                 ca.mmax(_row_violation(kept @ x_new, at - width, at + width)) <= width)
 
-        x_a = _daqp(n, m + rows, tol, f"level{j}{tag}")(Hj, gj, A_j, lb_j, ub_j, lo, hi)
+        x_a = _daqp(n, m + rows, tol, f"level{j}{tag}_warm")(Hj, gj, A_j, lb_j, ub_j, lo_, hi_)
         ok = acceptable(x_a)
         x = ca.if_else(ok, x_a, x_prev)
         if j < levels:      # the proximal step from the level's first answer
-            x_b = _daqp(n, m + rows, tol, f"level{j}{tag}_prox")(Hj, gj - eps * x, A_j, lb_j, ub_j, lo, hi)
+            x_b = _daqp(n, m + rows, tol, f"level{j}{tag}_prox_warm")(Hj, gj - eps * x, A_j, lb_j, ub_j, lo_, hi_)
             ok_b = acceptable(x_b)
             x = ca.if_else(ok_b, x_b, x)
             ok = ca.logic_or(ok, ok_b)
-        return x, ok
+        return ca.Function(f"level{j}{tag}", [x_prev, at, kept, A_, lba_, uba_, lo_, hi_, Hj, gj], [x, ok])
 
     x = x1
     if levels > 1:          # level 1's proximal step (its first answer is phase 1's)
-        x_b = _daqp(n, m, tol, "level1_prox")(Hs[0], gs[0] - eps * x1, A, lba, uba, lo, hi)
+        x_b = _daqp(n, m, tol, "level1_prox_warm")(Hs[0], gs[0] - eps * x1, A, lba, uba, lo, hi)
         ok_b = (_acceptable(x_b, A @ x_b, lba, uba, lo, hi, tol * LEVEL_ACCEPTANCE) if m
                 else _in_box(x_b, lo, hi, tol * LEVEL_ACCEPTANCE))
         x = ca.if_else(ok_b, x_b, x1)
     centers = [Es[0] @ x] if levels > 1 else []
     for j in range(2, levels + 1):
-        x_narrow, ok = level(j, x, centers, band, "")
+        args = [x, ca.vertcat(*centers), ca.vertcat(*Es[:j - 1]), A, lba, uba, lo, hi, Hs[j - 1], gs[j - 1]]
+        x_narrow, ok = level(j, band, "")(*args)
         # DAQP (CasADi's) can call a feasible level infeasible, or miss its rows, where the band pins a
-        # degenerate vertex (every joint at its speed bound): solved again with bands ten times wider
-        # (short-circuit: only on such ticks)
-        x = ca.if_else(ok, x_narrow, level(j, x, centers, WIDE_BAND * band, "_wide")[0], True)
+        # degenerate vertex (every joint at its speed bound): solved again with bands WIDE_BAND times wider, only
+        # on such ticks (a switch between Functions: neither branch recomputes the levels above)
+        wide = level(j, WIDE_BAND * band, "_wide")
+        symbols = [ca.MX.sym(f"a{k}", v.sparsity()) for k, v in enumerate([x_narrow, *args])]
+        keep = ca.Function(f"level{j}_keep", symbols, [symbols[0]])
+        retry = ca.Function(f"level{j}_retry", symbols, [wide(*symbols[1:])[0]])
+        x = ca.Function.if_else(f"level{j}_if_failed", keep, retry)(ok, x_narrow, *args)
         if j < levels:
             centers.append(Es[j - 1] @ x)       # level j's optimal values, held by every level below
     return ca.Function("priority_levels", [x1, A, lba, uba, lo, hi, *Hs, *gs, *Es], [x])
