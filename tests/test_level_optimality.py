@@ -157,3 +157,22 @@ def test_problem_gives_each_level(tmp_path):
     other = vfdsl.compile(vfdsl.load(TASKS_DIR / "lecture_steady_direction.vf"), backend="interpreted")
     levels = other.problem(other.task.start, {k: np.zeros(s) for k, s in other.input_sizes.items()}).levels
     assert [level.terms for level in levels] == [["distance(tip)", "direction_change(tip)"], ["damping()"]]
+
+
+def test_tracking_readout_says_what_holds_the_tip(tmp_path):
+    """`ctrl.tracking()`: with the port 2 mm above the tip on shr7 the push is held (63 %) and the readout names
+    the port's facet; 60 mm away it follows and nothing is named."""
+    for distance, held in ((2e-3, True), (60e-3, False)):
+        folder = tmp_path / f"port_{distance * 1e3:.0f}mm"
+        folder.mkdir()
+        task, _, _, _, up = _port_task(folder, "shr7", distance)
+        ctrl = vfdsl.compile(task, backend="interpreted")
+        inputs = {"hand": 2.0 * _side(up)}
+        q = _push(ctrl, task, inputs, 60)
+        linear = next(t for t in ctrl.tracking(q, inputs) if t.term == "track(tip) linear")
+        np.testing.assert_allclose(linear.commanded, 2e-3 * _side(up))
+        if held:
+            assert 0.5 < linear.fraction < 0.9 and any("passes_through(tip)" in label for label in linear.limits)
+            assert "held by passes_through(tip)" in str(linear)
+        else:
+            assert linear.fraction >= 0.99 and linear.limits == []

@@ -21,6 +21,7 @@ from vfdsl.ir import model as ir
 from vfdsl.primitives import CONSTRAINTS
 from vfdsl.runtime.levels import PriorityLevel, priority_levels
 from vfdsl.runtime.qp import BAND_FACTOR, StepStatus
+from vfdsl.runtime.tracking import Tracking, readout, tracked_terms
 from vfdsl.runtime.values import MAX_PERIOD, RuntimeValues
 
 _UNITS = {"length": "m", "angle": "rad"}
@@ -136,6 +137,22 @@ class Controller:
                                 ub=np.concatenate([ubx.ravel(), uba.ravel()]),
                                 labels=list(self._labels), nq=self.nq,
                                 levels=priority_levels(outputs, self.assembled.levels, BAND_FACTOR * self._tolerance))
+
+    def tracking(self, q, inputs=None, params=None, dt=None) -> list[Tracking]:
+        """Runs the tick (as :meth:`step`) and says, for every part of every `track` term, the commanded and the
+        achieved rate and, when less than 99 % of the command is achieved, what holds it back (rows at their
+        bounds, joints at their speed or position limits, by label)."""
+        self.step(q, inputs, params, dt)
+        v = self._values
+        p = v.params(params)
+        args = (v.q(q), v.inputs(inputs), self.assembled.context.layout.defaults if p is None else p, v.dt(dt))
+        names, rows = self._tracked
+        return readout(names, rows(*args), np.array(self._runner.x), self.nq, float(args[3]),
+                       self.problem(q, inputs, params, dt))
+
+    @cached_property
+    def _tracked(self):
+        return tracked_terms(self.task, self.assembled)
 
     def frames(self, q) -> dict[str, FramePose]:
         """Every task frame's pose at q, from the controller's own kinematics (what the fixture sees)."""
