@@ -15,11 +15,13 @@ an entry is pinned to whichever of lbx_j, ubx_j is smaller in magnitude -- the p
 interval containing 0 (the speed bound) nearest the other one, i.e. a return toward the limits at
 full allowed speed. Status bit ``BOUNDS_CLIPPED`` reports it. The clipped box B is never empty.
 
-**Priority levels.** The objective may come in levels (``qp_data`` then also gives Hj, gj per level and
-Ej, the stacked rows of level j's terms): phase 1 solves level 1's cost; each lower level j then minimizes its
-own cost over the same rows and box while the rows E_i x of every level above stay within ``BAND_FACTOR *
-feas_tol`` of their values (:func:`_level_chain`), so a lower level (joint centering, damping) acts only in the
-motions that leave the levels above optimal. H, g (the sum of all levels) serve phase 2.
+**Priority levels.** The objective may come in levels (``qp_data`` then also gives Hj, gj, Ej per level): each
+level minimizes its own cost over the same rows and box while the rows E_i x of every level above stay within
+``BAND_FACTOR * feas_tol`` of their values at that level's answer (:func:`_level_chain`). Each level's cost is
+scaled, gets the levels above's curvature (free on the band) and epsilon I, and every level but the last is solved
+once more with a proximal term instead of epsilon I, so that no regularization cuts a tracked motion; a level
+DAQP cannot solve within its bands is solved again with wider ones before it is given up. H, g (the sum of all
+levels) serve phase 2.
 
 **Phase 1** solves (P) over B. DAQP is a dual active-set method: its iterates are dual feasible
 and it stops when the primal iterate is feasible, so "x is finite and within ``feas_tol`` of every
