@@ -243,10 +243,10 @@ def test_bad_objective_clauses_are_clear_errors(tmp_path, text, message):
 def test_levels_of_the_examples(tmp_path):
     """What each example solves first: the levels the assembly builds (track's parts ranked, redundancy last)."""
     ctrl = vfdsl.compile(vfdsl.load(TASKS_DIR / "paper_b_virtual_rcm.vf"), backend="interpreted")
-    # a torque drives the angular part; a last level of damping only is the levels' own Tikhonov term
-    assert ctrl.assembled.levels == [["track(tip) angular"], ["track(tip) linear"]]
+    # a torque drives the angular part; a last level of damping alone is solved as a level of its own
+    assert ctrl.assembled.levels == [["track(tip) angular"], ["track(tip) linear"], ["damping()"]]
     ctrl = vfdsl.compile(vfdsl.load(TASKS_DIR / "lecture_steady_direction.vf"), backend="interpreted")
-    assert ctrl.assembled.levels == [["distance(tip)", "direction_change(tip)"]]
+    assert ctrl.assembled.levels == [["distance(tip)", "direction_change(tip)"], ["damping()"]]
     task = vfdsl.load(_with_lines(tmp_path, TASKS_DIR / "lecture_remote_center.vf", "minimize centering()"))
     ctrl = vfdsl.compile(task, backend="interpreted")
     assert ctrl.assembled.levels == [["track(tip) linear"], ["track(tip) angular"], ["damping()", "centering()"]]

@@ -10,12 +10,13 @@ is the QP in CasADi conic's standard form over x = [dq; s] (s: one slack per sof
   dt^2 (which changes no minimizer) it is w || E dq - f dt ||^2, per tick. A soft constraint's slack s (row units
   per tick) costs w s^2 = w dt^2 (s/dt)^2, a rate too. H = 2 sum_k w_k E_k' E_k + rho I (a tiny floor that keeps
   H positive definite when the terms leave some motion free), g = -2 sum_k w_k E_k' f_k dt;
-- priority levels: terms are grouped by (priority, after) in increasing order; level j's own cost is Hj, gj, and
-  Ej stacks its terms' rows (for every level but the last), so that the solver can keep level j optimal while it
-  solves the levels below (:mod:`vfdsl.runtime.qp`). H, g are the sum over all levels (the least-violation
-  phase uses them). With a single level, only H and g are given. A last level made only of `damping` terms is
-  not solved on its own: it asks for the smallest motion among the optimal ones, which the solver's Tikhonov
-  term on every level (``LEVEL_REGULARIZATION I``, the same damping) already picks; one QP solve fewer;
+- priority levels: terms are grouped by (priority, after) in increasing order; level j's own cost is Hj, gj
+  (its terms only, plus the Hessian floor), and Ej stacks its terms' rows, so that the solver can keep level j
+  optimal while it solves the levels below (:mod:`vfdsl.runtime.qp`), and a reader can say how far each term
+  got. H, g are the sum over all levels (the least-violation phase uses them). With a single level, only H and
+  g are given. Every level is given, a last level of `damping` alone too: it picks the smallest motion among
+  the optimal ones of the levels above, which no other level may do in their place (a damping folded into a
+  tracked level would trade tracking for it);
 - hard rows that bound one joint each (joint limits, joint speeds) become the variable bounds lbx, ubx
   (their intersection); every other hard row is a row of A;
 - a soft constraint's rows get its slack: A dq + s >= c lb (and A dq - s <= c ub for two-sided rows), s >= 0.
@@ -98,34 +99,36 @@ def _label(c: ir.Constraint, facet: str) -> RowLabel:
 
 @dataclass
 class _Level:
+    """One priority level's cost sum_k w_k || E_k x - f_k dt ||^2 as H, g (without the Hessian floor)."""
+
     H: ca.SX
     g: ca.SX
     E: list
-    names: list[str]
+    names: list[str]                 # what it solves, for labels ("track(tip) linear")
+    terms: set[str]                  # the objective terms it holds ("track", "damping", ...; "soft")
 
 
 def _objective_levels(task: ir.Task, ctx: Context, soft: list[ir.Constraint], n: int) -> list[_Level]:
     """Each priority level's cost over x = [dq; s] (n entries), levels in the order they are solved."""
     levels: dict[tuple[int, int], _Level] = {}
 
-    def add(key, weight, E, f, name):
-        level = levels.setdefault(key, _Level(HESSIAN_FLOOR * ca.SX.eye(n), ca.SX.zeros(n), [], []))
+    def add(key, weight, E, f, name, term):
+        level = levels.setdefault(key, _Level(ca.SX.zeros(n, n), ca.SX.zeros(n), [], [], set()))
         level.H += 2 * weight * (E.T @ E)
         level.g -= 2 * weight * (E.T @ f)
         level.E.append(E)
         level.names.append(name)
+        level.terms.add(term)
 
     for objective in task.objectives:
         for term in _module("objectives", objective.term).lower(objective, ctx):
             E = ca.horzcat(term.E, ca.SX.zeros(term.E.shape[0], n - ctx.nq))
             name = f"{objective.term}{_frame_of(objective)}{' ' + term.part if term.part else ''}"
-            add((objective.priority, term.after), objective.weight, E, term.f * ctx.dt, name)
+            add((objective.priority, term.after), objective.weight, E, term.f * ctx.dt, name, objective.term)
     for index, c in enumerate(soft):
         E = ca.SX(1, n)
         E[ctx.nq + index] = 1
-        add((c.priority, 0), c.weight, E, ca.SX.zeros(1), f"soft {c.primitive}({c.frame or ''}) slack")
-    if not levels:
-        levels[(1, 0)] = _Level(HESSIAN_FLOOR * ca.SX.eye(n), ca.SX.zeros(n), [], [])
+        add((c.priority, 0), c.weight, E, ca.SX.zeros(1), f"soft {c.primitive}({c.frame or ''}) slack", "soft")
     return [levels[key] for key in sorted(levels)]
 
 
@@ -188,17 +191,15 @@ def assemble(task: ir.Task, robot: Robot) -> AssembledProblem:
     lba = ca.vertcat(*rows_lb) if rows_lb else ca.SX(0, 1)
     uba = ca.vertcat(*rows_ub) if rows_ub else ca.SX(0, 1)
     levels = _objective_levels(task, ctx, [c for _, _, c, _ in soft_rows], nq + n_slack)
-    H = HESSIAN_FLOOR * ca.SX.eye(nq + n_slack) + sum(level.H - HESSIAN_FLOOR * ca.SX.eye(nq + n_slack)
-                                                      for level in levels)
-    g = sum(level.g for level in levels)
-    if len(levels) > 1 and all(name == "damping()" for name in levels[-1].names):
-        levels = levels[:-1]        # solved by every level's Tikhonov term already (qp.LEVEL_REGULARIZATION)
+    floor = HESSIAN_FLOOR * ca.SX.eye(nq + n_slack)
+    H = floor + sum((level.H for level in levels), ca.SX.zeros(nq + n_slack, nq + n_slack))
+    g = sum((level.g for level in levels), ca.SX.zeros(nq + n_slack))
     outputs = [H, g, A, lba, uba, ca.vertcat(*lbx), ca.vertcat(*ubx)]
     names = ["H", "g", "A", "lba", "uba", "lbx", "ubx"]
     if len(levels) > 1:
         for j, level in enumerate(levels, start=1):
-            outputs += [level.H, level.g] + ([ca.vertcat(*level.E)] if j < len(levels) else [])
-            names += [f"H{j}", f"g{j}"] + ([f"E{j}"] if j < len(levels) else [])
+            outputs += [floor + level.H, level.g, ca.vertcat(*level.E)]
+            names += [f"H{j}", f"g{j}", f"E{j}"]
     function = ca.Function("qp_data", [ctx.q, ctx.u, ctx.p, ctx.dt], [ca.densify(x) for x in outputs],
                            ["q", "u", "p", "dt"], names)
     return AssembledProblem(function, ctx, labels, groups, bound_labels, slack_labels,

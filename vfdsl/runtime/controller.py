@@ -10,7 +10,7 @@ anything is evaluated: an unknown name, a wrong length, NaN or inf raises :class
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from functools import cached_property
 
 import casadi as ca
@@ -19,7 +19,9 @@ import numpy as np
 from vfdsl.compiler.assemble import AssembledProblem, RowLabel
 from vfdsl.ir import model as ir
 from vfdsl.primitives import CONSTRAINTS
-from vfdsl.runtime.qp import StepStatus
+from vfdsl.runtime.levels import PriorityLevel, priority_levels
+from vfdsl.runtime.qp import BAND_FACTOR, StepStatus
+from vfdsl.runtime.tracking import Tracking, readout, tracked_terms
 from vfdsl.runtime.values import RuntimeValues
 
 _UNITS = {"length": "m", "angle": "rad"}
@@ -52,7 +54,9 @@ class QuadraticProgram:
     """One tick's QP:  minimize 1/2 x'Px + g'x  subject to  lb <= A x <= ub,  x = [dq; slacks].
 
     The first n rows of A are the identity (the variable bounds: joint limits, joint speeds, slack >= 0);
-    the rest are the constraint rows. ``labels[i]`` says where row i comes from."""
+    the rest are the constraint rows. ``labels[i]`` says where row i comes from. P, g are the sum of the
+    priority levels' costs (the least-violation phase's objective); ``levels`` gives each level's cost and the
+    band that holds it while the levels below are solved: what ``step()`` solves, level by level."""
 
     P: np.ndarray
     g: np.ndarray
@@ -61,6 +65,7 @@ class QuadraticProgram:
     ub: np.ndarray
     labels: list[str]
     nq: int
+    levels: list[PriorityLevel] = field(default_factory=list)
 
 
 class Controller:
@@ -112,12 +117,30 @@ class Controller:
         v = self._values
         p = v.params(params, self._runner.margins)
         args = (v.q(q), v.inputs(inputs), self.assembled.context.layout.defaults if p is None else p, v.dt(dt))
-        H, g, A, lba, uba, lbx, ubx = (np.array(x) for x in self.assembled.function(*args)[:7])
+        outputs = [np.array(x) for x in self.assembled.function(*args)]
+        H, g, A, lba, uba, lbx, ubx = outputs[:7]
         n = H.shape[0]
         return QuadraticProgram(P=H, g=g.ravel(), A=np.vstack([np.eye(n), A]),
                                 lb=np.concatenate([lbx.ravel(), lba.ravel()]),
                                 ub=np.concatenate([ubx.ravel(), uba.ravel()]),
-                                labels=list(self._labels), nq=self.nq)
+                                labels=list(self._labels), nq=self.nq,
+                                levels=priority_levels(outputs, self.assembled.levels, BAND_FACTOR * self._tolerance))
+
+    def tracking(self, q, inputs=None, params=None, dt=None) -> list[Tracking]:
+        """Runs the tick (as :meth:`step`) and says, for every part of every `track` term, the commanded and the
+        achieved rate and, when less than 99 % of the command is achieved, what holds it back (rows at their
+        bounds, joints at their speed or position limits, by label)."""
+        self.step(q, inputs, params, dt)
+        v = self._values
+        p = v.params(params, self._runner.margins)
+        args = (v.q(q), v.inputs(inputs), self.assembled.context.layout.defaults if p is None else p, v.dt(dt))
+        names, rows = self._tracked
+        return readout(names, rows(*args), np.array(self._runner.x), self.nq, float(args[3]),
+                       self.problem(q, inputs, params, dt))
+
+    @cached_property
+    def _tracked(self):
+        return tracked_terms(self.task, self.assembled)
 
     def frames(self, q) -> dict[str, FramePose]:
         """Every task frame's pose at q, from the controller's own kinematics (what the fixture sees)."""

@@ -15,11 +15,13 @@ an entry is pinned to whichever of lbx_j, ubx_j is smaller in magnitude -- the p
 interval containing 0 (the speed bound) nearest the other one, i.e. a return toward the limits at
 full allowed speed. Status bit ``BOUNDS_CLIPPED`` reports it. The clipped box B is never empty.
 
-**Priority levels.** The objective may come in levels (``qp_data`` then also gives Hj, gj per level and
-Ej, the stacked rows of level j's terms): phase 1 solves level 1's cost; each lower level j then minimizes its
-own cost over the same rows and box while the rows E_i x of every level above stay within ``BAND_FACTOR *
-feas_tol`` of their values (:func:`_level_chain`), so a lower level (joint centering, damping) acts only in the
-motions that leave the levels above optimal. H, g (the sum of all levels) serve phase 2.
+**Priority levels.** The objective may come in levels (``qp_data`` then also gives Hj, gj, Ej per level): each
+level minimizes its own cost over the same rows and box while the rows E_i x of every level above stay within
+``BAND_FACTOR * feas_tol`` of their values at that level's answer (:func:`_level_chain`). Each level's cost is
+scaled, gets the levels above's curvature (free on the band) and epsilon I, and every level but the last is solved
+once more with a proximal term instead of epsilon I, so that no regularization cuts a tracked motion; a level
+DAQP cannot solve within its bands is solved again with wider ones before it is given up. H, g (the sum of all
+levels) serve phase 2.
 
 **Phase 1** solves (P) over B. DAQP is a dual active-set method: its iterates are dual feasible
 and it stops when the primal iterate is feasible, so "x is finite and within ``feas_tol`` of every
@@ -77,13 +79,29 @@ QP_DATA_OUTPUTS = ("H", "g", "A", "lba", "uba", "lbx", "ubx")
 STEP_OUTPUTS = ("x", "status", "violation")
 GRADIENT_SATURATION = 1e3
 """K of :func:`_saturated_gradient`: a user push beyond K box widths is saturated."""
-BAND_FACTOR = 1e-2
+BAND_FACTOR = 1.0
 """A lower priority level keeps each higher level's rows E_i x within BAND_FACTOR * feas_tol of their optimal
-values: ten times DAQP's primal tolerance (1e-3 feas_tol; at twice, DAQP in the generated C failed levels that the
-interpreted path solved), so the band is never thinner than the solver's accuracy; 1e-11 m or rad per tick at
-vfdsl.compile's feas_tol of 1e-9."""
-LEVEL_REGULARIZATION = 1e-4
-"""Tikhonov term of each priority level's normalized Hessian (see :func:`_normalized`)."""
+values: 1e-9 m or rad per tick at vfdsl.compile's feas_tol (0.1 um/s at 10 ms). Thinner bands (1e-11) made DAQP
+declare feasible lower levels infeasible: the two sides of a band are nearly parallel rows 2e-11 apart."""
+LEVEL_REGULARIZATION = 1e-6
+"""epsilon: each priority level's QP is solved with its Hessian scaled to a unit largest diagonal plus epsilon I,
+then once more with epsilon (x - x_a)'(x - x_a) / 2 instead (one proximal-point step from the first answer x_a):
+the bias epsilon puts on the level's own optimum is multiplied by epsilon / (lambda + epsilon) twice, lambda the
+level's curvature along the motion (see :func:`_level_chain`). Below 1e-6 DAQP's answers miss rows by more than
+feas_tol (CasADi's DAQP: 9e-8 at 1e-8 on tilt_limited_orbit)."""
+LEVEL_ACCEPTANCE = 100.0
+"""The answers of the levels above the last, phase 1's included, are accepted within LEVEL_ACCEPTANCE * feas_tol of
+the rows (1e-7 m or rad): at epsilon = 1e-6 DAQP meets rows only to ~1e-10..1e-9 (its x is recovered through the
+factor of a Hessian of condition 1e6), and a borderline check made the two paths decide differently. The last
+level, whose Hessian is the damping's, answers to ~1e-12 and is held to feas_tol; an upper level's answer only
+gives the band centres (its E_i x), which are well determined.""" 
+WIDE_BAND = 10.0
+"""When no solve of a level is acceptable within the band, the level is solved again with the bands of the levels
+above WIDE_BAND times wider (1e-8 m or rad per tick, 1 um/s at 10 ms) before it is given up."""
+UPPER_CURVATURE = 1.0
+"""A lower level's Hessian also gets the (scaled) Hessians of the levels above it: their costs depend on x only
+through E_i x, which the band holds, so no minimizer changes; the directions the levels above fix are no longer
+flat in the lower level's QP (without it DAQP declared 5 % of lecture_remote_center's level 2 infeasible)."""
 PER_ROW_GROUPS_LIMIT = 100
 """Above this many rows one group per row makes phase 2 slow (~30 ms at m = 200; seconds, DAQP
 iteration-limit failures and megabytes of generated C at m = 1000): a warning asks for groups."""
@@ -120,20 +138,23 @@ def build_step_function(qp_data: ca.Function, prefix: str, *,
     H, g, A, lba, uba, lbx, ubx = data[:7]
     lo, hi, clipped = _safe_box(lbx, ubx)
     g = _saturated_gradient(H, g, lo, hi)
-    if levels > 1:      # (Hj, gj, Ej) per level, the last without Ej
+    if levels > 1:      # (Hj, gj, Ej) per level
         scaled = [_normalized(Hj, gj) for Hj, gj in zip(data[7::3], data[8::3])]
-        Hs, Es = [Hj for Hj, _ in scaled], data[9::3]
-        gs = [_saturated_gradient(Hj, gj, lo, hi) for Hj, gj in scaled]
+        Hs = [Hj + UPPER_CURVATURE * sum((Hi for Hi, _ in scaled[:j]), ca.MX.zeros(n, n))
+              for j, (Hj, _) in enumerate(scaled)]
+        Hs = [Hj + LEVEL_REGULARIZATION * ca.MX.eye(n) for Hj in Hs]
+        gs = [_saturated_gradient(Hj, gj, lo, hi) for Hj, (_, gj) in zip(Hs, scaled)]
+        Es = data[9::3][:-1]
     else:
         Hs, gs, Es = [H], [g], []
 
     x1 = _daqp(n, m, feas_tol, "phase1_warm")(Hs[0], gs[0], A, lba, uba, lo, hi)
-    lower = [*Hs[1:], *gs[1:], *Es]
+    lower = [*Hs, *gs, *Es]
     chain = _level_chain(n, m, len(Hs), [E.size1() for E in Es], feas_tol)
     if m == 0:
         x, status = chain(x1, A, lba, uba, lo, hi, *lower), ca.MX(int(StepStatus.OPTIMAL))
     else:
-        ok1 = _acceptable(x1, A @ x1, lba, uba, lo, hi, feas_tol)
+        ok1 = _acceptable(x1, A @ x1, lba, uba, lo, hi, feas_tol * (LEVEL_ACCEPTANCE if levels > 1 else 1))
         switch = _phase2_switch([H, g, A, lba, uba, lo, hi, x1, *lower], chain, _incidence(m, row_groups),
                                 feas_tol, penalty, tie_break)
         picked = switch(ca.logic_and(ok1, recover == 0), H, g, A, lba, uba, lo, hi, x1, *lower)
@@ -151,18 +172,18 @@ def build_step_function(qp_data: ca.Function, prefix: str, *,
 
 
 def _check_qp_data(qp_data: ca.Function) -> int:
-    """The number of priority levels: 1 for the 7 outputs of QP_DATA_OUTPUTS, k >= 2 for 7 + 3k - 1 outputs
-    (Hj, gj, Ej per level, the last level without Ej)."""
+    """The number of priority levels: 1 for the 7 outputs of QP_DATA_OUTPUTS, k >= 2 for 7 + 3k outputs
+    (Hj, gj, Ej per level)."""
     n_out = qp_data.n_out()
-    levels = 1 if n_out == 7 else (n_out - 6) // 3
-    if qp_data.n_in() != 4 or n_out < 7 or (n_out != 7 and (levels < 2 or 6 + 3 * levels != n_out)):
+    levels = 1 if n_out == 7 else (n_out - 7) // 3
+    if qp_data.n_in() != 4 or n_out < 7 or (n_out != 7 and (levels < 2 or 7 + 3 * levels != n_out)):
         raise ValueError(f"qp_data must map (q, u, p, dt) to {QP_DATA_OUTPUTS} (+ Hj, gj, Ej per priority level), "
                          f"got {qp_data.n_in()} inputs and {n_out} outputs")
     n, m = qp_data.size1_out(0), qp_data.size1_out(2)
     expected = [(n, n), (n, 1), (m, n), (m, 1), (m, 1), (n, 1), (n, 1)]
     if levels > 1:
         for j in range(levels):
-            expected += [(n, n), (n, 1)] + ([(qp_data.size1_out(9 + 3 * j), n)] if j < levels - 1 else [])
+            expected += [(n, n), (n, 1), (qp_data.size1_out(9 + 3 * j), n)]
     got = [(qp_data.size1_out(i), qp_data.size2_out(i)) for i in range(n_out)]
     if got != expected:
         raise ValueError(f"qp_data output shapes {got} do not match {expected} for n={n}, m={m}")
@@ -170,43 +191,85 @@ def _check_qp_data(qp_data: ca.Function) -> int:
 
 
 def _normalized(H: ca.MX, g: ca.MX) -> tuple[ca.MX, ca.MX]:
-    """One level's cost scaled to a unit largest Hessian diagonal, plus LEVEL_REGULARIZATION I.
-
-    The scaling changes no minimizer; it keeps DAQP's data O(1) whatever the weights (with centering at weight
-    1e6 DAQP answered a level's rows only to ~1e-6, which let a redundancy level move a tracked tip 0.2 mm in
-    2 s). The Tikhonov term: one level's cost often leaves most joint motions free (a tracked point: rank 3 of
-    7), and the Hessian floor alone left condition numbers near 1e9, at which DAQP in the generated C missed
-    rows (13 of 200 random saturated states of lecture_remote_center at 1e-6, 1 at 1e-4). The bias it adds to
-    the level's optimum is about LEVEL_REGULARIZATION of its motion; the free motions are the next level's to
-    choose anyway."""
+    """One level's cost scaled to a unit largest Hessian diagonal: no minimizer changes, and DAQP's data stay
+    O(1) whatever the weights (with centering at weight 1e6 DAQP answered a level's rows only to ~1e-6, which let
+    a redundancy level move a tracked tip 0.2 mm in 2 s)."""
     scale = ca.mmax(ca.diag(H))
-    return H / scale + LEVEL_REGULARIZATION * ca.MX.eye(H.size1()), g / scale
+    return H / scale, g / scale
 
 
 def _level_chain(n: int, m: int, levels: int, e_rows: list[int], tol: float) -> ca.Function:
-    """chain(x1, A, lba, uba, lo, hi, H2..Hk, g2..gk, E1..E(k-1)) -> x: the priority levels below the first.
+    """chain(x1, A, lba, uba, lo, hi, H1..Hk, g1..gk, E1..E(k-1)) -> x: the priority levels, from level 1's first
+    answer x1 (phase 1, known acceptable) on.
 
-    Level j minimizes its own cost over the rows and the box, and keeps every level above it optimal: the rows
-    E_i x of the levels i < j stay within BAND of their values at x_(j-1), the answer of the level above
-    (E_i is the stack of level i's terms, so its optimal value set is {x : E_i x = E_i x_i}). A level whose
-    solve is not acceptable, or leaves that band by more than another band width, leaves x_(j-1) unchanged: a
-    lower level can never undo a higher one."""
+    Each level j minimizes its own cost (Hj, gj: scaled, with the levels above's curvature and epsilon I, see
+    UPPER_CURVATURE and LEVEL_REGULARIZATION) over the rows and the box, and keeps every level above it optimal:
+    the rows E_i x of the levels i < j stay within BAND of their values at x_i, level i's own answer (E_i is the
+    stack of level i's terms, so its optimal set is {x : E_i x = E_i x_i}; centred on x_i, not on the level just
+    above, the levels below cannot walk a band width further each). Every level but the last
+    is then solved once more with the proximal term epsilon |x - x_a|^2 / 2 instead of epsilon |x|^2 / 2, x_a its
+    first answer: the first solve's bias on the level's optimum, epsilon / (lambda + epsilon) of the motion along
+    a direction where the level's curvature is lambda (a tool tip turned about a port 4 mm away: lambda ~ 2e-5),
+    is multiplied by that factor again. The last level (the redundancy terms, usually damping) keeps its
+    epsilon: it only chooses among motions the levels above leave free.
+
+    A level none of whose solves is acceptable (rows, bounds, or its bands by more than another band width) is
+    solved again with WIDE_BAND times wider bands, and if that fails too it keeps the answer before it: a lower
+    level can never undo a higher one."""
     x1 = ca.MX.sym("x1", n)
     A = ca.MX.sym("A", m, n)
     lba, uba, lo, hi = (ca.MX.sym(name, size) for name, size in (("lba", m), ("uba", m), ("lo", n), ("hi", n)))
-    Hs = [ca.MX.sym(f"H{j}", n, n) for j in range(2, levels + 1)]
-    gs = [ca.MX.sym(f"g{j}", n) for j in range(2, levels + 1)]
+    Hs = [ca.MX.sym(f"H{j}", n, n) for j in range(1, levels + 1)]
+    gs = [ca.MX.sym(f"g{j}", n) for j in range(1, levels + 1)]
     Es = [ca.MX.sym(f"E{j}", rows, n) for j, rows in enumerate(e_rows, start=1)]
     band = BAND_FACTOR * tol
+    eps = LEVEL_REGULARIZATION
+
+    def level(j, width, tag) -> ca.Function:
+        """level(x_prev, at, kept, A, lba, uba, lo, hi, Hj, gj) -> (x, ok): level j within bands of ``width``
+        around ``at`` on the rows ``kept`` (x_prev when no solve is acceptable; ok: a solve was). A Function of its
+        own, so that a switch can call it without recomputing the levels above."""
+        rows = sum(e_rows[:j - 1])
+        x_prev, at, kept = ca.MX.sym("x_prev", n), ca.MX.sym("at", rows), ca.MX.sym("kept", rows, n)
+        A_, lba_, uba_ = ca.MX.sym("A", m, n), ca.MX.sym("lba", m), ca.MX.sym("uba", m)
+        lo_, hi_, Hj, gj = ca.MX.sym("lo", n), ca.MX.sym("hi", n), ca.MX.sym("H", n, n), ca.MX.sym("g", n)
+        A_j, lb_j, ub_j = ca.vertcat(A_, kept), ca.vertcat(lba_, at - width), ca.vertcat(uba_, at + width)
+
+        def acceptable(x_new):
+            rows_tol = tol if j == levels else tol * LEVEL_ACCEPTANCE
+            return ca.logic_and(_acceptable(x_new, A_j @ x_new, lb_j, ub_j, lo_, hi_, rows_tol),
+                                ca.mmax(_row_violation(kept @ x_new, at - width, at + width)) <= width)
+
+        x_a = _daqp(n, m + rows, tol, f"level{j}{tag}_warm")(Hj, gj, A_j, lb_j, ub_j, lo_, hi_)
+        ok = acceptable(x_a)
+        x = ca.if_else(ok, x_a, x_prev)
+        if j < levels:      # the proximal step from the level's first answer
+            x_b = _daqp(n, m + rows, tol, f"level{j}{tag}_prox_warm")(Hj, gj - eps * x, A_j, lb_j, ub_j, lo_, hi_)
+            ok_b = acceptable(x_b)
+            x = ca.if_else(ok_b, x_b, x)
+            ok = ca.logic_or(ok, ok_b)
+        return ca.Function(f"level{j}{tag}", [x_prev, at, kept, A_, lba_, uba_, lo_, hi_, Hj, gj], [x, ok])
+
     x = x1
-    for j, (Hj, gj) in enumerate(zip(Hs, gs), start=2):
-        kept = ca.vertcat(*Es[:j - 1])
-        at = kept @ x
-        rows = kept.size1()
-        A_j, lb_j, ub_j = ca.vertcat(A, kept), ca.vertcat(lba, at - band), ca.vertcat(uba, at + band)
-        x_j = _daqp(n, m + rows, tol, f"level{j}")(Hj, gj, A_j, lb_j, ub_j, lo, hi)
-        kept_ok = ca.mmax(_row_violation(kept @ x_j, at - band, at + band)) <= band
-        x = ca.if_else(ca.logic_and(_acceptable(x_j, A_j @ x_j, lb_j, ub_j, lo, hi, tol), kept_ok), x_j, x)
+    if levels > 1:          # level 1's proximal step (its first answer is phase 1's)
+        x_b = _daqp(n, m, tol, "level1_prox_warm")(Hs[0], gs[0] - eps * x1, A, lba, uba, lo, hi)
+        ok_b = (_acceptable(x_b, A @ x_b, lba, uba, lo, hi, tol * LEVEL_ACCEPTANCE) if m
+                else _in_box(x_b, lo, hi, tol * LEVEL_ACCEPTANCE))
+        x = ca.if_else(ok_b, x_b, x1)
+    centers = [Es[0] @ x] if levels > 1 else []
+    for j in range(2, levels + 1):
+        args = [x, ca.vertcat(*centers), ca.vertcat(*Es[:j - 1]), A, lba, uba, lo, hi, Hs[j - 1], gs[j - 1]]
+        x_narrow, ok = level(j, band, "")(*args)
+        # DAQP (CasADi's) can call a feasible level infeasible, or miss its rows, where the band pins a
+        # degenerate vertex (every joint at its speed bound): solved again with bands WIDE_BAND times wider, only
+        # on such ticks (a switch between Functions: neither branch recomputes the levels above)
+        wide = level(j, WIDE_BAND * band, "_wide")
+        symbols = [ca.MX.sym(f"a{k}", v.sparsity()) for k, v in enumerate([x_narrow, *args])]
+        keep = ca.Function(f"level{j}_keep", symbols, [symbols[0]])
+        retry = ca.Function(f"level{j}_retry", symbols, [wide(*symbols[1:])[0]])
+        x = ca.Function.if_else(f"level{j}_if_failed", keep, retry)(ok, x_narrow, *args)
+        if j < levels:
+            centers.append(Es[j - 1] @ x)       # level j's optimal values, held by every level below
     return ca.Function("priority_levels", [x1, A, lba, uba, lo, hi, *Hs, *gs, *Es], [x])
 
 

@@ -1,0 +1,97 @@
+"""An independent solution of a tick's priority levels, for tests: each level in turn with DAQP's Python
+package (a newer DAQP than the one CasADi bundles, called directly, no scaling, no regularization of ours),
+over x = x0 + N z where N spans the null space of the levels above (numpy's SVD): their terms' rows E_i x are
+held *exactly* at their optimal values, not within a band.
+
+    levels = level_data(ctrl, q, inputs)           # [(Hj, gj, Ej)], rows and bounds, from qp_data
+    x, ok = lexicographic(*levels)
+    worse(levels[0], x_step, x)                    # > 0: the step is not optimal at some level
+"""
+
+from __future__ import annotations
+
+import daqp
+import numpy as np
+
+BIG = 1e30
+
+
+def level_data(ctrl, q, inputs, params=None, dt=None):
+    """([(Hj, gj, Ej) per level], A, lba, uba, lbx, ubx) of one tick, from the controller's qp_data."""
+    v = ctrl._values
+    p = v.params(params)
+    args = (v.q(q), v.inputs(inputs), ctrl.assembled.context.layout.defaults if p is None else p, v.dt(dt))
+    out = [np.array(x) for x in ctrl.assembled.function(*args)]
+    H, g, A, lba, uba, lbx, ubx = out[:7]
+    levels = [(out[i], out[i + 1].ravel(), out[i + 2]) for i in range(7, len(out), 3)]
+    if not levels:
+        levels = [(H, g.ravel(), np.zeros((0, H.shape[0])))]
+    return levels, A, lba.ravel(), uba.ravel(), lbx.ravel(), ubx.ravel()
+
+
+def box(lbx, ubx):
+    """The step's box B: crossed bounds pinned to the one of smaller magnitude (docs/runtime.md, Bounds)."""
+    lo, hi = lbx.copy(), ubx.copy()
+    crossed = lo > hi
+    pin = np.where(np.abs(lo) <= np.abs(hi), lo, hi)
+    lo[crossed], hi[crossed] = pin[crossed], pin[crossed]
+    return lo, hi
+
+
+def _solve(H, g, A, lb, ub):
+    n = H.shape[0]
+    x, _, flag, _ = daqp.solve(np.ascontiguousarray(H), np.ascontiguousarray(g, dtype=float),
+                               np.ascontiguousarray(A.reshape(-1, n)), np.minimum(ub, BIG).astype(float),
+                               np.maximum(lb, -BIG).astype(float), np.zeros(len(ub), dtype=np.intc),
+                               primal_tol=1e-12, iter_limit=100000)
+    return np.array(x), flag >= 1
+
+
+def lexicographic(levels, A, lba, uba, lbx, ubx, slack=1e-12):
+    """The levels' lexicographic optimum, and whether every level's solve succeeded. Below level 1 a row that
+    the level above leaves violated by v (its solver's accuracy) may stay violated by v + ``slack``."""
+    lo, hi = box(lbx, ubx)
+    n = len(lo)
+    rows, lb, ub = np.vstack([A.reshape(-1, n), np.eye(n)]), np.r_[lba, lo], np.r_[uba, hi]
+    x0, N, kept = np.zeros(n), np.eye(n), np.zeros((0, n))
+    for H, g, E in levels:
+        r = rows @ x0
+        first = not kept.shape[0]
+        lz = lb - r if first else np.minimum(lb - r, 0) - slack
+        uz = ub - r if first else np.maximum(ub - r, 0) + slack
+        z, ok = _solve(N.T @ H @ N, N.T @ (H @ x0 + g), rows @ N, lz, uz)
+        if not ok:
+            return x0, False
+        x0 = x0 + N @ z
+        kept = np.vstack([kept, E])
+        _, s, vt = np.linalg.svd(kept)
+        N = vt[int(np.sum(s > 1e-9 * s[0])):].T
+        if N.shape[1] == 0:
+            break
+    return x0, True
+
+
+def robust(levels, A, lba, uba, lbx, ubx):
+    """:func:`lexicographic`, retried with a larger ``slack`` when a level's solve fails numerically; not ok when
+    no answer meets the rows and bounds within 1e-9 (the reference's solver missed them)."""
+    lo, hi = box(lbx, ubx)
+    for slack in (1e-12, 1e-11, 1e-10):
+        x, ok = lexicographic(levels, A, lba, uba, lbx, ubx, slack)
+        Ax = A.reshape(-1, len(x)) @ x
+        missed = max(np.max(np.r_[lba - Ax, Ax - uba, 0]), np.max(np.r_[lo - x, x - hi, 0]))
+        if ok and missed <= 1e-9:
+            return x, True
+    return x, False
+
+
+def worse(levels, x, x_ref, close=1e-8):
+    """At the first level whose terms' rows E x differ from the reference's by more than ``close`` (m or rad per
+    tick: ten band widths; a dropped level is 1e-5..1e-2 away), how much more x costs there than x_ref,
+    relative; 0 when every level agrees (<= 0: x is as good as the reference there). Within a band width of a
+    level's optimum, a degenerate level below it (every joint at its speed bound) can cost 1e-3 more or less."""
+    for H, g, E in levels:
+        if np.abs(E @ (x - x_ref)).max(initial=0) <= close:
+            continue
+        cost, cost_ref = (0.5 * y @ H @ y + g @ y for y in (x, x_ref))
+        return (cost - cost_ref) / max(abs(cost_ref), 1e-300)
+    return 0.0
