@@ -82,8 +82,11 @@ def test_one_controller_from_two_threads_is_serialised(task_b, backend):
     for t in threads:
         t.join()
     assert not errors
-    for k in range(2):   # every call got its own answer (the warm start may differ in the last bits)
-        np.testing.assert_allclose(np.array(got[k]), np.array(expected), atol=1e-9)
+    # Every call got its own answer: another tick's answer is off by 4.6e-3 rad (the median change between
+    # consecutive answers of this walk). The warm start differs from the reference's: a lower level is solved
+    # within its band, and a warm start from another history may land elsewhere in it: up to 1.5e-6 rad seen.
+    for k in range(2):
+        np.testing.assert_allclose(np.array(got[k]), np.array(expected), atol=1e-5)
 
 
 def test_the_c_entry_point_refuses_a_slot_it_did_not_hand_out(task_b, tmp_path):
