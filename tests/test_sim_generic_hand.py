@@ -16,6 +16,7 @@ from conftest import TASKS_DIR
 import vfdsl
 from vfdsl.cli import main
 from vfdsl.sim.hand import HAND_SPEED
+from vfdsl.sim import report
 from vfdsl.sim.runner import make_jobs, run
 from vfdsl.sim.scene_file import load_settings
 
@@ -89,3 +90,19 @@ def test_a_scenes_hand_assumes_nothing_and_the_motion_is_reported_per_trial(tmp_
     assert [set(r) >= {"motion.path_mm", "motion.net_mm", "motion.turn_deg"} for r in rows] == [True, True]
     assert doc["motion"]["turn_deg"] == pytest.approx((rows[0]["motion.turn_deg"] + rows[1]["motion.turn_deg"]) / 2)
     assert doc["motion"]["turn_deg"] > 1                    # the scene's turn: about 6 deg/s of cone motion
+
+
+@pytest.mark.parametrize("direction, expected", [([1, 0, 0], (0.98, 1.001)), ([0, 0, -1], (0.45, 0.55))])
+def test_simulate_reports_the_fraction_of_the_commanded_motion(tmp_path, direction, expected):
+    """A 5 N push (5 mm/s) for 4 s on lecture_forbidden_half_space: sideways the robot makes all of it; down, the
+    wall 10 mm below the tip stops it after 2 s, half of the 20 mm commanded."""
+    scene = tmp_path / "push.sim.yaml"
+    scene.write_text(f"units: mm\nduration: 4 s\nperiod: 10 ms\ntrials: 1\n"
+                     f"hand: {{input: f, kind: push, direction: {direction}, magnitude: 5 N, tremor: 0 N, drift: 0 N}}\n")
+    task_file = TASKS_DIR / "lecture_forbidden_half_space.vf"
+    settings = load_settings(vfdsl.load(task_file), scene)
+    (result,) = run(make_jobs(str(task_file), settings))
+    fraction = result.motion["commanded"]["track(tip) linear"]
+    assert expected[0] <= fraction <= expected[1], fraction
+    doc = report.document("t", str(task_file), settings, [result], None)
+    assert doc["motion"]["commanded_fraction"]["track(tip) linear"] == pytest.approx(fraction)

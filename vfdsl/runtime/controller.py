@@ -134,12 +134,14 @@ class Controller:
         v = self._values
         p = v.params(params, self._runner.margins)
         args = (v.q(q), v.inputs(inputs), self.assembled.context.layout.defaults if p is None else p, v.dt(dt))
-        names, rows = self._tracked
+        names, rows = self.tracked_parts
         return readout(names, rows(*args), np.array(self._runner.x), self.nq, float(args[3]),
                        self.problem(q, inputs, params, dt))
 
     @cached_property
-    def _tracked(self):
+    def tracked_parts(self):
+        """(names, Function (q, u, p, dt) -> E_1, f_1, E_2, f_2, ...) of every tracked part: its rows (dq -> rate,
+        divided by dt) and its commanded rate (:func:`vfdsl.runtime.tracking.tracked_terms`)."""
         return tracked_terms(self.task, self.assembled)
 
     def frames(self, q) -> dict[str, FramePose]:

@@ -246,6 +246,11 @@ def _heading(name: str, s, doc: dict, trials: int, seconds: float, simulated: fl
         hand_text += (f"\nachieved: the hand moved '{moved['frame']}' {moved['path_mm']:.3g} mm along its path (net "
                       f"{moved['net_mm']:.3g} mm) and turned its tool axis {moved['turn_deg']:.3g} deg"
                       + (f" (mean of {moved['trials']} trials)" if moved["trials"] > 1 else ""))
+        fractions = moved.get("commanded_fraction") or {}
+        if fractions:
+            hand_text += ("\n  of the motion the hand commanded, the robot made: "
+                          + ", ".join(f"{name} {fraction:.1%}" for name, fraction in fractions.items()
+                                      if math.isfinite(fraction)))
     speed = f", {simulated / seconds:.0f}x real time" if simulated else ""
     return (f"{name}: {trials} trial(s) of {s.duration:g} s at a {s.period * 1e3:g} ms period, latency "
             f"{s.latency * 1e3:g} ms, servo lag {s.servo_lag * 1e3:g} ms, resolution {s.resolution}, tracker "

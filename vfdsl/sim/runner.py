@@ -139,6 +139,7 @@ def _simulate(job: Job, task: ir.Task, ctrl: vfdsl.Controller, robot: Robot, pro
     params: dict = {}
     moving = Moving(task, scene, s.motions, np.arange(ticks) * dt)
     qs = np.empty((ticks, robot.nq))
+    us = np.zeros((ticks, sum(i.size for i in task.inputs)))
     record = _Recorder(task, robot, ctrl, ticks) if job.keep_trace else None
     fallback = 0
     optimal = StepStatus.OPTIMAL
@@ -159,6 +160,7 @@ def _simulate(job: Job, task: ir.Task, ctrl: vfdsl.Controller, robot: Robot, pro
         qs[k] = q
         if hand is not None:
             inputs[hand_settings.input] = hand.input(k, q)
+            us[k] = np.concatenate([inputs[i.name] for i in task.inputs])
         try:
             dq = ctrl.step(q, inputs, params or None, dt)
         except VfError as err:
@@ -173,7 +175,31 @@ def _simulate(job: Job, task: ir.Task, ctrl: vfdsl.Controller, robot: Robot, pro
             progress(PROGRESS_EVERY)
     if progress is not None:
         progress(ticks % PROGRESS_EVERY)
-    return _score(job, task, robot, qs, segments, tracker_rng, fallback, hand_settings, moving.tables, record)
+    result = _score(job, task, robot, qs, segments, tracker_rng, fallback, hand_settings, moving.tables, record)
+    if result.motion is not None:
+        result.motion["commanded"] = commanded_fraction(ctrl, qs, us, dt)
+    return result
+
+
+def commanded_fraction(ctrl: vfdsl.Controller, qs: np.ndarray, us: np.ndarray, dt: float) -> dict[str, float]:
+    """For every tracked part, how much of the commanded motion the robot made over the trial, by the encoders:
+    sum_k a_k . f_k / sum_k f_k . f_k, with f_k the rate commanded at tick k and a_k = E_k (q_k+1 - q_k) / dt the
+    rate the robot then moved at (NaN for a part never commanded)."""
+    names, rows = ctrl.tracked_parts
+    n = len(qs) - 1
+    if n < 1 or not names:
+        return {}
+    p = np.tile(ctrl.assembled.context.layout.defaults.reshape(-1, 1), (1, n))
+    out = rows.map(n)(qs[:-1].T, us[:-1].T, p, dt)
+    dq = np.diff(qs, axis=0)
+    fractions = {}
+    for k, name in enumerate(names):
+        E, f = np.array(out[2 * k]), np.array(out[2 * k + 1])
+        E = E.reshape(E.shape[0], n, -1)                           # rows x ticks x joints
+        achieved = np.einsum("rkj,kj->rk", E, dq) / dt
+        commanded = float(np.sum(f * f))
+        fractions[name] = float(np.sum(achieved * f)) / commanded if commanded > 0 else float("nan")
+    return fractions
 
 
 class _Recorder:
