@@ -128,3 +128,8 @@ def suggest(name: str, known: Iterable[str], what: str) -> str:
         quoted = " or ".join(f"'{c}'" for c in close)
         return f"did you mean {quoted}? known {what}: {listing}"
     return f"known {what}: {listing}"
+
+
+def show_vector(values) -> str:
+    """Numbers as a message shows them: ``[10, 5, 285]`` (6 significant digits)."""
+    return "[" + ", ".join(f"{float(v):.6g}" for v in values) + "]"

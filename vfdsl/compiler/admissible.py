@@ -35,6 +35,7 @@ from vfdsl.compiler import derived
 from vfdsl.compiler.context import ParamReader, ParamSlot
 from vfdsl.compiler.geometry import scaled_norm
 from vfdsl.compiler.margins import Check, Margins
+from vfdsl.errors import show_vector
 from vfdsl.ir import model as ir
 
 MIN_DIRECTION_NORM = 1e-12
@@ -102,13 +103,13 @@ class Admissible:
             d = x[0:3] if kind == "direction" else x[3:6]
             at = slot.offset + (0 if kind == "direction" else 3)
             self.margins.add(scaled_norm(d) - MIN_DIRECTION_NORM, Check(
-                lambda m, p, w=what + part, at=at: f"{w} is a zero direction ({_show(p[at:at + 3])}, length "
+                lambda m, p, w=what + part, at=at: f"{w} is a zero direction ({show_vector(p[at:at + 3])}, length "
                                                    f"{math.hypot(*p[at:at + 3]):.3g})",
                 hint="give a non-zero vector, e.g. [0, 0, 1]", param=name))
         if kind == "pose":
             self._point(name, f"{what}'s translation", x[0:3], slot.offset)
             self.margins.add(FULL_TURN - ca.mmax(ca.fabs(x[3:6])), Check(
-                lambda m, p, o=slot.offset + 3: f"{what}'s rpy {_show(p[o:o + 3])} rad: beyond a full turn",
+                lambda m, p, o=slot.offset + 3: f"{what}'s rpy {show_vector(p[o:o + 3])} rad: beyond a full turn",
                 hint=_SLIP_RAD, param=name))
         if kind == "length":
             self.margins.add(self.distance - ca.fabs(x[0]), Check(
@@ -125,7 +126,7 @@ class Admissible:
 
     def _point(self, name: str, what: str, xyz, offset: int) -> None:
         self.margins.add(self.distance - ca.mmax(ca.fabs(xyz)), Check(
-            lambda m, p: f"{what} is {_show(p[offset:offset + 3])} m: beyond {self._bound_words()}",
+            lambda m, p: f"{what} is {show_vector(p[offset:offset + 3])} m: beyond {self._bound_words()}",
             hint=_SLIP_M, param=name))
 
     def _range(self, name: str, x, offset: int, allowed, use: str) -> None:
@@ -166,10 +167,6 @@ class Admissible:
     def _bound_words(self) -> str:
         return (f"{self.distance:.3g} m, the largest coordinate plausible for this task ({REACH_FACTOR:g} x its "
                 f"reach of {self.reach:.3g} m, at most {MAX_DISTANCE:g} m)")
-
-
-def _show(values) -> str:
-    return "[" + ", ".join(f"{float(v):.6g}" for v in values) + "]"
 
 
 def _param_ranges(task: ir.Task) -> dict[str, list]:

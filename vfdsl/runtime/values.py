@@ -24,7 +24,7 @@ from pydantic import BaseModel
 
 from vfdsl.compiler.admissible import Admissible
 from vfdsl.compiler.context import flatten
-from vfdsl.errors import VfError, suggest
+from vfdsl.errors import VfError, show_vector, suggest
 from vfdsl.ir import model as ir
 
 MAX_PERIOD = 1.0
@@ -55,7 +55,7 @@ def real_vector(value, size: int, what: str) -> np.ndarray:
         raise VfError(f"{what} must have {size} numbers, got {arr.size}")
     bad = np.flatnonzero(~np.isfinite(arr))
     if bad.size:
-        raise VfError(f"{what} contains NaN or inf (index {int(bad[0])}): {_show(arr)}")
+        raise VfError(f"{what} contains NaN or inf (index {int(bad[0])}): {show_vector(arr)}")
     return arr
 
 
@@ -82,10 +82,6 @@ def _describe(x) -> str:
     if isinstance(x, numbers.Complex) and not isinstance(x, numbers.Real):
         return f"the complex number {x}"
     return f"a {type(x).__name__}"
-
-
-def _show(values) -> str:
-    return "[" + ", ".join(f"{float(v):.6g}" for v in values) + "]"
 
 
 class RuntimeValues:
