@@ -1,4 +1,5 @@
-"""Shared fixtures: where the example tasks live, a scratch copy of them, and a private library cache."""
+"""Shared fixtures: where the example tasks live, a scratch copy of them, a private library cache, and a task with
+a port on the tool axis above the tip (:func:`port_task`)."""
 
 from __future__ import annotations
 
@@ -38,3 +39,32 @@ def private_cache(tmp_path_factory) -> Path:
         del os.environ["VFDSL_CACHE"]
     else:
         os.environ["VFDSL_CACHE"] = previous
+
+
+PORT_START = {"panda7": (TASKS_DIR / "lecture_remote_center.vf", "[0, -45, 0, -135, 0, 90, 45]"),
+              "shr7": (TASKS_DIR / "paper_b_virtual_rcm.vf",
+                       "{x: 0, y: -4.432266, z: -1.035904, rcm_a: 26.309932, rcm_b: 0, roll: 0, insert: 10}")}
+
+
+def port_task(folder: Path, robot_name: str, distance: float, torque: bool = False):
+    """A port ``distance`` m above the tip, on the tool axis, at the start of the example task of ``robot_name``
+    (panda7: lecture_remote_center, shr7: paper_b_virtual_rcm), ``require tip passes_through(port) within 0.05``,
+    a hand force at 1 mm/s/N (or a torque at 1 deg/s/Nmm), joint limits and speeds; written to ``folder``.
+    Returns (task, robot, tip position, tip rotation, the tool axis pointing up)."""
+    import vfdsl
+    from vfdsl.kinematics.robot import Robot
+
+    example = vfdsl.load(PORT_START[robot_name][0])
+    robot = Robot.load(example.robots[0].urdf)
+    p0, R0 = robot.frame_pose(example.start, "tool_tip")
+    up = R0[:, 2] if R0[2, 2] > 0 else -R0[:, 2]
+    port = (p0 + distance * up) * 1e3
+    (folder / "port.yaml").write_text(f"units: mm, deg\nperiod: 10 ms\nstart: {PORT_START[robot_name][1]}\n"
+                                      f"params:\n  port: [{port[0]:.9f}, {port[1]:.9f}, {port[2]:.9f}]\n")
+    kind, gain = ("torque", "angular_gain = 1 deg/s/Nmm") if torque else ("force", "gain = 1 mm/s/N")
+    (folder / "port.vf").write_text(
+        f'task port\nunits mm, deg\nrobot arm = urdf "{robot_name}"\nframe tip = arm.link("tool_tip")\n'
+        f"input hand : {kind}\nparam port : point\nminimize track(tip, hand, {gain})\n"
+        "minimize damping() weight 1e-6\nrequire tip passes_through(port) within 0.05 resolution 8\n"
+        f'require joint_limits()\nrequire joint_speed()\nscene "{folder / "port.yaml"}"\n')
+    return vfdsl.load(folder / "port.vf"), robot, p0, R0, up

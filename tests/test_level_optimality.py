@@ -15,11 +15,10 @@
 from __future__ import annotations
 
 import os
-from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import TASKS_DIR
+from conftest import TASKS_DIR, port_task
 from levels_reference import level_data, robust, worse
 from test_priorities import _with_lines
 
@@ -70,29 +69,6 @@ def test_every_level_is_at_its_optimum(tmp_path, case, backend):
     assert compared >= STATES // 2, f"only {compared} of {STATES} states compared"
 
 
-START = {"panda7": (TASKS_DIR / "lecture_remote_center.vf", "[0, -45, 0, -135, 0, 90, 45]"),
-         "shr7": (TASKS_DIR / "paper_b_virtual_rcm.vf",
-                  "{x: 0, y: -4.432266, z: -1.035904, rcm_a: 26.309932, rcm_b: 0, roll: 0, insert: 10}")}
-
-
-def _port_task(tmp_path: Path, robot_name: str, distance: float, torque: bool = False):
-    """The issue's task: a port ``distance`` m above the tip, on the tool axis, a hand force (or torque)."""
-    example = vfdsl.load(START[robot_name][0])
-    robot = Robot.load(example.robots[0].urdf)
-    p0, R0 = robot.frame_pose(example.start, "tool_tip")
-    up = R0[:, 2] if R0[2, 2] > 0 else -R0[:, 2]
-    port = (p0 + distance * up) * 1e3
-    (tmp_path / "port.yaml").write_text(f"units: mm, deg\nperiod: 10 ms\nstart: {START[robot_name][1]}\nparams:\n"
-                                        f"  port: [{port[0]:.9f}, {port[1]:.9f}, {port[2]:.9f}]\n")
-    kind, gain = ("torque", "angular_gain = 1 deg/s/Nmm") if torque else ("force", "gain = 1 mm/s/N")
-    (tmp_path / "port.vf").write_text(
-        f'task port\nunits mm, deg\nrobot arm = urdf "{robot_name}"\nframe tip = arm.link("tool_tip")\n'
-        f"input hand : {kind}\nparam port : point\nminimize track(tip, hand, {gain})\n"
-        "minimize damping() weight 1e-6\nrequire tip passes_through(port) within 0.05 resolution 8\n"
-        f'require joint_limits()\nrequire joint_speed()\nscene "{tmp_path / "port.yaml"}"\n')
-    return vfdsl.load(tmp_path / "port.vf"), robot, p0, R0, up
-
-
 def _side(up):
     side = np.cross(up, [1.0, 0, 0]) if abs(up[0]) < 0.9 else np.cross(up, [0, 1.0, 0])
     return side / np.linalg.norm(side)
@@ -116,7 +92,7 @@ def _push(ctrl, task, inputs, ticks, reference=False):
 def test_a_push_about_a_close_port_is_not_lost(tmp_path, robot_name, distance_mm):
     """2 N sideways at 1 mm/s/N for 1 s (2 mm asked): the tip moves as far as the reference loop makes it (what
     the fixture and the speed limits allow), within 1 % of the command; >= 95 % at 4 mm on panda7."""
-    task, robot, p0, _, up = _port_task(tmp_path, robot_name, distance_mm * 1e-3)
+    task, robot, p0, _, up = port_task(tmp_path, robot_name, distance_mm * 1e-3)
     ctrl = vfdsl.compile(task, backend="interpreted")
     side = _side(up)
     inputs = {"hand": 2.0 * side}
@@ -131,7 +107,7 @@ def test_a_push_about_a_close_port_is_not_lost(tmp_path, robot_name, distance_mm
 @pytest.mark.parametrize("robot_name", ["panda7", "shr7"])
 def test_a_torque_turns_the_tool_about_the_port(tmp_path, robot_name):
     """2 N mm about a sideways axis at 1 deg/s/Nmm for 1 s: the tool turns 2 deg (within 1 %) about the port."""
-    task, robot, p0, R0, up = _port_task(tmp_path, robot_name, 4e-3, torque=True)
+    task, robot, p0, R0, up = port_task(tmp_path, robot_name, 4e-3, torque=True)
     ctrl = vfdsl.compile(task, backend="interpreted")
     q = _push(ctrl, task, {"hand": 2e-3 * _side(up)}, 100)
     R = robot.frame_pose(q, "tool_tip")[1]
@@ -142,7 +118,7 @@ def test_a_torque_turns_the_tool_about_the_port(tmp_path, robot_name):
 def test_problem_gives_each_level(tmp_path):
     """`Controller.problem()` gives each level's cost and band, and solving those levels in turn (with the
     rows and bounds it gives) reproduces `step()`: the issue's port 4 mm above the tip, 2 mm/s asked."""
-    task, robot, p0, _, up = _port_task(tmp_path, "panda7", 4e-3)
+    task, robot, p0, _, up = port_task(tmp_path, "panda7", 4e-3)
     ctrl = vfdsl.compile(task, backend="interpreted")
     inputs = {"hand": 2.0 * _side(up)}
     qp = ctrl.problem(task.start, inputs)
@@ -165,7 +141,7 @@ def test_tracking_readout_says_what_holds_the_tip(tmp_path):
     for distance, held in ((2e-3, True), (60e-3, False)):
         folder = tmp_path / f"port_{distance * 1e3:.0f}mm"
         folder.mkdir()
-        task, _, _, _, up = _port_task(folder, "shr7", distance)
+        task, _, _, _, up = port_task(folder, "shr7", distance)
         ctrl = vfdsl.compile(task, backend="interpreted")
         inputs = {"hand": 2.0 * _side(up)}
         q = _push(ctrl, task, inputs, 60)
