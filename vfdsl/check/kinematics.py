@@ -43,6 +43,11 @@ def frame_jacobian(robot: Robot, frame: ir.FrameDecl, q) -> np.ndarray:
     return robot.frame_jacobian(q, frame.link, homogeneous(frame.offset, frame.rpy))
 
 
+def frame_pose(robot: Robot, frame: ir.FrameDecl, q) -> tuple[np.ndarray, np.ndarray]:
+    """(origin, rotation) of a task frame in world."""
+    return robot.frame_pose(q, frame.link, homogeneous(frame.offset, frame.rpy))
+
+
 def conditioning(J: np.ndarray) -> tuple[float, float]:
     """(smallest singular value, smallest / largest) of a 3 x nq block (0, 0 when it is zero)."""
     s = np.linalg.svd(J, compute_uv=False)

@@ -39,6 +39,7 @@ CODES: dict[str, str] = {
     "frame-fixed": "VF602",
     "start-near-limit": "VF603",
     "start-outside-limits": "VF604",
+    "port-lever-short": "VF605",
     "sampled-summary": "VF700",
     "sampled-infeasible": "VF701",
     "sampled-ill-conditioned": "VF702",
@@ -183,8 +184,8 @@ def _bounds_table(bounds: list[Bound]) -> list[str]:
 
 
 def _measured(figures: dict) -> list[str]:
-    """The figures a reader wants next to the findings: margin at the start, each frame's Jacobian and
-    hands-off motion, the time the check took."""
+    """The figures a reader wants next to the findings: margin at the start, each frame's Jacobian, each port's
+    lever and sideways speed, the hands-off motion, the time the check took."""
     lines = []
     if "start_margin" in figures:
         lines.append(f"  feasibility margin at the start: {figures['start_margin']:.3g} (m or rad)")
@@ -192,6 +193,10 @@ def _measured(figures: dict) -> list[str]:
         lines.append(f"  frame {name}: Jacobian rank {f['rank']}, smallest singular value {f['sigma_min_v']:.3g} "
                      f"(J_v, ratio {f['conditioning_v']:.3g}), {f['sigma_min_w']:.3g} (J_w, ratio "
                      f"{f['conditioning_w']:.3g})")
+    for name, f in figures.get("levers", {}).items():
+        lines.append(f"  port of {name}: lever {quantity(f['lever'], 'length')}, sideways at most "
+                     f"{quantity(f['sideways_speed'], 'speed')} within the joint speed limits ({f['joint']} binds most; "
+                     f"{quantity(f['free_speed'], 'speed')} without the port)")
     for name, f in figures.get("hands_off", {}).items():
         lines.append(f"  hands off, frame {name}: moves {quantity(f['moved'], 'length')}, turns "
                      f"{quantity(f['turned'], 'angle')}")
