@@ -3,7 +3,7 @@ package (a newer DAQP than the one CasADi bundles, called directly, no scaling, 
 over x = x0 + N z where N spans the null space of the levels above (numpy's SVD): their terms' rows E_i x are
 held *exactly* at their optimal values, not within a band.
 
-    levels = level_data(ctrl, q, inputs)           # [(Hj, gj, Ej)], rows and bounds, from qp_data
+    levels = level_data(ctrl, q, inputs)           # [(Hj, gj, Ej)], rows and bounds, from qp_data's (Rj, rj)
     x, ok = lexicographic(*levels)
     worse(levels[0], x_step, x)                    # > 0: the step is not optimal at some level
 """
@@ -13,17 +13,21 @@ from __future__ import annotations
 import daqp
 import numpy as np
 
+from vfdsl.compiler.assemble import HESSIAN_FLOOR
+
 BIG = 1e30
 
 
 def level_data(ctrl, q, inputs, params=None, dt=None):
-    """([(Hj, gj, Ej) per level], A, lba, uba, lbx, ubx) of one tick, from the controller's qp_data."""
+    """([(Hj, gj, Ej) per level], A, lba, uba, lbx, ubx) of one tick, from the controller's qp_data: level j's
+    cost 1/2 |Rj x - rj|^2 as Hj = Rj'Rj + floor I, gj = -Rj'rj, and its rows Ej = Rj."""
     v = ctrl._values
     p = v.params(params)
     args = (v.q(q), v.inputs(inputs), ctrl.assembled.context.layout.defaults if p is None else p, v.dt(dt))
     out = [np.array(x) for x in ctrl.assembled.function(*args)]
     H, g, A, lba, uba, lbx, ubx = out[:7]
-    levels = [(out[i], out[i + 1].ravel(), out[i + 2]) for i in range(7, len(out), 3)]
+    floor = HESSIAN_FLOOR * np.eye(H.shape[0])
+    levels = [(out[i].T @ out[i] + floor, -out[i].T @ out[i + 1].ravel(), out[i]) for i in range(7, len(out), 2)]
     if not levels:
         levels = [(H, g.ravel(), np.zeros((0, H.shape[0])))]
     return levels, A, lba.ravel(), uba.ravel(), lbx.ravel(), ubx.ravel()

@@ -20,14 +20,15 @@ NO_CHECKS = ca.Function("admissible", [ca.SX.sym("p", 0)], [ca.SX(0, 1)])   # pa
 ARGS = (np.array([0.3, -0.2]), np.array([0.2, 0.05]), np.array([0.05]), np.array([0.01]), 0.0)
 
 
-def small_step(prefix: str, weight: float = 1.0) -> ca.Function:
-    """A 2-joint tick with one row x0 + x1 <= p and speed bounds 10 dt; ``weight`` scales H."""
+def small_step(prefix: str, weight: float = 1.0, native: bool = True) -> ca.Function:
+    """A 2-joint tick with one row x0 + x1 <= p and speed bounds 10 dt; ``weight`` scales H; ``native``: for
+    build_library, else for CasADi's evaluation."""
     q, u, p, dt = ca.SX.sym("q", 2), ca.SX.sym("u", 2), ca.SX.sym("p", 1), ca.SX.sym("dt")
     H = weight * (ca.SX.eye(2) + 0.1 * ca.diag(ca.cos(q)))
     qp_data = ca.Function("qp", [q, u, p, dt], [H, -u, ca.DM([[1, 1]]), -ca.inf, p,
                                                 -10 * dt * ca.DM.ones(2), 10 * dt * ca.DM.ones(2)],
                           ["q", "u", "p", "dt"], ["H", "g", "A", "lba", "uba", "lbx", "ubx"])
-    return build_step_function(qp_data, prefix)
+    return build_step_function(qp_data, prefix, native=native)
 
 
 def evaluate(library, prefix: str) -> np.ndarray:
@@ -50,7 +51,7 @@ def compiles(monkeypatch) -> list[str]:
 
 @pytest.fixture(scope="module")
 def interpreted_x() -> np.ndarray:
-    return BufferedFunction.interpreted(small_step("ref"))(*ARGS)[0].copy()
+    return BufferedFunction.interpreted(small_step("ref", native=False))(*ARGS)[0].copy()
 
 
 def test_build_then_hit(tmp_path, compiles, interpreted_x):

@@ -116,20 +116,19 @@ def test_a_torque_turns_the_tool_about_the_port(tmp_path, robot_name):
 
 
 def test_problem_gives_each_level(tmp_path):
-    """`Controller.problem()` gives each level's cost and band, and solving those levels in turn (with the
+    """`Controller.problem()` gives each level's rows, targets and cost, and solving those levels in turn (with the
     rows and bounds it gives) reproduces `step()`: the issue's port 4 mm above the tip, 2 mm/s asked."""
     task, robot, p0, _, up = port_task(tmp_path, "panda7", 4e-3)
     ctrl = vfdsl.compile(task, backend="interpreted")
     inputs = {"hand": 2.0 * _side(up)}
     qp = ctrl.problem(task.start, inputs)
     assert [level.terms for level in qp.levels] == [["track(tip) linear"], ["track(tip) angular"], ["damping()"]]
-    assert all(level.band == pytest.approx(1e-9) for level in qp.levels)
     np.testing.assert_allclose(sum(level.P for level in qp.levels), qp.P + 2e-9 * np.eye(qp.P.shape[0]), atol=1e-15)
     n = qp.P.shape[0]
-    x_ref, ok = robust([(lv.P, lv.g, lv.E) for lv in qp.levels], qp.A[n:], qp.lb[n:], qp.ub[n:], qp.lb[:n], qp.ub[:n])
+    x_ref, ok = robust([(lv.P, lv.g, lv.R) for lv in qp.levels], qp.A[n:], qp.lb[n:], qp.ub[n:], qp.lb[:n], qp.ub[:n])
     dq = ctrl.step(task.start, inputs)
-    assert ok and worse([(lv.P, lv.g, lv.E) for lv in qp.levels], ctrl._runner.x, x_ref) <= WORSE
-    assert np.linalg.norm(qp.levels[0].E @ dq) / 0.01 == pytest.approx(2e-3, rel=0.01)   # 2 mm/s, as asked
+    assert ok and worse([(lv.P, lv.g, lv.R) for lv in qp.levels], ctrl._runner.x, x_ref) <= WORSE
+    assert np.linalg.norm(qp.levels[0].R @ dq) / np.sqrt(2) / 0.01 == pytest.approx(2e-3, rel=0.01)   # 2 mm/s (R: sqrt(2 w) J)
     other = vfdsl.compile(vfdsl.load(TASKS_DIR / "lecture_steady_direction.vf"), backend="interpreted")
     levels = other.problem(other.task.start, {k: np.zeros(s) for k, s in other.input_sizes.items()}).levels
     assert [level.terms for level in levels] == [["distance(tip)", "direction_change(tip)"], ["damping()"]]

@@ -10,13 +10,15 @@ path): same answers, slower; a single warning says so.
 from __future__ import annotations
 
 import hashlib
-import os
 import re
 import warnings
 from pathlib import Path
 
+import casadi as ca
+
 import vfdsl
-from vfdsl.codegen.build import BuiltLibrary, CompilerUnavailable, build_library, load_module
+from vfdsl.codegen.build import BuiltLibrary, CompilerUnavailable, build_library, default_cache_dir, load_module
+from vfdsl.codegen.daqp_sources import DaqpSourcesUnavailable
 from vfdsl.compiler.admissible import Admissible
 from vfdsl.compiler.assemble import AssembledProblem, assemble
 from vfdsl.errors import VfError
@@ -41,13 +43,6 @@ class InterpretedFallback(UserWarning):
 _warned = False
 
 
-def default_cache_dir() -> Path:
-    """$VFDSL_CACHE, else $XDG_CACHE_HOME/vfdsl, else ~/.cache/vfdsl."""
-    if os.environ.get("VFDSL_CACHE"):
-        return Path(os.environ["VFDSL_CACHE"])
-    return Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache")) / "vfdsl"
-
-
 def ir_digest(task: ir.Task) -> str:
     """sha256 of the task's IR (its JSON form)."""
     return hashlib.sha256(task.model_dump_json().encode()).hexdigest()
@@ -68,11 +63,9 @@ def compile(task: ir.Task, *, backend: str = "auto", cache_dir: str | Path | Non
     return controller
 
 
-def build(task: ir.Task, *, backend: str = "auto", cache_dir: str | Path | None = None,
-          persistent_daqp: bool = True) -> tuple[Controller, BuiltLibrary | None]:
-    """As :func:`compile`, also returning the generated library (None on the interpreted path).
-    ``persistent_daqp=False`` keeps CasADi's own DAQP interface in the generated C (set up, solved cold
-    and freed every call; see :mod:`vfdsl.codegen.build`): the baseline of the benchmarks."""
+def build(task: ir.Task, *, backend: str = "auto",
+          cache_dir: str | Path | None = None) -> tuple[Controller, BuiltLibrary | None]:
+    """As :func:`compile`, also returning the generated library (None on the interpreted path)."""
     global _warned
     if backend not in BACKENDS:
         raise VfError(f"unknown backend '{backend}'; use one of {', '.join(BACKENDS)}")
@@ -83,23 +76,24 @@ def build(task: ir.Task, *, backend: str = "auto", cache_dir: str | Path | None 
                            robot.joint_names)
     digest = ir_digest(task)
     prefix = symbol_prefix(task, digest)
-    step = build_step_function(problem.function, prefix, row_groups=problem.row_groups,
-                               feas_tol=FEASIBILITY_TOLERANCE)
+    def step(native: bool) -> ca.Function:
+        return build_step_function(problem.function, prefix, row_groups=problem.row_groups,
+                                   feas_tol=FEASIBILITY_TOLERANCE, native=native)
+
     if backend != "interpreted":
         try:
-            library = build_library(step, prefix, Path(cache_dir or default_cache_dir()),
-                                    metadata(task, problem, admissible, digest), admissible.function,
-                                    persistent_daqp=persistent_daqp)
+            library = build_library(step(native=True), prefix, Path(cache_dir or default_cache_dir()),
+                                    metadata(task, problem, admissible, digest), admissible.function)
             return Controller(task, problem, values, _native_runner(values, problem, library, prefix),
                               FEASIBILITY_TOLERANCE), library
-        except CompilerUnavailable as exc:
+        except (CompilerUnavailable, DaqpSourcesUnavailable) as exc:
             if backend == "native":
                 raise
             if not _warned:
                 warnings.warn(f"{exc.message}; running the controller interpreted (same answers, slower)",
                               InterpretedFallback, stacklevel=2)
                 _warned = True
-    runner = LockedRunner(BufferedFunction.interpreted(step), values)
+    runner = LockedRunner(BufferedFunction.interpreted(step(native=False)), values)
     return Controller(task, problem, values, runner, FEASIBILITY_TOLERANCE), None
 
 

@@ -9,7 +9,11 @@ One cache entry per content digest::
         <prefix>.json            caller metadata + sizes, digest, compiler, flags, so_sha256, ...
 
 digest = sha256(generated C and header, compiler flags, compiler ``--version`` line, resolved
-target (``-###`` output, which pins ``-march=native`` to this CPU), CasADi version, metadata).
+target (``-###`` output, which pins ``-march=native`` to this CPU), CasADi and DAQP versions, metadata).
+
+The generated C is compiled against DAQP's own C sources (:mod:`vfdsl.codegen.daqp_sources`: the version of the
+installed ``daqp`` package, with priority levels), built once per cache into a static library whose symbols stay
+hidden inside each task's library; CasADi's bundled DAQP is not used.
 
 An entry is used only if its metadata parses and names the same digest, every file exists, and
 the .so has the recorded sha256 and loads with the exported symbol; anything else (truncated or
@@ -28,9 +32,9 @@ Codegen policy, two edits of CasADi's generated C:
 - CasADi's DAQP interface (``casadi_daqp_solve``, ``casadi_daqp_free_mem``) is replaced by
   ``daqp_persistent.c``: the DAQP workspace is allocated on a conic's first call and kept, later
   calls update it in place, so a step allocates nothing. A conic whose name ends in ``_warm``
-  starts DAQP from its previous working set; the others start cold, as CasADi's interface does.
-  ``persistent_daqp=False`` keeps CasADi's interface (set up, solved cold and freed on
-  every call): the baseline of ``benchmarks/tick.py``. The replaced definitions are matched exactly;
+  starts DAQP from its previous working set; the others start cold, as CasADi's interface does. A conic
+  whose name holds ``_levels_b1_..._bk`` is solved as DAQP's hierarchical QP with those break points
+  (:func:`vfdsl.runtime.qp.build_step_function`). The replaced definitions are matched exactly;
   a CasADi whose generated DAQP interface differs is refused with an error, never half-patched.
 """
 
@@ -59,23 +63,26 @@ from typing import Any
 
 import casadi as ca
 
+from vfdsl.codegen.daqp_sources import daqp_sources, daqp_version, source_files
 from vfdsl.errors import VfError
+from vfdsl.runtime.qp import LEVEL_SOFT_WEIGHT
 
-FLAGS = ("-O3", "-march=native", "-fPIC", "-pthread", "-fvisibility=hidden", "-fno-math-errno",
+FLAGS = ("-O3", "-march=native", "-ffp-contract=off", "-fPIC", "-pthread", "-fvisibility=hidden", "-fno-math-errno",
          "-Werror=implicit-function-declaration",
          "-DGCC_HASCLASSVISIBILITY")
 """Speed flags. Never ``-ffast-math``: the step's NaN/inf checks must survive optimisation."""
 STEPPER = Path(__file__).parent / "stepper.c"
 
-CASADI_DIR = Path(ca.__file__).parent
 _NONFATAL_FAILURE = re.compile(r"if \(!d_qp\.success\) \{\s*return -1;\s*\}")
 _DAQP_SOLVE = re.compile(r"^int casadi_daqp_solve\(struct casadi_daqp_data\* d, [^\n]*\{\n.*?^\}\n",
                          re.MULTILINE | re.DOTALL)
 _DAQP_FREE_MEM = re.compile(r"^void casadi_daqp_free_mem\(struct casadi_daqp_data\* d\) \{\n\}\n",
                             re.MULTILINE)
-_WARM_CALL = re.compile(r"(/\* \w+_warm:\(h\[[^\n]*\*/\nstatic int \w+\([^\n]*\{\n(?:(?!\n\}\n).)*?)"
-                        r"casadi_daqp_solve\(d, arg, res, iw, w\);", re.DOTALL)
-PERSISTENT_DAQP = (Path(__file__).parent / "daqp_persistent.c").read_text()
+_CONIC_CALL = re.compile(r"(/\* (\w+):\(h\[[^\n]*\*/\nstatic int \w+\([^\n]*\{\n(?:(?!\n\}\n).)*?)"
+                         r"casadi_daqp_solve\(d, arg, res, iw, w\);", re.DOTALL)
+_LEVELS = re.compile(r"_levels((?:_\d+)+)")
+PERSISTENT_DAQP = ((Path(__file__).parent / "daqp_persistent.c").read_text()
+                   .replace("@LEVEL_SOFT_WEIGHT@", repr(LEVEL_SOFT_WEIGHT)))
 MEMORY_SLOTS = (Path(__file__).parent / "memory_slots.c").read_text()
 MAX_SLOTS = 64
 """Controllers of one task that may exist at once in a process (memory slots of its generated code)."""
@@ -134,14 +141,11 @@ class Compiler:
     target: str
 
 
-def build_library(fn: ca.Function, prefix: str, cache_dir: Path, metadata: dict, checks: ca.Function, *,
-                  persistent_daqp: bool = True) -> BuiltLibrary:
+def build_library(fn: ca.Function, prefix: str, cache_dir: Path, metadata: dict,
+                  checks: ca.Function) -> BuiltLibrary:
     """The cached library of the step ``fn`` (arguments q, u, p, dt, recover), exported as C symbol ``prefix``,
     with ``checks`` (p -> the column of checks of the params, :mod:`vfdsl.compiler.admissible`) exported as
-    ``<prefix>_admissible``; built if needed.
-
-    ``persistent_daqp``: replace CasADi's DAQP interface by the allocation-free, warm-started one
-    (module docstring)."""
+    ``<prefix>_admissible``; built if needed."""
     if not _IDENTIFIER.fullmatch(prefix):
         raise ValueError(f"prefix {prefix!r} is not a C identifier")
     cache_dir = Path(cache_dir)
@@ -159,7 +163,7 @@ def build_library(fn: ca.Function, prefix: str, cache_dir: Path, metadata: dict,
     try:
         with work_dir as tmp:
             work = Path(tmp)
-            source, header = _generate(fn, prefix, work, persistent_daqp, checks)
+            source, header = _generate(fn, prefix, work, checks)
             digest = _digest(source, header, compiler, metadata)
             entry = cache_dir / f"{prefix}-{digest[:16]}"
             found = _verified(entry, prefix, digest)
@@ -223,8 +227,7 @@ def _tail(text: str, lines: int = 25) -> str:
     return "\n".join(text.strip().splitlines()[-lines:])
 
 
-def _generate(fn: ca.Function, prefix: str, work: Path, persistent_daqp: bool,
-              checks: ca.Function) -> tuple[str, str]:
+def _generate(fn: ca.Function, prefix: str, work: Path, checks: ca.Function) -> tuple[str, str]:
     """Write ``<prefix>.c``/``.h`` into ``work`` (the step exported as ``prefix``, the checks as
     ``<prefix>_admissible``)."""
     generator = ca.CodeGenerator(f"{prefix}.c", {"with_header": True})
@@ -234,8 +237,7 @@ def _generate(fn: ca.Function, prefix: str, work: Path, persistent_daqp: bool,
     c_path, h_path = work / f"{prefix}.c", work / f"{prefix}.h"
     source = _NONFATAL_FAILURE.sub("/* vfdsl: solver failure reported through the outputs */",
                                    c_path.read_text())
-    if persistent_daqp:
-        source = _with_persistent_daqp(source)
+    source = _with_persistent_daqp(source)
     source = _with_memory_slots(source, prefix)
     c_path.write_text(source)
     header = h_path.read_text() + HEADER_CONTRACT.replace("@PREFIX@", prefix).replace("@SLOTS@", str(MAX_SLOTS))
@@ -259,11 +261,23 @@ def _with_persistent_daqp(source: str) -> str:
     if len(solve) != 1 or len(free_mem) != 1:
         raise VfError(f"CasADi {ca.__version__} generates a DAQP interface this vfdsl does not know",
                       hint="install the CasADi version vfdsl requires (pip install 'casadi>=3.8.2,<3.9')")
-    source, warm = _WARM_CALL.subn(r"\1vfdsl_daqp_solve(d, 1);", source)
-    if warm != len(re.findall(r"/\* \w+_warm:\(h\[", source)):
-        raise VfError(f"CasADi {ca.__version__}: a warm-started conic's DAQP call was not found")
+    source, calls = _CONIC_CALL.subn(_conic_call, source)
+    if calls != len(re.findall(r"/\* \w+:\(h\[", source)):
+        raise VfError(f"CasADi {ca.__version__}: a conic's DAQP call was not found")
     source = _DAQP_FREE_MEM.sub("", source)
     return _DAQP_SOLVE.sub(lambda _: PERSISTENT_DAQP, source)
+
+
+def _conic_call(match: re.Match) -> str:
+    """The DAQP call of one conic, by its name: ``..._warm`` starts from the previous working set, and
+    ``..._levels_b1_..._bk...`` solves priority levels, b the constraint indices where each level ends."""
+    body, name = match.group(1), match.group(2)
+    levels = _LEVELS.search(name)
+    if levels is None:
+        return f"{body}vfdsl_daqp_solve(d, {int(name.endswith('_warm'))}, 0);"
+    points = [int(b) for b in levels.group(1).strip("_").split("_")]
+    table = f"static const vfdsl_levels levels = {{{len(points)}, {{{', '.join(map(str, points))}}}}};"
+    return f"{body}{{\n    {table}\n    vfdsl_daqp_solve(d, {int(name.endswith('_warm'))}, &levels);\n  }}"
 
 
 def _with_memory_slots(source: str, prefix: str) -> str:
@@ -292,7 +306,7 @@ def _with_memory_slots(source: str, prefix: str) -> str:
 def _digest(source: str, header: str, compiler: Compiler, metadata: dict) -> str:
     key = json.dumps({"source": source, "header": header, "flags": FLAGS,
                       "compiler": compiler.version, "target": compiler.target,
-                      "casadi": ca.__version__, "metadata": metadata,
+                      "casadi": ca.__version__, "daqp": daqp_version(), "metadata": metadata,
                       "python_module": _python_build_key()}, sort_keys=True)
     return hashlib.sha256(key.encode()).hexdigest()
 
@@ -323,8 +337,8 @@ def _compile(fn: ca.Function, prefix: str, work: Path, compiler: Compiler, diges
     Python headers) into the Python extension; check that both load; write the metadata; return it."""
     nonce = secrets.token_hex(4)
     so_name = f"lib{prefix}-{nonce}.so"
-    daqp = [str(CASADI_DIR / "libdaqpstat.a"), "-lm", "-Wl,--exclude-libs,ALL"]
-    _cc(compiler, work, [*FLAGS, f"-I{CASADI_DIR / 'include'}", "-c", f"{prefix}.c", "-o", f"{prefix}.o"])
+    daqp = [str(daqp_library(compiler)), "-lm", "-Wl,--exclude-libs,ALL"]
+    _cc(compiler, work, [*FLAGS, f"-I{daqp_sources(daqp_home()) / 'include'}", "-c", f"{prefix}.c", "-o", f"{prefix}.o"])
     _cc(compiler, work, [*FLAGS, "-shared", f"{prefix}.o", "-o", so_name, *daqp])
     _load(work / so_name, prefix)
     module_file = None
@@ -341,7 +355,7 @@ def _compile(fn: ca.Function, prefix: str, work: Path, compiler: Compiler, diges
             "inputs": _io(fn.name_in(), fn.size_in), "outputs": _io(fn.name_out(), fn.size_out),
             "compiler": compiler.command[0], "compiler_version": compiler.version,
             "compiler_target_sha256": compiler.target, "flags": list(FLAGS),
-            "casadi_version": ca.__version__, "max_slots": MAX_SLOTS,
+            "casadi_version": ca.__version__, "daqp_version": daqp_version(), "max_slots": MAX_SLOTS,
             "created": datetime.datetime.now(datetime.UTC).isoformat(),
             "so_file": so_name, "so_sha256": _sha256(work / so_name),
             "c_sha256": _sha256(work / f"{prefix}.c"), "h_sha256": _sha256(work / f"{prefix}.h"),
@@ -349,6 +363,51 @@ def _compile(fn: ca.Function, prefix: str, work: Path, compiler: Compiler, diges
             "python_module_sha256": _sha256(work / module_file) if module_file else None}
     (work / f"{prefix}.json").write_text(json.dumps(meta, indent=2, sort_keys=True))
     return meta
+
+
+def default_cache_dir() -> Path:
+    """$VFDSL_CACHE, else $XDG_CACHE_HOME/vfdsl, else ~/.cache/vfdsl."""
+    if os.environ.get("VFDSL_CACHE"):
+        return Path(os.environ["VFDSL_CACHE"])
+    return Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache")) / "vfdsl"
+
+
+def daqp_home() -> Path:
+    """Where DAQP's sources and static libraries are kept: the default cache (shared by every build cache that
+    a caller names), or a private one when that cannot be written."""
+    home = default_cache_dir()
+    try:
+        home.mkdir(parents=True, exist_ok=True)
+        if os.access(home, os.W_OK | os.X_OK):
+            return home
+    except OSError:
+        pass
+    return _private_cache()
+
+
+def daqp_library(compiler: Compiler) -> Path:
+    """DAQP's sources compiled with FLAGS by ``compiler`` into a static library (symbols hidden), built once per
+    compiler, target and flags next to the sources (:mod:`vfdsl.codegen.daqp_sources`)."""
+    root = daqp_sources(daqp_home())
+    key = hashlib.sha256(json.dumps([FLAGS, compiler.version, compiler.target]).encode()).hexdigest()[:16]
+    library = root / "lib" / f"libdaqp-{key}.a"
+    if library.is_file():
+        return library
+    library.parent.mkdir(exist_ok=True)
+    with tempfile.TemporaryDirectory(dir=library.parent, prefix=".build-") as tmp:
+        objects = []
+        for source in source_files(root):
+            objects.append(f"{source.stem}.o")
+            _cc(compiler, Path(tmp), [*FLAGS, f"-I{root / 'include' / 'daqp'}", "-c", str(source), "-o", objects[-1]])
+        archive = shutil.which("ar") or shutil.which("gcc-ar")
+        if archive is None:
+            raise CompilerUnavailable("no archiver (ar) found to build DAQP's static library",
+                                      hint="install binutils")
+        result = subprocess.run([archive, "rcs", "libdaqp.a", *objects], cwd=tmp, capture_output=True, text=True)
+        if result.returncode != 0:
+            raise VfError(f"ar failed on DAQP's objects: {_tail(result.stderr)}")
+        os.replace(Path(tmp) / "libdaqp.a", library)
+    return library
 
 
 def _cc(compiler: Compiler, work: Path, args: list[str]) -> None:

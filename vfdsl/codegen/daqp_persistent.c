@@ -1,24 +1,35 @@
-/* vfdsl: DAQP with a persistent, warm-started workspace.
+/* vfdsl: DAQP (the daqp package's C sources) with a persistent, warm-started workspace, and priority levels.
  *
  * Replaces CasADi's casadi_daqp_free_mem and casadi_daqp_solve in a generated file (see build.py).
  * CasADi's solve calls setup_daqp (malloc, Cholesky) and frees the workspace on every call, and
- * starts DAQP from the equality rows alone. vfdsl_daqp_solve(d, warm) is called instead, with warm = 1
- * by the conics build.py marks as warm-started, warm = 0 (through casadi_daqp_solve) by the others:
+ * starts DAQP from the equality rows alone. vfdsl_daqp_solve(d, warm, levels) is called instead: build.py
+ * passes warm = 1 for the conics it marks as warm-started, and for a conic with priority levels the
+ * constraint indices where each level ends (DAQP's break points), else levels = 0:
  *   - sets DAQP up on a conic's first call and keeps the workspace in the conic's static memory
  *     (d->work) until casadi_daqp_free_mem: later calls allocate nothing;
- *   - refreshes the problem in place (update_ldp: Cholesky of H, M = A R^-1, v, d), the sizes being
+ *   - refreshes the problem in place (daqp_update_ldp: factor of H, M = A R^-1, v, d), the sizes being
  *     fixed by the conic's sparsity;
- *   - warm: start DAQP from the previous solve's working set when that solve was optimal; if that
- *     set is linearly dependent for the new data, start cold (equality rows only);
+ *   - warm: start DAQP from the previous solve's working set when that solve succeeded (DAQP drops the
+ *     constraints of that set that are dependent for the new data);
+ *   - levels: DAQP's hierarchical mode. Level 0 (the box and the rows) is hard; level k >= 1 minimizes
+ *     the squared violations of its rows, in the rows' own units (each row's soft weight is VFDSL_RHO_SOFT
+ *     in the scale of the problem, which undoes DAQP's normalization of the rows), keeping every level above
+ *     at its optimum; the QP's own cost acts last;
  *   - reports a failed solve as x = NaN, never as a stale or internal iterate.
  */
-#include <daqp/utils.h>        /* update_ldp (DAQP's api.h does not declare the update functions) */
-#include <daqp/auxiliary.h>    /* activate_constraints */
+#include <daqp/types.h>
+#include <daqp/constants.h>
+#include <daqp/utils.h>        /* daqp_update_ldp (api.h does not declare the update functions) */
+
+#define VFDSL_RHO_SOFT @LEVEL_SOFT_WEIGHT@  /* vfdsl.runtime.qp.LEVEL_SOFT_WEIGHT */
+#define VFDSL_LEVELS_MAX 16
+typedef struct { int nh; int break_points[VFDSL_LEVELS_MAX]; } vfdsl_levels;
+
 static void vfdsl_daqp_cold_sense(const struct casadi_qp_prob* p_qp, const struct casadi_qp_data* d_qp,
                                   int* sense) {
   casadi_int i;
-  for (i=0;i<p_qp->nx;++i) sense[i] = d_qp->lbx[i]==d_qp->ubx[i] ? ACTIVE+IMMUTABLE : 0;
-  for (i=0;i<p_qp->na;++i) sense[p_qp->nx+i] = d_qp->lba[i]==d_qp->uba[i] ? ACTIVE+IMMUTABLE : 0;
+  for (i=0;i<p_qp->nx;++i) sense[i] = d_qp->lbx[i]==d_qp->ubx[i] ? DAQP_ACTIVE+DAQP_IMMUTABLE : 0;
+  for (i=0;i<p_qp->na;++i) sense[p_qp->nx+i] = d_qp->lba[i]==d_qp->uba[i] ? DAQP_ACTIVE+DAQP_IMMUTABLE : 0;
 }
 
 static void vfdsl_fill_nan(casadi_real* x, casadi_int n) {
@@ -26,29 +37,32 @@ static void vfdsl_fill_nan(casadi_real* x, casadi_int n) {
   if (x) for (i=0;i<n;++i) x[i] = NAN;
 }
 
+/* Optimal; with levels, every level optimal (SOFT_OPTIMAL, DAQP's normal answer); not CONSTRAINED_POINT, the
+   answer of the levels above a level DAQP failed to solve (vfdsl.runtime.qp retries such a solve). */
+static int vfdsl_daqp_succeeded(int flag) {
+  return flag==DAQP_EXIT_OPTIMAL || flag==DAQP_EXIT_SOFT_OPTIMAL;
+}
+
+/* First call: DAQP's workspace, its hierarchy and the soft weights of the levels' rows (all its memory). */
+static int vfdsl_daqp_setup(struct casadi_daqp_data* d, const vfdsl_levels* levels) {
+  int i, flag;
+  DAQPWorkspace* work = &d->work;
+  flag = setup_daqp(&d->daqp, work, 0);
+  if (flag<0 || !levels) return flag;
+  if (!daqp_allocate_soft_weights(work)) return DAQP_EXIT_UNSUPPORTED;
+  for (i=levels->break_points[0];i<d->daqp.m;++i) work->rho_ls[i] = work->rho_us[i] = VFDSL_RHO_SOFT;
+  return flag;
+}
+
 static int vfdsl_daqp_update(struct casadi_daqp_data* d, int warm) {
   casadi_int i;
-  int flag;
   int* sense = d->daqp.sense;
   DAQPWorkspace* work = &d->work;
-  if (warm && d->return_status == EXIT_OPTIMAL) {
-    for (i=0;i<d->daqp.m;++i) if (!sense[i]) sense[i] = work->sense[i] & (ACTIVE+LOWER);
+  if (warm && vfdsl_daqp_succeeded(d->return_status)) {
+    for (i=0;i<d->daqp.m;++i) if (!sense[i]) sense[i] = work->sense[i] & (DAQP_ACTIVE+DAQP_LOWER);
   }
-  /* For a diagonal H, update_Rinv moves the factor's buffer from Rinv to RinvD (and back when H is
-     not diagonal) but cannot run twice on a diagonal H: give the buffer back to Rinv, the state
-     setup_daqp leaves before its own update_ldp. */
-  if (work->RinvD && !work->Rinv) {
-    work->Rinv = work->RinvD;
-    work->RinvD = 0;
-  }
-  /* As in setup_daqp: the sense is copied first, then the factors (empties the working set). */
-  flag = update_ldp(UPDATE_Rinv+UPDATE_M+UPDATE_v+UPDATE_d+UPDATE_sense, work);
-  if (flag<0) return flag;
-  flag = activate_constraints(work);
-  if (flag!=EXIT_OVERDETERMINED_INITIAL) return flag;
-  reset_daqp_workspace(work);  /* the previous working set is dependent now: start cold */
-  for (i=0;i<d->daqp.m;++i) if (!(work->sense[i] & IMMUTABLE)) work->sense[i] &= ~ACTIVE;
-  return activate_constraints(work);
+  return daqp_update_ldp(DAQP_UPDATE_Rinv+DAQP_UPDATE_M+DAQP_UPDATE_v+DAQP_UPDATE_d+DAQP_UPDATE_sense,
+                         work, &d->daqp);
 }
 
 void casadi_daqp_free_mem(struct casadi_daqp_data* d) {
@@ -58,16 +72,21 @@ void casadi_daqp_free_mem(struct casadi_daqp_data* d) {
   d->return_status = 0;
 }
 
-static int vfdsl_daqp_solve(struct casadi_daqp_data* d, int warm) {
+static int vfdsl_daqp_solve(struct casadi_daqp_data* d, int warm, const vfdsl_levels* levels) {
   int flag;
   const struct casadi_daqp_prob* p = d->prob;
   const struct casadi_qp_prob* p_qp = p->qp;
   struct casadi_qp_data* d_qp = d->qp;
+  DAQPSettings* settings = (DAQPSettings*) (&p->settings);
+  settings->eq_reduction = DAQP_EQ_REDUCTION_OFF;   /* the same LDP every tick: no reduced copy */
   vfdsl_daqp_cold_sense(p_qp, d_qp, d->daqp.sense);
   d->daqp.n = p_qp->nx;
   d->daqp.m = p_qp->nx + p_qp->na;
   d->daqp.ms = p_qp->nx;
-  d->work.settings = (DAQPSettings*) (&p->settings);
+  d->daqp.problem_type = 0;
+  d->daqp.nh = levels ? levels->nh : 0;
+  d->daqp.break_points = levels ? (int*) levels->break_points : 0;
+  d->work.settings = settings;
   d->res.x = d_qp->x;
   casadi_densify(d->qp->h, d->prob->qp->sp_h, d->daqp.H, 0);
   casadi_densify(d->qp->a, d->prob->qp->sp_a, d->daqp.A, 1);
@@ -79,8 +98,8 @@ static int vfdsl_daqp_solve(struct casadi_daqp_data* d, int warm) {
   if (d->work.sense) {
     flag = vfdsl_daqp_update(d, warm);
   } else {
-    flag = setup_daqp(&d->daqp, &d->work, 0);
-    if (flag<0) casadi_daqp_free_mem(d);  /* setup_daqp may leave part of it allocated */
+    flag = vfdsl_daqp_setup(d, levels);
+    if (flag<0) casadi_daqp_free_mem(d);  /* setup may leave part of it allocated */
   }
   if (flag>=0) {
     daqp_solve(&d->res, &d->work);
@@ -90,7 +109,7 @@ static int vfdsl_daqp_solve(struct casadi_daqp_data* d, int warm) {
   d->return_status = flag;
   d->nodecount = 0;
   d->bnb_itercount = 0;
-  d_qp->success = flag==EXIT_OPTIMAL;
+  d_qp->success = vfdsl_daqp_succeeded(flag);
   if (d_qp->success) {
     casadi_copy(d->res.lam, p_qp->nx, d_qp->lam_x);
     casadi_copy(d->res.lam+p_qp->nx, p_qp->na, d_qp->lam_a);
@@ -105,6 +124,5 @@ static int vfdsl_daqp_solve(struct casadi_daqp_data* d, int warm) {
 }
 
 int casadi_daqp_solve(struct casadi_daqp_data* d, const double** arg, double** res, casadi_int* iw, double* w) {
-  return vfdsl_daqp_solve(d, 0);
+  return vfdsl_daqp_solve(d, 0, 0);
 }
-

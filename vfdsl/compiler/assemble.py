@@ -1,6 +1,6 @@
 """Assembly: a checked task -> one CasADi Function giving the QP of a control tick.
 
-    qp_data(q, u, p, dt) -> (H, g, A, lba, uba, lbx, ubx, H1, g1, E1, ..., Hk, gk)
+    qp_data(q, u, p, dt) -> (H, g, A, lba, uba, lbx, ubx, R1, r1, ..., Rk, rk)
 
 is the QP in CasADi conic's standard form over x = [dq; s] (s: one slack per soft constraint):
 
@@ -10,10 +10,11 @@ is the QP in CasADi conic's standard form over x = [dq; s] (s: one slack per sof
   dt^2 (which changes no minimizer) it is w || E dq - f dt ||^2, per tick. A soft constraint's slack s (row units
   per tick) costs w s^2 = w dt^2 (s/dt)^2, a rate too. H = 2 sum_k w_k E_k' E_k + rho I (a tiny floor that keeps
   H positive definite when the terms leave some motion free), g = -2 sum_k w_k E_k' f_k dt;
-- priority levels: terms are grouped by (priority, after) in increasing order; level j's own cost is Hj, gj
-  (its terms only, plus the Hessian floor), and Ej stacks its terms' rows, so that the solver can keep level j
-  optimal while it solves the levels below (:mod:`vfdsl.runtime.qp`), and a reader can say how far each term
-  got. H, g are the sum over all levels (the least-violation phase uses them). With a single level, only H and
+- priority levels: terms are grouped by (priority, after) in increasing order; level j's own cost is
+  1/2 || Rj x - rj ||^2 (its terms only: Rj stacks their rows sqrt(2 w) E, rj their targets sqrt(2 w) f dt),
+  which the solver minimizes while it keeps every level above at its optimum (:mod:`vfdsl.runtime.qp`), and a
+  reader can say how far each term got. H, g are the sum over all levels (the least-violation phase uses them,
+  H with the floor). With a single level, only H and
   g are given. Every level is given, a last level of `damping` alone too: it picks the smallest motion among
   the optimal ones of the levels above, which no other level may do in their place (a damping folded into a
   tracked level would trade tracking for it);
@@ -99,11 +100,13 @@ def _label(c: ir.Constraint, facet: str) -> RowLabel:
 
 @dataclass
 class _Level:
-    """One priority level's cost sum_k w_k || E_k x - f_k dt ||^2 as H, g (without the Hessian floor)."""
+    """One priority level's cost sum_k w_k || E_k x - f_k dt ||^2 = 1/2 || R x - r ||^2 + const, with the rows
+    R_k = sqrt(2 w_k) E_k and targets r_k = sqrt(2 w_k) f_k dt; as H = R'R, g = -R'r (without the Hessian floor)."""
 
     H: ca.SX
     g: ca.SX
-    E: list
+    R: list
+    r: list
     names: list[str]                 # what it solves, for labels ("track(tip) linear")
     terms: set[str]                  # the objective terms it holds ("track", "damping", ...; "soft")
 
@@ -113,10 +116,12 @@ def _objective_levels(task: ir.Task, ctx: Context, soft: list[ir.Constraint], n:
     levels: dict[tuple[int, int], _Level] = {}
 
     def add(key, weight, E, f, name, term):
-        level = levels.setdefault(key, _Level(ca.SX.zeros(n, n), ca.SX.zeros(n), [], [], set()))
-        level.H += 2 * weight * (E.T @ E)
-        level.g -= 2 * weight * (E.T @ f)
-        level.E.append(E)
+        level = levels.setdefault(key, _Level(ca.SX.zeros(n, n), ca.SX.zeros(n), [], [], [], set()))
+        R, r = ca.sqrt(2 * weight) * E, ca.sqrt(2 * weight) * f
+        level.H += R.T @ R
+        level.g -= R.T @ r
+        level.R.append(R)
+        level.r.append(r)
         level.names.append(name)
         level.terms.add(term)
 
@@ -198,8 +203,8 @@ def assemble(task: ir.Task, robot: Robot) -> AssembledProblem:
     names = ["H", "g", "A", "lba", "uba", "lbx", "ubx"]
     if len(levels) > 1:
         for j, level in enumerate(levels, start=1):
-            outputs += [floor + level.H, level.g, ca.vertcat(*level.E)]
-            names += [f"H{j}", f"g{j}", f"E{j}"]
+            outputs += [ca.vertcat(*level.R), ca.vertcat(*level.r)]
+            names += [f"R{j}", f"r{j}"]
     function = ca.Function("qp_data", [ctx.q, ctx.u, ctx.p, ctx.dt], [ca.densify(x) for x in outputs],
                            ["q", "u", "p", "dt"], names)
     return AssembledProblem(function, ctx, labels, groups, bound_labels, slack_labels,

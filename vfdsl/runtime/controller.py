@@ -20,7 +20,7 @@ from vfdsl.compiler.assemble import AssembledProblem, RowLabel
 from vfdsl.ir import model as ir
 from vfdsl.primitives import CONSTRAINTS
 from vfdsl.runtime.levels import PriorityLevel, priority_levels
-from vfdsl.runtime.qp import BAND_FACTOR, StepStatus
+from vfdsl.runtime.qp import StepStatus
 from vfdsl.runtime.tracking import Tracking, readout, tracked_terms
 from vfdsl.runtime.values import RuntimeValues
 
@@ -55,8 +55,8 @@ class QuadraticProgram:
 
     The first n rows of A are the identity (the variable bounds: joint limits, joint speeds, slack >= 0);
     the rest are the constraint rows. ``labels[i]`` says where row i comes from. P, g are the sum of the
-    priority levels' costs (the least-violation phase's objective); ``levels`` gives each level's cost and the
-    band that holds it while the levels below are solved: what ``step()`` solves, level by level."""
+    priority levels' costs (the least-violation phase's objective); ``levels`` gives each level's rows, targets
+    and cost: what ``step()`` solves, level by level (each at its optimum over the optimal set of the levels above)."""
 
     P: np.ndarray
     g: np.ndarray
@@ -124,7 +124,7 @@ class Controller:
                                 lb=np.concatenate([lbx.ravel(), lba.ravel()]),
                                 ub=np.concatenate([ubx.ravel(), uba.ravel()]),
                                 labels=list(self._labels), nq=self.nq,
-                                levels=priority_levels(outputs, self.assembled.levels, BAND_FACTOR * self._tolerance))
+                                levels=priority_levels(outputs, self.assembled.levels))
 
     def tracking(self, q, inputs=None, params=None, dt=None) -> list[Tracking]:
         """Runs the tick (as :meth:`step`) and says, for every part of every `track` term, the commanded and the

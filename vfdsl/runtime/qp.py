@@ -15,13 +15,13 @@ an entry is pinned to whichever of lbx_j, ubx_j is smaller in magnitude -- the p
 interval containing 0 (the speed bound) nearest the other one, i.e. a return toward the limits at
 full allowed speed. Status bit ``BOUNDS_CLIPPED`` reports it. The clipped box B is never empty.
 
-**Priority levels.** The objective may come in levels (``qp_data`` then also gives Hj, gj, Ej per level): each
-level minimizes its own cost over the same rows and box while the rows E_i x of every level above stay within
-``BAND_FACTOR * feas_tol`` of their values at that level's answer (:func:`_level_chain`). Each level's cost is
-scaled, gets the levels above's curvature (free on the band) and epsilon I, and every level but the last is solved
-once more with a proximal term instead of epsilon I, so that no regularization cuts a tracked motion; a level
-DAQP cannot solve within its bands is solved again with wider ones before it is given up. H, g (the sum of all
-levels) serve phase 2.
+**Priority levels.** The objective may come in levels (``qp_data`` then also gives Rj, rj per level, level j's
+cost being 1/2 |Rj x - rj|^2): phase 1 is then one call of DAQP's hierarchical mode (Arnström & Axehill's
+lexicographic least squares, in the daqp sources the generated C is built from). The rows and the box are level 0,
+hard; level 1 minimizes its squared errors over them, level 2 over the optimal set of level 1, and so on; DAQP's
+own cost, |x|^2 / 2, picks the smallest motion among what the levels leave free. Each level's rows are scaled to a
+longest row of 1 (no minimizer changes) and weighted in the problem's scale (``LEVEL_SOFT_WEIGHT``), so that a
+level weighs its terms as the task says. H, g (the sum of all levels) serve phase 2.
 
 **Phase 1** solves (P) over B. DAQP is a dual active-set method: its iterates are dual feasible
 and it stops when the primal iterate is feasible, so "x is finite and within ``feas_tol`` of every
@@ -37,8 +37,8 @@ per-group violation.
                            subject to  lba - E t <= A x <= uba + E t,   x in B,   t >= 0
 
     (B) objective:         minimize   1/2 x'Hx + g'x
-                           subject to  lba' <= A x <= uba',   x in B
-                           (lba'_i = a_i'x_A - tol/100 where a_i'x_A < lba_i, else lba_i; likewise uba')
+                           subject to  lba_i <= a_i'x <= uba_i  for the rows x_A satisfies,   x in B,
+                                       a_i'x = a_i'x_A          for the rows x_A violates (a soft level)
 
 (A) is always feasible (any x in B with t large enough). Its measure sum_g (rho t_g + t_g^2/2) is
 strictly increasing and strictly convex in t, so the least violation t* is unique. With one group
@@ -50,10 +50,14 @@ eigenvalues span ~1e-6..10 on the example tasks, and mu H / trace(H) next to the
 (A) so ill-conditioned that CasADi's DAQP returned rows violated by up to 2e-7 while reporting
 success; with mu I (A) is solved to ~1e-13 (measured).
 
-(B) keeps every row that x_A satisfies hard and relaxes the others just enough to contain x_A (plus
-tol/100, so that its feasible set is not a single degenerate point): it is feasible by
-construction, and the user's objective acts only inside the least-violation set, so
-no row that could hold is traded for tracking. (A) has n + G variables and 2m rows; DAQP is dense,
+(B) keeps every row that x_A satisfies hard and holds the others at their values at x_A: it is feasible by
+construction, and the user's objective acts only inside the least-violation set, so no row that could hold is
+traded for tracking. The held rows conflict (that is why they are violated), are often more than n, and with
+conflicting neighbours make any thin band around x_A nearly empty: as hard rows DAQP 0.11 declared (B)
+infeasible at 14 to 23 of 24 least-violation states of polyline_guide (bands of 1e-11 to 1e-9, or equalities).
+So they form a soft level of DAQP's hierarchical mode above the objective: least squares, met to ~1e-8 per tick
+where they are many (polyline_guide, measured; 1e-10 and closer elsewhere), and (B) never failed there; an answer
+that misses them by more than ``HELD_ROWS`` feas_tol is not taken. (A) has n + G variables and 2m rows; DAQP is dense,
 so G = m costs O((n + m)^3) per solve: pass coarse groups for large m (docs/runtime.md: timings).
 
 (A) is feasible by construction, so its answer is taken unless the solve failed outright (rows or
@@ -79,29 +83,21 @@ QP_DATA_OUTPUTS = ("H", "g", "A", "lba", "uba", "lbx", "ubx")
 STEP_OUTPUTS = ("x", "status", "violation")
 GRADIENT_SATURATION = 1e3
 """K of :func:`_saturated_gradient`: a user push beyond K box widths is saturated."""
-BAND_FACTOR = 1.0
-"""A lower priority level keeps each higher level's rows E_i x within BAND_FACTOR * feas_tol of their optimal
-values: 1e-9 m or rad per tick at vfdsl.compile's feas_tol (0.1 um/s at 10 ms). Thinner bands (1e-11) made DAQP
-declare feasible lower levels infeasible: the two sides of a band are nearly parallel rows 2e-11 apart."""
-LEVEL_REGULARIZATION = 1e-6
-"""epsilon: each priority level's QP is solved with its Hessian scaled to a unit largest diagonal plus epsilon I,
-then once more with epsilon (x - x_a)'(x - x_a) / 2 instead (one proximal-point step from the first answer x_a):
-the bias epsilon puts on the level's own optimum is multiplied by epsilon / (lambda + epsilon) twice, lambda the
-level's curvature along the motion (see :func:`_level_chain`). Below 1e-6 DAQP's answers miss rows by more than
-feas_tol (CasADi's DAQP: 9e-8 at 1e-8 on tilt_limited_orbit)."""
-LEVEL_ACCEPTANCE = 100.0
-"""The answers of the levels above the last, phase 1's included, are accepted within LEVEL_ACCEPTANCE * feas_tol of
-the rows (1e-7 m or rad): at epsilon = 1e-6 DAQP meets rows only to ~1e-10..1e-9 (its x is recovered through the
-factor of a Hessian of condition 1e6), and a borderline check made the two paths decide differently. The last
-level, whose Hessian is the damping's, answers to ~1e-12 and is held to feas_tol; an upper level's answer only
-gives the band centres (its E_i x), which are well determined.""" 
-WIDE_BAND = 10.0
-"""When no solve of a level is acceptable within the band, the level is solved again with the bands of the levels
-above WIDE_BAND times wider (1e-8 m or rad per tick, 1 um/s at 10 ms) before it is given up."""
-UPPER_CURVATURE = 1.0
-"""A lower level's Hessian also gets the (scaled) Hessians of the levels above it: their costs depend on x only
-through E_i x, which the band holds, so no minimizer changes; the directions the levels above fix are no longer
-flat in the lower level's QP (without it DAQP declared 5 % of lecture_remote_center's level 2 infeasible)."""
+LEVEL_PRIMAL_TOL = (1e-10, 1e-9)
+"""DAQP's primal tolerance for the hierarchical solve, then for its retry when the first fails (as feas_tol, rows'
+units; a solve with levels then meets the hard rows to ~1e-10). Tighter, DAQP fails a level more often (measured
+over 100 random states of paper_a_follow_curve: 5 at 1e-11, 0 at 1e-10, 1 at 1e-9, never both of the last two)."""
+LEVEL_SOFT_WEIGHT = 1e-8
+"""rho: DAQP's reciprocal weight of every soft row of a priority level (its rows scaled to a longest row of 1),
+given in the problem's own scale, so that a level minimizes the plain sum of its rows' squared errors (DAQP
+normalizes rows internally, and with one weight in its normalized scale a level would weigh a row by 1/|row|^2:
+tested). rho only sets how hard DAQP's inner proximal iterations pull a level towards its least squares, not which
+answer they converge to; 1e-10 made DAQP stop at the levels above a level on 3 of 40 states of
+lecture_remote_center, 1e-6..1e-8 gave the same answers (measured with the daqp package)."""
+HELD_ROWS = 10.0
+"""(B)'s answer is taken only if it holds the rows x_A violates within HELD_ROWS * feas_tol of their values at x_A
+(1e-8 m or rad per tick); else x_A is (the least violation, without the objective). Its soft level meets them to
+~1e-8 where they are many; at 1e-6 the two paths' violations differed by 1.3e-7 on paper_b_virtual_rcm."""
 PER_ROW_GROUPS_LIMIT = 100
 """Above this many rows one group per row makes phase 2 slow (~30 ms at m = 200; seconds, DAQP
 iteration-limit failures and megabytes of generated C at m = 1000): a warning asks for groups."""
@@ -120,7 +116,7 @@ def build_step_function(qp_data: ca.Function, prefix: str, *,
                         row_groups: Sequence[Hashable] | None = None,
                         feas_tol: float = 1e-6,
                         penalty: float = 1.0,
-                        tie_break: float = 1e-3) -> ca.Function:
+                        tie_break: float = 1e-3, native: bool = False) -> ca.Function:
     """``prefix(q, u, p, dt, recover) -> (x[n], status, violation[m])`` solving ``qp_data``'s QP.
 
     ``recover`` nonzero evaluates phase 2 even when phase 1 succeeds: the generated controller does
@@ -128,7 +124,9 @@ def build_step_function(qp_data: ca.Function, prefix: str, *,
 
     ``row_groups[i]`` is the group of general row i (default: one group per row); ``feas_tol`` the
     absolute tolerance (row units) under which a row or bound counts as satisfied; ``penalty`` is
-    rho and ``tie_break`` is mu of phase 2 (see the module docstring).
+    rho and ``tie_break`` is mu of phase 2 (see the module docstring). ``native``: the Function is only for
+    code generation (its DAQP solves are CasADi conics, which vfdsl.codegen.build compiles against DAQP's own
+    sources); else CasADi evaluates it, DAQP solving through the ``daqp`` package.
     """
     levels = _check_qp_data(qp_data)
     n, m = qp_data.size1_out(0), qp_data.size1_out(2)
@@ -138,26 +136,24 @@ def build_step_function(qp_data: ca.Function, prefix: str, *,
     H, g, A, lba, uba, lbx, ubx = data[:7]
     lo, hi, clipped = _safe_box(lbx, ubx)
     g = _saturated_gradient(H, g, lo, hi)
-    if levels > 1:      # (Hj, gj, Ej) per level
-        scaled = [_normalized(Hj, gj) for Hj, gj in zip(data[7::3], data[8::3])]
-        Hs = [Hj + UPPER_CURVATURE * sum((Hi for Hi, _ in scaled[:j]), ca.MX.zeros(n, n))
-              for j, (Hj, _) in enumerate(scaled)]
-        Hs = [Hj + LEVEL_REGULARIZATION * ca.MX.eye(n) for Hj in Hs]
-        gs = [_saturated_gradient(Hj, gj, lo, hi) for Hj, (_, gj) in zip(Hs, scaled)]
-        Es = data[9::3][:-1]
+    if levels > 1:      # (Rj, rj) per level: one hierarchical solve, DAQP's own cost the tie-break |x|^2 / 2
+        rows = [_level_rows(R, r, lo, hi) for R, r in zip(data[7::2], data[8::2])]
+        R, r = ca.vertcat(*(R for R, _ in rows)), ca.vertcat(*(r for _, r in rows))
+        sizes = [R.size1() for R, _ in rows]
+        first = _daqp(n, m, LEVEL_PRIMAL_TOL[0], "phase1", native, sizes)(ca.DM.eye(n), ca.DM.zeros(n), A, lba, uba,
+                                                                             lo, hi, R, r)
+        x1 = _retried(first, recover, _daqp(n, m, LEVEL_PRIMAL_TOL[1], "phase1_retry", native, sizes),
+                      [ca.DM.eye(n), ca.DM.zeros(n), A, lba, uba, lo, hi, R, r])
     else:
-        Hs, gs, Es = [H], [g], []
+        x1 = _daqp(n, m, feas_tol * 1e-3, "phase1_warm", native)(H, g, A, lba, uba, lo, hi)
 
-    x1 = _daqp(n, m, feas_tol, "phase1_warm")(Hs[0], gs[0], A, lba, uba, lo, hi)
-    lower = [*Hs, *gs, *Es]
-    chain = _level_chain(n, m, len(Hs), [E.size1() for E in Es], feas_tol)
     if m == 0:
-        x, status = chain(x1, A, lba, uba, lo, hi, *lower), ca.MX(int(StepStatus.OPTIMAL))
+        x, status = x1, ca.MX(int(StepStatus.OPTIMAL))
     else:
-        ok1 = _acceptable(x1, A @ x1, lba, uba, lo, hi, feas_tol * (LEVEL_ACCEPTANCE if levels > 1 else 1))
-        switch = _phase2_switch([H, g, A, lba, uba, lo, hi, x1, *lower], chain, _incidence(m, row_groups),
-                                feas_tol, penalty, tie_break)
-        picked = switch(ca.logic_and(ok1, recover == 0), H, g, A, lba, uba, lo, hi, x1, *lower)
+        ok1 = _acceptable(x1, A @ x1, lba, uba, lo, hi, feas_tol)
+        switch = _phase2_switch([H, g, A, lba, uba, lo, hi, x1], _incidence(m, row_groups),
+                                feas_tol, penalty, tie_break, native)
+        picked = switch(ca.logic_and(ok1, recover == 0), H, g, A, lba, uba, lo, hi, x1)
         x, status = picked[:n], picked[n]
     # The last line of defence, for every path: x is finite and in B (up to the solver's bound noise,
     # then clipped), or it is the rest motion with FALLBACK.
@@ -172,122 +168,157 @@ def build_step_function(qp_data: ca.Function, prefix: str, *,
 
 
 def _check_qp_data(qp_data: ca.Function) -> int:
-    """The number of priority levels: 1 for the 7 outputs of QP_DATA_OUTPUTS, k >= 2 for 7 + 3k outputs
-    (Hj, gj, Ej per level)."""
+    """The number of priority levels: 1 for the 7 outputs of QP_DATA_OUTPUTS, k >= 2 for 7 + 2k outputs
+    (Rj, rj per level)."""
     n_out = qp_data.n_out()
-    levels = 1 if n_out == 7 else (n_out - 7) // 3
-    if qp_data.n_in() != 4 or n_out < 7 or (n_out != 7 and (levels < 2 or 7 + 3 * levels != n_out)):
-        raise ValueError(f"qp_data must map (q, u, p, dt) to {QP_DATA_OUTPUTS} (+ Hj, gj, Ej per priority level), "
+    levels = 1 if n_out == 7 else (n_out - 7) // 2
+    if qp_data.n_in() != 4 or n_out < 7 or (n_out != 7 and (levels < 2 or 7 + 2 * levels != n_out)):
+        raise ValueError(f"qp_data must map (q, u, p, dt) to {QP_DATA_OUTPUTS} (+ Rj, rj per priority level), "
                          f"got {qp_data.n_in()} inputs and {n_out} outputs")
     n, m = qp_data.size1_out(0), qp_data.size1_out(2)
     expected = [(n, n), (n, 1), (m, n), (m, 1), (m, 1), (n, 1), (n, 1)]
     if levels > 1:
         for j in range(levels):
-            expected += [(n, n), (n, 1), (qp_data.size1_out(9 + 3 * j), n)]
+            expected += [(qp_data.size1_out(7 + 2 * j), n), (qp_data.size1_out(7 + 2 * j), 1)]
     got = [(qp_data.size1_out(i), qp_data.size2_out(i)) for i in range(n_out)]
     if got != expected:
         raise ValueError(f"qp_data output shapes {got} do not match {expected} for n={n}, m={m}")
     return levels
 
 
-def _normalized(H: ca.MX, g: ca.MX) -> tuple[ca.MX, ca.MX]:
-    """One level's cost scaled to a unit largest Hessian diagonal: no minimizer changes, and DAQP's data stay
-    O(1) whatever the weights (with centering at weight 1e6 DAQP answered a level's rows only to ~1e-6, which let
-    a redundancy level move a tracked tip 0.2 mm in 2 s)."""
-    scale = ca.mmax(ca.diag(H))
-    return H / scale, g / scale
+def _level_rows(R: ca.MX, r: ca.MX, lo: ca.MX, hi: ca.MX) -> tuple[ca.MX, ca.MX]:
+    """One level's rows and targets scaled to a longest row of 1 (no minimizer of the level changes: DAQP's data
+    stay O(1) whatever the weights), the targets then saturated as :func:`_saturated_gradient` saturates g: a
+    target beyond K sqrt(n) W of zero cannot be met inside the box B (|R x|_inf <= |x|_2 <= sqrt(n) W)."""
+    longest = ca.sqrt(ca.mmax(ca.sum2(R * R)))
+    scale = ca.if_else(longest > 0, 1 / longest, 1)
+    R, r = R * scale, r * scale
+    limit = GRADIENT_SATURATION * np.sqrt(R.size2()) * _box_width(lo, hi)
+    r_max = ca.mmax(ca.fabs(r))
+    return R, r * ca.if_else(ca.logic_and(limit > 0, r_max > limit), limit / r_max, 1)
 
 
-def _level_chain(n: int, m: int, levels: int, e_rows: list[int], tol: float) -> ca.Function:
-    """chain(x1, A, lba, uba, lo, hi, H1..Hk, g1..gk, E1..E(k-1)) -> x: the priority levels, from level 1's first
-    answer x1 (phase 1, known acceptable) on.
-
-    Each level j minimizes its own cost (Hj, gj: scaled, with the levels above's curvature and epsilon I, see
-    UPPER_CURVATURE and LEVEL_REGULARIZATION) over the rows and the box, and keeps every level above it optimal:
-    the rows E_i x of the levels i < j stay within BAND of their values at x_i, level i's own answer (E_i is the
-    stack of level i's terms, so its optimal set is {x : E_i x = E_i x_i}; centred on x_i, not on the level just
-    above, the levels below cannot walk a band width further each). Every level but the last
-    is then solved once more with the proximal term epsilon |x - x_a|^2 / 2 instead of epsilon |x|^2 / 2, x_a its
-    first answer: the first solve's bias on the level's optimum, epsilon / (lambda + epsilon) of the motion along
-    a direction where the level's curvature is lambda (a tool tip turned about a port 4 mm away: lambda ~ 2e-5),
-    is multiplied by that factor again. The last level (the redundancy terms, usually damping) keeps its
-    epsilon: it only chooses among motions the levels above leave free.
-
-    A level none of whose solves is acceptable (rows, bounds, or its bands by more than another band width) is
-    solved again with WIDE_BAND times wider bands, and if that fails too it keeps the answer before it: a lower
-    level can never undo a higher one."""
-    x1 = ca.MX.sym("x1", n)
-    A = ca.MX.sym("A", m, n)
-    lba, uba, lo, hi = (ca.MX.sym(name, size) for name, size in (("lba", m), ("uba", m), ("lo", n), ("hi", n)))
-    Hs = [ca.MX.sym(f"H{j}", n, n) for j in range(1, levels + 1)]
-    gs = [ca.MX.sym(f"g{j}", n) for j in range(1, levels + 1)]
-    Es = [ca.MX.sym(f"E{j}", rows, n) for j, rows in enumerate(e_rows, start=1)]
-    band = BAND_FACTOR * tol
-    eps = LEVEL_REGULARIZATION
-
-    def level(j, width, tag) -> ca.Function:
-        """level(x_prev, at, kept, A, lba, uba, lo, hi, Hj, gj) -> (x, ok): level j within bands of ``width``
-        around ``at`` on the rows ``kept`` (x_prev when no solve is acceptable; ok: a solve was). A Function of its
-        own, so that a switch can call it without recomputing the levels above."""
-        rows = sum(e_rows[:j - 1])
-        x_prev, at, kept = ca.MX.sym("x_prev", n), ca.MX.sym("at", rows), ca.MX.sym("kept", rows, n)
-        A_, lba_, uba_ = ca.MX.sym("A", m, n), ca.MX.sym("lba", m), ca.MX.sym("uba", m)
-        lo_, hi_, Hj, gj = ca.MX.sym("lo", n), ca.MX.sym("hi", n), ca.MX.sym("H", n, n), ca.MX.sym("g", n)
-        A_j, lb_j, ub_j = ca.vertcat(A_, kept), ca.vertcat(lba_, at - width), ca.vertcat(uba_, at + width)
-
-        def acceptable(x_new):
-            rows_tol = tol if j == levels else tol * LEVEL_ACCEPTANCE
-            return ca.logic_and(_acceptable(x_new, A_j @ x_new, lb_j, ub_j, lo_, hi_, rows_tol),
-                                ca.mmax(_row_violation(kept @ x_new, at - width, at + width)) <= width)
-
-        x_a = _daqp(n, m + rows, tol, f"level{j}{tag}_warm")(Hj, gj, A_j, lb_j, ub_j, lo_, hi_)
-        ok = acceptable(x_a)
-        x = ca.if_else(ok, x_a, x_prev)
-        if j < levels:      # the proximal step from the level's first answer
-            x_b = _daqp(n, m + rows, tol, f"level{j}{tag}_prox_warm")(Hj, gj - eps * x, A_j, lb_j, ub_j, lo_, hi_)
-            ok_b = acceptable(x_b)
-            x = ca.if_else(ok_b, x_b, x)
-            ok = ca.logic_or(ok, ok_b)
-        return ca.Function(f"level{j}{tag}", [x_prev, at, kept, A_, lba_, uba_, lo_, hi_, Hj, gj], [x, ok])
-
-    x = x1
-    if levels > 1:          # level 1's proximal step (its first answer is phase 1's)
-        x_b = _daqp(n, m, tol, "level1_prox_warm")(Hs[0], gs[0] - eps * x1, A, lba, uba, lo, hi)
-        ok_b = (_acceptable(x_b, A @ x_b, lba, uba, lo, hi, tol * LEVEL_ACCEPTANCE) if m
-                else _in_box(x_b, lo, hi, tol * LEVEL_ACCEPTANCE))
-        x = ca.if_else(ok_b, x_b, x1)
-    centers = [Es[0] @ x] if levels > 1 else []
-    for j in range(2, levels + 1):
-        args = [x, ca.vertcat(*centers), ca.vertcat(*Es[:j - 1]), A, lba, uba, lo, hi, Hs[j - 1], gs[j - 1]]
-        x_narrow, ok = level(j, band, "")(*args)
-        # DAQP (CasADi's) can call a feasible level infeasible, or miss its rows, where the band pins a
-        # degenerate vertex (every joint at its speed bound): solved again with bands WIDE_BAND times wider, only
-        # on such ticks (a switch between Functions: neither branch recomputes the levels above)
-        wide = level(j, WIDE_BAND * band, "_wide")
-        symbols = [ca.MX.sym(f"a{k}", v.sparsity()) for k, v in enumerate([x_narrow, *args])]
-        keep = ca.Function(f"level{j}_keep", symbols, [symbols[0]])
-        retry = ca.Function(f"level{j}_retry", symbols, [wide(*symbols[1:])[0]])
-        x = ca.Function.if_else(f"level{j}_if_failed", keep, retry)(ok, x_narrow, *args)
-        if j < levels:
-            centers.append(Es[j - 1] @ x)       # level j's optimal values, held by every level below
-    return ca.Function("priority_levels", [x1, A, lba, uba, lo, hi, *Hs, *gs, *Es], [x])
+def _retried(x: ca.MX, recover: ca.MX, again: Callable[..., ca.MX], args: list) -> ca.MX:
+    """x, or ``again(*args)`` when x is not finite (a failed solve) or ``recover`` is nonzero (the priming tick,
+    which so sets up the retry's solver too): a switch between Functions, so the second solve runs only on the
+    ticks that need it."""
+    symbols = [ca.MX.sym(f"a{k}", v.sparsity()) for k, v in enumerate([x, *args])]
+    keep = ca.Function("keep_first", symbols, [symbols[0]])
+    retry = ca.Function("solve_again", symbols, [again(*symbols[1:])])
+    use_first = ca.logic_and(ca.mmin(ca.fabs(x) < ca.inf), recover == 0)
+    return ca.Function.if_else("retry_if_failed", keep, retry)(use_first, x, *args)
 
 
-def _daqp(n: int, m: int, feas_tol: float, name: str) -> Callable[..., ca.MX]:
-    """solve(H, g, A, lba, uba, lbx, ubx) -> x: dense DAQP conic, no exception on failure.
+def _box_width(lo: ca.MX, hi: ca.MX) -> ca.MX:
+    """W: the largest finite bound of the box, in magnitude (0 when none is finite)."""
+    finite_abs = lambda b: ca.if_else(ca.fabs(b) < ca.inf, ca.fabs(b), 0)  # noqa: E731
+    return ca.mmax(ca.fmax(finite_abs(lo), finite_abs(hi)))
 
-    The variable bounds reach DAQP as identity rows: through CasADi's interface (3.8) DAQP met simple
-    bounds only to ~5e-8 (measured), general rows to ``primal_tol``."""
-    sparsity = {"h": ca.Sparsity.dense(n, n), "a": ca.Sparsity.dense(m + n, n)}
-    options = {"error_on_fail": False, "daqp": {"primal_tol": feas_tol * 1e-3}}
-    conic = ca.conic(name, "daqp", sparsity, options)
+
+def _daqp(n: int, m: int, primal_tol: float, name: str, native: bool,
+          level_rows: Sequence[int] = ()) -> Callable[..., ca.MX]:
+    """solve(H, g, A, lba, uba, lbx, ubx[, R, r[, r_upper]]) -> x: one dense DAQP solve, x = NaN when it fails.
+    ``primal_tol``: DAQP's (1e-3 feas_tol for the solves without levels, :data:`LEVEL_PRIMAL_TOL` with them).
+
+    The variable bounds reach DAQP as identity rows (through CasADi's conic interface DAQP met simple bounds only
+    to ~5e-8, measured). With ``level_rows`` (the row count of each priority level), R stacks the levels' rows and
+    r their targets (or r <= R x <= r_upper): DAQP's hierarchical mode minimizes || R_1 x - r_1 ||^2 (the rows'
+    squared violations) over the rows and bounds, then each
+    level in turn over the optimal set of the levels above, and the QP's own cost last; warm-started.
+    ``native``: a CasADi conic, which only the generated C evaluates (vfdsl.codegen.build puts DAQP's own sources
+    behind it and passes the levels, named in the conic's name); else the same solver, settings and rows through
+    the ``daqp`` package (:class:`_DaqpNode`), for CasADi's evaluation."""
     free = ca.inf * ca.DM.ones(n)
+    extra = sum(level_rows)
+    breaks = [int(b) for b in np.cumsum([2 * n + m, *level_rows])] if level_rows else []
+    if breaks:
+        name = f"{name}_levels_{'_'.join(map(str, breaks))}"
+    if native:
+        sparsity = {"h": ca.Sparsity.dense(n, n), "a": ca.Sparsity.dense(m + n + extra, n)}
+        options = {"error_on_fail": False, "daqp": {"primal_tol": primal_tol}}
+        conic = ca.conic(name, "daqp", sparsity, options)
+    else:
+        conic = _DaqpNode.function(name, n, m + n + extra, primal_tol, breaks)
 
-    def solve(H, g, A, lba, uba, lbx, ubx):
-        return conic(h=H, g=g, a=ca.vertcat(A, ca.DM.eye(n)), lba=ca.vertcat(lba, lbx),
-                     uba=ca.vertcat(uba, ubx), lbx=-free, ubx=free)["x"]
+    def solve(H, g, A, lba, uba, lbx, ubx, R=None, r=None, r_upper=None):
+        rows, lower, upper = [A, ca.DM.eye(n)], [lba, lbx], [uba, ubx]
+        if extra:
+            rows, lower, upper = [*rows, R], [*lower, r], [*upper, r if r_upper is None else r_upper]
+        return conic(h=H, g=g, a=ca.vertcat(*rows), lba=ca.vertcat(*lower), uba=ca.vertcat(*upper),
+                     lbx=-free, ubx=free)["x"]
 
     return solve
+
+
+class _DaqpNode(ca.Callback):
+    """(h, g, a, lba, uba, lbx, ubx) -> x: the generated conic's DAQP solve, cold, through the ``daqp`` package
+    (the same DAQP version the generated C is built from): the same problem (bounds as simple bounds, rows with
+    lba = uba as equalities), tolerance and settings; x = NaN unless DAQP reports success."""
+
+    _alive: list = []        # CasADi holds a Callback by reference: keep every node for the process's life
+
+    @classmethod
+    def function(cls, name: str, n: int, rows: int, primal_tol: float, break_points: list[int]) -> ca.Function:
+        node = cls(name, n, rows, primal_tol, break_points)
+        cls._alive.append(node)
+        return node
+
+    def __init__(self, name: str, n: int, rows: int, primal_tol: float, break_points: list[int]):
+        ca.Callback.__init__(self)
+        self.n, self.rows, self.primal_tol, self.break_points = n, rows, primal_tol, break_points
+        self.construct(name, {})
+
+    def get_n_in(self):
+        return 7
+
+    def get_n_out(self):
+        return 1
+
+    def get_name_in(self, i):
+        return ("h", "g", "a", "lba", "uba", "lbx", "ubx")[i]
+
+    def get_name_out(self, i):
+        return "x"
+
+    def get_sparsity_in(self, i):
+        n, rows = self.n, self.rows
+        return ca.Sparsity.dense(*((n, n), (n, 1), (rows, n), (rows, 1), (rows, 1), (n, 1), (n, 1))[i])
+
+    def get_sparsity_out(self, i):
+        return ca.Sparsity.dense(self.n, 1)
+
+    def eval(self, arg):
+        H, g, A, lba, uba, lbx, ubx = (np.array(a, dtype=float) for a in arg)
+        x, flag = solve_daqp(H, g.ravel(), A, np.r_[lbx.ravel(), lba.ravel()], np.r_[ubx.ravel(), uba.ravel()],
+                             self.primal_tol, self.break_points, LEVEL_SOFT_WEIGHT)
+        return [x if flag in DAQP_SUCCESS else np.full(self.n, np.nan)]
+
+
+DAQP_SUCCESS = (1, 2)
+"""DAQP's exit flags of an answer: optimal; with levels also soft-optimal, its normal success (not 3, the answer of
+the levels above a level DAQP failed to solve); as in daqp_persistent.c."""
+
+
+def solve_daqp(H, g, A, lower, upper, primal_tol, break_points=(), rho_soft=0.0):
+    """(x, exit flag) of DAQP on min 1/2 x'Hx + g'x, lower <= [x; A x] <= upper (the first n entries simple
+    bounds), rows with lower = upper equalities; with ``break_points``, DAQP's priority levels, the rows past the
+    first break point soft with weight ``rho_soft`` in the problem's own scale."""
+    import daqp
+    n = H.shape[0]
+    sense = np.where(lower == upper, 5, 0).astype(np.intc)      # DAQP_ACTIVE + DAQP_IMMUTABLE
+    sense[:n] = np.where(lower[:n] == upper[:n], 5, 0)
+    model = daqp.Model()
+    setup, _ = model.setup(np.ascontiguousarray(H), np.ascontiguousarray(g), np.ascontiguousarray(A.reshape(-1, n)),
+                np.ascontiguousarray(upper), np.ascontiguousarray(lower), sense,
+                np.asarray(break_points, dtype=np.intc) if len(break_points) else None)
+    if setup < 0:       # (e.g. a non-finite H or rows)
+        return np.full(n, np.nan), setup
+    model.settings = {"primal_tol": primal_tol, "eq_reduction": -1}
+    if len(break_points):
+        rho = np.r_[np.zeros(break_points[0]), np.full(len(lower) - break_points[0], rho_soft)]
+        model.soft_weights(rho_l=rho, rho_u=rho)
+    x, _, flag = model.solve()[:3]
+    return np.array(x), int(flag)
 
 
 def _saturated_gradient(H: ca.MX, g: ca.MX, lo: ca.MX, hi: ca.MX) -> ca.MX:
@@ -297,8 +328,7 @@ def _saturated_gradient(H: ca.MX, g: ca.MX, lo: ca.MX, hi: ca.MX) -> ca.MX:
     -H^-1 g at least K W from the origin: the answer is saturated by the bounds either way, and the
     scaled g keeps its direction while DAQP's transformed data (R^-T g, A H^-1 g) stay far from
     overflow and from swamping the rows' offsets. Never active on the example tasks' normal ticks."""
-    finite_abs = lambda b: ca.if_else(ca.fabs(b) < ca.inf, ca.fabs(b), 0)  # noqa: E731
-    width = ca.mmax(ca.fmax(finite_abs(lo), finite_abs(hi)))
+    width = _box_width(lo, hi)
     limit = GRADIENT_SATURATION * ca.mmax(ca.sum2(ca.fabs(H))) * width
     g_max = ca.mmax(ca.fabs(g))
     return g * ca.if_else(ca.logic_and(width > 0, g_max > limit), limit / g_max, 1)
@@ -352,20 +382,18 @@ def _incidence(m: int, row_groups: Sequence[Hashable] | None) -> ca.DM:
     return ca.sparsify(ca.DM(E))
 
 
-def _phase2_switch(values: list[ca.MX], chain: ca.Function, E: ca.DM, tol, rho, mu) -> ca.Function:
-    """switch(ok, H, g, A, lba, uba, lo, hi, x1, *lower) -> [chain(x1, ...); 0] when ok (the priority levels
-    below the first, ``lower`` their data), else phase 2's [x; status].
+def _phase2_switch(values: list[ca.MX], E: ca.DM, tol, rho, mu, native) -> ca.Function:
+    """switch(ok, H, g, A, lba, uba, lo, hi, x1) -> [x1; 0] when ok (phase 1's answer), else phase 2's [x; status].
 
     The branches are Functions of values already computed: a short-circuit ``if_else`` on
     expressions would make each branch recompute them (QP data and phase 1) from the inputs.
     """
     names = ("H", "g", "A", "lba", "uba", "lo", "hi", "x1")
-    args = [ca.MX.sym(names[k] if k < len(names) else f"level_{k}", v.sparsity()) for k, v in enumerate(values)]
-    H, g, A, lba, uba, lo, hi, x1 = args[:8]
-    keep = ca.Function("keep", args, [ca.vertcat(chain(x1, A, lba, uba, lo, hi, *args[8:]),
-                                                 int(StepStatus.OPTIMAL))])
+    args = [ca.MX.sym(name, v.sparsity()) for name, v in zip(names, values)]
+    H, g, A, lba, uba, lo, hi, x1 = args
+    keep = ca.Function("keep", args, [ca.vertcat(x1, int(StepStatus.OPTIMAL))])
     recover = ca.Function("recover", args,
-                          [_least_violation(H, g, A, lba, uba, lo, hi, E, tol, rho, mu)])
+                          [_least_violation(H, g, A, lba, uba, lo, hi, E, tol, rho, mu, native)])
     return ca.Function.if_else("phase2_if_needed", keep, recover)
 
 
@@ -375,7 +403,7 @@ def _phase2_switch(values: list[ca.MX], chain: ca.Function, E: ca.DM, tol, rho, 
 _GROSS_FAILURE = 1e-6
 
 
-def _least_violation(H, g, A, lba, uba, lo, hi, E: ca.DM, tol, rho, mu) -> ca.MX:
+def _least_violation(H, g, A, lba, uba, lo, hi, E: ca.DM, tol, rho, mu, native) -> ca.MX:
     """Phase 2 (A then B), returning [x; status]."""
     n, m, G = H.size1(), A.size1(), E.size2()
     H_a = ca.diagcat(mu * ca.DM.eye(n), ca.DM.eye(G))
@@ -384,18 +412,24 @@ def _least_violation(H, g, A, lba, uba, lo, hi, E: ca.DM, tol, rho, mu) -> ca.MX
     inf_m, inf_G = ca.inf * ca.DM.ones(m), ca.inf * ca.DM.ones(G)
     lba_a, uba_a = ca.vertcat(lba, -inf_m), ca.vertcat(inf_m, uba)
     lbz, ubz = ca.vertcat(lo, ca.DM.zeros(G)), ca.vertcat(hi, inf_G)
-    z = _daqp(n + G, 2 * m, tol, "phase2a")(H_a, g_a, A_a, lba_a, uba_a, lbz, ubz)
+    z = _daqp(n + G, 2 * m, tol * 1e-3, "phase2a", native)(H_a, g_a, A_a, lba_a, uba_a, lbz, ubz)
     x_a = _clip(z[:n], lo, hi)      # used only when (A) is acceptable, i.e. z is finite
     Ax_a = A @ x_a
-    margin = 1e-2 * tol                                  # > DAQP's primal tolerance (1e-3 tol)
-    lba_b = ca.if_else(Ax_a < lba, Ax_a - margin, lba)   # only the rows x_a violates are relaxed
-    uba_b = ca.if_else(Ax_a > uba, Ax_a + margin, uba)
-    x_b = _daqp(n, m, tol, "phase2b")(H, g, A, lba_b, uba_b, lo, hi)
+    violated = ca.logic_or(Ax_a < lba, Ax_a > uba)        # these rows leave level 0 and are held at x_a's values
+    inf = ca.inf * ca.DM.ones(m)
+    lba_b, uba_b = ca.if_else(violated, -inf, lba), ca.if_else(violated, inf, uba)
+    pin_lo, pin_hi = ca.if_else(violated, Ax_a, -inf), ca.if_else(violated, Ax_a, inf)
+    longest = ca.sqrt(ca.mmax(ca.sum2(A * A)))          # scaled as a priority level's rows, H to a unit diagonal:
+    row_scale = ca.if_else(longest > 0, 1 / longest, 1)   # the held rows weigh the same against any objective
+    cost_scale = 1 / ca.mmax(ca.diag(H))
+    x_b = _daqp(n, m, tol * 1e-3, "phase2b", native, [m])(cost_scale * H, cost_scale * g, A, lba_b, uba_b, lo, hi,
+                                                           row_scale * A, row_scale * pin_lo, row_scale * pin_hi)
 
     # Acceptance is decided on the solver's own answers, before any clipping: clipping a failed
     # solve's NaN into B would turn it into a full-speed motion that looks feasible.
     ok_a = _acceptable(z, A_a @ z, lba_a, uba_a, lbz, ubz, _GROSS_FAILURE)
-    ok_b = _acceptable(x_b, A @ x_b, lba_b, uba_b, lo, hi, _GROSS_FAILURE)
+    ok_b = _acceptable(x_b, A @ x_b, ca.fmin(lba_b, pin_lo), ca.fmax(uba_b, pin_hi), lo, hi, _GROSS_FAILURE)
+    ok_b = ca.logic_and(ok_b, ca.mmax(_row_violation(A @ x_b, pin_lo, pin_hi)) <= HELD_ROWS * tol)
     x = ca.if_else(ok_a, ca.if_else(ok_b, _clip(x_b, lo, hi), x_a), _rest(lo, hi))
     status = int(StepStatus.LEAST_VIOLATION) + int(StepStatus.FALLBACK) * (1 - ok_a)
     return ca.vertcat(x, status)
