@@ -24,9 +24,9 @@ from vfdsl.compiler.assemble import AssembledProblem, assemble
 from vfdsl.errors import VfError
 from vfdsl.ir import model as ir
 from vfdsl.kinematics.robot import Robot
-from vfdsl.runtime.controller import Controller
+from vfdsl.runtime.controller import Controller, row_unit
 from vfdsl.runtime.native import BufferedFunction, LockedRunner, StepperRunner
-from vfdsl.runtime.values import RuntimeValues
+from vfdsl.runtime.values import INPUT_UNITS, JOINT_UNITS, MAX_PERIOD, PARAM_UNITS, RuntimeValues
 from vfdsl.runtime.qp import build_step_function
 
 # A row or bound is satisfied within this much (m or rad): far below any tolerance a task can express.
@@ -83,7 +83,7 @@ def build(task: ir.Task, *, backend: str = "auto",
     if backend != "interpreted":
         try:
             library = build_library(step(native=True), prefix, Path(cache_dir or default_cache_dir()),
-                                    metadata(task, problem, admissible, digest), admissible.function)
+                                    metadata(task, problem, values, digest), admissible.function)
             return Controller(task, problem, values, _native_runner(values, problem, library, prefix),
                               FEASIBILITY_TOLERANCE), library
         except (CompilerUnavailable, DaqpSourcesUnavailable) as exc:
@@ -106,9 +106,12 @@ def _native_runner(values: RuntimeValues, problem: AssembledProblem, library: Bu
     return LockedRunner(BufferedFunction.native(library.so_path, prefix), values)
 
 
-def metadata(task: ir.Task, problem: AssembledProblem, admissible: Admissible, digest: str) -> dict:
-    """What a caller of the generated library needs to know: layouts, rows and where they come from."""
+def metadata(task: ir.Task, problem: AssembledProblem, values: RuntimeValues, digest: str) -> dict:
+    """What a caller of the generated library needs to know: layouts and units, the admissible run-time values
+    (q's range, dt's bound, the meaning of each check of the params), rows and where they come from."""
     ctx = problem.context
+    admissible = values.admissible
+    types = {d.name: d.type for d in task.inputs}
     return {
         "task": task.name,
         "file": task.file,
@@ -116,16 +119,27 @@ def metadata(task: ir.Task, problem: AssembledProblem, admissible: Admissible, d
         "ir_sha256": digest,
         "robot": task.robots[0].urdf,
         "joints": list(ctx.robot.joint_names),
+        "joint_units": [JOINT_UNITS[kind] for kind in ctx.robot.joint_types],
+        "q_admissible": {"lower": values.q_min.tolist(), "upper": values.q_max.tolist()},
+        "start": None if task.start is None else [float(x) for x in task.start],
         "variables": {"dq": problem.nq, "slack": problem.n_slack},
-        "input_layout": [{"name": name, "offset": offset, "size": size}
-                   for name, (offset, size) in ctx.input_offsets.items()],
-        "param_layout": [{"name": s.name, "type": s.type, "offset": s.offset, "size": s.size}
-                   for s in ctx.layout.slots.values() if s.size],
+        "input_layout": [{"name": name, "type": types[name], "unit": INPUT_UNITS[types[name]], "offset": offset,
+                          "size": size}
+                         for name, (offset, size) in ctx.input_offsets.items()],
+        "param_layout": [{"name": s.name, "type": s.type, "unit": PARAM_UNITS.get(s.type, ""), "offset": s.offset,
+                          "size": s.size}
+                         for s in ctx.layout.slots.values() if s.size],
         "default_params": ctx.layout.defaults.tolist(),
-        "param_checks": {"count": len(admissible.margins), "strict": admissible.strict.tolist()},
+        "param_checks": {"count": len(admissible.margins), "strict": admissible.strict.tolist(),
+                         "meaning": admissible.margins.meanings},
         "period": task.scene.period,
+        "max_period": MAX_PERIOD,
+        "feasibility_tolerance": FEASIBILITY_TOLERANCE,
         "rows": [{"label": str(label), "primitive": label.primitive, "frame": label.frame,
-                  "file": label.span.file, "line": label.span.line, "group": group}
+                  "file": label.span.file, "line": label.span.line, "group": group, "soft": label.soft,
+                  "unit": row_unit(label.primitive)}
                  for label, group in zip(problem.row_labels, problem.row_groups)],
+        "slacks": [{"label": str(label), "primitive": label.primitive, "file": label.span.file,
+                    "line": label.span.line, "unit": row_unit(label.primitive)} for label in problem.slack_labels],
         "bounds": [[str(label) for label in labels] for labels in problem.bound_labels],
     }

@@ -72,6 +72,8 @@ FLAGS = ("-O3", "-march=native", "-ffp-contract=off", "-fPIC", "-pthread", "-fvi
          "-DGCC_HASCLASSVISIBILITY")
 """Speed flags. Never ``-ffast-math``: the step's NaN/inf checks must survive optimisation."""
 STEPPER = Path(__file__).parent / "stepper.c"
+CHECKED_STEP = Path(__file__).parent / "checked_step.h"
+"""The checks and the evaluation of a tick in plain C: included by stepper.c and by `vfdsl export`'s library."""
 
 _NONFATAL_FAILURE = re.compile(r"if \(!d_qp\.success\) \{\s*return -1;\s*\}")
 _DAQP_SOLVE = re.compile(r"^int casadi_daqp_solve\(struct casadi_daqp_data\* d, [^\n]*\{\n.*?^\}\n",
@@ -327,7 +329,7 @@ def _python_build_key() -> dict | None:
     if python_headers() is None:
         return None
     import numpy
-    return {"stepper": STEPPER.read_text(), "soabi": sysconfig.get_config_var("SOABI"),
+    return {"stepper": STEPPER.read_text(), "checked_step": CHECKED_STEP.read_text(), "soabi": sysconfig.get_config_var("SOABI"),
             "numpy": numpy.__version__}
 
 

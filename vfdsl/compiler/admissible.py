@@ -105,20 +105,20 @@ class Admissible:
             self.margins.add(scaled_norm(d) - MIN_DIRECTION_NORM, Check(
                 lambda m, p, w=what + part, at=at: f"{w} is a zero direction ({show_vector(p[at:at + 3])}, length "
                                                    f"{math.hypot(*p[at:at + 3]):.3g})",
-                hint="give a non-zero vector, e.g. [0, 0, 1]", param=name))
+                f"{what}{part} must not be a zero direction", hint="give a non-zero vector, e.g. [0, 0, 1]", param=name))
         if kind == "pose":
             self._point(name, f"{what}'s translation", x[0:3], slot.offset)
             self.margins.add(FULL_TURN - ca.mmax(ca.fabs(x[3:6])), Check(
                 lambda m, p, o=slot.offset + 3: f"{what}'s rpy {show_vector(p[o:o + 3])} rad: beyond a full turn",
-                hint=_SLIP_RAD, param=name))
+                f"{what}'s rpy must be within a full turn", hint=_SLIP_RAD, param=name))
         if kind == "length":
             self.margins.add(self.distance - ca.fabs(x[0]), Check(
                 lambda m, p, o=slot.offset: f"{what} = {p[o]:.6g} m: beyond {self._bound_words()}",
-                hint=_SLIP_M, param=name))
+                f"{what} must be within {self.distance:.3g} m", hint=_SLIP_M, param=name))
         if kind == "angle":
             self.margins.add(FULL_TURN - ca.fabs(x[0]), Check(
-                lambda m, p, o=slot.offset: f"{what} = {p[o]:.6g} rad: beyond a full turn", hint=_SLIP_RAD,
-                param=name))
+                lambda m, p, o=slot.offset: f"{what} = {p[o]:.6g} rad: beyond a full turn",
+                f"{what} must be within a full turn", hint=_SLIP_RAD, param=name))
         for allowed, use in ranges:
             self._range(name, x[0], slot.offset, allowed, use)
         if kind == "curve":
@@ -127,15 +127,16 @@ class Admissible:
     def _point(self, name: str, what: str, xyz, offset: int) -> None:
         self.margins.add(self.distance - ca.mmax(ca.fabs(xyz)), Check(
             lambda m, p: f"{what} is {show_vector(p[offset:offset + 3])} m: beyond {self._bound_words()}",
-            hint=_SLIP_M, param=name))
+            f"{what} must be within {self.distance:.3g} m of the base in every coordinate", hint=_SLIP_M, param=name))
 
     def _range(self, name: str, x, offset: int, allowed, use: str) -> None:
         def message(m, p):
             return f"param '{name}' = {p[offset]:.6g} (SI) {allowed.violation(float(p[offset]))}, as the {use} it feeds"
+        meaning = f"param '{name}', as the {use}, must be {allowed.describe()}"
         if allowed.low is not None:
-            self.margins.add(x - allowed.low, Check(message, strict=allowed.low_open, param=name))
+            self.margins.add(x - allowed.low, Check(message, meaning, strict=allowed.low_open, param=name))
         if allowed.high is not None:
-            self.margins.add(allowed.high - x, Check(message, strict=allowed.high_open, param=name))
+            self.margins.add(allowed.high - x, Check(message, meaning, strict=allowed.high_open, param=name))
 
     def _curve(self, name: str, default: ir.CurveValue, x, offset: int) -> None:
         what = f"param '{name}'"
@@ -158,11 +159,14 @@ class Admissible:
             hint = (f"consecutive points must be at least {MIN_CHORD:g} m apart" if default.degree == 1 else
                     "its parameters are fixed from the default points: give the curve default points close to "
                     "the shapes it takes, or use degree 1")
-            self.margins.add(chord - MIN_CHORD, Check(message, hint=hint, param=name))
+            self.margins.add(chord - MIN_CHORD, Check(
+                message, f"{what}'s points {k + 1} and {k + 2} must be at least {MIN_CHORD:g} m apart", hint=hint,
+                param=name))
             if default.degree > 1:
                 ratio = chord / default_chords[k]
                 self.margins.add(ca.fmin(ratio - 1 / CHORD_RATIO, CHORD_RATIO - ratio),
-                                 Check(message, hint=hint, param=name))
+                                 Check(message, f"{what}'s points {k + 1} and {k + 2} must stay within "
+                                                f"{CHORD_RATIO:g} x their default distance", hint=hint, param=name))
 
     def _bound_words(self) -> str:
         return (f"{self.distance:.3g} m, the largest coordinate plausible for this task ({REACH_FACTOR:g} x its "

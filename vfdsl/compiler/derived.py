@@ -62,13 +62,14 @@ def add_checks(margins: Margins, arg: ir.Derived, read: Read, notes: tuple[str, 
     error (the use site of the fixture that wrote ``arg``)."""
     def unit(v, node: ir.Derived):
         margins.add(ca.norm_2(v) - MIN_NORM,
-                    Check(partial(_zero_message, node), node.span.pos(), _ZERO_HINT, notes=notes))
+                    Check(partial(_zero_message, node), _ZERO_MEANING.get(node.op, _ZERO_MEANING["direction"]),
+                          node.span.pos(), _ZERO_HINT, notes=notes))
         return normalize(v)
     value = evaluate(arg, read, unit)
     numbers = ca.vertcat(*value) if isinstance(value, tuple) else value
     margins.add(_LARGEST - ca.mmax(ca.fabs(numbers)),          # not 0 * |v|: CasADi folds that to 0
-                Check(lambda margin, p: "this value is too large (SI numbers overflow)", arg.span.pos(),
-                      notes=notes))
+                Check(lambda margin, p: "this value is too large (SI numbers overflow)",
+                      "a derived value must be finite", arg.span.pos(), notes=notes))
 
 
 def check(arg: ir.Derived, read: Read, when: str = "") -> None:
@@ -78,6 +79,9 @@ def check(arg: ir.Derived, read: Read, when: str = "") -> None:
     margins.verify(ca.DM(margins.symbolic()), when=when)
 
 
+_ZERO_MEANING = {"line2": "the two points of a derived line must be distinct",
+                 "normalize": "a normalized derived vector must not be zero",
+                 "direction": "a derived direction must not be zero"}
 _ZERO_HINT = ("a derived direction needs two distinct points, or a non-zero, non-parallel vector "
               f"(at least {MIN_NORM:g} SI)")
 

@@ -26,6 +26,7 @@ class Check:
     """What one margin checks: ``message(margin, p)`` says what is wrong (p: the params' numbers, or None)."""
 
     message: Callable[[float, np.ndarray | None], str]
+    meaning: str                     # what the check asks, without numbers (C error strings, metadata)
     pos: SourcePos | None = None     # where the checked expression is written (a derived argument)
     hint: str | None = None
     strict: bool = False             # True: the margin must be > 0, not only >= 0
@@ -51,6 +52,11 @@ class Margins:
     def strict(self) -> np.ndarray:
         """1 where a check needs a positive margin, else 0 (uint8, for the generated C)."""
         return np.array([c.strict for c in self.checks], dtype=np.uint8)
+
+    @property
+    def meanings(self) -> list[str]:
+        """What each check asks, without numbers; a derived argument's check starts with its file:line."""
+        return [f"{c.pos.file}:{c.pos.line}: {c.meaning}" if c.pos else c.meaning for c in self.checks]
 
     def symbolic(self):
         """The column as one CasADi vector (0 x 1 when empty)."""

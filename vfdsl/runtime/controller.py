@@ -91,8 +91,8 @@ class Controller:
         self._fast = runner.fast_step
         self._tolerance = feasibility_tolerance
         self._labels = self._all_labels()
-        self._units = [_row_unit(label.primitive) for label in problem.row_labels]
-        self._slack_units = [_row_unit(label.primitive) for label in problem.slack_labels]
+        self._units = [row_unit(label.primitive) for label in problem.row_labels]
+        self._slack_units = [row_unit(label.primitive) for label in problem.slack_labels]
         if runner.kind == "native":
             self._prime()
 
@@ -212,7 +212,7 @@ _ROW_UNITS = {"above": "m", "within_distance": "m", "speed": "m", "angular_speed
               "outside_sphere": "m", "near_plane": "m"}
 
 
-def _row_unit(primitive: str) -> str:
+def row_unit(primitive: str) -> str:
     """The unit of a primitive's rows: its tolerance's, or (without a tolerance) what its rows bound."""
     spec = CONSTRAINTS.get(primitive)
     return _UNITS.get(spec.tolerance, "") if spec and spec.tolerance else _ROW_UNITS.get(primitive, "")

@@ -30,6 +30,13 @@ from vfdsl.ir import model as ir
 MAX_PERIOD = 1.0
 """Longest control period accepted (s): a longer tick lets the speed bounds allow large jumps."""
 _FIELDS = {"line": ("point", "direction"), "plane": ("point", "normal"), "pose": ("translation", "rpy")}
+JOINT_UNITS = {"revolute": "rad", "continuous": "rad", "prismatic": "m"}
+INPUT_UNITS = {"force": "N", "torque": "N m", "wrench": "N (0-2), N m (3-5)", "twist": "m/s (0-2), rad/s (3-5)"}
+PARAM_UNITS = {"point": "m", "vector": "m", "direction": "1 (normalized)", "line": "m (0-2), 1 (3-5)",
+               "plane": "m (0-2), 1 (3-5)", "pose": "m (0-2), rad (3-5)", "curve": "m (x y z per point)",
+               "length": "m", "angle": "rad", "speed": "m/s", "angular_speed": "rad/s", "number": "1", "time": "s",
+               "force": "N"}
+"""SI units of run-time values, by joint type, input type and param type (what a C caller passes)."""
 
 
 def real_vector(value, size: int, what: str) -> np.ndarray:

@@ -1,0 +1,334 @@
+"""`vfdsl export`: the exported folder builds with a C compiler and make alone and runs as Controller.step() does.
+
+Every example task is exported once and built with ``make`` in a temporary folder, with a clean environment (no
+Python or CasADi include paths; the folder's Makefile names only its own directories). Its ``replay`` runs ticks
+recorded from ``Controller.step()`` (backend "native") on a closed loop: statuses equal, dq within 1e-12; 2,000
+ticks for the paper's experiments A and B, 200 for the others. Bad values are refused with the right code and dq
+zeros, and the params' checks refuse exactly what Python refuses (same check index). tests/export_contract.c
+checks, on experiments A and B, leaks under AddressSanitizer, heap calls after ``_new``, two controllers in two
+threads, one controller from two threads.
+"""
+
+from __future__ import annotations
+
+import filecmp
+import os
+import shutil
+import subprocess
+from pathlib import Path
+
+import numpy as np
+import pytest
+from conftest import TASKS_DIR
+
+import vfdsl
+from vfdsl import pipeline
+from vfdsl.cli import main
+from vfdsl.compiler.admissible import Admissible
+from vfdsl.errors import VfError
+from vfdsl.export import api_name, export
+from vfdsl.export.selftest import build, record, replay
+from vfdsl.kinematics.robot import Robot
+
+pytestmark = pytest.mark.skipif(shutil.which("make") is None or shutil.which("cc") is None,
+                                reason="needs make and a C compiler")
+
+CONTRACT = Path(__file__).with_name("export_contract.c")
+TASKS = sorted(path.stem for path in TASKS_DIR.glob("*.vf"))
+EXPERIMENTS = ("paper_a_follow_curve", "paper_b_virtual_rcm")
+CLEAN_ENV = {"PATH": os.environ.get("PATH", "/usr/bin:/bin"), "LANG": "C"}
+"""make's environment: no CPATH, C_INCLUDE_PATH or CFLAGS from this (Python) session."""
+
+# Error codes of vf_<task>.h
+ERR_Q_NONFINITE, ERR_Q_RANGE, ERR_INPUT, ERR_DT, ERR_PARAM = -2, -3, -4, -5, -7
+
+
+class Exported:
+    """One task exported and built, with a fresh native Controller for recording."""
+
+    def __init__(self, name: str, root: Path):
+        self.task = vfdsl.load(TASKS_DIR / f"{name}.vf")
+        self.directory = root / name
+        self.result = export(self.task, self.directory)
+        subprocess.run(["make", "-s", "-j2"], cwd=self.directory, env=CLEAN_ENV, check=True, capture_output=True)
+
+    def controller(self):
+        return pipeline.build(self.task, backend="native")[0]
+
+
+@pytest.fixture(scope="module", params=TASKS)
+def exported(request, tmp_path_factory) -> Exported:
+    return Exported(request.param, tmp_path_factory.mktemp("export"))
+
+
+def _ticks(name: str) -> int:
+    return 2000 if name in EXPERIMENTS else 200
+
+
+# ------------------------------------------------------------------------------------------- replay
+def test_replay_gives_controller_steps_answers(exported):
+    ctrl = exported.controller()
+    ticks = record(ctrl, _ticks(exported.task.name))
+    answers = replay(exported.directory, [t.line() for t in ticks], ticks[0].dt)
+    statuses = [status for status, _ in answers]
+    assert statuses == [t.status for t in ticks]
+    worst = max(float(np.max(np.abs(dq - t.dq), initial=0.0)) for (_, dq), t in zip(answers, ticks))
+    assert worst <= 1e-12
+
+
+def test_bad_values_are_refused_with_their_code_and_zero_dq(exported, tmp_path):
+    """Python's step() raises, the C step returns the argument's code with dq zeros, replay prints it."""
+    ctrl = exported.controller()
+    tick = record(ctrl, 1)[0]
+    hi = ctrl._values.q_max
+    cases = [(_set(tick.q, 0, np.nan), tick.u, tick.dt, ERR_Q_NONFINITE),
+             (_set(tick.q, ctrl.nq - 1, -np.inf), tick.u, tick.dt, ERR_Q_NONFINITE)]
+    cases += [(_set(tick.q, i, np.nextafter(hi[i], np.inf)), tick.u, tick.dt, ERR_Q_RANGE)
+              for i in np.flatnonzero(np.isfinite(hi))[:1]]
+    if tick.u.size:
+        cases += [(tick.q, _set(tick.u, tick.u.size - 1, np.nan), tick.dt, ERR_INPUT),
+                  (tick.q, _set(tick.u, 0, np.inf), tick.dt, ERR_INPUT)]
+    cases += [(tick.q, tick.u, dt, ERR_DT) for dt in (0.0, -0.01, np.nextafter(1.0, 2.0), 2.0, np.nan, np.inf)]
+    exe = _contract(exported, tmp_path, [])
+    for q, u, dt, code in cases:
+        with pytest.raises(VfError):
+            ctrl.step(q, _inputs(ctrl, u), None, dt)
+        line = " ".join(f"{x:.17g}" for x in (*q, *u))
+        (answer, message), = replay(exported.directory, [line], dt)
+        assert answer == code and message, (code, line, dt)
+        result = subprocess.run([str(exe), "refuse", repr(dt)], input=line + "\n", capture_output=True, text=True)
+        assert result.stdout.split() == [str(code), "1"]            # dq_out zeros
+    assert replay(exported.directory, [tick.line()], 1.0)[0][0] >= 0      # (0, 1] s: 1 s is accepted
+
+
+def _set(x: np.ndarray, i: int, value: float) -> np.ndarray:
+    y = x.copy()
+    y[i] = value
+    return y
+
+
+def _inputs(ctrl, u: np.ndarray) -> dict:
+    out, at = {}, 0
+    for name, size in ctrl.input_sizes.items():
+        out[name] = u[at:at + size]
+        at += size
+    return out
+
+
+# --------------------------------------------------------------------------------------------- params
+def test_param_checks_refuse_what_python_refuses(exported, tmp_path):
+    """Degenerate param vectors (zeros, mm given as metres, NaN, repeated and swapped points, each param alone)
+    are refused by the C library exactly when Python refuses them, at the same check."""
+    task = exported.task
+    ctrl = exported.controller()
+    slots = [s for s in ctrl.assembled.context.layout.slots.values() if s.size]
+    if not slots:
+        pytest.skip("no run-time params")
+    admissible = Admissible(task, Robot.load(task.robots[0].urdf).reach)
+    p0 = admissible.layout.defaults
+    vectors = [p0.copy(), np.zeros_like(p0), 1000 * p0, -p0]
+    for s in slots:
+        part = slice(s.offset, s.offset + s.size)
+        for change in (lambda x: 0 * x, lambda x: 1000 * x, lambda x: -x, lambda x: x + 1e-3,
+                       lambda x: np.full_like(x, np.nan), lambda x: x[::-1].copy(), lambda x: 1e-13 * x):
+            v = p0.copy()
+            v[part] = change(v[part])
+            vectors.append(v)
+        if s.size >= 6:       # a line's or plane's direction, a curve's second point on its first
+            v = p0.copy()
+            v[s.offset + 3:s.offset + 6] = v[s.offset:s.offset + 3] if s.type == "curve" else 0
+            vectors.append(v)
+    exe = _contract(exported, tmp_path, [])
+    text = "\n".join(" ".join(f"{x:.17g}" for x in v) for v in vectors) + "\n"
+    out = subprocess.run([str(exe), "params"], input=text, capture_output=True, text=True, check=True).stdout
+    refused = 0
+    for v, row in zip(vectors, out.splitlines(), strict=True):
+        code, check, _ = map(int, row.split())
+        params = {s.name: v[s.offset:s.offset + s.size].reshape(-1, 3) if s.type == "curve" else
+                  v[s.offset:s.offset + s.size] for s in slots}
+        try:
+            ctrl.step(task.start, _inputs(ctrl, np.zeros(sum(ctrl.input_sizes.values()))), params, 0.01)
+            python_refuses = False
+        except VfError:
+            python_refuses = True
+        assert (code == ERR_PARAM) == python_refuses, v
+        if code == ERR_PARAM and np.isfinite(v).all():
+            assert check == admissible.margins.first_failure(admissible.function(v)), v
+        elif code == ERR_PARAM:
+            assert check == -1
+        refused += code == ERR_PARAM
+    assert refused >= len(slots)
+
+
+# ----------------------------------------------------------------------------------- the C contract
+def _contract(exported: Exported, workdir: Path, flags: list[str], library_flags: str | None = None) -> Path:
+    """tests/export_contract.c linked with the exported library (rebuilt in a copy with ``library_flags``)."""
+    directory = exported.directory
+    if library_flags is not None:
+        directory = workdir / "build"
+        shutil.copytree(exported.directory, directory)
+        subprocess.run(["make", "-s", "clean"], cwd=directory, env=CLEAN_ENV, check=True)
+        build(directory, f"lib{exported.result.api}.a", CFLAGS=library_flags)
+    exe = workdir / "contract"
+    api = exported.result.api
+    subprocess.run(["cc", "-O2", "-g", *flags, "-include", str(directory / f"{api}.h"), f"-DAPI={api}",
+                    str(CONTRACT), str(directory / f"lib{api}.a"), "-lm", "-pthread", "-o", str(exe)],
+                   check=True, capture_output=True, text=True, env=CLEAN_ENV)
+    return exe
+
+
+def _run_contract(exe: Path, mode: str, ticks, env=None) -> str:
+    text = "\n".join(t.line() for t in ticks) + "\n"
+    result = subprocess.run([str(exe), mode, repr(ticks[0].dt)], input=text, capture_output=True, text=True,
+                            env=env)
+    assert result.returncode == 0, result.stdout + result.stderr
+    return result.stdout.strip()
+
+
+def _only_experiments(exported):
+    if exported.task.name not in EXPERIMENTS:
+        pytest.skip("run on experiments A and B")
+
+
+@pytest.mark.slow
+def test_no_leak_under_address_sanitizer(exported, tmp_path):
+    _only_experiments(exported)
+    exe = _contract(exported, tmp_path, ["-fsanitize=address"], "-O1 -g -fsanitize=address -fno-omit-frame-pointer")
+    ticks = record(exported.controller(), 300)
+    env = {**CLEAN_ENV, "ASAN_OPTIONS": "detect_leaks=1:halt_on_error=1"}
+    assert _run_contract(exe, "leaks", ticks, env) == "ok"
+
+
+def test_no_heap_call_after_new(exported, tmp_path):
+    _only_experiments(exported)
+    wrap = "-Wl," + ",".join(f"--wrap={f}" for f in ("malloc", "calloc", "realloc", "free"))
+    exe = _contract(exported, tmp_path, ["-DCOUNT_HEAP", wrap])
+    ctrl = exported.controller()
+    ticks = record(ctrl, 300)
+    at_new, ticked, params = map(int, _run_contract(exe, "alloc", ticks).split())
+    assert at_new > 0
+    assert ticked == 0 and params == 0
+
+
+def test_two_controllers_in_two_threads_answer_as_alone(exported, tmp_path):
+    _only_experiments(exported)
+    exe = _contract(exported, tmp_path, [])
+    ticks = record(exported.controller(), 500)
+    assert _run_contract(exe, "threads", ticks) == "0"
+
+
+def test_one_controller_from_two_threads_is_refused_never_mixed(exported, tmp_path):
+    _only_experiments(exported)
+    exe = _contract(exported, tmp_path, [])
+    ticks = record(exported.controller(), 1)
+    refused, wrong, answered = map(int, _run_contract(exe, "busy", ticks).split())
+    assert refused > 0 and answered > 0
+    assert wrong == 0
+
+
+# ------------------------------------------------------------------------------------ the folder itself
+def test_the_folder_is_self_contained_and_reexported_identically(exported, tmp_path):
+    if exported.task.name != "paper_b_virtual_rcm":
+        pytest.skip("one task")
+    again = export(exported.task, tmp_path / "again")
+    written = sorted(p.relative_to(exported.directory) for p in exported.result.files)
+    assert written == sorted(p.relative_to(again.directory) for p in again.files)
+    match, mismatch, errors = filecmp.cmpfiles(exported.directory, again.directory, [str(p) for p in written],
+                                               shallow=False)
+    assert not mismatch and not errors
+    assert (again.directory / "daqp" / "LICENSE").read_text().strip()
+    for path in written:
+        text = (exported.directory / path).read_text(errors="replace")
+        assert "Python.h" not in text and "casadi/" not in text and str(Path.home()) not in text, path
+
+
+def test_example_and_cmake_build(exported, tmp_path):
+    if exported.task.name != "paper_b_virtual_rcm":
+        pytest.skip("one task")
+    out = subprocess.run([str(exported.directory / "example")], capture_output=True, text=True, check=True).stdout
+    assert "7 joints" in out and "tick 9: status 0" in out and "a NaN joint: q (joint coordinates)" in out
+    if shutil.which("cmake") is None:
+        pytest.skip("no cmake")
+    source = tmp_path / "src"
+    shutil.copytree(exported.directory, source, ignore=shutil.ignore_patterns("*.o", "*.a", "*.so", "example",
+                                                                             "replay"))
+    for argv in (["cmake", "-S", str(source), "-B", str(tmp_path / "build")],
+                 ["cmake", "--build", str(tmp_path / "build"), "-j2"]):
+        subprocess.run(argv, env=CLEAN_ENV, check=True, capture_output=True)
+    api = exported.result.api
+    for name in (f"lib{api}.a", f"lib{api}.so", "example", "replay"):
+        assert (tmp_path / "build" / name).is_file(), name
+
+
+def test_cpp_wrapper_compiles_and_steps(exported, tmp_path):
+    if exported.task.name != "paper_b_virtual_rcm" or shutil.which("c++") is None:
+        pytest.skip("one task, with a C++ compiler")
+    api = exported.result.api
+    program = tmp_path / "owner.cpp"
+    program.write_text(f"""#include "{api}.hpp"
+#include <cstdio>
+#include <utility>
+int main() {{
+  vfdsl::{api[3:]} a;
+  vfdsl::{api[3:]} b(std::move(a));
+  double dq[7], tau[3] = {{0, 0, 0.01}};
+  int s = b.step({api}_start(), tau, 0.01, dq);
+  std::printf("%d %d\\n", s, vfdsl::{api[3:]}::num_joints);
+  return a.get() != nullptr;
+}}
+""")
+    subprocess.run(["c++", "-std=c++11", "-Wall", "-Werror", f"-I{exported.directory}", str(program),
+                    str(exported.directory / f"lib{api}.a"), "-pthread", "-o", str(tmp_path / "owner")], check=True,
+                   capture_output=True, text=True)
+    assert subprocess.run([str(tmp_path / "owner")], capture_output=True, text=True, check=True).stdout == "0 7\n"
+
+
+def test_the_loop_of_docs_embedding_compiles_and_runs(exported, tmp_path):
+    """docs/embedding.md's 1 kHz C++ loop, with a robot that executes dq exactly and stops after 200 ticks."""
+    if exported.task.name != "paper_b_virtual_rcm" or shutil.which("c++") is None:
+        pytest.skip("experiment B, with a C++ compiler")
+    doc = (Path(__file__).parent.parent / "docs" / "embedding.md").read_text()
+    (tmp_path / "loop.cpp").write_text(doc.split("```cpp\n")[1].split("```")[0])
+    (tmp_path / "robot.cpp").write_text("""#include <cstring>
+#include "vf_paper_b_virtual_rcm.h"
+static double q[7];
+static long n = 0;
+static bool started = false;
+bool read_joints(double* out) {
+  if (!started) std::memcpy(q, vf_paper_b_virtual_rcm_start(), sizeof q);
+  started = true;
+  std::memcpy(out, q, sizeof q);
+  return true;
+}
+bool read_torque(double* tau) { tau[0] = 0; tau[1] = 0; tau[2] = n == 100 ? 0.0 / 0.0 : 0.01; return true; }
+void send_joint_increment(const double* dq) { for (int i = 0; i < 7; ++i) q[i] += dq[i]; }
+bool stop_requested() { return ++n > 200; }
+""")
+    subprocess.run(["c++", "-std=c++14", "-O2", "-Wall", "-Werror", f"-I{exported.directory}", "loop.cpp", "robot.cpp",
+                    str(exported.directory / f"lib{exported.result.api}.a"), "-pthread", "-o", "loop"],
+                   cwd=tmp_path, check=True, capture_output=True, text=True)
+    out = subprocess.run([str(tmp_path / "loop")], capture_output=True, text=True, check=True).stdout
+    assert out == "200 ticks, 1 refused (last: an input contains NaN or inf), 0 least-violation\n"
+
+
+# ----------------------------------------------------------------------------------------------- CLI
+def test_cli_exports_with_a_self_test(exported, tmp_path, capsys):
+    if exported.task.name != "lecture_forbidden_half_space":
+        pytest.skip("one task")
+    assert main(["export", str(TASKS_DIR / "lecture_forbidden_half_space.vf"), "-o", str(tmp_path / "out"),
+                 "--self-test", "50"]) == 0
+    out = capsys.readouterr().out
+    assert f"exported {api_name('lecture_forbidden_half_space')}" in out and "50 closed-loop ticks replayed" in out
+    assert not list((tmp_path / "out").glob("*.o"))          # the self-test builds a copy
+
+
+def test_cli_errors_are_clear(tmp_path, capsys, monkeypatch):
+    assert main(["export", str(tmp_path / "missing.vf"), "-o", str(tmp_path / "out")]) == 2
+    assert "missing.vf" in capsys.readouterr().err
+    blocker = tmp_path / "a_file"
+    blocker.write_text("")
+    assert main(["export", str(TASKS_DIR / "lecture_stay_near_goal.vf"), "-o", str(blocker)]) == 2
+    assert "not a directory" in capsys.readouterr().err
+    monkeypatch.setenv("PATH", str(tmp_path))          # no make (nor anything else) on the PATH
+    with pytest.raises(VfError, match="make not found"):
+        build(tmp_path)

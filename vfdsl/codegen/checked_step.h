@@ -1,0 +1,135 @@
+/* vfdsl: the checked tick of one task in plain C, shared by the Python extension (stepper.c) and the
+ * library `vfdsl export` writes, so that both accept exactly the same values with the same code.
+ *
+ * Include it after the task's generated header, with VFDSL_PREFIX defined as the generated symbol.
+ *
+ * A vfdsl_core is one controller's evaluation of the generated step: its memory slot, its work arrays
+ * and the buffers the step reads and writes (q, u, p, dt, recover -> x, status, violation), which the
+ * caller owns. Its checks, made before anything is evaluated:
+ *
+ *   q       every entry finite and within [q_lower_i, q_upper_i] (the joint limits widened by the
+ *           joint's span on each side: further out is a unit mistake or a faulty encoder);
+ *   dt      0 < dt <= dt_max (false for NaN);
+ *   params  the task's column of checks, evaluated by the generated <prefix>_admissible: check i holds
+ *           iff margin i is finite and >= 0 (> 0 where strict[i]);
+ *   inputs  finite (any finite size: beyond the speed bounds they saturate).
+ *
+ * vfdsl_core_open allocates everything the core needs (work arrays, a memory slot); nothing else here
+ * allocates, locks or makes a system call.
+ */
+#ifndef VFDSL_CHECKED_STEP_H
+#define VFDSL_CHECKED_STEP_H
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#define VFDSL_CAT_(a, b) a##b
+#define VFDSL_CAT(a, b) VFDSL_CAT_(a, b)
+#define VFDSL_STEP VFDSL_PREFIX
+#define VFDSL_STEP_CHECKOUT VFDSL_CAT(VFDSL_PREFIX, _checkout)
+#define VFDSL_STEP_RELEASE VFDSL_CAT(VFDSL_PREFIX, _release)
+#define VFDSL_STEP_WORK VFDSL_CAT(VFDSL_PREFIX, _work)
+#define VFDSL_ADMISSIBLE VFDSL_CAT(VFDSL_PREFIX, _admissible)
+#define VFDSL_ADMISSIBLE_WORK VFDSL_CAT(VFDSL_PREFIX, _admissible_work)
+
+/* The step's buffers: its inputs (q, u, p, dt, recover), then its outputs (x, status, violation). */
+enum { VFDSL_Q, VFDSL_U, VFDSL_P, VFDSL_DT, VFDSL_RECOVER, VFDSL_X, VFDSL_STATUS, VFDSL_VIOLATION,
+       VFDSL_N_BUFFERS };
+
+enum { VFDSL_OPENED = 0, VFDSL_NO_MEMORY = 1, VFDSL_NO_SLOT = 2 };
+
+typedef struct {
+  double* data[VFDSL_N_BUFFERS];   /* set by the caller before vfdsl_core_open */
+  long size[VFDSL_N_BUFFERS];
+  const double* q_lower;           /* nq admissible bounds each */
+  const double* q_upper;
+  double dt_max;
+  const unsigned char* strict;     /* n_margins flags: 1 where a margin must be > 0 */
+  long n_margins;
+  double* margins;                 /* the column of the last evaluated params */
+  const casadi_real** check_arg;
+  casadi_real** check_res;
+  casadi_int* check_iw;
+  casadi_real* check_w;
+  const casadi_real** arg;
+  casadi_real** res;
+  casadi_int* iw;
+  casadi_real* w;
+  int slot;                        /* memory slot of the generated code, -1 when none */
+} vfdsl_core;
+
+/* Allocate the work arrays and check out a memory slot: VFDSL_OPENED, VFDSL_NO_MEMORY or VFDSL_NO_SLOT
+ * (all VFDSL_MAX_SLOTS controllers of the task exist). Call vfdsl_core_close in every case. */
+static int vfdsl_core_open(vfdsl_core* c) {
+  casadi_int sz_arg, sz_res, sz_iw, sz_w;
+  int k;
+  c->slot = -1;
+  VFDSL_ADMISSIBLE_WORK(&sz_arg, &sz_res, &sz_iw, &sz_w);
+  c->check_arg = (const casadi_real**) calloc(sz_arg + 1, sizeof(casadi_real*));
+  c->check_res = (casadi_real**) calloc(sz_res + 1, sizeof(casadi_real*));
+  c->check_iw = (casadi_int*) calloc(sz_iw + 1, sizeof(casadi_int));
+  c->check_w = (casadi_real*) calloc(sz_w + 1, sizeof(casadi_real));
+  c->margins = (double*) calloc(c->n_margins + 1, sizeof(double));
+  VFDSL_STEP_WORK(&sz_arg, &sz_res, &sz_iw, &sz_w);
+  c->arg = (const casadi_real**) calloc(sz_arg + 1, sizeof(casadi_real*));
+  c->res = (casadi_real**) calloc(sz_res + 1, sizeof(casadi_real*));
+  c->iw = (casadi_int*) calloc(sz_iw + 1, sizeof(casadi_int));
+  c->w = (casadi_real*) calloc(sz_w + 1, sizeof(casadi_real));
+  if (!c->check_arg || !c->check_res || !c->check_iw || !c->check_w || !c->margins
+      || !c->arg || !c->res || !c->iw || !c->w) return VFDSL_NO_MEMORY;
+  for (k=0; k<=VFDSL_RECOVER; ++k) c->arg[k] = c->data[k];
+  for (k=VFDSL_X; k<VFDSL_N_BUFFERS; ++k) c->res[k - VFDSL_X] = c->data[k];
+  c->slot = VFDSL_STEP_CHECKOUT();
+  return c->slot < 0 ? VFDSL_NO_SLOT : VFDSL_OPENED;
+}
+
+static void vfdsl_core_close(vfdsl_core* c) {
+  if (c->slot >= 0) VFDSL_STEP_RELEASE(c->slot);
+  c->slot = -1;
+  free(c->arg); free(c->res); free(c->iw); free(c->w); free(c->margins);
+  free(c->check_arg); free(c->check_res); free(c->check_iw); free(c->check_w);
+  c->arg = 0; c->res = 0; c->iw = 0; c->w = 0; c->margins = 0;
+  c->check_arg = 0; c->check_res = 0; c->check_iw = 0; c->check_w = 0;
+}
+
+/* The index of the first non-finite entry of x[0..n), or -1. */
+static long vfdsl_first_nonfinite(const double* x, long n) {
+  long i;
+  for (i=0; i<n; ++i) if (!isfinite(x[i])) return i;
+  return -1;
+}
+
+/* The index of the first joint whose coordinate q_i is non-finite or outside [q_lower_i, q_upper_i], or -1. */
+static long vfdsl_q_outside(const vfdsl_core* c, const double* q) {
+  long i;
+  for (i=0; i<c->size[VFDSL_Q]; ++i) if (!(q[i] >= c->q_lower[i] && q[i] <= c->q_upper[i])) return i;
+  return -1;
+}
+
+/* 1 when 0 < dt <= dt_max (0 for NaN). */
+static int vfdsl_dt_admissible(const vfdsl_core* c, double dt) {
+  return dt > 0 && dt <= c->dt_max;
+}
+
+/* The index of the first check of the params p that fails, or -1 (evaluates the column into margins). */
+static long vfdsl_first_failure(vfdsl_core* c, const double* p) {
+  long i;
+  c->check_arg[0] = p;
+  c->check_res[0] = c->margins;
+  if (VFDSL_ADMISSIBLE(c->check_arg, c->check_res, c->check_iw, c->check_w, 0)) return 0;
+  for (i=0; i<c->n_margins; ++i) {
+    double m = c->margins[i];
+    if (!isfinite(m) || !(c->strict[i] ? m > 0 : m >= 0)) return i;
+  }
+  return -1;
+}
+
+/* One tick on the buffers q, u, p (already checked) with dt and recover: the generated step's return code
+ * (0: x, status and violation are written; VFDSL_SLOT_BUSY: another thread is inside this slot). */
+static int vfdsl_core_eval(vfdsl_core* c, double dt, double recover) {
+  c->data[VFDSL_DT][0] = dt;
+  c->data[VFDSL_RECOVER][0] = recover;
+  return VFDSL_STEP(c->arg, c->res, c->iw, c->w, c->slot);
+}
+
+#endif

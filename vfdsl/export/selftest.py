@@ -1,0 +1,111 @@
+"""Build an exported folder and compare its ``replay`` with ``Controller.step()`` on the same closed loop.
+
+    ticks = record(ctrl, count=200)            # q_{k+1} = q_k + dq_k from the start, a user pushing on every input
+    build(directory)                           # make (needs make and a C compiler)
+    answers = replay(directory, ticks)         # [(status or error code, dq or message), ...]
+
+``vfdsl export --self-test`` and tests/test_export.py use these; each tick is one line of numbers written with 17
+significant digits, so C reads back the very doubles Python used.
+"""
+
+from __future__ import annotations
+
+import math
+import shutil
+import subprocess
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from vfdsl.errors import VfError
+
+_SCALE = {"force": [3.0] * 3, "torque": [0.02] * 3, "wrench": [3.0] * 3 + [0.02] * 3,
+          "twist": [0.01] * 3 + [0.05] * 3}
+"""Size of the user's push per input type (SI: N, N m, m/s, rad/s): a firm hand, a slow joystick."""
+
+
+@dataclass(frozen=True)
+class Tick:
+    """One recorded tick: the arguments (q, inputs flat in declaration order, dt) and Python's answer."""
+
+    q: np.ndarray
+    u: np.ndarray
+    dt: float
+    status: int
+    dq: np.ndarray
+
+    def line(self) -> str:
+        return " ".join(f"{x:.17g}" for x in (*self.q, *self.u))
+
+
+def user_inputs(ctrl, k: int) -> dict[str, np.ndarray]:
+    """A hand pushing on every input along a slowly turning direction (different rates per component)."""
+    types = {d.name: d.type for d in ctrl.task.inputs}
+    return {name: np.array([s * math.sin(0.011 * (j + 1) * k + j) for j, s in enumerate(_SCALE[types[name]])])
+            for name in ctrl.input_sizes}
+
+
+def record(ctrl, count: int, dt: float | None = None) -> list[Tick]:
+    """``count`` closed-loop ticks of ``ctrl`` (a fresh Controller) from the task's start, dt the scene's period
+    (0.01 s when it has none), params at their defaults."""
+    dt = dt or ctrl.default_dt or 0.01
+    q = np.array(ctrl.task.start if ctrl.task.start is not None else np.zeros(ctrl.nq), dtype=float)
+    ticks = []
+    for k in range(count):
+        inputs = user_inputs(ctrl, k)
+        dq = ctrl.step(q, inputs, None, dt)
+        u = np.concatenate([inputs[name] for name in ctrl.input_sizes]) if inputs else np.zeros(0)
+        ticks.append(Tick(q.copy(), u, dt, int(ctrl.status), dq.copy()))
+        q = q + dq
+    return ticks
+
+
+def build(directory: Path, *targets: str, jobs: int = 2, **variables: str) -> None:
+    """``make`` in ``directory`` (VAR=value for each of ``variables``); VfError naming what is missing or failed."""
+    make = shutil.which("make")
+    if make is None:
+        raise VfError("make not found: the self-test builds the export with make",
+                      hint="install make and a C compiler (e.g. apt install build-essential), or drop --self-test")
+    argv = [make, "-s", f"-j{jobs}", *targets, *(f"{k}={v}" for k, v in variables.items())]
+    result = subprocess.run(argv, cwd=directory, capture_output=True, text=True)
+    if result.returncode != 0:
+        tail = "\n".join((result.stderr or result.stdout).strip().splitlines()[-15:])
+        missing = "not found" in tail or "No such file" in tail
+        raise VfError(f"building the export in {directory} failed ({' '.join(argv[1:])}):\n{tail}",
+                      hint="install a C compiler (cc) or set CC" if missing else None)
+
+
+def replay(directory: Path, lines: list[str], dt: float, params: Path | None = None) -> list[tuple[int, object]]:
+    """Run ``directory/replay`` on ``lines``: per line (status, dq) or (error code, message)."""
+    argv = [str(Path(directory) / "replay"), "--dt", repr(dt)] + (["--params", str(params)] if params else [])
+    result = subprocess.run(argv, input="\n".join(lines) + "\n", capture_output=True, text=True)
+    if result.returncode != 0:
+        raise VfError(f"replay failed with status {result.returncode}: {result.stderr.strip()}")
+    answers = []
+    for out in result.stdout.splitlines():
+        words = out.split()
+        if words[0] == "error":
+            answers.append((int(words[1]), " ".join(words[2:])))
+        else:
+            answers.append((int(words[0]), np.array([float(x) for x in words[1:]])))
+    return answers
+
+
+def self_test(ctrl, directory: Path, count: int) -> float:
+    """Build a copy of the export in ``directory`` (the folder itself stays as written) and replay ``count`` ticks
+    recorded from ``ctrl``: the largest |dq| difference; VfError when a status differs or a tick is refused."""
+    ticks = record(ctrl, count)
+    with tempfile.TemporaryDirectory(prefix="vfdsl-export-test-") as tmp:
+        copy = Path(tmp) / "export"
+        shutil.copytree(directory, copy)
+        build(copy, "replay")
+        answers = replay(copy, [t.line() for t in ticks], ticks[0].dt)
+    worst = 0.0
+    for k, (tick, (status, dq)) in enumerate(zip(ticks, answers, strict=True)):
+        if status != tick.status:
+            raise VfError(f"self-test: tick {k}: the C library answered {status} ({dq if status < 0 else 'status'}), "
+                          f"Python's step() status {tick.status}")
+        worst = max(worst, float(np.max(np.abs(dq - tick.dq), initial=0.0)))
+    return worst

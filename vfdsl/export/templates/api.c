@@ -1,0 +1,215 @@
+/* @API@: the C API of the virtual fixture "@TASK@" (see @API@.h), written by `vfdsl export`.
+ *
+ * A controller is one vfdsl_core (checked_step.h: the checks and the evaluation of a tick, the same
+ * code as Python's Controller.step) over buffers inside the controller, plus a busy flag: a call that
+ * finds it set returns VF_ERR_BUSY without touching anything (an atomic exchange, not a lock).
+ */
+#include "@TICK@.h"
+#define VFDSL_PREFIX @TICK@
+#include "checked_step.h"
+#include "@API@.h"
+
+#if defined(__GNUC__) || defined(__clang__)
+#define VF_EXPORT __attribute__((visibility("default")))
+#else
+#define VF_EXPORT
+#endif
+
+/* ------------------------------------------------------------------------------------ the task */
+@TABLES@
+/* ------------------------------------------------------------------------------ the controller */
+
+struct @API@ {
+  vfdsl_core core;
+  double q[NQ + 1], u[NU + 1], p[NP + 1], dt[1], recover[1];      /* the step's inputs */
+  double x[NX + 1], status[1], violation[NROWS + 1];              /* its outputs */
+  double candidate[NP + 1];                                       /* params being checked */
+  int busy;
+  int error_index, error_check;
+};
+
+static int enter(@API@* c) {
+  return !__atomic_exchange_n(&c->busy, 1, __ATOMIC_ACQUIRE);
+}
+
+static void leave(@API@* c) {
+  __atomic_store_n(&c->busy, 0, __ATOMIC_RELEASE);
+}
+
+static int refuse(@API@* c, int code, long index, long check) {
+  c->error_index = (int) index;
+  c->error_check = (int) check;
+  return code;
+}
+
+VF_EXPORT @API@* @API@_new(void) {
+  @API@* c = (@API@*) calloc(1, sizeof(@API@));
+  double dt = DEFAULT_PERIOD > 0 ? DEFAULT_PERIOD : 0.01;
+  double* data[VFDSL_N_BUFFERS];
+  long size[VFDSL_N_BUFFERS] = {NQ, NU, NP, 1, 1, NX, 1, NROWS};
+  int k;
+  if (!c) return 0;
+  data[VFDSL_Q] = c->q; data[VFDSL_U] = c->u; data[VFDSL_P] = c->p; data[VFDSL_DT] = c->dt;
+  data[VFDSL_RECOVER] = c->recover; data[VFDSL_X] = c->x; data[VFDSL_STATUS] = c->status;
+  data[VFDSL_VIOLATION] = c->violation;
+  for (k=0; k<VFDSL_N_BUFFERS; ++k) {
+    c->core.data[k] = data[k];
+    c->core.size[k] = size[k];
+  }
+  c->core.q_lower = q_lower;
+  c->core.q_upper = q_upper;
+  c->core.dt_max = MAX_PERIOD;
+  c->core.strict = strict;
+  c->core.n_margins = NCHECKS;
+  c->error_index = c->error_check = -1;
+  memcpy(c->p, p_default, sizeof(double) * NP);
+  if (vfdsl_core_open(&c->core) != VFDSL_OPENED) {
+    @API@_free(c);
+    return 0;
+  }
+  /* Priming, as Python's Controller: every solver's workspace is allocated now (recovery forced once). */
+  memcpy(c->q, start, sizeof(double) * NQ);
+  if (vfdsl_core_eval(&c->core, dt, 1.0) || vfdsl_core_eval(&c->core, dt, 0.0)) {
+    @API@_free(c);
+    return 0;
+  }
+  return c;
+}
+
+VF_EXPORT void @API@_free(@API@* c) {
+  if (!c) return;
+  vfdsl_core_close(&c->core);
+  free(c);
+}
+
+/* The checks of Controller.step, in its order (q, inputs, dt), then the tick. */
+static int tick(@API@* c, const double* q, const double* inputs, double dt) {
+  long i = vfdsl_first_nonfinite(q, NQ);
+  if (i >= 0) return refuse(c, VF_ERR_Q_NONFINITE, i, -1);
+  i = vfdsl_q_outside(&c->core, q);
+  if (i >= 0) return refuse(c, VF_ERR_Q_RANGE, i, -1);
+  i = vfdsl_first_nonfinite(inputs, NU);
+  if (i >= 0) return refuse(c, VF_ERR_INPUT, i, -1);
+  if (!vfdsl_dt_admissible(&c->core, dt)) return refuse(c, VF_ERR_DT, -1, -1);
+  memcpy(c->q, q, sizeof(double) * NQ);
+  memcpy(c->u, inputs, sizeof(double) * NU);
+  if (vfdsl_core_eval(&c->core, dt, 0.0)) return refuse(c, VF_ERR_SOLVER, -1, -1);
+  c->error_index = c->error_check = -1;
+  return (int) c->status[0];
+}
+
+VF_EXPORT int @API@_step(@API@* c, const double* q, const double* inputs, double dt, double* dq_out) {
+  int code;
+  if (!dq_out) return VF_ERR_NULL;
+  if (!c || !q || (!inputs && NU > 0)) {
+    code = VF_ERR_NULL;
+  } else if (!enter(c)) {
+    code = VF_ERR_BUSY;
+  } else {
+    code = tick(c, q, inputs, dt);
+    if (code >= 0) memcpy(dq_out, c->x, sizeof(double) * NQ);
+    leave(c);
+  }
+  if (code < 0) memset(dq_out, 0, sizeof(double) * NQ);
+  return code;
+}
+
+/* candidate = the current params with [offset, offset + n) replaced by values; kept if every check holds. */
+static int set_values(@API@* c, long offset, long n, const double* values) {
+  long i;
+  memcpy(c->candidate, c->p, sizeof(double) * NP);
+  memcpy(c->candidate + offset, values, sizeof(double) * n);
+  i = vfdsl_first_nonfinite(values, n);
+  if (i >= 0) return refuse(c, VF_ERR_PARAM, offset + i, -1);
+  i = vfdsl_first_failure(&c->core, c->candidate);
+  if (i >= 0) return refuse(c, VF_ERR_PARAM, -1, i);
+  memcpy(c->p, c->candidate, sizeof(double) * NP);
+  c->error_index = c->error_check = -1;
+  return 0;
+}
+
+VF_EXPORT int @API@_set_param(@API@* c, int index, const double* values) {
+  int code;
+  if (!c || !values) return VF_ERR_NULL;
+  if (index < 0 || index >= NPARAMS) return VF_ERR_PARAM_INDEX;
+  if (!enter(c)) return VF_ERR_BUSY;
+  code = set_values(c, param_offsets[index], param_sizes[index], values);
+  leave(c);
+  return code;
+}
+
+VF_EXPORT int @API@_set_params(@API@* c, const double* values) {
+  int code;
+  if (!c || !values) return VF_ERR_NULL;
+  if (!enter(c)) return VF_ERR_BUSY;
+  code = set_values(c, 0, NP, values);
+  leave(c);
+  return code;
+}
+
+VF_EXPORT int @API@_error_index(const @API@* c) { return c ? c->error_index : -1; }
+VF_EXPORT int @API@_error_check(const @API@* c) { return c ? c->error_check : -1; }
+VF_EXPORT const char* @API@_check_meaning(int k) { return k >= 0 && k < NCHECKS ? check_meanings[k] : 0; }
+
+VF_EXPORT int @API@_violations(const @API@* c, @API@_violation* out, int capacity) {
+  int i, n = 0;
+  if (!c) return 0;
+  for (i=0; i<NROWS; ++i) {
+    if (rows[i].soft || !(c->violation[i] > 0)) continue;
+    if (out && n < capacity) {
+      @API@_violation v = {rows[i].label, rows[i].primitive, rows[i].file, rows[i].line, rows[i].unit,
+                           c->violation[i]};
+      out[n] = v;
+    }
+    ++n;
+  }
+  for (i=0; i<NSLACK; ++i) {
+    if (!(c->x[NQ + i] > FEASIBILITY_TOLERANCE)) continue;
+    if (out && n < capacity) {
+      @API@_violation v = {slacks[i].label, slacks[i].primitive, slacks[i].file, slacks[i].line, slacks[i].unit,
+                           c->x[NQ + i]};
+      out[n] = v;
+    }
+    ++n;
+  }
+  return n;
+}
+
+VF_EXPORT const char* @API@_error_message(int code) {
+  switch (code) {
+    case VF_ERR_NULL: return "a pointer argument is NULL";
+    case VF_ERR_Q_NONFINITE: return "q (joint coordinates) contains NaN or inf";
+    case VF_ERR_Q_RANGE: return "q is far outside its joint's limits: check the unit (radians, metres), the joint "
+                                "order, or the encoder";
+    case VF_ERR_INPUT: return "an input contains NaN or inf";
+    case VF_ERR_DT: return "dt must be a positive number of seconds, at most the max period";
+    case VF_ERR_PARAM_INDEX: return "no run-time param has this index";
+    case VF_ERR_PARAM: return "a param value is NaN or inf, or fails a check (see _error_check, _check_meaning)";
+    case VF_ERR_BUSY: return "another thread is inside a call on this controller: nothing was done";
+    case VF_ERR_SOLVER: return "the generated step failed";
+    default: return code >= 0 ? "no error (status bits)" : "unknown error code";
+  }
+}
+
+VF_EXPORT int @API@_num_joints(void) { return NQ; }
+VF_EXPORT const char* @API@_joint_name(int i) { return i >= 0 && i < NQ ? joint_names[i] : 0; }
+VF_EXPORT const char* @API@_joint_unit(int i) { return i >= 0 && i < NQ ? joint_units[i] : 0; }
+VF_EXPORT double @API@_default_period(void) { return DEFAULT_PERIOD; }
+VF_EXPORT double @API@_max_period(void) { return MAX_PERIOD; }
+VF_EXPORT const double* @API@_start(void) { return start; }
+VF_EXPORT int @API@_input_length(void) { return NU; }
+VF_EXPORT int @API@_num_inputs(void) { return NINPUTS; }
+VF_EXPORT const char* @API@_input_name(int k) { return k >= 0 && k < NINPUTS ? input_names[k] : 0; }
+VF_EXPORT int @API@_input_size(int k) { return k >= 0 && k < NINPUTS ? input_sizes[k] : 0; }
+VF_EXPORT const char* @API@_input_unit(int k) { return k >= 0 && k < NINPUTS ? input_units[k] : 0; }
+VF_EXPORT int @API@_param_length(void) { return NP; }
+VF_EXPORT int @API@_num_params(void) { return NPARAMS; }
+VF_EXPORT const char* @API@_param_name(int k) { return k >= 0 && k < NPARAMS ? param_names[k] : 0; }
+VF_EXPORT const char* @API@_param_type(int k) { return k >= 0 && k < NPARAMS ? param_types[k] : 0; }
+VF_EXPORT int @API@_param_size(int k) { return k >= 0 && k < NPARAMS ? param_sizes[k] : 0; }
+VF_EXPORT const char* @API@_param_unit(int k) { return k >= 0 && k < NPARAMS ? param_units[k] : 0; }
+VF_EXPORT const double* @API@_param_default(int k) {
+  return k >= 0 && k < NPARAMS ? p_default + param_offsets[k] : 0;
+}
+VF_EXPORT int @API@_num_rows(void) { return NROWS; }
+VF_EXPORT const char* @API@_row_label(int i) { return i >= 0 && i < NROWS ? rows[i].label : 0; }

@@ -1,0 +1,112 @@
+/* @API@: the virtual fixture "@TASK@" (@SOURCE@) as a C library, written by `vfdsl export`.
+ *
+ * One controller per robot (or per thread):
+ *
+ *     @API@* ctrl = @API@_new();                      all allocation happens here (NULL: out of
+ *                                                     memory, or @MAX@ controllers exist already)
+ *     int s = @API@_step(ctrl, q, inputs, dt, dq);    each tick: dq = the joint increment to command
+ *     if (s < 0) puts(@API@_error_message(s));        refused before anything moved: dq is zeros
+ *     @API@_free(ctrl);
+ *
+ * Units are SI (m, rad, s, N, N m). q has @API@_num_joints() entries; inputs holds every input in
+ * declaration order, @API@_input_length() numbers in all (see @API@_input_name/_size/_unit).
+ *
+ * @API@_step returns the status bits of the tick (>= 0: VF_OPTIMAL, or VF_LEAST_VIOLATION,
+ * VF_BOUNDS_CLIPPED, VF_FALLBACK set) or a negative VF_ERR_* code naming the argument it refuses; it
+ * checks before anything moves what Python's Controller.step() checks: every number finite, each q_i
+ * within its joint's limits widened by the joint's span on each side, 0 < dt <= @MAX_PERIOD@ s.
+ * @API@_set_param checks the params with the task's column of checks (zero and derived directions,
+ * implausible points, lengths and angles, scalar ranges, run-time curve chords), the same code as
+ * Python's, and keeps the previous values when it refuses them.
+ *
+ * Threads: controllers are independent and run in parallel threads. One controller called from two
+ * threads at once refuses the second call (VF_ERR_BUSY, dq zeros), never mixes them. After
+ * @API@_new, @API@_step and @API@_set_param allocate no memory, take no lock and make no system call.
+ */
+#ifndef @GUARD@
+#define @GUARD@
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+#ifndef VFDSL_STATUS_AND_ERRORS
+#define VFDSL_STATUS_AND_ERRORS
+/* Status bits of a tick (a return value >= 0). */
+#define VF_OPTIMAL 0             /* every hard row holds */
+#define VF_LEAST_VIOLATION 1     /* the hard rows could not all hold: dq is the least-violation motion */
+#define VF_BOUNDS_CLIPPED 2      /* q was outside its joint limits: dq returns toward them */
+#define VF_FALLBACK 4            /* a solve failed numerically: dq is the rest motion */
+/* Errors (a return value < 0): nothing moved, dq_out is zeros. */
+#define VF_ERR_NULL (-1)         /* a pointer argument is NULL */
+#define VF_ERR_Q_NONFINITE (-2)  /* q holds NaN or inf */
+#define VF_ERR_Q_RANGE (-3)      /* q is far outside its joint limits (a unit mistake, a faulty encoder) */
+#define VF_ERR_INPUT (-4)        /* inputs hold NaN or inf */
+#define VF_ERR_DT (-5)           /* dt is not in (0, max period] s */
+#define VF_ERR_PARAM_INDEX (-6)  /* no run-time param has this index */
+#define VF_ERR_PARAM (-7)        /* a param value is NaN or inf, or fails a check */
+#define VF_ERR_BUSY (-8)         /* another thread is inside a call on this controller */
+#define VF_ERR_SOLVER (-9)       /* the generated step failed (should not happen; report it) */
+#endif
+
+typedef struct @API@ @API@;     /* one controller: opaque */
+
+/* One violated constraint after a tick: a hard row's excess over its bound, or a soft constraint's
+ * slack, in its unit. The strings are static. */
+typedef struct {
+  const char* label;       /* e.g. "stays_at(tip) facet 3/6 [tasks/paper_b.vf:18]" */
+  const char* primitive;   /* e.g. "stays_at" */
+  const char* file;        /* the .vf file of the constraint */
+  int line;                /* its line there */
+  const char* unit;        /* "m", "rad" or "" */
+  double amount;
+} @API@_violation;
+
+@API@* @API@_new(void);
+void @API@_free(@API@* ctrl);
+
+int @API@_step(@API@* ctrl, const double* q, const double* inputs, double dt, double* dq_out);
+
+/* Run-time param `index` (0 .. @API@_num_params() - 1) = values (@API@_param_size(index) numbers). 0, or
+ * VF_ERR_PARAM_INDEX, VF_ERR_PARAM (see @API@_error_check), VF_ERR_NULL, VF_ERR_BUSY; a refused value
+ * changes nothing. @API@_set_params sets all at once (@API@_param_length() numbers, in param order:
+ * needed when a check involves several params, e.g. two points of a line). */
+int @API@_set_param(@API@* ctrl, int index, const double* values);
+int @API@_set_params(@API@* ctrl, const double* values);
+/* The index of the check the last VF_ERR_PARAM failed (-1: a non-finite value), and what it asks. */
+int @API@_error_check(const @API@* ctrl);
+const char* @API@_check_meaning(int check);
+/* The index of the joint, input number or param number the last error is about (-1: none). */
+int @API@_error_index(const @API@* ctrl);
+
+/* After a tick: the violated constraints in row order (hard rows, then soft constraints); writes at most
+ * `capacity` of them and returns how many there are. */
+int @API@_violations(const @API@* ctrl, @API@_violation* out, int capacity);
+
+const char* @API@_error_message(int code);
+
+int @API@_num_joints(void);
+const char* @API@_joint_name(int i);
+const char* @API@_joint_unit(int i);
+double @API@_default_period(void);   /* the scene's period in s, or 0 when the task has none */
+double @API@_max_period(void);      /* the longest dt accepted, s */
+const double* @API@_start(void);     /* the scene's start configuration (zeros when none): q of the priming */
+int @API@_input_length(void);
+int @API@_num_inputs(void);
+const char* @API@_input_name(int k);
+int @API@_input_size(int k);
+const char* @API@_input_unit(int k);
+int @API@_param_length(void);
+int @API@_num_params(void);
+const char* @API@_param_name(int k);
+const char* @API@_param_type(int k);
+int @API@_param_size(int k);
+const char* @API@_param_unit(int k);
+const double* @API@_param_default(int k);   /* @API@_param_size(k) numbers */
+int @API@_num_rows(void);
+const char* @API@_row_label(int i);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

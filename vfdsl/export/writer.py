@@ -1,0 +1,119 @@
+"""``vfdsl export``: a task's controller as a folder that builds with a C compiler and make (or CMake) alone.
+
+    DIR/
+        vf_<task>.h  vf_<task>.hpp  vf_<task>.c     the API (templates/api.*) and the task's tables (tables.py)
+        generated/<prefix>.c  .h                    the generated tick, as build.py writes it
+        generated/checked_step.h                    the checks and the evaluation (vfdsl/codegen, shared with Python)
+        daqp/LICENSE  daqp/include/daqp/  daqp/src/ DAQP's C sources (vfdsl/codegen/daqp_sources.py)
+        Makefile  CMakeLists.txt  example.c  replay.c  README.md
+
+Everything comes from the files of the task's :class:`~vfdsl.codegen.build.BuiltLibrary` (generated C and
+header, metadata) and from DAQP's sources; templates are filled by ``@NAME@`` replacement. Nothing written
+depends on the time, the machine or the build cache, so exporting an unchanged task again writes the same
+bytes. Files the export does not write are left alone; files it writes are replaced.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+from dataclasses import dataclass
+from pathlib import Path
+
+import vfdsl
+from vfdsl.codegen.build import CHECKED_STEP, BuiltLibrary
+from vfdsl.errors import VfError
+from vfdsl.export.tables import task_tables
+
+TEMPLATES = Path(__file__).parent / "templates"
+_PLACEHOLDER = re.compile(r"@([A-Z_]+)@")
+
+
+@dataclass(frozen=True)
+class Export:
+    """An exported folder: ``api`` is the C name of the API (``vf_<task>``), ``files`` what was written."""
+
+    directory: Path
+    api: str
+    files: tuple[Path, ...]
+
+
+def api_name(task_name: str) -> str:
+    """The C prefix of a task's API: ``vf_`` and the task name with every non-identifier character as ``_``."""
+    return "vf_" + re.sub(r"[^A-Za-z0-9_]", "_", task_name)
+
+
+def write_export(library: BuiltLibrary, daqp_root: Path, directory: Path) -> Export:
+    """Write the folder for the generated ``library`` into ``directory`` (created if missing), with DAQP's sources
+    from ``daqp_root`` (``LICENSE``, ``include/daqp/*.h``, ``src/*.c``)."""
+    meta = json.loads(library.meta_path.read_text())
+    api, tick = api_name(meta["task"]), meta["prefix"]
+    daqp_sources = sorted((daqp_root / "src").glob("*.c"))
+    daqp_headers = sorted((daqp_root / "include" / "daqp").glob("*.h"))
+    if not daqp_sources or not (daqp_root / "LICENSE").is_file():
+        raise VfError(f"{daqp_root} does not hold DAQP's C sources and LICENSE")
+    values = _values(meta, api, tick, [f"daqp/src/{p.name}" for p in daqp_sources], daqp_root.name)
+    files: dict[str, bytes] = {
+        f"{api}.h": _fill("api.h", values), f"{api}.hpp": _fill("api.hpp", values),
+        f"{api}.c": _fill("api.c", values), "Makefile": _fill("Makefile", values),
+        "CMakeLists.txt": _fill("CMakeLists.txt", values), "example.c": _fill("example.c", values),
+        "replay.c": _fill("replay.c", values), "README.md": _fill("README.md", values),
+        f"generated/{tick}.c": library.c_path.read_bytes(), f"generated/{tick}.h": library.h_path.read_bytes(),
+        "generated/checked_step.h": CHECKED_STEP.read_bytes(),
+        "daqp/LICENSE": (daqp_root / "LICENSE").read_bytes(),
+        **{f"daqp/include/daqp/{p.name}": p.read_bytes() for p in daqp_headers},
+        **{f"daqp/src/{p.name}": p.read_bytes() for p in daqp_sources},
+    }
+    directory = Path(directory)
+    written = []
+    try:
+        for name, data in files.items():
+            path = directory / name
+            path.parent.mkdir(parents=True, exist_ok=True)
+            path.write_bytes(data)
+            written.append(path)
+    except OSError as exc:
+        raise VfError(f"cannot write the export into {directory}: {exc.strerror or exc} ({exc.filename or directory})",
+                      hint="choose a writable directory with -o") from None
+    return Export(directory, api, tuple(written))
+
+
+def prepare_directory(directory: Path) -> Path:
+    """``directory``, created if missing; VfError when it is not a directory or cannot be written (checked before
+    anything is generated)."""
+    directory = Path(directory)
+    if directory.exists() and not directory.is_dir():
+        raise VfError(f"the export directory {directory} is not a directory", hint="choose a folder with -o")
+    try:
+        directory.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise VfError(f"cannot create the export directory {directory}: {exc.strerror or exc}",
+                      hint="choose a writable folder with -o") from None
+    if not os.access(directory, os.W_OK | os.X_OK):
+        raise VfError(f"the export directory {directory} is not writable", hint="choose a writable folder with -o")
+    return directory
+
+
+def _fill(template: str, values: dict[str, str]) -> bytes:
+    """Template ``template`` with every ``@NAME@`` replaced by ``values[NAME]`` (a missing name is a bug)."""
+    text = (TEMPLATES / template).read_text()
+    return _PLACEHOLDER.sub(lambda m: values[m.group(1)], text).encode()
+
+
+def _values(meta: dict, api: str, tick: str, daqp_sources: list[str], daqp_version: str) -> dict[str, str]:
+    inputs, params = meta["input_layout"], meta["param_layout"]
+    period = meta["period"]
+    return {
+        "API": api, "TICK": tick, "TASK": meta["task"], "TASK_ID": api[3:], "GUARD": api.upper() + "_H",
+        "SOURCE": meta["file"], "VERSION": vfdsl.__version__, "MAX": str(meta["max_slots"]),
+        "MAX_PERIOD": f"{meta['max_period']:g}", "TABLES": task_tables(meta),
+        "NQ": str(meta["variables"]["dq"]), "NU": str(sum(i["size"] for i in inputs)),
+        "NP": str(len(meta["default_params"])),
+        "DAQP_SOURCES": " \\\n  ".join(daqp_sources), "DAQP_SOURCES_CMAKE": "\n  ".join(daqp_sources),
+        "DAQP_VERSION": daqp_version,
+        "JOINTS": ", ".join(f"{n} ({u})" for n, u in zip(meta["joints"], meta["joint_units"])),
+        "INPUTS": ", ".join(f"`{i['name']}` ({i['type']}, {i['size']} numbers, {i['unit']})" for i in inputs) or "none",
+        "PARAMS": ", ".join(f"`{p['name']}` ({p['type']}, {p['size']} numbers, {p['unit']})" for p in params) or "none",
+        "ROWS": str(len(meta["rows"])), "PERIOD": f"{period:g} s" if period else "none (pass dt)",
+    }
