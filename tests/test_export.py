@@ -25,6 +25,7 @@ import vfdsl
 from vfdsl import pipeline
 from vfdsl.cli import main
 from vfdsl.compiler.admissible import Admissible
+from vfdsl.compiler.context import ParamLayout
 from vfdsl.errors import VfError
 from vfdsl.export import api_name, export
 from vfdsl.export.selftest import build, record, replay
@@ -36,6 +37,7 @@ pytestmark = pytest.mark.skipif(shutil.which("make") is None or shutil.which("cc
 CONTRACT = Path(__file__).with_name("export_contract.c")
 TASKS = sorted(path.stem for path in TASKS_DIR.glob("*.vf"))
 EXPERIMENTS = ("paper_a_follow_curve", "paper_b_virtual_rcm")
+TASKS_WITH_PARAMS = [name for name in TASKS if ParamLayout(vfdsl.load(TASKS_DIR / f"{name}.vf").params).size]
 CLEAN_ENV = {"PATH": os.environ.get("PATH", "/usr/bin:/bin"), "LANG": "C"}
 """make's environment: no CPATH, C_INCLUDE_PATH or CFLAGS from this (Python) session."""
 
@@ -56,9 +58,37 @@ class Exported:
         return pipeline.build(self.task, backend="native")[0]
 
 
-@pytest.fixture(scope="module", params=TASKS)
-def exported(request, tmp_path_factory) -> Exported:
-    return Exported(request.param, tmp_path_factory.mktemp("export"))
+@pytest.fixture(scope="module")
+def exports(tmp_path_factory):
+    """name -> Exported, each task exported and built once for the module."""
+    built: dict[str, Exported] = {}
+
+    def get(name: str) -> Exported:
+        if name not in built:
+            built[name] = Exported(name, tmp_path_factory.mktemp("export"))
+        return built[name]
+
+    return get
+
+
+@pytest.fixture(params=TASKS)
+def exported(request, exports) -> Exported:
+    return exports(request.param)
+
+
+@pytest.fixture(params=TASKS_WITH_PARAMS)
+def exported_with_params(request, exports) -> Exported:
+    return exports(request.param)
+
+
+@pytest.fixture(params=EXPERIMENTS)
+def experiment(request, exports) -> Exported:
+    return exports(request.param)
+
+
+@pytest.fixture
+def experiment_b(exports) -> Exported:
+    return exports("paper_b_virtual_rcm")
 
 
 def _ticks(name: str) -> int:
@@ -116,14 +146,14 @@ def _inputs(ctrl, u: np.ndarray) -> dict:
 
 
 # --------------------------------------------------------------------------------------------- params
-def test_param_checks_refuse_what_python_refuses(exported, tmp_path):
+def test_param_checks_refuse_what_python_refuses(exported_with_params, tmp_path):
     """Degenerate param vectors (zeros, mm given as metres, NaN, repeated and swapped points, each param alone)
     are refused by the C library exactly when Python refuses them, at the same check."""
+    exported = exported_with_params
     task = exported.task
     ctrl = exported.controller()
     slots = [s for s in ctrl.assembled.context.layout.slots.values() if s.size]
-    if not slots:
-        pytest.skip("no run-time params")
+    assert slots
     admissible = Admissible(task, Robot.load(task.robots[0].urdf).reach)
     p0 = admissible.layout.defaults
     vectors = [p0.copy(), np.zeros_like(p0), 1000 * p0, -p0]
@@ -185,22 +215,17 @@ def _run_contract(exe: Path, mode: str, ticks, env=None) -> str:
     return result.stdout.strip()
 
 
-def _only_experiments(exported):
-    if exported.task.name not in EXPERIMENTS:
-        pytest.skip("run on experiments A and B")
-
-
 @pytest.mark.slow
-def test_no_leak_under_address_sanitizer(exported, tmp_path):
-    _only_experiments(exported)
+def test_no_leak_under_address_sanitizer(experiment, tmp_path):
+    exported = experiment
     exe = _contract(exported, tmp_path, ["-fsanitize=address"], "-O1 -g -fsanitize=address -fno-omit-frame-pointer")
     ticks = record(exported.controller(), 300)
     env = {**CLEAN_ENV, "ASAN_OPTIONS": "detect_leaks=1:halt_on_error=1"}
     assert _run_contract(exe, "leaks", ticks, env) == "ok"
 
 
-def test_no_heap_call_after_new(exported, tmp_path):
-    _only_experiments(exported)
+def test_no_heap_call_after_new(experiment, tmp_path):
+    exported = experiment
     wrap = "-Wl," + ",".join(f"--wrap={f}" for f in ("malloc", "calloc", "realloc", "free"))
     exe = _contract(exported, tmp_path, ["-DCOUNT_HEAP", wrap])
     ctrl = exported.controller()
@@ -210,15 +235,15 @@ def test_no_heap_call_after_new(exported, tmp_path):
     assert ticked == 0 and params == 0
 
 
-def test_two_controllers_in_two_threads_answer_as_alone(exported, tmp_path):
-    _only_experiments(exported)
+def test_two_controllers_in_two_threads_answer_as_alone(experiment, tmp_path):
+    exported = experiment
     exe = _contract(exported, tmp_path, [])
     ticks = record(exported.controller(), 500)
     assert _run_contract(exe, "threads", ticks) == "0"
 
 
-def test_one_controller_from_two_threads_is_refused_never_mixed(exported, tmp_path):
-    _only_experiments(exported)
+def test_one_controller_from_two_threads_is_refused_never_mixed(experiment, tmp_path):
+    exported = experiment
     exe = _contract(exported, tmp_path, [])
     ticks = record(exported.controller(), 1)
     refused, wrong, answered = map(int, _run_contract(exe, "busy", ticks).split())
@@ -227,9 +252,8 @@ def test_one_controller_from_two_threads_is_refused_never_mixed(exported, tmp_pa
 
 
 # ------------------------------------------------------------------------------------ the folder itself
-def test_the_folder_is_self_contained_and_reexported_identically(exported, tmp_path):
-    if exported.task.name != "paper_b_virtual_rcm":
-        pytest.skip("one task")
+def test_the_folder_is_self_contained_and_reexported_identically(experiment_b, tmp_path):
+    exported = experiment_b
     again = export(exported.task, tmp_path / "again")
     written = sorted(p.relative_to(exported.directory) for p in exported.result.files)
     assert written == sorted(p.relative_to(again.directory) for p in again.files)
@@ -242,9 +266,8 @@ def test_the_folder_is_self_contained_and_reexported_identically(exported, tmp_p
         assert "Python.h" not in text and "casadi/" not in text and str(Path.home()) not in text, path
 
 
-def test_example_and_cmake_build(exported, tmp_path):
-    if exported.task.name != "paper_b_virtual_rcm":
-        pytest.skip("one task")
+def test_example_and_cmake_build(experiment_b, tmp_path):
+    exported = experiment_b
     out = subprocess.run([str(exported.directory / "example")], capture_output=True, text=True, check=True).stdout
     assert "7 joints" in out and "tick 9: status 0" in out and "a NaN joint: q (joint coordinates)" in out
     if shutil.which("cmake") is None:
@@ -260,9 +283,10 @@ def test_example_and_cmake_build(exported, tmp_path):
         assert (tmp_path / "build" / name).is_file(), name
 
 
-def test_cpp_wrapper_compiles_and_steps(exported, tmp_path):
-    if exported.task.name != "paper_b_virtual_rcm" or shutil.which("c++") is None:
-        pytest.skip("one task, with a C++ compiler")
+def test_cpp_wrapper_compiles_and_steps(experiment_b, tmp_path):
+    exported = experiment_b
+    if shutil.which("c++") is None:
+        pytest.skip("no C++ compiler")
     api = exported.result.api
     program = tmp_path / "owner.cpp"
     program.write_text(f"""#include "{api}.hpp"
@@ -283,10 +307,11 @@ int main() {{
     assert subprocess.run([str(tmp_path / "owner")], capture_output=True, text=True, check=True).stdout == "0 7\n"
 
 
-def test_the_loop_of_docs_embedding_compiles_and_runs(exported, tmp_path):
+def test_the_loop_of_docs_embedding_compiles_and_runs(experiment_b, tmp_path):
     """docs/embedding.md's 1 kHz C++ loop, with a robot that executes dq exactly and stops after 200 ticks."""
-    if exported.task.name != "paper_b_virtual_rcm" or shutil.which("c++") is None:
-        pytest.skip("experiment B, with a C++ compiler")
+    if shutil.which("c++") is None:
+        pytest.skip("no C++ compiler")
+    exported = experiment_b
     doc = (Path(__file__).parent.parent / "docs" / "embedding.md").read_text()
     (tmp_path / "loop.cpp").write_text(doc.split("```cpp\n")[1].split("```")[0])
     (tmp_path / "robot.cpp").write_text("""#include <cstring>
@@ -312,9 +337,7 @@ bool stop_requested() { return ++n > 200; }
 
 
 # ----------------------------------------------------------------------------------------------- CLI
-def test_cli_exports_with_a_self_test(exported, tmp_path, capsys):
-    if exported.task.name != "lecture_forbidden_half_space":
-        pytest.skip("one task")
+def test_cli_exports_with_a_self_test(tmp_path, capsys):
     assert main(["export", str(TASKS_DIR / "lecture_forbidden_half_space.vf"), "-o", str(tmp_path / "out"),
                  "--self-test", "50"]) == 0
     out = capsys.readouterr().out
