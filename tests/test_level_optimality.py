@@ -148,6 +148,6 @@ def test_tracking_readout_says_what_holds_the_tip(tmp_path):
         np.testing.assert_allclose(linear.commanded, 2e-3 * _side(up))
         if held:
             assert 0.5 < linear.fraction < 0.9 and any("passes_through(tip)" in label for label in linear.limits)
-            assert "held by passes_through(tip)" in str(linear)
+            assert "held by " in str(linear) and "passes_through(tip) facet" in str(linear)
         else:
             assert linear.fraction >= 0.99 and linear.limits == []

@@ -33,7 +33,7 @@ Codegen policy, two edits of CasADi's generated C:
   ``daqp_persistent.c``: the DAQP workspace is allocated on a conic's first call and kept, later
   calls update it in place, so a step allocates nothing. A conic whose name ends in ``_warm``
   starts DAQP from its previous working set; the others start cold, as CasADi's interface does. A conic
-  whose name holds ``_levels_b1_..._bk`` is solved as DAQP's hierarchical QP with those break points
+  whose name holds ``_levels_b1_..._bk_rhoE`` is solved as DAQP's hierarchical QP with those break points
   (:func:`vfdsl.runtime.qp.build_step_function`). The replaced definitions are matched exactly;
   a CasADi whose generated DAQP interface differs is refused with an error, never half-patched.
 """
@@ -65,7 +65,6 @@ import casadi as ca
 
 from vfdsl.codegen.daqp_sources import daqp_sources, daqp_version, source_files
 from vfdsl.errors import VfError
-from vfdsl.runtime.qp import LEVEL_SOFT_WEIGHT
 
 FLAGS = ("-O3", "-march=native", "-ffp-contract=off", "-fPIC", "-pthread", "-fvisibility=hidden", "-fno-math-errno",
          "-Werror=implicit-function-declaration",
@@ -82,9 +81,8 @@ _DAQP_FREE_MEM = re.compile(r"^void casadi_daqp_free_mem\(struct casadi_daqp_dat
                             re.MULTILINE)
 _CONIC_CALL = re.compile(r"(/\* (\w+):\(h\[[^\n]*\*/\nstatic int \w+\([^\n]*\{\n(?:(?!\n\}\n).)*?)"
                          r"casadi_daqp_solve\(d, arg, res, iw, w\);", re.DOTALL)
-_LEVELS = re.compile(r"_levels((?:_\d+)+)")
-PERSISTENT_DAQP = ((Path(__file__).parent / "daqp_persistent.c").read_text()
-                   .replace("@LEVEL_SOFT_WEIGHT@", repr(LEVEL_SOFT_WEIGHT)))
+_LEVELS = re.compile(r"_levels((?:_\d+)+)_rho(\d+)")
+PERSISTENT_DAQP = (Path(__file__).parent / "daqp_persistent.c").read_text()
 MEMORY_SLOTS = (Path(__file__).parent / "memory_slots.c").read_text()
 MAX_SLOTS = 64
 """Controllers of one task that may exist at once in a process (memory slots of its generated code)."""
@@ -272,13 +270,15 @@ def _with_persistent_daqp(source: str) -> str:
 
 def _conic_call(match: re.Match) -> str:
     """The DAQP call of one conic, by its name: ``..._warm`` starts from the previous working set, and
-    ``..._levels_b1_..._bk...`` solves priority levels, b the constraint indices where each level ends."""
+    ``..._levels_b1_..._bk_rhoE...`` solves priority levels, b the constraint indices where each level ends and
+    1e-E the soft rows' weight (:data:`vfdsl.runtime.qp.LEVEL_ATTEMPTS`)."""
     body, name = match.group(1), match.group(2)
     levels = _LEVELS.search(name)
     if levels is None:
         return f"{body}vfdsl_daqp_solve(d, {int(name.endswith('_warm'))}, 0);"
     points = [int(b) for b in levels.group(1).strip("_").split("_")]
-    table = f"static const vfdsl_levels levels = {{{len(points)}, {{{', '.join(map(str, points))}}}}};"
+    table = (f"static const vfdsl_levels levels = {{{len(points)}, 1e-{levels.group(2)}, "
+             f"{{{', '.join(map(str, points))}}}}};")
     return f"{body}{{\n    {table}\n    vfdsl_daqp_solve(d, {int(name.endswith('_warm'))}, &levels);\n  }}"
 
 

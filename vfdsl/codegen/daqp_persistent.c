@@ -12,7 +12,7 @@
  *   - warm: start DAQP from the previous solve's working set when that solve succeeded (DAQP drops the
  *     constraints of that set that are dependent for the new data);
  *   - levels: DAQP's hierarchical mode. Level 0 (the box and the rows) is hard; level k >= 1 minimizes
- *     the squared violations of its rows, in the rows' own units (each row's soft weight is VFDSL_RHO_SOFT
+ *     the squared violations of its rows, in the rows' own units (each row's soft weight is the conic's rho
  *     in the scale of the problem, which undoes DAQP's normalization of the rows), keeping every level above
  *     at its optimum; the QP's own cost acts last;
  *   - reports a failed solve as x = NaN, never as a stale or internal iterate.
@@ -21,9 +21,9 @@
 #include <daqp/constants.h>
 #include <daqp/utils.h>        /* daqp_update_ldp (api.h does not declare the update functions) */
 
-#define VFDSL_RHO_SOFT @LEVEL_SOFT_WEIGHT@  /* vfdsl.runtime.qp.LEVEL_SOFT_WEIGHT */
 #define VFDSL_LEVELS_MAX 16
-typedef struct { int nh; int break_points[VFDSL_LEVELS_MAX]; } vfdsl_levels;
+/* A conic's levels (from its name): DAQP's break points, and rho, the soft rows' reciprocal weight. */
+typedef struct { int nh; double rho; int break_points[VFDSL_LEVELS_MAX]; } vfdsl_levels;
 
 static void vfdsl_daqp_cold_sense(const struct casadi_qp_prob* p_qp, const struct casadi_qp_data* d_qp,
                                   int* sense) {
@@ -50,7 +50,7 @@ static int vfdsl_daqp_setup(struct casadi_daqp_data* d, const vfdsl_levels* leve
   flag = setup_daqp(&d->daqp, work, 0);
   if (flag<0 || !levels) return flag;
   if (!daqp_allocate_soft_weights(work)) return DAQP_EXIT_UNSUPPORTED;
-  for (i=levels->break_points[0];i<d->daqp.m;++i) work->rho_ls[i] = work->rho_us[i] = VFDSL_RHO_SOFT;
+  for (i=levels->break_points[0];i<d->daqp.m;++i) work->rho_ls[i] = work->rho_us[i] = levels->rho;
   return flag;
 }
 

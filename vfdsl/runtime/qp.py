@@ -20,8 +20,8 @@ cost being 1/2 |Rj x - rj|^2): phase 1 is then one call of DAQP's hierarchical m
 lexicographic least squares, in the daqp sources the generated C is built from). The rows and the box are level 0,
 hard; level 1 minimizes its squared errors over them, level 2 over the optimal set of level 1, and so on; DAQP's
 own cost, |x|^2 / 2, picks the smallest motion among what the levels leave free. Each level's rows are scaled to a
-longest row of 1 (no minimizer changes) and weighted in the problem's scale (``LEVEL_SOFT_WEIGHT``), so that a
-level weighs its terms as the task says. H, g (the sum of all levels) serve phase 2.
+longest row of 1 (no minimizer changes) and weighted in the problem's scale (``LEVEL_ATTEMPTS``), so that a
+level weighs its terms as the task says; a tick where DAQP fails a level is solved again with another weight. H, g (the sum of all levels) serve phase 2.
 
 **Phase 1** solves (P) over B. DAQP is a dual active-set method: its iterates are dual feasible
 and it stops when the primal iterate is feasible, so "x is finite and within ``feas_tol`` of every
@@ -83,17 +83,20 @@ QP_DATA_OUTPUTS = ("H", "g", "A", "lba", "uba", "lbx", "ubx")
 STEP_OUTPUTS = ("x", "status", "violation")
 GRADIENT_SATURATION = 1e3
 """K of :func:`_saturated_gradient`: a user push beyond K box widths is saturated."""
-LEVEL_PRIMAL_TOL = (1e-10, 1e-9)
-"""DAQP's primal tolerance for the hierarchical solve, then for its retry when the first fails (as feas_tol, rows'
-units; a solve with levels then meets the hard rows to ~1e-10). Tighter, DAQP fails a level more often (measured
-over 100 random states of paper_a_follow_curve: 5 at 1e-11, 0 at 1e-10, 1 at 1e-9, never both of the last two)."""
-LEVEL_SOFT_WEIGHT = 1e-8
-"""rho: DAQP's reciprocal weight of every soft row of a priority level (its rows scaled to a longest row of 1),
-given in the problem's own scale, so that a level minimizes the plain sum of its rows' squared errors (DAQP
-normalizes rows internally, and with one weight in its normalized scale a level would weigh a row by 1/|row|^2:
-tested). rho only sets how hard DAQP's inner proximal iterations pull a level towards its least squares, not which
-answer they converge to; 1e-10 made DAQP stop at the levels above a level on 3 of 40 states of
-lecture_remote_center, 1e-6..1e-8 gave the same answers (measured with the daqp package)."""
+LEVEL_ATTEMPTS = ((1e-10, 1e-8), (1e-10, 1e-6))
+"""(primal tolerance, rho) of the hierarchical solve, then of its retry on the ticks where the first fails. The
+primal tolerance is DAQP's (rows' units; a solve with levels meets the hard rows to ~1e-10): tighter, DAQP fails a
+level more often (100 random states of paper_a_follow_curve: 5 at 1e-11, 0 at 1e-10, 1 at 1e-9). rho is DAQP's
+reciprocal weight of every soft row of a level (rows scaled to a longest row of 1), given in the problem's own
+scale, so that a level minimizes the plain sum of its rows' squared errors (DAQP normalizes rows internally; with
+one weight in its normalized scale a level would weigh a row by 1/|row|^2: tested). It sets how hard DAQP's inner
+proximal iterations pull a level towards its least squares, not what they converge to; at one value DAQP may
+fail a level that another solves (the port 4 mm above panda7's tip: level 2 fails at 1e-8, not at 1e-6 or 1e-10).
+Over 1,000 ticks (the port 2, 4, 12 mm above the tip of both robots, 100 pushed ticks each; 100 random states of
+four example tasks) the first attempt failed 22 times, the retry never (measured with the daqp package)."""
+MAX_LEVELS = 15
+"""Priority levels one solve takes (VFDSL_LEVELS_MAX - 1 in daqp_persistent.c; a task has at most 5 priorities, each
+at most 2 levels: a track term's two parts)."""
 HELD_ROWS = 10.0
 """(B)'s answer is taken only if it holds the rows x_A violates within HELD_ROWS * feas_tol of their values at x_A
 (1e-8 m or rad per tick); else x_A is (the least violation, without the objective). Its soft level meets them to
@@ -140,10 +143,10 @@ def build_step_function(qp_data: ca.Function, prefix: str, *,
         rows = [_level_rows(R, r, lo, hi) for R, r in zip(data[7::2], data[8::2])]
         R, r = ca.vertcat(*(R for R, _ in rows)), ca.vertcat(*(r for _, r in rows))
         sizes = [R.size1() for R, _ in rows]
-        first = _daqp(n, m, LEVEL_PRIMAL_TOL[0], "phase1", native, sizes)(ca.DM.eye(n), ca.DM.zeros(n), A, lba, uba,
-                                                                             lo, hi, R, r)
-        x1 = _retried(first, recover, _daqp(n, m, LEVEL_PRIMAL_TOL[1], "phase1_retry", native, sizes),
-                      [ca.DM.eye(n), ca.DM.zeros(n), A, lba, uba, lo, hi, R, r])
+        (tol1, rho1), (tol2, rho2) = LEVEL_ATTEMPTS
+        args = [ca.DM.eye(n), ca.DM.zeros(n), A, lba, uba, lo, hi, R, r]
+        first = _daqp(n, m, tol1, "phase1", native, sizes, rho1)(*args)
+        x1 = _retried(first, recover, _daqp(n, m, tol2, "phase1_retry", native, sizes, rho2), args)
     else:
         x1 = _daqp(n, m, feas_tol * 1e-3, "phase1_warm", native)(H, g, A, lba, uba, lo, hi)
 
@@ -216,15 +219,16 @@ def _box_width(lo: ca.MX, hi: ca.MX) -> ca.MX:
 
 
 def _daqp(n: int, m: int, primal_tol: float, name: str, native: bool,
-          level_rows: Sequence[int] = ()) -> Callable[..., ca.MX]:
+          level_rows: Sequence[int] = (), rho: float = 1e-8) -> Callable[..., ca.MX]:
     """solve(H, g, A, lba, uba, lbx, ubx[, R, r[, r_upper]]) -> x: one dense DAQP solve, x = NaN when it fails.
-    ``primal_tol``: DAQP's (1e-3 feas_tol for the solves without levels, :data:`LEVEL_PRIMAL_TOL` with them).
+    ``primal_tol``: DAQP's (1e-3 feas_tol for the solves without levels, :data:`LEVEL_ATTEMPTS` with them).
 
     The variable bounds reach DAQP as identity rows (through CasADi's conic interface DAQP met simple bounds only
     to ~5e-8, measured). With ``level_rows`` (the row count of each priority level), R stacks the levels' rows and
     r their targets (or r <= R x <= r_upper): DAQP's hierarchical mode minimizes || R_1 x - r_1 ||^2 (the rows'
     squared violations) over the rows and bounds, then each
-    level in turn over the optimal set of the levels above, and the QP's own cost last; warm-started.
+    level in turn over the optimal set of the levels above, and the QP's own cost last, every soft row weighted
+    by ``rho`` (:data:`LEVEL_ATTEMPTS`).
     ``native``: a CasADi conic, which only the generated C evaluates (vfdsl.codegen.build puts DAQP's own sources
     behind it and passes the levels, named in the conic's name); else the same solver, settings and rows through
     the ``daqp`` package (:class:`_DaqpNode`), for CasADi's evaluation."""
@@ -232,13 +236,18 @@ def _daqp(n: int, m: int, primal_tol: float, name: str, native: bool,
     extra = sum(level_rows)
     breaks = [int(b) for b in np.cumsum([2 * n + m, *level_rows])] if level_rows else []
     if breaks:
-        name = f"{name}_levels_{'_'.join(map(str, breaks))}"
+        if len(breaks) > MAX_LEVELS + 1:
+            raise ValueError(f"{len(level_rows)} priority levels; the generated solver takes at most {MAX_LEVELS}")
+        exponent = round(-np.log10(rho))
+        if rho != 10.0 ** -exponent:
+            raise ValueError(f"rho {rho} is not a power of ten (the generated C names it by its exponent)")
+        name = f"{name}_levels_{'_'.join(map(str, breaks))}_rho{exponent}"
     if native:
         sparsity = {"h": ca.Sparsity.dense(n, n), "a": ca.Sparsity.dense(m + n + extra, n)}
         options = {"error_on_fail": False, "daqp": {"primal_tol": primal_tol}}
         conic = ca.conic(name, "daqp", sparsity, options)
     else:
-        conic = _DaqpNode.function(name, n, m + n + extra, primal_tol, breaks)
+        conic = _DaqpNode.function(name, n, m + n + extra, primal_tol, breaks, rho)
 
     def solve(H, g, A, lba, uba, lbx, ubx, R=None, r=None, r_upper=None):
         rows, lower, upper = [A, ca.DM.eye(n)], [lba, lbx], [uba, ubx]
@@ -258,14 +267,15 @@ class _DaqpNode(ca.Callback):
     _alive: list = []        # CasADi holds a Callback by reference: keep every node for the process's life
 
     @classmethod
-    def function(cls, name: str, n: int, rows: int, primal_tol: float, break_points: list[int]) -> ca.Function:
-        node = cls(name, n, rows, primal_tol, break_points)
+    def function(cls, name: str, n: int, rows: int, primal_tol: float, break_points: list[int],
+                 rho: float) -> ca.Function:
+        node = cls(name, n, rows, primal_tol, break_points, rho)
         cls._alive.append(node)
         return node
 
-    def __init__(self, name: str, n: int, rows: int, primal_tol: float, break_points: list[int]):
+    def __init__(self, name: str, n: int, rows: int, primal_tol: float, break_points: list[int], rho: float):
         ca.Callback.__init__(self)
-        self.n, self.rows, self.primal_tol, self.break_points = n, rows, primal_tol, break_points
+        self.n, self.rows, self.primal_tol, self.break_points, self.rho = n, rows, primal_tol, break_points, rho
         self.construct(name, {})
 
     def get_n_in(self):
@@ -290,7 +300,7 @@ class _DaqpNode(ca.Callback):
     def eval(self, arg):
         H, g, A, lba, uba, lbx, ubx = (np.array(a, dtype=float) for a in arg)
         x, flag = solve_daqp(H, g.ravel(), A, np.r_[lbx.ravel(), lba.ravel()], np.r_[ubx.ravel(), uba.ravel()],
-                             self.primal_tol, self.break_points, LEVEL_SOFT_WEIGHT)
+                             self.primal_tol, self.break_points, self.rho)
         return [x if flag in DAQP_SUCCESS else np.full(self.n, np.nan)]
 
 
