@@ -111,7 +111,7 @@ def test_compile_command_writes_source_library_and_metadata(tmp_path, capsys):
     (entry,) = [p for p in tmp_path.iterdir() if p.is_dir() and not p.name.startswith(".")]
     meta = json.loads(next(entry.glob("*.json")).read_text())
     assert meta["task"] == "paper_b_virtual_rcm" and meta["variables"] == {"dq": 7, "slack": 0}
-    assert meta["input_layout"] == [{"name": "tau", "offset": 0, "size": 3}]
+    assert meta["input_layout"] == [{"name": "tau", "offset": 0, "size": 3, "type": "torque", "unit": "N m"}]
     assert [p["name"] for p in meta["param_layout"]] == ["pivot", "axis"]
     assert {(r["primitive"], r["line"]) for r in meta["rows"]} == {("stays_at", 10), ("cone", 11)}
     assert all(r["file"].endswith("fixtures.vf") for r in meta["rows"])
