@@ -73,6 +73,16 @@ class CurveValue(_Model):
     runtime: bool = False
 
 
+class MeshValue(_Model):
+    """A triangle mesh read from ``file`` (absolute path) at compile time, one file unit = ``unit`` metres;
+    ``sha256`` of the file's bytes and the unit (a changed file is a changed task)."""
+
+    kind: Literal["mesh"] = "mesh"
+    file: str
+    unit: float
+    sha256: str
+
+
 class ScalarValue(_Model):
     """A number with a named dimension ('length', 'angle', 'speed', 'number', ...), in SI."""
 
@@ -87,8 +97,8 @@ class FlagValue(_Model):
 
 
 Value = Annotated[
-    Union[PointValue, VectorValue, DirectionValue, LineValue, PlaneValue, PoseValue, CurveValue, ScalarValue,
-          FlagValue],
+    Union[PointValue, VectorValue, DirectionValue, LineValue, PlaneValue, PoseValue, CurveValue, MeshValue,
+          ScalarValue, FlagValue],
     Field(discriminator="kind"),
 ]
 

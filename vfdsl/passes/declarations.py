@@ -18,6 +18,7 @@ from vfdsl.compiler.geometry import compose, rotation
 from vfdsl.errors import VfError, suggest
 from vfdsl.ir import model as ir
 from vfdsl.kinematics.robot import ROBOTS_DIR, Robot
+from vfdsl.mesh.load import MeshFileError, extent_problem, read_mesh
 from vfdsl.passes import expressions as ex
 from vfdsl.passes.scene import SceneData, load_scene
 from vfdsl.passes.shapes import LiteralReader
@@ -196,7 +197,7 @@ class Declarations:
                 if kind == "pose":
                     raise VfError("a pose cannot be expressed `in` another pose", stmt.frame.span.pos(),
                                   hint="nested frames are not supported: give the pose in the robot's base frame")
-                if kind not in ("point", "vector", "direction", "line", "plane", "curve"):
+                if kind not in ("point", "vector", "direction", "line", "plane", "curve", "mesh"):
                     raise VfError(f"a {kind} cannot be expressed in a frame", stmt.frame.span.pos())
             if scene is not None and stmt.name.text in scene.params:
                 source, units = scene.params[stmt.name.text][0], scene.units
@@ -207,6 +208,12 @@ class Declarations:
                               hint=f"give a default (`= ...`) or set params.{stmt.name.text} in the scene file")
             source = _named_mapping(source, kind)
             self.param_values[stmt.name.text] = source
+            if kind == "mesh":
+                base = scene.file.parent if source is not stmt.default else self.path.parent
+                self.params[stmt.name.text] = ir.ParamDecl(
+                    name=stmt.name.text, type=kind, value=self._mesh(stmt, source, base),
+                    frame=stmt.frame.text if stmt.frame else None, span=stmt.span, value_span=source.span)
+                continue
             value = self._literal(source, kind, units, degree)
             if runtime:
                 value = value.model_copy(update={"runtime": True})
@@ -214,8 +221,35 @@ class Declarations:
                 name=stmt.name.text, type=kind, value=value,
                 frame=stmt.frame.text if stmt.frame else None, span=stmt.span, value_span=source.span)
 
+    def _mesh(self, stmt: ast.ParamStmt, source: ast.Value, base: Path) -> ir.MeshValue:
+        """A mesh param: its file (relative to the file that names it) read with its unit (:mod:`vfdsl.mesh.load`)."""
+        unit = u.UNITS[self.units.length][1]
+        for kw in stmt.type_args:
+            if kw.name.text != "unit":
+                raise VfError(f"mesh has no type argument '{kw.name.text}'", kw.name.span.pos(),
+                              hint="state the file's unit of length: mesh(unit = 1 mm)")
+            unit = LiteralReader(self.units, self._no_names).scalar(kw.value, u.LENGTH, "unit")
+            if not unit > 0:
+                raise VfError("a mesh's unit must be a positive length", kw.value.span.pos())
+        if not isinstance(source, ast.String):
+            raise VfError("a mesh is given by its file name", source.span.pos(),
+                          hint='write param m : mesh(unit = 1 mm) = "anatomy/sinus.stl"')
+        path = (base / source.text).resolve()
+        try:
+            mesh = read_mesh(path, unit)
+        except MeshFileError as exc:
+            raise VfError(str(exc), source.span.pos(),
+                          hint=f"the path is relative to {base}; STL, OBJ and PLY are read") from None
+        problem = extent_problem(mesh, unit)
+        if problem is not None:
+            raise VfError(problem, source.span.pos(),
+                          hint="state the file's unit: mesh(unit = 1 mm) (without it, the task's length unit)")
+        return ir.MeshValue(file=str(path), unit=unit, sha256=mesh.sha256)
+
     def _curve_type(self, stmt: ast.ParamStmt) -> tuple[int | None, bool]:
         """(degree, runtime) of a curve param's type, e.g. curve(degree = 1, runtime = true)."""
+        if stmt.type.text == "mesh":
+            return None, False
         if stmt.type.text != "curve":
             if stmt.type_args:
                 raise VfError(f"a {stmt.type.text} param takes no type arguments", stmt.type_args[0].span.pos())

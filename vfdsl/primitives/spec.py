@@ -4,7 +4,7 @@ Each primitive module declares one ``SPEC``; the elaborator checks a ``require``
 generically (argument names, kinds, units, defaults, tolerance and resolution), so adding a primitive
 never touches the front end.
 
-Argument kinds: geometric values (point, vector, direction, line, plane, pose, curve), scalars with a
+Argument kinds: geometric values (point, vector, direction, line, plane, pose, curve, mesh), scalars with a
 dimension (length, angle, speed, angular_speed, number), ``flag`` (true/false), ``frame`` and ``input``
 (names of declared task frames and inputs), and ``gain``/``angular_gain``, whose dimension follows the
 type of the call's ``input`` argument (see :func:`gain_dimension`).
@@ -23,7 +23,7 @@ from typing import Callable, Literal
 from vfdsl.ir import model as ir
 from vfdsl import units as u
 
-GEOMETRIC_KINDS = ("point", "vector", "direction", "line", "plane", "pose", "curve")
+GEOMETRIC_KINDS = ("point", "vector", "direction", "line", "plane", "pose", "curve", "mesh")
 SCALAR_DIMENSIONS: dict[str, u.Dim] = {
     "length": u.LENGTH, "angle": u.ANGLE, "speed": u.SPEED, "angular_speed": u.ANGULAR_SPEED,
     "number": u.DIMENSIONLESS, "time": u.TIME, "force": u.FORCE,
