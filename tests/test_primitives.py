@@ -789,6 +789,7 @@ def test_every_primitive_is_covered():
                "passes_through", "within_distance", "joint_limits", "joint_speed", "speed", "angular_speed",
                "within_sphere", "outside_sphere", "near_plane"}     # the last three: test_primitive_spheres.py
     covered |= {"tilt_at_most"}                  # its rows: tests/test_tilt_at_most.py
+    covered |= {"outside_mesh", "inside_mesh"}   # their rows: tests/test_mesh_rows.py
     assert set(CONSTRAINTS) == covered
 
 

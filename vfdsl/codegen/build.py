@@ -142,10 +142,11 @@ class Compiler:
 
 
 def build_library(fn: ca.Function, prefix: str, cache_dir: Path, metadata: dict,
-                  checks: ca.Function) -> BuiltLibrary:
+                  checks: ca.Function, extra_sources: tuple[Path, ...] = ()) -> BuiltLibrary:
     """The cached library of the step ``fn`` (arguments q, u, p, dt, recover), exported as C symbol ``prefix``,
     with ``checks`` (p -> the column of checks of the params, :mod:`vfdsl.compiler.admissible`) exported as
-    ``<prefix>_admissible``; built if needed."""
+    ``<prefix>_admissible``; built if needed. ``extra_sources``: C files defining the external functions ``fn``
+    calls (mesh queries), compiled and linked in with the same flags (their text is part of the digest)."""
     if not _IDENTIFIER.fullmatch(prefix):
         raise ValueError(f"prefix {prefix!r} is not a C identifier")
     cache_dir = Path(cache_dir)
@@ -164,12 +165,13 @@ def build_library(fn: ca.Function, prefix: str, cache_dir: Path, metadata: dict,
         with work_dir as tmp:
             work = Path(tmp)
             source, header = _generate(fn, prefix, work, checks)
-            digest = _digest(source, header, compiler, metadata)
+            extra = tuple(Path(x) for x in extra_sources)
+            digest = _digest(source + "".join(x.read_text() for x in extra), header, compiler, metadata)
             entry = cache_dir / f"{prefix}-{digest[:16]}"
             found = _verified(entry, prefix, digest)
             if found is not None:
                 return dataclasses.replace(found, reused=True)
-            built = _compile(fn, prefix, work, compiler, digest, metadata)
+            built = _compile(fn, prefix, work, compiler, digest, metadata, extra)
             if fallback is not None:
                 entry = _private_cache() / entry.name
                 warnings.warn(f"cannot write the build cache {cache_dir} ({fallback.strerror}); "
@@ -289,8 +291,9 @@ def _with_memory_slots(source: str, prefix: str) -> str:
              f"casadi_int* iw, casadi_real* w, int mem){{\n  return casadi_f0(arg, res, iw, w, mem);\n}}\n\n"
              f"CASADI_SYMBOL_EXPORT int {prefix}_checkout(void) {{\n  return 0;\n}}\n\n"
              f"CASADI_SYMBOL_EXPORT void {prefix}_release(int mem) {{\n}}\n")
-    pools = _POOL_CHECKOUT.findall(source)
-    if source.count(entry) != 1 or source.count(_MAX_THREADS) != 1 or len(_POOL_RELEASE.findall(source)) != len(pools):
+    checkouts = _POOL_CHECKOUT.findall(source)
+    pools = [f for f in checkouts if f"{f}_init_mem" in source]   # external functions (mesh queries) have no memory
+    if source.count(entry) != 1 or source.count(_MAX_THREADS) != 1 or len(_POOL_RELEASE.findall(source)) != len(checkouts):
         raise VfError(f"CasADi {ca.__version__} generates an entry point this vfdsl does not know",
                       hint="install the CasADi version vfdsl requires (pip install 'casadi>=3.8.2,<3.9')")
     source = source.replace(_MAX_THREADS, f"#define CASADI_MAX_NUM_THREADS {MAX_SLOTS}\n"
@@ -334,14 +337,18 @@ def _python_build_key() -> dict | None:
 
 
 def _compile(fn: ca.Function, prefix: str, work: Path, compiler: Compiler, digest: str,
-             metadata: dict) -> dict[str, Any]:
+             metadata: dict, extra: tuple[Path, ...] = ()) -> dict[str, Any]:
     """Compile in ``work``: the generated C once into an object, linked into the C library and (with
     Python headers) into the Python extension; check that both load; write the metadata; return it."""
     nonce = secrets.token_hex(4)
     so_name = f"lib{prefix}-{nonce}.so"
     daqp = [str(daqp_library(compiler)), "-lm", "-Wl,--exclude-libs,ALL"]
     _cc(compiler, work, [*FLAGS, f"-I{daqp_sources(daqp_home()) / 'include'}", "-c", f"{prefix}.c", "-o", f"{prefix}.o"])
-    _cc(compiler, work, [*FLAGS, "-shared", f"{prefix}.o", "-o", so_name, *daqp])
+    objects = [f"{prefix}.o"]
+    for source in extra:
+        objects.append(f"{source.stem}.o")
+        _cc(compiler, work, [*FLAGS, "-c", str(source), "-o", objects[-1]])
+    _cc(compiler, work, [*FLAGS, "-shared", *objects, "-o", so_name, *daqp])
     _load(work / so_name, prefix)
     module_file = None
     headers = python_headers()
@@ -350,7 +357,7 @@ def _compile(fn: ca.Function, prefix: str, work: Path, compiler: Compiler, diges
         module_file = f"{module}-{nonce}.so"
         _cc(compiler, work, [*FLAGS, "-shared", *(f"-I{d}" for d in headers), f"-DVFDSL_PREFIX={prefix}",
                              f"-DVFDSL_MODULE={module}", "-include", f"{prefix}.h", str(STEPPER),
-                             f"{prefix}.o", "-o", module_file, "-Wl,-Bsymbolic", *daqp])
+                             *objects, "-o", module_file, "-Wl,-Bsymbolic", *daqp])
         load_module(work / module_file)
     meta = {**metadata,
             "prefix": prefix, "digest": digest,

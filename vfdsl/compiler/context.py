@@ -1,7 +1,8 @@
 """What a lowering sees: the symbols of one tick and the task's frames and references, in world coordinates.
 
 Symbols: q (nq joint coordinates), u (every input, concatenated in declaration order), p (every run-time
-param, flattened in declaration order; see :class:`ParamLayout`), dt (the control period). A param declared
+param, flattened in declaration order; see :class:`ParamLayout`; a mesh has no run-time numbers, it moves
+through its `in` pose), dt (the control period). A param declared
 ``in`` a pose param is transformed to the world each tick: points by R x + t, directions by R d, curves by
 searching in the curve's own frame. A derived argument (``normalize(target - entry)``) is computed from its
 operands' world values (:mod:`vfdsl.compiler.derived`). A ``runtime`` curve's points are run-time params
@@ -12,20 +13,25 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from functools import cached_property
+from pathlib import Path
 
 import casadi as ca
 import numpy as np
 
+from vfdsl.codegen.build import CompilerUnavailable
 from vfdsl.compiler import derived
 from vfdsl.compiler.curve import Closest, SplineCurve
 from vfdsl.compiler.geometry import homogeneous, normalize, normalize_scaled, rpy_matrix
 from vfdsl.ir import model as ir
 from vfdsl.kinematics.robot import Robot
 from vfdsl.kinematics.symbolic import SymbolicKinematics
+from vfdsl.errors import VfError
+from vfdsl.mesh.external import MeshQuery, mesh_query
+from vfdsl.mesh.load import MeshFileError, read_mesh
 
 # Run-time size of each param type (a curve's size is its points' when declared `runtime`, else 0: fixed at
 # compile time, it moves through its `in` pose).
-PARAM_SIZES = {"point": 3, "vector": 3, "direction": 3, "line": 6, "plane": 6, "pose": 6, "curve": 0,
+PARAM_SIZES = {"point": 3, "vector": 3, "direction": 3, "line": 6, "plane": 6, "pose": 6, "curve": 0, "mesh": 0,
                "length": 1, "angle": 1, "speed": 1, "angular_speed": 1, "number": 1, "time": 1, "force": 1}
 
 
@@ -116,6 +122,16 @@ class PlacedCurve:
         return Closest(self.R @ found.point + self.t, self.R @ found.tangent, found.behind, found.ahead)
 
 
+@dataclass(frozen=True)
+class PlacedMesh:
+    """A compile-time mesh placed in the world by a (possibly run-time) pose: x_world = R x_local + t; ``query``
+    is its proximity query (:mod:`vfdsl.mesh.external`)."""
+
+    query: MeshQuery
+    R: ca.SX
+    t: ca.SX
+
+
 class ParamReader:
     """The task's argument values in world coordinates, from the flat params p (SX symbols, or DM numbers
     to evaluate them at given values). Derived arguments are evaluated by :mod:`vfdsl.compiler.derived`."""
@@ -124,6 +140,7 @@ class ParamReader:
         self.params = {decl.name: decl for decl in params}
         self.layout = ParamLayout(params)
         self.p = ca.SX.sym("p", self.layout.size) if p is None else p
+        self.c_sources: dict[str, Path] = {}     # C sources the tick calls into (mesh queries), by symbol
 
     def _raw(self, arg: ir.ParamRef | ir.Const) -> tuple[object, ir.Value]:
         """(flat symbols or numbers, IR value) of an argument, before placing it in the world."""
@@ -185,6 +202,23 @@ class ParamReader:
     def scalar(self, arg) -> ca.SX:
         flat, _ = self._raw(arg)
         return flat[0]
+
+    def mesh(self, arg, k: int) -> PlacedMesh:
+        """The mesh param ``arg`` with its query of ``k`` rows (compiled once per mesh; its C source is kept in
+        ``c_sources`` for the generated library). Needs a C compiler."""
+        decl = self.params[arg.name]
+        value = decl.value
+        try:
+            data = read_mesh(value.file, value.unit)
+            query = mesh_query(data, k)
+        except (MeshFileError, CompilerUnavailable) as exc:
+            raise VfError(f"mesh '{arg.name}': {getattr(exc, 'message', exc)}", decl.span.pos(),
+                          hint="a mesh fixture runs its proximity query in C, on the interpreted path too: "
+                               "install gcc or clang (or set CC)") from None
+        self.c_sources[query.name] = query.source
+        pose = self._pose_of(arg)
+        R, t = pose if pose is not None else (ca.SX.eye(3), ca.SX.zeros(3))
+        return PlacedMesh(query, R, t)
 
     def curve(self, arg) -> PlacedCurve:
         flat, value = self._raw(arg)

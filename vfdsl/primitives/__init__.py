@@ -6,11 +6,13 @@ from vfdsl.primitives import (
                               angular_speed,
                               cone,
                               follows,
+                              inside_mesh,
                               joint_limits,
                               joint_speed,
                               keeps_direction,
                               near_plane,
                               on_plane,
+                              outside_mesh,
                               outside_sphere,
                               passes_through,
                               rotates_around,
@@ -24,6 +26,6 @@ from vfdsl.primitives.spec import ConstraintSpec
 
 _MODULES = (stays_at, keeps_direction, along, rotates_around, above, on_plane, follows, cone, passes_through,
             within_distance, joint_limits, joint_speed, speed, angular_speed,
-            within_sphere, outside_sphere, near_plane, tilt_at_most)
+            within_sphere, outside_sphere, near_plane, tilt_at_most, outside_mesh, inside_mesh)
 
 CONSTRAINTS: dict[str, ConstraintSpec] = {m.SPEC.name: m.SPEC for m in _MODULES}

@@ -1,0 +1,313 @@
+/* vfdsl mesh proximity query, one copy per mesh (the generator puts the mesh's tables above this text and
+ * replaces @NAME@ by the mesh's symbol). A CasADi external function (see CasADi's docs, "external"):
+ *
+ *   @NAME@(arg, res, iw, w, mem)
+ *     arg[0] a[3]      segment start (the task frame), in the mesh's frame, m
+ *     arg[1] b[3]      segment end (the shaft frame; = a for a point), in the mesh's frame, m
+ *     arg[2] [cutoff, side]   features farther than cutoff from the segment are ignored; side = +1: the free
+ *                      side is where the normals point (keep out), -1: opposite (keep in)
+ *     res[0] d[K]      signed distance of each feature: > 0 on the free side, < 0 through the surface
+ *     res[1] s[K]      parameter of the segment's closest point x = a + s (b - a), in [0, 1]
+ *     res[2] u[3K]     unit direction (column per feature) from the feature toward the free side at x
+ *   Unused entries (fewer than K features within the cutoff): d = +inf, s = 0, u = 0.
+ *
+ * The K features (faces, edges, vertices of the triangles) nearest the segment, with two rules: a feature
+ * seen through several triangles counts once (keyed by its vertices); and of two features whose directions u
+ * are within VFM_SIMILAR (cosine) the nearer one stands for both. The side of a feature is taken from its
+ * angle-weighted pseudo-normal (Baerentzen & Aanaes 2005), which makes the sign right at edges and vertices
+ * of a closed, consistently oriented mesh. A BVH of axis-aligned boxes (built at compile time) is walked
+ * near-child first; a box is skipped when a lower bound of its distance to the segment exceeds the cutoff,
+ * or the farthest of K kept features. The stack is a fixed array on the C stack: nothing is allocated,
+ * the function is reentrant (iw, w and mem are unused).
+ */
+#include <math.h>
+
+#ifndef casadi_real
+#define casadi_real double
+#endif
+#ifndef casadi_int
+#define casadi_int long long int
+#endif
+#ifndef VFM_EXPORT
+#define VFM_EXPORT __attribute__((visibility("default")))
+#endif
+
+#define VFM_STACK 128
+
+typedef struct {
+  double dist;      /* unsigned distance */
+  double d;         /* signed distance */
+  double s;
+  double u[3];
+  long long key;
+} vfm_hit;
+
+static double vfm_dot(const double* a, const double* b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
+
+static double vfm_dotf(const double* a, const float* b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
+
+static double vfm_clamp01(double x) { return x < 0 ? 0 : (x > 1 ? 1 : x); }
+
+/* Closest point on triangle (a, b, c) to p (Ericson, Real-Time Collision Detection, 5.1.5); region:
+ * 0 face, 1 + e edge e (edges (0,1), (1,2), (2,0)), 4 + i vertex i. */
+static void vfm_point_triangle(const double* p, const double* a, const double* b, const double* c,
+                               double* out, int* region) {
+  double ab[3], ac[3], ap[3], bp[3], cp[3];
+  int i;
+  for (i = 0; i < 3; ++i) { ab[i] = b[i] - a[i]; ac[i] = c[i] - a[i]; ap[i] = p[i] - a[i]; }
+  double d1 = vfm_dot(ab, ap), d2 = vfm_dot(ac, ap);
+  if (d1 <= 0 && d2 <= 0) { for (i = 0; i < 3; ++i) out[i] = a[i]; *region = 4; return; }
+  for (i = 0; i < 3; ++i) bp[i] = p[i] - b[i];
+  double d3 = vfm_dot(ab, bp), d4 = vfm_dot(ac, bp);
+  if (d3 >= 0 && d4 <= d3) { for (i = 0; i < 3; ++i) out[i] = b[i]; *region = 5; return; }
+  double vc = d1 * d4 - d3 * d2;
+  if (vc <= 0 && d1 >= 0 && d3 <= 0) {
+    double v = d1 / (d1 - d3);
+    for (i = 0; i < 3; ++i) out[i] = a[i] + v * ab[i];
+    *region = 1; return;
+  }
+  for (i = 0; i < 3; ++i) cp[i] = p[i] - c[i];
+  double d5 = vfm_dot(ab, cp), d6 = vfm_dot(ac, cp);
+  if (d6 >= 0 && d5 <= d6) { for (i = 0; i < 3; ++i) out[i] = c[i]; *region = 6; return; }
+  double vb = d5 * d2 - d1 * d6;
+  if (vb <= 0 && d2 >= 0 && d6 <= 0) {
+    double w = d2 / (d2 - d6);
+    for (i = 0; i < 3; ++i) out[i] = a[i] + w * ac[i];
+    *region = 3; return;
+  }
+  double va = d3 * d6 - d5 * d4;
+  if (va <= 0 && (d4 - d3) >= 0 && (d5 - d6) >= 0) {
+    double w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
+    for (i = 0; i < 3; ++i) out[i] = b[i] + w * (c[i] - b[i]);
+    *region = 2; return;
+  }
+  double denom = 1.0 / (va + vb + vc), v = vb * denom, w = vc * denom;
+  for (i = 0; i < 3; ++i) out[i] = a[i] + ab[i] * v + ac[i] * w;
+  *region = 0;
+}
+
+/* Closest points of segments p1 q1 and p2 q2 (Ericson 5.1.9): parameters s, t in [0, 1]. */
+static void vfm_segment_segment(const double* p1, const double* q1, const double* p2, const double* q2,
+                                double* s, double* t) {
+  double d1[3], d2[3], r[3];
+  int i;
+  for (i = 0; i < 3; ++i) { d1[i] = q1[i] - p1[i]; d2[i] = q2[i] - p2[i]; r[i] = p1[i] - p2[i]; }
+  double a = vfm_dot(d1, d1), e = vfm_dot(d2, d2), f = vfm_dot(d2, r);
+  const double eps = 1e-30;
+  if (a <= eps && e <= eps) { *s = 0; *t = 0; return; }
+  if (a <= eps) { *s = 0; *t = vfm_clamp01(f / e); return; }
+  double c = vfm_dot(d1, r);
+  if (e <= eps) { *t = 0; *s = vfm_clamp01(-c / a); return; }
+  double b = vfm_dot(d1, d2), denom = a * e - b * b;
+  *s = denom > eps ? vfm_clamp01((b * f - c * e) / denom) : 0;
+  *t = (b * *s + f) / e;
+  if (*t < 0) { *t = 0; *s = vfm_clamp01(-c / a); }
+  else if (*t > 1) { *t = 1; *s = vfm_clamp01((b - c) / a); }
+}
+
+static long long vfm_edge_key(int va, int vb) {
+  int lo = va < vb ? va : vb, hi = va < vb ? vb : va;
+  return (long long)VFM_NT + (long long)lo * VFM_NV + hi;
+}
+
+static long long vfm_vertex_key(int v) { return (long long)VFM_NT + (long long)VFM_NV * VFM_NV + v; }
+
+/* The pseudo-normal and key of feature `region` of triangle t. */
+static const float* vfm_feature(int t, int region, long long* key) {
+  const int* tri = vfm_triangles + 3 * t;
+  if (region == 0) { *key = t; return vfm_face_normals + 3 * t; }
+  if (region < 4) {
+    int e = region - 1;
+    *key = vfm_edge_key(tri[e], tri[(e + 1) % 3]);
+    return vfm_edge_normals + 9 * t + 3 * e;
+  }
+  *key = vfm_vertex_key(tri[region - 4]);
+  return vfm_vertex_normals + 3 * tri[region - 4];
+}
+
+/* Closest pair between segment a b and triangle t: segment parameter s, triangle point c, feature region. */
+static double vfm_segment_triangle(const double* a, const double* b, int t, double* s_out, double* c_out,
+                                   int* region_out) {
+  const int* tri = vfm_triangles + 3 * t;
+  const double* v[3] = {vfm_vertices + 3 * tri[0], vfm_vertices + 3 * tri[1], vfm_vertices + 3 * tri[2]};
+  const float* n = vfm_face_normals + 3 * t;
+  double best = INFINITY, c[3], x[3];
+  int i, e, region;
+  /* the segment through the face: distance 0 */
+  double ab[3], da = 0, db = 0;
+  for (i = 0; i < 3; ++i) { ab[i] = b[i] - a[i]; da += (a[i] - v[0][i]) * n[i]; db += (b[i] - v[0][i]) * n[i]; }
+  if (da * db < 0) {
+    double s = da / (da - db);
+    for (i = 0; i < 3; ++i) x[i] = a[i] + s * ab[i];
+    vfm_point_triangle(x, v[0], v[1], v[2], c, &region);
+    if (region == 0) {
+      *s_out = s; *region_out = 0;
+      for (i = 0; i < 3; ++i) c_out[i] = x[i];
+      return 0;
+    }
+  }
+  /* an end of the segment to the triangle */
+  for (e = 0; e < 2; ++e) {
+    const double* p = e ? b : a;
+    vfm_point_triangle(p, v[0], v[1], v[2], c, &region);
+    double d2 = 0;
+    for (i = 0; i < 3; ++i) d2 += (p[i] - c[i]) * (p[i] - c[i]);
+    if (d2 < best) { best = d2; *s_out = e; *region_out = region; for (i = 0; i < 3; ++i) c_out[i] = c[i]; }
+  }
+  /* the segment to an edge of the triangle */
+  for (e = 0; e < 3; ++e) {
+    const double *p = v[e], *q = v[(e + 1) % 3];
+    double s, t2;
+    vfm_segment_segment(a, b, p, q, &s, &t2);
+    double d2 = 0;
+    for (i = 0; i < 3; ++i) {
+      x[i] = a[i] + s * ab[i];
+      c[i] = p[i] + t2 * (q[i] - p[i]);
+      d2 += (x[i] - c[i]) * (x[i] - c[i]);
+    }
+    if (d2 < best) {
+      best = d2; *s_out = s;
+      *region_out = t2 <= 0 ? 4 + e : (t2 >= 1 ? 4 + (e + 1) % 3 : 1 + e);
+      for (i = 0; i < 3; ++i) c_out[i] = c[i];
+    }
+  }
+  return sqrt(best);
+}
+
+/* Keep `hit` in the list of at most VFM_K features (rules in the header). */
+static void vfm_keep(vfm_hit* list, int* n, const vfm_hit* hit) {
+  int i, j;
+  for (i = 0; i < *n; ++i) {
+    if (list[i].key == hit->key) return;
+    if (vfm_dot(list[i].u, hit->u) > VFM_SIMILAR) {
+      if (list[i].dist <= hit->dist) return;
+      list[i] = *hit;                 /* it stands for list[i], and for the others it now covers */
+      for (j = *n - 1; j > i; --j)
+        if (vfm_dot(list[j].u, hit->u) > VFM_SIMILAR && list[j].dist >= hit->dist) list[j] = list[--*n];
+      return;
+    }
+  }
+  if (*n < VFM_K) { list[(*n)++] = *hit; return; }
+  int worst = 0;
+  for (i = 1; i < *n; ++i) if (list[i].dist > list[worst].dist) worst = i;
+  if (hit->dist < list[worst].dist) list[worst] = *hit;
+}
+
+/* A lower bound of the distance between box `node` and the segment: the larger of the distance between the
+ * box and the segment's own box, and the distance from the segment to the box's centre less its half-diagonal. */
+static double vfm_box_bound(int node, const double* a, const double* b) {
+  const double* lo = vfm_boxes + 6 * node;
+  const double* hi = lo + 3;
+  double gap2 = 0, centre[3], half2 = 0, i_s;
+  int i;
+  for (i = 0; i < 3; ++i) {
+    double slo = a[i] < b[i] ? a[i] : b[i], shi = a[i] < b[i] ? b[i] : a[i];
+    double g = slo > hi[i] ? slo - hi[i] : (lo[i] > shi ? lo[i] - shi : 0);
+    gap2 += g * g;
+    centre[i] = 0.5 * (lo[i] + hi[i]);
+    half2 += 0.25 * (hi[i] - lo[i]) * (hi[i] - lo[i]);
+  }
+  double ab[3], ac[3], ab2 = 0, proj = 0;
+  for (i = 0; i < 3; ++i) { ab[i] = b[i] - a[i]; ac[i] = centre[i] - a[i]; ab2 += ab[i] * ab[i]; proj += ab[i] * ac[i]; }
+  i_s = ab2 > 0 ? vfm_clamp01(proj / ab2) : 0;
+  double r2 = 0;
+  for (i = 0; i < 3; ++i) { double x = ac[i] - i_s * ab[i]; r2 += x * x; }
+  double sphere = sqrt(r2) - sqrt(half2), gap = sqrt(gap2);
+  return sphere > gap ? sphere : gap;
+}
+
+static void vfm_consider(int t, const double* a, const double* b, double cutoff, double side,
+                         vfm_hit* list, int* n) {
+  double s, c[3], x[3], diff[3];
+  int region, i;
+  double dist = vfm_segment_triangle(a, b, t, &s, c, &region);
+  if (dist > cutoff) return;
+  vfm_hit hit;
+  const float* normal = vfm_feature(t, region, &hit.key);
+  for (i = 0; i < 3; ++i) { x[i] = a[i] + s * (b[i] - a[i]); diff[i] = x[i] - c[i]; }
+  double free_side = side * vfm_dotf(diff, normal) >= 0 ? 1.0 : -1.0;
+  hit.dist = dist;
+  hit.s = s;
+  if (dist > 1e-12) {
+    hit.d = free_side * dist;
+    for (i = 0; i < 3; ++i) hit.u[i] = free_side * diff[i] / dist;
+  } else {                            /* touching: the face's own normal, toward the free side */
+    const float* face = vfm_face_normals + 3 * t;
+    hit.d = 0;
+    for (i = 0; i < 3; ++i) hit.u[i] = side * face[i];
+  }
+  vfm_keep(list, n, &hit);
+}
+
+static void vfm_query(const double* a, const double* b, double cutoff, double side, vfm_hit* list, int* n) {
+  int stack[VFM_STACK], top = 0;
+  *n = 0;
+  stack[top++] = 0;
+  while (top > 0) {
+    int node = stack[--top];
+    double bound = vfm_box_bound(node, a, b);
+    if (bound > cutoff) continue;
+    if (*n == VFM_K) {
+      double worst = 0;
+      int i;
+      for (i = 0; i < *n; ++i) if (list[i].dist > worst) worst = list[i].dist;
+      if (bound > worst) continue;
+    }
+    int first = vfm_nodes[2 * node], second = vfm_nodes[2 * node + 1];
+    if (first < 0) {                  /* a leaf: triangles -1 - first ... + second */
+      int t;
+      for (t = -1 - first; t < -1 - first + second; ++t) vfm_consider(t, a, b, cutoff, side, list, n);
+      continue;
+    }
+    if (top + 2 > VFM_STACK) continue;   /* unreachable: the builder bounds the depth below VFM_STACK */
+    double bf = vfm_box_bound(first, a, b), bs = vfm_box_bound(second, a, b);
+    stack[top++] = bf <= bs ? second : first;   /* the nearer child is popped first */
+    stack[top++] = bf <= bs ? first : second;
+  }
+}
+
+/* CasADi's compact sparsity of a dense n x m column: {n, m, colind[m + 1], row[n m]}, filled once. */
+static casadi_int vfm_dense3[2 + 1 + 1 + 3], vfm_dense2[2 + 1 + 1 + 2], vfm_densek[2 + 1 + 1 + VFM_K],
+    vfm_dense3k[2 + VFM_K + 1 + 3 * VFM_K];
+
+static const casadi_int* vfm_dense(casadi_int* sp, casadi_int rows, casadi_int cols) {
+  casadi_int j, i;
+  sp[0] = rows; sp[1] = cols;
+  for (j = 0; j <= cols; ++j) sp[2 + j] = j * rows;
+  for (j = 0; j < cols; ++j) for (i = 0; i < rows; ++i) sp[2 + cols + 1 + j * rows + i] = i;
+  return sp;
+}
+
+VFM_EXPORT casadi_int @NAME@_n_in(void) { return 3; }
+VFM_EXPORT casadi_int @NAME@_n_out(void) { return 3; }
+
+VFM_EXPORT const casadi_int* @NAME@_sparsity_in(casadi_int i) {
+  return i == 2 ? vfm_dense(vfm_dense2, 2, 1) : vfm_dense(vfm_dense3, 3, 1);
+}
+
+VFM_EXPORT const casadi_int* @NAME@_sparsity_out(casadi_int i) {
+  return i == 2 ? vfm_dense(vfm_dense3k, 3, VFM_K) : vfm_dense(vfm_densek, VFM_K, 1);
+}
+
+VFM_EXPORT int @NAME@_work(casadi_int* sz_arg, casadi_int* sz_res, casadi_int* sz_iw, casadi_int* sz_w) {
+  if (sz_arg) *sz_arg = 3;
+  if (sz_res) *sz_res = 3;
+  if (sz_iw) *sz_iw = 0;
+  if (sz_w) *sz_w = 0;
+  return 0;
+}
+
+VFM_EXPORT int @NAME@(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+  vfm_hit list[VFM_K];
+  int n, i, j;
+  (void)iw; (void)w; (void)mem;
+  vfm_query(arg[0], arg[1], arg[2][0], arg[2][1], list, &n);
+  for (i = 1; i < n; ++i)             /* nearest first: rows keep a stable order */
+    for (j = i; j > 0 && list[j].dist < list[j - 1].dist; --j) { vfm_hit h = list[j]; list[j] = list[j - 1]; list[j - 1] = h; }
+  for (i = 0; i < VFM_K; ++i) {
+    if (res[0]) res[0][i] = i < n ? list[i].d : INFINITY;
+    if (res[1]) res[1][i] = i < n ? list[i].s : 0;
+    if (res[2]) for (j = 0; j < 3; ++j) res[2][3 * i + j] = i < n ? list[i].u[j] : 0;
+  }
+  return 0;
+}
