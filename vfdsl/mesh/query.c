@@ -233,8 +233,9 @@ static void vfm_consider(int t, const double* a, const double* b, double cutoff,
     for (i = 0; i < 3; ++i) hit.u[i] = free_side * diff[i] / dist;
   } else {                            /* touching: the face's own normal, toward the free side */
     const float* face = vfm_face_normals + 3 * t;
+    double norm = sqrt((double)face[0] * face[0] + (double)face[1] * face[1] + (double)face[2] * face[2]);
     hit.d = 0;
-    for (i = 0; i < 3; ++i) hit.u[i] = side * face[i];
+    for (i = 0; i < 3; ++i) hit.u[i] = side * face[i] / norm;
   }
   vfm_keep(list, n, &hit);
 }
