@@ -345,9 +345,10 @@ def _compile(fn: ca.Function, prefix: str, work: Path, compiler: Compiler, diges
     daqp = [str(daqp_library(compiler)), "-lm", "-Wl,--exclude-libs,ALL"]
     _cc(compiler, work, [*FLAGS, f"-I{daqp_sources(daqp_home()) / 'include'}", "-c", f"{prefix}.c", "-o", f"{prefix}.o"])
     objects = [f"{prefix}.o"]
-    for source in extra:
+    for source in extra:     # kept in the entry (for `vfdsl export`); their symbols stay hidden in the library
+        shutil.copyfile(source, work / source.name)
         objects.append(f"{source.stem}.o")
-        _cc(compiler, work, [*FLAGS, "-c", str(source), "-o", objects[-1]])
+        _cc(compiler, work, [*FLAGS, "-DVFM_EXPORT=", "-c", source.name, "-o", objects[-1]])
     _cc(compiler, work, [*FLAGS, "-shared", *objects, "-o", so_name, *daqp])
     _load(work / so_name, prefix)
     module_file = None
@@ -366,7 +367,7 @@ def _compile(fn: ca.Function, prefix: str, work: Path, compiler: Compiler, diges
             "compiler_target_sha256": compiler.target, "flags": list(FLAGS),
             "casadi_version": ca.__version__, "daqp_version": daqp_version(), "max_slots": MAX_SLOTS,
             "created": datetime.datetime.now(datetime.UTC).isoformat(),
-            "so_file": so_name, "so_sha256": _sha256(work / so_name),
+            "so_file": so_name, "so_sha256": _sha256(work / so_name), "extra_sources": [x.name for x in extra],
             "c_sha256": _sha256(work / f"{prefix}.c"), "h_sha256": _sha256(work / f"{prefix}.h"),
             "python_module_file": module_file,
             "python_module_sha256": _sha256(work / module_file) if module_file else None}
@@ -434,7 +435,7 @@ def _publish(work: Path, meta: dict, entry: Path, prefix: str, digest: str) -> B
     """Move the finished build to ``entry`` atomically, replacing an invalid entry if any."""
     staged = work / "entry"
     staged.mkdir()
-    files = [f"{prefix}.c", f"{prefix}.h", meta["so_file"], f"{prefix}.json"]
+    files = [f"{prefix}.c", f"{prefix}.h", meta["so_file"], f"{prefix}.json", *meta["extra_sources"]]
     for name in files + ([meta["python_module_file"]] if meta["python_module_file"] else []):
         os.replace(work / name, staged / name)
     for _ in range(3):

@@ -4,6 +4,7 @@
         vf_<task>.h  vf_<task>.hpp  vf_<task>.c     the API (templates/api.*) and the task's tables (tables.py)
         generated/<prefix>.c  .h                    the generated tick, as build.py writes it
         generated/checked_step.h                    the checks and the evaluation (vfdsl/codegen, shared with Python)
+        generated/vfmesh_*.c                        the proximity query of each mesh the task uses (vfdsl/mesh)
         daqp/LICENSE  daqp/include/daqp/  daqp/src/ DAQP's C sources (vfdsl/codegen/daqp_sources.py)
         Makefile  CMakeLists.txt  example.c  replay.c  README.md
 
@@ -53,7 +54,9 @@ def write_export(library: BuiltLibrary, daqp_root: Path, directory: Path) -> Exp
     daqp_headers = sorted((daqp_root / "include" / "daqp").glob("*.h"))
     if not daqp_sources or not (daqp_root / "LICENSE").is_file():
         raise VfError(f"{daqp_root} does not hold DAQP's C sources and LICENSE")
+    extra = meta.get("extra_sources", [])
     values = _values(meta, api, tick, [f"daqp/src/{p.name}" for p in daqp_sources], daqp_root.name)
+    values["EXTRA_SOURCES"] = " ".join(f"generated/{name}" for name in extra)
     files: dict[str, bytes] = {
         f"{api}.h": _fill("api.h", values), f"{api}.hpp": _fill("api.hpp", values),
         f"{api}.c": _fill("api.c", values), "Makefile": _fill("Makefile", values),
@@ -61,6 +64,7 @@ def write_export(library: BuiltLibrary, daqp_root: Path, directory: Path) -> Exp
         "replay.c": _fill("replay.c", values), "README.md": _fill("README.md", values),
         f"generated/{tick}.c": library.c_path.read_bytes(), f"generated/{tick}.h": library.h_path.read_bytes(),
         "generated/checked_step.h": CHECKED_STEP.read_bytes(),
+        **{f"generated/{name}": (library.c_path.parent / name).read_bytes() for name in extra},
         "daqp/LICENSE": (daqp_root / "LICENSE").read_bytes(),
         **{f"daqp/include/daqp/{p.name}": p.read_bytes() for p in daqp_headers},
         **{f"daqp/src/{p.name}": p.read_bytes() for p in daqp_sources},
