@@ -11,11 +11,14 @@
  *     res[2] u[3K]     unit direction (column per feature) from the feature toward the free side at x
  *   Unused entries (fewer than K features within the cutoff): d = +inf, s = 0, u = 0.
  *
- * The K features (faces, edges, vertices of the triangles) nearest the segment, with two rules: a feature
- * seen through several triangles counts once (keyed by its vertices); and of two features whose directions u
- * are within VFM_SIMILAR (cosine) the nearer one stands for both. The side of a feature is taken from its
- * angle-weighted pseudo-normal (Baerentzen & Aanaes 2005), which makes the sign right at edges and vertices
- * of a closed, consistently oriented mesh. A BVH of axis-aligned boxes (built at compile time) is walked
+ * The K features (faces, edges, vertices of the triangles) nearest the segment, each with the closest point
+ * of the segment to it and, for a segment, also with each end of the segment (a "part": start, between, end),
+ * with two rules: a feature seen through several triangles counts once per part (keyed by its vertices); and
+ * of two features of one part whose directions u are within VFM_SIMILAR (cosine) the nearer one stands for both.
+ * Which side of the surface a point of the segment is on comes from the angle-weighted pseudo-normal
+ * (Baerentzen & Aanaes 2005) of its nearest feature, which is right at faces, edges and vertices of a closed,
+ * consistently oriented mesh; every feature of that part takes that side (the segment's start, its end, and
+ * for the points between, the side of the nearest of them). A BVH of axis-aligned boxes (built at compile time) is walked
  * near-child first; a box is skipped when a lower bound of its distance to the segment exceeds the cutoff,
  * or the farthest of K kept features. The stack is a fixed array on the C stack: nothing is allocated,
  * the function is reentrant (iw, w and mem are unused).
@@ -36,11 +39,19 @@
 
 typedef struct {
   double dist;      /* unsigned distance */
-  double d;         /* signed distance */
   double s;
-  double u[3];
-  long long key;
+  double u[3];      /* unit from the feature to the segment's point (touching: the face's normal times side) */
+  long long key;    /* 3 x the feature's key + part */
+  int part;         /* where on the segment: 0 its start, 2 its end, 1 between */
+  int touching;
 } vfm_hit;
+
+typedef struct {
+  vfm_hit list[VFM_K];
+  int n;
+  double nearest[3];   /* per part, the distance of the nearest feature seen, */
+  double side[3];      /* and +1 when the segment's point is on the free side of it, else -1 */
+} vfm_found;
 
 static double vfm_dot(const double* a, const double* b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
 
@@ -179,11 +190,12 @@ static void vfm_keep(vfm_hit* list, int* n, const vfm_hit* hit) {
   int i, j;
   for (i = 0; i < *n; ++i) {
     if (list[i].key == hit->key) return;
-    if (vfm_dot(list[i].u, hit->u) > VFM_SIMILAR) {
+    if (list[i].part == hit->part && vfm_dot(list[i].u, hit->u) > VFM_SIMILAR) {
       if (list[i].dist <= hit->dist) return;
       list[i] = *hit;                 /* it stands for list[i], and for the others it now covers */
       for (j = *n - 1; j > i; --j)
-        if (vfm_dot(list[j].u, hit->u) > VFM_SIMILAR && list[j].dist >= hit->dist) list[j] = list[--*n];
+        if (list[j].part == hit->part && vfm_dot(list[j].u, hit->u) > VFM_SIMILAR && list[j].dist >= hit->dist)
+          list[j] = list[--*n];
       return;
     }
   }
@@ -216,48 +228,74 @@ static double vfm_box_bound(int node, const double* a, const double* b) {
   return sphere > gap ? sphere : gap;
 }
 
-static void vfm_consider(int t, const double* a, const double* b, double cutoff, double side,
-                         vfm_hit* list, int* n) {
-  double s, c[3], x[3], diff[3];
-  int region, i;
-  double dist = vfm_segment_triangle(a, b, t, &s, c, &region);
-  if (dist > cutoff) return;
+/* The hit of feature `region` of triangle t, closest point c, for the segment's point at s (part: 0 the start,
+ * 2 the end, 1 between). The side of the point is read from the pseudo-normal of its nearest feature only (the
+ * theorem holds there; a feature on the far side of a thin structure would say "through"). */
+static void vfm_offer(int t, const double* a, const double* b, double s, const double* c, int region, double dist,
+                      double side, vfm_found* found) {
+  double diff[3];
+  int i;
   vfm_hit hit;
   const float* normal = vfm_feature(t, region, &hit.key);
-  for (i = 0; i < 3; ++i) { x[i] = a[i] + s * (b[i] - a[i]); diff[i] = x[i] - c[i]; }
-  double free_side = side * vfm_dotf(diff, normal) >= 0 ? 1.0 : -1.0;
+  int part = s <= 0 ? 0 : (s >= 1 ? 2 : 1);
+  hit.key = 3 * hit.key + part;
+  hit.part = part;
+  for (i = 0; i < 3; ++i) diff[i] = a[i] + s * (b[i] - a[i]) - c[i];
+  if (dist < found->nearest[part]) {
+    found->nearest[part] = dist;
+    found->side[part] = side * vfm_dotf(diff, normal) >= 0 ? 1.0 : -1.0;
+  }
   hit.dist = dist;
   hit.s = s;
-  if (dist > 1e-12) {
-    hit.d = free_side * dist;
-    for (i = 0; i < 3; ++i) hit.u[i] = free_side * diff[i] / dist;
-  } else {                            /* touching: the face's own normal, toward the free side */
+  hit.touching = dist <= 1e-12;
+  if (!hit.touching) {
+    for (i = 0; i < 3; ++i) hit.u[i] = diff[i] / dist;
+  } else {                            /* the face's own normal, toward the free side */
     const float* face = vfm_face_normals + 3 * t;
     double norm = sqrt((double)face[0] * face[0] + (double)face[1] * face[1] + (double)face[2] * face[2]);
-    hit.d = 0;
     for (i = 0; i < 3; ++i) hit.u[i] = side * face[i] / norm;
   }
-  vfm_keep(list, n, &hit);
+  vfm_keep(found->list, &found->n, &hit);
 }
 
-static void vfm_query(const double* a, const double* b, double cutoff, double side, vfm_hit* list, int* n) {
-  int stack[VFM_STACK], top = 0;
-  *n = 0;
+/* Triangle t's hits: the segment's closest pair, and each end's own closest point (a segment parallel to a face
+ * is held at both ends, so that it cannot turn into it about the one point a single row would hold). */
+static void vfm_consider(int t, const double* a, const double* b, double cutoff, double side, vfm_found* found) {
+  double s, c[3];
+  int region, e, i;
+  double dist = vfm_segment_triangle(a, b, t, &s, c, &region);
+  if (dist > cutoff) return;
+  vfm_offer(t, a, b, s, c, region, dist, side, found);
+  if (a[0] == b[0] && a[1] == b[1] && a[2] == b[2]) return;
+  const int* tri = vfm_triangles + 3 * t;
+  for (e = 0; e < 2; ++e) {
+    if (s == e) continue;
+    const double* p = e ? b : a;
+    vfm_point_triangle(p, vfm_vertices + 3 * tri[0], vfm_vertices + 3 * tri[1], vfm_vertices + 3 * tri[2], c, &region);
+    double d2 = 0;
+    for (i = 0; i < 3; ++i) d2 += (p[i] - c[i]) * (p[i] - c[i]);
+    if (d2 <= cutoff * cutoff) vfm_offer(t, a, b, e, c, region, sqrt(d2), side, found);
+  }
+}
+
+static void vfm_query(const double* a, const double* b, double cutoff, double side, vfm_found* found) {
+  int stack[VFM_STACK], top = 0, i;
+  found->n = 0;
+  for (i = 0; i < 3; ++i) { found->nearest[i] = INFINITY; found->side[i] = 1; }
   stack[top++] = 0;
   while (top > 0) {
     int node = stack[--top];
     double bound = vfm_box_bound(node, a, b);
     if (bound > cutoff) continue;
-    if (*n == VFM_K) {
+    if (found->n == VFM_K) {
       double worst = 0;
-      int i;
-      for (i = 0; i < *n; ++i) if (list[i].dist > worst) worst = list[i].dist;
+      for (i = 0; i < found->n; ++i) if (found->list[i].dist > worst) worst = found->list[i].dist;
       if (bound > worst) continue;
     }
     int first = vfm_nodes[2 * node], second = vfm_nodes[2 * node + 1];
     if (first < 0) {                  /* a leaf: triangles -1 - first ... + second */
       int t;
-      for (t = -1 - first; t < -1 - first + second; ++t) vfm_consider(t, a, b, cutoff, side, list, n);
+      for (t = -1 - first; t < -1 - first + second; ++t) vfm_consider(t, a, b, cutoff, side, found);
       continue;
     }
     if (top + 2 > VFM_STACK) continue;   /* unreachable: the builder bounds the depth below VFM_STACK */
@@ -299,16 +337,18 @@ VFM_EXPORT int @NAME@_work(casadi_int* sz_arg, casadi_int* sz_res, casadi_int* s
 }
 
 VFM_EXPORT int @NAME@(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
-  vfm_hit list[VFM_K];
-  int n, i, j;
+  vfm_found found;
+  vfm_hit* list = found.list;
+  int i, j;
   (void)iw; (void)w; (void)mem;
-  vfm_query(arg[0], arg[1], arg[2][0], arg[2][1], list, &n);
-  for (i = 1; i < n; ++i)             /* nearest first: rows keep a stable order */
+  vfm_query(arg[0], arg[1], arg[2][0], arg[2][1], &found);
+  for (i = 1; i < found.n; ++i)       /* nearest first: rows keep a stable order */
     for (j = i; j > 0 && list[j].dist < list[j - 1].dist; --j) { vfm_hit h = list[j]; list[j] = list[j - 1]; list[j - 1] = h; }
   for (i = 0; i < VFM_K; ++i) {
-    if (res[0]) res[0][i] = i < n ? list[i].d : INFINITY;
-    if (res[1]) res[1][i] = i < n ? list[i].s : 0;
-    if (res[2]) for (j = 0; j < 3; ++j) res[2][3 * i + j] = i < n ? list[i].u[j] : 0;
+    double sign = i < found.n && !list[i].touching ? found.side[list[i].part] : 1.0;
+    if (res[0]) res[0][i] = i < found.n ? sign * list[i].dist : INFINITY;
+    if (res[1]) res[1][i] = i < found.n ? list[i].s : 0;
+    if (res[2]) for (j = 0; j < 3; ++j) res[2][3 * i + j] = i < found.n ? sign * list[i].u[j] : 0;
   }
   return 0;
 }
