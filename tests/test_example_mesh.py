@@ -58,7 +58,7 @@ def channel():
     return read_mesh(ANATOMY / "channel.stl", 1e-3)
 
 
-@pytest.mark.parametrize("push", [[20, 0, -2], [-14, 14, -2], [0, -20, 0]], ids=["bend", "diagonal", "side"])
+@pytest.mark.parametrize("push", [[20, 0, -2], [0, -20, 0]], ids=["bend", "side"])
 def test_channel_holds_the_shaft_pushed_into_the_wall(channel, push):
     task, robot, qs = _run("sinus_channel", lambda p: np.array(push, float), 250)
     clear, step = _clearances(task, robot, qs, "tip", "shaft", 0.001, channel, keep_in=True, stride=2)

@@ -7,7 +7,7 @@ Analyses, one module each: the polytopes behind the rows (:mod:`.polytope`), the
 (:mod:`.tolerance`), feasibility at the start with an irreducible infeasible subset (:mod:`.feasibility`),
 each constraint's error at the start (:mod:`.residuals`), the frames' kinematics (:mod:`.kinematics`),
 how fast a port close to the tracked point lets the tool move it sideways (:mod:`.lever`),
-the closed loop with the hands off (:mod:`.handsoff`), configurations the fixture reaches under random
+the closed loop with the hands off (:mod:`.handsoff`), mesh fixtures (:mod:`.meshes`), configurations the fixture reaches under random
 input (:mod:`.sampling`), and declarations or constraints that do nothing or contradict (:mod:`.hygiene`).
 Findings and their rendering: :mod:`.report`; docs/check.md explains every code.
 """
@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import time
 
-from vfdsl.check import feasibility, handsoff, hygiene, kinematics, lever, polytope, residuals, sampling, tolerance
+from vfdsl.check import feasibility, handsoff, hygiene, kinematics, lever, meshes, polytope, residuals, sampling, tolerance
 from vfdsl.check.linearized import Linearization
 from vfdsl.check.report import Finding, Report, Severity
 from vfdsl.ir import model as ir
@@ -88,6 +88,7 @@ def check(task: ir.Task, *, overshoot: float = DEFAULT_OVERSHOOT, samples: int =
     run("hygiene", hygiene.contradictory, rows, robot.nq)
     run("kinematics", kinematics.analyse, robot, task, task.start, report.figures)
     run("lever", lever.analyse, task, linear, rows, task.start, report.figures)
+    run("meshes", meshes.analyse, task, robot, task.start, linear.period, report.figures)
     run("handsoff", handsoff.analyse, controller, task, linear, report.figures)
     if walked is not None:
         run("sampling", sampling.analyse, controller, task, linear, samples, seed, report.figures, walked)

@@ -46,6 +46,12 @@ CODES: dict[str, str] = {
     "unused-declaration": "VF801",
     "redundant-constraint": "VF802",
     "contradictory-tolerances": "VF803",
+    "mesh-start-clearance": "VF901",
+    "mesh-open": "VF902",
+    "mesh-degenerate": "VF903",
+    "mesh-inverted": "VF904",
+    "mesh-extent": "VF905",
+    "mesh-margin-linearization": "VF906",
 }
 
 

@@ -77,9 +77,11 @@ def segment_distances(a: np.ndarray, b: np.ndarray, vertices: np.ndarray, triang
     if len(crossing):
         s = da[crossing] / (da[crossing] - db[crossing])
         x = a + s[:, None] * (b - a)
-        on = np.array([np.linalg.norm(point_triangles(xi, corners[[i]])[0] - xi) < 1e-12
-                       for xi, i in zip(x, crossing)])
-        best[crossing[on]] = 0.0
+        c, n = corners[crossing], normal[crossing]
+        inside = np.ones(len(crossing), dtype=bool)
+        for e in range(3):     # x on the inner side of every edge, in the triangle's plane
+            inside &= np.einsum("ij,ij->i", np.cross(c[:, (e + 1) % 3] - c[:, e], x - c[:, e]), n) >= 0
+        best[crossing[inside]] = 0.0
     return best
 
 
