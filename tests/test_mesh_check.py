@@ -77,7 +77,7 @@ def test_unusual_extent(tmp_path):
 
 def test_margin_against_one_tick(tmp_path):
     """At the joints' speed limits a tick moves the tip ~1 mm (10 ms): a 0.1 mm margin is below the bound; a hard
-    speed limit of 5 mm/s (4x4 polytope: 8.7 mm/s) brings the bound to 0.24 x 0.087 mm = 21 um."""
+    speed limit of 5 mm/s (4x4 polytope: 8.7 mm/s) brings the bound to 0.48 x 0.087 mm = 42 um."""
     [warning] = _probe(tmp_path, _ball(), margin="0.1 mm")["mesh-margin-linearization"]
     assert warning.data["bound"] > 0.0001 and warning.data["step"] > 0.0005
     found = _probe(tmp_path, _ball(), margin="0.1 mm", extra="require tip speed(5 mm/s)\n")

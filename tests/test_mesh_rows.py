@@ -11,7 +11,7 @@ import pytest
 
 import vfdsl
 from vfdsl.check.kinematics import frame_pose
-from vfdsl.compiler.mesh_rows import K
+from vfdsl.compiler.mesh_rows import K, REACH
 from vfdsl.errors import VfError
 from vfdsl.kinematics.robot import Robot
 from vfdsl.mesh import brute
@@ -94,7 +94,7 @@ def test_rows_against_finite_differences_and_brute_force(tmp_path):
         q = task.start + rng.normal(size=7) * [0.001, 0.001, 0.002, 0.03, 0.03, 0.2, 0.005]
         A, lb = _rows(ctrl, q)
         a, b = frame_pose(robot, tip, q)[0], frame_pose(robot, shaft, q)[0]
-        d, s, u = (np.array(x) for x in query.function(a, b, [1.0 + 0.0015 + 0.005, -1.0]))
+        d, s, u = (np.array(x) for x in query.function(a, b, [0.0015 + REACH, -1.0]))
         d, s, u = d.ravel(), s.ravel(), u.reshape(3, K, order="F")
         assert abs(lb[0] - (0.0015 - brute.segment_distances(a, b, mesh.vertices, mesh.triangles).min())) < 1e-12
         for i in np.flatnonzero(np.isfinite(lb)):

@@ -14,7 +14,7 @@ against the error of one tick's linearization.
 - VF906 mesh-margin-linearization: one tick moves the tool's segment by at most v dt, v = sum_j |J_j| qdot_max_j
   at the start (the joints' speed limits, for each end of the segment; a hard `speed` limit on that end's frame
   when it is lower: the circumradius of its polytope times its speed), and the rows then hold the clearance
-  to within e = 0.24 v dt + (v dt)^2 / (2 rho) (:mod:`vfdsl.compiler.mesh_rows`), rho the smallest radius of
+  to within e = 0.48 v dt + (v dt)^2 / (2 rho) (:mod:`vfdsl.compiler.mesh_rows`), rho the smallest radius of
   curvature of the mesh's concave edges as seen from the free side (edge length / dihedral angle, mean of the two
   triangles' edges). A margin below e: warning (the tool may touch the surface); a reach below v dt: warning.
 """
@@ -38,7 +38,7 @@ from vfdsl.mesh.load import MeshData, read_mesh
 
 PRIMITIVES = ("outside_mesh", "inside_mesh")
 UNUSUAL_EXTENT = (2e-3, 0.4)
-MERGED = 0.24
+MERGED = 0.48
 
 
 def _subject(c: ir.Constraint) -> str:

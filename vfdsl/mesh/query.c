@@ -11,17 +11,22 @@
  *     res[2] u[3K]     unit direction (column per feature) from the feature toward the free side at x
  *   Unused entries (fewer than K features within the cutoff): d = +inf, s = 0, u = 0.
  *
- * The K features (faces, edges, vertices of the triangles) nearest the segment, each with the closest point
- * of the segment to it and, for a segment, also with each end of the segment (a "part": start, between, end),
- * with two rules: a feature seen through several triangles counts once per part (keyed by its vertices); and
- * of two features of one part whose directions u are within VFM_SIMILAR (cosine) the nearer one stands for both.
+ * The rows: the features (faces, edges, vertices of the triangles) near the segment, each with the segment's
+ * closest point to it and, for a segment, also with each end of the segment (a "part": start, between, end).
+ * The walk keeps, per part, the VFM_RAW nearest distinct features (a feature seen through several triangles
+ * counts once, keyed by its vertices): a box is skipped when a lower bound of its distance to every part (the
+ * ends: exact point-box distances) exceeds the cutoff or that part's VFM_RAW-th distance, or when the box lies
+ * within the merging cone (below) of the part's nearest feature seen so far, and farther. Then, nearest first,
+ * a feature whose direction u is within VFM_SIMILAR (cosine) of one kept in its part is merged into it, and of
+ * what remains the nearest of each part and then the nearest overall make the K rows.
  * Which side of the surface a point of the segment is on comes from the angle-weighted pseudo-normal
  * (Baerentzen & Aanaes 2005) of its nearest feature, which is right at faces, edges and vertices of a closed,
  * consistently oriented mesh; every feature of that part takes that side (the segment's start, its end, and
- * for the points between, the side of the nearest of them). A BVH of axis-aligned boxes (built at compile time) is walked
- * near-child first; a box is skipped when a lower bound of its distance to the segment exceeds the cutoff,
- * or the farthest of K kept features. The stack is a fixed array on the C stack: nothing is allocated,
- * the function is reentrant (iw, w and mem are unused).
+ * for the points between, the side of the nearest of them). The BVH of axis-aligned boxes (built at compile
+ * time) is walked near-child first, with a fixed stack, after the leaves nearest the segment's ends and three
+ * inner points (their features fill the pools early, so that the walk prunes early; a feature seen twice counts
+ * once); the pools live on the C stack: nothing is allocated, the
+ * function is reentrant (iw, w and mem are unused).
  */
 #include <math.h>
 
@@ -47,9 +52,11 @@ typedef struct {
 } vfm_hit;
 
 typedef struct {
-  vfm_hit list[VFM_K];
-  int n;
+  vfm_hit pool[3][VFM_RAW];   /* per part, the nearest distinct features */
+  int count[3];
+  double worst[3];     /* the farthest in a full pool (else the cutoff) */
   double nearest[3];   /* per part, the distance of the nearest feature seen, */
+  double near_u[3][3]; /* its direction u, */
   double side[3];      /* and +1 when the segment's point is on the free side of it, else -1 */
 } vfm_found;
 
@@ -136,14 +143,32 @@ static const float* vfm_feature(int t, int region, long long* key) {
   return vfm_vertex_normals + 3 * tri[region - 4];
 }
 
-/* Closest pair between segment a b and triangle t: segment parameter s, triangle point c, feature region. */
-static double vfm_segment_triangle(const double* a, const double* b, int t, double* s_out, double* c_out,
-                                   int* region_out) {
+/* Closest pair between segment a b and triangle t: segment parameter s, triangle point c, feature region; also
+ * each end's own closest point (ends[0..2] for a, ends[3..5] for b), region and squared distance. */
+typedef struct {
+  double s, c[3], dist;
+  int region;
+  double end_c[2][3], end_d2[2];
+  int end_region[2];
+} vfm_pair;
+
+static void vfm_segment_triangle(const double* a, const double* b, int point, int t, vfm_pair* out) {
   const int* tri = vfm_triangles + 3 * t;
   const double* v[3] = {vfm_vertices + 3 * tri[0], vfm_vertices + 3 * tri[1], vfm_vertices + 3 * tri[2]};
   const float* n = vfm_face_normals + 3 * t;
-  double best = INFINITY, c[3], x[3];
+  double best, c[3], x[3];
   int i, e, region;
+  for (e = 0; e < 2 - point; ++e) {   /* each end of the segment to the triangle */
+    const double* p = e ? b : a;
+    vfm_point_triangle(p, v[0], v[1], v[2], out->end_c[e], &out->end_region[e]);
+    out->end_d2[e] = 0;
+    for (i = 0; i < 3; ++i) out->end_d2[e] += (p[i] - out->end_c[e][i]) * (p[i] - out->end_c[e][i]);
+  }
+  e = !point && out->end_d2[1] < out->end_d2[0];
+  best = out->end_d2[e];
+  out->s = e; out->region = out->end_region[e];
+  for (i = 0; i < 3; ++i) out->c[i] = out->end_c[e][i];
+  if (point) { out->dist = sqrt(best); return; }
   /* the segment through the face: distance 0 */
   double ab[3], da = 0, db = 0;
   for (i = 0; i < 3; ++i) { ab[i] = b[i] - a[i]; da += (a[i] - v[0][i]) * n[i]; db += (b[i] - v[0][i]) * n[i]; }
@@ -152,18 +177,10 @@ static double vfm_segment_triangle(const double* a, const double* b, int t, doub
     for (i = 0; i < 3; ++i) x[i] = a[i] + s * ab[i];
     vfm_point_triangle(x, v[0], v[1], v[2], c, &region);
     if (region == 0) {
-      *s_out = s; *region_out = 0;
-      for (i = 0; i < 3; ++i) c_out[i] = x[i];
-      return 0;
+      out->s = s; out->region = 0; out->dist = 0;
+      for (i = 0; i < 3; ++i) out->c[i] = x[i];
+      return;
     }
-  }
-  /* an end of the segment to the triangle */
-  for (e = 0; e < 2; ++e) {
-    const double* p = e ? b : a;
-    vfm_point_triangle(p, v[0], v[1], v[2], c, &region);
-    double d2 = 0;
-    for (i = 0; i < 3; ++i) d2 += (p[i] - c[i]) * (p[i] - c[i]);
-    if (d2 < best) { best = d2; *s_out = e; *region_out = region; for (i = 0; i < 3; ++i) c_out[i] = c[i]; }
   }
   /* the segment to an edge of the triangle */
   for (e = 0; e < 3; ++e) {
@@ -177,32 +194,40 @@ static double vfm_segment_triangle(const double* a, const double* b, int t, doub
       d2 += (x[i] - c[i]) * (x[i] - c[i]);
     }
     if (d2 < best) {
-      best = d2; *s_out = s;
-      *region_out = t2 <= 0 ? 4 + e : (t2 >= 1 ? 4 + (e + 1) % 3 : 1 + e);
-      for (i = 0; i < 3; ++i) c_out[i] = c[i];
+      best = d2; out->s = s;
+      out->region = t2 <= 0 ? 4 + e : (t2 >= 1 ? 4 + (e + 1) % 3 : 1 + e);
+      for (i = 0; i < 3; ++i) out->c[i] = c[i];
     }
   }
-  return sqrt(best);
+  out->dist = sqrt(best);
 }
 
-/* Keep `hit` in the list of at most VFM_K features (rules in the header). */
-static void vfm_keep(vfm_hit* list, int* n, const vfm_hit* hit) {
-  int i, j;
-  for (i = 0; i < *n; ++i) {
-    if (list[i].key == hit->key) return;
-    if (list[i].part == hit->part && vfm_dot(list[i].u, hit->u) > VFM_SIMILAR) {
-      if (list[i].dist <= hit->dist) return;
-      list[i] = *hit;                 /* it stands for list[i], and for the others it now covers */
-      for (j = *n - 1; j > i; --j)
-        if (list[j].part == hit->part && vfm_dot(list[j].u, hit->u) > VFM_SIMILAR && list[j].dist >= hit->dist)
-          list[j] = list[--*n];
-      return;
-    }
+/* Keep `hit` in its part's pool of the VFM_RAW nearest distinct features. */
+static void vfm_keep(vfm_found* found, const vfm_hit* hit) {
+  int p = hit->part, i, n = found->count[p];
+  vfm_hit* pool = found->pool[p];
+  if (hit->dist >= found->worst[p]) return;
+  for (i = 0; i < n; ++i) if (pool[i].key == hit->key) return;
+  if (n < VFM_RAW) {
+    pool[found->count[p]++] = *hit;
+    if (found->count[p] < VFM_RAW) return;
+  } else {
+    int far = 0;
+    for (i = 1; i < n; ++i) if (pool[i].dist > pool[far].dist) far = i;
+    pool[far] = *hit;
   }
-  if (*n < VFM_K) { list[(*n)++] = *hit; return; }
-  int worst = 0;
-  for (i = 1; i < *n; ++i) if (list[i].dist > list[worst].dist) worst = i;
-  if (hit->dist < list[worst].dist) list[worst] = *hit;
+  found->worst[p] = 0;
+  for (i = 0; i < VFM_RAW; ++i) if (pool[i].dist > found->worst[p]) found->worst[p] = pool[i].dist;
+}
+
+static double vfm_point_box(const double* x, const double* lo, const double* hi) {
+  double d2 = 0;
+  int i;
+  for (i = 0; i < 3; ++i) {
+    double g = x[i] < lo[i] ? lo[i] - x[i] : (x[i] > hi[i] ? x[i] - hi[i] : 0);
+    d2 += g * g;
+  }
+  return sqrt(d2);
 }
 
 /* A lower bound of the distance between box `node` and the segment: the larger of the distance between the
@@ -241,7 +266,8 @@ static void vfm_offer(int t, const double* a, const double* b, double s, const d
   hit.key = 3 * hit.key + part;
   hit.part = part;
   for (i = 0; i < 3; ++i) diff[i] = a[i] + s * (b[i] - a[i]) - c[i];
-  if (dist < found->nearest[part]) {
+  int nearest = dist < found->nearest[part];
+  if (nearest) {
     found->nearest[part] = dist;
     found->side[part] = side * vfm_dotf(diff, normal) >= 0 ? 1.0 : -1.0;
   }
@@ -255,47 +281,86 @@ static void vfm_offer(int t, const double* a, const double* b, double s, const d
     double norm = sqrt((double)face[0] * face[0] + (double)face[1] * face[1] + (double)face[2] * face[2]);
     for (i = 0; i < 3; ++i) hit.u[i] = side * face[i] / norm;
   }
-  vfm_keep(found->list, &found->n, &hit);
+  if (nearest) for (i = 0; i < 3; ++i) found->near_u[part][i] = hit.u[i];
+  vfm_keep(found, &hit);
 }
 
 /* Triangle t's hits: the segment's closest pair, and each end's own closest point (a segment parallel to a face
  * is held at both ends, so that it cannot turn into it about the one point a single row would hold). */
-static void vfm_consider(int t, const double* a, const double* b, double cutoff, double side, vfm_found* found) {
-  double s, c[3];
-  int region, e, i;
-  double dist = vfm_segment_triangle(a, b, t, &s, c, &region);
-  if (dist > cutoff) return;
-  vfm_offer(t, a, b, s, c, region, dist, side, found);
-  if (a[0] == b[0] && a[1] == b[1] && a[2] == b[2]) return;
-  const int* tri = vfm_triangles + 3 * t;
-  for (e = 0; e < 2; ++e) {
-    if (s == e) continue;
-    const double* p = e ? b : a;
-    vfm_point_triangle(p, vfm_vertices + 3 * tri[0], vfm_vertices + 3 * tri[1], vfm_vertices + 3 * tri[2], c, &region);
-    double d2 = 0;
-    for (i = 0; i < 3; ++i) d2 += (p[i] - c[i]) * (p[i] - c[i]);
-    if (d2 <= cutoff * cutoff) vfm_offer(t, a, b, e, c, region, sqrt(d2), side, found);
+static void vfm_consider(int t, const double* a, const double* b, int point, double cutoff, double side,
+                         vfm_found* found) {
+  vfm_pair pair;
+  int e;
+  vfm_segment_triangle(a, b, point, t, &pair);
+  if (pair.dist > cutoff) return;
+  vfm_offer(t, a, b, pair.s, pair.c, pair.region, pair.dist, side, found);
+  if (point) return;
+  for (e = 0; e < 2; ++e)
+    if (pair.s != e && pair.end_d2[e] <= cutoff * cutoff)
+      vfm_offer(t, a, b, e, pair.end_c[e], pair.end_region[e], sqrt(pair.end_d2[e]), side, found);
+}
+
+/* Whether every hit of part p from a box (centre m, half-diagonal r) would be merged into the part's nearest
+ * hit: seen from the point x of the segment (v = x - m, for the points between: v radial to the segment's axis),
+ * the box lies within the cone of half-angle acos(VFM_SIMILAR) around that hit's direction, and no nearer. */
+static int vfm_dominated(const vfm_found* found, int p, const double* v, double r) {
+  double len = sqrt(vfm_dot(v, v));
+  if (!(len > r) || len - r < found->nearest[p]) return 0;
+  double c = vfm_dot(found->near_u[p], v) / len;
+  double spread = acos(c > 1 ? 1 : (c < -1 ? -1 : c)) + asin(r / len);
+  return spread <= acos(VFM_SIMILAR);
+}
+
+/* Whether box `node` may hold a feature some part keeps: nearer than the part's cutoff or VFM_RAW-th feature
+ * (the ends: exact point-box distances), and not dominated. */
+static int vfm_worth(int node, const double* a, const double* b, int point, const vfm_found* found) {
+  const double* lo = vfm_boxes + 6 * node;
+  const double* hi = lo + 3;
+  double m[3], va[3], vb[3], vr[3], ab[3], r2 = 0, ab2 = 0, t = 0;
+  int i;
+  for (i = 0; i < 3; ++i) {
+    m[i] = 0.5 * (lo[i] + hi[i]);
+    r2 += 0.25 * (hi[i] - lo[i]) * (hi[i] - lo[i]);
+    va[i] = a[i] - m[i]; vb[i] = b[i] - m[i]; ab[i] = b[i] - a[i];
+    ab2 += ab[i] * ab[i]; t -= va[i] * ab[i];
   }
+  double r = sqrt(r2);
+  if (vfm_point_box(a, lo, hi) < found->worst[0] && !vfm_dominated(found, 0, va, r)) return 1;
+  if (point) return 0;
+  if (vfm_point_box(b, lo, hi) < found->worst[2] && !vfm_dominated(found, 2, vb, r)) return 1;
+  if (!(vfm_box_bound(node, a, b) < found->worst[1])) return 0;
+  t = ab2 > 0 ? t / ab2 : 0;              /* the axis point nearest the centre: the radial vector */
+  for (i = 0; i < 3; ++i) vr[i] = va[i] + t * ab[i];
+  return t <= 0 || t >= 1 || !vfm_dominated(found, 1, vr, r);
 }
 
 static void vfm_query(const double* a, const double* b, double cutoff, double side, vfm_found* found) {
   int stack[VFM_STACK], top = 0, i;
-  found->n = 0;
-  for (i = 0; i < 3; ++i) { found->nearest[i] = INFINITY; found->side[i] = 1; }
+  int point = a[0] == b[0] && a[1] == b[1] && a[2] == b[2];
+  for (i = 0; i < 3; ++i) {
+    found->count[i] = 0; found->worst[i] = cutoff; found->nearest[i] = INFINITY; found->side[i] = 1;
+  }
+  for (i = 0; i < (point ? 1 : 5); ++i) {   /* seed the pools: the leaves nearest the ends and 3 inner points */
+    double x[3], f = i == 0 ? 0 : (i == 1 ? 1 : 0.25 * (i - 1));
+    int j, node = 0;
+    for (j = 0; j < 3; ++j) x[j] = a[j] + f * (b[j] - a[j]);
+    while (vfm_nodes[2 * node] >= 0) {
+      int first = vfm_nodes[2 * node], second = vfm_nodes[2 * node + 1];
+      double df = vfm_point_box(x, vfm_boxes + 6 * first, vfm_boxes + 6 * first + 3);
+      double ds = vfm_point_box(x, vfm_boxes + 6 * second, vfm_boxes + 6 * second + 3);
+      node = df <= ds ? first : second;
+    }
+    for (j = -1 - vfm_nodes[2 * node]; j < -1 - vfm_nodes[2 * node] + vfm_nodes[2 * node + 1]; ++j)
+      vfm_consider(j, a, b, point, cutoff, side, found);
+  }
   stack[top++] = 0;
   while (top > 0) {
     int node = stack[--top];
-    double bound = vfm_box_bound(node, a, b);
-    if (bound > cutoff) continue;
-    if (found->n == VFM_K) {
-      double worst = 0;
-      for (i = 0; i < found->n; ++i) if (found->list[i].dist > worst) worst = found->list[i].dist;
-      if (bound > worst) continue;
-    }
+    if (!vfm_worth(node, a, b, point, found)) continue;
     int first = vfm_nodes[2 * node], second = vfm_nodes[2 * node + 1];
     if (first < 0) {                  /* a leaf: triangles -1 - first ... + second */
       int t;
-      for (t = -1 - first; t < -1 - first + second; ++t) vfm_consider(t, a, b, cutoff, side, found);
+      for (t = -1 - first; t < -1 - first + second; ++t) vfm_consider(t, a, b, point, cutoff, side, found);
       continue;
     }
     if (top + 2 > VFM_STACK) continue;   /* unreachable: the builder bounds the depth below VFM_STACK */
@@ -303,6 +368,34 @@ static void vfm_query(const double* a, const double* b, double cutoff, double si
     stack[top++] = bf <= bs ? second : first;   /* the nearer child is popped first */
     stack[top++] = bf <= bs ? first : second;
   }
+}
+
+/* The K rows from the pools: per part nearest first, a feature within VFM_SIMILAR of a kept one is merged into
+ * it; then the nearest of each part, then the nearest of the rest. */
+static int vfm_rows(vfm_found* found, vfm_hit* rows) {
+  vfm_hit kept[3 * VFM_RAW];
+  int n = 0, p, i, j, k, chosen = 0;
+  for (p = 0; p < 3; ++p) {
+    vfm_hit* pool = found->pool[p];
+    int m = found->count[p], first = n;
+    for (i = 1; i < m; ++i)
+      for (j = i; j > 0 && pool[j].dist < pool[j - 1].dist; --j) { vfm_hit h = pool[j]; pool[j] = pool[j - 1]; pool[j - 1] = h; }
+    for (i = 0; i < m; ++i) {
+      for (k = first; k < n && vfm_dot(kept[k].u, pool[i].u) <= VFM_SIMILAR; ++k) {}
+      if (k == n) kept[n++] = pool[i];
+    }
+    if (n > first && chosen < VFM_K) { rows[chosen++] = kept[first]; kept[first].dist = -1; }
+  }
+  while (chosen < VFM_K) {
+    int best = -1;
+    for (k = 0; k < n; ++k) if (kept[k].dist >= 0 && (best < 0 || kept[k].dist < kept[best].dist)) best = k;
+    if (best < 0) break;
+    rows[chosen++] = kept[best];
+    kept[best].dist = -1;
+  }
+  for (i = 1; i < chosen; ++i)       /* nearest first: rows keep a stable order */
+    for (j = i; j > 0 && rows[j].dist < rows[j - 1].dist; --j) { vfm_hit h = rows[j]; rows[j] = rows[j - 1]; rows[j - 1] = h; }
+  return chosen;
 }
 
 /* CasADi's compact sparsity of a dense n x m column: {n, m, colind[m + 1], row[n m]}, filled once. */
@@ -338,17 +431,16 @@ VFM_EXPORT int @NAME@_work(casadi_int* sz_arg, casadi_int* sz_res, casadi_int* s
 
 VFM_EXPORT int @NAME@(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   vfm_found found;
-  vfm_hit* list = found.list;
-  int i, j;
+  vfm_hit list[VFM_K];
+  int i, j, n;
   (void)iw; (void)w; (void)mem;
   vfm_query(arg[0], arg[1], arg[2][0], arg[2][1], &found);
-  for (i = 1; i < found.n; ++i)       /* nearest first: rows keep a stable order */
-    for (j = i; j > 0 && list[j].dist < list[j - 1].dist; --j) { vfm_hit h = list[j]; list[j] = list[j - 1]; list[j - 1] = h; }
+  n = vfm_rows(&found, list);
   for (i = 0; i < VFM_K; ++i) {
-    double sign = i < found.n && !list[i].touching ? found.side[list[i].part] : 1.0;
-    if (res[0]) res[0][i] = i < found.n ? sign * list[i].dist : INFINITY;
-    if (res[1]) res[1][i] = i < found.n ? list[i].s : 0;
-    if (res[2]) for (j = 0; j < 3; ++j) res[2][3 * i + j] = i < found.n ? sign * list[i].u[j] : 0;
+    double sign = i < n && !list[i].touching ? found.side[list[i].part] : 1.0;
+    if (res[0]) res[0][i] = i < n ? sign * list[i].dist : INFINITY;
+    if (res[1]) res[1][i] = i < n ? list[i].s : 0;
+    if (res[2]) for (j = 0; j < 3; ++j) res[2][3 * i + j] = i < n ? sign * list[i].u[j] : 0;
   }
   return 0;
 }
