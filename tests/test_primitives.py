@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import itertools
 import math
+import shutil
 import textwrap
 import xml.etree.ElementTree as ET
 from functools import partial
@@ -809,6 +810,7 @@ def test_docs_examples_compile(tmp_path):
     assert len(examples) >= 20
     path = tmp_path / "doc_examples.vf"
     path.write_text(prelude[0] + "".join(examples))
+    shutil.copytree(DOCS.parent.parent / "tasks" / "anatomy", tmp_path / "anatomy")    # the prelude's meshes
     ctrl = compile_task(vfdsl.load(path))
     q = np.array([0, 0, 0, 0, 0, 0, 0.01])
     qp = ctrl.problem(q, {"f": [0, 0, 1], "tau": [0, 0, 0.01], "hand": [0] * 6, "stick": [0] * 6}, dt=0.01)
