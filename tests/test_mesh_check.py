@@ -82,3 +82,42 @@ def test_margin_against_one_tick(tmp_path):
     assert warning.data["bound"] > 0.0001 and warning.data["step"] > 0.0005
     found = _probe(tmp_path, _ball(), margin="0.1 mm", extra="require tip speed(5 mm/s)\n")
     assert "mesh-margin-linearization" not in found
+
+
+def test_view_draws_the_mesh_in_its_registration():
+    """`vfdsl view` draws a mesh fixture as the mesh in the world (moved by its pose param) and the clearance
+    ball at the frame; an inside_mesh's walls as a wire frame."""
+    from vfdsl.sim.geometry import Scene
+    from vfdsl.view import shapes
+    from vfdsl.mesh.load import read_mesh
+
+    task = vfdsl.load(Path(__file__).resolve().parent.parent / "tasks" / "bone_nerve.vf")
+    frames = vfdsl.compile(task, backend="interpreted").frames(task.start)
+    scene = Scene(task)
+    scene.values["patient"] = scene.values["patient"].model_copy(update={"translation": [0.01, 0.0, 0.0]})
+    nerve = next(f for f in shapes.build(task, scene, frames) if f.title.startswith("outside_mesh(tip)"))
+    mesh = next(s for s in nerve.shapes if s.name == "mesh")
+    value = task.param("nerve").value
+    assert mesh.role == "forbidden" and not mesh.wireframe
+    assert np.allclose(mesh.vertices, read_mesh(value.file, value.unit).vertices + [0.01, 0, 0])
+    ball = next(s for s in nerve.shapes if s.name == "clearance")
+    assert np.allclose(np.linalg.norm(ball.vertices - frames["tip"].position, axis=1), 0.003)
+
+
+def test_simulate_scores_clearance_and_contact():
+    """The simulator's metrics of a mesh fixture: max(0, margin - clearance) by brute force, and the share of
+    ticks within 0.05 mm of the margin."""
+    from vfdsl.sim.geometry import Scene
+    from vfdsl.sim.metrics import MetricDef, Poses, errors
+    from vfdsl.kinematics.robot import Robot
+
+    task = vfdsl.load(Path(__file__).resolve().parent.parent / "tasks" / "bone_nerve.vf")
+    robot = Robot.load(task.robots[0].urdf)
+    c = next(c for c in task.constraints if c.frame == "tip" and c.primitive == "outside_mesh")
+    # the tool's axis at x = 6 mm (over the nerve's axis), tip 2.5, 3.04 and 10 mm above the nerve's top
+    tips = np.array([[0.006, 0, 0.2605 + h] for h in (0.0025, 0.00304, 0.010)])
+    poses = Poses({"tip": tips, "shaft": tips + [0, 0, 0.04]}, {})
+    error = errors(MetricDef("e", "mm", "length", c), task, robot, Scene(task), poses, None, 0.01)
+    contact = errors(MetricDef("k", "%", "contact", c), task, robot, Scene(task), poses, None, 0.01)
+    assert error == pytest.approx([0.5, 0.0, 0.0], abs=0.02)     # mm: clearance 2.5 - 1 = 1.5 mm for a 2 mm margin
+    assert list(contact) == [100.0, 100.0, 0.0]

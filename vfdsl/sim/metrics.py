@@ -16,6 +16,11 @@ The error of a constraint is how far the frame is from the set the constraint de
     passes_through    distance from the port to the tool axis line   mm
     cone              | angle(l, axis) - angle |           deg
     tilt_at_most      max(0, angle(l, axis) - angle)       deg
+    outside_mesh,     max(0, margin - clearance), the clearance of the capsule from the frame to its shaft frame
+    inside_mesh       (less its radius) by brute force over the triangles (vfdsl.mesh.brute): so the smallest
+                      clearance of a run is margin - max (when max > 0)   mm
+                      and, as a second metric <...>_contact_pct, the share of ticks the tool is on its margin
+                      (clearance <= margin + CONTACT_BAND): the time in contact   %
     keeps_direction   angle(l, direction)                  deg
     rotates_around    | 90 deg - angle(l, axis) |          deg
     speed             max(0, |p_k - p_k-1| / dt - max)     mm/s
@@ -41,19 +46,24 @@ import numpy as np
 
 from vfdsl.ir import model as ir
 from vfdsl.kinematics.robot import Robot
+from vfdsl.mesh import brute
+from vfdsl.mesh.load import read_mesh
 from vfdsl.sim.geometry import Curve, Scene, pose_matrix
 from vfdsl.sim.robot import LinkPose, frame_offset
 from vfdsl.sim.settings import MetricSpec, constraint_of
 
 # dimension -> (display unit, factor from SI)
 DISPLAY = {"length": ("mm", 1e3), "angle": ("deg", 180 / math.pi), "speed": ("mm/s", 1e3),
-           "angular_speed": ("deg/s", 180 / math.pi)}
-_SUFFIX = {"mm": "mm", "deg": "deg", "mm/s": "mm_s", "deg/s": "deg_s"}
+           "angular_speed": ("deg/s", 180 / math.pi), "contact": ("%", 100.0)}
+_SUFFIX = {"mm": "mm", "deg": "deg", "mm/s": "mm_s", "deg/s": "deg_s", "%": "pct"}
+MESH_PRIMITIVES = ("outside_mesh", "inside_mesh")
+CONTACT_BAND = 0.05e-3
+"""m: a tool within this of its margin is in contact with the fixture's surface."""
 _DIMENSION = {"stays_at": "length", "along": "length", "follows": "length", "on_plane": "length",
               "above": "length", "within_distance": "length", "passes_through": "length", "cone": "angle",
               "within_sphere": "length", "outside_sphere": "length", "near_plane": "length",
               "keeps_direction": "angle", "rotates_around": "angle", "tilt_at_most": "angle", "speed": "speed",
-              "angular_speed": "angular_speed"}
+              "angular_speed": "angular_speed", "outside_mesh": "length", "inside_mesh": "length"}
 JOINT_PRIMITIVES = ("joint_limits", "joint_speed")
 
 
@@ -121,6 +131,9 @@ def metric_defs(task: ir.Task, robot: Robot, specs: tuple[MetricSpec, ...]) -> l
         base = spec.name if spec else f"{c.frame}_{c.primitive}_error"
         tolerance = c.tolerance * factor if c.tolerance is not None else None
         defs.append(MetricDef(f"{base}_{_SUFFIX[unit]}", unit, dim, c, spec, tolerance=tolerance))
+        if c.primitive in MESH_PRIMITIVES:
+            defs.append(MetricDef(f"{spec.name if spec else f'{c.frame}_{c.primitive}'}_contact_pct", "%",
+                                  "contact", c, spec))
     for s in specs:
         if s.tilt_of:
             defs.append(MetricDef(f"{s.name}_deg", "deg", "angle", spec=s))
@@ -149,7 +162,25 @@ def errors(d: MetricDef, task: ir.Task, robot: Robot, scene: Scene, poses: Poses
     c = d.constraint
     if c.primitive in JOINT_PRIMITIVES:
         return factor * _joint_error(c, d.joint_kind, robot, qs, period)
+    if c.primitive in MESH_PRIMITIVES:
+        margin = scene.scalar(c.args["margin"])
+        clearance = _mesh_clearance(c, scene, poses)
+        if d.dimension == "contact":
+            return factor * (clearance <= margin + CONTACT_BAND)
+        return factor * np.maximum(0.0, margin - clearance)
     return factor * _frame_error(c, task, scene, poses, period)
+
+
+def _mesh_clearance(c: ir.Constraint, scene: Scene, poses: Poses) -> np.ndarray:
+    """The clearance of the constraint's capsule from its mesh at every sample, in the mesh's frame."""
+    value = scene.value(c.args["mesh"])
+    mesh = read_mesh(value.file, value.unit)
+    a = np.atleast_2d(scene.local(c.args["mesh"], poses.p[c.frame]))
+    b = np.atleast_2d(scene.local(c.args["mesh"], poses.p[c.args["shaft"].name]))
+    radius = scene.scalar(c.args["radius"])
+    keep_in = c.primitive == "inside_mesh"
+    return np.array([brute.signed_clearance(x, y, radius, mesh.vertices, mesh.triangles, keep_in)
+                     for x, y in zip(a, b)])
 
 
 def _frame_error(c: ir.Constraint, task: ir.Task, scene: Scene, poses: Poses, period: float) -> np.ndarray:

@@ -26,6 +26,7 @@ from vfdsl.check.linearized import describe, where
 from vfdsl.check.polytope import constraint_geometry, directions
 from vfdsl.compiler.geometry import polygon_angles
 from vfdsl.ir import model as ir
+from vfdsl.mesh.load import read_mesh
 from vfdsl.sim.geometry import Curve, Scene, unit
 
 PLANE_SIZE = 0.06           # m: side of the square drawn for a plane (around the frame's closest point)
@@ -392,7 +393,24 @@ def _passes_through(c, scene, frame, magnify):
     return shapes
 
 
+def _mesh(c, scene, frame, magnify):
+    """The mesh in the world (placed by its pose), forbidden (outside_mesh) or allowed (inside_mesh, as a wire
+    frame so the tool inside shows), and the ball of radius + margin the rows keep clear at the frame."""
+    arg = c.args["mesh"]
+    value = scene.value(arg)
+    mesh = read_mesh(value.file, value.unit)
+    R, t = scene.to_world(arg.name)
+    inside = c.primitive == "inside_mesh"
+    clear = float(scene.scalar(c.args["radius"])) + float(scene.scalar(c.args["margin"]))
+    shapes = [Shape("mesh", "mesh", "allowed" if inside else "forbidden", mesh.vertices @ R.T + t,
+                    mesh.triangles, wireframe=inside)]
+    if clear > 0:
+        shapes.append(sphere(frame.position, clear, "clearance", "tolerance", wireframe=True))
+    return shapes
+
+
 _DRAW = {"stays_at": _stays_at, "within_distance": _within_distance, "along": _along, "follows": _follows,
          "above": _above, "on_plane": _on_plane, "near_plane": _near_plane, "within_sphere": _within_sphere,
          "outside_sphere": _outside_sphere, "keeps_direction": _keeps_direction, "cone": _cone,
-         "tilt_at_most": _tilt_at_most, "rotates_around": _rotates_around, "passes_through": _passes_through}
+         "tilt_at_most": _tilt_at_most, "rotates_around": _rotates_around, "passes_through": _passes_through,
+         "outside_mesh": _mesh, "inside_mesh": _mesh}
