@@ -71,11 +71,12 @@ def _tracked_frames(task) -> set[str]:
 
 
 def _with_lines(tmp_path: Path, task_file: Path, lines: str) -> Path:
-    """A copy of an example task (beside its scene and library) with ``lines`` appended."""
+    """A copy of an example task (beside its scene, library and meshes) with ``lines`` appended."""
     text = task_file.read_text()
     if not any(line.startswith("scene ") for line in text.splitlines()) and task_file.with_suffix(".yaml").exists():
         text += f'\nscene "{task_file.with_suffix(".yaml").resolve()}"\n'
     text = text.replace('import "library/', f'import "{(task_file.parent / "library").resolve()}/')
+    text = text.replace('= "anatomy/', f'= "{(task_file.parent / "anatomy").resolve()}/')       # mesh files
     text = text.replace('scene "', f'scene "{task_file.parent.resolve()}/').replace(
         f'scene "{task_file.parent.resolve()}//', 'scene "/')
     path = tmp_path / task_file.name
