@@ -19,7 +19,8 @@ full allowed speed. Status bit ``BOUNDS_CLIPPED`` reports it. The clipped box B 
 cost being 1/2 |Rj x - rj|^2): phase 1 is then one call of DAQP's hierarchical mode (Arnström & Axehill's
 lexicographic least squares, in the daqp sources the generated C is built from). The rows and the box are level 0,
 hard; level 1 minimizes its squared errors over them, level 2 over the optimal set of level 1, and so on; DAQP's
-own cost, |x|^2 / 2, picks the smallest motion among what the levels leave free. Each level's rows are scaled to a
+own cost acts last: the task's last level when it is damping alone (``last_level_is_cost``; plus
+``LEVEL_TIE_BREAK`` I), else |x|^2 / 2, the smallest motion among what the levels leave free. Each level's rows are scaled to a
 longest row of 1 (no minimizer changes) and weighted in the problem's scale (``LEVEL_ATTEMPTS``), so that a
 level weighs its terms as the task says; a tick where DAQP fails a level is solved again with another weight. H, g (the sum of all levels) serve phase 2.
 
@@ -83,7 +84,7 @@ QP_DATA_OUTPUTS = ("H", "g", "A", "lba", "uba", "lbx", "ubx")
 STEP_OUTPUTS = ("x", "status", "violation")
 GRADIENT_SATURATION = 1e3
 """K of :func:`_saturated_gradient`: a user push beyond K box widths is saturated."""
-LEVEL_ATTEMPTS = ((1e-10, 1e-8), (1e-10, 1e-6))
+LEVEL_ATTEMPTS = ((1e-10, 1e-6), (1e-10, 1e-8))
 """(primal tolerance, rho) of the hierarchical solve, then of its retry on the ticks where the first fails. The
 primal tolerance is DAQP's (rows' units; a solve with levels meets the hard rows to ~1e-10): tighter, DAQP fails a
 level more often (100 random states of paper_a_follow_curve: 5 at 1e-11, 0 at 1e-10, 1 at 1e-9). rho is DAQP's
@@ -91,9 +92,15 @@ reciprocal weight of every soft row of a level (rows scaled to a longest row of 
 scale, so that a level minimizes the plain sum of its rows' squared errors (DAQP normalizes rows internally; with
 one weight in its normalized scale a level would weigh a row by 1/|row|^2: tested). It sets how hard DAQP's inner
 proximal iterations pull a level towards its least squares, not what they converge to; at one value DAQP may
-fail a level that another solves (the port 4 mm above panda7's tip: level 2 fails at 1e-8, not at 1e-6 or 1e-10).
-Over 1,000 ticks (the port 2, 4, 12 mm above the tip of both robots, 100 pushed ticks each; 100 random states of
-four example tasks) the first attempt failed 22 times, the retry never (measured with the daqp package)."""
+fail a level that another solves (the port 4 mm above panda7's tip: level 2 fails at 1e-8, not at 1e-6). Over
+1,000 ticks (the port 2, 4, 12 mm above the tip of both robots, 100 pushed ticks each; 100 random states of four
+example tasks; damping as DAQP's cost) rho = 1e-6 failed 41 times, 1e-8 52 times, never both (measured with the
+daqp package); 1e-6 is also the faster (5.9 against 7.3 us on experiment B) and its worst level 1.6e-4 against
+4.2e-4 above the reference's cost (tests/levels_reference.py), so it comes first."""
+LEVEL_TIE_BREAK = 1e-6
+"""epsilon: with ``last_level_is_cost``, DAQP's cost is the last level's (scaled to a unit largest diagonal) plus
+epsilon I, positive definite also along the slacks, which damping does not weigh; it biases only that last level
+(the smallest motion among the answers the levels above leave)."""
 MAX_LEVELS = 15
 """Priority levels one solve takes (VFDSL_LEVELS_MAX - 1 in daqp_persistent.c; a task has at most 5 priorities, each
 at most 2 levels: a track term's two parts)."""
@@ -119,7 +126,8 @@ def build_step_function(qp_data: ca.Function, prefix: str, *,
                         row_groups: Sequence[Hashable] | None = None,
                         feas_tol: float = 1e-6,
                         penalty: float = 1.0,
-                        tie_break: float = 1e-3, native: bool = False) -> ca.Function:
+                        tie_break: float = 1e-3, native: bool = False,
+                        last_level_is_cost: bool = False) -> ca.Function:
     """``prefix(q, u, p, dt, recover) -> (x[n], status, violation[m])`` solving ``qp_data``'s QP.
 
     ``recover`` nonzero evaluates phase 2 even when phase 1 succeeds: the generated controller does
@@ -129,7 +137,9 @@ def build_step_function(qp_data: ca.Function, prefix: str, *,
     absolute tolerance (row units) under which a row or bound counts as satisfied; ``penalty`` is
     rho and ``tie_break`` is mu of phase 2 (see the module docstring). ``native``: the Function is only for
     code generation (its DAQP solves are CasADi conics, which vfdsl.codegen.build compiles against DAQP's own
-    sources); else CasADi evaluates it, DAQP solving through the ``daqp`` package.
+    sources); else CasADi evaluates it, DAQP solving through the ``daqp`` package. ``last_level_is_cost``: the last
+    priority level (damping alone, positive definite on dq) is DAQP's own cost rather than a soft level (2.5 times
+    faster on experiment B, measured with the daqp package: 7.3 against 18 us).
     """
     levels = _check_qp_data(qp_data)
     n, m = qp_data.size1_out(0), qp_data.size1_out(2)
@@ -139,12 +149,21 @@ def build_step_function(qp_data: ca.Function, prefix: str, *,
     H, g, A, lba, uba, lbx, ubx = data[:7]
     lo, hi, clipped = _safe_box(lbx, ubx)
     g = _saturated_gradient(H, g, lo, hi)
-    if levels > 1:      # (Rj, rj) per level: one hierarchical solve, DAQP's own cost the tie-break |x|^2 / 2
-        rows = [_level_rows(R, r, lo, hi) for R, r in zip(data[7::2], data[8::2])]
+    if levels > 1:      # (Rj, rj) per level: one hierarchical solve
+        pairs = list(zip(data[7::2], data[8::2]))
+        if last_level_is_cost:      # DAQP's own cost: the last level, + epsilon I
+            R_k, r_k = pairs.pop()
+            H_k = R_k.T @ R_k
+            scale = 1 / ca.fmax(ca.mmax(ca.diag(H_k)), 1e-300)
+            H_cost = scale * H_k + LEVEL_TIE_BREAK * ca.MX.eye(n)
+            g_cost = _saturated_gradient(H_cost, -scale * (R_k.T @ r_k), lo, hi)
+        else:                       # DAQP's own cost: the tie-break |x|^2 / 2
+            H_cost, g_cost = ca.DM.eye(n), ca.DM.zeros(n)
+        rows = [_level_rows(R, r, lo, hi) for R, r in pairs]
         R, r = ca.vertcat(*(R for R, _ in rows)), ca.vertcat(*(r for _, r in rows))
         sizes = [R.size1() for R, _ in rows]
         (tol1, rho1), (tol2, rho2) = LEVEL_ATTEMPTS
-        args = [ca.DM.eye(n), ca.DM.zeros(n), A, lba, uba, lo, hi, R, r]
+        args = [H_cost, g_cost, A, lba, uba, lo, hi, R, r]
         first = _daqp(n, m, tol1, "phase1", native, sizes, rho1)(*args)
         x1 = _retried(first, recover, _daqp(n, m, tol2, "phase1_retry", native, sizes, rho2), args)
     else:
