@@ -93,9 +93,14 @@ def worse(levels, x, x_ref, close=1e-8):
     tick: ten band widths; a dropped level is 1e-5..1e-2 away), how much more x costs there than x_ref,
     relative; 0 when every level agrees (<= 0: x is as good as the reference there). Within a band width of a
     level's optimum, a degenerate level below it (every joint at its speed bound) can cost 1e-3 more or less."""
-    for H, g, E in levels:
+    return first_worse(levels, x, x_ref, close)[1]
+
+
+def first_worse(levels, x, x_ref, close=1e-8):
+    """(j, :func:`worse`): also the index of the level it is measured at (len(levels) when every level agrees)."""
+    for j, (H, g, E) in enumerate(levels):
         if np.abs(E @ (x - x_ref)).max(initial=0) <= close:
             continue
         cost, cost_ref = (0.5 * y @ H @ y + g @ y for y in (x, x_ref))
-        return (cost - cost_ref) / max(abs(cost_ref), 1e-300)
-    return 0.0
+        return j, (cost - cost_ref) / max(abs(cost_ref), 1e-300)
+    return len(levels), 0.0

@@ -106,6 +106,22 @@ def test_replay_gives_controller_steps_answers(exported):
     assert worst <= 1e-12
 
 
+def test_replay_with_params_gives_controller_steps_answers(experiment_b, tmp_path):
+    """`replay --params FILE` (every param's numbers in declaration order) answers as Controller.step() with the
+    same params: experiment B with its pivot moved 0.3 um (within its 1 um tolerance) and its cone axis tilted,
+    300 closed-loop ticks."""
+    ctrl = experiment_b.controller()
+    params = {"pivot": [3e-7, 0.0, 0.290], "axis": [0.02, -0.2, 1.0]}
+    ticks = record(ctrl, 300, params=params)
+    flat = ctrl._values.params(params)
+    (tmp_path / "params.txt").write_text(" ".join(f"{x:.17g}" for x in flat) + "\n")
+    answers = replay(experiment_b.directory, [t.line() for t in ticks], ticks[0].dt, tmp_path / "params.txt")
+    assert [status for status, _ in answers] == [t.status for t in ticks]
+    assert max(float(np.max(np.abs(dq - t.dq))) for (_, dq), t in zip(answers, ticks)) <= 1e-12
+    default = record(experiment_b.controller(), 300)
+    assert max(float(np.max(np.abs(a.dq - b.dq))) for a, b in zip(ticks, default)) > 1e-9   # the params matter
+
+
 def test_bad_values_are_refused_with_their_code_and_zero_dq(exported, tmp_path):
     """Python's step() raises, the C step returns the argument's code with dq zeros, replay prints it."""
     ctrl = exported.controller()

@@ -35,17 +35,20 @@ def _random_states(task, ctrl, rng, count, spread):
 
 
 def test_generated_and_interpreted_agree(both):
-    """Near the start (feasible states, random pushes), dq and the status of the generated C equal those of
-    the interpreted graph."""
+    """Near the start (200 feasible states at 1e-5 rad, random pushes), the generated C and the interpreted graph
+    give the same status and dq within 1e-10 rad at 99 % of the states and within 5e-10 at all. The two run the
+    same DAQP on QP data that differ in the last bits; where DAQP's hierarchical solve sits on a degenerate choice
+    a 1e-15 relative change of the data moves dq by up to 3e-9 on lecture_remote_center (measured with the
+    interpreted path alone). Measured: 3 of 2,400 states above 1e-10, at most 1.3e-10."""
     task, native, interpreted = both
     assert native.backend == "native" and interpreted.backend == "interpreted"
-    rng = np.random.default_rng(7)
-    for q, inputs in _random_states(task, native, rng, 40, 1e-6):
+    rng = np.random.default_rng(11)
+    gaps = []
+    for q, inputs in _random_states(task, native, rng, 200, 1e-5):
         dq_n, dq_i = native.step(q, inputs), interpreted.step(q, inputs)
         assert native.status == interpreted.status == StepStatus.OPTIMAL
-        # priority levels: each level's regularized optimum is kept within BAND_FACTOR * feas_tol (1e-11); the
-        # two paths' rounding can pick points of the lower levels' nearly flat optimal sets 1e-8 apart
-        np.testing.assert_allclose(dq_n, dq_i, atol=2e-8, rtol=1e-7)
+        gaps.append(float(np.max(np.abs(dq_n - dq_i))))
+    assert max(gaps) <= 5e-10 and np.mean(np.array(gaps) <= 1e-10) >= 0.99, max(gaps)
 
 
 def _group_violation(ctrl, qp, dq) -> float:

@@ -78,7 +78,8 @@ def build(task: ir.Task, *, backend: str = "auto",
     prefix = symbol_prefix(task, digest)
     def step(native: bool) -> ca.Function:
         return build_step_function(problem.function, prefix, row_groups=problem.row_groups,
-                                   feas_tol=FEASIBILITY_TOLERANCE, native=native)
+                                   feas_tol=FEASIBILITY_TOLERANCE, native=native,
+                                   last_level_is_cost=problem.last_level_is_damping)
 
     if backend != "interpreted":
         try:

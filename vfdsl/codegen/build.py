@@ -81,7 +81,7 @@ _DAQP_FREE_MEM = re.compile(r"^void casadi_daqp_free_mem\(struct casadi_daqp_dat
                             re.MULTILINE)
 _CONIC_CALL = re.compile(r"(/\* (\w+):\(h\[[^\n]*\*/\nstatic int \w+\([^\n]*\{\n(?:(?!\n\}\n).)*?)"
                          r"casadi_daqp_solve\(d, arg, res, iw, w\);", re.DOTALL)
-_LEVELS = re.compile(r"_levels((?:_\d+)+)_rho(\d+)")
+_LEVELS = re.compile(r"_levels((?:_\d+)+)_rho(\d+)(_partial)?")
 PERSISTENT_DAQP = (Path(__file__).parent / "daqp_persistent.c").read_text()
 MEMORY_SLOTS = (Path(__file__).parent / "memory_slots.c").read_text()
 MAX_SLOTS = 64
@@ -272,14 +272,15 @@ def _with_persistent_daqp(source: str) -> str:
 
 def _conic_call(match: re.Match) -> str:
     """The DAQP call of one conic, by its name: ``..._warm`` starts from the previous working set, and
-    ``..._levels_b1_..._bk_rhoE...`` solves priority levels, b the constraint indices where each level ends and
-    1e-E the soft rows' weight (:data:`vfdsl.runtime.qp.LEVEL_ATTEMPTS`)."""
+    ``..._levels_b1_..._bk_rhoE[_partial]...`` solves priority levels, b the constraint indices where each level
+    ends, 1e-E the soft rows' weight (:data:`vfdsl.runtime.qp.LEVEL_ATTEMPTS`), ``_partial``: a failed level gives
+    the answer of the levels above it."""
     body, name = match.group(1), match.group(2)
     levels = _LEVELS.search(name)
     if levels is None:
         return f"{body}vfdsl_daqp_solve(d, {int(name.endswith('_warm'))}, 0);"
     points = [int(b) for b in levels.group(1).strip("_").split("_")]
-    table = (f"static const vfdsl_levels levels = {{{len(points)}, 1e-{levels.group(2)}, "
+    table = (f"static const vfdsl_levels levels = {{{len(points)}, 1e-{levels.group(2)}, {int(bool(levels.group(3)))}, "
              f"{{{', '.join(map(str, points))}}}}};")
     return f"{body}{{\n    {table}\n    vfdsl_daqp_solve(d, {int(name.endswith('_warm'))}, &levels);\n  }}"
 

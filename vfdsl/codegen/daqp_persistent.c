@@ -22,8 +22,9 @@
 #include <daqp/utils.h>        /* daqp_update_ldp (api.h does not declare the update functions) */
 
 #define VFDSL_LEVELS_MAX 16
-/* A conic's levels (from its name): DAQP's break points, and rho, the soft rows' reciprocal weight. */
-typedef struct { int nh; double rho; int break_points[VFDSL_LEVELS_MAX]; } vfdsl_levels;
+/* A conic's levels (from its name): DAQP's break points, rho (the soft rows' reciprocal weight), and partial: a
+   failed level gives the answer of the levels above it (which meets the hard level) rather than NaN. */
+typedef struct { int nh; double rho; int partial; int break_points[VFDSL_LEVELS_MAX]; } vfdsl_levels;
 
 static void vfdsl_daqp_cold_sense(const struct casadi_qp_prob* p_qp, const struct casadi_qp_data* d_qp,
                                   int* sense) {
@@ -109,7 +110,8 @@ static int vfdsl_daqp_solve(struct casadi_daqp_data* d, int warm, const vfdsl_le
   d->return_status = flag;
   d->nodecount = 0;
   d->bnb_itercount = 0;
-  d_qp->success = vfdsl_daqp_succeeded(flag);
+  d_qp->success = vfdsl_daqp_succeeded(flag)
+                  || (levels && levels->partial && flag==DAQP_EXIT_CONSTRAINED_POINT);
   if (d_qp->success) {
     casadi_copy(d->res.lam, p_qp->nx, d_qp->lam_x);
     casadi_copy(d->res.lam+p_qp->nx, p_qp->na, d_qp->lam_a);

@@ -89,6 +89,12 @@ class AssembledProblem:
     def n_slack(self) -> int:
         return len(self.slack_labels)
 
+    @property
+    def last_level_is_damping(self) -> bool:
+        """The task has priority levels and its last one is `damping` alone (positive definite on dq: the solver
+        may make it its own cost, :func:`vfdsl.runtime.qp.build_step_function`)."""
+        return len(self.levels) > 1 and all(name.startswith("damping(") for name in self.levels[-1])
+
 
 def _module(kind: str, name: str):
     return importlib.import_module(f"vfdsl.{kind}.{name}")

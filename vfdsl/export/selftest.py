@@ -47,15 +47,16 @@ def user_inputs(ctrl, k: int) -> dict[str, np.ndarray]:
             for name in ctrl.input_sizes}
 
 
-def record(ctrl, count: int, dt: float | None = None) -> list[Tick]:
+def record(ctrl, count: int, dt: float | None = None, params: dict | None = None) -> list[Tick]:
     """``count`` closed-loop ticks of ``ctrl`` (a fresh Controller) from the task's start, dt the scene's period
-    (0.01 s when it has none), params at their defaults."""
+    (0.01 s when it has none), ``params`` (the run-time params, as ``Controller.step`` takes them) or the
+    defaults."""
     dt = dt or ctrl.default_dt or 0.01
     q = np.array(ctrl.task.start if ctrl.task.start is not None else np.zeros(ctrl.nq), dtype=float)
     ticks = []
     for k in range(count):
         inputs = user_inputs(ctrl, k)
-        dq = ctrl.step(q, inputs, None, dt)
+        dq = ctrl.step(q, inputs, params, dt)
         u = np.concatenate([inputs[name] for name in ctrl.input_sizes]) if inputs else np.zeros(0)
         ticks.append(Tick(q.copy(), u, dt, int(ctrl.status), dq.copy()))
         q = q + dq
