@@ -91,3 +91,27 @@ def test_a_task_name_longer_than_a_file_name_builds(tmp_path, task_b):
     assert len(prefix) <= 3 + pipeline.NAME_IN_SYMBOL + 9
     _, library = pipeline.build(task, backend="native", cache_dir=tmp_path / "cache")
     assert library.so_path.is_file()
+
+
+def test_missing_daqp_sources_fall_back_or_are_a_clear_error(tmp_path, task_b, monkeypatch):
+    """No DAQP sources (an offline machine, a wrong VFDSL_DAQP_SDIST): the native backend says so and how to give
+    them; 'auto' runs interpreted, with a warning."""
+    monkeypatch.setenv("VFDSL_CACHE", str(tmp_path / "fresh"))          # no sources fetched there yet
+    monkeypatch.setenv("VFDSL_DAQP_SDIST", str(tmp_path / "missing.tar.gz"))
+    with pytest.raises(VfError, match="cannot read .*missing.tar.gz"):
+        pipeline.build(task_b, backend="native", cache_dir=tmp_path / "build")
+    monkeypatch.setattr(pipeline, "_warned", False)
+    with warnings.catch_warnings(record=True) as seen:
+        warnings.simplefilter("always")
+        ctrl = vfdsl.compile(task_b, cache_dir=tmp_path / "build")
+    assert ctrl.backend == "interpreted" and any("running the controller interpreted" in str(w.message) for w in seen)
+
+
+def test_a_daqp_archive_that_is_not_the_recorded_one_is_refused(tmp_path, task_b, monkeypatch):
+    fake = tmp_path / "daqp-0.11.0.tar.gz"
+    fake.write_bytes(b"not DAQP")
+    monkeypatch.setenv("VFDSL_CACHE", str(tmp_path / "fresh"))
+    monkeypatch.setenv("VFDSL_DAQP_SDIST", str(fake))
+    with pytest.raises(VfError, match="is not DAQP 0.11.0's source distribution"):
+        pipeline.build(task_b, backend="native", cache_dir=tmp_path / "build")
+    assert not (tmp_path / "fresh" / "daqp-0.11.0").exists()
