@@ -3,7 +3,6 @@ differences of the frames' kinematics (Pinocchio), the mesh param's errors, and 
 
 from __future__ import annotations
 
-import shutil
 from pathlib import Path
 
 import numpy as np

@@ -161,7 +161,7 @@ def build_step_function(qp_data: ca.Function, prefix: str, *,
         if last_level_is_cost:      # DAQP's own cost: the last level, + epsilon I
             R_k, r_k = pairs.pop()
             H_k = R_k.T @ R_k
-            scale = 1 / ca.fmax(ca.mmax(ca.diag(H_k)), 1e-300)
+            scale = _unit_diagonal(H_k)
             H_cost = scale * H_k + LEVEL_TIE_BREAK * ca.MX.eye(n)
             g_cost = _saturated_gradient(H_cost, -scale * (R_k.T @ r_k), lo, hi)
         else:                       # DAQP's own cost: the tie-break |x|^2 / 2
@@ -220,12 +220,22 @@ def _level_rows(R: ca.MX, r: ca.MX, lo: ca.MX, hi: ca.MX) -> tuple[ca.MX, ca.MX]
     """One level's rows and targets scaled to a longest row of 1 (no minimizer of the level changes: DAQP's data
     stay O(1) whatever the weights), the targets then saturated as :func:`_saturated_gradient` saturates g: a
     target beyond K sqrt(n) W of zero cannot be met inside the box B (|R x|_inf <= |x|_2 <= sqrt(n) W)."""
-    longest = ca.sqrt(ca.mmax(ca.sum2(R * R)))
-    scale = ca.if_else(longest > 0, 1 / longest, 1)
+    scale = _unit_rows(R)
     R, r = R * scale, r * scale
     limit = GRADIENT_SATURATION * np.sqrt(R.size2()) * _box_width(lo, hi)
     r_max = ca.mmax(ca.fabs(r))
     return R, r * ca.if_else(ca.logic_and(limit > 0, r_max > limit), limit / r_max, 1)
+
+
+def _unit_rows(R: ca.MX) -> ca.MX:
+    """The factor that scales the rows R to a longest row of 1 (1 when R is zero)."""
+    longest = ca.sqrt(ca.mmax(ca.sum2(R * R)))
+    return ca.if_else(longest > 0, 1 / longest, 1)
+
+
+def _unit_diagonal(H: ca.MX) -> ca.MX:
+    """The factor that scales the Hessian H to a largest diagonal entry of 1."""
+    return 1 / ca.fmax(ca.mmax(ca.diag(H)), 1e-300)
 
 
 def _retried(x: ca.MX, recover: ca.MX, again: Callable[..., ca.MX], args: list) -> ca.MX:
@@ -348,7 +358,6 @@ def solve_daqp(H, g, A, lower, upper, primal_tol, break_points=(), rho_soft=0.0)
     import daqp
     n = H.shape[0]
     sense = np.where(lower == upper, 5, 0).astype(np.intc)      # DAQP_ACTIVE + DAQP_IMMUTABLE
-    sense[:n] = np.where(lower[:n] == upper[:n], 5, 0)
     model = daqp.Model()
     setup, _ = model.setup(np.ascontiguousarray(H), np.ascontiguousarray(g), np.ascontiguousarray(A.reshape(-1, n)),
                 np.ascontiguousarray(upper), np.ascontiguousarray(lower), sense,
@@ -461,9 +470,7 @@ def _least_violation(H, g, A, lba, uba, lo, hi, E: ca.DM, tol, rho, mu, native) 
     inf = ca.inf * ca.DM.ones(m)
     lba_b, uba_b = ca.if_else(violated, -inf, lba), ca.if_else(violated, inf, uba)
     pin_lo, pin_hi = ca.if_else(violated, Ax_a, -inf), ca.if_else(violated, Ax_a, inf)
-    longest = ca.sqrt(ca.mmax(ca.sum2(A * A)))          # scaled as a priority level's rows, H to a unit diagonal:
-    row_scale = ca.if_else(longest > 0, 1 / longest, 1)   # the held rows weigh the same against any objective
-    cost_scale = 1 / ca.mmax(ca.diag(H))
+    row_scale, cost_scale = _unit_rows(A), _unit_diagonal(H)   # (the held rows weigh the same against any objective)
     x_b = _daqp(n, m, tol * 1e-3, "phase2b", native, [m])(cost_scale * H, cost_scale * g, A, lba_b, uba_b, lo, hi,
                                                            row_scale * A, row_scale * pin_lo, row_scale * pin_hi)
 
