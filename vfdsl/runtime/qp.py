@@ -477,7 +477,7 @@ def _least_violation(H, g, A, lba, uba, lo, hi, E: ca.DM, tol, rho, mu, native) 
     # Acceptance is decided on the solver's own answers, before any clipping: clipping a failed
     # solve's NaN into B would turn it into a full-speed motion that looks feasible.
     ok_a = _acceptable(z, A_a @ z, lba_a, uba_a, lbz, ubz, _GROSS_FAILURE)
-    ok_b = _acceptable(x_b, A @ x_b, ca.fmin(lba_b, pin_lo), ca.fmax(uba_b, pin_hi), lo, hi, _GROSS_FAILURE)
+    ok_b = _acceptable(x_b, A @ x_b, lba_b, uba_b, lo, hi, _GROSS_FAILURE)      # the rows x_a satisfies
     ok_b = ca.logic_and(ok_b, ca.mmax(_row_violation(A @ x_b, pin_lo, pin_hi)) <= HELD_ROWS * tol)
     x = ca.if_else(ok_a, ca.if_else(ok_b, _clip(x_b, lo, hi), x_a), _rest(lo, hi))
     status = int(StepStatus.LEAST_VIOLATION) + int(StepStatus.FALLBACK) * (1 - ok_a)
