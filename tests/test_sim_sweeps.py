@@ -59,3 +59,48 @@ def test_dask_local_cluster_gives_the_sequential_aggregate(sweep, tmp_path):
         assert main([*args, str(tmp_path / "dask.json"), "--cluster", cluster.scheduler_address]) == 0
     assert on_dask == sequential
     assert (tmp_path / "dask.json").read_text() == (tmp_path / "local.json").read_text()
+
+
+def test_the_api_probes_a_cluster_address_as_the_command_does(sweep, monkeypatch):
+    """run(jobs, cluster=ADDRESS) from Python: a port where nothing listens and a server that is not a Dask
+    scheduler are each one clear error before any trial runs, within the connect timeout."""
+    import socket
+    import threading
+
+    from vfdsl import limits
+    from vfdsl.errors import VfError
+
+    monkeypatch.setattr(limits, "CONNECT_TIMEOUT", 2.0)
+    _, _, jobs, _ = sweep
+    with pytest.raises(VfError, match="cannot reach a Dask scheduler at 'tcp://127.0.0.1:9'"):
+        run(jobs[:1], cluster="tcp://127.0.0.1:9")
+    with socket.socket() as server:         # answers like an HTTP server, whatever it is sent
+        server.bind(("127.0.0.1", 0))
+        server.listen()
+
+        def answer():
+            conn, _ = server.accept()
+            with conn:
+                conn.sendall(b"HTTP/1.1 400 Bad Request\r\nContent-Length: 0\r\n\r\n" * 4)
+                conn.recv(1024)
+
+        threading.Thread(target=answer, daemon=True).start()
+        with pytest.raises(VfError, match="answers, but not as a Dask scheduler|cannot reach a Dask scheduler"):
+            run(jobs[:1], cluster=f"tcp://127.0.0.1:{server.getsockname()[1]}")
+
+
+def test_the_probe_works_inside_a_running_event_loop(monkeypatch):
+    """As in a notebook: the address is probed from a coroutine, and the error is the same clear one."""
+    import asyncio
+
+    from vfdsl import limits
+    from vfdsl.errors import VfError
+    from vfdsl.sim.cluster import probe
+
+    monkeypatch.setattr(limits, "CONNECT_TIMEOUT", 2.0)
+
+    async def inside():
+        with pytest.raises(VfError, match="cannot reach a Dask scheduler at 'tcp://127.0.0.1:9'"):
+            probe("tcp://127.0.0.1:9")
+
+    asyncio.run(inside())

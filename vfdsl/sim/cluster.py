@@ -10,6 +10,7 @@ bytes that never come; every such failure becomes one clear error naming the add
 from __future__ import annotations
 
 import asyncio
+from concurrent.futures import ThreadPoolExecutor
 
 from vfdsl.errors import VfError
 from vfdsl import limits
@@ -28,12 +29,22 @@ async def _identity(address: str, timeout: float) -> object:
         comm.abort()
 
 
+def _run_to_end(coroutine):
+    """The coroutine's result, also when called from a running event loop (a notebook), in a thread of its own."""
+    try:
+        asyncio.get_running_loop()
+    except RuntimeError:
+        return asyncio.run(coroutine)
+    with ThreadPoolExecutor(max_workers=1) as pool:
+        return pool.submit(asyncio.run, coroutine).result()
+
+
 def probe(address: str, timeout: float | None = None) -> None:
     """Raise a :class:`VfError` unless a Dask scheduler answers at ``address`` within ``timeout`` seconds
     (default ``limits.CONNECT_TIMEOUT``)."""
     timeout = limits.CONNECT_TIMEOUT if timeout is None else timeout
     try:
-        reply = asyncio.run(asyncio.wait_for(_identity(address, timeout), timeout))
+        reply = _run_to_end(asyncio.wait_for(_identity(address, timeout), timeout))
     except (asyncio.TimeoutError, TimeoutError):
         raise VfError(f"cannot reach a Dask scheduler at {address!r}: no answer within {timeout:g} s",
                       hint=_HINT) from None

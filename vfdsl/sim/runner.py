@@ -34,6 +34,7 @@ from vfdsl.kinematics.robot import Robot
 from vfdsl.runtime.qp import StepStatus
 from vfdsl.sim import trace as tr
 from vfdsl.sim import tracker
+from vfdsl.sim.cluster import connect
 from vfdsl.sim.geometry import Scene
 from vfdsl.sim.hand import Hand, generic_hand
 from vfdsl.sim.metrics import Stats, errors, frame_poses, metric_defs
@@ -42,7 +43,6 @@ from vfdsl.sim.settings import SimSettings, hand_dimension, tracked_frame
 
 PROGRESS_EVERY = 500                 # ticks between progress updates of an in-process trial
 CHUNKS_PER_WORKER = 4
-CONNECT_TIMEOUT = "10s"              # to reach a Dask scheduler
 PARALLEL_TICKS = 50_000              # runs of at least this many ticks in all use every core by default
 
 
@@ -404,11 +404,7 @@ def _done(results: list[TrialResult], progress) -> list[TrialResult]:
 def _run_dask(jobs: list[Job], cluster, progress) -> list[TrialResult]:
     from distributed import Client, as_completed as dask_completed
 
-    try:
-        client = cluster if isinstance(cluster, Client) else Client(cluster, timeout=CONNECT_TIMEOUT)
-    except (OSError, TimeoutError, ValueError) as exc:
-        raise VfError(f"cannot reach a Dask scheduler at {cluster!r}: {exc}",
-                      hint="start one (`dask scheduler`, then `dask worker ADDRESS`) or run without --cluster") from None
+    client = cluster if isinstance(cluster, Client) else connect(str(cluster))     # (an address is probed first)
     try:
         parts = chunks(jobs, max(1, sum(client.nthreads().values())))
         futures = client.map(run_trials, parts, pure=False)
