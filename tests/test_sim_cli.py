@@ -210,3 +210,21 @@ def test_experiment_a_is_scored_by_the_distance_to_the_curve_and_the_hand_stops_
     # and on the curve there, not on its tangent beyond it (0.4-0.67 mm before): 11 um measured, within the
     # trial's own error at 150 ms with tremor (27 um mean)
     assert brute[-3:].max() < 0.05e-3
+
+
+def test_events_after_the_end_of_the_run_are_warned_at_their_line(capsys):
+    """A run shortened below a scene's event times: each disturbance, step and ramp that would start at or after
+    the end is named with its file:line:col (it never happens); the run itself goes on, and a run long enough,
+    or a sweep whose longest duration reaches the event, warns nothing."""
+    vessel = str(TASKS_DIR / "breathing_vessel.vf")
+    assert main(["simulate", vessel, "--quiet", "--duration", "0.5s"]) == 0
+    err = capsys.readouterr().err
+    assert "breathing_vessel.sim.yaml:20:5: warning: the step motion of param 'vessel' (from 6 s) starts after " \
+           "the run's 0.5 s" in err
+    assert "sine" not in err                               # a sine acts from the start
+    plate = ["simulate", str(TASKS_DIR / "paper_a_follow_curve.vf"), "--scene",
+             str(TASKS_DIR / "paper_a_plate_moves.sim.yaml"), "--quiet", "--trials", "1"]
+    assert main([*plate, "--duration", "6s"]) == 0
+    assert "paper_a_plate_moves.sim.yaml:21:5: warning: the move_param disturbance at 6 s" in capsys.readouterr().err
+    assert main([*plate, "--grid", "duration=1s,6.2s"]) == 0
+    assert "warning" not in capsys.readouterr().err

@@ -131,6 +131,8 @@ def main(args: argparse.Namespace) -> int:
     if args.trace:
         trace.check_path(args.trace)
     _check_work(settings, grid)
+    for warning in _events_after_the_end(settings, grid):
+        print(warning.render("warning"), file=sys.stderr)
     for name in (args.json, args.csv, args.trace):
         if name:
             _check_writable(name)
@@ -169,6 +171,19 @@ def main(args: argparse.Namespace) -> int:
         from vfdsl.sim.plots import plot_run
         _write(args.plot, lambda path: plot_run(task, settings, results, grid, str(path)))
     return 0
+
+
+def _events_after_the_end(settings, grid: list[tuple[str, list]]) -> list[VfError]:
+    """A warning for each disturbance, step or ramp of the scene that starts at or after the end of the run (the
+    longest ``duration`` of the grid): it never happens (a run shortened with --duration, or a mistyped time)."""
+    end = max(dict(grid).get("duration", [settings.duration]))
+    events = [(d.at, f"the {d.kind} disturbance at {d.at:g} s", d.where) for d in settings.disturbances]
+    events += [(m.at if m.kind == "step" else m.start, f"the {m.kind} motion of param '{m.param}' (from "
+                f"{m.at if m.kind == 'step' else m.start:g} s)", m.where)
+               for m in settings.motions if m.kind in ("step", "ramp")]
+    return [VfError(f"{what} starts after the run's {end:g} s: it does not happen in this run", where,
+                    hint="lengthen the run (--duration, or duration in the scene) or move the event earlier")
+            for t, what, where in events if t >= end - 1e-12]
 
 
 def _check_work(settings, grid: list[tuple[str, list]]) -> None:
