@@ -270,3 +270,19 @@ def test_a_failed_solve_leaves_the_generated_solver_usable(random_paths):
     for seed in (1, 2):
         args = instance(seed, infeasible=seed == 2)
         solve_both((native, interpreted), args)     # (phase 2 on the infeasible seed: its tolerance)
+
+
+def test_interpreted_solver_nodes_are_shared_not_kept_per_compile():
+    """The interpreted path's DAQP nodes live as long as the process (CasADi holds them by reference): compiling a
+    task again reuses its nodes instead of keeping one more set per compile, and the answers are the same."""
+    import vfdsl
+    from conftest import TASKS_DIR
+    from vfdsl.runtime.qp import _DaqpNode
+
+    task = vfdsl.load(TASKS_DIR / "paper_b_virtual_rcm.vf")
+    tau = {"tau": [0.0, 0.01, 0.01]}
+    first = vfdsl.compile(task, backend="interpreted").step(task.start, tau)
+    count = len(_DaqpNode._alive)
+    for _ in range(3):
+        np.testing.assert_array_equal(vfdsl.compile(task, backend="interpreted").step(task.start, tau), first)
+    assert len(_DaqpNode._alive) == count

@@ -302,14 +302,16 @@ class _DaqpNode(ca.Callback):
     (the same DAQP version the generated C is built from): the same problem (bounds as simple bounds, rows with
     lba = uba as equalities), tolerance and settings; x = NaN unless DAQP reports success."""
 
-    _alive: list = []        # CasADi holds a Callback by reference: keep every node for the process's life
+    _alive: dict = {}        # CasADi holds a Callback by reference: each node lives as long as the process; nodes
+    # hold no state between calls, so one node serves every graph that needs its problem (bounded by their kinds)
 
     @classmethod
     def function(cls, name: str, n: int, rows: int, primal_tol: float, break_points: list[int],
                  rho: float, partial: bool) -> ca.Function:
-        node = cls(name, n, rows, primal_tol, break_points, rho, partial)
-        cls._alive.append(node)
-        return node
+        key = (name, n, rows, primal_tol, tuple(break_points), rho, partial)
+        if key not in cls._alive:
+            cls._alive[key] = cls(name, n, rows, primal_tol, break_points, rho, partial)
+        return cls._alive[key]
 
     def __init__(self, name: str, n: int, rows: int, primal_tol: float, break_points: list[int], rho: float,
                  partial: bool):
