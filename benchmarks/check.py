@@ -5,8 +5,10 @@
 
 Each figure is the wall time of the command as a user runs it (`python -m vfdsl.cli check TASK --json`,
 a new process: Python start-up, imports, loading, compiling or reusing the generated controller, every
-analysis). "cold" uses a fresh, empty cache directory (the controller's C is generated and compiled);
-"warm" reuses it. The in-process time of each analysis comes from the report's `figures.timings`.
+analysis). "cold" uses a fresh cache directory (the controller's C is generated and compiled) that already
+holds DAQP's sources and library, as every run after a machine's first does; "warm" reuses it. The first run
+on a fresh machine (an empty cache: DAQP's sources fetched with pip and compiled once) is timed apart, on the
+first task. The in-process time of each analysis comes from the report's `figures.timings`.
 Progress goes to stderr, the table to stdout; nothing is asserted.
 """
 
@@ -42,13 +44,18 @@ def main() -> None:
     args = parser.parse_args()
     tasks = sorted((REPO / "tasks").glob("*.vf"))
     rows = []
-    for k, task in enumerate(tasks, 1):
-        print(f"[{k}/{len(tasks)}] {task.name}", file=sys.stderr, flush=True)
-        with tempfile.TemporaryDirectory() as cache:
-            cold, _ = timed_check(task, cache)
-            warm = [timed_check(task, cache) for _ in range(args.runs)]
-        seconds, report = min(warm, key=lambda r: r[0])
-        rows.append((task.stem, cold, seconds, report))
+    with tempfile.TemporaryDirectory() as machine:
+        print(f"[first use] {tasks[0].name}, empty cache", file=sys.stderr, flush=True)
+        first, _ = timed_check(tasks[0], machine)
+        daqp = next(Path(machine).glob("daqp-*"))
+        for k, task in enumerate(tasks, 1):
+            print(f"[{k}/{len(tasks)}] {task.name}", file=sys.stderr, flush=True)
+            with tempfile.TemporaryDirectory() as cache:
+                (Path(cache) / daqp.name).symlink_to(daqp, target_is_directory=True)
+                cold, _ = timed_check(task, cache)
+                warm = [timed_check(task, cache) for _ in range(args.runs)]
+            seconds, report = min(warm, key=lambda r: r[0])
+            rows.append((task.stem, cold, seconds, report))
     stages = ["compile", "polytope", "tolerance", "feasibility", "residuals", "hygiene", "kinematics", "handsoff",
               "sampling"]
     print(f"vfdsl check, wall time per task (budget {BUDGET:.0f} s); in-process seconds per analysis (warm)")
@@ -60,6 +67,7 @@ def main() -> None:
         verdict = "sound" if report["sound"] else "NOT SOUND"
         cells = [name, f"{cold:.2f}", f"{warm:.2f}", verdict] + [f"{timings.get(s, 0):.3f}" for s in stages]
         print("| " + " | ".join(cells) + " |")
+    print(f"first use on a fresh machine ({tasks[0].stem}, empty cache: DAQP fetched and compiled once): {first:.2f} s")
     worst = max(max(cold, warm) for _, cold, warm, _ in rows)
     print(f"slowest: {worst:.2f} s ({'within' if worst < BUDGET else 'OVER'} the {BUDGET:.0f} s budget)")
 
