@@ -1,10 +1,13 @@
 """Mesh fixtures: the C proximity query against brute force over all triangles (NumPy), the rows against finite
 differences of the frames' kinematics (Pinocchio), the mesh param's errors, and both runtime paths."""
+# The query's answer is stated in vfdsl/mesh/query.c; brute.features computes it from every triangle's hits.
 
 from __future__ import annotations
 
+import subprocess
 from pathlib import Path
 
+import casadi as ca
 import numpy as np
 import pytest
 
@@ -14,7 +17,8 @@ from vfdsl.compiler.mesh_rows import K, REACH
 from vfdsl.errors import VfError
 from vfdsl.kinematics.robot import Robot
 from vfdsl.mesh import brute
-from vfdsl.mesh.external import mesh_query
+from vfdsl.codegen.build import FLAGS, find_compiler
+from vfdsl.mesh.external import SIMILAR, c_source, mesh_query
 from vfdsl.mesh.load import read_mesh
 
 TASKS = Path(__file__).resolve().parent.parent / "tasks"
@@ -63,6 +67,67 @@ def test_query_sign_is_the_side(channel):
         d = float(np.array(query.function(a, a, [1.0, -1.0])[0]).ravel()[0])
         inside = brute.winding_number(a, mesh.vertices, mesh.triangles) > 0.5
         assert (d > 0) == inside, (a, d)
+
+
+def _answer(function, a, b, cutoff):
+    d, s, u = (np.array(x) for x in function(a, b, [cutoff, -1.0]))
+    return d.ravel(), s.ravel(), u.reshape(3, K, order="F")
+
+
+def _same(answer, reference):
+    (d, s, u), (rd, rs, ru) = answer, reference
+    assert np.array_equal(np.isinf(d), np.isinf(rd)), (d, rd)
+    assert np.allclose(d[np.isfinite(d)], rd[np.isfinite(rd)], atol=1e-12, rtol=0), (d, rd)
+    assert np.allclose(s, rs, atol=1e-9, rtol=0) and np.allclose(u, ru, atol=1e-9, rtol=0), (s, rs)
+
+
+def _along_the_wall(rng, n):
+    """Shafts 18 mm long lying 1.2-2 mm from the straight part of the channel's wall, tilted 0.5-3 deg: hundreds
+    of triangles nearly equidistant from them (the query's slowest case)."""
+    out = []
+    for _ in range(n):
+        angle, gap = rng.uniform(0, 2 * np.pi), rng.uniform(1.2e-3, 2e-3)
+        radial = np.array([np.cos(angle), np.sin(angle), 0.0])
+        a = np.array([0.0, 0.0, 0.298]) + (0.005 - gap) * radial
+        tilt = np.radians(rng.uniform(0.5, 3)) * rng.choice([-1, 1])
+        out.append((a, a + 0.018 * (np.cos(tilt) * np.array([0, 0, 1.0]) + np.sin(tilt) * radial)))
+    return out
+
+
+@pytest.mark.parametrize("segment", [False, True], ids=["point", "capsule"])
+def test_query_is_the_brute_force_answer(channel, segment):
+    """Every output of the query (d, s, u of the K rows) is brute.features': points and capsules inside and outside
+    the channel, with the example's cutoff and with one that admits every triangle; shafts along the wall. The
+    walk's memory is the function's work vector, reused by every call: asking the first question again gives the
+    first answer."""
+    mesh, query = channel
+    rng = np.random.default_rng(4)
+    cases = list(zip(*_samples(rng, 16, segment)))
+    if segment:
+        cases += _along_the_wall(rng, 8)
+    answers = []
+    for i, (a, b) in enumerate(cases):
+        cutoff = 1.0 if i % 4 == 0 else 0.0015 + REACH
+        answers.append(_answer(query.function, a, b, cutoff))
+        _same(answers[-1], brute.features(a, b, mesh.vertices, mesh.triangles, cutoff, -1.0, K, SIMILAR))
+    again = _answer(query.function, *cases[0], 1.0)
+    assert all(np.array_equal(x, y) for x, y in zip(again, answers[0]))
+
+
+def test_a_full_queue_gives_the_same_answer(channel, tmp_path):
+    """Built with a queue of 8 entries (the default holds 1,024), the walk overflows on every capsule and ends
+    depth-first, one kept hit at a time: the same answers as the default build."""
+    mesh, query = channel
+    name = "vfmesh_small_queue"
+    (tmp_path / f"{name}.c").write_text(c_source(name, mesh, K))
+    subprocess.run([*find_compiler().command, *FLAGS, "-DVFM_HEAP=8", "-shared", f"{name}.c", "-o", f"lib{name}.so",
+                    "-lm"], cwd=tmp_path, check=True, capture_output=True)
+    small = ca.external(name, str(tmp_path / f"lib{name}.so"))
+    rng = np.random.default_rng(5)
+    for i, (a, b) in enumerate([*zip(*_samples(rng, 10, True)), *_along_the_wall(rng, 5)]):
+        cutoff = 1.0 if i % 3 == 0 else 0.0015 + REACH
+        expected = _answer(query.function, a, b, cutoff)
+        assert all(np.array_equal(x, y) for x, y in zip(_answer(small, a, b, cutoff), expected))
 
 
 def test_cutoff_relaxes_rows(channel):
