@@ -381,18 +381,21 @@ static int vfm_still(const vfm_walk* w, const vfm_item* item) {
   return mask;
 }
 
-/* The queue: a binary heap of items, least first (key, then boxes before hits, then the hits' order). */
-static int vfm_item_before(const vfm_walk* w, const vfm_item* x, const vfm_item* y) {
-  if (x->key != y->key) return x->key < y->key;
+/* The queue: a 4-ary heap of items, least first (key, then boxes before hits, then the hits' order). */
+static int vfm_tie_before(const vfm_walk* w, const vfm_item* x, const vfm_item* y) {
   if ((x->ref >= 0) != (y->ref >= 0)) return x->ref >= 0;
   if (x->ref >= 0) return x->ref < y->ref;
   return vfm_before(&w->slot[-1 - x->ref], &w->slot[-1 - y->ref]);
 }
 
+static int vfm_item_before(const vfm_walk* w, const vfm_item* x, const vfm_item* y) {
+  return x->key < y->key || (x->key == y->key && vfm_tie_before(w, x, y));
+}
+
 static void vfm_sift_up(vfm_walk* w, int i) {
   vfm_item item = w->heap[i];
   while (i > 0) {
-    int parent = (i - 1) / 2;
+    int parent = (i - 1) / 4;
     if (!vfm_item_before(w, &item, &w->heap[parent])) break;
     w->heap[i] = w->heap[parent];
     i = parent;
@@ -403,9 +406,9 @@ static void vfm_sift_up(vfm_walk* w, int i) {
 static void vfm_sift_down(vfm_walk* w, int i) {
   vfm_item item = w->heap[i];
   for (;;) {
-    int child = 2 * i + 1;
-    if (child >= w->size) break;
-    if (child + 1 < w->size && vfm_item_before(w, &w->heap[child + 1], &w->heap[child])) ++child;
+    int first = 4 * i + 1, child = first, k, last = first + 4 < w->size ? first + 4 : w->size;
+    if (first >= w->size) break;
+    for (k = first + 1; k < last; ++k) if (vfm_item_before(w, &w->heap[k], &w->heap[child])) child = k;
     if (!vfm_item_before(w, &w->heap[child], &item)) break;
     w->heap[i] = w->heap[child];
     i = child;
