@@ -197,11 +197,17 @@ def test_registration_moves_the_mesh():
     assert moved.lb[rows[0]] == pytest.approx(0.001 + 0.002 - d, abs=1e-12)
 
 
-def _task(folder: Path, mesh_line: str, stl: str = "ball.stl") -> Path:
+def _ball(path: Path, centre) -> None:
+    """A ball of radius 6 (file units) at ``centre``, as an STL."""
     import trimesh
     sphere = trimesh.creation.icosphere(subdivisions=2, radius=6.0)
-    sphere.apply_translation([12, 0, 262])
-    sphere.export(folder / stl)
+    sphere.apply_translation(centre)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    sphere.export(path)
+
+
+def _task(folder: Path, mesh_line: str, stl: str = "ball.stl") -> Path:
+    _ball(folder / stl, [12, 0, 262])
     path = folder / "t.vf"
     path.write_text("task t\nunits mm, deg\nrobot shr = urdf \"shr7\"\nframe tip = shr.link(\"tool_tip\")\n"
                     f"{mesh_line}\nrequire tip outside_mesh(ball, 1 mm)\n")
@@ -227,6 +233,55 @@ def test_units_follow_the_task_default(tmp_path):
     task = vfdsl.load(_task(tmp_path, 'param ball : mesh = "ball.stl"'))
     mesh = read_mesh(task.param("ball").value.file, task.param("ball").value.unit)
     assert mesh.extent == pytest.approx(0.012, rel=1e-6)
+
+
+START = "start: {x: 0, y: 0, z: 0, rcm_a: 0, rcm_b: 0, roll: 0, insert: 20}\n"   # the tip at (0, 0, 280) mm
+
+
+def test_a_scene_gives_a_mesh_relative_to_itself(tmp_path):
+    """A mesh param's value in a scene file (here in a folder of its own) is a path relative to the scene file,
+    read with the param type's unit: the tip's row is that of the scene's ball, 2 mm under the tip (the task's
+    own ball is beyond reach)."""
+    path = _task(tmp_path, 'param ball : mesh(unit = 1 mm) = "ball.stl"\nscene "setup/scene.yaml"')
+    _ball(tmp_path / "setup" / "meshes" / "ball.stl", [0, 0, 272])
+    (tmp_path / "setup" / "scene.yaml").write_text("units: mm, deg\n" + START + "params:\n  ball: meshes/ball.stl\n")
+    task = vfdsl.load(path)
+    assert Path(task.param("ball").value.file) == (tmp_path / "setup" / "meshes" / "ball.stl").resolve()
+    ctrl = vfdsl.compile(task, backend="interpreted")
+    qp = ctrl.problem(task.start, {}, dt=0.01)
+    row = next(i for i, label in enumerate(qp.labels) if "outside_mesh" in label)
+    tip = frame_pose(Robot.load(task.robots[0].urdf), task.frame("tip"), task.start)[0]
+    ball = read_mesh(tmp_path / "setup" / "meshes" / "ball.stl", 1e-3)
+    d = brute.segment_distances(tip, tip, ball.vertices, ball.triangles).min()
+    assert d == pytest.approx(0.002, abs=2e-4)
+    assert qp.lb[row] == pytest.approx(0.001 - d, abs=1e-12)
+
+
+@pytest.mark.parametrize("value, message, column", [
+    ("meshes/none.stl", "not found", 9),
+    ("{file: meshes/ball.stl, unit: 1 m}", "larger than a patient", 16),
+    ("{file: meshes/ball.stl, units: 1 mm}", "a mesh in a scene has no key 'units'", 33),
+    ("{unit: 1 mm}", "a mesh in a scene needs its file", 9),
+    ("[1, 2, 3]", "a mesh is given by its file name", 9),
+    ("{file: meshes/ball.stl, unit: 0 mm}", "a mesh's unit must be a positive length", 39),
+])
+def test_mesh_errors_in_a_scene_point_into_it(tmp_path, value, message, column):
+    path = _task(tmp_path, 'param ball : mesh = "ball.stl"\nscene "setup/scene.yaml"')
+    _ball(tmp_path / "setup" / "meshes" / "ball.stl", [0, 0, 272])
+    (tmp_path / "setup" / "scene.yaml").write_text(f"units: mm\nparams:\n  ball: {value}\n")
+    with pytest.raises(VfError) as err:
+        vfdsl.load(path)
+    assert message in err.value.message
+    assert Path(err.value.pos.file).name == "scene.yaml" and (err.value.pos.line, err.value.pos.column) == (3, column)
+
+
+def test_a_mesh_is_not_a_run_time_param():
+    task = vfdsl.load(TASKS / "bone_nerve.vf")
+    ctrl = vfdsl.compile(task, backend="interpreted")
+    with pytest.raises(VfError) as err:
+        ctrl.step(task.start, {"f": [0, 0, 0]}, params={"nerve": "other.stl"})
+    assert "'nerve' is a mesh" in err.value.message
+    assert "params.nerve" in err.value.hint and "'patient'" in err.value.hint
 
 
 def test_no_compiler_is_a_clear_error(tmp_path, monkeypatch):
