@@ -9,9 +9,9 @@
       bone: anatomy/bone.stl  # a mesh: its file, relative to this file; or {file: ..., unit: 1 mm}
 
 YAML values are turned into the same syntax nodes a ``.vf`` file produces (a list is a vector, a mapping is
-a composite such as ``pose(...)``, ``"10 mm"`` is a number with a unit; in ``params``, other text, and any
-quoted text, is a string: a mesh's file name), with positions in the YAML file, so they go through exactly
-the same unit and shape checks and their errors point into the scene file.
+a composite such as ``pose(...)``, ``"10 mm"`` is a number with a unit; in ``params``, other text is a string:
+a mesh's file name), with positions in the YAML file, so they go through exactly the same unit and shape checks
+and their errors point into the scene file.
 """
 
 from __future__ import annotations
@@ -116,7 +116,8 @@ class _Values:
         self.nodes = 0
 
     def read(self, node: yaml.Node, inside: tuple = (), text: bool = False) -> ast.Value:
-        """``text``: a scalar that is quoted, or not a number nor true/false, is a string (else an error)."""
+        """``text``: a scalar that is not a number (with or without a unit) nor true/false is a string (else an
+        error)."""
         file = self.file
         span = _span(node, file)
         self.nodes += 1
@@ -139,8 +140,6 @@ class _Values:
 
 def _scalar(node: yaml.ScalarNode, span: ast.Span, strings: bool = False) -> ast.Value:
     text = str(node.value)
-    if strings and node.style in ("'", '"'):
-        return ast.String(span=span, text=text)
     if text in ("true", "false"):
         return ast.Bool(span=span, value=text == "true")
     match = _QUANTITY.match(text)
