@@ -83,16 +83,25 @@ def record(ctrl, task, ticks: int) -> list:
     return states
 
 
-def _c_call(mesh, a, b):
-    """The query of ``mesh`` at the segment a b (the example's cutoff, keep in) as a ctypes call of its C function."""
+def _c_calls(mesh, segments) -> list:
+    """The query of ``mesh`` at each segment (a, b) (the example's cutoff, keep in) as a ctypes call of its C
+    function, all with one work vector (the walk's memory, CasADi's w)."""
     query = mesh_query(mesh, K)
-    function = getattr(ctypes.CDLL(str(query.source.parent / f"lib{query.name}.so")), query.name)
+    library = ctypes.CDLL(str(query.source.parent / f"lib{query.name}.so"))
+    function = getattr(library, query.name)
+    sizes = [ctypes.c_longlong() for _ in range(4)]
+    getattr(library, f"{query.name}_work")(*[ctypes.byref(x) for x in sizes])
     double_p = ctypes.POINTER(ctypes.c_double)
-    inputs = [np.array(a, float), np.array(b, float), np.array([0.0015 + REACH, -1.0])]
+    work = np.zeros(sizes[3].value)
+    w = work.ctypes.data_as(double_p)
     outputs = [np.zeros(K), np.zeros(K), np.zeros(3 * K)]
-    arg = (double_p * 3)(*[x.ctypes.data_as(double_p) for x in inputs])
     res = (double_p * 3)(*[x.ctypes.data_as(double_p) for x in outputs])
-    return lambda: function(arg, res, None, None, 0) or (inputs, outputs)   # keeps the arrays alive
+
+    def call(a, b):
+        inputs = [np.array(a, float), np.array(b, float), np.array([0.0015 + REACH, -1.0])]
+        arg = (double_p * 3)(*[x.ctypes.data_as(double_p) for x in inputs])
+        return lambda: function(arg, res, None, w, 0) or (inputs, outputs, work)   # keeps the arrays alive
+    return [call(a, b) for a, b in segments]
 
 
 def timed(call, states) -> np.ndarray:
@@ -137,8 +146,8 @@ def main() -> None:
                 states = record(ctrl, task, ticks)
             mesh = read_mesh(stl, 1e-3)
             robot = Robot.load(task.robots[0].urdf)
-            calls = [_c_call(mesh, frame_pose(robot, task.frame("tip"), q)[0], frame_pose(robot, task.frame("shaft"), q)[0])
-                     for q, _ in states]
+            calls = _c_calls(mesh, [(frame_pose(robot, task.frame("tip"), q)[0],
+                                     frame_pose(robot, task.frame("shaft"), q)[0]) for q, _ in states])
             q_us = timed(lambda call, _: call(), [(call, None) for call in calls])
             rows.append((len(mesh.triangles), timed(lambda q, u: ctrl.step(q, u), states), q_us, build))
         base_us = timed(lambda q, u: base.step(q, u), states)

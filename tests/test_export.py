@@ -5,7 +5,8 @@ Python or CasADi include paths; the folder's Makefile names only its own directo
 recorded from ``Controller.step()`` (backend "native") on a closed loop: statuses equal, dq within 1e-12; 2,000
 ticks for the paper's experiments A and B, 200 for the others. Bad values are refused with the right code and dq
 zeros, and the params' checks refuse exactly what Python refuses (same check index). tests/export_contract.c
-checks, on experiments A and B, leaks under AddressSanitizer, heap calls after ``_new``, two controllers in two
+checks, on experiments A and B and on the mesh example sinus_channel (its proximity query walks in the work
+arrays ``_new`` allocates), leaks under AddressSanitizer, heap calls after ``_new``, two controllers in two
 threads, one controller from two threads.
 """
 
@@ -37,6 +38,7 @@ pytestmark = pytest.mark.skipif(shutil.which("make") is None or shutil.which("cc
 CONTRACT = Path(__file__).with_name("export_contract.c")
 TASKS = sorted(path.stem for path in TASKS_DIR.glob("*.vf"))
 EXPERIMENTS = ("paper_a_follow_curve", "paper_b_virtual_rcm")
+CONTRACT_TASKS = (*EXPERIMENTS, "sinus_channel")
 TASKS_WITH_PARAMS = [name for name in TASKS if ParamLayout(vfdsl.load(TASKS_DIR / f"{name}.vf").params).size]
 CLEAN_ENV = {"PATH": os.environ.get("PATH", "/usr/bin:/bin"), "LANG": "C"}
 """make's environment: no CPATH, C_INCLUDE_PATH or CFLAGS from this (Python) session."""
@@ -81,8 +83,8 @@ def exported_with_params(request, exports) -> Exported:
     return exports(request.param)
 
 
-@pytest.fixture(params=EXPERIMENTS)
-def experiment(request, exports) -> Exported:
+@pytest.fixture(params=CONTRACT_TASKS)
+def contract_task(request, exports) -> Exported:
     return exports(request.param)
 
 
@@ -232,16 +234,16 @@ def _run_contract(exe: Path, mode: str, ticks, env=None) -> str:
 
 
 @pytest.mark.slow
-def test_no_leak_under_address_sanitizer(experiment, tmp_path):
-    exported = experiment
+def test_no_leak_under_address_sanitizer(contract_task, tmp_path):
+    exported = contract_task
     exe = _contract(exported, tmp_path, ["-fsanitize=address"], "-O1 -g -fsanitize=address -fno-omit-frame-pointer")
     ticks = record(exported.controller(), 300)
     env = {**CLEAN_ENV, "ASAN_OPTIONS": "detect_leaks=1:halt_on_error=1"}
     assert _run_contract(exe, "leaks", ticks, env) == "ok"
 
 
-def test_no_heap_call_after_new(experiment, tmp_path):
-    exported = experiment
+def test_no_heap_call_after_new(contract_task, tmp_path):
+    exported = contract_task
     wrap = "-Wl," + ",".join(f"--wrap={f}" for f in ("malloc", "calloc", "realloc", "free"))
     exe = _contract(exported, tmp_path, ["-DCOUNT_HEAP", wrap])
     ctrl = exported.controller()
@@ -251,15 +253,15 @@ def test_no_heap_call_after_new(experiment, tmp_path):
     assert ticked == 0 and params == 0
 
 
-def test_two_controllers_in_two_threads_answer_as_alone(experiment, tmp_path):
-    exported = experiment
+def test_two_controllers_in_two_threads_answer_as_alone(contract_task, tmp_path):
+    exported = contract_task
     exe = _contract(exported, tmp_path, [])
     ticks = record(exported.controller(), 500)
     assert _run_contract(exe, "threads", ticks) == "0"
 
 
-def test_one_controller_from_two_threads_is_refused_never_mixed(experiment, tmp_path):
-    exported = experiment
+def test_one_controller_from_two_threads_is_refused_never_mixed(contract_task, tmp_path):
+    exported = contract_task
     exe = _contract(exported, tmp_path, [])
     ticks = record(exported.controller(), 1)
     refused, wrong, answered = map(int, _run_contract(exe, "busy", ticks).split())

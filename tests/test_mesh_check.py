@@ -86,7 +86,7 @@ def test_margin_against_one_tick(tmp_path):
 
 def test_view_draws_the_mesh_in_its_registration():
     """`vfdsl view` draws a mesh fixture as the mesh in the world (moved by its pose param) and the clearance
-    ball at the frame; an inside_mesh's walls as a wire frame."""
+    capsule around the tool (tests/test_view.py checks the tool's shapes)."""
     from vfdsl.sim.geometry import Scene
     from vfdsl.view import shapes
     from vfdsl.mesh.load import read_mesh
@@ -100,8 +100,10 @@ def test_view_draws_the_mesh_in_its_registration():
     value = task.param("nerve").value
     assert mesh.role == "forbidden" and not mesh.wireframe
     assert np.allclose(mesh.vertices, read_mesh(value.file, value.unit).vertices + [0.01, 0, 0])
-    ball = next(s for s in nerve.shapes if s.name == "clearance")
-    assert np.allclose(np.linalg.norm(ball.vertices - frames["tip"].position, axis=1), 0.003)
+    clearance = next(s for s in nerve.shapes if s.name == "clearance")
+    a, b = frames["tip"].position, frames["shaft"].position
+    axis = np.clip((clearance.vertices - a) @ (b - a) / ((b - a) @ (b - a)), 0, 1)
+    assert np.allclose(np.linalg.norm(clearance.vertices - (a + axis[:, None] * (b - a)), axis=1), 0.003)
 
 
 def test_simulate_scores_clearance_and_contact():

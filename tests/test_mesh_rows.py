@@ -1,10 +1,13 @@
 """Mesh fixtures: the C proximity query against brute force over all triangles (NumPy), the rows against finite
 differences of the frames' kinematics (Pinocchio), the mesh param's errors, and both runtime paths."""
+# The query's answer is stated in vfdsl/mesh/query.c; brute.features computes it from every triangle's hits.
 
 from __future__ import annotations
 
+import subprocess
 from pathlib import Path
 
+import casadi as ca
 import numpy as np
 import pytest
 
@@ -14,7 +17,8 @@ from vfdsl.compiler.mesh_rows import K, REACH
 from vfdsl.errors import VfError
 from vfdsl.kinematics.robot import Robot
 from vfdsl.mesh import brute
-from vfdsl.mesh.external import mesh_query
+from vfdsl.codegen.build import FLAGS, find_compiler
+from vfdsl.mesh.external import SIMILAR, c_source, mesh_query
 from vfdsl.mesh.load import read_mesh
 
 TASKS = Path(__file__).resolve().parent.parent / "tasks"
@@ -63,6 +67,67 @@ def test_query_sign_is_the_side(channel):
         d = float(np.array(query.function(a, a, [1.0, -1.0])[0]).ravel()[0])
         inside = brute.winding_number(a, mesh.vertices, mesh.triangles) > 0.5
         assert (d > 0) == inside, (a, d)
+
+
+def _answer(function, a, b, cutoff):
+    d, s, u = (np.array(x) for x in function(a, b, [cutoff, -1.0]))
+    return d.ravel(), s.ravel(), u.reshape(3, K, order="F")
+
+
+def _same(answer, reference):
+    (d, s, u), (rd, rs, ru) = answer, reference
+    assert np.array_equal(np.isinf(d), np.isinf(rd)), (d, rd)
+    assert np.allclose(d[np.isfinite(d)], rd[np.isfinite(rd)], atol=1e-12, rtol=0), (d, rd)
+    assert np.allclose(s, rs, atol=1e-9, rtol=0) and np.allclose(u, ru, atol=1e-9, rtol=0), (s, rs)
+
+
+def _along_the_wall(rng, n):
+    """Shafts 18 mm long lying 1.2-2 mm from the straight part of the channel's wall, tilted 0.5-3 deg: hundreds
+    of triangles nearly equidistant from them (the query's slowest case)."""
+    out = []
+    for _ in range(n):
+        angle, gap = rng.uniform(0, 2 * np.pi), rng.uniform(1.2e-3, 2e-3)
+        radial = np.array([np.cos(angle), np.sin(angle), 0.0])
+        a = np.array([0.0, 0.0, 0.298]) + (0.005 - gap) * radial
+        tilt = np.radians(rng.uniform(0.5, 3)) * rng.choice([-1, 1])
+        out.append((a, a + 0.018 * (np.cos(tilt) * np.array([0, 0, 1.0]) + np.sin(tilt) * radial)))
+    return out
+
+
+@pytest.mark.parametrize("segment", [False, True], ids=["point", "capsule"])
+def test_query_is_the_brute_force_answer(channel, segment):
+    """Every output of the query (d, s, u of the K rows) is brute.features': points and capsules inside and outside
+    the channel, with the example's cutoff and with one that admits every triangle; shafts along the wall. The
+    walk's memory is the function's work vector, reused by every call: asking the first question again gives the
+    first answer."""
+    mesh, query = channel
+    rng = np.random.default_rng(4)
+    cases = list(zip(*_samples(rng, 16, segment)))
+    if segment:
+        cases += _along_the_wall(rng, 8)
+    answers = []
+    for i, (a, b) in enumerate(cases):
+        cutoff = 1.0 if i % 4 == 0 else 0.0015 + REACH
+        answers.append(_answer(query.function, a, b, cutoff))
+        _same(answers[-1], brute.features(a, b, mesh.vertices, mesh.triangles, cutoff, -1.0, K, SIMILAR))
+    again = _answer(query.function, *cases[0], 1.0)
+    assert all(np.array_equal(x, y) for x, y in zip(again, answers[0]))
+
+
+def test_a_full_queue_gives_the_same_answer(channel, tmp_path):
+    """Built with a queue of 8 entries (the default holds 1,024), the walk overflows on every capsule and ends
+    depth-first, one kept hit at a time: the same answers as the default build."""
+    mesh, query = channel
+    name = "vfmesh_small_queue"
+    (tmp_path / f"{name}.c").write_text(c_source(name, mesh, K))
+    subprocess.run([*find_compiler().command, *FLAGS, "-DVFM_HEAP=8", "-shared", f"{name}.c", "-o", f"lib{name}.so",
+                    "-lm"], cwd=tmp_path, check=True, capture_output=True)
+    small = ca.external(name, str(tmp_path / f"lib{name}.so"))
+    rng = np.random.default_rng(5)
+    for i, (a, b) in enumerate([*zip(*_samples(rng, 10, True)), *_along_the_wall(rng, 5)]):
+        cutoff = 1.0 if i % 3 == 0 else 0.0015 + REACH
+        expected = _answer(query.function, a, b, cutoff)
+        assert all(np.array_equal(x, y) for x, y in zip(_answer(small, a, b, cutoff), expected))
 
 
 def test_cutoff_relaxes_rows(channel):
@@ -132,11 +197,17 @@ def test_registration_moves_the_mesh():
     assert moved.lb[rows[0]] == pytest.approx(0.001 + 0.002 - d, abs=1e-12)
 
 
-def _task(folder: Path, mesh_line: str, stl: str = "ball.stl") -> Path:
+def _ball(path: Path, centre) -> None:
+    """A ball of radius 6 (file units) at ``centre``, as an STL."""
     import trimesh
     sphere = trimesh.creation.icosphere(subdivisions=2, radius=6.0)
-    sphere.apply_translation([12, 0, 262])
-    sphere.export(folder / stl)
+    sphere.apply_translation(centre)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    sphere.export(path)
+
+
+def _task(folder: Path, mesh_line: str, stl: str = "ball.stl") -> Path:
+    _ball(folder / stl, [12, 0, 262])
     path = folder / "t.vf"
     path.write_text("task t\nunits mm, deg\nrobot shr = urdf \"shr7\"\nframe tip = shr.link(\"tool_tip\")\n"
                     f"{mesh_line}\nrequire tip outside_mesh(ball, 1 mm)\n")
@@ -162,6 +233,55 @@ def test_units_follow_the_task_default(tmp_path):
     task = vfdsl.load(_task(tmp_path, 'param ball : mesh = "ball.stl"'))
     mesh = read_mesh(task.param("ball").value.file, task.param("ball").value.unit)
     assert mesh.extent == pytest.approx(0.012, rel=1e-6)
+
+
+START = "start: {x: 0, y: 0, z: 0, rcm_a: 0, rcm_b: 0, roll: 0, insert: 20}\n"   # the tip at (0, 0, 280) mm
+
+
+def test_a_scene_gives_a_mesh_relative_to_itself(tmp_path):
+    """A mesh param's value in a scene file (here in a folder of its own) is a path relative to the scene file,
+    read with the param type's unit: the tip's row is that of the scene's ball, 2 mm under the tip (the task's
+    own ball is beyond reach)."""
+    path = _task(tmp_path, 'param ball : mesh(unit = 1 mm) = "ball.stl"\nscene "setup/scene.yaml"')
+    _ball(tmp_path / "setup" / "meshes" / "ball.stl", [0, 0, 272])
+    (tmp_path / "setup" / "scene.yaml").write_text("units: mm, deg\n" + START + "params:\n  ball: meshes/ball.stl\n")
+    task = vfdsl.load(path)
+    assert Path(task.param("ball").value.file) == (tmp_path / "setup" / "meshes" / "ball.stl").resolve()
+    ctrl = vfdsl.compile(task, backend="interpreted")
+    qp = ctrl.problem(task.start, {}, dt=0.01)
+    row = next(i for i, label in enumerate(qp.labels) if "outside_mesh" in label)
+    tip = frame_pose(Robot.load(task.robots[0].urdf), task.frame("tip"), task.start)[0]
+    ball = read_mesh(tmp_path / "setup" / "meshes" / "ball.stl", 1e-3)
+    d = brute.segment_distances(tip, tip, ball.vertices, ball.triangles).min()
+    assert d == pytest.approx(0.002, abs=2e-4)
+    assert qp.lb[row] == pytest.approx(0.001 - d, abs=1e-12)
+
+
+@pytest.mark.parametrize("value, message, column", [
+    ("meshes/none.stl", "not found", 9),
+    ("{file: meshes/ball.stl, unit: 1 m}", "larger than a patient", 16),
+    ("{file: meshes/ball.stl, units: 1 mm}", "a mesh in a scene has no key 'units'", 33),
+    ("{unit: 1 mm}", "a mesh in a scene needs its file", 9),
+    ("[1, 2, 3]", "a mesh is given by its file name", 9),
+    ("{file: meshes/ball.stl, unit: 0 mm}", "a mesh's unit must be a positive length", 39),
+])
+def test_mesh_errors_in_a_scene_point_into_it(tmp_path, value, message, column):
+    path = _task(tmp_path, 'param ball : mesh = "ball.stl"\nscene "setup/scene.yaml"')
+    _ball(tmp_path / "setup" / "meshes" / "ball.stl", [0, 0, 272])
+    (tmp_path / "setup" / "scene.yaml").write_text(f"units: mm\nparams:\n  ball: {value}\n")
+    with pytest.raises(VfError) as err:
+        vfdsl.load(path)
+    assert message in err.value.message
+    assert Path(err.value.pos.file).name == "scene.yaml" and (err.value.pos.line, err.value.pos.column) == (3, column)
+
+
+def test_a_mesh_is_not_a_run_time_param():
+    task = vfdsl.load(TASKS / "bone_nerve.vf")
+    ctrl = vfdsl.compile(task, backend="interpreted")
+    with pytest.raises(VfError) as err:
+        ctrl.step(task.start, {"f": [0, 0, 0]}, params={"nerve": "other.stl"})
+    assert "'nerve' is a mesh" in err.value.message
+    assert "params.nerve" in err.value.hint and "'patient'" in err.value.hint
 
 
 def test_no_compiler_is_a_clear_error(tmp_path, monkeypatch):

@@ -79,6 +79,76 @@ def test_paper_a_curves_pass_through_their_points_in_the_plate():
 
 
 # ------------------------------------------------------------------------------------------------ replay
+def _from_segment(points: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Each point's distance to the segment a b."""
+    t = np.clip((points - a) @ (b - a) / ((b - a) @ (b - a)), 0, 1)
+    return np.linalg.norm(points - (a + t[:, None] * (b - a)), axis=1)
+
+
+def test_a_mesh_fixture_draws_the_tool_s_capsule():
+    """tasks/sinus_channel.vf: inside_mesh on the shaft (a capsule of radius 1 mm from the tip to 30 mm up the
+    tool, 0.5 mm margin): the segment from the tip to the shaft frame, the capsule of the tool's radius around it
+    and the wire capsule of radius + margin the rows keep off the wall, all drawn at the tool (moving); the
+    channel as a wire frame (allowed)."""
+    task = vfdsl.load(TASKS_DIR / "sinus_channel.vf")
+    frames = vfdsl.compile(task, backend="interpreted").frames(task.start)
+    fixture = next(f for f in shapes.build(task, Scene(task), frames) if f.title.startswith("inside_mesh(tip)"))
+    by_name = {s.name: s for s in fixture.shapes}
+    a, b = frames["tip"].position, frames["shaft"].position
+    assert np.allclose(by_name["shaft"].vertices, [[a, b]]) and by_name["shaft"].role == "reference"
+    capsule, clearance = by_name["capsule"], by_name["clearance"]
+    assert capsule.role == "reference" and not capsule.wireframe
+    assert clearance.role == "tolerance" and clearance.wireframe
+    for shape, radius in ((capsule, 0.001), (clearance, 0.0015)):
+        assert np.allclose(_from_segment(shape.vertices, a, b), radius, atol=1e-12)
+        along = (shape.vertices - a) @ (b - a) / np.linalg.norm(b - a)     # its caps beyond both ends
+        assert -radius <= along.min() < -0.95 * radius and 0.03 + 0.95 * radius < along.max() <= 0.03 + radius
+    assert {s.name for s in fixture.shapes if s.moving} == {"shaft", "capsule", "clearance"}
+    assert by_name["mesh"].role == "allowed" and by_name["mesh"].wireframe and not by_name["mesh"].moving
+
+
+def test_a_point_tool_s_clearance_is_a_ball(tmp_path):
+    """outside_mesh without a shaft (a point) nor a radius: no segment and no capsule, the clearance a ball of the
+    margin at the tip."""
+    text = (TASKS_DIR / "bone_nerve.vf").read_text()
+    text = text.replace("require tip outside_mesh(nerve, margin = 2 mm, shaft = shaft, radius = 1 mm)",
+                        "require tip outside_mesh(nerve, margin = 2 mm)")
+    text = text.replace('import "library/fixtures.vf"', f'import "{TASKS_DIR / "library" / "fixtures.vf"}"')
+    text = text.replace('"anatomy/', f'"{TASKS_DIR / "anatomy"}/')
+    (tmp_path / "point.vf").write_text(text.replace("task bone_nerve", "task point"))
+    (tmp_path / "point.yaml").write_text((TASKS_DIR / "bone_nerve.yaml").read_text())
+    task = vfdsl.load(tmp_path / "point.vf")
+    frames = vfdsl.compile(task, backend="interpreted").frames(task.start)
+    fixture = next(f for f in shapes.build(task, Scene(task), frames) if f.title.startswith("outside_mesh(tip)"))
+    assert [s.name for s in fixture.shapes] == ["mesh", "clearance"]
+    ball = fixture.shapes[1]
+    assert np.allclose(np.linalg.norm(ball.vertices - frames["tip"].position, axis=1), 0.002)
+
+
+def test_the_viewer_moves_the_capsule_with_the_tool_and_keeps_the_mesh():
+    """In the viewer, the channel fixture's capsule nodes follow the tool as the hand pushes it (redrawn around
+    the tool's new segment); the channel's mesh node is not sent again."""
+    from vfdsl.view.app import Viewer
+    task = vfdsl.load(TASKS_DIR / "sinus_channel.vf")
+    viewer = Viewer(task, vfdsl.compile(task, backend="interpreted"), port=free_port())
+    try:
+        base = "/fixtures/c0_inside_mesh_tip"
+        assert {f"{base}/mesh", f"{base}/shaft", f"{base}/capsule", f"{base}/clearance"} <= set(viewer.state()["scene_nodes"])
+        mesh, start = viewer.nodes[f"{base}/mesh"], viewer.frames["tip"].position.copy()
+        viewer.push([0.0, 0.0, -0.01])
+        for _ in range(30):
+            viewer.tick()
+        a, b = viewer.frames["tip"].position, viewer.frames["shaft"].position
+        assert np.linalg.norm(a - start) > 1e-3                          # the tool moved (mm)
+        capsule = np.asarray(viewer.nodes[f"{base}/capsule"].vertices, dtype=float)
+        assert np.abs(_from_segment(capsule, a, b) - 0.001).max() < 1e-4     # around where the tool is now
+        assert np.allclose(np.asarray(viewer.nodes[f"{base}/shaft"].points, dtype=float).reshape(-1, 3), [a, b],
+                           atol=1e-4)
+        assert viewer.nodes[f"{base}/mesh"] is mesh
+    finally:
+        viewer.close()
+
+
 def test_replay_reads_the_simulate_trace_columns_and_picks_a_trial(tmp_path):
     joints = ["x", "y", "z", "rcm_a", "rcm_b", "roll", "insert"]
     header = ["trial", "seed", "tick", "t_s"] + [f"q.{j}_{'rad' if j.startswith('r') else 'm'}" for j in joints] \
@@ -313,6 +383,16 @@ class ViewerProcess:
         self.proc.stdin.flush()
         return json.loads(self.wait_for(STATE_PREFIX)[len(STATE_PREFIX):])
 
+    def connected(self, timeout: float = 30.0) -> dict:
+        """The viewer's state once a page has connected to it."""
+        deadline = time.monotonic() + timeout
+        state = self.command(cmd="state")
+        while state["clients"] < 1 and time.monotonic() < deadline:
+            time.sleep(0.3)
+            state = self.command(cmd="state")
+        assert state["clients"] >= 1, "the page never connected to the viewer"
+        return state
+
     def stop(self):
         if self.proc.poll() is None:
             self.proc.kill()
@@ -363,12 +443,7 @@ def test_viewer_in_headless_chromium_shows_the_task_moves_the_tool_and_stops_on_
 
         with Browser(960, 640, timeout=40) as browser:
             browser.open(url)
-            deadline = time.monotonic() + 30
-            state = viewer.command(cmd="state")
-            while state["clients"] < 1 and time.monotonic() < deadline:
-                time.sleep(0.3)
-                state = viewer.command(cmd="state")
-            assert state["clients"] >= 1, "the page never connected to the viewer"
+            state = viewer.connected()
             nodes = set(state["scene_nodes"])
             expected = {"/robot", "/robot/link_0", "/frames/tip", "/frames/tip/tool_axis", "/frames/shaft",
                         "/fixtures/c0_follows_tip", "/fixtures/c0_follows_tip/curve",
@@ -424,5 +499,31 @@ def test_viewer_in_headless_chromium_shows_the_task_moves_the_tool_and_stops_on_
         code = viewer.proc.wait(timeout=10)
         assert code in (0, 130), viewer.proc.stderr.read()
         assert time.monotonic() - started < 5
+    finally:
+        viewer.stop()
+
+
+def test_viewer_in_headless_chromium_draws_the_channel_and_the_shaft_s_capsule(chromium, tmp_path):
+    """tasks/sinus_channel.vf in a real page: the channel, the shaft's segment, its capsule and its clearance are
+    scene nodes the page draws (a picture that is not blank), and still are after the hand has moved the tool."""
+    port = free_port()
+    viewer = ViewerProcess(TASKS_DIR / "sinus_channel.vf", port)
+    base = "/fixtures/c0_inside_mesh_tip"
+    expected = {f"{base}/mesh", f"{base}/shaft", f"{base}/capsule", f"{base}/clearance", f"{base}/label"}
+    try:
+        viewer.wait_for("vfdsl view:", timeout=60)
+        with Browser(960, 640, timeout=40) as browser:
+            browser.open(f"http://127.0.0.1:{port}/")
+            state = viewer.connected()
+            assert expected <= set(state["scene_nodes"]), sorted(expected - set(state["scene_nodes"]))
+            viewer.command(cmd="push", offset=[0.0, 0.0, -0.01])
+            time.sleep(2.0)
+            after = viewer.command(cmd="state")
+            assert np.linalg.norm(np.subtract(after["tool"], state["tool"])) > 1e-3
+            assert expected <= set(after["scene_nodes"]) and after["message"] == ""
+            (tmp_path / "view.png").write_bytes(browser.screenshot())
+        import matplotlib.image
+        pixels = matplotlib.image.imread(tmp_path / "view.png")
+        assert float(pixels[:, : int(0.6 * pixels.shape[1]), :3].std()) > 0.02, "nothing drawn in the 3-D view"
     finally:
         viewer.stop()

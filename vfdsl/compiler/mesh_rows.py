@@ -14,28 +14,32 @@ is on the wrong side of has d_i < 0, and its row asks to move back by |d_i| + r 
 than r + margin + reach give no row (d = +inf: the row 0 >= -inf always holds), so the number of rows is K
 whatever the mesh, and the tick allocates nothing.
 
-**Which features.** The query (:mod:`vfdsl.mesh.external`, whose C source says how) keeps, for each part of
-the segment (its start, its end, the points between), the nearest distinct features within the cutoff, merges
-those whose directions are within 14 deg (cos > 0.97) into the nearer, and makes the K rows of the nearest of
-each part and then the nearest overall.
+**Which features.** The query (:mod:`vfdsl.mesh.external`; its C source states the answer exactly, and
+:func:`vfdsl.mesh.brute.features` computes the same from every triangle) takes, for each part of the segment
+(its start, its end, the points between), every triangle's closest point to that part within the cutoff; per
+part, in order of distance, a feature whose direction is within 14 deg (cos > 0.97) of one kept before it is
+merged into it (a feature seen through several triangles, a patch of one wall); the K rows are the nearest
+kept feature of each part, then the nearest of the other kept ones.
 
 **Bounds.** Each row is exact to first order for the plane tangent at its feature: after a step dx with the rows
 held, the true clearance is >= margin - e with
 - curvature: a concave wall of radius rho (inside a channel) comes closer than its tangent plane by |dx_t|^2 /
   (2 rho) for a tangential step dx_t;
-- merged features: a feature without a row of its own is within 28 deg of a row's direction (14 deg when merged
-  at the end; the walk may also skip a box within 14 deg of a part's nearest feature seen so far, which the end
-  may merge once more), so that row holds it to within 2 sin(14 deg) |dx| = 0.48 |dx|;
+- merged features: a feature without a row of its own was merged, once, into a nearer kept feature within 14 deg
+  of it; when that one is a row, it holds the feature to within 2 sin(7 deg) |dx| = 0.24 |dx| at the same point
+  of the segment. Between the ends the two may be at different points of the shaft, which a turn of the shaft
+  moves differently: ``vfdsl check`` keeps 0.48 |dx| (2 sin(14 deg), the figure of the query's earlier walk,
+  which merged up to twice) for this term, a margin for that, not a proof;
 - features beyond reach: none can be reached in one tick when |dx| <= reach;
-- features cut: a part keeps its 16 nearest distinct features before merging (``RAW`` in :mod:`vfdsl.mesh.external`),
-  so within reach a feature beyond its part's 16th has no row; this is not bounded by the formula below, only
-  measured (the closed-loop tests and the K measurement below run with it).
+- features cut: a kept feature that is not among the K rows (they are the nearest) has no row; this is not
+  bounded by the formula below, only measured (the closed-loop tests and the K measurement below).
 With |dx| <= v_max dt (a speed limit), e <= 0.48 v_max dt + (v_max dt)^2 / (2 rho): ``vfdsl check`` compares
 the margin with it (VF906), and reach with v_max dt.
 
-**K = 8.** Measured on tasks/sinus_channel.vf, pushing the shaft into the channel's wall in four directions for
-250 ticks each: K = 4, 8 and 16 give the same smallest clearance (0.488 mm for a 0.5 mm margin, brute force),
-although the channel offers up to 22 merged directions within reach (19 at the 99th percentile): the rows that
+**K = 8.** Measured on tasks/sinus_channel.vf (``benchmarks/mesh_k.py``), pushing the shaft into the channel's
+wall in four directions for 250 ticks each: K = 4, 8 and 16 give the same smallest clearance (0.482 mm for a
+0.5 mm margin, brute force; 0.488 mm with the query's earlier walk), although the query keeps up to 86 features
+within reach over the three parts after merging (83 at the 99th percentile, 68 at the median): the rows that
 bind are the nearest. K = 8 is twice the smallest K that held, for a corner where two walls bind at both ends of
 the shaft (3 parts x 2 walls, and 2 more); each row costs the solver, K = 16 made the tick 10% slower.
 """

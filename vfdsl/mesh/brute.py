@@ -4,7 +4,8 @@
 Point to triangle: the closest point by Voronoi regions (Ericson 5.1.5), vectorized. Segment to triangle: 0 when
 the segment crosses the triangle, else the least of its ends to the triangle and of it to the three edges
 (the closest pair of a segment and a triangle that do not meet has a point on the triangle's boundary or an end
-of the segment).
+of the segment). :func:`features` is the C query's answer (:mod:`vfdsl.mesh.external`, whose source states it)
+computed from every triangle's hits.
 """
 
 from __future__ import annotations
@@ -43,8 +44,8 @@ def point_triangles(p: np.ndarray, corners: np.ndarray) -> np.ndarray:
     return out
 
 
-def _segments(p1, q1, p2, q2) -> np.ndarray:
-    """Distances between the segment p1 q1 and segments p2[i] q2[i] (Ericson 5.1.9), vectorized."""
+def _segments(p1, q1, p2, q2) -> tuple[np.ndarray, np.ndarray]:
+    """Closest points (T x 3 each) of the segment p1 q1 and segments p2[i] q2[i] (Ericson 5.1.9), vectorized."""
     d1, d2, r = q1 - p1, q2 - p2, p1 - p2
     a, e = float(d1 @ d1), np.einsum("ij,ij->i", d2, d2)
     f, c, b = np.einsum("ij,ij->i", d2, r), r @ d1, d2 @ d1
@@ -56,33 +57,99 @@ def _segments(p1, q1, p2, q2) -> np.ndarray:
         t = np.clip(t, 0, 1)
         if a > 1e-30:
             s = np.where(low, np.clip(-c / a, 0, 1), np.where(high, np.clip((b - c) / a, 0, 1), s))
-    x = p1 + s[:, None] * d1
-    y = p2 + t[:, None] * d2
-    return np.linalg.norm(x - y, axis=1)
+    return s, p2 + t[:, None] * d2
+
+
+def _squared(x: np.ndarray) -> np.ndarray:
+    return np.einsum("ij,ij->i", x, x)
+
+
+def segment_pairs(a: np.ndarray, b: np.ndarray, corners: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The closest pair of the segment a b (not a point) and each triangle of ``corners``: the segment's parameter
+    s, the triangle's point c and the distance (T each): the nearer end (a on a tie), replaced by the point where
+    the segment crosses the face (distance 0), or else by a strictly nearer pair of the segment and an edge."""
+    ca, cb = point_triangles(a, corners), point_triangles(b, corners)
+    da2, db2 = _squared(a - ca), _squared(b - cb)
+    far = db2 < da2
+    best, s, c = np.where(far, db2, da2), far.astype(float), np.where(far[:, None], cb, ca)
+    crossed = np.zeros(len(corners), dtype=bool)
+    normal = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
+    da, db = np.einsum("ij,ij->i", a - corners[:, 0], normal), np.einsum("ij,ij->i", b - corners[:, 0], normal)
+    crossing = np.flatnonzero(da * db < 0)
+    if len(crossing):
+        t = da[crossing] / (da[crossing] - db[crossing])
+        x = a + t[:, None] * (b - a)
+        inside = np.ones(len(crossing), dtype=bool)
+        for e in range(3):     # x on the inner side of every edge, in the triangle's plane
+            edge = corners[crossing, (e + 1) % 3] - corners[crossing, e]
+            inside &= np.einsum("ij,ij->i", np.cross(edge, x - corners[crossing, e]), normal[crossing]) >= 0
+        hit = crossing[inside]
+        crossed[hit], best[hit], s[hit], c[hit] = True, 0.0, t[inside], x[inside]
+    for e in range(3):
+        t, y = _segments(a, b, corners[:, e], corners[:, (e + 1) % 3])
+        d2 = _squared(a + t[:, None] * (b - a) - y)
+        nearer = (d2 < best) & ~crossed
+        best, s, c = np.where(nearer, d2, best), np.where(nearer, t, s), np.where(nearer[:, None], y, c)
+    return s, c, np.sqrt(best)
 
 
 def segment_distances(a: np.ndarray, b: np.ndarray, vertices: np.ndarray, triangles: np.ndarray) -> np.ndarray:
     """Distance from the segment a b (a point when a = b) to each triangle."""
     corners = vertices[triangles]
     a, b = np.asarray(a, float), np.asarray(b, float)
-    best = np.linalg.norm(point_triangles(a, corners) - a, axis=1)
     if np.allclose(a, b):
-        return best
-    best = np.minimum(best, np.linalg.norm(point_triangles(b, corners) - b, axis=1))
-    for e in range(3):
-        best = np.minimum(best, _segments(a, b, corners[:, e], corners[:, (e + 1) % 3]))
+        return np.linalg.norm(point_triangles(a, corners) - a, axis=1)
+    return segment_pairs(a, b, corners)[2]
+
+
+def features(a, b, vertices: np.ndarray, triangles: np.ndarray, cutoff: float, side: float, k: int,
+             similar: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The C query's answer (d[k], s[k], u[3 x k]; see :mod:`vfdsl.mesh.external`) from every triangle's hits:
+    its closest point to a (part 0) and to b (part 2), and its closest pair with the segment when that pair's
+    point is strictly between a and b (part 1), within ``cutoff``; per part in the order (distance, part, c, s),
+    a hit within ``similar`` (cosine) of one kept before it is merged; the rows are the first kept hit of each
+    part, then the nearest others. A part's side is read here from the winding number at its first hit's point
+    (the query reads pseudo-normals: the same on a closed, consistently oriented mesh). The same answer up to
+    rounding: where two hits' distances differ by rounding only (a shaft exactly parallel to a flat wall), which
+    of them comes first may differ."""
+    a, b = np.asarray(a, float), np.asarray(b, float)
+    corners = vertices[triangles]
     normal = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
-    da, db = np.einsum("ij,ij->i", a - corners[:, 0], normal), np.einsum("ij,ij->i", b - corners[:, 0], normal)
-    crossing = np.flatnonzero(da * db < 0)
-    if len(crossing):
-        s = da[crossing] / (da[crossing] - db[crossing])
-        x = a + s[:, None] * (b - a)
-        c, n = corners[crossing], normal[crossing]
-        inside = np.ones(len(crossing), dtype=bool)
-        for e in range(3):     # x on the inner side of every edge, in the triangle's plane
-            inside &= np.einsum("ij,ij->i", np.cross(c[:, (e + 1) % 3] - c[:, e], x - c[:, e]), n) >= 0
-        best[crossing[inside]] = 0.0
-    return best
+    normal /= np.linalg.norm(normal, axis=1, keepdims=True)
+    hits = []                                           # (dist, part, c0, c1, c2, s, x, u)
+    ends = [(0, a)] if np.array_equal(a, b) else [(0, a), (2, b)]
+    found = [(part, float(part == 2), point_triangles(x, corners), np.broadcast_to(x, corners.shape[:1] + (3,)))
+             for part, x in ends]
+    if len(ends) == 2:
+        s, c, _ = segment_pairs(a, b, corners)
+        inner = (s > 0) & (s < 1)
+        found.append((1, s[inner], c[inner], a + s[inner, None] * (b - a), normal[inner]))
+    for entry in found:
+        part, s, c, x = entry[:4]
+        faces = entry[4] if part == 1 else normal
+        dist = np.sqrt(_squared(x - c))
+        for i in np.flatnonzero(dist <= cutoff):
+            u = (x[i] - c[i]) / dist[i] if dist[i] > 1e-12 else side * faces[i]
+            hits.append((dist[i], part, *c[i], float(np.broadcast_to(s, dist.shape)[i]), x[i], u))
+    hits.sort(key=lambda h: h[:6])
+    kept: dict[int, list] = {0: [], 1: [], 2: []}
+    for hit in hits:
+        if all(float(other[7] @ hit[7]) <= similar for other in kept[hit[1]]):
+            kept[hit[1]].append(hit)
+    signs = {}
+    for part, chosen in kept.items():
+        if chosen:
+            first = chosen[0]
+            inside = first[0] > 0 and winding_number(first[6], vertices, triangles) > 0.5
+            signs[part] = 1.0 if first[0] == 0 or inside == (side < 0) else -1.0
+    rows = [chosen[0] for chosen in kept.values() if chosen][:k]
+    rows += sorted((h for chosen in kept.values() for h in chosen[1:]), key=lambda h: h[:6])[:k - len(rows)]
+    rows.sort(key=lambda h: h[:6])
+    d, s, u = np.full(k, np.inf), np.zeros(k), np.zeros((3, k))
+    for i, hit in enumerate(rows):
+        sign = signs[hit[1]] if hit[0] > 1e-12 else 1.0
+        d[i], s[i], u[:, i] = sign * hit[0], hit[5], sign * hit[7]
+    return d, s, u
 
 
 def winding_number(p, vertices: np.ndarray, triangles: np.ndarray) -> float:

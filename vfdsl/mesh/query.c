@@ -11,22 +11,37 @@
  *     res[2] u[3K]     unit direction (column per feature) from the feature toward the free side at x
  *   Unused entries (fewer than K features within the cutoff): d = +inf, s = 0, u = 0.
  *
- * The rows: the features (faces, edges, vertices of the triangles) near the segment, each with the segment's
- * closest point to it and, for a segment, also with each end of the segment (a "part": start, between, end).
- * The walk keeps, per part, the VFM_RAW nearest distinct features (a feature seen through several triangles
- * counts once, keyed by its vertices): a box is skipped when a lower bound of its distance to every part (the
- * ends: exact point-box distances) exceeds the cutoff or that part's VFM_RAW-th distance, or when the box lies
- * within the merging cone (below) of the part's nearest feature seen so far, and farther. Then, nearest first,
- * a feature whose direction u is within VFM_SIMILAR (cosine) of one kept in its part is merged into it, and of
- * what remains the nearest of each part and then the nearest overall make the K rows.
- * Which side of the surface a point of the segment is on comes from the angle-weighted pseudo-normal
- * (Baerentzen & Aanaes 2005) of its nearest feature, which is right at faces, edges and vertices of a closed,
- * consistently oriented mesh; every feature of that part takes that side (the segment's start, its end, and
- * for the points between, the side of the nearest of them). The BVH of axis-aligned boxes (built at compile
- * time) is walked near-child first, with a fixed stack, after the leaves nearest the segment's ends and three
- * inner points (their features fill the pools early, so that the walk prunes early; a feature seen twice counts
- * once); the pools live on the C stack: nothing is allocated, the
- * function is reentrant (iw, w and mem are unused).
+ * The answer (vfdsl.mesh.brute.features computes the same by brute force over every triangle):
+ * - hits: each triangle gives up to three, one per part of the segment: its closest point to the segment's start
+ *   a (part 0), to its end b (part 2), and the closest pair of the segment and the triangle when the segment's
+ *   point of that pair lies strictly between a and b (part 1). A hit is its distance, its parameter s, its point
+ *   c on the triangle and its direction u = (x - c) / |x - c| from c to the segment's point x (touching, at a
+ *   distance <= 1e-12: the triangle's normal times side). A point (a = b) has part 0 only. Hits farther than
+ *   the cutoff are dropped.
+ * - order: by distance, then part, then the coordinates of c, then s (a total order up to repeats of a hit).
+ * - merging: per part, in that order, a hit is kept unless its u is within VFM_SIMILAR (cosine) of a hit kept
+ *   before it in its part (a feature seen through several triangles, a patch of one wall: one row).
+ * - rows: the first kept hit of each part, then the nearest of the other kept hits, K in all, in that order.
+ * - side: the side of a part's point comes from the angle-weighted pseudo-normal (Baerentzen & Aanaes 2005) of
+ *   its nearest feature (face, edge or vertex) on the mesh, which is right at faces, edges and vertices of a
+ *   closed, consistently oriented mesh: for an end, its first hit's; between the ends, the first hit's point x
+ *   is checked against every triangle within that hit's distance. The part's other hits take that side.
+ *
+ * How: a best-first walk of a BVH of oriented boxes (vfdsl/mesh/tables.py), one priority queue of boxes and hits
+ * keyed by distance, a box by a lower bound of its hits' distances over the parts it may still give a kept hit
+ * to (exact point-box and segment-box distances in the box's frame): hits come out in the order above, so each
+ * is merged or kept as it comes out; a box is expanded as soon as it is ahead of the queue (the order in which
+ * boxes are expanded does not change the answer, only how soon the walk stops). A part is done when it has K
+ * kept hits, or one and K kept hits in all (its later hits could not be rows: they are farther than every kept
+ * hit), and the walk stops when every part is done. A box is skipped for a part when it is beyond the cutoff or
+ * when every direction a hit of that part in it could have is within VFM_SIMILAR of one kept hit of the part
+ * (see vfm_dominated: they would all be merged, kept hits being nearer); a hit is dropped for the same reason.
+ * The walk's memory (vfm_walk, with a queue of VFM_HEAP entries) is the work vector w the caller gives (CasADi
+ * sizes it by @NAME@_work and allocates it with the caller's work arrays: once per controller); every call
+ * writes what it reads first, so no call depends on another. When the queue is full, its farthest entry is
+ * dropped and the walk stops before that distance (the horizon); the rest of the answer is then found one kept
+ * hit at a time, each the first hit after the last taken, by depth-first walks with a fixed stack: the same
+ * answer. Nothing is allocated; iw and mem are unused.
  */
 #include <math.h>
 
@@ -39,32 +54,54 @@
 #ifndef VFM_EXPORT
 #define VFM_EXPORT __attribute__((visibility("default")))
 #endif
+#ifndef VFM_HEAP
+#define VFM_HEAP 1024
+#endif
 
 #define VFM_STACK 128
+#define VFM_TOUCH 1e-12
 
 typedef struct {
   double dist;      /* unsigned distance */
-  double s;
-  double u[3];      /* unit from the feature to the segment's point (touching: the face's normal times side) */
-  long long key;    /* 3 x the feature's key + part */
-  int part;         /* where on the segment: 0 its start, 2 its end, 1 between */
-  int touching;
+  double s;         /* the segment's point x = a + s (b - a) */
+  double c[3];      /* the point on the triangle */
+  double u[3];      /* unit from c to x (touching: the face's normal times side) */
+  int t, region;    /* triangle and feature: 0 face, 1 + e edge e, 4 + i vertex i (vfm_point_triangle) */
+  int part;         /* 0 the segment's start, 2 its end, 1 between */
 } vfm_hit;
 
 typedef struct {
-  vfm_hit pool[3][VFM_RAW];   /* per part, the nearest distinct features */
-  int count[3];
-  double worst[3];     /* the farthest in a full pool (else the cutoff) */
-  double nearest[3];   /* per part, the distance of the nearest feature seen, */
-  double near_u[3][3]; /* its direction u, */
-  double side[3];      /* and +1 when the segment's point is on the free side of it, else -1 */
-} vfm_found;
+  double key;       /* a box: a lower bound of its hits' distances; a hit: its distance */
+  int ref;          /* >= 0 a node; < 0 the hit in slot -1 - ref */
+  int mask;         /* a box: the parts (bit p) it may give a kept hit to, and (bits 8 p ...) the number of hits
+                       each part had kept when it was queued */
+} vfm_item;
+
+typedef struct {
+  const double *a, *b;
+  double ab[3], ab2, cutoff, side;
+  int point, parts;                 /* parts: 1 for a point, 7 for a segment */
+  vfm_item heap[VFM_HEAP];
+  vfm_hit slot[VFM_HEAP];
+  int size, used, nfree, free_slot[VFM_HEAP];
+  double horizon;                   /* entries at or beyond it may have been dropped */
+  int successor;                    /* the depth-first mode: hits after `after`, the first in `best` */
+  vfm_hit leaf[3 * VFM_LEAF];       /* the best-first mode: a leaf's hits, before they are taken or queued */
+  int nleaf;
+  vfm_hit after, best;
+  int found;
+  vfm_hit kept[3][VFM_K];
+  int count[3], total;
+  double part_side[3];
+} vfm_walk;
 
 static double vfm_dot(const double* a, const double* b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
 
 static double vfm_dotf(const double* a, const float* b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
 
 static double vfm_clamp01(double x) { return x < 0 ? 0 : (x > 1 ? 1 : x); }
+
+static int vfm_is_leaf(int node) { return vfm_nodes[2 * node] < 0; }
 
 /* Closest point on triangle (a, b, c) to p (Ericson, Real-Time Collision Detection, 5.1.5); region:
  * 0 face, 1 + e edge e (edges (0,1), (1,2), (2,0)), 4 + i vertex i. */
@@ -123,279 +160,529 @@ static void vfm_segment_segment(const double* p1, const double* q1, const double
   else if (*t > 1) { *t = 1; *s = vfm_clamp01((b - c) / a); }
 }
 
-static long long vfm_edge_key(int va, int vb) {
-  int lo = va < vb ? va : vb, hi = va < vb ? vb : va;
-  return (long long)VFM_NT + (long long)lo * VFM_NV + hi;
+static double vfm_dist2(const double* x, const double* y) {
+  double d[3] = {x[0] - y[0], x[1] - y[1], x[2] - y[2]};
+  return vfm_dot(d, d);
 }
 
-static long long vfm_vertex_key(int v) { return (long long)VFM_NT + (long long)VFM_NV * VFM_NV + v; }
-
-/* The pseudo-normal and key of feature `region` of triangle t. */
-static const float* vfm_feature(int t, int region, long long* key) {
+/* The (unnormalized) normal of triangle t, in double from its vertices. */
+static void vfm_normal(int t, double* n) {
   const int* tri = vfm_triangles + 3 * t;
-  if (region == 0) { *key = t; return vfm_face_normals + 3 * t; }
-  if (region < 4) {
-    int e = region - 1;
-    *key = vfm_edge_key(tri[e], tri[(e + 1) % 3]);
-    return vfm_edge_normals + 9 * t + 3 * e;
-  }
-  *key = vfm_vertex_key(tri[region - 4]);
-  return vfm_vertex_normals + 3 * tri[region - 4];
+  const double *p = vfm_vertices + 3 * tri[0], *q = vfm_vertices + 3 * tri[1], *r = vfm_vertices + 3 * tri[2];
+  double e1[3] = {q[0] - p[0], q[1] - p[1], q[2] - p[2]}, e2[3] = {r[0] - p[0], r[1] - p[1], r[2] - p[2]};
+  n[0] = e1[1] * e2[2] - e1[2] * e2[1];
+  n[1] = e1[2] * e2[0] - e1[0] * e2[2];
+  n[2] = e1[0] * e2[1] - e1[1] * e2[0];
 }
 
-/* Closest pair between segment a b and triangle t: segment parameter s, triangle point c, feature region; also
- * each end's own closest point (ends[0..2] for a, ends[3..5] for b), region and squared distance. */
-typedef struct {
-  double s, c[3], dist;
-  int region;
-  double end_c[2][3], end_d2[2];
-  int end_region[2];
-} vfm_pair;
-
-static void vfm_segment_triangle(const double* a, const double* b, int point, int t, vfm_pair* out) {
-  const int* tri = vfm_triangles + 3 * t;
-  const double* v[3] = {vfm_vertices + 3 * tri[0], vfm_vertices + 3 * tri[1], vfm_vertices + 3 * tri[2]};
-  const float* n = vfm_face_normals + 3 * t;
-  double best, c[3], x[3];
-  int i, e, region;
-  for (e = 0; e < 2 - point; ++e) {   /* each end of the segment to the triangle */
-    const double* p = e ? b : a;
-    vfm_point_triangle(p, v[0], v[1], v[2], out->end_c[e], &out->end_region[e]);
-    out->end_d2[e] = 0;
-    for (i = 0; i < 3; ++i) out->end_d2[e] += (p[i] - out->end_c[e][i]) * (p[i] - out->end_c[e][i]);
-  }
-  e = !point && out->end_d2[1] < out->end_d2[0];
-  best = out->end_d2[e];
-  out->s = e; out->region = out->end_region[e];
-  for (i = 0; i < 3; ++i) out->c[i] = out->end_c[e][i];
-  if (point) { out->dist = sqrt(best); return; }
-  /* the segment through the face: distance 0 */
-  double ab[3], da = 0, db = 0;
-  for (i = 0; i < 3; ++i) { ab[i] = b[i] - a[i]; da += (a[i] - v[0][i]) * n[i]; db += (b[i] - v[0][i]) * n[i]; }
-  if (da * db < 0) {
+/* The closest pair of segment a b and triangle t (v its corners), given each end's closest point ca, cb (squared
+ * distances da2, db2, regions ra, rb): the segment's parameter, the triangle's point, its region and the squared
+ * distance (0 when the segment crosses the face). */
+static double vfm_pair(const vfm_walk* w, int t, const double* const* v, const double* ca, double da2, int ra,
+                       const double* cb, double db2, int rb, double* s_out, double* c_out, int* r_out) {
+  const double *a = w->a, *b = w->b;
+  double best, c[3], x[3], n[3], da = 0, db = 0;
+  int i, e, region, far = db2 < da2;
+  best = far ? db2 : da2;
+  *s_out = far; *r_out = far ? rb : ra;
+  for (i = 0; i < 3; ++i) c_out[i] = far ? cb[i] : ca[i];
+  vfm_normal(t, n);
+  for (i = 0; i < 3; ++i) { da += (a[i] - v[0][i]) * n[i]; db += (b[i] - v[0][i]) * n[i]; }
+  if (da * db < 0) {                  /* the segment through the face: distance 0 */
     double s = da / (da - db);
-    for (i = 0; i < 3; ++i) x[i] = a[i] + s * ab[i];
+    for (i = 0; i < 3; ++i) x[i] = a[i] + s * w->ab[i];
     vfm_point_triangle(x, v[0], v[1], v[2], c, &region);
     if (region == 0) {
-      out->s = s; out->region = 0; out->dist = 0;
-      for (i = 0; i < 3; ++i) out->c[i] = x[i];
-      return;
+      *s_out = s; *r_out = 0;
+      for (i = 0; i < 3; ++i) c_out[i] = x[i];
+      return 0;
     }
   }
-  /* the segment to an edge of the triangle */
-  for (e = 0; e < 3; ++e) {
+  for (e = 0; e < 3; ++e) {           /* the segment to an edge of the triangle */
     const double *p = v[e], *q = v[(e + 1) % 3];
     double s, t2;
     vfm_segment_segment(a, b, p, q, &s, &t2);
     double d2 = 0;
     for (i = 0; i < 3; ++i) {
-      x[i] = a[i] + s * ab[i];
+      x[i] = a[i] + s * w->ab[i];
       c[i] = p[i] + t2 * (q[i] - p[i]);
       d2 += (x[i] - c[i]) * (x[i] - c[i]);
     }
     if (d2 < best) {
-      best = d2; out->s = s;
-      out->region = t2 <= 0 ? 4 + e : (t2 >= 1 ? 4 + (e + 1) % 3 : 1 + e);
-      for (i = 0; i < 3; ++i) out->c[i] = c[i];
+      best = d2; *s_out = s;
+      *r_out = t2 <= 0 ? 4 + e : (t2 >= 1 ? 4 + (e + 1) % 3 : 1 + e);
+      for (i = 0; i < 3; ++i) c_out[i] = c[i];
     }
   }
-  out->dist = sqrt(best);
+  return best;
 }
 
-/* Keep `hit` in its part's pool of the VFM_RAW nearest distinct features. */
-static void vfm_keep(vfm_found* found, const vfm_hit* hit) {
-  int p = hit->part, i, n = found->count[p];
-  vfm_hit* pool = found->pool[p];
-  if (hit->dist >= found->worst[p]) return;
-  for (i = 0; i < n; ++i) if (pool[i].key == hit->key) return;
-  if (n < VFM_RAW) {
-    pool[found->count[p]++] = *hit;
-    if (found->count[p] < VFM_RAW) return;
-  } else {
-    int far = 0;
-    for (i = 1; i < n; ++i) if (pool[i].dist > pool[far].dist) far = i;
-    pool[far] = *hit;
+/* Whether hit x comes before hit y (distance, part, c, s). */
+static int vfm_before(const vfm_hit* x, const vfm_hit* y) {
+  int i;
+  if (x->dist != y->dist) return x->dist < y->dist;
+  if (x->part != y->part) return x->part < y->part;
+  for (i = 0; i < 3; ++i) if (x->c[i] != y->c[i]) return x->c[i] < y->c[i];
+  return x->s < y->s;
+}
+
+static int vfm_done(const vfm_walk* w, int p) {
+  return w->count[p] >= VFM_K || (w->count[p] > 0 && w->total >= VFM_K);
+}
+
+/* Whether direction u is within VFM_SIMILAR of a kept hit of part p (it would be merged). */
+static int vfm_merged(const vfm_walk* w, int p, const double* u) {
+  int k;
+  for (k = 0; k < w->count[p]; ++k) if (vfm_dot(w->kept[p][k].u, u) > VFM_SIMILAR) return 1;
+  return 0;
+}
+
+/* Point j of the points whose convex hull holds node's triangles (n of them): a leaf's vertices (up to 12),
+ * else the corners of its box. */
+static int vfm_small_leaf(int node) { return vfm_is_leaf(node) && vfm_nodes[2 * node + 1] * 3 <= 12; }
+
+static int vfm_hull_size(int node) { return vfm_small_leaf(node) ? 3 * vfm_nodes[2 * node + 1] : 8; }
+
+static void vfm_hull_point(int node, int j, double* out) {
+  int i, k;
+  if (vfm_small_leaf(node)) {
+    const double* v = vfm_vertices + 3 * vfm_triangles[3 * (-1 - vfm_nodes[2 * node]) + j];
+    for (i = 0; i < 3; ++i) out[i] = v[i];
+    return;
   }
-  found->worst[p] = 0;
-  for (i = 0; i < VFM_RAW; ++i) if (pool[i].dist > found->worst[p]) found->worst[p] = pool[i].dist;
+  const double* box = vfm_boxes + 15 * node;
+  for (i = 0; i < 3; ++i) {
+    out[i] = box[i];
+    for (k = 0; k < 3; ++k) out[i] += (j >> k & 1 ? 1 : -1) * box[12 + k] * box[3 + 3 * k + i];
+  }
 }
 
-static double vfm_point_box(const double* x, const double* lo, const double* hi) {
+/* Whether every hit of part p on node's triangles would be merged into a hit kept since the part had `from`.
+ * A hit's u is the direction of y = x - c (c its point, in the hull of vfm_hull_point; x the part's point;
+ * between the ends, u is normal to the segment: y is the component of a - c normal to it), a linear image of
+ * c: the y lie in the hull of the hull points' images, and when these are all within the cone of half-angle
+ * acos(VFM_SIMILAR) less VFM_CONE_SLACK around one kept hit's u (a convex set), so are they. `gap` is a lower
+ * bound of the hits' distances: none may be touching (its u is the face's normal). The images are computed
+ * as they are needed: most boxes are told apart by their first. */
+static int vfm_dominated(const vfm_walk* w, int p, int from, int node, double gap) {
+  double y[12][3], len[12], c[3];
+  const double* x = p == 2 ? w->b : w->a;
+  int j, k, i, n, have = 0;
+  if (w->count[p] <= from || !(gap > 1e-9)) return 0;
+  n = vfm_hull_size(node);
+  for (k = from; k < w->count[p]; ++k) {
+    const double* u = w->kept[p][k].u;
+    for (j = 0; j < n; ++j) {
+      if (j == have) {
+        vfm_hull_point(node, j, c);
+        for (i = 0; i < 3; ++i) y[j][i] = x[i] - c[i];
+        if (p == 1) {
+          double t = vfm_dot(y[j], w->ab) / w->ab2;
+          for (i = 0; i < 3; ++i) y[j][i] -= t * w->ab[i];
+        }
+        len[j] = VFM_CONE_COS * sqrt(vfm_dot(y[j], y[j]));
+        ++have;
+      }
+      if (vfm_dot(u, y[j]) < len[j]) break;
+    }
+    if (j == n) return 1;
+  }
+  return 0;
+}
+
+/* x in the frame of node's oriented box (centre, axes, half-sides: vfm_boxes[15 node ...]). */
+static void vfm_local(int node, const double* x, double* y) {
+  const double* box = vfm_boxes + 15 * node;
+  double d[3] = {x[0] - box[0], x[1] - box[1], x[2] - box[2]};
+  int i;
+  for (i = 0; i < 3; ++i) y[i] = vfm_dot(box + 3 + 3 * i, d);
+}
+
+/* The distance from point y (in the box's frame) to the box of half-sides h. */
+static double vfm_point_box(const double* y, const double* h) {
   double d2 = 0;
   int i;
   for (i = 0; i < 3; ++i) {
-    double g = x[i] < lo[i] ? lo[i] - x[i] : (x[i] > hi[i] ? x[i] - hi[i] : 0);
-    d2 += g * g;
+    double g = fabs(y[i]) - h[i];
+    if (g > 0) d2 += g * g;
   }
   return sqrt(d2);
 }
 
-/* A lower bound of the distance between box `node` and the segment: the larger of the distance between the
- * box and the segment's own box, and the distance from the segment to the box's centre less its half-diagonal. */
-static double vfm_box_bound(int node, const double* a, const double* b) {
-  const double* lo = vfm_boxes + 6 * node;
-  const double* hi = lo + 3;
-  double gap2 = 0, centre[3], half2 = 0, i_s;
-  int i;
+/* The distance from segment p p + d (in the box's frame) to the box of half-sides h: the squared distance of
+ * p + t d is the sum over the axes of the squared gaps, convex and quadratic between the t where the segment
+ * crosses a side's plane; its least value on each of these pieces. */
+static double vfm_segment_box(const double* p, const double* d, const double* h) {
+  double cuts[8], best = INFINITY;
+  int n = 0, i, j, k;
+  cuts[n++] = 0;
   for (i = 0; i < 3; ++i) {
-    double slo = a[i] < b[i] ? a[i] : b[i], shi = a[i] < b[i] ? b[i] : a[i];
-    double g = slo > hi[i] ? slo - hi[i] : (lo[i] > shi ? lo[i] - shi : 0);
-    gap2 += g * g;
-    centre[i] = 0.5 * (lo[i] + hi[i]);
-    half2 += 0.25 * (hi[i] - lo[i]) * (hi[i] - lo[i]);
-  }
-  double ab[3], ac[3], ab2 = 0, proj = 0;
-  for (i = 0; i < 3; ++i) { ab[i] = b[i] - a[i]; ac[i] = centre[i] - a[i]; ab2 += ab[i] * ab[i]; proj += ab[i] * ac[i]; }
-  i_s = ab2 > 0 ? vfm_clamp01(proj / ab2) : 0;
-  double r2 = 0;
-  for (i = 0; i < 3; ++i) { double x = ac[i] - i_s * ab[i]; r2 += x * x; }
-  double sphere = sqrt(r2) - sqrt(half2), gap = sqrt(gap2);
-  return sphere > gap ? sphere : gap;
-}
-
-/* The hit of feature `region` of triangle t, closest point c, for the segment's point at s (part: 0 the start,
- * 2 the end, 1 between). The side of the point is read from the pseudo-normal of its nearest feature only (the
- * theorem holds there; a feature on the far side of a thin structure would say "through"). */
-static void vfm_offer(int t, const double* a, const double* b, double s, const double* c, int region, double dist,
-                      double side, vfm_found* found) {
-  double diff[3];
-  int i;
-  vfm_hit hit;
-  const float* normal = vfm_feature(t, region, &hit.key);
-  int part = s <= 0 ? 0 : (s >= 1 ? 2 : 1);
-  hit.key = 3 * hit.key + part;
-  hit.part = part;
-  for (i = 0; i < 3; ++i) diff[i] = a[i] + s * (b[i] - a[i]) - c[i];
-  int nearest = dist < found->nearest[part];
-  if (nearest) {
-    found->nearest[part] = dist;
-    found->side[part] = side * vfm_dotf(diff, normal) >= 0 ? 1.0 : -1.0;
-  }
-  hit.dist = dist;
-  hit.s = s;
-  hit.touching = dist <= 1e-12;
-  if (!hit.touching) {
-    for (i = 0; i < 3; ++i) hit.u[i] = diff[i] / dist;
-  } else {                            /* the face's own normal, toward the free side */
-    const float* face = vfm_face_normals + 3 * t;
-    double norm = sqrt((double)face[0] * face[0] + (double)face[1] * face[1] + (double)face[2] * face[2]);
-    for (i = 0; i < 3; ++i) hit.u[i] = side * face[i] / norm;
-  }
-  if (nearest) for (i = 0; i < 3; ++i) found->near_u[part][i] = hit.u[i];
-  vfm_keep(found, &hit);
-}
-
-/* Triangle t's hits: the segment's closest pair, and each end's own closest point (a segment parallel to a face
- * is held at both ends, so that it cannot turn into it about the one point a single row would hold). */
-static void vfm_consider(int t, const double* a, const double* b, int point, double cutoff, double side,
-                         vfm_found* found) {
-  vfm_pair pair;
-  int e;
-  vfm_segment_triangle(a, b, point, t, &pair);
-  if (pair.dist > cutoff) return;
-  vfm_offer(t, a, b, pair.s, pair.c, pair.region, pair.dist, side, found);
-  if (point) return;
-  for (e = 0; e < 2; ++e)
-    if (pair.s != e && pair.end_d2[e] <= cutoff * cutoff)
-      vfm_offer(t, a, b, e, pair.end_c[e], pair.end_region[e], sqrt(pair.end_d2[e]), side, found);
-}
-
-/* Whether every hit of part p from a box (centre m, half-diagonal r) would be merged into the part's nearest
- * hit: seen from the point x of the segment (v = x - m, for the points between: v radial to the segment's axis),
- * the box lies within the cone of half-angle acos(VFM_SIMILAR) around that hit's direction, and no nearer. */
-static int vfm_dominated(const vfm_found* found, int p, const double* v, double r) {
-  double len = sqrt(vfm_dot(v, v));
-  if (!(len > r) || len - r < found->nearest[p]) return 0;
-  double c = vfm_dot(found->near_u[p], v) / len;
-  double spread = acos(c > 1 ? 1 : (c < -1 ? -1 : c)) + asin(r / len);
-  return spread <= acos(VFM_SIMILAR);
-}
-
-/* Whether box `node` may hold a feature some part keeps: nearer than the part's cutoff or VFM_RAW-th feature
- * (the ends: exact point-box distances), and not dominated. */
-static int vfm_worth(int node, const double* a, const double* b, int point, const vfm_found* found) {
-  const double* lo = vfm_boxes + 6 * node;
-  const double* hi = lo + 3;
-  double m[3], va[3], vb[3], vr[3], ab[3], r2 = 0, ab2 = 0, t = 0;
-  int i;
-  for (i = 0; i < 3; ++i) {
-    m[i] = 0.5 * (lo[i] + hi[i]);
-    r2 += 0.25 * (hi[i] - lo[i]) * (hi[i] - lo[i]);
-    va[i] = a[i] - m[i]; vb[i] = b[i] - m[i]; ab[i] = b[i] - a[i];
-    ab2 += ab[i] * ab[i]; t -= va[i] * ab[i];
-  }
-  double r = sqrt(r2);
-  if (vfm_point_box(a, lo, hi) < found->worst[0] && !vfm_dominated(found, 0, va, r)) return 1;
-  if (point) return 0;
-  if (vfm_point_box(b, lo, hi) < found->worst[2] && !vfm_dominated(found, 2, vb, r)) return 1;
-  if (!(vfm_box_bound(node, a, b) < found->worst[1])) return 0;
-  t = ab2 > 0 ? t / ab2 : 0;              /* the axis point nearest the centre: the radial vector */
-  for (i = 0; i < 3; ++i) vr[i] = va[i] + t * ab[i];
-  return t <= 0 || t >= 1 || !vfm_dominated(found, 1, vr, r);
-}
-
-static void vfm_query(const double* a, const double* b, double cutoff, double side, vfm_found* found) {
-  int stack[VFM_STACK], top = 0, i;
-  int point = a[0] == b[0] && a[1] == b[1] && a[2] == b[2];
-  for (i = 0; i < 3; ++i) {
-    found->count[i] = 0; found->worst[i] = cutoff; found->nearest[i] = INFINITY; found->side[i] = 1;
-  }
-  for (i = 0; i < (point ? 1 : 5); ++i) {   /* seed the pools: the leaves nearest the ends and 3 inner points */
-    double x[3], f = i == 0 ? 0 : (i == 1 ? 1 : 0.25 * (i - 1));
-    int j, node = 0;
-    for (j = 0; j < 3; ++j) x[j] = a[j] + f * (b[j] - a[j]);
-    while (vfm_nodes[2 * node] >= 0) {
-      int first = vfm_nodes[2 * node], second = vfm_nodes[2 * node + 1];
-      double df = vfm_point_box(x, vfm_boxes + 6 * first, vfm_boxes + 6 * first + 3);
-      double ds = vfm_point_box(x, vfm_boxes + 6 * second, vfm_boxes + 6 * second + 3);
-      node = df <= ds ? first : second;
+    if (d[i] == 0) continue;
+    for (k = -1; k <= 1; k += 2) {
+      double t = (k * h[i] - p[i]) / d[i];
+      if (t > 0 && t < 1) cuts[n++] = t;
     }
-    for (j = -1 - vfm_nodes[2 * node]; j < -1 - vfm_nodes[2 * node] + vfm_nodes[2 * node + 1]; ++j)
-      vfm_consider(j, a, b, point, cutoff, side, found);
   }
+  cuts[n++] = 1;
+  for (i = 2; i < n - 1; ++i)
+    for (j = i; j > 1 && cuts[j] < cuts[j - 1]; --j) { double x = cuts[j]; cuts[j] = cuts[j - 1]; cuts[j - 1] = x; }
+  for (j = 0; j + 1 < n; ++j) {
+    double t0 = cuts[j], t1 = cuts[j + 1], mid = 0.5 * (t0 + t1), ab = 0, bb = 0, alpha[3], beta[3];
+    for (i = 0; i < 3; ++i) {             /* the gap on this piece: alpha + beta t */
+      double y = p[i] + mid * d[i];
+      if (y > h[i]) { alpha[i] = p[i] - h[i]; beta[i] = d[i]; }
+      else if (y < -h[i]) { alpha[i] = -h[i] - p[i]; beta[i] = -d[i]; }
+      else { alpha[i] = 0; beta[i] = 0; }
+      ab += alpha[i] * beta[i]; bb += beta[i] * beta[i];
+    }
+    double t = bb > 0 ? -ab / bb : t0, f = 0;
+    t = t < t0 ? t0 : (t > t1 ? t1 : t);
+    for (i = 0; i < 3; ++i) { double g = alpha[i] + beta[i] * t; f += g * g; }
+    if (f < best) best = f;
+  }
+  return sqrt(best);
+}
+
+/* The parts of `mask` to which box `node` may still give a kept hit (within the cutoff, not done, not
+ * dominated), and in *key the least lower bound of their hits' distances. */
+static int vfm_useful(const vfm_walk* w, int node, int mask, double* key) {
+  const double* h = vfm_boxes + 15 * node + 12;
+  double la[3], lb[3], ld[3], bound, best = INFINITY;
+  int i, p, out = 0;
+  mask &= w->parts;
+  if (mask & 3) vfm_local(node, w->a, la);
+  if (mask & 6) vfm_local(node, w->b, lb);
+  for (p = 0; p < 3; ++p) {
+    if (!(mask >> p & 1) || vfm_done(w, p)) continue;
+    if (p == 1) {
+      for (i = 0; i < 3; ++i) ld[i] = lb[i] - la[i];
+      bound = vfm_segment_box(la, ld, h);
+    } else {
+      bound = vfm_point_box(p ? lb : la, h);
+    }
+    if (bound > w->cutoff) continue;
+    if (vfm_dominated(w, p, 0, node, bound)) continue;
+    out |= 1 << p;
+    if (bound < best) best = bound;
+  }
+  *key = best;
+  return out | w->count[0] << 8 | w->count[1] << 16 | w->count[2] << 24;
+}
+
+/* A queued box's parts when it comes out: those still wanted and not dominated by a hit kept since. */
+static int vfm_still(const vfm_walk* w, const vfm_item* item) {
+  int p, mask = item->mask & 7;
+  for (p = 0; p < 3; ++p) {
+    if (!(mask >> p & 1)) continue;
+    if (vfm_done(w, p)) { mask &= ~(1 << p); continue; }
+    int from = item->mask >> (8 + 8 * p) & 255;
+    if (vfm_dominated(w, p, from, item->ref, item->key)) mask &= ~(1 << p);
+  }
+  return mask;
+}
+
+/* The queue: a 4-ary heap of items, least first (key, then boxes before hits, then the hits' order). */
+static int vfm_tie_before(const vfm_walk* w, const vfm_item* x, const vfm_item* y) {
+  if ((x->ref >= 0) != (y->ref >= 0)) return x->ref >= 0;
+  if (x->ref >= 0) return x->ref < y->ref;
+  return vfm_before(&w->slot[-1 - x->ref], &w->slot[-1 - y->ref]);
+}
+
+static int vfm_item_before(const vfm_walk* w, const vfm_item* x, const vfm_item* y) {
+  return x->key < y->key || (x->key == y->key && vfm_tie_before(w, x, y));
+}
+
+static void vfm_sift_up(vfm_walk* w, int i) {
+  vfm_item item = w->heap[i];
+  while (i > 0) {
+    int parent = (i - 1) / 4;
+    if (!vfm_item_before(w, &item, &w->heap[parent])) break;
+    w->heap[i] = w->heap[parent];
+    i = parent;
+  }
+  w->heap[i] = item;
+}
+
+static void vfm_sift_down(vfm_walk* w, int i) {
+  vfm_item item = w->heap[i];
+  for (;;) {
+    int first = 4 * i + 1, child = first, k, last = first + 4 < w->size ? first + 4 : w->size;
+    if (first >= w->size) break;
+    for (k = first + 1; k < last; ++k) if (vfm_item_before(w, &w->heap[k], &w->heap[child])) child = k;
+    if (!vfm_item_before(w, &w->heap[child], &item)) break;
+    w->heap[i] = w->heap[child];
+    i = child;
+  }
+  w->heap[i] = item;
+}
+
+static void vfm_release(vfm_walk* w, int ref) {
+  if (ref < 0) w->free_slot[w->nfree++] = -1 - ref;
+}
+
+/* Room for an item of `key`: when the queue is full, the farthest entry (this one, or one queued) is dropped and
+ * the horizon comes down to its key. Returns 0 when this item is the one dropped. */
+static int vfm_room(vfm_walk* w, double key) {
+  int i, far = 0;
+  if (key >= w->horizon) return 0;
+  if (w->size < VFM_HEAP) return 1;
+  for (i = 1; i < w->size; ++i) if (w->heap[i].key > w->heap[far].key) far = i;
+  if (key >= w->heap[far].key) { w->horizon = key; return 0; }
+  w->horizon = w->heap[far].key;
+  vfm_release(w, w->heap[far].ref);
+  w->heap[far] = w->heap[--w->size];
+  if (far < w->size) { vfm_sift_down(w, far); vfm_sift_up(w, far); }
+  return 1;
+}
+
+static void vfm_push(vfm_walk* w, vfm_item item) {
+  w->heap[w->size] = item;
+  vfm_sift_up(w, w->size++);
+}
+
+/* A hit found on a triangle: queued (best-first walk) or compared with the best so far (depth-first mode). */
+static void vfm_offer(vfm_walk* w, const vfm_hit* hit) {
+  if (hit->dist > w->cutoff || vfm_merged(w, hit->part, hit->u)) return;
+  if (w->successor) {
+    if (vfm_before(&w->after, hit) && (!w->found || vfm_before(hit, &w->best))) { w->best = *hit; w->found = 1; }
+    return;
+  }
+  w->leaf[w->nleaf++] = *hit;
+}
+
+static void vfm_queue_hit(vfm_walk* w, const vfm_hit* hit) {
+  if (!vfm_room(w, hit->dist)) return;
+  int s = w->nfree > 0 ? w->free_slot[--w->nfree] : w->used++;
+  w->slot[s] = *hit;
+  vfm_item item = {hit->dist, -1 - s, 0};
+  vfm_push(w, item);
+}
+
+static void vfm_make_hit(const vfm_walk* w, int t, int part, double s, const double* c, int region, double d2,
+                         vfm_hit* hit) {
+  int i;
+  double x[3];
+  hit->dist = sqrt(d2); hit->s = s; hit->t = t; hit->region = region; hit->part = part;
+  for (i = 0; i < 3; ++i) { hit->c[i] = c[i]; x[i] = w->a[i] + s * w->ab[i]; }
+  if (part == 0) for (i = 0; i < 3; ++i) x[i] = w->a[i];
+  if (part == 2) for (i = 0; i < 3; ++i) x[i] = w->b[i];
+  if (hit->dist > VFM_TOUCH) {
+    for (i = 0; i < 3; ++i) hit->u[i] = (x[i] - c[i]) / hit->dist;
+  } else {                            /* the face's own normal, toward the free side */
+    double n[3];
+    vfm_normal(t, n);
+    double norm = sqrt(vfm_dot(n, n));
+    for (i = 0; i < 3; ++i) hit->u[i] = w->side * n[i] / norm;
+  }
+}
+
+/* Triangle t's hits for the parts of `mask`. */
+static void vfm_triangle(vfm_walk* w, int t, int mask) {
+  const int* tri = vfm_triangles + 3 * t;
+  const double* v[3] = {vfm_vertices + 3 * tri[0], vfm_vertices + 3 * tri[1], vfm_vertices + 3 * tri[2]};
+  double ca[3], cb[3], da2 = 0, db2 = 0;
+  int ra = 0, rb = 0, p;
+  vfm_hit hit;
+  for (p = 0; p < 3; ++p) if (vfm_done(w, p)) mask &= ~(1 << p);
+  if (mask & 3) { vfm_point_triangle(w->a, v[0], v[1], v[2], ca, &ra); da2 = vfm_dist2(w->a, ca); }
+  if (mask & 6) { vfm_point_triangle(w->b, v[0], v[1], v[2], cb, &rb); db2 = vfm_dist2(w->b, cb); }
+  if ((mask & 1) && da2 <= w->cutoff * w->cutoff) {
+    vfm_make_hit(w, t, 0, 0, ca, ra, da2, &hit);
+    vfm_offer(w, &hit);
+  }
+  if ((mask & 4) && db2 <= w->cutoff * w->cutoff) {
+    vfm_make_hit(w, t, 2, 1, cb, rb, db2, &hit);
+    vfm_offer(w, &hit);
+  }
+  if (mask & 2) {
+    double s, c[3];
+    int region;
+    double d2 = vfm_pair(w, t, v, ca, da2, ra, cb, db2, rb, &s, c, &region);
+    if (s > 0 && s < 1 && d2 <= w->cutoff * w->cutoff) {
+      vfm_make_hit(w, t, 1, s, c, region, d2, &hit);
+      vfm_offer(w, &hit);
+    }
+  }
+}
+
+/* The pseudo-normal of feature `region` of triangle t. */
+static const float* vfm_feature_normal(int t, int region) {
+  const int* tri = vfm_triangles + 3 * t;
+  if (region == 0) return vfm_face_normals + 3 * t;
+  if (region < 4) return vfm_edge_normals + 9 * t + 3 * (region - 1);
+  return vfm_vertex_normals + 3 * tri[region - 4];
+}
+
+/* +1 when x is on the free side of feature `region` of triangle t (closest point c), else -1. */
+static double vfm_side_of(const vfm_walk* w, const double* x, const double* c, int t, int region) {
+  double diff[3] = {x[0] - c[0], x[1] - c[1], x[2] - c[2]};
+  return w->side * vfm_dotf(diff, vfm_feature_normal(t, region)) >= 0 ? 1.0 : -1.0;
+}
+
+/* A hit comes out of the queue in order: merged, or kept (the first of an end's part sets its side: it is the
+ * end's nearest feature). */
+static void vfm_take(vfm_walk* w, const vfm_hit* hit) {
+  int p = hit->part;
+  if (vfm_done(w, p) || vfm_merged(w, p, hit->u)) return;
+  if (w->count[p] == 0 && p != 1) w->part_side[p] = vfm_side_of(w, p ? w->b : w->a, hit->c, hit->t, hit->region);
+  w->kept[p][w->count[p]++] = *hit;
+  ++w->total;
+}
+
+/* The side of the points between the ends: that of the first hit's point x, from x's nearest feature, which is the
+ * hit's own unless a triangle whose pair with the segment is at an end is nearer to x (a depth-first search
+ * within the hit's distance). */
+static void vfm_inner_side(vfm_walk* w) {
+  const vfm_hit* first = &w->kept[1][0];
+  double x[3], best2, c[3], y[3], near[3];
+  int stack[VFM_STACK], top = 0, i, t, t_best = first->t, r_best = first->region, region;
+  for (i = 0; i < 3; ++i) { x[i] = w->a[i] + first->s * w->ab[i]; near[i] = first->c[i]; }
+  best2 = first->dist * first->dist;
   stack[top++] = 0;
   while (top > 0) {
     int node = stack[--top];
-    if (!vfm_worth(node, a, b, point, found)) continue;
-    int first = vfm_nodes[2 * node], second = vfm_nodes[2 * node + 1];
-    if (first < 0) {                  /* a leaf: triangles -1 - first ... + second */
-      int t;
-      for (t = -1 - first; t < -1 - first + second; ++t) vfm_consider(t, a, b, point, cutoff, side, found);
+    vfm_local(node, x, y);
+    double bound = vfm_point_box(y, vfm_boxes + 15 * node + 12);
+    if (!(bound * bound < best2)) continue;
+    if (vfm_is_leaf(node)) {
+      int from = -1 - vfm_nodes[2 * node];
+      for (t = from; t < from + vfm_nodes[2 * node + 1]; ++t) {
+        const int* tri = vfm_triangles + 3 * t;
+        vfm_point_triangle(x, vfm_vertices + 3 * tri[0], vfm_vertices + 3 * tri[1], vfm_vertices + 3 * tri[2], c,
+                           &region);
+        double d2 = vfm_dist2(x, c);
+        if (d2 < best2) { best2 = d2; t_best = t; r_best = region; for (i = 0; i < 3; ++i) near[i] = c[i]; }
+      }
       continue;
     }
-    if (top + 2 > VFM_STACK) continue;   /* unreachable: the builder bounds the depth below VFM_STACK */
-    double bf = vfm_box_bound(first, a, b), bs = vfm_box_bound(second, a, b);
-    stack[top++] = bf <= bs ? second : first;   /* the nearer child is popped first */
-    stack[top++] = bf <= bs ? first : second;
+    if (top + 2 > VFM_STACK) continue;   /* unreachable: the builder bounds the depth below VFM_STACK / 2 */
+    stack[top++] = vfm_nodes[2 * node + 1];
+    stack[top++] = vfm_nodes[2 * node];
   }
+  w->part_side[1] = vfm_side_of(w, x, near, t_best, r_best);
 }
 
-/* The K rows from the pools: per part nearest first, a feature within VFM_SIMILAR of a kept one is merged into
- * it; then the nearest of each part, then the nearest of the rest. */
-static int vfm_rows(vfm_found* found, vfm_hit* rows) {
-  vfm_hit kept[3 * VFM_RAW];
-  int n = 0, p, i, j, k, chosen = 0;
-  for (p = 0; p < 3; ++p) {
-    vfm_hit* pool = found->pool[p];
-    int m = found->count[p], first = n;
-    for (i = 1; i < m; ++i)
-      for (j = i; j > 0 && pool[j].dist < pool[j - 1].dist; --j) { vfm_hit h = pool[j]; pool[j] = pool[j - 1]; pool[j - 1] = h; }
-    for (i = 0; i < m; ++i) {
-      for (k = first; k < n && vfm_dot(kept[k].u, pool[i].u) <= VFM_SIMILAR; ++k) {}
-      if (k == n) kept[n++] = pool[i];
+static int vfm_all_done(const vfm_walk* w) {
+  int p;
+  for (p = 0; p < 3; ++p) if ((w->parts >> p & 1) && !vfm_done(w, p)) return 0;
+  return 1;
+}
+
+static void vfm_leaf(vfm_walk* w, int node, int mask) {
+  int t, first = -1 - vfm_nodes[2 * node];
+  for (t = first; t < first + vfm_nodes[2 * node + 1]; ++t) vfm_triangle(w, t, mask);
+}
+
+/* The best-first mode's leaf: its hits in order; each that comes before everything queued is taken at once
+ * (as it would be when it came out of the queue), the others are queued. */
+static void vfm_leaf_hits(vfm_walk* w, int node, int mask) {
+  int i, j;
+  w->nleaf = 0;
+  vfm_leaf(w, node, mask);
+  for (i = 1; i < w->nleaf; ++i)
+    for (j = i; j > 0 && vfm_before(&w->leaf[j], &w->leaf[j - 1]); --j) {
+      vfm_hit h = w->leaf[j]; w->leaf[j] = w->leaf[j - 1]; w->leaf[j - 1] = h;
     }
-    if (n > first && chosen < VFM_K) { rows[chosen++] = kept[first]; kept[first].dist = -1; }
+  for (i = 0; i < w->nleaf; ++i) {
+    const vfm_hit* hit = &w->leaf[i];
+    const vfm_item* top = &w->heap[0];
+    if (!(hit->dist < w->horizon)) break;
+    if (w->size > 0 && !(hit->dist < top->key ||
+                         (hit->dist == top->key && top->ref < 0 && vfm_before(hit, &w->slot[-1 - top->ref])))) break;
+    vfm_take(w, hit);
   }
-  while (chosen < VFM_K) {
+  for (; i < w->nleaf; ++i) if (!vfm_merged(w, w->leaf[i].part, w->leaf[i].u)) vfm_queue_hit(w, &w->leaf[i]);
+}
+
+/* Depth-first mode: the first hit after w->after that would be kept, into w->best (returns whether found). */
+static int vfm_next(vfm_walk* w) {
+  int stack[VFM_STACK], masks[VFM_STACK], top = 0, mask;
+  double key;
+  w->successor = 1;
+  w->found = 0;
+  stack[top] = 0; masks[top++] = w->parts;
+  while (top > 0) {
+    int node = stack[--top];
+    mask = vfm_useful(w, node, masks[top], &key) & 7;
+    if (!mask || (w->found && key > w->best.dist)) continue;
+    if (vfm_is_leaf(node)) { vfm_leaf(w, node, mask); continue; }
+    if (top + 2 > VFM_STACK) continue;   /* unreachable: the builder bounds the depth below VFM_STACK / 2 */
+    stack[top] = vfm_nodes[2 * node + 1]; masks[top++] = mask;
+    stack[top] = vfm_nodes[2 * node]; masks[top++] = mask;
+  }
+  w->successor = 0;
+  return w->found;
+}
+
+static void vfm_query(vfm_walk* w, const double* a, const double* b, double cutoff, double side) {
+  int i, mask;
+  double key;
+  w->a = a; w->b = b; w->cutoff = cutoff; w->side = side;
+  for (i = 0; i < 3; ++i) { w->ab[i] = b[i] - a[i]; w->count[i] = 0; w->part_side[i] = 1; }
+  w->ab2 = vfm_dot(w->ab, w->ab);
+  w->point = a[0] == b[0] && a[1] == b[1] && a[2] == b[2];
+  w->parts = w->point ? 1 : 7;
+  w->total = 0; w->size = 0; w->used = 0; w->nfree = 0; w->horizon = INFINITY; w->successor = 0;
+  mask = vfm_useful(w, 0, w->parts, &key);
+  vfm_item item = {key, 0, mask};
+  int held = (mask & 7) != 0;         /* an item in hand, not queued: the walk goes on down the nearer child */
+  while (!vfm_all_done(w)) {
+    if (!held) {
+      if (w->size == 0 || w->heap[0].key >= w->horizon) break;
+      item = w->heap[0];
+      w->heap[0] = w->heap[--w->size];
+      if (w->size > 0) vfm_sift_down(w, 0);
+    }
+    held = 0;
+    if (item.ref < 0) {
+      vfm_hit hit = w->slot[-1 - item.ref];
+      vfm_release(w, item.ref);
+      vfm_take(w, &hit);
+      continue;
+    }
+    mask = vfm_still(w, &item);
+    if (!mask) continue;
+    if (vfm_is_leaf(item.ref)) { vfm_leaf_hits(w, item.ref, mask); continue; }
+    vfm_item child[2];
+    for (i = 0; i < 2; ++i) {
+      child[i].ref = vfm_nodes[2 * item.ref + i];
+      child[i].mask = vfm_useful(w, child[i].ref, mask, &key);
+      child[i].key = key > item.key ? key : item.key;
+    }
+    int near = child[1].key < child[0].key;
+    for (i = 0; i < 2; ++i) {         /* the farther child first: the nearer may stay in hand */
+      vfm_item* next = &child[i == 0 ? !near : near];
+      if (!(next->mask & 7) || next->key >= w->horizon) continue;
+      if (i == 1 && (w->size == 0 || next->key <= w->heap[0].key)) { item = *next; held = 1; }
+      else if (vfm_room(w, next->key)) vfm_push(w, *next);
+    }
+  }
+  if (w->horizon < INFINITY) {        /* the queue overflowed: the rest, one kept hit at a time */
+    w->after.dist = w->horizon; w->after.part = -1;
+    while (!vfm_all_done(w) && vfm_next(w)) {
+      vfm_take(w, &w->best);
+      w->after = w->best;
+    }
+  }
+  if (w->count[1] > 0) vfm_inner_side(w);
+}
+
+/* The K rows: the first kept hit of each part, then the nearest of the others; in the hits' order. */
+static int vfm_rows(const vfm_walk* w, vfm_hit* rows) {
+  int next[3] = {0, 0, 0}, n = 0, p, i, j;
+  for (p = 0; p < 3; ++p)
+    if (w->count[p] > 0 && n < VFM_K) { rows[n++] = w->kept[p][0]; next[p] = 1; }
+  while (n < VFM_K) {
     int best = -1;
-    for (k = 0; k < n; ++k) if (kept[k].dist >= 0 && (best < 0 || kept[k].dist < kept[best].dist)) best = k;
+    for (p = 0; p < 3; ++p)
+      if (next[p] < w->count[p] && (best < 0 || vfm_before(&w->kept[p][next[p]], &w->kept[best][next[best]])))
+        best = p;
     if (best < 0) break;
-    rows[chosen++] = kept[best];
-    kept[best].dist = -1;
+    rows[n++] = w->kept[best][next[best]++];
   }
-  for (i = 1; i < chosen; ++i)       /* nearest first: rows keep a stable order */
-    for (j = i; j > 0 && rows[j].dist < rows[j - 1].dist; --j) { vfm_hit h = rows[j]; rows[j] = rows[j - 1]; rows[j - 1] = h; }
-  return chosen;
+  for (i = 1; i < n; ++i)
+    for (j = i; j > 0 && vfm_before(&rows[j], &rows[j - 1]); --j) { vfm_hit h = rows[j]; rows[j] = rows[j - 1]; rows[j - 1] = h; }
+  return n;
 }
 
 /* CasADi's compact sparsity of a dense n x m column: {n, m, colind[m + 1], row[n m]}, filled once. */
@@ -421,23 +708,26 @@ VFM_EXPORT const casadi_int* @NAME@_sparsity_out(casadi_int i) {
   return i == 2 ? vfm_dense(vfm_dense3k, 3, VFM_K) : vfm_dense(vfm_densek, VFM_K, 1);
 }
 
+/* The walk's memory is the caller's work vector w (CasADi allocates it with the caller's work: once per
+ * controller): written before it is read on every call, so no call sees another's. */
 VFM_EXPORT int @NAME@_work(casadi_int* sz_arg, casadi_int* sz_res, casadi_int* sz_iw, casadi_int* sz_w) {
   if (sz_arg) *sz_arg = 3;
   if (sz_res) *sz_res = 3;
   if (sz_iw) *sz_iw = 0;
-  if (sz_w) *sz_w = 0;
+  if (sz_w) *sz_w = (casadi_int)((sizeof(vfm_walk) + sizeof(casadi_real) - 1) / sizeof(casadi_real));
   return 0;
 }
 
 VFM_EXPORT int @NAME@(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
-  vfm_found found;
+  vfm_walk* walk = (vfm_walk*)w;
   vfm_hit list[VFM_K];
   int i, j, n;
-  (void)iw; (void)w; (void)mem;
-  vfm_query(arg[0], arg[1], arg[2][0], arg[2][1], &found);
-  n = vfm_rows(&found, list);
+  (void)iw; (void)mem;
+  if (!walk) return 1;
+  vfm_query(walk, arg[0], arg[1], arg[2][0], arg[2][1]);
+  n = vfm_rows(walk, list);
   for (i = 0; i < VFM_K; ++i) {
-    double sign = i < n && !list[i].touching ? found.side[list[i].part] : 1.0;
+    double sign = i < n && list[i].dist > VFM_TOUCH ? walk->part_side[list[i].part] : 1.0;
     if (res[0]) res[0][i] = i < n ? sign * list[i].dist : INFINITY;
     if (res[1]) res[1][i] = i < n ? list[i].s : 0;
     if (res[2]) for (j = 0; j < 3; ++j) res[2][3 * i + j] = i < n ? sign * list[i].u[j] : 0;

@@ -1,10 +1,16 @@
 """The tables of the proximity query, built once per mesh with NumPy: a BVH and pseudo-normals.
 
 **BVH.** Triangles are split recursively at the median of their centroids along the longest side of the
-centroids' box, down to LEAF triangles; each node keeps the box of its triangles (min, max corners). Nodes are
-numbered in depth-first order; an inner node stores its two children, a leaf (-1 - first, count) for its
-triangles, which are renumbered so a leaf's triangles are contiguous. Median splits bound the depth by
-ceil(log2(T / LEAF)) + 1 (18 for 1M triangles), far below the query's fixed stack.
+centroids' box, down to LEAF triangles. Nodes are numbered in depth-first order; an inner node stores its two
+children, a leaf (-1 - first, count) for its triangles, which are renumbered so a leaf's triangles are
+contiguous. Median splits bound the depth by ceil(log2(T / LEAF)) + 1 (18 for 1M triangles), far below the
+query's fixed stack.
+
+Each node keeps an oriented box holding its triangles: axes from the principal directions of its vertices
+(or the world's axes when their box is smaller), centre and half-sides from the vertices' extents along them,
+widened by PAD so that the query's rounding cannot put a triangle outside. Anatomy is curved and seldom
+axis-aligned: a leaf of a wall is a thin oriented box, and the query's distance bounds (exact point-box and
+segment-box distances in the box's frame) stay close to the triangles' own distances.
 
 **Pseudo-normals** (Baerentzen & Aanaes, IEEE TVCG 2005) give the side of a point x relative to its closest
 feature c of a closed, consistently oriented mesh: sign((x - c) . n_c) with n_c the face normal (face), the
@@ -19,6 +25,8 @@ from dataclasses import dataclass
 import numpy as np
 
 LEAF = 4
+PAD = 1e-12
+"""m: the oriented boxes' half-sides are widened by this (a picometre: rounding in the query is far below)."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -29,7 +37,7 @@ class Tables:
     edge_normals: np.ndarray      # T x 9: per triangle edge (0,1), (1,2), (2,0), unit
     vertex_normals: np.ndarray    # V x 3, unit
     nodes: np.ndarray             # N x 2 int: children, or (-1 - first, count)
-    boxes: np.ndarray             # N x 6: min corner, max corner
+    boxes: np.ndarray             # N x 15: centre, axes (3 rows of a rotation), half-sides
     depth: int
 
 
@@ -60,23 +68,41 @@ def pseudo_normals(vertices: np.ndarray, triangles: np.ndarray) -> tuple[np.ndar
     return faces, edge_normals, _unit(vertex_normals)
 
 
+def oriented_boxes(points: np.ndarray, starts: np.ndarray) -> np.ndarray:
+    """Boxes (n x 15: centre, axes as 3 rows, half-sides) around groups of ``points``, group i from row starts[i]
+    to the next start: per group the box along its points' principal axes or along the world's, the smaller."""
+    counts = np.diff(np.append(starts, len(points)))
+    mean = np.add.reduceat(points, starts) / counts[:, None]
+    centred = points - np.repeat(mean, counts, axis=0)
+    cov = np.add.reduceat(centred[:, :, None] * centred[:, None, :], starts)
+    principal = np.linalg.eigh(cov)[1].transpose(0, 2, 1)[:, ::-1]          # rows, largest first
+    best = None
+    for axes in (np.broadcast_to(np.eye(3), principal.shape), principal):
+        local = np.einsum("nij,nj->ni", np.repeat(axes, counts, axis=0), centred)
+        lo, hi = np.minimum.reduceat(local, starts), np.maximum.reduceat(local, starts)
+        half = 0.5 * (hi - lo)
+        centre = mean + np.einsum("ni,nij->nj", 0.5 * (lo + hi), axes)
+        box = np.concatenate([centre, axes.reshape(-1, 9), half + PAD], axis=1)
+        if best is None:
+            best = box
+        else:
+            smaller = np.prod(half + PAD, axis=1) < np.prod(best[:, 12:] , axis=1)
+            best[smaller] = box[smaller]
+    return best
+
+
 def build_tables(vertices: np.ndarray, triangles: np.ndarray) -> Tables:
     corners = vertices[triangles]
     centroids = corners.mean(axis=1)
-    lows, highs = corners.min(axis=1), corners.max(axis=1)
     order = np.arange(len(triangles))
-    nodes: list[list[int]] = []
-    boxes: list[np.ndarray] = []
-    depth = 0
+    nodes: list[list[int]] = [[0, 0]]
+    spans: list[tuple[int, int]] = [(0, len(order))]
+    levels: list[int] = [1]
     # (node index, first, end, depth): children are written when their parent is split
     pending = [(0, 0, len(order), 1)]
-    nodes.append([0, 0])
-    boxes.append(np.zeros(6))
     while pending:
         node, first, end, level = pending.pop()
-        depth = max(depth, level)
         span = order[first:end]
-        boxes[node] = np.concatenate([lows[span].min(axis=0), highs[span].max(axis=0)])
         if end - first <= LEAF:
             nodes[node] = [-1 - first, end - first]
             continue
@@ -86,10 +112,20 @@ def build_tables(vertices: np.ndarray, triangles: np.ndarray) -> Tables:
         order[first:end] = span[np.argpartition(c[:, axis], half)]
         left, right = len(nodes), len(nodes) + 1
         nodes += [[0, 0], [0, 0]]
-        boxes += [np.zeros(6), np.zeros(6)]
+        spans += [(first, first + half), (first + half, end)]
+        levels += [level + 1, level + 1]
         nodes[node] = [left, right]
         pending += [(right, first + half, end, level + 1), (left, first, first + half, level + 1)]
     ordered = triangles[order]
+    points = vertices[ordered].reshape(-1, 3)              # a node's corners: rows 3 first ... 3 end
+    boxes = np.empty((len(nodes), 15))
+    spans_array, levels_array = np.array(spans), np.array(levels)
+    for level in np.unique(levels_array):                 # the nodes of one level hold disjoint triangles
+        which = np.flatnonzero(levels_array == level)
+        first, end = 3 * spans_array[which, 0], 3 * spans_array[which, 1]
+        counts = end - first
+        rows = np.repeat(first - np.cumsum(np.append(0, counts[:-1])), counts) + np.arange(counts.sum())
+        boxes[which] = oriented_boxes(points[rows], np.cumsum(np.append(0, counts[:-1])))
     faces, edge_normals, vertex_normals = pseudo_normals(vertices, ordered)
     return Tables(vertices, ordered, faces, edge_normals, vertex_normals, np.array(nodes, dtype=np.int64),
-                  np.array(boxes), depth)
+                  boxes, int(levels_array.max()))

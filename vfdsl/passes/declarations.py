@@ -209,9 +209,9 @@ class Declarations:
             source = _named_mapping(source, kind)
             self.param_values[stmt.name.text] = source
             if kind == "mesh":
-                base = scene.file.parent if source is not stmt.default else self.path.parent
+                from_scene = source is not stmt.default
                 self.params[stmt.name.text] = ir.ParamDecl(
-                    name=stmt.name.text, type=kind, value=self._mesh(stmt, source, base),
+                    name=stmt.name.text, type=kind, value=self._mesh(stmt, source, scene if from_scene else None),
                     frame=stmt.frame.text if stmt.frame else None, span=stmt.span, value_span=source.span)
                 continue
             value = self._literal(source, kind, units, degree)
@@ -221,19 +221,34 @@ class Declarations:
                 name=stmt.name.text, type=kind, value=value,
                 frame=stmt.frame.text if stmt.frame else None, span=stmt.span, value_span=source.span)
 
-    def _mesh(self, stmt: ast.ParamStmt, source: ast.Value, base: Path) -> ir.MeshValue:
-        """A mesh param: its file (relative to the file that names it) read with its unit (:mod:`vfdsl.mesh.load`)."""
-        unit = u.UNITS[self.units.length][1]
+    def _mesh(self, stmt: ast.ParamStmt, source: ast.Value, scene: SceneData | None) -> ir.MeshValue:
+        """A mesh param: its file, relative to the file that names it (the task, or the scene), read with its unit
+        (:mod:`vfdsl.mesh.load`): the param type's ``mesh(unit = ...)``, else the default length unit of that
+        file; a scene may also write ``{file: ..., unit: ...}``."""
+        units = scene.units if scene is not None else self.units
+        unit = u.UNITS[units.length][1]
         for kw in stmt.type_args:
             if kw.name.text != "unit":
                 raise VfError(f"mesh has no type argument '{kw.name.text}'", kw.name.span.pos(),
                               hint="state the file's unit of length: mesh(unit = 1 mm)")
-            unit = LiteralReader(self.units, self._no_names).scalar(kw.value, u.LENGTH, "unit")
-            if not unit > 0:
-                raise VfError("a mesh's unit must be a positive length", kw.value.span.pos())
+            unit = self._mesh_unit(kw.value, self.units)
+        name = stmt.name.text
+        example = (f'write params.{name}: "anatomy/{name}.stl", or params.{name}: {{file: anatomy/{name}.stl, unit: 1 mm}}'
+                   if scene is not None else f'write param {name} : mesh(unit = 1 mm) = "anatomy/{name}.stl"')
+        if scene is not None and isinstance(source, ast.Call) and source.name.text == "mesh":
+            fields = {kw.name.text: kw for kw in source.kwargs}
+            for name, kw in fields.items():
+                if name not in ("file", "unit"):
+                    raise VfError(f"a mesh in a scene has no key '{name}'", kw.name.span.pos(),
+                                  hint=suggest(name, ("file", "unit"), "keys"))
+            if "file" not in fields:
+                raise VfError("a mesh in a scene needs its file", source.span.pos(), hint=example)
+            if "unit" in fields:
+                unit = self._mesh_unit(fields["unit"].value, units)
+            source = fields["file"].value
         if not isinstance(source, ast.String):
-            raise VfError("a mesh is given by its file name", source.span.pos(),
-                          hint='write param m : mesh(unit = 1 mm) = "anatomy/sinus.stl"')
+            raise VfError("a mesh is given by its file name", source.span.pos(), hint=example)
+        base = scene.file.parent if scene is not None else self.path.parent
         path = (base / source.text).resolve()
         try:
             mesh = read_mesh(path, unit)
@@ -243,8 +258,16 @@ class Declarations:
         problem = extent_problem(mesh, unit)
         if problem is not None:
             raise VfError(problem, source.span.pos(),
-                          hint="state the file's unit: mesh(unit = 1 mm) (without it, the task's length unit)")
+                          hint="state the file's unit: {file: ..., unit: 1 mm} (without it, the param type's unit, "
+                               "else the scene's length unit)" if scene is not None else
+                               "state the file's unit: mesh(unit = 1 mm) (without it, the task's length unit)")
         return ir.MeshValue(file=str(path), unit=unit, sha256=mesh.sha256)
+
+    def _mesh_unit(self, value: ast.Value, units: u.DefaultUnits) -> float:
+        unit = LiteralReader(units, self._no_names).scalar(value, u.LENGTH, "unit")
+        if not unit > 0:
+            raise VfError("a mesh's unit must be a positive length", value.span.pos())
+        return unit
 
     def _curve_type(self, stmt: ast.ParamStmt) -> tuple[int | None, bool]:
         """(degree, runtime) of a curve param's type, e.g. curve(degree = 1, runtime = true)."""

@@ -6,10 +6,12 @@
     params:                   # values of the task's params (override the task file's defaults)
       plate: {translation: [120, 0, 40], rpy: [0, 0, 30]}
       path: [[0, 0, 0], [10, 5, 0], ...]
+      bone: anatomy/bone.stl  # a mesh: its file, relative to this file; or {file: ..., unit: 1 mm}
 
 YAML values are turned into the same syntax nodes a ``.vf`` file produces (a list is a vector, a mapping is
-a composite such as ``pose(...)``, ``"10 mm"`` is a number with a unit), with positions in the YAML file,
-so they go through exactly the same unit and shape checks and their errors point into the scene file.
+a composite such as ``pose(...)``, ``"10 mm"`` is a number with a unit; in ``params``, other text is a string:
+a mesh's file name), with positions in the YAML file, so they go through exactly the same unit and shape checks
+and their errors point into the scene file.
 """
 
 from __future__ import annotations
@@ -71,7 +73,7 @@ def load_scene(path: Path, task_units: DefaultUnits, pos: SourcePos | None) -> S
         node = top["params"][1]
         if not isinstance(node, yaml.MappingNode):
             raise VfError("'params' is a mapping from param names to values", _pos(node, file))
-        params = {k: (values.read(v), _span(kn, file)) for k, (kn, v) in _mapping(node, file).items()}
+        params = {k: (values.read(v, text=True), _span(kn, file)) for k, (kn, v) in _mapping(node, file).items()}
     return SceneData(path, units, period, start, start_span, params)
 
 
@@ -113,7 +115,9 @@ class _Values:
         self.file = file
         self.nodes = 0
 
-    def read(self, node: yaml.Node, inside: tuple = ()) -> ast.Value:
+    def read(self, node: yaml.Node, inside: tuple = (), text: bool = False) -> ast.Value:
+        """``text``: a scalar that is not a number (with or without a unit) nor true/false is a string (else an
+        error)."""
         file = self.file
         span = _span(node, file)
         self.nodes += 1
@@ -125,20 +129,22 @@ class _Values:
             raise VfError("a value cannot contain itself (recursive YAML alias)", span.pos())
         inside = inside + (node,)
         if isinstance(node, yaml.SequenceNode):
-            return ast.Vector(span=span, items=[self.read(n, inside) for n in node.value])
+            return ast.Vector(span=span, items=[self.read(n, inside, text) for n in node.value])
         if isinstance(node, yaml.MappingNode):
             fields = _mapping(node, file)
             kwargs = [ast.KeywordArg(span=_span(k, file), name=ast.Name(span=_span(k, file), text=key),
-                                     value=self.read(v, inside)) for key, (k, v) in fields.items()]
+                                     value=self.read(v, inside, text)) for key, (k, v) in fields.items()]
             return ast.Call(span=span, name=ast.Name(span=span, text="{mapping}"), kwargs=kwargs)
-        return _scalar(node, span)
+        return _scalar(node, span, text)
 
 
-def _scalar(node: yaml.ScalarNode, span: ast.Span) -> ast.Value:
+def _scalar(node: yaml.ScalarNode, span: ast.Span, strings: bool = False) -> ast.Value:
     text = str(node.value)
     if text in ("true", "false"):
         return ast.Bool(span=span, value=text == "true")
     match = _QUANTITY.match(text)
+    if match is None and strings:
+        return ast.String(span=span, text=text)
     if match is None:
         shown = repr(text) if len(text) <= 40 else repr(text[:40]) + "..."
         raise VfError(f"expected a number (optionally with a unit, like \"10 mm\"), got {shown}", span.pos())

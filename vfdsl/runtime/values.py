@@ -149,6 +149,11 @@ class RuntimeValues:
         p = self.layout.defaults.copy()
         for name, given in value.items():
             slot = self.layout.slots.get(name)
+            if slot is not None and slot.type == "mesh":
+                frame = self.task.param(name).frame
+                raise VfError(f"param {name!r} is a mesh: its file is read when the task is compiled",
+                              hint=f"give another file in the scene file (params.{name}) and compile again"
+                                   + (f"; at run time, move it with the pose it is in ({frame!r})" if frame else ""))
             if slot is None or slot.size == 0:
                 known = [n for n, s in self.layout.slots.items() if s.size]
                 raise VfError(f"unknown run-time param {name!r}", hint=suggest(str(name), known, "params"))

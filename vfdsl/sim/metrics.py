@@ -17,10 +17,11 @@ The error of a constraint is how far the frame is from the set the constraint de
     cone              | angle(l, axis) - angle |           deg
     tilt_at_most      max(0, angle(l, axis) - angle)       deg
     outside_mesh,     max(0, margin - clearance), the clearance of the capsule from the frame to its shaft frame
-    inside_mesh       (less its radius) by brute force over the triangles (vfdsl.mesh.brute): so the smallest
-                      clearance of a run is margin - max (when max > 0)   mm
+    inside_mesh       (less its radius) by brute force over the triangles (vfdsl.mesh.brute)   mm
                       and, as a second metric <...>_contact_pct, the share of ticks the tool is on its margin
                       (clearance <= margin + CONTACT_BAND): the time in contact   %
+                      and, as a third, <...>_clearance_mm: the clearance itself (negative through the surface),
+                      whose min is the run's minimum clearance   mm
     keeps_direction   angle(l, direction)                  deg
     rotates_around    | 90 deg - angle(l, axis) |          deg
     speed             max(0, |p_k - p_k-1| / dt - max)     mm/s
@@ -34,13 +35,13 @@ Every metric has one sample per tick, on the ticks' time base t_k = k dt: a spee
 that ended there (backward differences), and the first tick of a segment (the run's start, or a disturbance)
 has no step before it in the segment and scores 0. A scene may name an error (``pivot_error: {error_of: tip
 stays_at}``) or add the tilt of a frame's tool axis from a pose param's z axis (the plate normal).
-Statistics pool every tick of every trial: mean, std, max.
+Statistics pool every tick of every trial: mean, std, min, max.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -54,7 +55,7 @@ from vfdsl.sim.settings import MetricSpec, constraint_of
 
 # dimension -> (display unit, factor from SI)
 DISPLAY = {"length": ("mm", 1e3), "angle": ("deg", 180 / math.pi), "speed": ("mm/s", 1e3),
-           "angular_speed": ("deg/s", 180 / math.pi), "contact": ("%", 100.0)}
+           "angular_speed": ("deg/s", 180 / math.pi), "contact": ("%", 100.0), "clearance": ("mm", 1e3)}
 _SUFFIX = {"mm": "mm", "deg": "deg", "mm/s": "mm_s", "deg/s": "deg_s", "%": "pct"}
 MESH_PRIMITIVES = ("outside_mesh", "inside_mesh")
 CONTACT_BAND = 0.05e-3
@@ -69,10 +70,12 @@ JOINT_PRIMITIVES = ("joint_limits", "joint_speed")
 
 @dataclass
 class Poses:
-    """Frame poses over a run: origin p (N x 3) and rotation R (N x 3 x 3) of each task frame."""
+    """Frame poses over a run: origin p (N x 3) and rotation R (N x 3 x 3) of each task frame; ``clearances``
+    keeps each mesh fixture's clearance at these poses, which three metrics read."""
 
     p: dict[str, np.ndarray]
     R: dict[str, np.ndarray]
+    clearances: dict = field(default_factory=dict, repr=False)
 
     def axis(self, frame: ir.FrameDecl) -> np.ndarray:
         return self.R[frame.name] @ np.asarray(frame.tool_axis)
@@ -132,8 +135,9 @@ def metric_defs(task: ir.Task, robot: Robot, specs: tuple[MetricSpec, ...]) -> l
         tolerance = c.tolerance * factor if c.tolerance is not None else None
         defs.append(MetricDef(f"{base}_{_SUFFIX[unit]}", unit, dim, c, spec, tolerance=tolerance))
         if c.primitive in MESH_PRIMITIVES:
-            defs.append(MetricDef(f"{spec.name if spec else f'{c.frame}_{c.primitive}'}_contact_pct", "%",
-                                  "contact", c, spec))
+            base = spec.name if spec else f"{c.frame}_{c.primitive}"
+            defs.append(MetricDef(f"{base}_contact_pct", "%", "contact", c, spec))
+            defs.append(MetricDef(f"{base}_clearance_mm", "mm", "clearance", c, spec))
     for s in specs:
         if s.tilt_of:
             defs.append(MetricDef(f"{s.name}_deg", "deg", "angle", spec=s))
@@ -167,12 +171,22 @@ def errors(d: MetricDef, task: ir.Task, robot: Robot, scene: Scene, poses: Poses
         clearance = _mesh_clearance(c, scene, poses)
         if d.dimension == "contact":
             return factor * (clearance <= margin + CONTACT_BAND)
+        if d.dimension == "clearance":
+            return factor * clearance
         return factor * np.maximum(0.0, margin - clearance)
     return factor * _frame_error(c, task, scene, poses, period)
 
 
 def _mesh_clearance(c: ir.Constraint, scene: Scene, poses: Poses) -> np.ndarray:
-    """The clearance of the constraint's capsule from its mesh at every sample, in the mesh's frame."""
+    """The clearance of the constraint's capsule from its mesh at every sample, in the mesh's frame (computed once
+    per constraint and scene for these poses)."""
+    key = (id(c), id(scene))
+    if key not in poses.clearances:
+        poses.clearances[key] = (scene, _clearance(c, scene, poses))     # the scene held: its id stays its own
+    return poses.clearances[key][1]
+
+
+def _clearance(c: ir.Constraint, scene: Scene, poses: Poses) -> np.ndarray:
     value = scene.value(c.args["mesh"])
     mesh = read_mesh(value.file, value.unit)
     a = np.atleast_2d(scene.local(c.args["mesh"], poses.p[c.frame]))
@@ -256,35 +270,38 @@ def _joint_error(c: ir.Constraint, kind: str, robot: Robot, qs: np.ndarray, peri
 @dataclass
 class Stats:
     """One metric pooled over samples (and trials, merged in trial order): count, mean, sum of squared
-    deviations (merged by Chan et al.'s pairwise formula, exact for a near-constant metric) and max."""
+    deviations (merged by Chan et al.'s pairwise formula, exact for a near-constant metric), max and min."""
 
     count: int = 0
     mean: float = 0.0
     squares: float = 0.0                     # sum of (x - mean)^2
-    worst: float = 0.0
+    worst: float = 0.0                       # max
+    least: float = 0.0                       # min
 
     def add(self, values: np.ndarray) -> "Stats":
         if values.size:
             mean = float(values.mean())
-            part = Stats(int(values.size), mean, float(((values - mean) ** 2).sum()), float(values.max()))
+            part = Stats(int(values.size), mean, float(((values - mean) ** 2).sum()), float(values.max()),
+                         float(values.min()))
             merged = self.merge(part)
-            self.count, self.mean, self.squares, self.worst = merged.count, merged.mean, merged.squares, merged.worst
+            self.count, self.mean, self.squares = merged.count, merged.mean, merged.squares
+            self.worst, self.least = merged.worst, merged.least
         return self
 
     def merge(self, other: "Stats") -> "Stats":
         if not other.count:
-            return Stats(self.count, self.mean, self.squares, self.worst)
+            return Stats(self.count, self.mean, self.squares, self.worst, self.least)
         if not self.count:
-            return Stats(other.count, other.mean, other.squares, other.worst)
+            return Stats(other.count, other.mean, other.squares, other.worst, other.least)
         count = self.count + other.count
         delta = other.mean - self.mean
         return Stats(count, self.mean + delta * other.count / count,
                      self.squares + other.squares + delta * delta * self.count * other.count / count,
-                     max(self.worst, other.worst))
+                     max(self.worst, other.worst), min(self.least, other.least))
 
     @property
     def std(self) -> float:
         return math.sqrt(self.squares / self.count) if self.count else 0.0
 
     def summary(self) -> dict:
-        return {"mean": self.mean, "std": self.std, "max": self.worst, "samples": self.count}
+        return {"mean": self.mean, "std": self.std, "min": self.least, "max": self.worst, "samples": self.count}

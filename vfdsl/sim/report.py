@@ -85,7 +85,7 @@ def motion(results: list[TrialResult]) -> dict | None:
 
 
 def trial_rows(results: list[TrialResult]) -> list[dict]:
-    """One row per trial: its grid settings, seed, and each metric's mean and max."""
+    """One row per trial: its grid settings, seed, and each metric's mean, min and max."""
     rows = []
     for r in results:
         row = {"trial": r.trial, "seed": r.seed, **dict(r.grid), "fallback_ticks": r.fallback_ticks}
@@ -94,6 +94,7 @@ def trial_rows(results: list[TrialResult]) -> list[dict]:
                         "motion.turn_deg": math.degrees(r.motion["turn"])})
         for name, stats in r.stats.items():
             row[f"{name}.mean"] = stats.mean
+            row[f"{name}.min"] = stats.least
             row[f"{name}.max"] = stats.worst
         rows.append(row)
     return rows
@@ -121,11 +122,12 @@ def _plain(value):
 
 
 def table(doc: dict, tolerances: dict[str, float]) -> str:
-    """The summary table a user reads: per grid point, each metric's mean, std and max over the trials,
+    """The summary table a user reads: per grid point, each metric's mean, std, min and max over the trials,
     its tolerance, and the paper's figure beside it."""
     blocks = doc["groups"] if "groups" in doc else [{"settings": {}, "metrics": doc["metrics"]}]
     lines = []
-    header = f"{'metric':<34} {'unit':<6} {'mean':>10} {'std':>10} {'max':>10} {'tolerance':>10}  paper (mean ± std)"
+    header = (f"{'metric':<34} {'unit':<6} {'mean':>10} {'std':>10} {'min':>10} {'max':>10} {'tolerance':>10}  "
+              "paper (mean ± std)")
     for block in blocks:
         if block["settings"]:
             lines.append("")
@@ -134,7 +136,7 @@ def table(doc: dict, tolerances: dict[str, float]) -> str:
         for name, m in block["metrics"].items():
             paper = f"{m['paper']['mean']:g} ± {m['paper']['std']:g}" if "paper" in m else ""
             tol = tolerances.get(name.removeprefix("tracker_"))
-            lines.append(f"{name:<34} {m['unit']:<6} {_num(m['mean'])} {_num(m['std'])} {_num(m['max'])} "
+            lines.append(f"{name:<34} {m['unit']:<6} {_num(m['mean'])} {_num(m['std'])} {_num(m['min'])} {_num(m['max'])} "
                          f"{_num(tol) if tol is not None else ' ' * 10}  {paper}")
     return "\n".join(lines)
 

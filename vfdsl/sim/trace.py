@@ -25,9 +25,9 @@ for m/s, ``rad_s`` for rad/s; a dimensionless number has no suffix)::
                                    the first tick of the trial and after a disturbance)
     tracker.<name>_<unit>          the same metric measured by the simulated tracker (when it has noise)
 
-Metrics are in SI here (m, rad, m/s, rad/s), where the summary table shows mm and deg. An empty CSV cell is
-a missing value (NaN in Parquet). The Parquet file carries the same columns (float64, int64 and string)
-and, in its schema metadata, ``vfdsl.task`` and ``vfdsl.file``.
+Metrics are in SI here (m, rad, m/s, rad/s; a share in % as a fraction), where the summary table shows mm,
+deg and %. An empty CSV cell is a missing value (NaN in Parquet). The Parquet file carries the same columns
+(float64, int64 and string) and, in its schema metadata, ``vfdsl.task`` and ``vfdsl.file``.
 """
 
 from __future__ import annotations
@@ -43,8 +43,8 @@ from vfdsl.errors import VfError
 from vfdsl.ir import model as ir
 
 FORMATS = (".csv", ".parquet")
-_SI_SUFFIX = {"mm": "m", "deg": "rad", "mm/s": "m_s", "deg/s": "rad_s"}
-_DISPLAY_SUFFIX = {"mm": "mm", "deg": "deg", "mm/s": "mm_s", "deg/s": "deg_s"}
+_SI_SUFFIX = {"mm": "m", "deg": "rad", "mm/s": "m_s", "deg/s": "rad_s", "%": ""}
+_DISPLAY_SUFFIX = {"mm": "mm", "deg": "deg", "mm/s": "mm_s", "deg/s": "deg_s", "%": "pct"}
 _SCALAR_UNITS = {"length": "_m", "angle": "_rad", "speed": "_m_s", "angular_speed": "_rad_s", "number": "",
                  "time": "_s", "force": "_N"}
 _INPUT_PARTS = {"force": ("fx_N", "fy_N", "fz_N"), "torque": ("tx_Nm", "ty_Nm", "tz_Nm"),
@@ -89,19 +89,20 @@ def flat_param(value) -> np.ndarray:
 
 def metric_column(source: str, name: str, unit: str) -> str:
     """``metric.tip_error_m`` for the metric ``tip_error_mm``: its name with the SI unit (and any
-    ``_line<N>`` suffix kept)."""
+    ``_line<N>`` suffix kept); a share in % is a fraction, without a unit (``metric.wall_contact``)."""
     suffix = f"_{_DISPLAY_SUFFIX[unit]}"
     at = name.rfind(suffix)
     rest = name[at + len(suffix):] if at >= 0 else ""
     base = name[:at] if at >= 0 else name
     if rest and not rest.startswith("_line"):
         base, rest = name, ""
-    return f"{source}.{base}_{_SI_SUFFIX[unit]}{rest}"
+    si = _SI_SUFFIX[unit]
+    return f"{source}.{base}{'_' + si if si else ''}{rest}"
 
 
 def metric_factor(unit: str) -> float:
     """From a metric's display unit to SI."""
-    return {"mm": 1e-3, "deg": math.pi / 180, "mm/s": 1e-3, "deg/s": math.pi / 180}[unit]
+    return {"mm": 1e-3, "deg": math.pi / 180, "mm/s": 1e-3, "deg/s": math.pi / 180, "%": 0.01}[unit]
 
 
 def per_tick(parts: list[np.ndarray], lengths: list[int]) -> np.ndarray:

@@ -47,6 +47,7 @@ DRAW_RATE = 25.0            # Hz: scene updates while running
 HAND_SCALE = 0.025          # m: size of the hand's transform controls
 FRAME_DEPENDENT = {"along", "above", "on_plane", "near_plane", "keeps_direction", "cone", "tilt_at_most",
                    "rotates_around", "passes_through"}
+TOOL_MOVE = 1e-4            # m: the shapes drawn at the tool are redrawn once it has moved this far
 
 COLORS = {
     False: {"reference": (30, 100, 220), "tolerance": (70, 160, 245), "bound": (20, 50, 150),
@@ -154,6 +155,7 @@ class Viewer:
         self._constraint_of = {(c.primitive, c.frame, c.span): k for k, c in enumerate(task.constraints)}
         self._violated: set[int] = set()
         self._drawn_at: dict[str, np.ndarray] = {}
+        self._tool_at: dict[str, np.ndarray] = {}          # where each fixture's tool shapes were drawn
         self.message = ""
         self.ticks = 0
         self.time = 0.0
@@ -465,36 +467,64 @@ class Viewer:
 
     def _draw_fixtures(self, force: bool = False) -> None:
         """Rebuild the fixtures' shapes: all of them (``force``), or those drawn around a frame that has moved
-        more than 2 mm since (a plane's square, a line's stretch, a cone's apex)."""
-        stale = set()
+        more than 2 mm since (a plane's square, a line's stretch, a cone's apex); and the shapes drawn at the tool
+        (a mesh fixture's capsule) whenever it has moved more than TOOL_MOVE."""
+        stale, moved = set(), set()
         for k, c in enumerate(self.task.constraints):
             key = sh.fixture_key(k, c)
             if c.frame in self.frames and (key not in self._drawn_at or (
                     c.primitive in FRAME_DEPENDENT
                     and np.linalg.norm(self.frames[c.frame].position - self._drawn_at[key]) > 0.002)):
                 stale.add(k)
-        if not force and not stale:
-            return
-        self.fixtures = sh.build(self.task, self.scene, self.frames, self.magnify)
-        for f in self.fixtures:
+            elif key in self._tool_at and np.abs(self._tool(c) - self._tool_at[key]).max() > TOOL_MOVE:
+                moved.add(k)
+        if force or stale:
+            self.fixtures = sh.build(self.task, self.scene, self.frames, self.magnify)
+        for f in getattr(self, "fixtures", []):
+            c = self.task.constraints[f.index]
             if force or f.index in stale:
                 self._draw_fixture(f)
-                c = self.task.constraints[f.index]
                 if c.frame in self.frames:
                     self._drawn_at[f.key] = self.frames[c.frame].position.copy()
+            elif f.index in moved:
+                for s in f.shapes:
+                    node = self.nodes.pop(f"/fixtures/{f.key}/{s.name}", None) if s.moving else None
+                    if node is not None:
+                        node.remove()
+                tool = sh.tool_shapes(c, self.scene, self.frames)
+                f.shapes = [s for s in f.shapes if not s.moving] + tool
+                self._draw_shapes(f, tool)
+            if any(s.moving for s in f.shapes):
+                self._tool_at[f.key] = self._tool(c)
+
+    def _tool(self, c: ir.Constraint) -> np.ndarray:
+        """Where the shapes drawn at the tool of ``c`` are: its frame's origin and its shaft frame's."""
+        shaft = c.args["shaft"].name if "shaft" in c.args else c.frame
+        return np.array([self.frames[c.frame].position, self.frames[shaft].position])
 
     def _draw_fixture(self, f: sh.Fixture) -> None:
         scene = self.server.scene
         base = f"/fixtures/{f.key}"
         for name in [n for n in self.nodes if n.startswith(base + "/")]:
             self.nodes.pop(name).remove()
-        violated = f.index in self._violated
         box = getattr(self, "fixture_boxes", {}).get(f.key)
         if base not in self.nodes:
             self.nodes[base] = scene.add_frame(base, show_axes=False)
         self.nodes[base].visible = True if box is None else bool(box.value)
+        self._draw_shapes(f, f.shapes)
+        violated = f.index in self._violated
+        text = ("VIOLATED " if violated else "") + ("soft " if f.soft and not f.title.startswith("soft") else "") \
+            + f.label
+        if f.shapes:
+            self.nodes[f"{base}/label"] = scene.add_label(f"{base}/label", text, position=f.anchor,
+                                                          font_screen_scale=0.8)
+
+    def _draw_shapes(self, f: sh.Fixture, shapes: list[sh.Shape]) -> None:
+        scene = self.server.scene
+        base = f"/fixtures/{f.key}"
+        violated = f.index in self._violated
         palette = COLORS[f.soft]
-        for s in f.shapes:
+        for s in shapes:
             color = VIOLATED if violated and s.role != "bound" else palette[s.role]
             name = f"{base}/{s.name}"
             if s.kind == "mesh":
@@ -512,11 +542,6 @@ class Viewer:
                 node = scene.add_point_cloud(name, s.vertices.astype(np.float32), colors=color, point_size=0.002,
                                              point_shape="circle")
             self.nodes[name] = node
-        text = ("VIOLATED " if violated else "") + ("soft " if f.soft and not f.title.startswith("soft") else "") \
-            + f.label
-        if f.shapes:
-            self.nodes[f"{base}/label"] = scene.add_label(f"{base}/label", text, position=f.anchor,
-                                                          font_screen_scale=0.8)
 
     # ------------------------------------------------------------------------------------- running
     def _zero_inputs(self) -> dict:

@@ -8,9 +8,11 @@ from :func:`vfdsl.check.polytope`'s half-space intersection) and its guaranteed 
 circumradius, what ``vfdsl check`` reports) as a wire sphere or tube.
 
 Shape roles (the viewer's colours): ``reference`` the fixture's own geometry (point, line, curve, plane,
-axis); ``tolerance`` the region its rows allow (polytope, tube, band, cone); ``bound`` the guaranteed bound;
-``forbidden`` a region the frame must not enter; ``allowed`` a region it must stay in; ``normal`` a plane's
-free side.
+axis; a mesh fixture's tool: the segment to its shaft and the capsule of its radius); ``tolerance`` the region
+its rows allow (polytope, tube, band, cone; a mesh fixture's clearance, the capsule of radius + margin the rows
+keep off the surface); ``bound`` the guaranteed bound; ``forbidden`` a region the frame must not enter;
+``allowed`` a region it must stay in; ``normal`` a plane's free side. A ``moving`` shape is drawn at the tool
+(:func:`tool_shapes`): the viewer redraws it as the tool moves.
 """
 
 from __future__ import annotations
@@ -35,6 +37,7 @@ AXIS_LENGTH = 0.05          # m: length of a direction's arrow and a cone's side
 REFERENCE_RADIUS = 0.0006   # m: radius of the marker of a point, and of a line's or curve's polyline
 SIDES = 24                  # facets of a round tube or cone that is not a polytope
 NO_GEOMETRY = {"joint_limits", "joint_speed", "speed", "angular_speed"}
+MESH_PRIMITIVES = ("outside_mesh", "inside_mesh")
 
 
 @dataclass
@@ -47,6 +50,7 @@ class Shape:
     vertices: np.ndarray
     faces: np.ndarray | None = None
     wireframe: bool = False
+    moving: bool = False      # drawn at the tool, redrawn as it moves
 
 
 @dataclass
@@ -80,7 +84,7 @@ def build(task: ir.Task, scene: Scene, frames: dict, magnify: float = 1.0) -> li
         frame = frames.get(c.frame) if c.frame else None
         if c.primitive not in NO_GEOMETRY and frame is not None:
             draw = _DRAW.get(c.primitive)
-            fixture.shapes = draw(c, scene, frame, magnify) if draw else []
+            fixture.shapes = (draw(c, scene, frame, magnify) if draw else []) + tool_shapes(c, scene, frames)
             fixture.anchor = _anchor(fixture.shapes, frame.position)
         fixtures.append(fixture)
     return fixtures
@@ -166,6 +170,18 @@ def polytope(center, eps: float, c: ir.Constraint, name: str) -> Shape | None:
     vertices = HalfspaceIntersection(np.column_stack([U, -np.ones(len(U))]), np.zeros(3)).intersections
     hull = trimesh.convex.convex_hull(vertices)
     return Shape(name, "mesh", "tolerance", hull.vertices * eps + np.asarray(center), hull.faces)
+
+
+def capsule(a, b, radius: float, name: str, role: str, wireframe: bool = False) -> Shape:
+    """The points within ``radius`` of the segment a b (a ball when a = b)."""
+    a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
+    length = float(np.linalg.norm(b - a))
+    if length == 0:
+        return sphere(a, radius, name, role, wireframe)
+    axis = (b - a) / length
+    mesh = trimesh.creation.capsule(height=length, radius=radius, count=[SIDES, SIDES // 2])
+    R = np.column_stack([*basis(axis), axis])                  # z -> the segment's direction
+    return Shape(name, "mesh", role, mesh.vertices @ R.T + 0.5 * (a + b), mesh.faces, wireframe)
 
 
 def segment(a, b, name: str, role: str) -> Shape:
@@ -395,17 +411,34 @@ def _passes_through(c, scene, frame, magnify):
 
 def _mesh(c, scene, frame, magnify):
     """The mesh in the world (placed by its pose), forbidden (outside_mesh) or allowed (inside_mesh, as a wire
-    frame so the tool inside shows), and the ball of radius + margin the rows keep clear at the frame."""
+    frame so the tool inside shows); the tool's shapes are :func:`tool_shapes`."""
     arg = c.args["mesh"]
     value = scene.value(arg)
     mesh = read_mesh(value.file, value.unit)
     R, t = scene.to_world(arg.name)
     inside = c.primitive == "inside_mesh"
-    clear = float(scene.scalar(c.args["radius"])) + float(scene.scalar(c.args["margin"]))
-    shapes = [Shape("mesh", "mesh", "allowed" if inside else "forbidden", mesh.vertices @ R.T + t,
-                    mesh.triangles, wireframe=inside)]
-    if clear > 0:
-        shapes.append(sphere(frame.position, clear, "clearance", "tolerance", wireframe=True))
+    return [Shape("mesh", "mesh", "allowed" if inside else "forbidden", mesh.vertices @ R.T + t,
+                  mesh.triangles, wireframe=inside)]
+
+
+def tool_shapes(c: ir.Constraint, scene: Scene, frames: dict) -> list[Shape]:
+    """What a constraint draws at the tool, redrawn as it moves (``moving``): for a mesh fixture, the capsule the
+    rows keep clear, from the frame's origin a to its ``shaft`` frame's b: the segment a b (when b is not a),
+    the capsule of the tool's ``radius`` around it (when not 0), and the wire capsule of radius + margin, the
+    clearance the rows keep from the surface (a ball at a point tool)."""
+    if c.primitive not in MESH_PRIMITIVES or c.frame not in frames or c.args["shaft"].name not in frames:
+        return []
+    a, b = frames[c.frame].position, frames[c.args["shaft"].name].position
+    radius, margin = float(scene.scalar(c.args["radius"])), float(scene.scalar(c.args["margin"]))
+    shapes = []
+    if not np.array_equal(a, b):
+        shapes.append(segment(a, b, "shaft", "reference"))
+    if radius > 0:
+        shapes.append(capsule(a, b, radius, "capsule", "reference"))
+    if radius + margin > 0:
+        shapes.append(capsule(a, b, radius + margin, "clearance", "tolerance", wireframe=True))
+    for shape in shapes:
+        shape.moving = True
     return shapes
 
 
