@@ -218,13 +218,17 @@ def _task(folder: Path, mesh_line: str, stl: str = "ball.stl") -> Path:
     ('param ball : mesh(unit = 1 m) = "ball.stl"', "larger than a patient", 33),
     ('param ball : mesh(unit = 1 um) = "ball.stl"', "too small for anatomy", 34),
     ('param ball : mesh = "nothing.stl"', "not found", 21),
+    ('param ball : mesh = "folder.stl"', "is a directory, not a mesh file", 21),
     ('param ball : mesh(scale = 2) = "ball.stl"', "mesh has no type argument 'scale'", 19),
     ('param ball : mesh = [1, 2, 3] mm', "a mesh is given by its file name", 21),
 ])
 def test_mesh_param_errors(tmp_path, line, message, column):
+    (tmp_path / "folder.stl").mkdir()
     with pytest.raises(VfError) as err:
         vfdsl.load(_task(tmp_path, line))
     assert message in err.value.message
+    if "not found" in message or "directory" in message:
+        assert f"relative to {tmp_path.resolve()}" in err.value.hint       # where the path was looked for
     assert (err.value.pos.line, err.value.pos.column) == (5, column)
 
 

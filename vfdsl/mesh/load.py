@@ -65,6 +65,8 @@ def _read(path: Path, unit: float, _mtime: int) -> MeshData:
 
     if path.suffix.lower() not in FORMATS:
         raise MeshFileError(f"{path.name}: unsupported mesh format '{path.suffix}' (use STL, OBJ or PLY)")
+    if path.is_dir():
+        raise MeshFileError(f"{path} is a directory, not a mesh file")
     if not path.is_file():
         raise MeshFileError(f"mesh file {path} not found")
     try:

@@ -254,7 +254,7 @@ class Declarations:
             mesh = read_mesh(path, unit)
         except MeshFileError as exc:
             raise VfError(str(exc), source.span.pos(),
-                          hint=f"the path is relative to {base}; STL, OBJ and PLY are read") from None
+                          hint=f"the path is relative to {base.resolve()}; STL, OBJ and PLY are read") from None
         problem = extent_problem(mesh, unit)
         if problem is not None:
             raise VfError(problem, source.span.pos(),
