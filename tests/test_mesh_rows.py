@@ -232,6 +232,23 @@ def test_mesh_param_errors(tmp_path, line, message, column):
     assert (err.value.pos.line, err.value.pos.column) == (5, column)
 
 
+@pytest.mark.parametrize("unit, message", [("1e300 mm", "larger than a patient"), ("1e-300 mm", "too small for anatomy"),
+                                           ("1e200 m", "larger than a patient")])
+def test_absurd_mesh_units_are_refused_before_any_arithmetic(tmp_path, unit, message):
+    """A unit that puts the mesh at 1e298 m or 1e-302 m is the unit's mistake: refused at the file name with both
+    readings, before the areas or the volume are computed in it (no overflow warning, no 'every triangle is
+    degenerate')."""
+    import warnings
+
+    line = f'param ball : mesh(unit = {unit}) = "ball.stl"'
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(VfError) as err:
+            vfdsl.load(_task(tmp_path, line))
+    assert message in err.value.message and "mesh(unit = 1 mm)" in err.value.hint
+    assert (err.value.pos.line, err.value.pos.column) == (5, line.index('"') + 1)
+
+
 def test_units_follow_the_task_default(tmp_path):
     """Without mesh(unit = ...), a file unit is the task's length unit (mm here): the ball is 6 mm."""
     task = vfdsl.load(_task(tmp_path, 'param ball : mesh = "ball.stl"'))

@@ -3,7 +3,8 @@
 The numbers in a mesh file carry no unit. A ``mesh`` param states it: ``param m : mesh(unit = 1 mm) = "a.stl"``
 reads one file unit as 1 mm; without ``unit``, a file unit is the task's default length unit (its ``units`` line,
 metres when it has none). A mesh in mm read as metres is the classic mistake: an extent (the largest side of the
-bounding box) outside [MIN_EXTENT, MAX_EXTENT] is refused with a hint naming both readings.
+bounding box) outside [MIN_EXTENT, MAX_EXTENT] is refused with a hint naming both readings (:class:`MeshExtentError`,
+before any arithmetic in the stated unit).
 
 Vertices are merged (STL repeats them per triangle), triangles whose area is below DEGENERATE_AREA (they have no
 normal) and repeated triangles are dropped; :class:`MeshData` keeps their counts for ``vfdsl check``.
@@ -29,6 +30,10 @@ FORMATS = (".stl", ".obj", ".ply")
 
 class MeshFileError(ValueError):
     """The file is missing, unreadable, empty or of an unsupported format (the caller adds the position)."""
+
+
+class MeshExtentError(MeshFileError):
+    """The mesh's extent in the stated unit is implausible for anatomy: the unit is likely wrong."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -73,10 +78,15 @@ def _read(path: Path, unit: float, _mtime: int) -> MeshData:
         loaded = trimesh.load(str(path), force="mesh", process=False)
     except Exception as exc:    # trimesh raises many types for a damaged file
         raise MeshFileError(f"cannot read {path.name} as a mesh: {exc}") from None
-    vertices = np.asarray(loaded.vertices, dtype=float) * unit
+    raw = np.asarray(loaded.vertices, dtype=float)
     triangles = np.asarray(loaded.faces, dtype=np.int64)
-    if len(triangles) == 0 or not np.all(np.isfinite(vertices)):
+    if len(triangles) == 0 or not np.all(np.isfinite(raw)):
         raise MeshFileError(f"{path.name} has no triangles or non-finite vertices")
+    with np.errstate(over="ignore"):           # (an extent of inf is refused below)
+        problem = _extent_problem(float(np.ptp(raw, axis=0).max()), unit)    # before any arithmetic in the unit
+    if problem is not None:
+        raise MeshExtentError(problem)
+    vertices = raw * unit
     vertices, inverse = np.unique(vertices, axis=0, return_inverse=True)
     triangles = inverse.reshape(-1)[triangles]
     area = 0.5 * np.linalg.norm(np.cross(vertices[triangles[:, 1]] - vertices[triangles[:, 0]],
@@ -95,13 +105,14 @@ def _read(path: Path, unit: float, _mtime: int) -> MeshData:
                     winding_consistent=bool(mesh.is_winding_consistent), volume=float(mesh.volume))
 
 
-def extent_problem(mesh: MeshData, unit: float) -> str | None:
-    """None when the mesh's extent is plausible for anatomy, else why not (naming the other reading)."""
-    extent = mesh.extent
+def _extent_problem(file_extent: float, unit: float) -> str | None:
+    """None when the mesh's extent (``file_extent`` file units) is plausible for anatomy, else why not (naming the
+    other reading)."""
+    extent = file_extent * unit
     if extent > MAX_EXTENT:
         return (f"the mesh spans {extent:.4g} m with one file unit = {unit:g} m: larger than a patient "
-                f"(in mm it would span {extent / unit * 1e-3:.4g} m)")
+                f"(in mm it would span {file_extent * 1e-3:.4g} m)")
     if extent < MIN_EXTENT:
         return (f"the mesh spans {extent:.3g} m with one file unit = {unit:g} m: too small for anatomy "
-                f"(in m it would span {extent / unit:.4g} m)")
+                f"(in m it would span {file_extent:.4g} m)")
     return None

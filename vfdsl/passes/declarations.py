@@ -18,7 +18,7 @@ from vfdsl.compiler.geometry import compose, rotation
 from vfdsl.errors import VfError, suggest
 from vfdsl.ir import model as ir
 from vfdsl.kinematics.robot import ROBOTS_DIR, Robot
-from vfdsl.mesh.load import MeshFileError, extent_problem, read_mesh
+from vfdsl.mesh.load import MeshExtentError, MeshFileError, read_mesh
 from vfdsl.passes import expressions as ex
 from vfdsl.passes.scene import SceneData, load_scene
 from vfdsl.passes.shapes import LiteralReader
@@ -252,15 +252,14 @@ class Declarations:
         path = (base / source.text).resolve()
         try:
             mesh = read_mesh(path, unit)
+        except MeshExtentError as exc:
+            raise VfError(str(exc), source.span.pos(),
+                          hint="state the file's unit: {file: ..., unit: 1 mm} (without it, the param type's unit, "
+                               "else the scene's length unit)" if scene is not None else
+                               "state the file's unit: mesh(unit = 1 mm) (without it, the task's length unit)") from None
         except MeshFileError as exc:
             raise VfError(str(exc), source.span.pos(),
                           hint=f"the path is relative to {base.resolve()}; STL, OBJ and PLY are read") from None
-        problem = extent_problem(mesh, unit)
-        if problem is not None:
-            raise VfError(problem, source.span.pos(),
-                          hint="state the file's unit: {file: ..., unit: 1 mm} (without it, the param type's unit, "
-                               "else the scene's length unit)" if scene is not None else
-                               "state the file's unit: mesh(unit = 1 mm) (without it, the task's length unit)")
         return ir.MeshValue(file=str(path), unit=unit, sha256=mesh.sha256)
 
     def _mesh_unit(self, value: ast.Value, units: u.DefaultUnits) -> float:
