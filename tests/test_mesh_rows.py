@@ -284,6 +284,7 @@ def test_a_scene_gives_a_mesh_relative_to_itself(tmp_path):
     ("{file: meshes/ball.stl, units: 1 mm}", "a mesh in a scene has no key 'units'", 33),
     ("{unit: 1 mm}", "a mesh in a scene needs its file", 9),
     ("[1, 2, 3]", "a mesh is given by its file name", 9),
+    ("10.stl", "a mesh is given by its file name", 9),       # a name that reads as a number: the hint says ./10.stl
     ("{file: meshes/ball.stl, unit: 0 mm}", "a mesh's unit must be a positive length", 39),
 ])
 def test_mesh_errors_in_a_scene_point_into_it(tmp_path, value, message, column):
@@ -294,6 +295,8 @@ def test_mesh_errors_in_a_scene_point_into_it(tmp_path, value, message, column):
         vfdsl.load(path)
     assert message in err.value.message
     assert Path(err.value.pos.file).name == "scene.yaml" and (err.value.pos.line, err.value.pos.column) == (3, column)
+    if value == "10.stl":
+        assert "write it as ./10.stl" in err.value.hint
 
 
 def test_a_mesh_is_not_a_run_time_param():

@@ -247,6 +247,9 @@ class Declarations:
                 unit = self._mesh_unit(fields["unit"].value, units)
             source = fields["file"].value
         if not isinstance(source, ast.String):
+            if scene is not None and isinstance(source, ast.Quantity):
+                example = ("a file name that starts like a number (10.stl) reads as a number with a unit: write it "
+                           "as ./10.stl")
             raise VfError("a mesh is given by its file name", source.span.pos(), hint=example)
         base = scene.file.parent if scene is not None else self.path.parent
         path = (base / source.text).resolve()
