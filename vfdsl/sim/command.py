@@ -178,9 +178,8 @@ def _events_after_the_end(settings, grid: list[tuple[str, list]]) -> list[VfErro
     longest ``duration`` of the grid): it never happens (a run shortened with --duration, or a mistyped time)."""
     end = max(dict(grid).get("duration", [settings.duration]))
     events = [(d.at, f"the {d.kind} disturbance at {d.at:g} s", d.where) for d in settings.disturbances]
-    events += [(m.at if m.kind == "step" else m.start, f"the {m.kind} motion of param '{m.param}' (from "
-                f"{m.at if m.kind == 'step' else m.start:g} s)", m.where)
-               for m in settings.motions if m.kind in ("step", "ramp")]
+    starts = [(m.at if m.kind == "step" else m.start, m) for m in settings.motions if m.kind in ("step", "ramp")]
+    events += [(t, f"the {m.kind} motion of param '{m.param}' (from {t:g} s)", m.where) for t, m in starts]
     return [VfError(f"{what} starts after the run's {end:g} s: it does not happen in this run", where,
                     hint="lengthen the run (--duration, or duration in the scene) or move the event earlier")
             for t, what, where in events if t >= end - 1e-12]
