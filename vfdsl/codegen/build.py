@@ -343,8 +343,9 @@ def _compile(fn: ca.Function, prefix: str, work: Path, compiler: Compiler, diges
     Python headers) into the Python extension; check that both load; write the metadata; return it."""
     nonce = secrets.token_hex(4)
     so_name = f"lib{prefix}-{nonce}.so"
-    daqp = [str(daqp_library(compiler)), "-lm", "-Wl,--exclude-libs,ALL"]
-    _cc(compiler, work, [*FLAGS, f"-I{daqp_sources(daqp_home()) / 'include'}", "-c", f"{prefix}.c", "-o", f"{prefix}.o"])
+    root = daqp_sources(daqp_home())
+    daqp = [str(daqp_library(compiler, root)), "-lm", "-Wl,--exclude-libs,ALL"]
+    _cc(compiler, work, [*FLAGS, f"-I{root / 'include'}", "-c", f"{prefix}.c", "-o", f"{prefix}.o"])
     objects = [f"{prefix}.o"]
     for source in extra:     # kept in the entry (for `vfdsl export`); their symbols stay hidden in the library
         shutil.copyfile(source, work / source.name)
@@ -396,10 +397,11 @@ def daqp_home() -> Path:
     return _private_cache()
 
 
-def daqp_library(compiler: Compiler) -> Path:
-    """DAQP's sources compiled with FLAGS by ``compiler`` into a static library (symbols hidden), built once per
-    compiler, target and flags next to the sources (:mod:`vfdsl.codegen.daqp_sources`)."""
-    root = daqp_sources(daqp_home())
+def daqp_library(compiler: Compiler, root: Path | None = None) -> Path:
+    """DAQP's sources (in ``root``, default: :func:`daqp_sources` of :func:`daqp_home`) compiled with FLAGS by
+    ``compiler`` into a static library (symbols hidden), built once per compiler, target and flags next to the
+    sources (:mod:`vfdsl.codegen.daqp_sources`)."""
+    root = root if root is not None else daqp_sources(daqp_home())
     key = hashlib.sha256(json.dumps([FLAGS, compiler.version, compiler.target]).encode()).hexdigest()[:16]
     library = root / "lib" / f"libdaqp-{key}.a"
     if library.is_file():
