@@ -81,8 +81,9 @@ _DAQP_FREE_MEM = re.compile(r"^void casadi_daqp_free_mem\(struct casadi_daqp_dat
                             re.MULTILINE)
 _CONIC_CALL = re.compile(r"(/\* (\w+):\(h\[[^\n]*\*/\nstatic int \w+\([^\n]*\{\n(?:(?!\n\}\n).)*?)"
                          r"casadi_daqp_solve\(d, arg, res, iw, w\);", re.DOTALL)
-_LEVELS = re.compile(r"_levels((?:_\d+)+)_rho(\d+)(_partial)?")
-PERSISTENT_DAQP = (Path(__file__).parent / "daqp_persistent.c").read_text()
+_LEVELS = re.compile(r"_levels((?:_\d+)+)_rho(\d+)(_partial)?(_exact)?")
+_DAQP_DATA_END = "  int bnb_itercount;\n};\n"
+PERSISTENT_DAQP = "".join((Path(__file__).parent / name).read_text() for name in ("lexls.c", "daqp_persistent.c"))
 MEMORY_SLOTS = (Path(__file__).parent / "memory_slots.c").read_text()
 MAX_SLOTS = 64
 """Controllers of one task that may exist at once in a process (memory slots of its generated code)."""
@@ -266,6 +267,10 @@ def _with_persistent_daqp(source: str) -> str:
     source, calls = _CONIC_CALL.subn(_conic_call, source)
     if calls != len(re.findall(r"/\* \w+:\(h\[", source)):
         raise VfError(f"CasADi {ca.__version__}: a conic's DAQP call was not found")
+    if source.count(_DAQP_DATA_END) != 1:
+        raise VfError(f"CasADi {ca.__version__} generates DAQP data this vfdsl does not know",
+                      hint="install the CasADi version vfdsl requires (pip install 'casadi>=3.8.2,<3.9')")
+    source = source.replace(_DAQP_DATA_END, "  int bnb_itercount;\n  struct vfdsl_lex* lex;    /* vfdsl: lexls.c's memory */\n};\n")
     source = _DAQP_FREE_MEM.sub("", source)
     return _DAQP_SOLVE.sub(lambda _: PERSISTENT_DAQP, source)
 
@@ -281,7 +286,7 @@ def _conic_call(match: re.Match) -> str:
         return f"{body}vfdsl_daqp_solve(d, {int(name.endswith('_warm'))}, 0);"
     points = [int(b) for b in levels.group(1).strip("_").split("_")]
     table = (f"static const vfdsl_levels levels = {{{len(points)}, 1e-{levels.group(2)}, {int(bool(levels.group(3)))}, "
-             f"{{{', '.join(map(str, points))}}}}};")
+             f"{int(bool(levels.group(4)))}, {{{', '.join(map(str, points))}}}}};")
     return f"{body}{{\n    {table}\n    vfdsl_daqp_solve(d, {int(name.endswith('_warm'))}, &levels);\n  }}"
 
 

@@ -22,9 +22,10 @@
 #include <daqp/utils.h>        /* daqp_update_ldp (api.h does not declare the update functions) */
 
 #define VFDSL_LEVELS_MAX 16
-/* A conic's levels (from its name): DAQP's break points, rho (the soft rows' reciprocal weight), and partial: a
-   failed level gives the answer of the levels above it (which meets the hard level) rather than NaN. */
-typedef struct { int nh; double rho; int partial; int break_points[VFDSL_LEVELS_MAX]; } vfdsl_levels;
+/* A conic's levels (from its name): DAQP's break points, rho (the soft rows' reciprocal weight), partial: a
+   failed level gives the answer of the levels above it (which meets the hard level) rather than NaN, and exact:
+   the levels' rows are targets (lower = upper), so lexls.c may solve them exactly (see vfdsl_daqp_solve). */
+typedef struct { int nh; double rho; int partial; int exact; int break_points[VFDSL_LEVELS_MAX]; } vfdsl_levels;
 
 static void vfdsl_daqp_cold_sense(const struct casadi_qp_prob* p_qp, const struct casadi_qp_data* d_qp,
                                   int* sense) {
@@ -67,14 +68,50 @@ static int vfdsl_daqp_update(struct casadi_daqp_data* d, int warm) {
 }
 
 void casadi_daqp_free_mem(struct casadi_daqp_data* d) {
+  vfdsl_lex_free(d->lex);
+  d->lex = 0;
   d->work.settings = 0;  /* the settings belong to the caller's frame, not to DAQP */
   free_daqp_workspace(&d->work);
   free_daqp_ldp(&d->work);
   d->return_status = 0;
 }
 
+/* The problem as DAQP holds it (its data filled in), for lexls.c. */
+static void vfdsl_lex_prob_of(const struct casadi_daqp_data* d, const vfdsl_levels* levels, vfdsl_lex_prob* prob) {
+  prob->n = d->daqp.n;
+  prob->ms = d->daqp.ms;
+  prob->K = levels->break_points[0] - d->daqp.ms;
+  prob->nh = levels->nh;
+  prob->break_points = levels->break_points;
+  prob->H = d->daqp.H;
+  prob->f = d->daqp.f;
+  prob->A = d->daqp.A;
+  prob->blower = d->daqp.blower;
+  prob->bupper = d->daqp.bupper;
+}
+
+/* x (in d->qp->x) is the certified optimum of the levels: a success, without multipliers. */
+static void vfdsl_exact_answer(struct casadi_daqp_data* d) {
+  struct casadi_qp_data* d_qp = d->qp;
+  const struct casadi_qp_prob* p_qp = d->prob->qp;
+  casadi_int i;
+  d->return_status = DAQP_EXIT_OPTIMAL;
+  d->nodecount = 0;
+  d->bnb_itercount = 0;
+  d->lex->valid = 1;
+  d_qp->success = 1;
+  if (d_qp->lam_x) for (i=0;i<p_qp->nx;++i) d_qp->lam_x[i] = 0;
+  if (d_qp->lam_a) for (i=0;i<p_qp->na;++i) d_qp->lam_a[i] = 0;
+  if (d_qp->f) {
+    double f = 0;
+    for (i=0;i<p_qp->nx;++i) f += d_qp->x[i] * (d->daqp.f[i] + 0.5 * lex_dot(d->daqp.H + i*p_qp->nx, d_qp->x, p_qp->nx));
+    *d_qp->f = f;
+  }
+}
+
 static int vfdsl_daqp_solve(struct casadi_daqp_data* d, int warm, const vfdsl_levels* levels) {
   int flag;
+  vfdsl_lex_prob prob;
   const struct casadi_daqp_prob* p = d->prob;
   const struct casadi_qp_prob* p_qp = p->qp;
   struct casadi_qp_data* d_qp = d->qp;
@@ -96,6 +133,17 @@ static int vfdsl_daqp_solve(struct casadi_daqp_data* d, int warm, const vfdsl_le
   casadi_copy(d_qp->ubx, p_qp->nx, d->daqp.bupper);
   casadi_copy(d_qp->uba, p_qp->na, d->daqp.bupper+p_qp->nx);
   d->daqp.f = (casadi_real*) (d_qp->g);
+  if (levels && levels->exact) {
+    vfdsl_lex_prob_of(d, levels, &prob);
+    if (!d->lex) d->lex = vfdsl_lex_alloc(prob.n, prob.K, d->daqp.m - levels->break_points[0]);
+    if (d->lex) {
+      vfdsl_lex_rows(d->lex, &prob);
+      if (d->lex->valid && vfdsl_lex_solve(d->lex, &prob, d->lex->guess, d_qp->x)) {
+        vfdsl_exact_answer(d);
+        return 0;
+      }
+    }
+  }
   if (d->work.sense) {
     flag = vfdsl_daqp_update(d, warm);
   } else {
@@ -112,6 +160,16 @@ static int vfdsl_daqp_solve(struct casadi_daqp_data* d, int warm, const vfdsl_le
   d->bnb_itercount = 0;
   d_qp->success = vfdsl_daqp_succeeded(flag)
                   || (levels && levels->partial && flag==DAQP_EXIT_CONSTRAINED_POINT);
+  if (d->lex && levels && levels->exact) {     /* the levels solved exactly over the rows DAQP's answer holds */
+    vfdsl_lex* lex = d->lex;
+    lex->valid = d_qp->success;
+    if (lex->valid) vfdsl_lex_working_set(lex, d_qp->x, lex->guess);
+    if (lex->valid && vfdsl_lex_solve(lex, &prob, lex->guess, lex->x)) {
+      casadi_copy(lex->x, p_qp->nx, d_qp->x);
+      vfdsl_exact_answer(d);
+      return 0;
+    }
+  }
   if (d_qp->success) {
     casadi_copy(d->res.lam, p_qp->nx, d_qp->lam_x);
     casadi_copy(d->res.lam+p_qp->nx, p_qp->na, d_qp->lam_a);

@@ -80,6 +80,8 @@ from collections.abc import Callable, Hashable, Sequence
 import casadi as ca
 import numpy as np
 
+from vfdsl.runtime import lexls
+
 QP_DATA_OUTPUTS = ("H", "g", "A", "lba", "uba", "lbx", "ubx")
 STEP_OUTPUTS = ("x", "status", "violation")
 GRADIENT_SATURATION = 1e3
@@ -172,7 +174,8 @@ def build_step_function(qp_data: ca.Function, prefix: str, *,
         args = [H_cost, g_cost, A, lba, uba, lo, hi, R, r]
         x1 = None
         for k, (tol, rho) in enumerate(LEVEL_ATTEMPTS):
-            solve = _daqp(n, m, tol, f"phase1_try{k}", native, sizes, rho, partial=k == len(LEVEL_ATTEMPTS) - 1)
+            solve = _daqp(n, m, tol, f"phase1_try{k}", native, sizes, rho, partial=k == len(LEVEL_ATTEMPTS) - 1,
+                          exact=True)
             x1 = solve(*args) if x1 is None else _retried(x1, recover, solve, args)
     else:
         x1 = _daqp(n, m, feas_tol * 1e-3, "phase1_warm", native)(H, g, A, lba, uba, lo, hi)
@@ -256,7 +259,8 @@ def _box_width(lo: ca.MX, hi: ca.MX) -> ca.MX:
 
 
 def _daqp(n: int, m: int, primal_tol: float, name: str, native: bool,
-          level_rows: Sequence[int] = (), rho: float = 1e-8, partial: bool = False) -> Callable[..., ca.MX]:
+          level_rows: Sequence[int] = (), rho: float = 1e-8, partial: bool = False,
+          exact: bool = False) -> Callable[..., ca.MX]:
     """solve(H, g, A, lba, uba, lbx, ubx[, R, r[, r_upper]]) -> x: one dense DAQP solve, x = NaN when it fails.
     ``primal_tol``: DAQP's (1e-3 feas_tol for the solves without levels, :data:`LEVEL_ATTEMPTS` with them).
 
@@ -279,13 +283,14 @@ def _daqp(n: int, m: int, primal_tol: float, name: str, native: bool,
         exponent = round(-np.log10(rho))
         if rho != 10.0 ** -exponent:
             raise ValueError(f"rho {rho} is not a power of ten (the generated C names it by its exponent)")
-        name = f"{name}_levels_{'_'.join(map(str, breaks))}_rho{exponent}{'_partial' if partial else ''}"
+        name = (f"{name}_levels_{'_'.join(map(str, breaks))}_rho{exponent}{'_partial' if partial else ''}"
+                f"{'_exact' if exact else ''}")
     if native:
         sparsity = {"h": ca.Sparsity.dense(n, n), "a": ca.Sparsity.dense(m + n + extra, n)}
         options = {"error_on_fail": False, "daqp": {"primal_tol": primal_tol}}
         conic = ca.conic(name, "daqp", sparsity, options)
     else:
-        conic = _DaqpNode.function(name, n, m + n + extra, primal_tol, breaks, rho, partial)
+        conic = _DaqpNode.function(name, n, m + n + extra, primal_tol, breaks, rho, partial, exact)
 
     def solve(H, g, A, lba, uba, lbx, ubx, R=None, r=None, r_upper=None):
         rows, lower, upper = [A, ca.DM.eye(n)], [lba, lbx], [uba, ubx]
@@ -307,16 +312,17 @@ class _DaqpNode(ca.Callback):
 
     @classmethod
     def function(cls, name: str, n: int, rows: int, primal_tol: float, break_points: list[int],
-                 rho: float, partial: bool) -> ca.Function:
-        key = (name, n, rows, primal_tol, tuple(break_points), rho, partial)
+                 rho: float, partial: bool, exact: bool) -> ca.Function:
+        key = (name, n, rows, primal_tol, tuple(break_points), rho, partial, exact)
         if key not in cls._alive:
-            cls._alive[key] = cls(name, n, rows, primal_tol, break_points, rho, partial)
+            cls._alive[key] = cls(name, n, rows, primal_tol, break_points, rho, partial, exact)
         return cls._alive[key]
 
     def __init__(self, name: str, n: int, rows: int, primal_tol: float, break_points: list[int], rho: float,
-                 partial: bool):
+                 partial: bool, exact: bool):
         ca.Callback.__init__(self)
         self.n, self.rows, self.primal_tol, self.break_points, self.rho = n, rows, primal_tol, break_points, rho
+        self.exact = exact
         self.success = DAQP_SUCCESS + (DAQP_PARTIAL,) * partial
         self.construct(name, {})
 
@@ -341,9 +347,15 @@ class _DaqpNode(ca.Callback):
 
     def eval(self, arg):
         H, g, A, lba, uba, lbx, ubx = (np.array(a, dtype=float) for a in arg)
-        x, flag = solve_daqp(H, g.ravel(), A, np.r_[lbx.ravel(), lba.ravel()], np.r_[ubx.ravel(), uba.ravel()],
-                             self.primal_tol, self.break_points, self.rho)
-        return [x if flag in self.success else np.full(self.n, np.nan)]
+        lower, upper = np.r_[lbx.ravel(), lba.ravel()], np.r_[ubx.ravel(), uba.ravel()]
+        x, flag = solve_daqp(H, g.ravel(), A, lower, upper, self.primal_tol, self.break_points, self.rho)
+        if flag not in self.success:
+            return [np.full(self.n, np.nan)]
+        if self.exact:      # the levels solved exactly over the rows DAQP's answer holds, when certified
+            x_exact, certified = lexls.polish(H, g.ravel(), A, lower, upper, self.break_points, x)
+            if certified:
+                return [x_exact]
+        return [x]
 
 
 DAQP_SUCCESS = (1, 2)

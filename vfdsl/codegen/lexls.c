@@ -1,0 +1,377 @@
+/* vfdsl: priority levels solved exactly over a working set, with a certificate of optimality.
+ *
+ * The C of vfdsl/runtime/lexls.py (whose docstring holds the math), step for step with the same tolerances, for
+ * the generated tick: its own Householder QR (with column pivoting for the ranks), Cholesky and Lawson-Hanson
+ * nonnegative least squares, on the dense data of DAQP's problem (daqp_persistent.c):
+ *
+ *   hard rows   DAQP's general rows [0, K), bounds blower/bupper[ms + i] (unit length here, scaled per tick)
+ *   level j     DAQP's rows [b_j - ms, b_{j+1} - ms), targets blower (= bupper), b the break points
+ *   last cost   1/2 x'Hx + f'x
+ *
+ * vfdsl_lex_solve(lex, prob, s, x) computes the levels' optimum with the working set s (LEX_UPPER, LEX_LOWER,
+ * LEX_FIXED held as equalities, LEX_FREE left out) and returns 1 when it is certified as the optimum of the whole
+ * problem, 0 otherwise (x then undefined). All memory is allocated once by vfdsl_lex_alloc.
+ */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#define LEX_RANK_TOL 1e-10
+#define LEX_COND_TOL 1e-4
+#define LEX_PRIMAL_TOL 1e-10
+#define LEX_DUAL_TOL 1e-9
+#define LEX_ACTIVE_TOL 1e-9
+enum { LEX_FREE = 0, LEX_UPPER = 1, LEX_LOWER = -1, LEX_FIXED = 2 };
+
+typedef struct vfdsl_lex {
+  int n, K, P;            /* variables, hard rows, level rows (all levels) */
+  int valid;              /* guess holds a working set */
+  int *guess, *s, *piv, *cols;
+  double *A, *lo, *up;    /* unit hard rows (K x n, row-major) and their bounds */
+  double *M, *t;          /* gathered rows (row-major) and targets */
+  double *B, *T, *tau, *tau2, *c;
+  double *Z, *U, *x, *g, *y, *K2;
+  double *N, *NP, *lam, *sol, *w, *res;
+} vfdsl_lex;
+
+static void vfdsl_lex_free(vfdsl_lex* L) {
+  if (!L) return;
+  free(L->guess); free(L->s); free(L->piv); free(L->cols);
+  free(L->A); free(L->lo); free(L->up); free(L->M); free(L->t);
+  free(L->B); free(L->T); free(L->tau); free(L->tau2); free(L->c);
+  free(L->Z); free(L->U); free(L->x); free(L->g); free(L->y); free(L->K2);
+  free(L->N); free(L->NP); free(L->lam); free(L->sol); free(L->w); free(L->res);
+  free(L);
+}
+
+static vfdsl_lex* vfdsl_lex_alloc(int n, int K, int P) {
+  int R = (K > P ? K : P) + n;        /* most rows one step gathers */
+  vfdsl_lex* L = (vfdsl_lex*) calloc(1, sizeof(vfdsl_lex));
+  if (!L) return 0;
+  L->n = n; L->K = K; L->P = P;
+  L->guess = (int*) calloc(K + 1, sizeof(int)); L->s = (int*) calloc(K + 1, sizeof(int));
+  L->piv = (int*) calloc(R, sizeof(int)); L->cols = (int*) calloc(K + 1, sizeof(int));
+  L->A = (double*) malloc(sizeof(double) * (K * n + 1));
+  L->lo = (double*) malloc(sizeof(double) * (K + 1)); L->up = (double*) malloc(sizeof(double) * (K + 1));
+  L->M = (double*) malloc(sizeof(double) * R * n); L->t = (double*) malloc(sizeof(double) * R);
+  L->B = (double*) malloc(sizeof(double) * R * n); L->T = (double*) malloc(sizeof(double) * R * n);
+  L->tau = (double*) malloc(sizeof(double) * R); L->tau2 = (double*) malloc(sizeof(double) * R);
+  L->c = (double*) malloc(sizeof(double) * R);
+  L->Z = (double*) malloc(sizeof(double) * n * n); L->U = (double*) malloc(sizeof(double) * n * n);
+  L->x = (double*) malloc(sizeof(double) * n); L->g = (double*) malloc(sizeof(double) * n);
+  L->y = (double*) malloc(sizeof(double) * n); L->K2 = (double*) malloc(sizeof(double) * n * n);
+  L->N = (double*) malloc(sizeof(double) * n * (K + 1)); L->NP = (double*) malloc(sizeof(double) * n * (K + 1));
+  L->lam = (double*) malloc(sizeof(double) * (K + 1)); L->sol = (double*) malloc(sizeof(double) * (K + 1));
+  L->w = (double*) malloc(sizeof(double) * (K + 1)); L->res = (double*) malloc(sizeof(double) * (n + 1));
+  if (!L->guess || !L->s || !L->piv || !L->cols || !L->A || !L->lo || !L->up || !L->M || !L->t || !L->B || !L->T
+      || !L->tau || !L->tau2 || !L->c || !L->Z || !L->U || !L->x || !L->g || !L->y || !L->K2 || !L->N || !L->NP
+      || !L->lam || !L->sol || !L->w || !L->res) {
+    vfdsl_lex_free(L);
+    return 0;
+  }
+  return L;
+}
+
+static double lex_dot(const double* a, const double* b, int n) {
+  double s = 0;
+  int i;
+  for (i=0;i<n;++i) s += a[i]*b[i];
+  return s;
+}
+
+/* Householder QR of the k x p column-major matrix B (in place: R above the diagonal, reflectors below, tau),
+ * with column pivoting when piv is given (piv[i]: the column of B's original i-th column's place). Returns the
+ * rank (pivots > RANK_TOL); *ill is set when a counted pivot is <= COND_TOL. Without pivoting, all min(k, p)
+ * columns are reduced and the rank is not decided (returns min(k, p)). */
+static int lex_qr(double* B, int k, int p, double* tau, int* piv, int* ill) {
+  int j, c, i, best, t = k < p ? k : p;
+  if (piv) for (i=0;i<p;++i) piv[i] = i;
+  for (j=0;j<t;++j) {
+    double alpha, beta, norm2, best2 = -1, *col = B + j*k;
+    if (piv) {                      /* the remaining column of largest norm */
+      best = j;
+      for (c=j;c<p;++c) {
+        double s = 0, *b = B + c*k;
+        for (i=j;i<k;++i) s += b[i]*b[i];
+        if (s > best2) { best2 = s; best = c; }
+      }
+      if (best != j) {
+        double tmp;
+        int ti = piv[j]; piv[j] = piv[best]; piv[best] = ti;
+        for (i=0;i<k;++i) { tmp = B[i + j*k]; B[i + j*k] = B[i + best*k]; B[i + best*k] = tmp; }
+      }
+    }
+    norm2 = 0;
+    for (i=j;i<k;++i) norm2 += col[i]*col[i];
+    if (piv) {
+      double d = sqrt(norm2);
+      if (!(d > LEX_RANK_TOL)) return j;
+      if (d <= LEX_COND_TOL) *ill = 1;
+    }
+    alpha = col[j];
+    beta = norm2 > 0 ? -copysign(sqrt(norm2), alpha) : 0;
+    if (beta == 0) { tau[j] = 0; continue; }
+    tau[j] = (beta - alpha) / beta;
+    for (i=j+1;i<k;++i) col[i] /= (alpha - beta);
+    col[j] = beta;
+    for (c=j+1;c<p;++c) {
+      double *b = B + c*k, w = b[j];
+      for (i=j+1;i<k;++i) w += col[i]*b[i];
+      w *= tau[j];
+      b[j] -= w;
+      for (i=j+1;i<k;++i) b[i] -= w*col[i];
+    }
+  }
+  return t;
+}
+
+/* Z (n x k, column-major) times the first r reflectors of lex_qr's B (k rows). */
+static void lex_apply_right(double* Z, int n, int k, const double* B, const double* tau, int r) {
+  int j, i, l;
+  for (j=0;j<r;++j) {
+    const double* v = B + j*k;
+    if (tau[j] == 0) continue;
+    for (i=0;i<n;++i) {
+      double w = Z[i + j*n];
+      for (l=j+1;l<k;++l) w += Z[i + l*n]*v[l];
+      w *= tau[j];
+      Z[i + j*n] -= w;
+      for (l=j+1;l<k;++l) Z[i + l*n] -= w*v[l];
+    }
+  }
+}
+
+/* One step of the null-space chain: the rows M (p x n, row-major) against Z (n x *k). With t (targets), x moves
+ * by the least-squares step of M (x + Z y) = t within range(Z); Z becomes the null space of M Z. Returns 0, or -1
+ * when a pivot is ill-conditioned. */
+static int lex_step(vfdsl_lex* L, const double* M, int p, const double* t, double* x, double* Z, int* k) {
+  int n = L->n, kk = *k, r, i, l, ill = 0;
+  double *B = L->B;
+  if (kk == 0 || p == 0) return 0;
+  for (i=0;i<p;++i) for (l=0;l<kk;++l) B[l + i*kk] = lex_dot(M + i*n, Z + l*n, n);   /* (M Z)' */
+  r = lex_qr(B, kk, p, L->tau, L->piv, &ill);
+  if (ill) return -1;
+  if (r == 0) return 0;
+  lex_apply_right(Z, n, kk, B, L->tau, r);
+  if (t) {      /* z = argmin |R1' z - c|, c = (t - M x)[piv]: QR of R1' (p x r) */
+    double *T = L->T, *c = L->c;
+    for (i=0;i<p;++i) c[i] = t[L->piv[i]] - lex_dot(M + L->piv[i]*n, x, n);
+    for (l=0;l<r;++l) for (i=0;i<p;++i) T[i + l*p] = i >= l ? B[l + i*kk] : 0;
+    lex_qr(T, p, r, L->tau2, 0, &ill);
+    for (l=0;l<r;++l) {              /* c = Q' c */
+      double w = c[l];
+      if (L->tau2[l] == 0) continue;
+      for (i=l+1;i<p;++i) w += T[i + l*p]*c[i];
+      w *= L->tau2[l];
+      c[l] -= w;
+      for (i=l+1;i<p;++i) c[i] -= w*T[i + l*p];
+    }
+    for (l=r-1;l>=0;--l) {           /* R z = c */
+      double s = c[l];
+      for (i=l+1;i<r;++i) s -= T[l + i*p]*c[i];
+      c[l] = s / T[l + l*p];
+    }
+    for (l=0;l<r;++l) for (i=0;i<n;++i) x[i] += Z[i + l*n]*c[l];
+  }
+  memmove(Z, Z + r*n, sizeof(double) * n * (kk - r));
+  *k = kk - r;
+  return 0;
+}
+
+/* Cholesky solve of the k x k SPD K2 (column-major, overwritten) against b (overwritten by the solution); 0, or -1
+ * when K2 is not positive definite. */
+static int lex_cholesky_solve(double* K2, int k, double* b) {
+  int i, j, l;
+  for (j=0;j<k;++j) {
+    double d = K2[j + j*k];
+    for (l=0;l<j;++l) d -= K2[j + l*k]*K2[j + l*k];
+    if (!(d > 0)) return -1;
+    d = sqrt(d);
+    K2[j + j*k] = d;
+    for (i=j+1;i<k;++i) {
+      double s = K2[i + j*k];
+      for (l=0;l<j;++l) s -= K2[i + l*k]*K2[j + l*k];
+      K2[i + j*k] = s / d;
+    }
+  }
+  for (i=0;i<k;++i) { for (l=0;l<i;++l) b[i] -= K2[i + l*k]*b[l]; b[i] /= K2[i + i*k]; }
+  for (i=k-1;i>=0;--i) { for (l=i+1;l<k;++l) b[i] -= K2[l + i*k]*b[l]; b[i] /= K2[i + i*k]; }
+  return 0;
+}
+
+/* min |N lam - c|, lam >= 0 (Lawson-Hanson), N k x a column-major: returns the residual's norm (inf when the
+ * inner least squares break down). */
+static double lex_nnls(vfdsl_lex* L, const double* N, int k, int a, const double* c) {
+  double *lam = L->lam, *sol = L->sol, *w = L->w, *res = L->res, *NP = L->NP;
+  int *passive = L->cols, np = 0, i, j, l, iter, ill = 0;
+  double tol = 0, norm;
+  for (j=0;j<a;++j) { lam[j] = 0; passive[j] = 0; for (i=0;i<k;++i) tol += fabs(N[i + j*k]); }
+  tol *= 10 * 2.220446049250313e-16 * (k > a ? k : a);
+  for (iter=0; iter<3*a+3; ++iter) {
+    int t = -1, inner;
+    double best = tol;
+    for (i=0;i<k;++i) { res[i] = c[i]; for (j=0;j<a;++j) res[i] -= N[i + j*k]*lam[j]; }
+    for (j=0;j<a;++j) if (!passive[j]) {
+      w[j] = lex_dot(N + j*k, res, k);
+      if (w[j] > best) { best = w[j]; t = j; }
+    }
+    if (t < 0) break;
+    passive[t] = 1;
+    for (inner=0; inner<3*a+3; ++inner) {    /* least squares on the passive columns */
+      int idx[64], q = 0, neg = 0;
+      double alpha = 1;
+      for (j=0;j<a && q<64;++j) if (passive[j]) idx[q++] = j;
+      for (l=0;l<q;++l) for (i=0;i<k;++i) NP[i + l*k] = N[i + idx[l]*k];
+      for (i=0;i<k;++i) res[i] = c[i];
+      if (q > k) return INFINITY;
+      lex_qr(NP, k, q, L->tau2, 0, &ill);
+      for (l=0;l<q;++l) {
+        double s = res[l];
+        if (L->tau2[l] == 0) continue;
+        for (i=l+1;i<k;++i) s += NP[i + l*k]*res[i];
+        s *= L->tau2[l];
+        res[l] -= s;
+        for (i=l+1;i<k;++i) res[i] -= s*NP[i + l*k];
+      }
+      for (l=q-1;l>=0;--l) {
+        double s = res[l];
+        if (!(fabs(NP[l + l*k]) > 0)) return INFINITY;
+        for (i=l+1;i<q;++i) s -= NP[l + i*k]*sol[idx[i]];
+        sol[idx[l]] = s / NP[l + l*k];
+      }
+      for (l=0;l<q;++l) if (sol[idx[l]] <= 0) neg = 1;
+      if (!neg) { for (l=0;l<q;++l) lam[idx[l]] = sol[idx[l]]; break; }
+      for (l=0;l<q;++l) {
+        j = idx[l];
+        if (sol[j] <= 0) { double step = lam[j] / (lam[j] - sol[j]); if (step < alpha) alpha = step; }
+      }
+      for (l=0;l<q;++l) {
+        j = idx[l];
+        lam[j] += alpha * (sol[j] - lam[j]);
+        if (lam[j] <= tol) { lam[j] = 0; passive[j] = 0; }
+      }
+    }
+  }
+  norm = 0;
+  for (i=0;i<k;++i) { double r = c[i]; for (j=0;j<a;++j) r -= N[i + j*k]*lam[j]; norm += r*r; }
+  return sqrt(norm);
+}
+
+/* The problem, as DAQP holds it. */
+typedef struct {
+  int n, ms, K, nh;
+  const int* break_points;
+  const double *H, *f, *A, *blower, *bupper;
+} vfdsl_lex_prob;
+
+/* Unit hard rows of the problem into L (every tick). */
+static void vfdsl_lex_rows(vfdsl_lex* L, const vfdsl_lex_prob* P) {
+  int i, j, n = P->n;
+  for (i=0;i<P->K;++i) {
+    const double* a = P->A + i*n;
+    double norm = sqrt(lex_dot(a, a, n)), scale = norm > 0 ? 1 / norm : 1;
+    for (j=0;j<n;++j) L->A[i*n + j] = a[j]*scale;
+    L->lo[i] = P->blower[P->ms + i]*scale;
+    L->up[i] = P->bupper[P->ms + i]*scale;
+  }
+}
+
+/* The working set of x (vfdsl.runtime.lexls.working_set). */
+static void vfdsl_lex_working_set(const vfdsl_lex* L, const double* x, int* s) {
+  int i;
+  for (i=0;i<L->K;++i) {
+    double ax = lex_dot(L->A + i*L->n, x, L->n);
+    int near_up = ax >= L->up[i] - LEX_ACTIVE_TOL, near_lo = ax <= L->lo[i] + LEX_ACTIVE_TOL;
+    s[i] = near_lo ? LEX_LOWER : LEX_FREE;
+    if (near_up && (!near_lo || L->up[i] - ax <= ax - L->lo[i])) s[i] = LEX_UPPER;
+    if (L->lo[i] == L->up[i]) s[i] = LEX_FIXED;
+  }
+}
+
+static double lex_norm(const double* a, int n) { return sqrt(lex_dot(a, a, n)); }
+
+/* 1 when x (n) is certified (vfdsl.runtime.lexls._certified). */
+static int lex_certified(vfdsl_lex* L, const vfdsl_lex_prob* P, const int* s, const double* x) {
+  int n = P->n, i, j, l, a = 0, k = n, p = 0;
+  double *U = L->U, *N = L->N, *g = L->g, *b = L->y;
+  for (i=0;i<P->K;++i) if (s[i] == LEX_FIXED) { memcpy(L->M + p*n, L->A + i*n, sizeof(double) * n); ++p; }
+  memset(U, 0, sizeof(double) * n * n);
+  for (i=0;i<n;++i) U[i + i*n] = 1;
+  if (lex_step(L, L->M, p, 0, 0, U, &k) < 0) return 0;
+  for (j=0;j<=P->nh - 1;++j) {    /* levels 1..nh-1, then the last cost (j = nh - 1) */
+    double scale;
+    const double* R = 0;
+    int rows = 0;
+    if (j < P->nh - 1) {
+      const double* r = P->blower + P->break_points[j];
+      double rn = 0, Rn = 0, xn = lex_norm(x, n);
+      R = P->A + (P->break_points[j] - P->ms)*n;
+      rows = P->break_points[j + 1] - P->break_points[j];
+      for (i=0;i<n;++i) g[i] = 0;
+      for (i=0;i<rows;++i) {
+        double e = lex_dot(R + i*n, x, n) - r[i];
+        for (l=0;l<n;++l) g[l] += R[i*n + l]*e;
+        rn += r[i]*r[i];
+        Rn += lex_dot(R + i*n, R + i*n, n);
+      }
+      scale = sqrt(Rn) * (sqrt(Rn) * xn + sqrt(rn));
+    } else {
+      double Hn = 0;
+      for (i=0;i<n;++i) {
+        g[i] = P->f[i];
+        for (l=0;l<n;++l) { g[i] += P->H[i + l*n]*x[l]; Hn += P->H[i + l*n]*P->H[i + l*n]; }
+      }
+      scale = sqrt(Hn) * lex_norm(x, n) + lex_norm(P->f, n);
+    }
+    if (k == 0) return 1;
+    for (l=0;l<k;++l) b[l] = -lex_dot(U + l*n, g, n);
+    a = 0;
+    for (i=0;i<P->K;++i) if (s[i] == LEX_UPPER || s[i] == LEX_LOWER) {
+      for (l=0;l<k;++l) N[l + a*k] = s[i] * lex_dot(U + l*n, L->A + i*n, n);
+      ++a;
+    }
+    if (a > 64) return 0;
+    if (a ? lex_nnls(L, N, k, a, b) > LEX_DUAL_TOL * scale : lex_norm(b, k) > LEX_DUAL_TOL * scale) return 0;
+    if (R && lex_step(L, R, rows, 0, 0, U, &k) < 0) return 0;
+  }
+  return 1;
+}
+
+/* The levels' optimum over the working set s into x; 1 when certified (vfdsl.runtime.lexls.solve_over). */
+static int vfdsl_lex_solve(vfdsl_lex* L, const vfdsl_lex_prob* P, const int* s, double* x) {
+  int n = P->n, i, j, l, p = 0, k = n;
+  double *Z = L->Z;
+  for (i=0;i<P->K;++i) if (s[i] != LEX_FREE) {
+    memcpy(L->M + p*n, L->A + i*n, sizeof(double) * n);
+    L->t[p++] = s[i] == LEX_LOWER ? L->lo[i] : L->up[i];
+  }
+  memset(x, 0, sizeof(double) * n);
+  memset(Z, 0, sizeof(double) * n * n);
+  for (i=0;i<n;++i) Z[i + i*n] = 1;
+  if (p > L->K + n) return 0;
+  if (lex_step(L, L->M, p, L->t, x, Z, &k) < 0) return 0;
+  for (i=0;i<p;++i) if (fabs(lex_dot(L->M + i*n, x, n) - L->t[i]) > LEX_PRIMAL_TOL) return 0;
+  for (j=0;j<P->nh - 1;++j) {
+    const double* R = P->A + (P->break_points[j] - P->ms)*n;
+    if (lex_step(L, R, P->break_points[j + 1] - P->break_points[j], P->blower + P->break_points[j], x, Z, &k) < 0)
+      return 0;
+  }
+  if (k) {       /* y = -(Z'HZ)^-1 Z'(Hx + f) */
+    double *g = L->g, *y = L->y, *HZ = L->K2;
+    for (i=0;i<n;++i) { g[i] = P->f[i]; for (l=0;l<n;++l) g[i] += P->H[i + l*n]*x[l]; }
+    for (l=0;l<k;++l) y[l] = -lex_dot(Z + l*n, g, n);
+    for (j=0;j<k;++j) {          /* Z'HZ into HZ (k x k), H symmetric */
+      for (i=0;i<n;++i) { double s2 = 0; for (l=0;l<n;++l) s2 += P->H[i + l*n]*Z[l + j*n]; g[i] = s2; }
+      for (l=0;l<k;++l) L->T[l + j*k] = lex_dot(Z + l*n, g, n);
+    }
+    memcpy(HZ, L->T, sizeof(double) * k * k);
+    if (lex_cholesky_solve(HZ, k, y) < 0) return 0;
+    for (l=0;l<k;++l) for (i=0;i<n;++i) x[i] += Z[i + l*n]*y[l];
+  }
+  for (i=0;i<n;++i) if (!isfinite(x[i])) return 0;
+  for (i=0;i<P->K;++i) {
+    double ax = lex_dot(L->A + i*n, x, n);
+    if (ax < L->lo[i] - LEX_PRIMAL_TOL || ax > L->up[i] + LEX_PRIMAL_TOL) return 0;
+  }
+  return lex_certified(L, P, s, x);
+}
