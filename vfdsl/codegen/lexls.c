@@ -27,7 +27,8 @@ typedef struct vfdsl_lex {
   int n, K, P;            /* variables, hard rows, level rows (all levels) */
   int valid;              /* guess holds a working set */
   int *guess, *s, *piv, *cols;
-  double *A, *lo, *up;    /* unit hard rows (K x n, row-major) and their bounds */
+  const double* A;        /* the hard rows (K x n, row-major: DAQP's), set by vfdsl_lex_rows */
+  double *inv, *lo, *up;  /* 1 / each hard row's length, and its bounds over that length (the unit row's) */
   double *M, *t;          /* gathered rows (row-major) and targets */
   double *B, *T, *tau, *tau2, *c;
   double *Z, *U, *x, *g, *y, *K2;
@@ -37,7 +38,7 @@ typedef struct vfdsl_lex {
 static void vfdsl_lex_free(vfdsl_lex* L) {
   if (!L) return;
   free(L->guess); free(L->s); free(L->piv); free(L->cols);
-  free(L->A); free(L->lo); free(L->up); free(L->M); free(L->t);
+  free(L->inv); free(L->lo); free(L->up); free(L->M); free(L->t);
   free(L->B); free(L->T); free(L->tau); free(L->tau2); free(L->c);
   free(L->Z); free(L->U); free(L->x); free(L->g); free(L->y); free(L->K2);
   free(L->N); free(L->NP); free(L->lam); free(L->sol); free(L->w); free(L->res);
@@ -51,7 +52,7 @@ static vfdsl_lex* vfdsl_lex_alloc(int n, int K, int P) {
   L->n = n; L->K = K; L->P = P;
   L->guess = (int*) calloc(K + 1, sizeof(int)); L->s = (int*) calloc(K + 1, sizeof(int));
   L->piv = (int*) calloc(R, sizeof(int)); L->cols = (int*) calloc(K + 1, sizeof(int));
-  L->A = (double*) malloc(sizeof(double) * (K * n + 1));
+  L->inv = (double*) malloc(sizeof(double) * (K + 1));
   L->lo = (double*) malloc(sizeof(double) * (K + 1)); L->up = (double*) malloc(sizeof(double) * (K + 1));
   L->M = (double*) malloc(sizeof(double) * R * n); L->t = (double*) malloc(sizeof(double) * R);
   L->B = (double*) malloc(sizeof(double) * R * n); L->T = (double*) malloc(sizeof(double) * R * n);
@@ -63,7 +64,7 @@ static vfdsl_lex* vfdsl_lex_alloc(int n, int K, int P) {
   L->N = (double*) malloc(sizeof(double) * n * (K + 1)); L->NP = (double*) malloc(sizeof(double) * n * (K + 1));
   L->lam = (double*) malloc(sizeof(double) * (K + 1)); L->sol = (double*) malloc(sizeof(double) * (K + 1));
   L->w = (double*) malloc(sizeof(double) * (K + 1)); L->res = (double*) malloc(sizeof(double) * (n + 1));
-  if (!L->guess || !L->s || !L->piv || !L->cols || !L->A || !L->lo || !L->up || !L->M || !L->t || !L->B || !L->T
+  if (!L->guess || !L->s || !L->piv || !L->cols || !L->inv || !L->lo || !L->up || !L->M || !L->t || !L->B || !L->T
       || !L->tau || !L->tau2 || !L->c || !L->Z || !L->U || !L->x || !L->g || !L->y || !L->K2 || !L->N || !L->NP
       || !L->lam || !L->sol || !L->w || !L->res) {
     vfdsl_lex_free(L);
@@ -112,7 +113,10 @@ static int lex_qr(double* B, int k, int p, double* tau, int* piv, int* ill) {
     beta = norm2 > 0 ? -copysign(sqrt(norm2), alpha) : 0;
     if (beta == 0) { tau[j] = 0; continue; }
     tau[j] = (beta - alpha) / beta;
-    for (i=j+1;i<k;++i) col[i] /= (alpha - beta);
+    {
+      double scale = 1 / (alpha - beta);
+      for (i=j+1;i<k;++i) col[i] *= scale;
+    }
     col[j] = beta;
     for (c=j+1;c<p;++c) {
       double *b = B + c*k, w = b[j];
@@ -125,9 +129,24 @@ static int lex_qr(double* B, int k, int p, double* tau, int* piv, int* ill) {
   return t;
 }
 
-/* Z (n x k, column-major) times the first r reflectors of lex_qr's B (k rows). */
-static void lex_apply_right(double* Z, int n, int k, const double* B, const double* tau, int r) {
+/* Z (n x k, column-major) times the first r reflectors of lex_qr's B (k rows); Z = I (ident, n = k): the product
+ * H_0 ... H_{r-1} formed from the last reflector back, each touching only its trailing rows and columns. */
+static void lex_apply_right(double* Z, int n, int k, const double* B, const double* tau, int r, int ident) {
   int j, i, l;
+  if (ident) {
+    for (j=r-1;j>=0;--j) {
+      const double* v = B + j*k;
+      if (tau[j] == 0) continue;
+      for (l=j;l<k;++l) {          /* column l of H_j Q, Q's rows j.. (rows < j of column l >= j are 0) */
+        double w = Z[j + l*n];
+        for (i=j+1;i<k;++i) w += v[i]*Z[i + l*n];
+        w *= tau[j];
+        Z[j + l*n] -= w;
+        for (i=j+1;i<k;++i) Z[i + l*n] -= w*v[i];
+      }
+    }
+    return;
+  }
   for (j=0;j<r;++j) {
     const double* v = B + j*k;
     if (tau[j] == 0) continue;
@@ -144,16 +163,26 @@ static void lex_apply_right(double* Z, int n, int k, const double* B, const doub
 /* One step of the null-space chain: the rows M (p x n, row-major) against Z (n x *k). With t (targets), x moves
  * by the least-squares step of M (x + Z y) = t within range(Z); Z becomes the null space of M Z. Returns 0, or -1
  * when a pivot is ill-conditioned. */
-static int lex_step(vfdsl_lex* L, const double* M, int p, const double* t, double* x, double* Z, int* k) {
+static int lex_step(vfdsl_lex* L, const double* M, int p, const double* t, double* x, double* Z, int* k, int* ident) {
   int n = L->n, kk = *k, r, i, l, ill = 0;
   double *B = L->B;
   if (kk == 0 || p == 0) return 0;
-  for (i=0;i<p;++i) for (l=0;l<kk;++l) B[l + i*kk] = lex_dot(M + i*n, Z + l*n, n);   /* (M Z)' */
+  if (*ident) memcpy(B, M, sizeof(double) * n * p);     /* Z = I: (M Z)' is M' (row-major M, column-major B) */
+  else for (i=0;i<p;++i) for (l=0;l<kk;++l) B[l + i*kk] = lex_dot(M + i*n, Z + l*n, n);   /* (M Z)' */
   r = lex_qr(B, kk, p, L->tau, L->piv, &ill);
   if (ill) return -1;
   if (r == 0) return 0;
-  lex_apply_right(Z, n, kk, B, L->tau, r);
-  if (t) {      /* z = argmin |R1' z - c|, c = (t - M x)[piv]: QR of R1' (p x r) */
+  lex_apply_right(Z, n, kk, B, L->tau, r, *ident);
+  *ident = 0;
+  if (t && r == p) {   /* z solves R1' z = c, c = (t - M x)[piv], R1' lower triangular */
+    double *c = L->c;
+    for (i=0;i<p;++i) {
+      double s = t[L->piv[i]] - lex_dot(M + L->piv[i]*n, x, n);
+      for (l=0;l<i;++l) s -= B[l + i*kk]*c[l];
+      c[i] = s / B[i + i*kk];
+    }
+    for (l=0;l<r;++l) for (i=0;i<n;++i) x[i] += Z[i + l*n]*c[l];
+  } else if (t) {      /* z = argmin |R1' z - c|: QR of R1' (p x r) */
     double *T = L->T, *c = L->c;
     for (i=0;i<p;++i) c[i] = t[L->piv[i]] - lex_dot(M + L->piv[i]*n, x, n);
     for (l=0;l<r;++l) for (i=0;i<p;++i) T[i + l*p] = i >= l ? B[l + i*kk] : 0;
@@ -199,14 +228,52 @@ static int lex_cholesky_solve(double* K2, int k, double* b) {
   return 0;
 }
 
-/* min |N lam - c|, lam >= 0 (Lawson-Hanson), N k x a column-major: returns the residual's norm (inf when the
- * inner least squares break down). */
-static double lex_nnls(vfdsl_lex* L, const double* N, int k, int a, const double* c) {
-  double *lam = L->lam, *sol = L->sol, *w = L->w, *res = L->res, *NP = L->NP;
-  int *passive = L->cols, np = 0, i, j, l, iter, ill = 0;
-  double tol = 0, norm;
-  for (j=0;j<a;++j) { lam[j] = 0; passive[j] = 0; for (i=0;i<k;++i) tol += fabs(N[i + j*k]); }
+/* |N lam - c| for lam >= 0 (N k x a, column-major). */
+static double lex_residual(const double* N, int k, int a, const double* c, const double* lam) {
+  int i, j;
+  double norm = 0;
+  for (i=0;i<k;++i) { double r = c[i]; for (j=0;j<a;++j) r -= N[i + j*k]*lam[j]; norm += r*r; }
+  return sqrt(norm);
+}
+
+/* Least squares on the columns idx[0..q) of N (k x a): sol[idx[l]] = argmin |N_idx s - c|; 0, or -1 when a column
+ * is (nearly) dependent on the others. */
+static int lex_ls_columns(vfdsl_lex* L, const double* N, int k, const int* idx, int q, const double* c) {
+  double *NP = L->NP, *res = L->res, *sol = L->sol;
+  int i, l, ill = 0;
+  if (q > k) return -1;
+  for (l=0;l<q;++l) memcpy(NP + l*k, N + idx[l]*k, sizeof(double) * k);
+  memcpy(res, c, sizeof(double) * k);
+  lex_qr(NP, k, q, L->tau2, 0, &ill);
+  for (l=0;l<q;++l) {              /* res = Q' c */
+    double s = res[l];
+    for (i=l+1;i<k;++i) s += NP[i + l*k]*res[i];
+    s *= L->tau2[l];
+    res[l] -= s;
+    for (i=l+1;i<k;++i) res[i] -= s*NP[i + l*k];
+  }
+  for (l=q-1;l>=0;--l) {
+    double s = res[l];
+    if (!(fabs(NP[l + l*k]) > 1e-12)) return -1;
+    for (i=l+1;i<q;++i) s -= NP[l + i*k]*sol[idx[i]];
+    sol[idx[l]] = s / NP[l + l*k];
+  }
+  return 0;
+}
+
+/* 1 when min |N lam - c| over lam >= 0 is at most thr (N k x a, column-major): first the least squares over
+ * every column with its negative entries set to 0 (any lam >= 0 bounds the minimum), then Lawson-Hanson. */
+static int lex_nnls_within(vfdsl_lex* L, const double* N, int k, int a, const double* c, double thr) {
+  double *lam = L->lam, *sol = L->sol, *w = L->w, *res = L->res;
+  int *passive = L->cols, *idx = L->piv, i, j, l, iter;
+  double tol = 0;
+  for (j=0;j<a;++j) { lam[j] = 0; passive[j] = 0; idx[j] = j; for (i=0;i<k;++i) tol += fabs(N[i + j*k]); }
   tol *= 10 * 2.220446049250313e-16 * (k > a ? k : a);
+  if (lex_ls_columns(L, N, k, idx, a, c) == 0) {
+    for (j=0;j<a;++j) lam[j] = sol[j] > 0 ? sol[j] : 0;
+    if (lex_residual(N, k, a, c, lam) <= thr) return 1;
+    for (j=0;j<a;++j) lam[j] = 0;
+  }
   for (iter=0; iter<3*a+3; ++iter) {
     int t = -1, inner;
     double best = tol;
@@ -217,28 +284,11 @@ static double lex_nnls(vfdsl_lex* L, const double* N, int k, int a, const double
     }
     if (t < 0) break;
     passive[t] = 1;
-    for (inner=0; inner<3*a+3; ++inner) {    /* least squares on the passive columns */
-      int idx[64], q = 0, neg = 0;
+    for (inner=0; inner<3*a+3; ++inner) {    /* least squares on the passive columns, kept >= 0 */
+      int q = 0, neg = 0;
       double alpha = 1;
-      for (j=0;j<a && q<64;++j) if (passive[j]) idx[q++] = j;
-      for (l=0;l<q;++l) for (i=0;i<k;++i) NP[i + l*k] = N[i + idx[l]*k];
-      for (i=0;i<k;++i) res[i] = c[i];
-      if (q > k) return INFINITY;
-      lex_qr(NP, k, q, L->tau2, 0, &ill);
-      for (l=0;l<q;++l) {
-        double s = res[l];
-        if (L->tau2[l] == 0) continue;
-        for (i=l+1;i<k;++i) s += NP[i + l*k]*res[i];
-        s *= L->tau2[l];
-        res[l] -= s;
-        for (i=l+1;i<k;++i) res[i] -= s*NP[i + l*k];
-      }
-      for (l=q-1;l>=0;--l) {
-        double s = res[l];
-        if (!(fabs(NP[l + l*k]) > 0)) return INFINITY;
-        for (i=l+1;i<q;++i) s -= NP[l + i*k]*sol[idx[i]];
-        sol[idx[l]] = s / NP[l + l*k];
-      }
+      for (j=0;j<a;++j) if (passive[j]) idx[q++] = j;
+      if (lex_ls_columns(L, N, k, idx, q, c) < 0) return 0;
       for (l=0;l<q;++l) if (sol[idx[l]] <= 0) neg = 1;
       if (!neg) { for (l=0;l<q;++l) lam[idx[l]] = sol[idx[l]]; break; }
       for (l=0;l<q;++l) {
@@ -252,9 +302,7 @@ static double lex_nnls(vfdsl_lex* L, const double* N, int k, int a, const double
       }
     }
   }
-  norm = 0;
-  for (i=0;i<k;++i) { double r = c[i]; for (j=0;j<a;++j) r -= N[i + j*k]*lam[j]; norm += r*r; }
-  return sqrt(norm);
+  return lex_residual(N, k, a, c, lam) <= thr;
 }
 
 /* The problem, as DAQP holds it. */
@@ -264,23 +312,29 @@ typedef struct {
   const double *H, *f, *A, *blower, *bupper;
 } vfdsl_lex_prob;
 
-/* Unit hard rows of the problem into L (every tick). */
+/* The hard rows' lengths and unit bounds into L (every tick). */
 static void vfdsl_lex_rows(vfdsl_lex* L, const vfdsl_lex_prob* P) {
-  int i, j, n = P->n;
+  int i, n = P->n;
+  L->A = P->A;
   for (i=0;i<P->K;++i) {
-    const double* a = P->A + i*n;
-    double norm = sqrt(lex_dot(a, a, n)), scale = norm > 0 ? 1 / norm : 1;
-    for (j=0;j<n;++j) L->A[i*n + j] = a[j]*scale;
+    double norm = sqrt(lex_dot(P->A + i*n, P->A + i*n, n)), scale = norm > 0 ? 1 / norm : 1;
+    L->inv[i] = scale;
     L->lo[i] = P->blower[P->ms + i]*scale;
     L->up[i] = P->bupper[P->ms + i]*scale;
   }
+}
+
+/* Hard row i, of unit length, into out. */
+static void lex_unit_row(const vfdsl_lex* L, int i, double* out) {
+  int j;
+  for (j=0;j<L->n;++j) out[j] = L->A[i*L->n + j]*L->inv[i];
 }
 
 /* The working set of x (vfdsl.runtime.lexls.working_set). */
 static void vfdsl_lex_working_set(const vfdsl_lex* L, const double* x, int* s) {
   int i;
   for (i=0;i<L->K;++i) {
-    double ax = lex_dot(L->A + i*L->n, x, L->n);
+    double ax = lex_dot(L->A + i*L->n, x, L->n)*L->inv[i];
     int near_up = ax >= L->up[i] - LEX_ACTIVE_TOL, near_lo = ax <= L->lo[i] + LEX_ACTIVE_TOL;
     s[i] = near_lo ? LEX_LOWER : LEX_FREE;
     if (near_up && (!near_lo || L->up[i] - ax <= ax - L->lo[i])) s[i] = LEX_UPPER;
@@ -292,12 +346,14 @@ static double lex_norm(const double* a, int n) { return sqrt(lex_dot(a, a, n)); 
 
 /* 1 when x (n) is certified (vfdsl.runtime.lexls._certified). */
 static int lex_certified(vfdsl_lex* L, const vfdsl_lex_prob* P, const int* s, const double* x) {
-  int n = P->n, i, j, l, a = 0, k = n, p = 0;
+  int n = P->n, i, j, l, a = 0, k = n, p = 0, ident = 1;
   double *U = L->U, *N = L->N, *g = L->g, *b = L->y;
-  for (i=0;i<P->K;++i) if (s[i] == LEX_FIXED) { memcpy(L->M + p*n, L->A + i*n, sizeof(double) * n); ++p; }
+  for (i=0;i<P->K;++i) if (s[i] == LEX_UPPER || s[i] == LEX_LOWER) ++a;
+  if (a == 0) return 1;         /* the chain of null spaces is the primal one: optimal in it by construction */
+  for (i=0;i<P->K;++i) if (s[i] == LEX_FIXED) lex_unit_row(L, i, L->M + n*p++);
   memset(U, 0, sizeof(double) * n * n);
   for (i=0;i<n;++i) U[i + i*n] = 1;
-  if (lex_step(L, L->M, p, 0, 0, U, &k) < 0) return 0;
+  if (lex_step(L, L->M, p, 0, 0, U, &k, &ident) < 0) return 0;
   for (j=0;j<=P->nh - 1;++j) {    /* levels 1..nh-1, then the last cost (j = nh - 1) */
     double scale;
     const double* R = 0;
@@ -324,36 +380,45 @@ static int lex_certified(vfdsl_lex* L, const vfdsl_lex_prob* P, const int* s, co
       scale = sqrt(Hn) * lex_norm(x, n) + lex_norm(P->f, n);
     }
     if (k == 0) return 1;
-    for (l=0;l<k;++l) b[l] = -lex_dot(U + l*n, g, n);
     a = 0;
-    for (i=0;i<P->K;++i) if (s[i] == LEX_UPPER || s[i] == LEX_LOWER) {
-      for (l=0;l<k;++l) N[l + a*k] = s[i] * lex_dot(U + l*n, L->A + i*n, n);
-      ++a;
+    if (ident) {                 /* U = I */
+      for (l=0;l<k;++l) b[l] = -g[l];
+      for (i=0;i<P->K;++i) if (s[i] == LEX_UPPER || s[i] == LEX_LOWER) {
+        for (l=0;l<k;++l) N[l + a*k] = s[i] * L->A[i*n + l];      /* (any positive column scale: same minimum) */
+        ++a;
+      }
+    } else {
+      for (l=0;l<k;++l) b[l] = -lex_dot(U + l*n, g, n);
+      for (i=0;i<P->K;++i) if (s[i] == LEX_UPPER || s[i] == LEX_LOWER) {
+        for (l=0;l<k;++l) N[l + a*k] = s[i] * lex_dot(U + l*n, L->A + i*n, n);
+        ++a;
+      }
     }
-    if (a > 64) return 0;
-    if (a ? lex_nnls(L, N, k, a, b) > LEX_DUAL_TOL * scale : lex_norm(b, k) > LEX_DUAL_TOL * scale) return 0;
-    if (R && lex_step(L, R, rows, 0, 0, U, &k) < 0) return 0;
+    if (a ? !lex_nnls_within(L, N, k, a, b, LEX_DUAL_TOL * scale) : lex_norm(b, k) > LEX_DUAL_TOL * scale) return 0;
+    if (R && lex_step(L, R, rows, 0, 0, U, &k, &ident) < 0) return 0;
   }
   return 1;
 }
 
 /* The levels' optimum over the working set s into x; 1 when certified (vfdsl.runtime.lexls.solve_over). */
 static int vfdsl_lex_solve(vfdsl_lex* L, const vfdsl_lex_prob* P, const int* s, double* x) {
-  int n = P->n, i, j, l, p = 0, k = n;
+  int n = P->n, i, j, l, p = 0, k = n, ident = 1;
   double *Z = L->Z;
   for (i=0;i<P->K;++i) if (s[i] != LEX_FREE) {
-    memcpy(L->M + p*n, L->A + i*n, sizeof(double) * n);
-    L->t[p++] = s[i] == LEX_LOWER ? L->lo[i] : L->up[i];
+    lex_unit_row(L, i, L->M + p*n);
+    L->t[p] = s[i] == LEX_LOWER ? L->lo[i] : L->up[i];
+    if (!isfinite(L->t[p++])) return 0;     /* a row held at an infinite bound */
   }
   memset(x, 0, sizeof(double) * n);
   memset(Z, 0, sizeof(double) * n * n);
   for (i=0;i<n;++i) Z[i + i*n] = 1;
   if (p > L->K + n) return 0;
-  if (lex_step(L, L->M, p, L->t, x, Z, &k) < 0) return 0;
+  if (lex_step(L, L->M, p, L->t, x, Z, &k, &ident) < 0) return 0;
   for (i=0;i<p;++i) if (fabs(lex_dot(L->M + i*n, x, n) - L->t[i]) > LEX_PRIMAL_TOL) return 0;
   for (j=0;j<P->nh - 1;++j) {
     const double* R = P->A + (P->break_points[j] - P->ms)*n;
-    if (lex_step(L, R, P->break_points[j + 1] - P->break_points[j], P->blower + P->break_points[j], x, Z, &k) < 0)
+    if (lex_step(L, R, P->break_points[j + 1] - P->break_points[j], P->blower + P->break_points[j], x, Z, &k,
+                 &ident) < 0)
       return 0;
   }
   if (k) {       /* y = -(Z'HZ)^-1 Z'(Hx + f) */
@@ -370,7 +435,7 @@ static int vfdsl_lex_solve(vfdsl_lex* L, const vfdsl_lex_prob* P, const int* s, 
   }
   for (i=0;i<n;++i) if (!isfinite(x[i])) return 0;
   for (i=0;i<P->K;++i) {
-    double ax = lex_dot(L->A + i*n, x, n);
+    double ax = lex_dot(L->A + i*n, x, n)*L->inv[i];
     if (ax < L->lo[i] - LEX_PRIMAL_TOL || ax > L->up[i] + LEX_PRIMAL_TOL) return 0;
   }
   return lex_certified(L, P, s, x);

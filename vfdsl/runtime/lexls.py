@@ -30,14 +30,17 @@ The certificate is the KKT conditions of level j over the hard rows and the opti
 for i < j): sufficient, the problems being convex. So a certified x is x*, whatever W it came from; W decides only
 whether a certificate is found (it is when W holds the rows active at x* with a positive multiplier at some level
 and no other row that the levels would leave). The generated C (``vfdsl/codegen/lexls.c``) runs the same steps
-with its own QR, Cholesky and Lawson-Hanson NNLS; this module, the interpreted path's, uses scipy's.
+with its own Householder QR, Cholesky and Lawson-Hanson NNLS; this module, the interpreted path's, uses LAPACK's
+(through scipy) and scipy's NNLS. No library offers the lexicographic solve over a working set with this
+certificate (DAQP's hierarchical mode, which both paths call when no certificate is found, holds each level to its
+tolerance, not exactly); the C is ours because the generated tick links no LAPACK.
 """
 
 from __future__ import annotations
 
 import numpy as np
-import scipy.linalg
 import scipy.optimize
+from scipy.linalg import lapack
 
 RANK_TOL = 1e-10
 """A pivot of the QR of (M Z)' counts toward its rank when larger than this (rows of unit length at most, Z
@@ -85,23 +88,31 @@ class _IllConditioned(Exception):
 
 
 def _null_step(M: np.ndarray, Z: np.ndarray):
-    """(Q, R1, piv, r): the pivoted QR (M Z)' P = Q R, its rank r, the first r rows of R."""
-    k = Z.shape[1]
-    if k == 0 or M.shape[0] == 0:
-        return np.eye(k), np.zeros((0, M.shape[0])), np.arange(M.shape[0]), 0
-    Q, R, piv = scipy.linalg.qr((M @ Z).T, pivoting=True)
-    d = np.abs(np.diag(R))
+    """(Q, R1, piv, r): the pivoted QR (M Z)' P = Q R (LAPACK's dgeqp3, Q k x k), its rank r, the first r rows of
+    R."""
+    k, p = Z.shape[1], M.shape[0]
+    if k == 0 or p == 0:
+        return np.eye(k), np.zeros((0, p)), np.arange(p), 0
+    qr, piv, tau, _, info = lapack.dgeqp3(np.asfortranarray((M @ Z).T))
+    d = np.abs(np.diag(qr))
     r = int(np.sum(d > RANK_TOL))
     if np.any((d > RANK_TOL) & (d <= COND_TOL)):
         raise _IllConditioned
-    return Q, R[:r], piv, r
+    reflectors = np.zeros((k, k), order="F")
+    reflectors[:, :min(k, p)] = qr[:, :min(k, p)]
+    Q = lapack.dorgqr(reflectors, np.r_[tau, np.zeros(k - len(tau))])[0]
+    return Q, np.triu(qr[:r]), piv - 1, r
 
 
 def _least_squares_step(M, t, x, Z):
     """x + Z y, y the least-squares step of M (x + Z y) = t within range(Z); and the null space Z N left."""
     Q, R1, piv, r = _null_step(M, Z)
     if r:
-        z = np.linalg.lstsq(R1.T, (t - M @ x)[piv], rcond=None)[0]
+        c = (t - M @ x)[piv]
+        if r == len(c):         # R1' z = c, R1 upper triangular
+            z = lapack.dtrtrs(R1, c, lower=0, trans=1)[0]
+        else:
+            z = np.linalg.lstsq(R1.T, c, rcond=None)[0]
         x = x + Z @ (Q[:, :r] @ z)
     return x, Z @ Q[:, r:]
 
@@ -120,14 +131,18 @@ def _solve_over(H, f, A, lo, up, levels, s):
     n = H.shape[0]
     held = s != FREE
     C, d = A[held], np.where(s[held] == LOWER, lo[held], up[held])
+    if not np.all(np.isfinite(d)):
+        return np.full(n, np.nan), False                  # a row held at an infinite bound
     x, Z = _least_squares_step(C, d, np.zeros(n), np.eye(n))
     if C.shape[0] and np.max(np.abs(C @ x - d)) > PRIMAL_TOL:
         return x, False                                   # W's rows cannot all hold
     for R, r in levels:
         x, Z = _least_squares_step(R, r, x, Z)
     if Z.shape[1]:
-        K = Z.T @ H @ Z
-        x = x - Z @ scipy.linalg.cho_solve(scipy.linalg.cho_factor(K), Z.T @ (H @ x + f))
+        factor, info = lapack.dpotrf(Z.T @ H @ Z, lower=1)
+        if info:
+            return x, False                               # Z'HZ not positive definite
+        x = x - Z @ lapack.dpotrs(factor, Z.T @ (H @ x + f), lower=1)[0]
     if not np.all(np.isfinite(x)):
         return x, False
     Ax = A @ x
@@ -140,6 +155,8 @@ def _certified(H, f, A, levels, s, x) -> bool:
     """The dual half of the certificate, level by level (module docstring)."""
     n = H.shape[0]
     inequality = (s == UPPER) | (s == LOWER)
+    if not np.any(inequality):
+        return True         # the chain of null spaces is the primal one: x is optimal in it by construction
     columns = (A[inequality] * s[inequality, None]).T            # s_i a_i, one column per held inequality
     U = _least_squares_step(A[s == FIXED], np.zeros(np.sum(s == FIXED)), np.zeros(n), np.eye(n))[1]
     gradients = [(R.T @ (R @ x - r), np.linalg.norm(R) * (np.linalg.norm(R) * np.linalg.norm(x) + np.linalg.norm(r)))

@@ -1,0 +1,39 @@
+/* Test harness: vfdsl/codegen/lexls.c called on DAQP's data layout, from Python through ctypes (tests/test_lexls.py).
+ *
+ *   int lexls_solve(n, nh, break_points, H, f, A, lower, upper, s, x):
+ *     s given (K entries): solve over it; x: the answer; returns 1 when certified, 0 when not, -1 out of memory.
+ *   void lexls_working_set(n, nh, break_points, A, lower, upper, x, s): the working set of x.
+ * A is row-major (rows past the n simple bounds), lower/upper hold the n simple bounds first. */
+#include "lexls.c"
+
+static void problem(vfdsl_lex_prob* P, int n, int nh, const int* bp, const double* H, const double* f,
+                    const double* A, const double* lower, const double* upper) {
+  P->n = n; P->ms = n; P->K = bp[0] - n; P->nh = nh; P->break_points = bp;
+  P->H = H; P->f = f; P->A = A; P->blower = lower; P->bupper = upper;
+}
+
+int lexls_solve(int n, int nh, const int* bp, const double* H, const double* f, const double* A,
+                const double* lower, const double* upper, const int* s, double* x) {
+  vfdsl_lex_prob P;
+  vfdsl_lex* L;
+  int ok;
+  problem(&P, n, nh, bp, H, f, A, lower, upper);
+  L = vfdsl_lex_alloc(n, P.K, bp[nh - 1] - bp[0]);
+  if (!L) return -1;
+  vfdsl_lex_rows(L, &P);
+  ok = vfdsl_lex_solve(L, &P, s, x);
+  vfdsl_lex_free(L);
+  return ok;
+}
+
+void lexls_working_set(int n, int nh, const int* bp, const double* A, const double* lower, const double* upper,
+                       const double* x, int* s) {
+  vfdsl_lex_prob P;
+  vfdsl_lex* L;
+  problem(&P, n, nh, bp, 0, 0, A, lower, upper);
+  L = vfdsl_lex_alloc(n, P.K, bp[nh - 1] - bp[0]);
+  if (!L) return;
+  vfdsl_lex_rows(L, &P);
+  vfdsl_lex_working_set(L, x, s);
+  vfdsl_lex_free(L);
+}

@@ -1,0 +1,234 @@
+"""Priority levels solved exactly over a working set, and their certificate (vfdsl.runtime.lexls in Python,
+vfdsl/codegen/lexls.c in the generated tick), against independent solutions:
+
+- random hierarchical problems (2 to 8 variables, hard rows with lower, upper, both or equal bounds, some rows
+  repeated or dependent, a box; 1 to 3 levels, some rank-deficient, a level repeating a hard row): DAQP's answer
+  over the working set it holds, once certified, is the levels' optimum as the independent reference computes it
+  (each level solved in turn by DAQP's Python package over the null space of the levels above,
+  tests/levels_reference.py);
+- the certificate is sound: over random working sets (any rows, any sides), an answer is certified only where it
+  is the optimum certified from DAQP's working set (itself checked against the reference);
+- the C and the Python take the same decisions and give the same answers (tests/lexls_harness.c, compiled here);
+- the generated tick does not depend on its history: after a tick at another state (its working set a wrong
+  guess), it answers as a fresh controller and as the interpreted path.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import subprocess
+
+import numpy as np
+import pytest
+from conftest import TASKS_DIR
+from levels_reference import lexicographic
+
+import vfdsl
+from vfdsl.codegen.build import find_compiler
+from vfdsl.runtime import lexls
+from vfdsl.runtime.qp import StepStatus, solve_daqp
+
+HARNESS = __import__("pathlib").Path(__file__).with_name("lexls_harness.c")
+CODEGEN = HARNESS.parent.parent / "vfdsl" / "codegen"
+FLOOR = 1e-12      # the reference's level Hessians R'R + FLOOR I (DAQP needs them positive definite)
+
+
+def random_problem(rng):
+    """(H, f, A, lower, upper, break_points) in DAQP's layout (n simple bounds, infinite; then the hard rows,
+    the box as identity rows last; then the levels' rows, lower = upper = target), feasible by construction."""
+    n = int(rng.integers(2, 9))
+    x0 = rng.uniform(-0.5, 0.5, n)
+    rows = rng.normal(size=(int(rng.integers(1, 13)), n))
+    if rng.random() < 0.3:                     # a repeated row and a dependent one
+        rows = np.vstack([rows, rows[0], rows[0] + rows[-1]])
+    ax = rows @ x0
+    lo, up = ax - rng.exponential(0.3, len(ax)), ax + rng.exponential(0.3, len(ax))
+    kind = rng.integers(0, 5, len(ax))
+    lo[kind == 1], up[kind == 2] = -np.inf, np.inf
+    lo[kind == 3] = up[kind == 3] = ax[kind == 3]             # equality rows
+    hard = np.vstack([rows, np.eye(n)])
+    lo, up = np.r_[lo, -np.ones(n)], np.r_[up, np.ones(n)]
+    levels = []
+    for _ in range(int(rng.integers(1, 4))):
+        p = int(rng.integers(1, 5))
+        R = rng.normal(size=(p, n))
+        if rng.random() < 0.3:
+            R[-1] = R[0] * 2.0                                 # rank-deficient level
+        if rng.random() < 0.2:
+            R[0] = rows[0]                                     # a level along a hard row
+        levels.append((R / np.linalg.norm(R, axis=1).max(), rng.normal(scale=2.0, size=p)))
+    M = rng.normal(size=(n, n))
+    H = M @ M.T / n + 1e-3 * np.eye(n)
+    f = rng.normal(size=n)
+    A = np.vstack([hard, *(R for R, _ in levels)])
+    targets = np.concatenate([r for _, r in levels])
+    lower = np.r_[np.full(n, -np.inf), lo, targets]
+    upper = np.r_[np.full(n, np.inf), up, targets]
+    breaks = list(np.cumsum([n + len(hard), *(len(r) for _, r in levels)]))
+    return H, f, A, lower, upper, [int(b) for b in breaks]
+
+
+def reference(H, f, A, lower, upper, break_points):
+    """The levels' optimum from tests/levels_reference.py (the hard rows as rows, the box as bounds), or None when
+    its solver fails."""
+    n = H.shape[0]
+    K = break_points[0] - n
+    A_rows, lo, up = A[:K - n], lower[n:K], upper[n:K]
+    lbx, ubx = lower[K:K + n], upper[K:K + n]
+    levels = []
+    for a, b in zip(break_points[:-1], break_points[1:]):
+        R, r = A[a - n:b - n], lower[a:b]
+        levels.append((R.T @ R + FLOOR * np.eye(n), -R.T @ r, R))
+    levels.append((H, f, np.eye(n)))
+    x, ok = lexicographic(levels, A_rows, lo, up, lbx, ubx)
+    return x if ok else None
+
+
+def daqp_answer(problem):
+    H, f, A, lower, upper, break_points = problem
+    x, flag = solve_daqp(H, f, A, lower, upper, 1e-10, break_points, 1e-6)
+    return x if flag in (1, 2) else None
+
+
+def close(x, y, tol=1e-6):
+    return np.max(np.abs(x - y)) <= tol * (1 + np.max(np.abs(y)))
+
+
+def not_worse(problem, x, x_ref, rows_close=1e-11):
+    """x is at least as good as x_ref, lexicographically: at the first level whose rows R_j x differ from x_ref's
+    by more than ``rows_close`` (the reference may give up 1e-10 of a level for 1e-9 of the next), x costs no more
+    there (within 1e-9 relative); the last cost compared (within 1e-7) when every level agrees."""
+    H, f, _, _, _, levels = lexls.split(*problem)
+    for R, r in levels:
+        if np.max(np.abs(R @ (x - x_ref))) > rows_close:
+            cost, cost_ref = (0.5 * np.sum((R @ y - r) ** 2) for y in (x, x_ref))
+            return cost <= cost_ref * (1 + 1e-9) + 1e-15
+    cost, cost_ref = (0.5 * y @ H @ y + f @ y for y in (x, x_ref))      # (the reference meets rows to ~1e-12)
+    return cost <= cost_ref + 1e-7 * (1 + abs(cost_ref))
+
+
+def test_a_certified_answer_is_the_independent_optimum():
+    rng = np.random.default_rng(3)
+    certified = compared = 0
+    for _ in range(300):
+        problem = random_problem(rng)
+        x_daqp, x_ref = daqp_answer(problem), reference(*problem)
+        if x_daqp is None or x_ref is None:
+            continue
+        compared += 1
+        x, ok = lexls.polish(*problem, x_daqp)
+        if ok:
+            certified += 1
+            assert not_worse(problem, x, x_ref), (x, x_ref)
+    assert compared >= 200 and certified >= 0.85 * compared, (compared, certified)
+
+
+def test_the_certificate_is_sound_for_any_working_set():
+    rng = np.random.default_rng(4)
+    wrong_certified = right_certified = tried = 0
+    for _ in range(200):
+        problem = random_problem(rng)
+        x_ref = reference(*problem)
+        if x_ref is None:
+            continue
+        H, f, A_hard, lo, up, levels = lexls.split(*problem)
+        x_daqp = daqp_answer(problem)
+        if x_daqp is None:
+            continue
+        x_exact, ok = lexls.solve_over(H, f, A_hard, lo, up, levels, lexls.working_set(A_hard, lo, up, x_daqp))
+        if not ok:
+            continue
+        assert not_worse(problem, x_exact, x_ref)
+        right_certified += 1
+        truth = lexls.working_set(A_hard, lo, up, x_exact)
+        guesses = [rng.choice([lexls.FREE, lexls.UPPER, lexls.LOWER], size=len(lo), p=[0.6, 0.2, 0.2])
+                   for _ in range(6)]
+        for i in rng.choice(len(lo), size=min(4, len(lo)), replace=False):   # the truth with one row changed
+            s = truth.copy()
+            s[i] = lexls.FREE if s[i] else rng.choice([lexls.UPPER, lexls.LOWER])
+            guesses.append(s)
+        for s in guesses:
+            s = np.asarray(s, dtype=np.intc)
+            s[lo == up] = lexls.FIXED
+            x, ok = lexls.solve_over(H, f, A_hard, lo, up, levels, s)
+            tried += 1
+            if ok:
+                wrong_certified += not close(x, x_exact)
+    assert wrong_certified == 0
+    assert tried >= 1000 and right_certified >= 100, (tried, right_certified)
+
+
+@pytest.fixture(scope="module")
+def harness(tmp_path_factory):
+    so = tmp_path_factory.mktemp("lexls") / "lexls_harness.so"
+    subprocess.run([*find_compiler().command, "-O2", "-shared", "-fPIC", f"-I{CODEGEN}", str(HARNESS), "-o", str(so),
+                    "-lm"], check=True, capture_output=True, text=True)
+    lib = ctypes.CDLL(str(so))
+    D = np.ctypeslib.ndpointer(np.float64, flags="C")
+    I = np.ctypeslib.ndpointer(np.intc, flags="C")       # noqa: E741
+    lib.lexls_solve.argtypes = [ctypes.c_int, ctypes.c_int, I, D, D, D, D, D, I, D]
+    lib.lexls_working_set.argtypes = [ctypes.c_int, ctypes.c_int, I, D, D, D, D, I]
+    return lib
+
+
+def c_solve(lib, problem, s):
+    H, f, A, lower, upper, break_points = problem
+    n = H.shape[0]
+    x = np.zeros(n)
+    ok = lib.lexls_solve(n, len(break_points), np.array(break_points, dtype=np.intc), np.ascontiguousarray(H),
+                         np.ascontiguousarray(f), np.ascontiguousarray(A), lower, upper,
+                         np.ascontiguousarray(s, dtype=np.intc), x)
+    assert ok in (0, 1)
+    return x, bool(ok)
+
+
+def test_c_and_python_decide_and_answer_alike(harness):
+    rng = np.random.default_rng(5)
+    same = differ = 0
+    for _ in range(200):
+        problem = random_problem(rng)
+        H, f, A, lower, upper, break_points = problem
+        H_, f_, A_hard, lo, up, levels = lexls.split(*problem)
+        x_daqp = daqp_answer(problem)
+        guesses = [] if x_daqp is None else [lexls.working_set(A_hard, lo, up, x_daqp)]
+        guesses += [rng.choice([0, 1, -1], size=len(lo)).astype(np.intc) for _ in range(3)]
+        for s in guesses:
+            s[lo == up] = lexls.FIXED
+            if x_daqp is not None and s is guesses[0]:
+                s_c = np.zeros(len(lo), dtype=np.intc)
+                harness.lexls_working_set(H.shape[0], len(break_points), np.array(break_points, dtype=np.intc),
+                                          np.ascontiguousarray(A), lower, upper, x_daqp, s_c)
+                assert np.array_equal(s_c, s)
+            x_py, ok_py = lexls.solve_over(H_, f_, A_hard, lo, up, levels, s)
+            x_c, ok_c = c_solve(harness, problem, s)
+            if ok_py == ok_c:
+                same += 1
+                if ok_py:
+                    assert np.max(np.abs(x_py - x_c)) <= 1e-10 * (1 + np.max(np.abs(x_py)))
+            else:
+                differ += 1
+    assert same >= 600 and differ == 0, (same, differ)
+
+
+@pytest.mark.parametrize("name", ["paper_b_virtual_rcm", "lecture_remote_center", "tilt_limited_orbit"])
+def test_the_generated_tick_does_not_depend_on_its_history(name):
+    """A tick after a tick at another state (whose working set it tries first) answers as a fresh controller and
+    as the interpreted path."""
+    task = vfdsl.load(TASKS_DIR / f"{name}.vf")
+    native, interpreted = vfdsl.compile(task, backend="native"), vfdsl.compile(task, backend="interpreted")
+    rng = np.random.default_rng(6)
+    states = [(task.start + rng.normal(scale=s, size=len(task.start)),
+               {k: rng.normal(scale=2.0, size=n) for k, n in native.input_sizes.items()})
+              for s in (1e-5, 1e-3) for _ in range(20)]
+    optimal = 0
+    for k, (q, u) in enumerate(states):
+        native.step(*states[k - 1])            # another state first: its working set is the guess
+        x = native.step(q, u)
+        y = interpreted.step(q, u)
+        if native.status == interpreted.status == StepStatus.OPTIMAL:   # (least violation: tests/test_generated.py)
+            optimal += 1
+            assert np.max(np.abs(x - y)) <= 1e-10, (k, np.max(np.abs(x - y)))
+        if k % 5 == 0:
+            fresh = vfdsl.compile(task, backend="native")
+            assert np.max(np.abs(fresh.step(q, u) - x)) <= 1e-12
+    assert optimal >= 20
