@@ -15,6 +15,9 @@
  *     the squared violations of its rows, in the rows' own units (each row's soft weight is the conic's rho
  *     in the scale of the problem, which undoes DAQP's normalization of the rows), keeping every level above
  *     at its optimum; the QP's own cost acts last;
+ *   - exact levels (lexls.c): first the levels solved exactly over the previous tick's working set, taken
+ *     when certified (DAQP is then not called); else DAQP's answer, solved again exactly over the rows it
+ *     holds, taken when certified (the interpreted path does the same with vfdsl.runtime.lexls), else as is;
  *   - reports a failed solve as x = NaN, never as a stale or internal iterate.
  */
 #include <daqp/types.h>
@@ -162,13 +165,13 @@ static int vfdsl_daqp_solve(struct casadi_daqp_data* d, int warm, const vfdsl_le
                   || (levels && levels->partial && flag==DAQP_EXIT_CONSTRAINED_POINT);
   if (d->lex && levels && levels->exact) {     /* the levels solved exactly over the rows DAQP's answer holds */
     vfdsl_lex* lex = d->lex;
-    lex->valid = d_qp->success;
-    if (lex->valid) vfdsl_lex_working_set(lex, d_qp->x, lex->guess);
-    if (lex->valid && vfdsl_lex_solve(lex, &prob, lex->guess, lex->x)) {
+    if (d_qp->success) vfdsl_lex_working_set(lex, d_qp->x, lex->guess);
+    if (d_qp->success && vfdsl_lex_solve(lex, &prob, lex->guess, lex->x)) {
       casadi_copy(lex->x, p_qp->nx, d_qp->x);
-      vfdsl_exact_answer(d);
+      vfdsl_exact_answer(d);     /* (the next tick tries this working set first) */
       return 0;
     }
+    lex->valid = 0;              /* not certified (e.g. an ill-conditioned working set): the next tick goes to DAQP */
   }
   if (d_qp->success) {
     casadi_copy(d->res.lam, p_qp->nx, d_qp->lam_x);

@@ -18,7 +18,7 @@
 
 #define LEX_RANK_TOL 1e-10
 #define LEX_COND_TOL 1e-4
-#define LEX_PRIMAL_TOL 1e-10
+#define LEX_PRIMAL_TOL 1e-9
 #define LEX_DUAL_TOL 1e-9
 #define LEX_ACTIVE_TOL 1e-9
 enum { LEX_FREE = 0, LEX_UPPER = 1, LEX_LOWER = -1, LEX_FIXED = 2 };
