@@ -34,7 +34,9 @@ Codegen policy, two edits of CasADi's generated C:
   calls update it in place, so a step allocates nothing. A conic whose name ends in ``_warm``
   starts DAQP from its previous working set; the others start cold, as CasADi's interface does. A conic
   whose name holds ``_levels_b1_..._bk_rhoE`` is solved as DAQP's hierarchical QP with those break points
-  (:func:`vfdsl.runtime.qp.build_step_function`). The replaced definitions are matched exactly;
+  (:func:`vfdsl.runtime.qp.build_step_function`); with ``_exact`` its levels are first solved exactly over the
+  previous tick's working set (``lexls.c``, prepended to ``daqp_persistent.c``; its memory is a pointer added to
+  CasADi's DAQP data struct). The replaced definitions are matched exactly;
   a CasADi whose generated DAQP interface differs is refused with an error, never half-patched.
 """
 
@@ -277,9 +279,9 @@ def _with_persistent_daqp(source: str) -> str:
 
 def _conic_call(match: re.Match) -> str:
     """The DAQP call of one conic, by its name: ``..._warm`` starts from the previous working set, and
-    ``..._levels_b1_..._bk_rhoE[_partial]...`` solves priority levels, b the constraint indices where each level
-    ends, 1e-E the soft rows' weight (:data:`vfdsl.runtime.qp.LEVEL_ATTEMPTS`), ``_partial``: a failed level gives
-    the answer of the levels above it."""
+    ``..._levels_b1_..._bk_rhoE[_partial][_exact]...`` solves priority levels, b the constraint indices where each
+    level ends, 1e-E the soft rows' weight (:data:`vfdsl.runtime.qp.LEVEL_ATTEMPTS`), ``_partial``: a failed level
+    gives the answer of the levels above it, ``_exact``: the levels solved exactly where certified (lexls.c)."""
     body, name = match.group(1), match.group(2)
     levels = _LEVELS.search(name)
     if levels is None:

@@ -16,8 +16,10 @@ interval containing 0 (the speed bound) nearest the other one, i.e. a return tow
 full allowed speed. Status bit ``BOUNDS_CLIPPED`` reports it. The clipped box B is never empty.
 
 **Priority levels.** The objective may come in levels (``qp_data`` then also gives Rj, rj per level, level j's
-cost being 1/2 |Rj x - rj|^2): phase 1 is then one call of DAQP's hierarchical mode (Arnström & Axehill's
-lexicographic least squares, in the daqp sources the generated C is built from). The rows and the box are level 0,
+cost being 1/2 |Rj x - rj|^2): phase 1 is then the levels solved exactly over a working set and certified
+(:mod:`vfdsl.runtime.lexls`: the generated C tries the previous tick's working set first), else one call of DAQP's
+hierarchical mode (Arnström & Axehill's lexicographic least squares, in the daqp sources the generated C is built
+from), whose answer is solved again exactly over the rows it holds and taken when certified. The rows and the box are level 0,
 hard; level 1 minimizes its squared errors over them, level 2 over the optimal set of level 1, and so on; DAQP's
 own cost acts last: the task's last level when it is damping alone (``last_level_is_cost``; plus
 ``LEVEL_TIE_BREAK`` I), else |x|^2 / 2, the smallest motion among what the levels leave free. Each level's rows are scaled to a
@@ -271,6 +273,8 @@ def _daqp(n: int, m: int, primal_tol: float, name: str, native: bool,
     level in turn over the optimal set of the levels above, and the QP's own cost last, every soft row weighted
     by ``rho`` (:data:`LEVEL_ATTEMPTS`). ``partial``: when DAQP fails a level, x is its answer for the levels
     above it (which meets the rows and bounds) instead of NaN.
+    ``exact``: the levels' targets are equalities (phase 1), so their exact solve (:mod:`vfdsl.runtime.lexls`)
+    replaces DAQP's answer where it is certified.
     ``native``: a CasADi conic, which only the generated C evaluates (vfdsl.codegen.build puts DAQP's own sources
     behind it and passes the levels, named in the conic's name); else the same solver, settings and rows through
     the ``daqp`` package (:class:`_DaqpNode`), for CasADi's evaluation."""
@@ -305,7 +309,8 @@ def _daqp(n: int, m: int, primal_tol: float, name: str, native: bool,
 class _DaqpNode(ca.Callback):
     """(h, g, a, lba, uba, lbx, ubx) -> x: the generated conic's DAQP solve, cold, through the ``daqp`` package
     (the same DAQP version the generated C is built from): the same problem (bounds as simple bounds, rows with
-    lba = uba as equalities), tolerance and settings; x = NaN unless DAQP reports success."""
+    lba = uba as equalities), tolerance and settings; x = NaN unless DAQP reports success. ``exact``: DAQP's answer
+    solved again exactly over the rows it holds, taken when certified (:func:`vfdsl.runtime.lexls.polish`)."""
 
     _alive: dict = {}        # CasADi holds a Callback by reference: each node lives as long as the process; nodes
     # hold no state between calls, so one node serves every graph that needs its problem (bounded by their kinds)
