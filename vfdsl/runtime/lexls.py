@@ -91,19 +91,27 @@ class _IllConditioned(Exception):
 
 def _null_step(M: np.ndarray, Z: np.ndarray):
     """(Q, R1, piv, r): the pivoted QR (M Z)' P = Q R (LAPACK's dgeqp3, Q k x k), its rank r, the first r rows of
-    R."""
+    R (below the diagonal: reflector entries, not zeros)."""
     k, p = Z.shape[1], M.shape[0]
     if k == 0 or p == 0:
         return np.eye(k), np.zeros((0, p)), np.arange(p), 0
     qr, piv, tau, _, info = lapack.dgeqp3(np.asfortranarray((M @ Z).T))
-    d = np.abs(np.diag(qr))
-    r = int(np.sum(d > RANK_TOL))
-    if np.any((d > RANK_TOL) & (d <= COND_TOL)):
+    d = np.abs(qr.diagonal())
+    r = int(np.count_nonzero(d > RANK_TOL))
+    if r and d[r - 1] <= COND_TOL:        # (pivoted: d decreases)
         raise _IllConditioned
     reflectors = np.zeros((k, k), order="F")
     reflectors[:, :min(k, p)] = qr[:, :min(k, p)]
-    Q = lapack.dorgqr(reflectors, np.r_[tau, np.zeros(k - len(tau))])[0]
-    return Q, np.triu(qr[:r]), piv - 1, r
+    taus = np.zeros(k)
+    taus[:len(tau)] = tau
+    Q = lapack.dorgqr(reflectors, taus)[0]
+    return Q, qr[:r], piv - 1, r
+
+
+def _null_space(M, Z):
+    """Z N: the null space of M within range(Z) (orthonormal columns)."""
+    Q, _, _, r = _null_step(M, Z)
+    return Z @ Q[:, r:]
 
 
 def _least_squares_step(M, t, x, Z):
@@ -111,10 +119,10 @@ def _least_squares_step(M, t, x, Z):
     Q, R1, piv, r = _null_step(M, Z)
     if r:
         c = (t - M @ x)[piv]
-        if r == len(c):         # R1' z = c, R1 upper triangular
+        if r == len(c):         # R1' z = c, R1 upper triangular (dtrtrs reads only its upper triangle)
             z = lapack.dtrtrs(R1, c, lower=0, trans=1)[0]
         else:
-            z = np.linalg.lstsq(R1.T, c, rcond=None)[0]
+            z = np.linalg.lstsq(np.triu(R1).T, c, rcond=None)[0]
         x = x + Z @ (Q[:, :r] @ z)
     return x, Z @ Q[:, r:]
 
@@ -160,7 +168,7 @@ def _certified(H, f, A, levels, s, x) -> bool:
     if not np.any(inequality):
         return True         # the chain of null spaces is the primal one: x is optimal in it by construction
     columns = (A[inequality] * s[inequality, None]).T            # s_i a_i, one column per held inequality
-    U = _least_squares_step(A[s == FIXED], np.zeros(np.sum(s == FIXED)), np.zeros(n), np.eye(n))[1]
+    U = _null_space(A[s == FIXED], np.eye(n))
     gradients = [(R.T @ (R @ x - r), np.linalg.norm(R) * (np.linalg.norm(R) * np.linalg.norm(x) + np.linalg.norm(r)))
                  for R, r in levels] + [(H @ x + f, np.linalg.norm(H) * np.linalg.norm(x) + np.linalg.norm(f))]
     for j, (G, scale) in enumerate(gradients):
@@ -174,8 +182,7 @@ def _certified(H, f, A, levels, s, x) -> bool:
         if residual > DUAL_TOL * scale:
             return False
         if j < len(levels):
-            R = levels[j][0]
-            U = _least_squares_step(R, np.zeros(R.shape[0]), np.zeros(n), U)[1]
+            U = _null_space(levels[j][0], U)
     return True
 
 

@@ -352,7 +352,7 @@ class _DaqpNode(ca.Callback):
 
     def eval(self, arg):
         H, g, A, lba, uba, lbx, ubx = (np.array(a, dtype=float) for a in arg)
-        lower, upper = np.r_[lbx.ravel(), lba.ravel()], np.r_[ubx.ravel(), uba.ravel()]
+        lower, upper = np.concatenate((lbx.ravel(), lba.ravel())), np.concatenate((ubx.ravel(), uba.ravel()))
         x, flag = solve_daqp(H, g.ravel(), A, lower, upper, self.primal_tol, self.break_points, self.rho)
         if flag not in self.success:
             return [np.full(self.n, np.nan)]
