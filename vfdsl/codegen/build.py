@@ -35,8 +35,8 @@ Codegen policy, two edits of CasADi's generated C:
   starts DAQP from its previous working set; the others start cold, as CasADi's interface does. A conic
   whose name holds ``_levels_b1_..._bk_rhoE`` is solved as DAQP's hierarchical QP with those break points
   (:func:`vfdsl.runtime.qp.build_step_function`); with ``_exact`` its levels are first solved exactly over the
-  previous tick's working set (``lexls.c``, prepended to ``daqp_persistent.c``; its memory is a pointer added to
-  CasADi's DAQP data struct). The replaced definitions are matched exactly;
+  previous tick's working set (``lexls.c``, compiled into the static library with DAQP's sources; its header
+  ``lexls.h`` is prepended to ``daqp_persistent.c``; its memory is a pointer added to CasADi's DAQP data struct). The replaced definitions are matched exactly;
   a CasADi whose generated DAQP interface differs is refused with an error, never half-patched.
 """
 
@@ -85,7 +85,11 @@ _CONIC_CALL = re.compile(r"(/\* (\w+):\(h\[[^\n]*\*/\nstatic int \w+\([^\n]*\{\n
                          r"casadi_daqp_solve\(d, arg, res, iw, w\);", re.DOTALL)
 _LEVELS = re.compile(r"_levels((?:_\d+)+)_rho(\d+)(_partial)?(_exact)?")
 _DAQP_DATA_END = "  int bnb_itercount;\n};\n"
-PERSISTENT_DAQP = "".join((Path(__file__).parent / name).read_text() for name in ("lexls.c", "daqp_persistent.c"))
+LEXLS_SOURCE, LEXLS_HEADER = Path(__file__).with_name("lexls.c"), Path(__file__).with_name("lexls.h")
+PERSISTENT_DAQP = LEXLS_HEADER.read_text() + (Path(__file__).parent / "daqp_persistent.c").read_text()
+_LEXLS_KEY = hashlib.sha256(LEXLS_SOURCE.read_bytes() + LEXLS_HEADER.read_bytes()).hexdigest()
+"""lexls.c is compiled into the static library with DAQP (:func:`daqp_library`), not into each task's C: its hash
+names that library and enters every task's digest."""
 MEMORY_SLOTS = (Path(__file__).parent / "memory_slots.c").read_text()
 MAX_SLOTS = 64
 """Controllers of one task that may exist at once in a process (memory slots of its generated code)."""
@@ -319,7 +323,7 @@ def _with_memory_slots(source: str, prefix: str) -> str:
 def _digest(source: str, header: str, compiler: Compiler, metadata: dict) -> str:
     key = json.dumps({"source": source, "header": header, "flags": FLAGS,
                       "compiler": compiler.version, "target": compiler.target,
-                      "casadi": ca.__version__, "daqp": daqp_version(), "metadata": metadata,
+                      "casadi": ca.__version__, "daqp": daqp_version(), "lexls": _LEXLS_KEY, "metadata": metadata,
                       "python_module": _python_build_key()}, sort_keys=True)
     return hashlib.sha256(key.encode()).hexdigest()
 
@@ -405,11 +409,12 @@ def daqp_home() -> Path:
 
 
 def daqp_library(compiler: Compiler, root: Path | None = None) -> Path:
-    """DAQP's sources (in ``root``, default: :func:`daqp_sources` of :func:`daqp_home`) compiled with FLAGS by
-    ``compiler`` into a static library (symbols hidden), built once per compiler, target and flags next to the
-    sources (:mod:`vfdsl.codegen.daqp_sources`)."""
+    """DAQP's sources (in ``root``, default: :func:`daqp_sources` of :func:`daqp_home`) and vfdsl's ``lexls.c``
+    compiled with FLAGS by ``compiler`` into a static library (symbols hidden), built once per compiler, target,
+    flags and lexls.c next to the sources (:mod:`vfdsl.codegen.daqp_sources`). (lexls.c at -O3 takes about as long
+    to compile as a task's whole generated C: compiled here, once, it is not compiled again for every task.)"""
     root = root if root is not None else daqp_sources(daqp_home())
-    key = hashlib.sha256(json.dumps([FLAGS, compiler.version, compiler.target]).encode()).hexdigest()[:16]
+    key = hashlib.sha256(json.dumps([FLAGS, compiler.version, compiler.target, _LEXLS_KEY]).encode()).hexdigest()[:16]
     library = root / "lib" / f"libdaqp-{key}.a"
     if library.is_file():
         return library
@@ -419,6 +424,8 @@ def daqp_library(compiler: Compiler, root: Path | None = None) -> Path:
         for source in source_files(root):
             objects.append(f"{source.stem}.o")
             _cc(compiler, Path(tmp), [*FLAGS, f"-I{root / 'include' / 'daqp'}", "-c", str(source), "-o", objects[-1]])
+        objects.append("vfdsl_lexls.o")
+        _cc(compiler, Path(tmp), [*FLAGS, "-c", str(LEXLS_SOURCE), "-o", objects[-1]])
         archive = shutil.which("ar") or shutil.which("gcc-ar")
         if archive is None:
             raise CompilerUnavailable("no archiver (ar) found to build DAQP's static library",

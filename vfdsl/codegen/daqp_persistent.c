@@ -107,7 +107,12 @@ static void vfdsl_exact_answer(struct casadi_daqp_data* d) {
   if (d_qp->lam_a) for (i=0;i<p_qp->na;++i) d_qp->lam_a[i] = 0;
   if (d_qp->f) {
     double f = 0;
-    for (i=0;i<p_qp->nx;++i) f += d_qp->x[i] * (d->daqp.f[i] + 0.5 * lex_dot(d->daqp.H + i*p_qp->nx, d_qp->x, p_qp->nx));
+    for (i=0;i<p_qp->nx;++i) {
+      double Hx = 0;
+      casadi_int j;
+      for (j=0;j<p_qp->nx;++j) Hx += d->daqp.H[i*p_qp->nx + j]*d_qp->x[j];
+      f += d_qp->x[i] * (d->daqp.f[i] + 0.5 * Hx);
+    }
     *d_qp->f = f;
   }
 }

@@ -1,41 +1,19 @@
-/* vfdsl: priority levels solved exactly over a working set, with a certificate of optimality.
- *
- * The C of vfdsl/runtime/lexls.py (whose docstring holds the math), step for step with the same tolerances, for
- * the generated tick: its own Householder QR (with column pivoting for the ranks), Cholesky and Lawson-Hanson
- * nonnegative least squares, on the dense data of DAQP's problem (daqp_persistent.c):
- *
- *   hard rows   DAQP's general rows [0, K), bounds blower/bupper[ms + i] (unit length here, scaled per tick)
- *   level j     DAQP's rows [b_j - ms, b_{j+1} - ms), targets blower (= bupper), b the break points
- *   last cost   1/2 x'Hx + f'x
- *
- * vfdsl_lex_solve(lex, prob, s, x) computes the levels' optimum with the working set s (LEX_UPPER, LEX_LOWER,
- * LEX_FIXED held as equalities, LEX_FREE left out) and returns 1 when it is certified as the optimum of the whole
- * problem, 0 otherwise (x then undefined). All memory is allocated once by vfdsl_lex_alloc.
- */
+/* vfdsl: priority levels solved exactly over a working set, with a certificate of optimality: the C of
+ * vfdsl/runtime/lexls.py. The types and the API are in lexls.h. */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
+
+#include "lexls.h"
 
 #define LEX_RANK_TOL 1e-10
 #define LEX_COND_TOL 1e-4
 #define LEX_PRIMAL_TOL 1e-9
 #define LEX_DUAL_TOL 1e-9
 #define LEX_ACTIVE_TOL 1e-9
-enum { LEX_FREE = 0, LEX_UPPER = 1, LEX_LOWER = -1, LEX_FIXED = 2 };
 
-typedef struct vfdsl_lex {
-  int n, K, P;            /* variables, hard rows, level rows (all levels) */
-  int valid;              /* guess holds a working set */
-  int *guess, *s, *piv, *cols;
-  const double* A;        /* the hard rows (K x n, row-major: DAQP's), set by vfdsl_lex_rows */
-  double *inv, *lo, *up;  /* 1 / each hard row's length, and its bounds over that length (the unit row's) */
-  double *M, *t;          /* gathered rows (row-major) and targets */
-  double *B, *T, *tau, *tau2, *c;
-  double *Z, *U, *x, *g, *y, *K2;
-  double *N, *NP, *lam, *sol, *w, *res;
-} vfdsl_lex;
 
-static void vfdsl_lex_free(vfdsl_lex* L) {
+void vfdsl_lex_free(vfdsl_lex* L) {
   if (!L) return;
   free(L->guess); free(L->s); free(L->piv); free(L->cols);
   free(L->inv); free(L->lo); free(L->up); free(L->M); free(L->t);
@@ -45,7 +23,7 @@ static void vfdsl_lex_free(vfdsl_lex* L) {
   free(L);
 }
 
-static vfdsl_lex* vfdsl_lex_alloc(int n, int K, int P) {
+vfdsl_lex* vfdsl_lex_alloc(int n, int K, int P) {
   int R = (K > P ? K : P) + n;        /* most rows one step gathers */
   vfdsl_lex* L = (vfdsl_lex*) calloc(1, sizeof(vfdsl_lex));
   if (!L) return 0;
@@ -305,15 +283,9 @@ static int lex_nnls_within(vfdsl_lex* L, const double* N, int k, int a, const do
   return lex_residual(N, k, a, c, lam) <= thr;
 }
 
-/* The problem, as DAQP holds it. */
-typedef struct {
-  int n, ms, K, nh;
-  const int* break_points;
-  const double *H, *f, *A, *blower, *bupper;
-} vfdsl_lex_prob;
 
 /* The hard rows' lengths and unit bounds into L (every tick). */
-static void vfdsl_lex_rows(vfdsl_lex* L, const vfdsl_lex_prob* P) {
+void vfdsl_lex_rows(vfdsl_lex* L, const vfdsl_lex_prob* P) {
   int i, n = P->n;
   L->A = P->A;
   for (i=0;i<P->K;++i) {
@@ -331,7 +303,7 @@ static void lex_unit_row(const vfdsl_lex* L, int i, double* out) {
 }
 
 /* The working set of x (vfdsl.runtime.lexls.working_set). */
-static void vfdsl_lex_working_set(const vfdsl_lex* L, const double* x, int* s) {
+void vfdsl_lex_working_set(const vfdsl_lex* L, const double* x, int* s) {
   int i;
   for (i=0;i<L->K;++i) {
     double ax = lex_dot(L->A + i*L->n, x, L->n)*L->inv[i];
@@ -401,7 +373,7 @@ static int lex_certified(vfdsl_lex* L, const vfdsl_lex_prob* P, const int* s, co
 }
 
 /* The levels' optimum over the working set s into x; 1 when certified (vfdsl.runtime.lexls.solve_over). */
-static int vfdsl_lex_solve(vfdsl_lex* L, const vfdsl_lex_prob* P, const int* s, double* x) {
+int vfdsl_lex_solve(vfdsl_lex* L, const vfdsl_lex_prob* P, const int* s, double* x) {
   int n = P->n, i, j, l, p = 0, k = n, ident = 1;
   double *Z = L->Z;
   for (i=0;i<P->K;++i) if (s[i] != LEX_FREE) {

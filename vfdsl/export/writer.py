@@ -5,6 +5,7 @@
         generated/<prefix>.c  .h                    the generated tick, as build.py writes it
         generated/checked_step.h                    the checks and the evaluation (vfdsl/codegen, shared with Python)
         generated/vfmesh_*.c                        the proximity query of each mesh the task uses (vfdsl/mesh)
+        generated/lexls.c  lexls.h                  the exact solve of priority levels (vfdsl/codegen/lexls.c)
         daqp/LICENSE  daqp/include/daqp/  daqp/src/ DAQP's C sources (vfdsl/codegen/daqp_sources.py)
         Makefile  CMakeLists.txt  example.c  replay.c  README.md
 
@@ -23,7 +24,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import vfdsl
-from vfdsl.codegen.build import CHECKED_STEP, BuiltLibrary
+from vfdsl.codegen.build import CHECKED_STEP, LEXLS_HEADER, LEXLS_SOURCE, BuiltLibrary
 from vfdsl.errors import VfError
 from vfdsl.export.tables import task_tables
 
@@ -64,6 +65,7 @@ def write_export(library: BuiltLibrary, daqp_root: Path, directory: Path) -> Exp
         "replay.c": _fill("replay.c", values), "README.md": _fill("README.md", values),
         f"generated/{tick}.c": library.c_path.read_bytes(), f"generated/{tick}.h": library.h_path.read_bytes(),
         "generated/checked_step.h": CHECKED_STEP.read_bytes(),
+        "generated/lexls.c": LEXLS_SOURCE.read_bytes(), "generated/lexls.h": LEXLS_HEADER.read_bytes(),
         **{f"generated/{name}": (library.c_path.parent / name).read_bytes() for name in extra},
         "daqp/LICENSE": (daqp_root / "LICENSE").read_bytes(),
         **{f"daqp/include/daqp/{p.name}": p.read_bytes() for p in daqp_headers},

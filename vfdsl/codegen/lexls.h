@@ -1,0 +1,47 @@
+/* vfdsl: priority levels solved exactly over a working set, with a certificate of optimality (lexls.c).
+ *
+ * The C of vfdsl/runtime/lexls.py (whose docstring holds the math), step for step with the same tolerances, for
+ * the generated tick: its own Householder QR (with column pivoting for the ranks), Cholesky and Lawson-Hanson
+ * nonnegative least squares, on the dense data of DAQP's problem (daqp_persistent.c):
+ *
+ *   hard rows   DAQP's general rows [0, K), bounds blower/bupper[ms + i] (unit length here, scaled per tick)
+ *   level j     DAQP's rows [b_j - ms, b_{j+1} - ms), targets blower (= bupper), b the break points
+ *   last cost   1/2 x'Hx + f'x
+ *
+ * vfdsl_lex_solve(lex, prob, s, x) computes the levels' optimum with the working set s (LEX_UPPER, LEX_LOWER,
+ * LEX_FIXED held as equalities, LEX_FREE left out) and returns 1 when it is certified as the optimum of the whole
+ * problem, 0 otherwise (x then undefined). All memory is allocated once by vfdsl_lex_alloc.
+ */
+#ifndef VFDSL_LEXLS_H
+#define VFDSL_LEXLS_H
+
+/* lexls.c is compiled once, into the static library beside DAQP's (vfdsl.codegen.build.daqp_library; an export
+   ships it as generated/lexls.c); this header is put at the top of daqp_persistent.c in every generated file. */
+enum { LEX_FREE = 0, LEX_UPPER = 1, LEX_LOWER = -1, LEX_FIXED = 2 };
+
+typedef struct vfdsl_lex {
+  int n, K, P;            /* variables, hard rows, level rows (all levels) */
+  int valid;              /* guess holds a working set */
+  int *guess, *s, *piv, *cols;
+  const double* A;        /* the hard rows (K x n, row-major: DAQP's), set by vfdsl_lex_rows */
+  double *inv, *lo, *up;  /* 1 / each hard row's length, and its bounds over that length (the unit row's) */
+  double *M, *t;          /* gathered rows (row-major) and targets */
+  double *B, *T, *tau, *tau2, *c;
+  double *Z, *U, *x, *g, *y, *K2;
+  double *N, *NP, *lam, *sol, *w, *res;
+} vfdsl_lex;
+
+/* The problem, as DAQP holds it. */
+typedef struct {
+  int n, ms, K, nh;
+  const int* break_points;
+  const double *H, *f, *A, *blower, *bupper;
+} vfdsl_lex_prob;
+
+vfdsl_lex* vfdsl_lex_alloc(int n, int K, int P);
+void vfdsl_lex_free(vfdsl_lex* L);
+void vfdsl_lex_rows(vfdsl_lex* L, const vfdsl_lex_prob* P);
+void vfdsl_lex_working_set(const vfdsl_lex* L, const double* x, int* s);
+int vfdsl_lex_solve(vfdsl_lex* L, const vfdsl_lex_prob* P, const int* s, double* x);
+
+#endif
