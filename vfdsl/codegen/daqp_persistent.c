@@ -16,8 +16,10 @@
  *     in the scale of the problem, which undoes DAQP's normalization of the rows), keeping every level above
  *     at its optimum; the QP's own cost acts last;
  *   - exact levels (lexls.c): first the levels solved exactly over the previous tick's working set, taken
- *     when certified (DAQP is then not called); else DAQP's answer, solved again exactly over the rows it
- *     holds, taken when certified (the interpreted path does the same with vfdsl.runtime.lexls), else as is;
+ *     when certified (DAQP is then not called), the guess repaired up to VFDSL_REPAIRS times (add the most
+ *     violated row, or drop the held row with the most negative multiplier); else DAQP's answer, solved again
+ *     exactly over the rows it holds, taken when certified (the interpreted path does the same with
+ *     vfdsl.runtime.lexls), else as is;
  *   - reports a failed solve as x = NaN, never as a stale or internal iterate.
  */
 #include <daqp/types.h>
@@ -25,6 +27,7 @@
 #include <daqp/utils.h>        /* daqp_update_ldp (api.h does not declare the update functions) */
 
 #define VFDSL_LEVELS_MAX 16
+#define VFDSL_REPAIRS 2    /* changes of one row to a refused guess (lexls.c's hint) before DAQP is called */
 /* A conic's levels (from its name): DAQP's break points, rho (the soft rows' reciprocal weight), partial: a
    failed level gives the answer of the levels above it (which meets the hard level) rather than NaN, and exact:
    the levels' rows are targets (lower = upper), so lexls.c may solve them exactly (see vfdsl_daqp_solve). */
@@ -146,9 +149,13 @@ static int vfdsl_daqp_solve(struct casadi_daqp_data* d, int warm, const vfdsl_le
     if (!d->lex) d->lex = vfdsl_lex_alloc(prob.n, prob.K, d->daqp.m - levels->break_points[0]);
     if (d->lex) {
       vfdsl_lex_rows(d->lex, &prob);
-      if (d->lex->valid && vfdsl_lex_solve(d->lex, &prob, d->lex->guess, d_qp->x)) {
-        vfdsl_exact_answer(d);
-        return 0;
+      int repair;
+      for (repair=0; d->lex->valid && repair<=VFDSL_REPAIRS; ++repair) {
+        if (vfdsl_lex_solve(d->lex, &prob, d->lex->guess, d_qp->x)) {
+          vfdsl_exact_answer(d);
+          return 0;
+        }
+        if (!vfdsl_lex_repair(d->lex, d->lex->guess)) break;
       }
     }
   }

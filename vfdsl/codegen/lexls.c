@@ -247,8 +247,13 @@ static int lex_nnls_within(vfdsl_lex* L, const double* N, int k, int a, const do
   double tol = 0;
   for (j=0;j<a;++j) { lam[j] = 0; passive[j] = 0; idx[j] = j; for (i=0;i<k;++i) tol += fabs(N[i + j*k]); }
   tol *= 10 * 2.220446049250313e-16 * (k > a ? k : a);
+  L->hint_column = -1;
   if (lex_ls_columns(L, N, k, idx, a, c) == 0) {
-    for (j=0;j<a;++j) lam[j] = sol[j] > 0 ? sol[j] : 0;
+    double most = 0;
+    for (j=0;j<a;++j) {
+      lam[j] = sol[j] > 0 ? sol[j] : 0;
+      if (sol[j] < most) { most = sol[j]; L->hint_column = j; }
+    }
     if (lex_residual(N, k, a, c, lam) <= thr) return 1;
     for (j=0;j<a;++j) lam[j] = 0;
   }
@@ -366,16 +371,31 @@ static int lex_certified(vfdsl_lex* L, const vfdsl_lex_prob* P, const int* s, co
         ++a;
       }
     }
-    if (a ? !lex_nnls_within(L, N, k, a, b, LEX_DUAL_TOL * scale) : lex_norm(b, k) > LEX_DUAL_TOL * scale) return 0;
+    if (a ? !lex_nnls_within(L, N, k, a, b, LEX_DUAL_TOL * scale) : lex_norm(b, k) > LEX_DUAL_TOL * scale) {
+      if (a && L->hint_column >= 0) {     /* the held inequality row of that column: drop it */
+        int column = 0;
+        for (i=0;i<P->K;++i) if (s[i] == LEX_UPPER || s[i] == LEX_LOWER) {
+          if (column++ == L->hint_column) { L->hint = i; L->hint_side = 0; break; }
+        }
+      }
+      return 0;
+    }
     if (R && lex_step(L, R, rows, 0, 0, U, &k, &ident) < 0) return 0;
   }
   return 1;
 }
 
 /* The levels' optimum over the working set s into x; 1 when certified (vfdsl.runtime.lexls.solve_over). */
+int vfdsl_lex_repair(vfdsl_lex* L, int* s) {
+  if (L->hint < 0 || s[L->hint] == LEX_FIXED) return 0;
+  s[L->hint] = L->hint_side;
+  return 1;
+}
+
 int vfdsl_lex_solve(vfdsl_lex* L, const vfdsl_lex_prob* P, const int* s, double* x) {
   int n = P->n, i, j, l, p = 0, k = n, ident = 1;
   double *Z = L->Z;
+  L->hint = -1;
   for (i=0;i<P->K;++i) if (s[i] != LEX_FREE) {
     lex_unit_row(L, i, L->M + p*n);
     L->t[p] = s[i] == LEX_LOWER ? L->lo[i] : L->up[i];
@@ -406,9 +426,14 @@ int vfdsl_lex_solve(vfdsl_lex* L, const vfdsl_lex_prob* P, const int* s, double*
     for (l=0;l<k;++l) for (i=0;i<n;++i) x[i] += Z[i + l*n]*y[l];
   }
   for (i=0;i<n;++i) if (!isfinite(x[i])) return 0;
-  for (i=0;i<P->K;++i) {
-    double ax = lex_dot(L->A + i*n, x, n)*L->inv[i];
-    if (ax < L->lo[i] - LEX_PRIMAL_TOL || ax > L->up[i] + LEX_PRIMAL_TOL) return 0;
+  {
+    double worst = LEX_PRIMAL_TOL;
+    for (i=0;i<P->K;++i) {
+      double ax = lex_dot(L->A + i*n, x, n)*L->inv[i];
+      if (L->lo[i] - ax > worst) { worst = L->lo[i] - ax; L->hint = i; L->hint_side = LEX_LOWER; }
+      if (ax - L->up[i] > worst) { worst = ax - L->up[i]; L->hint = i; L->hint_side = LEX_UPPER; }
+    }
+    if (L->hint >= 0) return 0;        /* the most violated row: add it */
   }
   return lex_certified(L, P, s, x);
 }

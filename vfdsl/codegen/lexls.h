@@ -10,7 +10,9 @@
  *
  * vfdsl_lex_solve(lex, prob, s, x) computes the levels' optimum with the working set s (LEX_UPPER, LEX_LOWER,
  * LEX_FIXED held as equalities, LEX_FREE left out) and returns 1 when it is certified as the optimum of the whole
- * problem, 0 otherwise (x then undefined). All memory is allocated once by vfdsl_lex_alloc.
+ * problem, 0 otherwise (x then undefined; L->hint names a row whose change may fix the working set: the most
+ * violated row, or the held row with the most negative multiplier). vfdsl_lex_repair(lex, s) applies the hint to s
+ * (1 when there was one). All memory is allocated once by vfdsl_lex_alloc.
  */
 #ifndef VFDSL_LEXLS_H
 #define VFDSL_LEXLS_H
@@ -22,6 +24,8 @@ enum { LEX_FREE = 0, LEX_UPPER = 1, LEX_LOWER = -1, LEX_FIXED = 2 };
 typedef struct vfdsl_lex {
   int n, K, P;            /* variables, hard rows, level rows (all levels) */
   int valid;              /* guess holds a working set */
+  int hint_column;        /* lexls.c's: the NNLS column with the most negative multiplier */
+  int hint, hint_side;    /* after a refusal: a hard row to add at side hint_side (+1, -1), or to drop (0); -1: none */
   int *guess, *s, *piv, *cols;
   const double* A;        /* the hard rows (K x n, row-major: DAQP's), set by vfdsl_lex_rows */
   double *inv, *lo, *up;  /* 1 / each hard row's length, and its bounds over that length (the unit row's) */
@@ -43,5 +47,6 @@ void vfdsl_lex_free(vfdsl_lex* L);
 void vfdsl_lex_rows(vfdsl_lex* L, const vfdsl_lex_prob* P);
 void vfdsl_lex_working_set(const vfdsl_lex* L, const double* x, int* s);
 int vfdsl_lex_solve(vfdsl_lex* L, const vfdsl_lex_prob* P, const int* s, double* x);
+int vfdsl_lex_repair(vfdsl_lex* L, int* s);
 
 #endif
