@@ -8,7 +8,7 @@ input(t) = aim(t) + tremor(t) + drift(t), where
   guided frame's closest point, until the last ``STOP_DISTANCE`` (1 mm) of the curve, where the hand aims at
   the curve's end point with a magnitude falling in proportion to the distance to it (it slows down and
   stops there, and holds the frame at the end against its own tremor and drift); toward: toward a point,
-  or the closest point of a plane;
+  or the closest point of a plane (into the plane while the frame is on it, within ``ON_PLANE``);
 - tremor is physiological tremor: per axis, four sinusoids with frequencies drawn in the 8-12 Hz band and
   random phases, scaled so that the 3-D RMS is ``tremor``;
 - drift is slow wandering: per axis an Ornstein-Uhlenbeck process with time constant ``drift_time``,
@@ -45,6 +45,9 @@ HAND_ANGULAR_SPEED = math.radians(30)   # rad/s: assumed, the fastest a hand tur
 FREE_FRACTION = 0.5                  # an axis is free if the frame moves at least this much of what is asked
 PROBE_TICKS = 400                    # at most this many ticks to find whether an axis is free
 STOP_DISTANCE = 1e-3                 # m: a following hand slows down over the curve's last millimetre
+ON_PLANE = 1e-9
+"""m: a hand pushing toward a plane keeps pushing into it while the frame is within this of it (a fixture holds the
+tool on the plane to rounding, 1e-16 m on either side: the push must not flip to the other side's direction)."""
 
 
 class Hand:
@@ -99,7 +102,8 @@ class Hand:
         decl = self.scene.task.param(s.target)
         if decl.type == "plane":
             point, normal = self.scene.plane(ir.ParamRef(name=s.target))
-            toward = -normal * float(normal @ (p - point))
+            side = float(normal @ (p - point))
+            toward = -normal * (side if abs(side) > ON_PLANE else 1.0)
         else:
             toward = self.scene.point(ir.ParamRef(name=s.target)) - p
         distance = np.linalg.norm(toward)
