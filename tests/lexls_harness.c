@@ -1,11 +1,10 @@
 /* Test harness: vfdsl/codegen/lexls.c called on DAQP's data layout, from Python through ctypes (tests/test_lexls.py).
  *
- *   int lexls_solve(n, nh, break_points, H, f, A, lower, upper, s, x):
- *     s given (K entries): solve over it; x: the answer; returns 1 when certified, 0 when not, -1 out of memory.
+ *   int lexls_solve(n, nh, break_points, H, f, A, lower, upper, s, x, repairs): as the generated tick tries a
+ *     guess: solve over the working set s (K entries), x the answer, and on a refusal change s by the solver's
+ *     hint, at most ``repairs`` times; returns the number of solves made when one was certified, 0 when none
+ *     was, -1 out of memory.
  *   void lexls_working_set(n, nh, break_points, A, lower, upper, x, s): the working set of x.
- *   int lexls_solve_repaired(n, nh, break_points, H, f, A, lower, upper, s, x, repairs): as the generated tick
- *     tries a guess: solve, and on a refusal change s by the solver's hint, at most ``repairs`` times; returns
- *     the number of solves made when one was certified, 0 when none was.
  * A is row-major (rows past the n simple bounds), lower/upper hold the n simple bounds first. */
 #include "lexls.c"
 
@@ -16,17 +15,20 @@ static void problem(vfdsl_lex_prob* P, int n, int nh, const int* bp, const doubl
 }
 
 int lexls_solve(int n, int nh, const int* bp, const double* H, const double* f, const double* A,
-                const double* lower, const double* upper, const int* s, double* x) {
+                const double* lower, const double* upper, int* s, double* x, int repairs) {
   vfdsl_lex_prob P;
   vfdsl_lex* L;
-  int ok;
+  int r, solves = 0;
   problem(&P, n, nh, bp, H, f, A, lower, upper);
   L = vfdsl_lex_alloc(n, P.K, bp[nh - 1] - bp[0]);
   if (!L) return -1;
   vfdsl_lex_rows(L, &P);
-  ok = vfdsl_lex_solve(L, &P, s, x);
+  for (r=0;; ++r) {
+    if (vfdsl_lex_solve(L, &P, s, x)) { solves = r + 1; break; }
+    if (r == repairs || !vfdsl_lex_repair(L, s)) break;
+  }
   vfdsl_lex_free(L);
-  return ok;
+  return solves;
 }
 
 void lexls_working_set(int n, int nh, const int* bp, const double* A, const double* lower, const double* upper,
@@ -39,21 +41,4 @@ void lexls_working_set(int n, int nh, const int* bp, const double* A, const doub
   vfdsl_lex_rows(L, &P);
   vfdsl_lex_working_set(L, x, s);
   vfdsl_lex_free(L);
-}
-
-int lexls_solve_repaired(int n, int nh, const int* bp, const double* H, const double* f, const double* A,
-                         const double* lower, const double* upper, int* s, double* x, int repairs) {
-  vfdsl_lex_prob P;
-  vfdsl_lex* L;
-  int r, solves = 0;
-  problem(&P, n, nh, bp, H, f, A, lower, upper);
-  L = vfdsl_lex_alloc(n, P.K, bp[nh - 1] - bp[0]);
-  if (!L) return -1;
-  vfdsl_lex_rows(L, &P);
-  for (r=0; r<=repairs; ++r) {
-    if (vfdsl_lex_solve(L, &P, s, x)) { solves = r + 1; break; }
-    if (!vfdsl_lex_repair(L, s)) break;
-  }
-  vfdsl_lex_free(L);
-  return solves;
 }

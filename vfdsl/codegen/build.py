@@ -36,8 +36,9 @@ Codegen policy, two edits of CasADi's generated C:
   whose name holds ``_levels_b1_..._bk_rhoE`` is solved as DAQP's hierarchical QP with those break points
   (:func:`vfdsl.runtime.qp.build_step_function`); with ``_exact`` its levels are first solved exactly over the
   previous tick's working set (``lexls.c``, compiled into the static library with DAQP's sources; its header
-  ``lexls.h`` is prepended to ``daqp_persistent.c``; its memory is a pointer added to CasADi's DAQP data struct). The replaced definitions are matched exactly;
-  a CasADi whose generated DAQP interface differs is refused with an error, never half-patched.
+  ``lexls.h`` is prepended to ``daqp_persistent.c``; its memory is a pointer added to CasADi's DAQP data struct).
+  The replaced definitions are matched exactly; a CasADi whose generated DAQP interface differs is refused with an
+  error, never half-patched.
 """
 
 from __future__ import annotations
@@ -276,7 +277,7 @@ def _with_persistent_daqp(source: str) -> str:
     if source.count(_DAQP_DATA_END) != 1:
         raise VfError(f"CasADi {ca.__version__} generates DAQP data this vfdsl does not know",
                       hint="install the CasADi version vfdsl requires (pip install 'casadi>=3.8.2,<3.9')")
-    source = source.replace(_DAQP_DATA_END, "  int bnb_itercount;\n  struct vfdsl_lex* lex;    /* vfdsl: lexls.c's memory */\n};\n")
+    source = source.replace(_DAQP_DATA_END, _DAQP_DATA_END.replace("};", "  struct vfdsl_lex* lex;    /* vfdsl: lexls.c's memory */\n};"))
     source = _DAQP_FREE_MEM.sub("", source)
     return _DAQP_SOLVE.sub(lambda _: PERSISTENT_DAQP, source)
 

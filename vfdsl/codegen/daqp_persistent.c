@@ -150,12 +150,12 @@ static int vfdsl_daqp_solve(struct casadi_daqp_data* d, int warm, const vfdsl_le
     if (d->lex) {
       vfdsl_lex_rows(d->lex, &prob);
       int repair;
-      for (repair=0; d->lex->valid && repair<=VFDSL_REPAIRS; ++repair) {
+      for (repair=0; d->lex->valid; ++repair) {
         if (vfdsl_lex_solve(d->lex, &prob, d->lex->guess, d_qp->x)) {
           vfdsl_exact_answer(d);
           return 0;
         }
-        if (!vfdsl_lex_repair(d->lex, d->lex->guess)) break;
+        if (repair == VFDSL_REPAIRS || !vfdsl_lex_repair(d->lex, d->lex->guess)) break;
       }
     }
   }

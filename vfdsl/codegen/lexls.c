@@ -15,7 +15,7 @@
 
 void vfdsl_lex_free(vfdsl_lex* L) {
   if (!L) return;
-  free(L->guess); free(L->s); free(L->piv); free(L->cols);
+  free(L->guess); free(L->piv); free(L->cols);
   free(L->inv); free(L->lo); free(L->up); free(L->M); free(L->t);
   free(L->B); free(L->T); free(L->tau); free(L->tau2); free(L->c);
   free(L->Z); free(L->U); free(L->x); free(L->g); free(L->y); free(L->K2);
@@ -27,8 +27,8 @@ vfdsl_lex* vfdsl_lex_alloc(int n, int K, int P) {
   int R = (K > P ? K : P) + n;        /* most rows one step gathers */
   vfdsl_lex* L = (vfdsl_lex*) calloc(1, sizeof(vfdsl_lex));
   if (!L) return 0;
-  L->n = n; L->K = K; L->P = P;
-  L->guess = (int*) calloc(K + 1, sizeof(int)); L->s = (int*) calloc(K + 1, sizeof(int));
+  L->n = n; L->K = K;
+  L->guess = (int*) calloc(K + 1, sizeof(int));
   L->piv = (int*) calloc(R, sizeof(int)); L->cols = (int*) calloc(K + 1, sizeof(int));
   L->inv = (double*) malloc(sizeof(double) * (K + 1));
   L->lo = (double*) malloc(sizeof(double) * (K + 1)); L->up = (double*) malloc(sizeof(double) * (K + 1));
@@ -42,7 +42,7 @@ vfdsl_lex* vfdsl_lex_alloc(int n, int K, int P) {
   L->N = (double*) malloc(sizeof(double) * n * (K + 1)); L->NP = (double*) malloc(sizeof(double) * n * (K + 1));
   L->lam = (double*) malloc(sizeof(double) * (K + 1)); L->sol = (double*) malloc(sizeof(double) * (K + 1));
   L->w = (double*) malloc(sizeof(double) * (K + 1)); L->res = (double*) malloc(sizeof(double) * (n + 1));
-  if (!L->guess || !L->s || !L->piv || !L->cols || !L->inv || !L->lo || !L->up || !L->M || !L->t || !L->B || !L->T
+  if (!L->guess || !L->piv || !L->cols || !L->inv || !L->lo || !L->up || !L->M || !L->t || !L->B || !L->T
       || !L->tau || !L->tau2 || !L->c || !L->Z || !L->U || !L->x || !L->g || !L->y || !L->K2 || !L->N || !L->NP
       || !L->lam || !L->sol || !L->w || !L->res) {
     vfdsl_lex_free(L);
@@ -107,6 +107,29 @@ static int lex_qr(double* B, int k, int p, double* tau, int* piv, int* ill) {
   return t;
 }
 
+/* Least squares min |V z - c| for the k x q column-major V (k >= q, overwritten by its QR; tau: q entries): c
+ * becomes Q'c, its first q entries z. 0, or -1 when a pivot of R is below 1e-12 (a column (nearly) dependent on
+ * the others). */
+static int lex_solve_columns(double* V, int k, int q, double* c, double* tau) {
+  int i, l, ill = 0;
+  lex_qr(V, k, q, tau, 0, &ill);
+  for (l=0;l<q;++l) {              /* c = Q' c */
+    double w = c[l];
+    if (tau[l] == 0) continue;
+    for (i=l+1;i<k;++i) w += V[i + l*k]*c[i];
+    w *= tau[l];
+    c[l] -= w;
+    for (i=l+1;i<k;++i) c[i] -= w*V[i + l*k];
+  }
+  for (l=q-1;l>=0;--l) {           /* R z = c */
+    double s = c[l];
+    if (!(fabs(V[l + l*k]) > 1e-12)) return -1;
+    for (i=l+1;i<q;++i) s -= V[l + i*k]*c[i];
+    c[l] = s / V[l + l*k];
+  }
+  return 0;
+}
+
 /* Z (n x k, column-major) times the first r reflectors of lex_qr's B (k rows); Z = I (ident, n = k): the product
  * H_0 ... H_{r-1} formed from the last reflector back, each touching only its trailing rows and columns. */
 static void lex_apply_right(double* Z, int n, int k, const double* B, const double* tau, int r, int ident) {
@@ -152,31 +175,17 @@ static int lex_step(vfdsl_lex* L, const double* M, int p, const double* t, doubl
   if (r == 0) return 0;
   lex_apply_right(Z, n, kk, B, L->tau, r, *ident);
   *ident = 0;
-  if (t && r == p) {   /* z solves R1' z = c, c = (t - M x)[piv], R1' lower triangular */
+  if (t) {      /* z = argmin |R1' z - c|, c = (t - M x)[piv]; x += Z z */
     double *c = L->c;
-    for (i=0;i<p;++i) {
-      double s = t[L->piv[i]] - lex_dot(M + L->piv[i]*n, x, n);
-      for (l=0;l<i;++l) s -= B[l + i*kk]*c[l];
-      c[i] = s / B[i + i*kk];
-    }
-    for (l=0;l<r;++l) for (i=0;i<n;++i) x[i] += Z[i + l*n]*c[l];
-  } else if (t) {      /* z = argmin |R1' z - c|: QR of R1' (p x r) */
-    double *T = L->T, *c = L->c;
     for (i=0;i<p;++i) c[i] = t[L->piv[i]] - lex_dot(M + L->piv[i]*n, x, n);
-    for (l=0;l<r;++l) for (i=0;i<p;++i) T[i + l*p] = i >= l ? B[l + i*kk] : 0;
-    lex_qr(T, p, r, L->tau2, 0, &ill);
-    for (l=0;l<r;++l) {              /* c = Q' c */
-      double w = c[l];
-      if (L->tau2[l] == 0) continue;
-      for (i=l+1;i<p;++i) w += T[i + l*p]*c[i];
-      w *= L->tau2[l];
-      c[l] -= w;
-      for (i=l+1;i<p;++i) c[i] -= w*T[i + l*p];
-    }
-    for (l=r-1;l>=0;--l) {           /* R z = c */
-      double s = c[l];
-      for (i=l+1;i<r;++i) s -= T[l + i*p]*c[i];
-      c[l] = s / T[l + l*p];
+    if (r == p) {                    /* R1' lower triangular */
+      for (i=0;i<p;++i) {
+        for (l=0;l<i;++l) c[i] -= B[l + i*kk]*c[l];
+        c[i] /= B[i + i*kk];
+      }
+    } else {                         /* QR of R1' (p x r) */
+      for (l=0;l<r;++l) for (i=0;i<p;++i) L->T[i + l*p] = i >= l ? B[l + i*kk] : 0;
+      if (lex_solve_columns(L->T, p, r, c, L->tau2) < 0) return -1;
     }
     for (l=0;l<r;++l) for (i=0;i<n;++i) x[i] += Z[i + l*n]*c[l];
   }
@@ -217,25 +226,12 @@ static double lex_residual(const double* N, int k, int a, const double* c, const
 /* Least squares on the columns idx[0..q) of N (k x a): sol[idx[l]] = argmin |N_idx s - c|; 0, or -1 when a column
  * is (nearly) dependent on the others. */
 static int lex_ls_columns(vfdsl_lex* L, const double* N, int k, const int* idx, int q, const double* c) {
-  double *NP = L->NP, *res = L->res, *sol = L->sol;
-  int i, l, ill = 0;
+  int l;
   if (q > k) return -1;
-  for (l=0;l<q;++l) memcpy(NP + l*k, N + idx[l]*k, sizeof(double) * k);
-  memcpy(res, c, sizeof(double) * k);
-  lex_qr(NP, k, q, L->tau2, 0, &ill);
-  for (l=0;l<q;++l) {              /* res = Q' c */
-    double s = res[l];
-    for (i=l+1;i<k;++i) s += NP[i + l*k]*res[i];
-    s *= L->tau2[l];
-    res[l] -= s;
-    for (i=l+1;i<k;++i) res[i] -= s*NP[i + l*k];
-  }
-  for (l=q-1;l>=0;--l) {
-    double s = res[l];
-    if (!(fabs(NP[l + l*k]) > 1e-12)) return -1;
-    for (i=l+1;i<q;++i) s -= NP[l + i*k]*sol[idx[i]];
-    sol[idx[l]] = s / NP[l + l*k];
-  }
+  for (l=0;l<q;++l) memcpy(L->NP + l*k, N + idx[l]*k, sizeof(double) * k);
+  memcpy(L->res, c, sizeof(double) * k);
+  if (lex_solve_columns(L->NP, k, q, L->res, L->tau2) < 0) return -1;
+  for (l=0;l<q;++l) L->sol[idx[l]] = L->res[l];
   return 0;
 }
 
@@ -385,13 +381,14 @@ static int lex_certified(vfdsl_lex* L, const vfdsl_lex_prob* P, const int* s, co
   return 1;
 }
 
-/* The levels' optimum over the working set s into x; 1 when certified (vfdsl.runtime.lexls.solve_over). */
+/* The refused working set s changed by the last solve's hint; 0 when there was none. */
 int vfdsl_lex_repair(vfdsl_lex* L, int* s) {
   if (L->hint < 0 || s[L->hint] == LEX_FIXED) return 0;
   s[L->hint] = L->hint_side;
   return 1;
 }
 
+/* The levels' optimum over the working set s into x; 1 when certified (vfdsl.runtime.lexls.solve_over). */
 int vfdsl_lex_solve(vfdsl_lex* L, const vfdsl_lex_prob* P, const int* s, double* x) {
   int n = P->n, i, j, l, p = 0, k = n, ident = 1;
   double *Z = L->Z;
@@ -404,7 +401,6 @@ int vfdsl_lex_solve(vfdsl_lex* L, const vfdsl_lex_prob* P, const int* s, double*
   memset(x, 0, sizeof(double) * n);
   memset(Z, 0, sizeof(double) * n * n);
   for (i=0;i<n;++i) Z[i + i*n] = 1;
-  if (p > L->K + n) return 0;
   if (lex_step(L, L->M, p, L->t, x, Z, &k, &ident) < 0) return 0;
   for (i=0;i<p;++i) if (fabs(lex_dot(L->M + i*n, x, n) - L->t[i]) > LEX_PRIMAL_TOL) return 0;
   for (j=0;j<P->nh - 1;++j) {
@@ -419,9 +415,8 @@ int vfdsl_lex_solve(vfdsl_lex* L, const vfdsl_lex_prob* P, const int* s, double*
     for (l=0;l<k;++l) y[l] = -lex_dot(Z + l*n, g, n);
     for (j=0;j<k;++j) {          /* Z'HZ into HZ (k x k), H symmetric */
       for (i=0;i<n;++i) { double s2 = 0; for (l=0;l<n;++l) s2 += P->H[i + l*n]*Z[l + j*n]; g[i] = s2; }
-      for (l=0;l<k;++l) L->T[l + j*k] = lex_dot(Z + l*n, g, n);
+      for (l=0;l<k;++l) HZ[l + j*k] = lex_dot(Z + l*n, g, n);
     }
-    memcpy(HZ, L->T, sizeof(double) * k * k);
     if (lex_cholesky_solve(HZ, k, y) < 0) return 0;
     for (l=0;l<k;++l) for (i=0;i<n;++i) x[i] += Z[i + l*n]*y[l];
   }

@@ -22,11 +22,11 @@
 enum { LEX_FREE = 0, LEX_UPPER = 1, LEX_LOWER = -1, LEX_FIXED = 2 };
 
 typedef struct vfdsl_lex {
-  int n, K, P;            /* variables, hard rows, level rows (all levels) */
+  int n, K;               /* variables, hard rows */
   int valid;              /* guess holds a working set */
   int hint_column;        /* lexls.c's: the NNLS column with the most negative multiplier */
   int hint, hint_side;    /* after a refusal: a hard row to add at side hint_side (+1, -1), or to drop (0); -1: none */
-  int *guess, *s, *piv, *cols;
+  int *guess, *piv, *cols;
   const double* A;        /* the hard rows (K x n, row-major: DAQP's), set by vfdsl_lex_rows */
   double *inv, *lo, *up;  /* 1 / each hard row's length, and its bounds over that length (the unit row's) */
   double *M, *t;          /* gathered rows (row-major) and targets */
