@@ -352,12 +352,13 @@ class _DaqpNode(ca.Callback):
 
     def eval(self, arg):
         H, g, A, lba, uba, lbx, ubx = (np.array(a, dtype=float) for a in arg)
+        g = g.ravel()
         lower, upper = np.concatenate((lbx.ravel(), lba.ravel())), np.concatenate((ubx.ravel(), uba.ravel()))
-        x, flag = solve_daqp(H, g.ravel(), A, lower, upper, self.primal_tol, self.break_points, self.rho)
+        x, flag = solve_daqp(H, g, A, lower, upper, self.primal_tol, self.break_points, self.rho)
         if flag not in self.success:
             return [np.full(self.n, np.nan)]
         if self.exact:      # the levels solved exactly over the rows DAQP's answer holds, when certified
-            x_exact, certified = lexls.polish(H, g.ravel(), A, lower, upper, self.break_points, x)
+            x_exact, certified = lexls.polish(H, g, A, lower, upper, self.break_points, x)
             if certified:
                 return [x_exact]
         return [x]
