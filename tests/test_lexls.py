@@ -159,6 +159,70 @@ def test_the_certificate_is_sound_for_any_working_set():
     assert tried >= 1000 and right_certified >= 100, (tried, right_certified)
 
 
+def general_residuals(H, f, A, levels, s, x):
+    """Per level: (gradient, threshold, the general certificate's NNLS residual over U_j), as lexls._certified
+    computes them without its shortcuts."""
+    n = H.shape[0]
+    inequality = (s == lexls.UPPER) | (s == lexls.LOWER)
+    columns = (A[inequality] * s[inequality, None]).T
+    U = lexls._null_space(A[s == lexls.FIXED], np.eye(n))
+    out = []
+    for j, (R, r) in enumerate([*levels, (None, None)]):
+        if R is None:
+            G, scale = H @ x + f, np.linalg.norm(H) * np.linalg.norm(x) + np.linalg.norm(f)
+        else:
+            G = R.T @ (R @ x - r)
+            scale = np.linalg.norm(R) * (np.linalg.norm(R) * np.linalg.norm(x) + np.linalg.norm(r))
+        if U.shape[1] == 0:
+            residual = 0.0
+        elif columns.shape[1]:
+            residual = __import__("scipy.optimize").optimize.nnls(U.T @ columns, -(U.T @ G))[1]
+        else:
+            residual = np.linalg.norm(U.T @ G)
+        out.append((G, lexls.DUAL_TOL * scale, residual))
+        if R is not None:
+            U = lexls._null_space(R, U)
+    return out
+
+
+def test_the_certificate_shortcuts_imply_the_general_one(monkeypatch):
+    """Where the solve's factors or the dimensions certify a level (lexls._factors_dual, _dims_dual), the general
+    certificate (the nonnegative least squares over U_j) certifies it too: both are sufficient conditions. Over
+    random problems and working sets (DAQP's, the exact answer's, and those with one row changed)."""
+    calls = []
+    certify = lexls._certified
+    monkeypatch.setattr(lexls, "_certified", lambda *a: calls.append(a) or certify(*a))
+    rng = np.random.default_rng(5)
+    accepted = {"factors": 0, "dims": 0}
+    for _ in range(150):
+        problem = random_problem(rng)
+        x_daqp = daqp_answer(problem)
+        if x_daqp is None:
+            continue
+        H, f, A_hard, lo, up, levels = lexls.split(*problem)
+        truth = lexls.working_set(A_hard, lo, up, x_daqp)
+        guesses = [truth]
+        for i in rng.choice(len(lo), size=min(3, len(lo)), replace=False):
+            s = truth.copy()
+            s[i] = lexls.FREE if s[i] else rng.choice([lexls.UPPER, lexls.LOWER])
+            s[lo == up] = lexls.FIXED
+            guesses.append(s)
+        for s in guesses:
+            calls.clear()
+            lexls.solve_over(H, f, A_hard, lo, up, levels, np.asarray(s, dtype=np.intc))
+            for H_, f_, A_, levels_, s_, x, steps in calls:
+                fixed = A_[s_ == lexls.FIXED]
+                for j, (G, threshold, residual) in enumerate(general_residuals(H_, f_, A_, levels_, s_, x)):
+                    above = np.vstack([fixed, *(R for R, _ in levels_[:j])])
+                    by_dims = lexls._dims_dual(above, steps[j][4], G, threshold)
+                    by_factors = lexls._factors_dual(steps[:j + 1], s_[s_ != lexls.FREE], G, threshold)
+                    accepted["dims"] += by_dims
+                    accepted["factors"] += by_factors
+                    if by_dims or by_factors:
+                        assert residual <= threshold * (1 + 1e-6) + 1e-15, (j, residual, threshold, by_dims)
+    assert accepted["factors"] >= 200 and accepted["dims"] >= 20, accepted
+
+
 @pytest.fixture(scope="module")
 def harness(tmp_path_factory):
     so = tmp_path_factory.mktemp("lexls") / "lexls_harness.so"

@@ -20,11 +20,14 @@ void vfdsl_lex_free(vfdsl_lex* L) {
   free(L->B); free(L->T); free(L->tau); free(L->tau2); free(L->c);
   free(L->Z); free(L->U); free(L->x); free(L->g); free(L->y); free(L->K2);
   free(L->N); free(L->NP); free(L->lam); free(L->sol); free(L->w); free(L->res);
+  free(L->off); free(L->r); free(L->p); free(L->fpiv); free(L->fpiv_at); free(L->fR_at); free(L->side);
+  free(L->rows); free(L->fR);
   free(L);
 }
 
 vfdsl_lex* vfdsl_lex_alloc(int n, int K, int P) {
-  int R = (K > P ? K : P) + n;        /* most rows one step gathers */
+  int R = K + P + n;                  /* most rows gathered at once (a step, or the fixed rows and every level) */
+  int S = P + 2;                      /* most steps: W's, then one per level (a level has a row at least) */
   vfdsl_lex* L = (vfdsl_lex*) calloc(1, sizeof(vfdsl_lex));
   if (!L) return 0;
   L->n = n; L->K = K;
@@ -42,6 +45,15 @@ vfdsl_lex* vfdsl_lex_alloc(int n, int K, int P) {
   L->N = (double*) malloc(sizeof(double) * n * (K + 1)); L->NP = (double*) malloc(sizeof(double) * n * (K + 1));
   L->lam = (double*) malloc(sizeof(double) * (K + 1)); L->sol = (double*) malloc(sizeof(double) * (K + 1));
   L->w = (double*) malloc(sizeof(double) * (K + 1)); L->res = (double*) malloc(sizeof(double) * (n + 1));
+  L->max_steps = S;
+  L->off = (int*) calloc(S, sizeof(int)); L->r = (int*) calloc(S, sizeof(int)); L->p = (int*) calloc(S, sizeof(int));
+  L->fpiv_at = (int*) calloc(S + 1, sizeof(int)); L->fR_at = (int*) calloc(S + 1, sizeof(int));
+  L->fpiv = (int*) calloc(R, sizeof(int)); L->side = (int*) calloc(K + 1, sizeof(int));
+  L->rows = (const double**) calloc(S, sizeof(double*)); L->fR = (double*) malloc(sizeof(double) * (n * n + 1));
+  if (!L->off || !L->r || !L->p || !L->fpiv_at || !L->fR_at || !L->fpiv || !L->side || !L->rows || !L->fR) {
+    vfdsl_lex_free(L);
+    return 0;
+  }
   if (!L->guess || !L->piv || !L->cols || !L->inv || !L->lo || !L->up || !L->M || !L->t || !L->B || !L->T
       || !L->tau || !L->tau2 || !L->c || !L->Z || !L->U || !L->x || !L->g || !L->y || !L->K2 || !L->N || !L->NP
       || !L->lam || !L->sol || !L->w || !L->res) {
@@ -161,17 +173,28 @@ static void lex_apply_right(double* Z, int n, int k, const double* B, const doub
   }
 }
 
-/* One step of the null-space chain: the rows M (p x n, row-major) against Z (n x *k). With t (targets), x moves
- * by the least-squares step of M (x + Z y) = t within range(Z); Z becomes the null space of M Z. Returns 0, or -1
- * when a pivot is ill-conditioned. */
-static int lex_step(vfdsl_lex* L, const double* M, int p, const double* t, double* x, double* Z, int* k, int* ident) {
-  int n = L->n, kk = *k, r, i, l, ill = 0;
-  double *B = L->B;
-  if (kk == 0 || p == 0) return 0;
-  if (*ident) memcpy(B, M, sizeof(double) * n * p);     /* Z = I: (M Z)' is M' (row-major M, column-major B) */
-  else for (i=0;i<p;++i) for (l=0;l<kk;++l) B[l + i*kk] = lex_dot(M + i*n, Z + l*n, n);   /* (M Z)' */
-  r = lex_qr(B, kk, p, L->tau, L->piv, &ill);
-  if (ill) return -1;
+/* One step of the null-space chain: the rows M (p x n, row-major) against the k columns of *Z (n x k, column-major).
+ * With t (targets), x moves by the least-squares step of M (x + Z y) = t within range(Z). range(Z) is split as
+ * [Y | N] (N: the null space of M Z, Y its r columns before it); *Z moves past Y to N and *k drops by r. rec >= 0
+ * records the step's factors as step rec (lexls.h). Returns 0, or -1 when a pivot is ill-conditioned. */
+static int lex_step(vfdsl_lex* L, const double* M, int p, const double* t, double* x, double** Zp, int* k, int* ident,
+                    int rec) {
+  int n = L->n, kk = *k, r = 0, i, l, ill = 0;
+  double *B = L->B, *Z = *Zp;
+  if (kk && p) {
+    if (*ident) memcpy(B, M, sizeof(double) * n * p);     /* Z = I: (M Z)' is M' (row-major M, column-major B) */
+    else for (i=0;i<p;++i) for (l=0;l<kk;++l) B[l + i*kk] = lex_dot(M + i*n, Z + l*n, n);   /* (M Z)' */
+    r = lex_qr(B, kk, p, L->tau, L->piv, &ill);
+    if (ill) return -1;
+  }
+  if (rec >= 0) {
+    L->steps = rec + 1;
+    L->rows[rec] = M; L->p[rec] = p; L->r[rec] = r; L->off[rec] = (int) (Z - L->Z) / n;
+    L->fpiv_at[rec + 1] = L->fpiv_at[rec] + p;
+    L->fR_at[rec + 1] = L->fR_at[rec] + r*r;
+    if (r) memcpy(L->fpiv + L->fpiv_at[rec], L->piv, sizeof(int) * p);
+    for (l=0;l<r;++l) for (i=0;i<r;++i) L->fR[L->fR_at[rec] + i + l*r] = i <= l ? B[i + l*kk] : 0;
+  }
   if (r == 0) return 0;
   lex_apply_right(Z, n, kk, B, L->tau, r, *ident);
   *ident = 0;
@@ -189,7 +212,7 @@ static int lex_step(vfdsl_lex* L, const double* M, int p, const double* t, doubl
     }
     for (l=0;l<r;++l) for (i=0;i<n;++i) x[i] += Z[i + l*n]*c[l];
   }
-  memmove(Z, Z + r*n, sizeof(double) * n * (kk - r));
+  *Zp = Z + r*n;
   *k = kk - r;
   return 0;
 }
@@ -317,25 +340,87 @@ void vfdsl_lex_working_set(const vfdsl_lex* L, const double* x, int* s) {
 
 static double lex_norm(const double* a, int n) { return sqrt(lex_dot(a, a, n)); }
 
-/* 1 when x (n) is certified (vfdsl.runtime.lexls._certified). */
+/* 1 when the solve's own factors certify level j (gradient g): multipliers by back-substitution through the steps of
+ * the levels above (j .. 1) and then of W's rows (step 0), each R11 mu = -Y'v (v: g plus the rows' part so far; 0 on
+ * a step's dependent rows), W's inequality multipliers clipped to their sign, and the whole residual
+ * |g + sum_l R_l' mu_l + C_W' sigma| within thr: the KKT conditions of level j, so sufficient. (When a level above
+ * is rank-deficient its multipliers are not unique, and this choice may miss: the general certificate decides.) */
+static int lex_factors_dual(vfdsl_lex* L, int j, const double* g, double thr) {
+  int n = L->n, st, i, l;
+  double *v = L->res, *c = L->c;
+  memcpy(v, g, sizeof(double) * n);
+  for (st=j; st>=0; --st) {
+    int r = L->r[st];
+    const int* piv = L->fpiv + L->fpiv_at[st];
+    const double *R11 = L->fR + L->fR_at[st], *Y = L->Z + L->off[st]*n;
+    for (i=0;i<r;++i) c[i] = -lex_dot(Y + i*n, v, n);
+    for (i=r-1;i>=0;--i) {
+      for (l=i+1;l<r;++l) c[i] -= R11[i + l*r]*c[l];
+      c[i] /= R11[i + i*r];
+    }
+    for (i=0;i<r;++i) {
+      const double* row = L->rows[st] + piv[i]*n;
+      if (st == 0 && L->side[piv[i]] != LEX_FIXED && c[i]*L->side[piv[i]] < 0) continue;   /* clipped to 0 */
+      for (l=0;l<n;++l) v[l] += c[i]*row[l];
+    }
+  }
+  return lex_norm(v, n) <= thr;
+}
+
+/* 1 when the q rows S (row-major, n columns) are independent, each at least COND_TOL from the span of those before
+ * it: the Cholesky of their Gram matrix S S' (in L->K2 when q <= n), every pivot above COND_TOL^2. */
+static int lex_independent(vfdsl_lex* L, const double* S, int q, int n) {
+  int i, j, l;
+  double* G = L->K2;
+  if (q > n) return 0;          /* more than n rows of length n are dependent */
+  for (j=0;j<q;++j) {
+    for (i=j;i<q;++i) {
+      double v = lex_dot(S + i*n, S + j*n, n);
+      for (l=0;l<j;++l) v -= G[i + l*q]*G[j + l*q];
+      if (i == j) {
+        if (!(v > LEX_COND_TOL*LEX_COND_TOL)) return 0;
+        v = sqrt(v);
+      } else {
+        v /= G[j + j*q];
+      }
+      G[i + j*q] = v;
+    }
+  }
+  return 1;
+}
+
+/* 1 when level j is certified by dimensions: the null space V of the fixed rows and the levels above contains the
+ * solve's null space after those levels (Z_j, where W's rows are held too), of dimension n - after, so V = Z_j when
+ * those rows are `after` independent ones; then g's part in V is Z_j'g, 0 by the solve's optimality (checked within
+ * thr), and W's rows need no multipliers. */
+static int lex_dims_dual(vfdsl_lex* L, const vfdsl_lex_prob* P, const int* s, int j, const double* g, double thr) {
+  int n = P->n, after = L->off[j] + L->r[j], q = 0, i;
+  const double* Z = L->Z + after*n;
+  double norm2 = 0;
+  for (i=0;i<P->K;++i) if (s[i] == LEX_FIXED) ++q;
+  if (q + P->break_points[j] - P->break_points[0] != after) return 0;    /* (then rank < after, or a search) */
+  q = 0;
+  for (i=0;i<P->K;++i) if (s[i] == LEX_FIXED) lex_unit_row(L, i, L->B + n*q++);
+  for (i=P->break_points[0];i<P->break_points[j];++i) memcpy(L->B + n*q++, P->A + (i - P->ms)*n, sizeof(double) * n);
+  if (!lex_independent(L, L->B, q, n)) return 0;
+  for (i=0;i<n-after;++i) { double d = lex_dot(Z + i*n, g, n); norm2 += d*d; }
+  return sqrt(norm2) <= thr;
+}
+
+/* 1 when x (n) is certified (vfdsl.runtime.lexls._certified): per level, by the solve's factors or by dimensions
+ * when they do, else by the nonnegative least squares over the null space U of the fixed rows and the levels above
+ * (that chain built only when a level needs it). */
 static int lex_certified(vfdsl_lex* L, const vfdsl_lex_prob* P, const int* s, const double* x) {
-  int n = P->n, i, j, l, a = 0, k = n, p = 0, ident = 1;
+  int n = P->n, i, j, l, a = 0, k = n, ident = 1, chained = -1;
   double *U = L->U, *N = L->N, *g = L->g, *b = L->y;
   for (i=0;i<P->K;++i) if (s[i] == LEX_UPPER || s[i] == LEX_LOWER) ++a;
   if (a == 0) return 1;         /* the chain of null spaces is the primal one: optimal in it by construction */
-  for (i=0;i<P->K;++i) if (s[i] == LEX_FIXED) lex_unit_row(L, i, L->M + n*p++);
-  memset(U, 0, sizeof(double) * n * n);
-  for (i=0;i<n;++i) U[i + i*n] = 1;
-  if (lex_step(L, L->M, p, 0, 0, U, &k, &ident) < 0) return 0;
   for (j=0;j<=P->nh - 1;++j) {    /* levels 1..nh-1, then the last cost (j = nh - 1) */
-    double scale;
-    const double* R = 0;
-    int rows = 0;
+    double scale, thr;
     if (j < P->nh - 1) {
-      const double* r = P->blower + P->break_points[j];
+      const double *R = P->A + (P->break_points[j] - P->ms)*n, *r = P->blower + P->break_points[j];
       double rn = 0, Rn = 0, xn = lex_norm(x, n);
-      R = P->A + (P->break_points[j] - P->ms)*n;
-      rows = P->break_points[j + 1] - P->break_points[j];
+      int rows = P->break_points[j + 1] - P->break_points[j];
       for (i=0;i<n;++i) g[i] = 0;
       for (i=0;i<rows;++i) {
         double e = lex_dot(R + i*n, x, n) - r[i];
@@ -352,7 +437,22 @@ static int lex_certified(vfdsl_lex* L, const vfdsl_lex_prob* P, const int* s, co
       }
       scale = sqrt(Hn) * lex_norm(x, n) + lex_norm(P->f, n);
     }
-    if (k == 0) return 1;
+    thr = LEX_DUAL_TOL * scale;
+    if (L->steps > j && (lex_dims_dual(L, P, s, j, g, thr) || lex_factors_dual(L, j, g, thr))) continue;
+    if (chained < 0) {           /* U: the null space of the fixed rows */
+      int p = 0;
+      for (i=0;i<P->K;++i) if (s[i] == LEX_FIXED) lex_unit_row(L, i, L->T + n*p++);
+      memset(U, 0, sizeof(double) * n * n);
+      for (i=0;i<n;++i) U[i + i*n] = 1;
+      if (lex_step(L, L->T, p, 0, 0, &U, &k, &ident, -1) < 0) return 0;
+      chained = 0;
+    }
+    for (; chained<j; ++chained) {  /* ... and of the levels above */
+      const double* R = P->A + (P->break_points[chained] - P->ms)*n;
+      int rows = P->break_points[chained + 1] - P->break_points[chained];
+      if (lex_step(L, R, rows, 0, 0, &U, &k, &ident, -1) < 0) return 0;
+    }
+    if (k == 0) return 1;        /* nothing left free: every level below is met */
     a = 0;
     if (ident) {                 /* U = I */
       for (l=0;l<k;++l) b[l] = -g[l];
@@ -367,7 +467,7 @@ static int lex_certified(vfdsl_lex* L, const vfdsl_lex_prob* P, const int* s, co
         ++a;
       }
     }
-    if (a ? !lex_nnls_within(L, N, k, a, b, LEX_DUAL_TOL * scale) : lex_norm(b, k) > LEX_DUAL_TOL * scale) {
+    if (a ? !lex_nnls_within(L, N, k, a, b, thr) : lex_norm(b, k) > thr) {
       if (a && L->hint_column >= 0) {     /* the held inequality row of that column: drop it */
         int column = 0;
         for (i=0;i<P->K;++i) if (s[i] == LEX_UPPER || s[i] == LEX_LOWER) {
@@ -376,7 +476,6 @@ static int lex_certified(vfdsl_lex* L, const vfdsl_lex_prob* P, const int* s, co
       }
       return 0;
     }
-    if (R && lex_step(L, R, rows, 0, 0, U, &k, &ident) < 0) return 0;
   }
   return 1;
 }
@@ -390,10 +489,12 @@ int vfdsl_lex_repair(vfdsl_lex* L, int* s) {
 
 /* The levels' optimum over the working set s into x; 1 when certified (vfdsl.runtime.lexls.solve_over). */
 int vfdsl_lex_solve(vfdsl_lex* L, const vfdsl_lex_prob* P, const int* s, double* x) {
-  int n = P->n, i, j, l, p = 0, k = n, ident = 1;
+  int n = P->n, i, j, l, p = 0, k = n, ident = 1, record = P->nh <= L->max_steps;
   double *Z = L->Z;
   L->hint = -1;
+  L->steps = 0;
   for (i=0;i<P->K;++i) if (s[i] != LEX_FREE) {
+    L->side[p] = s[i];
     lex_unit_row(L, i, L->M + p*n);
     L->t[p] = s[i] == LEX_LOWER ? L->lo[i] : L->up[i];
     if (!isfinite(L->t[p++])) return 0;     /* a row held at an infinite bound */
@@ -401,12 +502,12 @@ int vfdsl_lex_solve(vfdsl_lex* L, const vfdsl_lex_prob* P, const int* s, double*
   memset(x, 0, sizeof(double) * n);
   memset(Z, 0, sizeof(double) * n * n);
   for (i=0;i<n;++i) Z[i + i*n] = 1;
-  if (lex_step(L, L->M, p, L->t, x, Z, &k, &ident) < 0) return 0;
+  if (lex_step(L, L->M, p, L->t, x, &Z, &k, &ident, record ? 0 : -1) < 0) return 0;
   for (i=0;i<p;++i) if (fabs(lex_dot(L->M + i*n, x, n) - L->t[i]) > LEX_PRIMAL_TOL) return 0;
   for (j=0;j<P->nh - 1;++j) {
     const double* R = P->A + (P->break_points[j] - P->ms)*n;
-    if (lex_step(L, R, P->break_points[j + 1] - P->break_points[j], P->blower + P->break_points[j], x, Z, &k,
-                 &ident) < 0)
+    if (lex_step(L, R, P->break_points[j + 1] - P->break_points[j], P->blower + P->break_points[j], x, &Z, &k,
+                 &ident, record ? j + 1 : -1) < 0)
       return 0;
   }
   if (k) {       /* y = -(Z'HZ)^-1 Z'(Hx + f) */

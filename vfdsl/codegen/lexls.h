@@ -12,7 +12,9 @@
  * LEX_FIXED held as equalities, LEX_FREE left out) and returns 1 when it is certified as the optimum of the whole
  * problem, 0 otherwise (x then undefined; L->hint names a row whose change may fix the working set: the most
  * violated row, or the held row with the most negative multiplier). vfdsl_lex_repair(lex, s) applies the hint to s
- * (1 when there was one). All memory is allocated once by vfdsl_lex_alloc.
+ * (1 when there was one). The certificate tries, per level, the multipliers from the solve's own factors and a
+ * test by dimensions before its nonnegative least squares (as lexls.py). All memory is allocated once by
+ * vfdsl_lex_alloc.
  */
 #ifndef VFDSL_LEXLS_H
 #define VFDSL_LEXLS_H
@@ -33,6 +35,11 @@ typedef struct vfdsl_lex {
   double *B, *T, *tau, *tau2, *c;
   double *Z, *U, *x, *g, *y, *K2;
   double *N, *NP, *lam, *sol, *w, *res;
+  /* the solve's factors, for the certificate: step 0 holds W's rows, step l >= 1 level l - 1; Z keeps its whole
+     basis [Y_0 | Y_1 | ... | null space], Y_l = columns [off[l], off[l] + r[l]) of Z */
+  int steps, max_steps, *off, *r, *p, *fpiv, *fpiv_at, *fR_at, *side;   /* side: W's rows' s, in their order */
+  const double** rows;    /* each step's rows (row-major, p[l] of them) */
+  double* fR;             /* each step's R11 (r x r, column-major, upper triangular), at fR_at[l] */
 } vfdsl_lex;
 
 /* The problem, as DAQP holds it. */

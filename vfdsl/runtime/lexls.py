@@ -34,6 +34,11 @@ with its own Householder QR, Cholesky and Lawson-Hanson NNLS; this module, the i
 (through scipy) and scipy's NNLS. No library offers the lexicographic solve over a working set with this
 certificate (DAQP's hierarchical mode, which both paths call when no certificate is found, holds each level to its
 tolerance, not exactly); the C is ours because the generated tick links no LAPACK.
+
+Two cheaper sufficient tests run first at each level (:func:`_factors_dual`: multipliers from the solve's own
+factors; :func:`_dims_dual`: when the fixed rows and the levels above cut as many dimensions as the solve's steps
+up to that level did, U_j is the solve's null space, where G_j is zero by construction); the nonnegative least
+squares, and the chain of U_j it needs, only where neither certifies the level.
 """
 
 from __future__ import annotations
@@ -114,8 +119,9 @@ def _null_space(M, Z):
     return Z @ Q[:, r:]
 
 
-def _least_squares_step(M, t, x, Z):
-    """x + Z y, y the least-squares step of M (x + Z y) = t within range(Z); and the null space Z N left."""
+def _least_squares_step(M, t, x, Z, steps=None):
+    """x + Z y, y the least-squares step of M (x + Z y) = t within range(Z); and the null space Z N left. ``steps``
+    (a list) gets the step's factors for :func:`_factors_dual`: (M, Y = Z Q1, R11, piv), and the null space left."""
     Q, R1, piv, r = _null_step(M, Z)
     if r:
         c = (t - M @ x)[piv]
@@ -124,6 +130,8 @@ def _least_squares_step(M, t, x, Z):
         else:
             z = np.linalg.lstsq(np.triu(R1).T, c, rcond=None)[0]
         x = x + Z @ (Q[:, :r] @ z)
+    if steps is not None:
+        steps.append((M, Z @ Q[:, :r], np.triu(R1[:, :r]), piv, Z @ Q[:, r:]))
     return x, Z @ Q[:, r:]
 
 
@@ -143,11 +151,12 @@ def _solve_over(H, f, A, lo, up, levels, s):
     C, d = A[held], np.where(s[held] == LOWER, lo[held], up[held])
     if not np.all(np.isfinite(d)):
         return np.full(n, np.nan), False                  # a row held at an infinite bound
-    x, Z = _least_squares_step(C, d, np.zeros(n), np.eye(n))
+    steps = []
+    x, Z = _least_squares_step(C, d, np.zeros(n), np.eye(n), steps)
     if C.shape[0] and np.max(np.abs(C @ x - d)) > PRIMAL_TOL:
         return x, False                                   # W's rows cannot all hold
     for R, r in levels:
-        x, Z = _least_squares_step(R, r, x, Z)
+        x, Z = _least_squares_step(R, r, x, Z, steps)
     if Z.shape[1]:
         factor, info = lapack.dpotrf(Z.T @ H @ Z, lower=1)
         if info:
@@ -158,20 +167,31 @@ def _solve_over(H, f, A, lo, up, levels, s):
     Ax = A @ x
     if np.any(Ax < lo - PRIMAL_TOL) or np.any(Ax > up + PRIMAL_TOL):
         return x, False
-    return x, _certified(H, f, A, levels, s, x)
+    return x, _certified(H, f, A, levels, s, x, steps)
 
 
-def _certified(H, f, A, levels, s, x) -> bool:
-    """The dual half of the certificate, level by level (module docstring)."""
+def _certified(H, f, A, levels, s, x, steps) -> bool:
+    """The dual half of the certificate, level by level (module docstring): by :func:`_dims_dual` or
+    :func:`_factors_dual` where they apply (both sufficient), else by the nonnegative least squares over U_j."""
     n = H.shape[0]
     inequality = (s == UPPER) | (s == LOWER)
     if not np.any(inequality):
         return True         # the chain of null spaces is the primal one: x is optimal in it by construction
     columns = (A[inequality] * s[inequality, None]).T            # s_i a_i, one column per held inequality
-    U = _null_space(A[s == FIXED], np.eye(n))
+    fixed = A[s == FIXED]
     gradients = [(R.T @ (R @ x - r), np.linalg.norm(R) * (np.linalg.norm(R) * np.linalg.norm(x) + np.linalg.norm(r)))
                  for R, r in levels] + [(H @ x + f, np.linalg.norm(H) * np.linalg.norm(x) + np.linalg.norm(f))]
+    U, chained = None, 0
     for j, (G, scale) in enumerate(gradients):
+        threshold = DUAL_TOL * scale
+        above = np.vstack([fixed, *(R for R, _ in levels[:j])])
+        if _dims_dual(above, steps[j][4], G, threshold) or _factors_dual(steps[:j + 1], s[s != FREE], G, threshold):
+            continue
+        if U is None:
+            U = _null_space(fixed, np.eye(n))
+        for R, _ in levels[chained:j]:
+            U = _null_space(R, U)
+        chained = j
         if U.shape[1] == 0:
             return True                                   # nothing below is free to move
         b = U.T @ G
@@ -179,10 +199,54 @@ def _certified(H, f, A, levels, s, x) -> bool:
             residual = scipy.optimize.nnls(U.T @ columns, -b)[1]
         else:
             residual = np.linalg.norm(b)
-        if residual > DUAL_TOL * scale:
+        if residual > threshold:
             return False
-        if j < len(levels):
-            U = _null_space(levels[j][0], U)
+    return True
+
+
+def _factors_dual(steps, held, G, threshold) -> bool:
+    """Level j certified by the solve's own factors (steps: W's, then the levels above j): multipliers by
+    back-substitution from the last step to W's, each R11 mu = -Y'v (v: G plus the rows' part so far; 0 on a step's
+    dependent rows), W's inequality multipliers clipped to their sign (``held``: W's s), then the whole residual
+    |G + sum R_l'mu_l + C_W'sigma| within threshold: the KKT conditions of level j, so sufficient. (Below a
+    rank-deficient level the multipliers are not unique and this choice may miss.)"""
+    v = G.copy()
+    for k, (M, Y, R11, piv, _) in reversed(list(enumerate(steps))):
+        if R11.shape[0] == 0:
+            continue
+        mu = lapack.dtrtrs(R11, -(Y.T @ v), lower=0)[0]
+        if k == 0:
+            sides = held[piv[:len(mu)]]
+            mu = np.where((sides != FIXED) & (mu * sides < 0), 0.0, mu)
+        v = v + M[piv[:len(mu)]].T @ mu
+    return bool(np.linalg.norm(v) <= threshold)
+
+
+def _dims_dual(above, Z, G, threshold) -> bool:
+    """Level j certified by dimensions: the null space of the fixed rows and the levels above (``above``) contains
+    the solve's null space Z after those levels, so it is Z when ``above`` has exactly n - dim Z rows, independent
+    (:func:`_independent`); G's part there, Z'G, is 0 by the solve's optimality (checked), and W needs no
+    multipliers."""
+    n = Z.shape[0]
+    if above.shape[0] != n - Z.shape[1] or not _independent(above):
+        return False
+    return bool(np.linalg.norm(Z.T @ G) <= threshold)
+
+
+def _independent(S) -> bool:
+    """The rows of S are independent, each farther than COND_TOL from the span of those before it: every pivot of
+    the Cholesky of S S' above COND_TOL^2."""
+    q, n = S.shape
+    if q > n:
+        return False
+    G = S @ S.T
+    Lc = np.zeros((q, q))
+    for j in range(q):
+        d = G[j, j] - Lc[j, :j] @ Lc[j, :j]
+        if not d > COND_TOL ** 2:
+            return False
+        Lc[j, j] = np.sqrt(d)
+        Lc[j + 1:, j] = (G[j + 1:, j] - Lc[j + 1:, :j] @ Lc[j, :j]) / Lc[j, j]
     return True
 
 
