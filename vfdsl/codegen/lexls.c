@@ -92,8 +92,8 @@ static int lex_qr(double* B, int k, int p, double* tau, int* piv, int* ill) {
         for (i=0;i<k;++i) { tmp = B[i + j*k]; B[i + j*k] = B[i + best*k]; B[i + best*k] = tmp; }
       }
     }
-    norm2 = 0;
-    for (i=j;i<k;++i) norm2 += col[i]*col[i];
+    if (piv) norm2 = best2;        /* (that column's sum, term by term) */
+    else for (norm2 = 0, i = j; i < k; ++i) norm2 += col[i]*col[i];
     if (piv) {
       double d = sqrt(norm2);
       if (!(d > LEX_RANK_TOL)) return j;
@@ -412,14 +412,14 @@ static int lex_dims_dual(vfdsl_lex* L, const vfdsl_lex_prob* P, const int* s, in
  * (that chain built only when a level needs it). */
 static int lex_certified(vfdsl_lex* L, const vfdsl_lex_prob* P, const int* s, const double* x) {
   int n = P->n, i, j, l, a = 0, k = n, ident = 1, chained = -1;
-  double *U = L->U, *N = L->N, *g = L->g, *b = L->y;
+  double *U = L->U, *N = L->N, *g = L->g, *b = L->y, xn = lex_norm(x, n);
   for (i=0;i<P->K;++i) if (s[i] == LEX_UPPER || s[i] == LEX_LOWER) ++a;
   if (a == 0) return 1;         /* the chain of null spaces is the primal one: optimal in it by construction */
   for (j=0;j<=P->nh - 1;++j) {    /* levels 1..nh-1, then the last cost (j = nh - 1) */
     double scale, thr;
     if (j < P->nh - 1) {
       const double *R = P->A + (P->break_points[j] - P->ms)*n, *r = P->blower + P->break_points[j];
-      double rn = 0, Rn = 0, xn = lex_norm(x, n);
+      double rn = 0, Rn = 0;
       int rows = P->break_points[j + 1] - P->break_points[j];
       for (i=0;i<n;++i) g[i] = 0;
       for (i=0;i<rows;++i) {
@@ -435,7 +435,7 @@ static int lex_certified(vfdsl_lex* L, const vfdsl_lex_prob* P, const int* s, co
         g[i] = P->f[i];
         for (l=0;l<n;++l) { g[i] += P->H[i + l*n]*x[l]; Hn += P->H[i + l*n]*P->H[i + l*n]; }
       }
-      scale = sqrt(Hn) * lex_norm(x, n) + lex_norm(P->f, n);
+      scale = sqrt(Hn) * xn + lex_norm(P->f, n);
     }
     thr = LEX_DUAL_TOL * scale;
     if (L->steps > j && (lex_dims_dual(L, P, s, j, g, thr) || lex_factors_dual(L, j, g, thr))) continue;
