@@ -374,16 +374,14 @@ static int lex_independent(vfdsl_lex* L, const double* S, int q, int n) {
   double* G = L->K2;
   if (q > n) return 0;          /* more than n rows of length n are dependent */
   for (j=0;j<q;++j) {
-    for (i=j;i<q;++i) {
+    double d = lex_dot(S + j*n, S + j*n, n), inv;
+    for (l=0;l<j;++l) d -= G[j + l*q]*G[j + l*q];
+    if (!(d > LEX_COND_TOL*LEX_COND_TOL)) return 0;
+    inv = 1 / sqrt(d);
+    for (i=j+1;i<q;++i) {
       double v = lex_dot(S + i*n, S + j*n, n);
       for (l=0;l<j;++l) v -= G[i + l*q]*G[j + l*q];
-      if (i == j) {
-        if (!(v > LEX_COND_TOL*LEX_COND_TOL)) return 0;
-        v = sqrt(v);
-      } else {
-        v /= G[j + j*q];
-      }
-      G[i + j*q] = v;
+      G[i + j*q] = v * inv;
     }
   }
   return 1;
@@ -399,10 +397,14 @@ static int lex_dims_dual(vfdsl_lex* L, const vfdsl_lex_prob* P, const int* s, in
   double norm2 = 0;
   for (i=0;i<P->K;++i) if (s[i] == LEX_FIXED) ++q;
   if (q + P->break_points[j] - P->break_points[0] != after) return 0;    /* (then rank < after, or a search) */
-  q = 0;
-  for (i=0;i<P->K;++i) if (s[i] == LEX_FIXED) lex_unit_row(L, i, L->B + n*q++);
-  for (i=P->break_points[0];i<P->break_points[j];++i) memcpy(L->B + n*q++, P->A + (i - P->ms)*n, sizeof(double) * n);
-  if (!lex_independent(L, L->B, q, n)) return 0;
+  if (q) {                      /* the fixed rows, then the levels' (else those, where they are) */
+    q = 0;
+    for (i=0;i<P->K;++i) if (s[i] == LEX_FIXED) lex_unit_row(L, i, L->B + n*q++);
+    for (i=P->break_points[0];i<P->break_points[j];++i) memcpy(L->B + n*q++, P->A + (i - P->ms)*n, sizeof(double) * n);
+    if (!lex_independent(L, L->B, q, n)) return 0;
+  } else if (!lex_independent(L, P->A + (P->break_points[0] - P->ms)*n, after, n)) {
+    return 0;
+  }
   for (i=0;i<n-after;++i) { double d = lex_dot(Z + i*n, g, n); norm2 += d*d; }
   return sqrt(norm2) <= thr;
 }

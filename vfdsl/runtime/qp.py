@@ -160,17 +160,16 @@ def build_step_function(qp_data: ca.Function, prefix: str, *,
     symbols = [ca.MX.sym(name, v.sparsity()) for name, v in zip(qp_data.name_out(), data)]
     prepared = _straight_line(f"{prefix}_prepare", symbols, _prepare(symbols, levels, last_level_is_cost))(*data)
     H, g, A, lba, uba, lo, hi, clipped = prepared[:8]
-    if levels > 1:      # one hierarchical solve over the levels' rows (R, r)
-        H_cost, g_cost, R, r = prepared[8:]
+    args = prepared[8:]     # the solve's H, g and rows (_stack)
+    if levels > 1:      # one hierarchical solve over the levels' rows
         sizes = [qp_data.size1_out(7 + 2 * j) for j in range(levels - last_level_is_cost)]
-        args = [H_cost, g_cost, A, lba, uba, lo, hi, R, r]
         x1 = None
         for k, (tol, rho) in enumerate(LEVEL_ATTEMPTS):
             solve = _daqp(n, m, tol, f"phase1_try{k}", native, sizes, rho, partial=k == len(LEVEL_ATTEMPTS) - 1,
                           exact=True)
             x1 = solve(*args) if x1 is None else _retried(x1, recover, solve, args)
     else:
-        x1 = _daqp(n, m, feas_tol * 1e-3, "phase1_warm", native)(H, g, A, lba, uba, lo, hi)
+        x1 = _daqp(n, m, feas_tol * 1e-3, "phase1_warm", native)(*args)
 
     if m == 0:
         picked = ca.vertcat(x1, int(StepStatus.OPTIMAL))
@@ -200,9 +199,9 @@ def _straight_line(name: str, inputs: list[ca.MX], outputs: list[ca.MX]) -> ca.F
 
 
 def _prepare(data: list[ca.MX], levels: int, last_level_is_cost: bool) -> list[ca.MX]:
-    """From qp_data's outputs: [H, g, A, lba, uba, lo, hi, clipped] of the QP (the box made safe, g saturated), and
-    with priority levels [H_cost, g_cost, R, r] of the hierarchical solve (R, r: the levels' rows and targets, each
-    level scaled)."""
+    """From qp_data's outputs: [H, g, A, lba, uba, lo, hi, clipped] of the QP (the box made safe, g saturated), then
+    the phase-1 solve's [H, g, a, lower, upper] (:func:`_stack`): with priority levels, DAQP's cost and the levels'
+    rows and targets (each level scaled) after the rows and the box."""
     data = [ca.densify(v) for v in data]
     n = data[0].size1()
     H, g, A, lba, uba, lbx, ubx = data[:7]
@@ -220,8 +219,9 @@ def _prepare(data: list[ca.MX], levels: int, last_level_is_cost: bool) -> list[c
         else:                       # DAQP's own cost: the tie-break |x|^2 / 2
             H_cost, g_cost = ca.MX(ca.DM.eye(n)), ca.MX(ca.DM.zeros(n))
         rows = [_level_rows(R, r, lo, hi) for R, r in pairs]
-        prepared += [H_cost, g_cost, ca.vertcat(*(R for R, _ in rows)), ca.vertcat(*(r for _, r in rows))]
-    return prepared
+        R, r = ca.vertcat(*(R for R, _ in rows)), ca.vertcat(*(r for _, r in rows))
+        return prepared + [H_cost, g_cost, *_stack(A, lba, uba, lo, hi, R, r)]
+    return prepared + [H, g, *_stack(A, lba, uba, lo, hi)]
 
 
 def _finish(picked, A, lba, uba, lo, hi, clipped, m: int, feas_tol: float) -> list[ca.MX]:
@@ -298,7 +298,8 @@ def _box_width(lo: ca.MX, hi: ca.MX) -> ca.MX:
 def _daqp(n: int, m: int, primal_tol: float, name: str, native: bool,
           level_rows: Sequence[int] = (), rho: float = 1e-8, partial: bool = False,
           exact: bool = False) -> Callable[..., ca.MX]:
-    """solve(H, g, A, lba, uba, lbx, ubx[, R, r[, r_upper]]) -> x: one dense DAQP solve, x = NaN when it fails.
+    """solve(H, g, *_stack(A, lba, uba, lbx, ubx[, R, r[, r_upper]])) -> x: one dense DAQP solve, x = NaN when it
+    fails.
     ``primal_tol``: DAQP's (1e-3 feas_tol for the solves without levels, :data:`LEVEL_ATTEMPTS` with them).
 
     The variable bounds reach DAQP as identity rows (through CasADi's conic interface DAQP met simple bounds only
@@ -331,14 +332,19 @@ def _daqp(n: int, m: int, primal_tol: float, name: str, native: bool,
     else:
         conic = _DaqpNode.function(name, n, m + n + extra, primal_tol, breaks, rho, partial, exact)
 
-    def solve(H, g, A, lba, uba, lbx, ubx, R=None, r=None, r_upper=None):
-        rows, lower, upper = [A, ca.DM.eye(n)], [lba, lbx], [uba, ubx]
-        if extra:
-            rows, lower, upper = [*rows, R], [*lower, r], [*upper, r if r_upper is None else r_upper]
-        return conic(h=H, g=g, a=ca.vertcat(*rows), lba=ca.vertcat(*lower), uba=ca.vertcat(*upper),
-                     lbx=-free, ubx=free)["x"]
+    def solve(H, g, a, lower, upper):
+        return conic(h=H, g=g, a=a, lba=lower, uba=upper, lbx=-free, ubx=free)["x"]
 
     return solve
+
+
+def _stack(A, lba, uba, lbx, ubx, R=None, r=None, r_upper=None):
+    """(a, lower, upper): DAQP's rows (:func:`_daqp`), the general rows, the box as identity rows, then the levels'
+    rows R with targets r (or r <= R x <= r_upper)."""
+    rows, lower, upper = [A, ca.DM.eye(A.size2())], [lba, lbx], [uba, ubx]
+    if R is not None:
+        rows, lower, upper = [*rows, R], [*lower, r], [*upper, r if r_upper is None else r_upper]
+    return ca.densify(ca.vertcat(*rows)), ca.vertcat(*lower), ca.vertcat(*upper)
 
 
 class _DaqpNode(ca.Callback):
@@ -518,7 +524,7 @@ def _least_violation(H, g, A, lba, uba, lo, hi, E: ca.DM, tol, rho, mu, native) 
     inf_m, inf_G = ca.inf * ca.DM.ones(m), ca.inf * ca.DM.ones(G)
     lba_a, uba_a = ca.vertcat(lba, -inf_m), ca.vertcat(inf_m, uba)
     lbz, ubz = ca.vertcat(lo, ca.DM.zeros(G)), ca.vertcat(hi, inf_G)
-    z = _daqp(n + G, 2 * m, tol * 1e-3, "phase2a", native)(H_a, g_a, A_a, lba_a, uba_a, lbz, ubz)
+    z = _daqp(n + G, 2 * m, tol * 1e-3, "phase2a", native)(H_a, g_a, *_stack(A_a, lba_a, uba_a, lbz, ubz))
     x_a = _clip(z[:n], lo, hi)      # used only when (A) is acceptable, i.e. z is finite
     Ax_a = A @ x_a
     violated = ca.logic_or(Ax_a < lba, Ax_a > uba)        # these rows leave level 0 and are held at x_a's values
@@ -526,8 +532,9 @@ def _least_violation(H, g, A, lba, uba, lo, hi, E: ca.DM, tol, rho, mu, native) 
     lba_b, uba_b = ca.if_else(violated, -inf, lba), ca.if_else(violated, inf, uba)
     pin_lo, pin_hi = ca.if_else(violated, Ax_a, -inf), ca.if_else(violated, Ax_a, inf)
     row_scale, cost_scale = _unit_rows(A), _unit_diagonal(H)   # (the held rows weigh the same against any objective)
-    x_b = _daqp(n, m, tol * 1e-3, "phase2b", native, [m])(cost_scale * H, cost_scale * g, A, lba_b, uba_b, lo, hi,
-                                                           row_scale * A, row_scale * pin_lo, row_scale * pin_hi)
+    x_b = _daqp(n, m, tol * 1e-3, "phase2b", native, [m])(
+        cost_scale * H, cost_scale * g, *_stack(A, lba_b, uba_b, lo, hi, row_scale * A, row_scale * pin_lo,
+                                                row_scale * pin_hi))
 
     # Acceptance is decided on the solver's own answers, before any clipping: clipping a failed
     # solve's NaN into B would turn it into a full-speed motion that looks feasible.
