@@ -12,6 +12,7 @@ from scipy.optimize import minimize, nnls
 from vfdsl.codegen import build_library
 from vfdsl.errors import VfError
 from vfdsl.runtime import BufferedFunction, StepStatus, build_step_function
+from vfdsl.runtime import qp as qp_module
 from vfdsl.runtime.qp import PER_ROW_GROUPS_LIMIT
 
 N, M, DT = 6, 30, 0.01
@@ -122,6 +123,32 @@ def solve_both(paths, args):
     np.testing.assert_allclose(x, x_i, atol=tol)
     np.testing.assert_allclose(violation, violation_i, atol=tol)
     return x, StepStatus(int(status[0])), violation
+
+
+def test_straight_line_and_looped_steps_agree(random_paths, tmp_path, monkeypatch):
+    """The step's solver-free parts, expanded to straight-line code (30 x 6 rows: under STRAIGHT_LINE_ENTRIES) or
+    kept as the MX graph's loops (as for a task with many rows), give the same ticks on both paths, feasible and
+    not."""
+    qp_data, *expanded = random_paths
+    monkeypatch.setattr(qp_module, "STRAIGHT_LINE_ENTRIES", 0)
+    step = build_step_function(qp_data, "vf_test_loops", native=True)
+    interpreted = build_step_function(qp_data, "vf_test_loops")
+    monkeypatch.undo()
+    assert not step.find_function("vf_test_loops_prepare").is_a("SXFunction")
+    assert build_step_function(qp_data, "vf_test_sx").find_function("vf_test_sx_prepare").is_a("SXFunction")
+    library = build_library(step, "vf_test_loops", tmp_path, {}, NO_CHECKS)
+    looped = (BufferedFunction.native(library.so_path, "vf_test_loops"), BufferedFunction.interpreted(interpreted))
+    statuses = set()
+    for seed in range(4):
+        for infeasible in (False, True):
+            args = instance(seed, infeasible=infeasible)
+            x, status, violation = solve_both(looped, args)
+            x_sx, status_sx, violation_sx = solve_both(expanded, args)
+            assert status == status_sx
+            statuses.add(status)
+            np.testing.assert_allclose(x, x_sx, atol=1e-12)
+            np.testing.assert_allclose(violation, violation_sx, atol=1e-12)
+    assert StepStatus.OPTIMAL in statuses and len(statuses) > 1, statuses
 
 
 @pytest.mark.parametrize("seed", range(6))

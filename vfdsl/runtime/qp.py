@@ -124,6 +124,13 @@ PER_ROW_GROUPS_LIMIT = 100
 iteration-limit failures and megabytes of generated C at m = 1000): a warning asks for groups."""
 
 
+STRAIGHT_LINE_ENTRIES = 512
+"""The step's solver-free parts are expanded to straight-line code (:func:`_straight_line`) when the general rows
+have at most this many entries (m x n; every example task, at most 28 x 7): that code grows with them. Measured on
+the stays_at sweep of benchmarks/tick.py (shr7), expanded against kept as loops: 62 rows, tick 4.9 against 9.9 us,
+compile 4.6 against 2.7 s; 114 rows, 6.7 against 15.3 us, 8.6 against 3.6 s; 482 rows, compile 55 against 9 s."""
+
+
 class StepStatus(enum.IntFlag):
     """What happened in one tick (the ``status`` output, as bit flags)."""
 
@@ -158,7 +165,9 @@ def build_step_function(qp_data: ca.Function, prefix: str, *,
     recover = ca.MX.sym("recover")
     data = qp_data.call(inputs)
     symbols = [ca.MX.sym(name, v.sparsity()) for name, v in zip(qp_data.name_out(), data)]
-    prepared = _straight_line(f"{prefix}_prepare", symbols, _prepare(symbols, levels, last_level_is_cost))(*data)
+    expand = m * n <= STRAIGHT_LINE_ENTRIES
+    prepared = _straight_line(f"{prefix}_prepare", symbols, _prepare(symbols, levels, last_level_is_cost),
+                              expand)(*data)
     H, g, A, lba, uba, lo, hi, clipped = prepared[:8]
     args = prepared[8:]     # the solve's H, g and rows (_stack)
     if levels > 1:      # one hierarchical solve over the levels' rows
@@ -178,24 +187,26 @@ def build_step_function(qp_data: ca.Function, prefix: str, *,
                                                                       (x1, A, lba, uba, lo, hi))]
         accept = _straight_line(f"{prefix}_accept", symbols, [_acceptable(
             symbols[0], symbols[1] @ symbols[0], *symbols[2:],
-            feas_tol * (LEVEL_ACCEPTANCE if levels > 1 else 1))])
+            feas_tol * (LEVEL_ACCEPTANCE if levels > 1 else 1))], expand)
         ok1 = accept(x1, A, lba, uba, lo, hi)
         switch = _phase2_switch([H, g, A, lba, uba, lo, hi, x1], _incidence(m, row_groups),
                                 feas_tol, penalty, tie_break, native)
         picked = switch(ca.logic_and(ok1, recover == 0), H, g, A, lba, uba, lo, hi, x1)
     symbols = [ca.MX.sym(name, v.sparsity()) for name, v in zip(("picked", "A", "lba", "uba", "lo", "hi", "clipped"),
                                                                   (picked, A, lba, uba, lo, hi, clipped))]
-    finish = _straight_line(f"{prefix}_finish", symbols, _finish(*symbols, m, feas_tol))
+    finish = _straight_line(f"{prefix}_finish", symbols, _finish(*symbols, m, feas_tol), expand)
     x, status, violation = finish(picked, A, lba, uba, lo, hi, clipped)
     return ca.Function(prefix, [*inputs, recover], [x, status, violation],
                        [*qp_data.name_in(), "recover"], list(STEP_OUTPUTS))
 
 
-def _straight_line(name: str, inputs: list[ca.MX], outputs: list[ca.MX]) -> ca.Function:
-    """A part of the step without a solver or a call, as a Function expanded to scalar operations: generated as
-    straight-line C, where the MX graph's ~300 small loops (7 or 49 entries each) took most of experiment B's tick
-    outside its solve (measured: qp_data 0.23 us, the rest of the graph around the solve about 1 us)."""
-    return ca.Function(name, inputs, outputs).expand()
+def _straight_line(name: str, inputs: list[ca.MX], outputs: list[ca.MX], expand: bool) -> ca.Function:
+    """A part of the step without a solver or a call, as a Function; ``expand``: expanded to scalar operations,
+    generated as straight-line C (:data:`STRAIGHT_LINE_ENTRIES`), where the MX graph's ~300 small loops (7 or 49
+    entries each) took most of experiment B's tick outside its solve (measured: qp_data 0.23 us, the rest of the graph
+    around the solve about 1 us, 0.6 us expanded)."""
+    function = ca.Function(name, inputs, outputs)
+    return function.expand() if expand else function
 
 
 def _prepare(data: list[ca.MX], levels: int, last_level_is_cost: bool) -> list[ca.MX]:
