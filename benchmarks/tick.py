@@ -164,7 +164,7 @@ def one_level(task, cache: Path) -> BufferedFunction:
     robot = Robot.load(task.robots[0].urdf)
     problem = assemble(task, robot)
     f = problem.function
-    args = f.mx_in()
+    args = f.sx_in() if f.is_a("SXFunction") else f.mx_in()     # (of the same kind as the task's own qp_data)
     summed = ca.Function("qp_data", args, f.call(args)[:7], f.name_in(), f.name_out()[:7])
     prefix = pipeline.symbol_prefix(task) + "_one"
     step = build_step_function(summed, prefix, row_groups=problem.row_groups,
