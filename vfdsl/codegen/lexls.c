@@ -340,6 +340,13 @@ void vfdsl_lex_working_set(const vfdsl_lex* L, const double* x, int* s) {
 
 static double lex_norm(const double* a, int n) { return sqrt(lex_dot(a, a, n)); }
 
+/* W's fixed rows (lo = up), of unit length, into out (row-major); their count. */
+static int lex_fixed_rows(const vfdsl_lex* L, const int* s, double* out) {
+  int i, q = 0;
+  for (i=0;i<L->K;++i) if (s[i] == LEX_FIXED) lex_unit_row(L, i, out + L->n*q++);
+  return q;
+}
+
 /* 1 when the solve's own factors certify level j (gradient g): multipliers by back-substitution through the steps of
  * the levels above (j .. 1) and then of W's rows (step 0), each R11 mu = -Y'v (v: g plus the rows' part so far; 0 on
  * a step's dependent rows), W's inequality multipliers clipped to their sign, and the whole residual
@@ -391,20 +398,18 @@ static int lex_independent(vfdsl_lex* L, const double* S, int q, int n) {
  * solve's null space after those levels (Z_j, where W's rows are held too), of dimension n - after, so V = Z_j when
  * those rows are `after` independent ones; then g's part in V is Z_j'g, 0 by the solve's optimality (checked within
  * thr), and W's rows need no multipliers. */
-static int lex_dims_dual(vfdsl_lex* L, const vfdsl_lex_prob* P, const int* s, int j, const double* g, double thr) {
-  int n = P->n, after = L->off[j] + L->r[j], q = 0, i;
-  const double* Z = L->Z + after*n;
+static int lex_dims_dual(vfdsl_lex* L, const vfdsl_lex_prob* P, const int* s, int fixed, int j, const double* g,
+                         double thr) {
+  int n = P->n, after = L->off[j] + L->r[j], levels = P->break_points[j] - P->break_points[0], i;
+  const double *Z = L->Z + after*n, *above = P->A + (P->break_points[0] - P->ms)*n;   /* the levels' rows */
   double norm2 = 0;
-  for (i=0;i<P->K;++i) if (s[i] == LEX_FIXED) ++q;
-  if (q + P->break_points[j] - P->break_points[0] != after) return 0;    /* (then rank < after, or a search) */
-  if (q) {                      /* the fixed rows, then the levels' (else those, where they are) */
-    q = 0;
-    for (i=0;i<P->K;++i) if (s[i] == LEX_FIXED) lex_unit_row(L, i, L->B + n*q++);
-    for (i=P->break_points[0];i<P->break_points[j];++i) memcpy(L->B + n*q++, P->A + (i - P->ms)*n, sizeof(double) * n);
-    if (!lex_independent(L, L->B, q, n)) return 0;
-  } else if (!lex_independent(L, P->A + (P->break_points[0] - P->ms)*n, after, n)) {
-    return 0;
+  if (fixed + levels != after) return 0;     /* (then rank < after, or a search) */
+  if (fixed) {                  /* the fixed rows, then the levels' (else those, where they are) */
+    lex_fixed_rows(L, s, L->B);
+    memcpy(L->B + n*fixed, above, sizeof(double) * n * levels);
+    above = L->B;
   }
+  if (!lex_independent(L, above, after, n)) return 0;
   for (i=0;i<n-after;++i) { double d = lex_dot(Z + i*n, g, n); norm2 += d*d; }
   return sqrt(norm2) <= thr;
 }
@@ -413,9 +418,12 @@ static int lex_dims_dual(vfdsl_lex* L, const vfdsl_lex_prob* P, const int* s, in
  * when they do, else by the nonnegative least squares over the null space U of the fixed rows and the levels above
  * (that chain built only when a level needs it). */
 static int lex_certified(vfdsl_lex* L, const vfdsl_lex_prob* P, const int* s, const double* x) {
-  int n = P->n, i, j, l, a = 0, k = n, ident = 1, chained = -1;
+  int n = P->n, i, j, l, a = 0, fixed = 0, k = n, ident = 1, chained = -1;
   double *U = L->U, *N = L->N, *g = L->g, *b = L->y, xn = lex_norm(x, n);
-  for (i=0;i<P->K;++i) if (s[i] == LEX_UPPER || s[i] == LEX_LOWER) ++a;
+  for (i=0;i<P->K;++i) {
+    a += s[i] == LEX_UPPER || s[i] == LEX_LOWER;
+    fixed += s[i] == LEX_FIXED;
+  }
   if (a == 0) return 1;         /* the chain of null spaces is the primal one: optimal in it by construction */
   for (j=0;j<=P->nh - 1;++j) {    /* levels 1..nh-1, then the last cost (j = nh - 1) */
     double scale, thr;
@@ -440,13 +448,12 @@ static int lex_certified(vfdsl_lex* L, const vfdsl_lex_prob* P, const int* s, co
       scale = sqrt(Hn) * xn + lex_norm(P->f, n);
     }
     thr = LEX_DUAL_TOL * scale;
-    if (L->steps > j && (lex_dims_dual(L, P, s, j, g, thr) || lex_factors_dual(L, j, g, thr))) continue;
+    if (L->steps > j && (lex_dims_dual(L, P, s, fixed, j, g, thr) || lex_factors_dual(L, j, g, thr))) continue;
     if (chained < 0) {           /* U: the null space of the fixed rows */
-      int p = 0;
-      for (i=0;i<P->K;++i) if (s[i] == LEX_FIXED) lex_unit_row(L, i, L->T + n*p++);
+      lex_fixed_rows(L, s, L->T);
       memset(U, 0, sizeof(double) * n * n);
       for (i=0;i<n;++i) U[i + i*n] = 1;
-      if (lex_step(L, L->T, p, 0, 0, &U, &k, &ident, -1) < 0) return 0;
+      if (lex_step(L, L->T, fixed, 0, 0, &U, &k, &ident, -1) < 0) return 0;
       chained = 0;
     }
     for (; chained<j; ++chained) {  /* ... and of the levels above */

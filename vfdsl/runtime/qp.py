@@ -165,13 +165,12 @@ def build_step_function(qp_data: ca.Function, prefix: str, *,
     recover = ca.MX.sym("recover")
     expand = m * n <= STRAIGHT_LINE_ENTRIES
     if expand and qp_data.is_a("SXFunction"):   # with qp_data inside: its structural zeros prune the preparation
-        prepared = _straight_line(f"{prefix}_prepare", inputs,      # (experiment B: 3,468 -> 1,674 operations)
-                                  _prepare(qp_data.call(inputs), levels, last_level_is_cost), expand)(*inputs)
+        prepared = _straight_line(              # (experiment B: 3,468 -> 1,674 operations)
+            f"{prefix}_prepare", lambda *ins: _prepare(qp_data.call(list(ins)), levels, last_level_is_cost),
+            inputs, expand)
     else:                                       # (an MX qp_data: e.g. a mesh fixture's external call in it)
-        data = qp_data.call(inputs)
-        symbols = [ca.MX.sym(name, v.sparsity()) for name, v in zip(qp_data.name_out(), data)]
-        prepared = _straight_line(f"{prefix}_prepare", symbols, _prepare(symbols, levels, last_level_is_cost),
-                                  expand)(*data)
+        prepared = _straight_line(f"{prefix}_prepare", lambda *data: _prepare(data, levels, last_level_is_cost),
+                                  qp_data.call(inputs), expand)
     H, g, A, lba, uba, lo, hi, clipped = prepared[:8]
     args = prepared[8:]     # the solve's H, g and rows (_stack)
     if levels > 1:      # one hierarchical solve over the levels' rows
@@ -187,33 +186,30 @@ def build_step_function(qp_data: ca.Function, prefix: str, *,
     if m == 0:
         picked = ca.vertcat(x1, int(StepStatus.OPTIMAL))
     else:
-        symbols = [ca.MX.sym(name, v.sparsity()) for name, v in zip(("x1", "A", "lba", "uba", "lo", "hi"),
-                                                                      (x1, A, lba, uba, lo, hi))]
-        accept = _straight_line(f"{prefix}_accept", symbols, [_acceptable(
-            symbols[0], symbols[1] @ symbols[0], *symbols[2:],
-            feas_tol * (LEVEL_ACCEPTANCE if levels > 1 else 1))], expand)
-        ok1 = accept(x1, A, lba, uba, lo, hi)
+        accept_tol = feas_tol * (LEVEL_ACCEPTANCE if levels > 1 else 1)
+        ok1 = _straight_line(f"{prefix}_accept", lambda x, A, *box: [_acceptable(x, A @ x, *box, accept_tol)],
+                             [x1, A, lba, uba, lo, hi], expand)
         switch = _phase2_switch([H, g, A, lba, uba, lo, hi, x1], _incidence(m, row_groups),
                                 feas_tol, penalty, tie_break, native)
         picked = switch(ca.logic_and(ok1, recover == 0), H, g, A, lba, uba, lo, hi, x1)
-    symbols = [ca.MX.sym(name, v.sparsity()) for name, v in zip(("picked", "A", "lba", "uba", "lo", "hi", "clipped"),
-                                                                  (picked, A, lba, uba, lo, hi, clipped))]
-    finish = _straight_line(f"{prefix}_finish", symbols, _finish(*symbols, m, feas_tol), expand)
-    x, status, violation = finish(picked, A, lba, uba, lo, hi, clipped)
+    x, status, violation = _straight_line(f"{prefix}_finish", lambda *v: _finish(*v, m, feas_tol),
+                                          [picked, A, lba, uba, lo, hi, clipped], expand)
     return ca.Function(prefix, [*inputs, recover], [x, status, violation],
                        [*qp_data.name_in(), "recover"], list(STEP_OUTPUTS))
 
 
-def _straight_line(name: str, inputs: list[ca.MX], outputs: list[ca.MX], expand: bool) -> ca.Function:
-    """A part of the step without a solver or a call, as a Function; ``expand``: expanded to scalar operations,
-    generated as straight-line C (:data:`STRAIGHT_LINE_ENTRIES`), where the MX graph's ~300 small loops (7 or 49
-    entries each) took most of experiment B's tick outside its solve (measured: qp_data 0.23 us, the rest of the graph
-    around the solve about 1 us, 0.6 us expanded)."""
-    function = ca.Function(name, inputs, outputs)
-    return function.expand() if expand else function
+def _straight_line(name: str, build: Callable[..., list[ca.MX]], values: Sequence[ca.MX], expand: bool):
+    """build's outputs on ``values``, through a Function ``name`` of symbols shaped like them: a part of the step
+    without a solver. ``expand``: the Function expanded to scalar operations, generated as straight-line C
+    (:data:`STRAIGHT_LINE_ENTRIES`), where the MX graph's ~300 small loops (7 or 49 entries each) took most of
+    experiment B's tick outside its solve (measured: qp_data 0.23 us, the rest of the graph around the solve about
+    1 us, 0.6 us expanded)."""
+    symbols = [ca.MX.sym(f"{name}_{k}", v.sparsity()) for k, v in enumerate(values)]
+    function = ca.Function(name, symbols, list(build(*symbols)))
+    return (function.expand() if expand else function)(*values)
 
 
-def _prepare(data: list[ca.MX], levels: int, last_level_is_cost: bool) -> list[ca.MX]:
+def _prepare(data: Sequence[ca.MX], levels: int, last_level_is_cost: bool) -> list[ca.MX]:
     """From qp_data's outputs: [H, g, A, lba, uba, lo, hi, clipped] of the QP (the box made safe, g saturated), then
     the phase-1 solve's [H, g, a, lower, upper] (:func:`_stack`): with priority levels, DAQP's cost and the levels'
     rows and targets (each level scaled) after the rows and the box."""
