@@ -8,6 +8,7 @@ feasible and infeasible states, so that phase 1 (warm-started) and both recovery
 
 from __future__ import annotations
 
+import json
 import subprocess
 from pathlib import Path
 
@@ -17,7 +18,7 @@ from conftest import TASKS_DIR
 
 import vfdsl
 from vfdsl import pipeline
-from vfdsl.codegen.build import daqp_home, daqp_library, find_compiler
+from vfdsl.codegen.build import daqp_home, find_compiler, solver_libraries
 from vfdsl.codegen.daqp_sources import daqp_sources
 from vfdsl.kinematics.robot import Robot
 from vfdsl.runtime import StepStatus
@@ -30,9 +31,14 @@ def harness(library, workdir: Path) -> Path:
     wrap = "-Wl," + ",".join(f"--wrap={name}" for name in ("malloc", "calloc", "realloc", "free"))
     subprocess.run([*find_compiler().command, "-O2", f"-DSTEP={library.c_path.stem}",
                     f"-I{daqp_sources(daqp_home()) / 'include'}", str(HARNESS), str(library.c_path),
-                    str(daqp_library(find_compiler())), "-lm", wrap, "-o", str(exe)],
+                    *solver_libraries(find_compiler(), variables(library)), wrap, "-o", str(exe)],
                    check=True, capture_output=True, text=True)
     return exe
+
+
+def variables(library) -> int:
+    """The QP's number of variables (the step's output x)."""
+    return json.loads(library.meta_path.read_text())["outputs"][0]["shape"][0]
 
 
 def replay(exe: Path, ticks: list[np.ndarray]) -> np.ndarray:

@@ -223,17 +223,53 @@ def test_the_certificate_shortcuts_imply_the_general_one(monkeypatch):
     assert accepted["factors"] >= 200 and accepted["dims"] >= 20, accepted
 
 
-@pytest.fixture(scope="module")
-def harness(tmp_path_factory):
-    so = tmp_path_factory.mktemp("lexls") / "lexls_harness.so"
-    subprocess.run([*find_compiler().command, "-O2", "-shared", "-fPIC", f"-I{CODEGEN}", str(HARNESS), "-o", str(so),
-                    "-lm"], check=True, capture_output=True, text=True)
+def compile_harness(directory, *flags):
+    """tests/lexls_harness.c (with lexls.c) compiled with ``flags`` into ``directory``, loaded."""
+    so = directory / "lexls_harness.so"
+    subprocess.run([*find_compiler().command, "-O2", *flags, "-shared", "-fPIC", f"-I{CODEGEN}", str(HARNESS), "-o",
+                    str(so), "-lm"], check=True, capture_output=True, text=True)
     lib = ctypes.CDLL(str(so))
     D = np.ctypeslib.ndpointer(np.float64, flags="C")
     I = np.ctypeslib.ndpointer(np.intc, flags="C")       # noqa: E741
     lib.lexls_solve.argtypes = [ctypes.c_int, ctypes.c_int, I, D, D, D, D, D, I, D, ctypes.c_int]
     lib.lexls_working_set.argtypes = [ctypes.c_int, ctypes.c_int, I, D, D, D, D, I]
     return lib
+
+
+@pytest.fixture(scope="module")
+def harness(tmp_path_factory):
+    return compile_harness(tmp_path_factory.mktemp("lexls"))
+
+
+def test_the_build_for_one_n_answers_as_the_general_one(harness, tmp_path):
+    """A task's build compiles lexls.c for its number of variables (-DVFDSL_LEX_N, vfdsl.codegen.build.lexls_library):
+    on problems of that n it takes the same decisions and gives the same answers, to the last bit, as the general
+    build; for any other n it allocates nothing (the tick then keeps DAQP's answer)."""
+    fixed = compile_harness(tmp_path, "-DVFDSL_LEX_N=5")
+    rng = np.random.default_rng(11)
+    compared = certified = 0
+    while compared < 240:
+        problem = random_problem(rng)
+        H, _, _, lower, upper, _ = problem
+        n = H.shape[0]
+        _, _, A_hard, lo, up, _ = lexls.split(*problem)
+        x_daqp = daqp_answer(problem)
+        guesses = [] if x_daqp is None else [lexls.working_set(A_hard, lo, up, x_daqp)]
+        guesses += [rng.choice([0, 1, -1], size=len(lo)).astype(np.intc) for _ in range(2)]
+        for s in guesses:
+            s[lo == up] = lexls.FIXED
+            if n != 5:
+                x = np.zeros(n)
+                assert fixed.lexls_solve(n, len(problem[5]), np.array(problem[5], dtype=np.intc),
+                                         *(np.ascontiguousarray(a) for a in problem[:5]), s, x, 0) == -1
+                continue
+            x_general, solves_general = c_solve(harness, problem, s.copy(), repairs=2)
+            x_fixed, solves_fixed = c_solve(fixed, problem, s.copy(), repairs=2)
+            assert solves_fixed == solves_general
+            assert np.array_equal(x_fixed, x_general) or not solves_general
+            compared += 1
+            certified += solves_general > 0
+    assert certified >= 60, certified
 
 
 def c_solve(lib, problem, s, repairs=0):

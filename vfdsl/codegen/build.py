@@ -35,8 +35,8 @@ Codegen policy, two edits of CasADi's generated C:
   starts DAQP from its previous working set; the others start cold, as CasADi's interface does. A conic
   whose name holds ``_levels_b1_..._bk_rhoE`` is solved as DAQP's hierarchical QP with those break points
   (:func:`vfdsl.runtime.qp.build_step_function`); with ``_exact`` its levels are first solved exactly over the
-  previous tick's working set (``lexls.c``, compiled into the static library with DAQP's sources; its header
-  ``lexls.h`` is prepended to ``daqp_persistent.c``; its memory is a pointer added to CasADi's DAQP data struct).
+  previous tick's working set (``lexls.c``, compiled for the task's number of variables into a static library of
+  its own, :func:`lexls_library`; its header ``lexls.h`` is prepended to ``daqp_persistent.c``; its memory is a pointer added to CasADi's DAQP data struct).
   The replaced definitions are matched exactly; a CasADi whose generated DAQP interface differs is refused with an
   error, never half-patched.
 """
@@ -97,8 +97,8 @@ _DAQP_DATA_END = "  int bnb_itercount;\n};\n"
 LEXLS_SOURCE, LEXLS_HEADER = Path(__file__).with_name("lexls.c"), Path(__file__).with_name("lexls.h")
 PERSISTENT_DAQP = LEXLS_HEADER.read_text() + (Path(__file__).parent / "daqp_persistent.c").read_text()
 _LEXLS_KEY = hashlib.sha256(LEXLS_SOURCE.read_bytes() + LEXLS_HEADER.read_bytes()).hexdigest()
-"""lexls.c is compiled into the static library with DAQP (:func:`daqp_library`), not into each task's C: its hash
-names that library and enters every task's digest."""
+"""lexls.c is compiled into a static library per number of variables (:func:`lexls_library`), not into each task's C:
+its hash names those libraries and enters every task's digest."""
 MEMORY_SLOTS = (Path(__file__).parent / "memory_slots.c").read_text()
 MAX_SLOTS = 64
 """Controllers of one task that may exist at once in a process (memory slots of its generated code)."""
@@ -368,7 +368,7 @@ def _compile(fn: ca.Function, prefix: str, work: Path, compiler: Compiler, diges
     nonce = secrets.token_hex(4)
     so_name = f"lib{prefix}-{nonce}.so"
     root = daqp_sources(daqp_home())
-    daqp = [str(daqp_library(compiler, root)), "-lm", "-Wl,--exclude-libs,ALL"]
+    daqp = solver_libraries(compiler, fn.size1_out(0))
     _cc(compiler, work, [*FLAGS, f"-I{root / 'include'}", "-c", f"{prefix}.c", "-o", f"{prefix}.o"])
     objects = [f"{prefix}.o"]
     for source in extra:     # kept in the entry (for `vfdsl export`); their symbols stay hidden in the library
@@ -422,31 +422,52 @@ def daqp_home() -> Path:
 
 
 def daqp_library(compiler: Compiler, root: Path | None = None) -> Path:
-    """DAQP's sources (in ``root``, default: :func:`daqp_sources` of :func:`daqp_home`) and vfdsl's ``lexls.c``
-    compiled with FLAGS by ``compiler`` into a static library (symbols hidden), built once per compiler, target,
-    flags and lexls.c next to the sources (:mod:`vfdsl.codegen.daqp_sources`). (lexls.c at -O3 takes about as long
-    to compile as a task's whole generated C: compiled here, once, it is not compiled again for every task.)"""
+    """DAQP's sources (in ``root``, default: :func:`daqp_sources` of :func:`daqp_home`) compiled with FLAGS by
+    ``compiler`` into a static library (symbols hidden), built once per compiler, target and flags next to the
+    sources (:mod:`vfdsl.codegen.daqp_sources`)."""
+    root = root if root is not None else daqp_sources(daqp_home())
+    key = hashlib.sha256(json.dumps([FLAGS, compiler.version, compiler.target]).encode()).hexdigest()[:16]
+    return _static_library(compiler, root / "lib" / f"libdaqp-{key}.a",
+                           {f"{source.stem}.o": [f"-I{root / 'include' / 'daqp'}", str(source)]
+                            for source in source_files(root)})
+
+
+def lexls_library(compiler: Compiler, n: int, root: Path | None = None) -> Path:
+    """vfdsl's ``lexls.c`` compiled for problems of ``n`` variables (``-DVFDSL_LEX_N``: its loops then have known
+    trip counts, which the compiler unrolls; experiment B's exact solve 1.47 -> 1.21 us) into a static library
+    beside DAQP's (in ``root``, as :func:`daqp_library`), built once per compiler, target, flags, lexls.c and n.
+    (lexls.c at -O3 takes ~1.4 s to compile, about as long as a task's whole generated C: compiled here, once per n,
+    it is not compiled again for every task.)"""
     root = root if root is not None else daqp_sources(daqp_home())
     key = hashlib.sha256(json.dumps([FLAGS, compiler.version, compiler.target, _LEXLS_KEY]).encode()).hexdigest()[:16]
-    library = root / "lib" / f"libdaqp-{key}.a"
+    return _static_library(compiler, root / "lib" / f"liblexls-n{n}-{key}.a",
+                           {"vfdsl_lexls.o": [f"-DVFDSL_LEX_N={int(n)}", str(LEXLS_SOURCE)]})
+
+
+def solver_libraries(compiler: Compiler, n: int) -> list[str]:
+    """The link arguments of a task's step with ``n`` variables: lexls for n, DAQP, libm, their symbols hidden."""
+    root = daqp_sources(daqp_home())
+    return [str(lexls_library(compiler, n, root)), str(daqp_library(compiler, root)), "-lm",
+            "-Wl,--exclude-libs,ALL"]
+
+
+def _static_library(compiler: Compiler, library: Path, objects: dict[str, list[str]]) -> Path:
+    """``library``, built if missing from ``objects`` (object name -> its compile arguments after FLAGS) in a
+    private directory and published with one ``os.replace`` (processes racing on it each publish a whole one)."""
     if library.is_file():
         return library
     library.parent.mkdir(exist_ok=True)
     with tempfile.TemporaryDirectory(dir=library.parent, prefix=".build-") as tmp:
-        objects = []
-        for source in source_files(root):
-            objects.append(f"{source.stem}.o")
-            _cc(compiler, Path(tmp), [*FLAGS, f"-I{root / 'include' / 'daqp'}", "-c", str(source), "-o", objects[-1]])
-        objects.append("vfdsl_lexls.o")
-        _cc(compiler, Path(tmp), [*FLAGS, "-c", str(LEXLS_SOURCE), "-o", objects[-1]])
+        for name, args in objects.items():
+            _cc(compiler, Path(tmp), [*FLAGS, "-c", *args, "-o", name])
         archive = shutil.which("ar") or shutil.which("gcc-ar")
         if archive is None:
             raise CompilerUnavailable("no archiver (ar) found to build DAQP's static library",
                                       hint="install binutils")
-        result = subprocess.run([archive, "rcs", "libdaqp.a", *objects], cwd=tmp, capture_output=True, text=True)
+        result = subprocess.run([archive, "rcs", "lib.a", *objects], cwd=tmp, capture_output=True, text=True)
         if result.returncode != 0:
-            raise VfError(f"ar failed on DAQP's objects: {_tail(result.stderr)}")
-        os.replace(Path(tmp) / "libdaqp.a", library)
+            raise VfError(f"ar failed on the objects of {library.name}: {_tail(result.stderr)}")
+        os.replace(Path(tmp) / "lib.a", library)
     return library
 
 

@@ -19,8 +19,9 @@
 #ifndef VFDSL_LEXLS_H
 #define VFDSL_LEXLS_H
 
-/* lexls.c is compiled once, into the static library beside DAQP's (vfdsl.codegen.build.daqp_library; an export
-   ships it as generated/lexls.c); this header is put at the top of daqp_persistent.c in every generated file. */
+/* lexls.c is compiled once per number of variables n (-DVFDSL_LEX_N=n), into a static library beside DAQP's
+   (vfdsl.codegen.build.lexls_library; an export ships it as generated/lexls.c, its Makefile and CMakeLists.txt
+   define the task's n); this header is put at the top of daqp_persistent.c in every generated file. */
 enum { LEX_FREE = 0, LEX_UPPER = 1, LEX_LOWER = -1, LEX_FIXED = 2 };
 
 typedef struct vfdsl_lex {

@@ -116,6 +116,7 @@ def _values(meta: dict, api: str, tick: str, daqp_sources: list[str], daqp_versi
         "MAX_PERIOD": f"{meta['max_period']:g}", "TABLES": task_tables(meta),
         "NQ": str(meta["variables"]["dq"]), "NU": str(sum(i["size"] for i in inputs)),
         "NP": str(len(meta["default_params"])),
+        "N": str(meta["outputs"][0]["shape"][0]),     # the QP's variables (dq and slacks): lexls.c is compiled for them
         "DAQP_SOURCES": " \\\n  ".join(daqp_sources), "DAQP_SOURCES_CMAKE": "\n  ".join(daqp_sources),
         "DAQP_VERSION": daqp_version,
         "JOINTS": ", ".join(f"{n} ({u})" for n, u in zip(meta["joints"], meta["joint_units"])),
