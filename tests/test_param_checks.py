@@ -410,9 +410,15 @@ def test_preallocated_arrays_take_the_fast_path_and_lists_the_checked_one(tmp_pa
     dq = fast(START, u, arrays, DT)
     assert dq is not NotImplemented
     np.testing.assert_array_equal(dq, ctrl.step(START, PUSH, params={"entry": [0.0, 0.0, 0.3], "a": (1, 0, 0)}, dt=DT))
-    for refused in ({"a": np.zeros(3)}, {"entry": np.array([0, 0, 3.0])}, {"nope": np.zeros(3)},
-                    {"a": np.array([1.0, np.nan, 0])}, {"a": [[1.0, 0, 0]]}):
-        assert fast(START, u, refused, DT) is NotImplemented        # left to the checks that explain
+    handed = []
+    ctrl._runner.stepper.checked = lambda stepper, *args: handed.append(args) or "checked"
+    refusals = ({"a": np.zeros(3)}, {"entry": np.array([0, 0, 3.0])}, {"nope": np.zeros(3)},
+                {"a": np.array([1.0, np.nan, 0])}, {"a": [[1.0, 0, 0]]})
+    for refused in refusals:
+        assert fast(START, u, refused, DT) == "checked"              # left to the checks that explain
+    assert [args[2] for args in handed] == list(refusals)
+    ctrl._runner.stepper.checked = None
+    assert fast(START, u, refusals[0], DT) is NotImplemented
 
 
 def test_each_check_reads_the_entry_it_was_written_for():

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import ctypes
+import gc
 import threading
 
 import numpy as np
@@ -87,6 +88,39 @@ def test_one_controller_from_two_threads_is_serialised(task_b, backend):
     # within its band, and a warm start from another history may land elsewhere in it: up to 1.5e-6 rad seen.
     for k in range(2):
         np.testing.assert_allclose(np.array(got[k]), np.array(expected), atol=1e-5)
+
+
+def test_a_dropped_controller_frees_its_memory_slot_at_once(task_b):
+    """step is the task's C method, whose detailed checks do not hold the controller: no reference cycle, so a
+    controller no longer referenced gives its memory slot back at once (not at the next garbage collection); a
+    kept ``step`` keeps its slot and still explains a bad value."""
+    gc.disable()
+    try:
+        first = vfdsl.compile(task_b)
+        slot = first._runner.stepper.slot
+        del first
+        second = vfdsl.compile(task_b)
+        assert second._runner.stepper.slot == slot
+        step = vfdsl.compile(task_b).step
+        kept = step.__self__.slot
+        del second
+        assert vfdsl.compile(task_b)._runner.stepper.slot == slot      # (and freed again at once)
+        assert vfdsl.compile(task_b)._runner.stepper.slot != kept
+        assert np.all(np.isfinite(step(task_b.start, {"tau": [0.0, 0.0, 0.01]})))
+        with pytest.raises(VfError, match="tau"):
+            step(task_b.start, {"tau": [0.0, float("nan"), 0.01]})
+    finally:
+        gc.enable()
+
+
+def test_keywords_and_positions_give_the_same_tick(task_b):
+    ctrl = vfdsl.compile(task_b)
+    u = {"tau": [0.0, 0.002, 0.01]}
+    by_position = ctrl.step(task_b.start, u, None, 0.01)
+    ctrl_2 = vfdsl.compile(task_b)
+    assert np.array_equal(ctrl_2.step(q=task_b.start, inputs=u, dt=0.01), by_position)
+    with pytest.raises(TypeError):
+        ctrl.step(task_b.start, u, None, 0.01, 1)
 
 
 def test_the_c_entry_point_refuses_a_slot_it_did_not_hand_out(task_b, tmp_path):

@@ -10,19 +10,21 @@
  * work arrays, and a lock: one Stepper used from two threads is serialised, Steppers of one task in
  * different threads run in parallel (the GIL is released during the solve).
  *
- * Stepper.step(q, inputs=None, params=None, dt=None) is the fast path of Controller.step: it accepts
- * only the plainest arguments -- q a list/tuple of Python floats/ints or a 1-D float64 array, inputs
+ * Stepper.step(q, inputs=None, params=None, dt=None) is Controller.step on the generated path (the Controller
+ * makes it its own step: no Python call in between, ~0.1 us a tick). Its fast path accepts only the plainest arguments -- q a list/tuple of Python floats/ints or a 1-D float64 array, inputs
  * an exact dict holding exactly the declared names with such values, params None or an exact dict of
  * run-time param names with such values (a run-time curve also as an N x 3 float64 array, a scalar
  * also as a number), dt None or a float -- with every number finite, q inside its admissible range,
  * dt inside (0, dt_max] and every check of the params holding (checked_step.h). For anything else
- * it returns NotImplemented without evaluating, and the caller runs the detailed checks in Python (which explain what is wrong, from the
- * same column, or convert the values and call Stepper.run). So this file never decides that a value is
- * wrong: it only recognises values that are certainly right. Nothing on the fast path allocates memory
+ * it evaluates nothing and hands the call to ``Stepper.checked`` (checked(stepper, q, inputs, params, dt), set by
+ * vfdsl.runtime.native: the detailed checks in Python, which explain what is wrong, from the same column, or convert
+ * the values and call Stepper.run), or returns NotImplemented when that is None. So this file never decides that a
+ * value is wrong: it only recognises values that are certainly right. Nothing on the fast path allocates memory
  * but the returned dq.
  */
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
+#include <structmember.h>
 #define NPY_NO_DEPRECATED_API NPY_1_7_API_VERSION
 #include <numpy/arrayobject.h>
 #include "checked_step.h"
@@ -48,6 +50,7 @@ typedef struct {
   PyObject* strict;             /* uint8 array: 1 where a check's margin must be > 0 */
   PyObject* q_range;            /* float64 array [lo_0..lo_n-1, hi_0..hi_n-1] of admissible q */
   double dt_default;            /* NAN when the task has no default period */
+  PyObject* checked;            /* checked(stepper, q, inputs, params, dt) for what the fast path does not take; None */
 } Stepper;
 
 /* ------------------------------------------------------------------------------ reading values */
@@ -181,10 +184,26 @@ static PyObject* solve(Stepper* s, double dt, double recover) {
   return dq;
 }
 
+/* checked(s, *args, **kwargs) (the vectorcall args and kwnames of a call of step), or NotImplemented when checked is
+ * None. */
+static PyObject* hand_over(Stepper* s, PyObject* const* args, Py_ssize_t nargs, PyObject* kwnames) {
+  PyObject *stack[9], **items = stack, *checked = s->checked, *result;
+  Py_ssize_t k, total = nargs + (kwnames ? PyTuple_GET_SIZE(kwnames) : 0);
+  if (checked == NULL || checked == Py_None) Py_RETURN_NOTIMPLEMENTED;
+  if (total + 1 > 9 && !(items = PyMem_New(PyObject*, total + 1))) return PyErr_NoMemory();
+  items[0] = (PyObject*) s;
+  for (k=0; k<total; ++k) items[k + 1] = args[k];
+  Py_INCREF(checked);           /* (another thread may replace s->checked while it runs) */
+  result = PyObject_Vectorcall(checked, items, nargs + 1, kwnames);
+  Py_DECREF(checked);
+  if (items != stack) PyMem_Free(items);
+  return result;
+}
+
 static PyObject* Stepper_step(Stepper* s, PyObject* const* args, Py_ssize_t nargs, PyObject* kwnames) {
   PyObject *q, *inputs = NULL, *params = NULL, *dt = NULL, *result;
   double dt_value;
-  if (kwnames || nargs < 1 || nargs > 4) Py_RETURN_NOTIMPLEMENTED;
+  if (kwnames || nargs < 1 || nargs > 4) return hand_over(s, args, nargs, kwnames);
   q = args[0];
   if (nargs > 1) inputs = args[1];
   if (nargs > 2) params = args[2];
@@ -193,7 +212,7 @@ static PyObject* Stepper_step(Stepper* s, PyObject* const* args, Py_ssize_t narg
   if (!plain_vector(q, s->core.size[Q], s->core.data[Q]) || vfdsl_q_outside(&s->core, s->core.data[Q]) >= 0
       || !plain_inputs(s, inputs) || !plain_dt(s, dt, &dt_value) || !plain_params(s, params)) {
     PyThread_release_lock(s->lock);
-    Py_RETURN_NOTIMPLEMENTED;
+    return hand_over(s, args, nargs, kwnames);
   }
   result = solve(s, dt_value, 0.0);
   PyThread_release_lock(s->lock);
@@ -335,6 +354,7 @@ static int Stepper_init(Stepper* s, PyObject* args, PyObject* kwds) {
   Py_INCREF(s->strict);
   Py_INCREF(s->p_default);
   Py_INCREF(s->q_range);
+  Py_INCREF(Py_None); s->checked = Py_None;
   s->p_is_default = 0;
   return 0;
 }
@@ -351,6 +371,7 @@ static void Stepper_dealloc(Stepper* s) {
     Py_DECREF(s->p_default);
     Py_DECREF(s->q_range);
   }
+  Py_XDECREF(s->checked);
   Py_TYPE(s)->tp_free((PyObject*) s);
 }
 
@@ -366,13 +387,22 @@ static PyObject* Stepper_get_slot(Stepper* s, void* closure) {
 
 static PyMethodDef Stepper_methods[] = {
   {"step", (PyCFunction) (void (*)(void)) Stepper_step, METH_FASTCALL | METH_KEYWORDS,
-   "step(q, inputs=None, params=None, dt=None) -> dq, or NotImplemented when the arguments need the "
-   "detailed checks"},
+   "step(q, inputs=None, params=None, dt=None) -> dq: the joint increment for this tick (SI), as "
+   "vfdsl.runtime.controller.Controller.step documents. Plain values (lists, tuples or float64 arrays of finite "
+   "numbers, exact dicts) are checked here; anything else goes to the detailed checks of ``checked`` (which "
+   "explain what is wrong), or gives NotImplemented when ``checked`` is None."},
   {"margins", (PyCFunction) Stepper_margins, METH_O,
    "margins(p) -> the column of checks of the params p (contiguous float64), from the generated C"},
   {"run", (PyCFunction) Stepper_run, METH_VARARGS,
    "run(q, u, p, dt, recover) -> dq for checked float64 arrays (p None: the default params)"},
   {NULL, NULL, 0, NULL}
+};
+
+static PyMemberDef Stepper_members[] = {
+  {"checked", T_OBJECT, offsetof(Stepper, checked), 0,
+   "checked(stepper, q, inputs, params, dt) -> dq: step's detailed checks for what its fast path does not take "
+   "(None: step returns NotImplemented instead). It must not hold the Stepper (no reference cycle)."},
+  {NULL, 0, 0, 0, NULL}
 };
 
 static PyGetSetDef Stepper_getset[] = {
@@ -391,6 +421,7 @@ static PyTypeObject StepperType = {
   .tp_dealloc = (destructor) Stepper_dealloc,
   .tp_methods = Stepper_methods,
   .tp_getset = Stepper_getset,
+  .tp_members = Stepper_members,
 };
 
 static struct PyModuleDef module = {

@@ -20,6 +20,7 @@ from vfdsl.compiler.assemble import AssembledProblem, RowLabel
 from vfdsl.ir import model as ir
 from vfdsl.primitives import CONSTRAINTS
 from vfdsl.runtime.levels import PriorityLevel, priority_levels
+from vfdsl.runtime.native import checked_step
 from vfdsl.runtime.qp import StepStatus
 from vfdsl.runtime.tracking import Tracking, readout, tracked_terms
 from vfdsl.runtime.values import RuntimeValues
@@ -88,7 +89,8 @@ class Controller:
         self.default_dt = task.scene.period
         self._values = values
         self._runner = runner
-        self._fast = runner.fast_step
+        if runner.fast_step is not None:    # the generated path: step is the task's C method itself (the same checks,
+            self.step = runner.fast_step    # plain values in C, the rest by checked_step; one Python call less a tick)
         self._tolerance = feasibility_tolerance
         self._labels = self._all_labels()
         self._units = [row_unit(label.primitive) for label in problem.row_labels]
@@ -105,12 +107,7 @@ class Controller:
         VfError before anything is evaluated. When the hard rows cannot all hold, dq solves the
         least-violation problem instead: ``status`` says so and :meth:`violations` names the rows. dq is
         always finite and within the joint bounds."""
-        if self._fast is not None:
-            dq = self._fast(q, inputs, params, dt)
-            if dq is not NotImplemented:
-                return dq
-        v = self._values
-        return self._runner.run(v.q(q), v.inputs(inputs), v.params(params, self._runner.margins), v.dt(dt), 0.0)
+        return checked_step(self._values, self._runner, q, inputs, params, dt)
 
     def problem(self, q, inputs=None, params=None, dt=None) -> QuadraticProgram:
         """The numeric QP of this tick (before the solver's safeguards), one label per row."""

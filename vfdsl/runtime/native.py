@@ -17,8 +17,8 @@ A *runner* is what a :class:`~vfdsl.runtime.controller.Controller` calls each ti
 ``run(q, u, p, dt, recover) -> dq`` on checked float64 arrays (``p`` None: the task's default params),
 the arrays ``x``, ``status`` and ``violation`` of its last evaluation, ``margins`` (p -> the task's column of
 checks, :mod:`vfdsl.compiler.admissible`), and ``fast_step``, an optional
-``(q, inputs, params, dt) -> dq or NotImplemented`` that takes plain arguments without the Python
-checks. :class:`StepperRunner` runs the generated C through the task's Python extension
+``(q, inputs, params, dt) -> dq``: the whole of Controller.step in C, which checks plain arguments itself and hands
+anything else to :func:`checked_step`. :class:`StepperRunner` runs the generated C through the task's Python extension
 (``vfdsl/codegen/stepper.c``): own memory slot, GIL released during the solve, a fast path in C;
 :class:`LockedRunner` runs a :class:`BufferedFunction` (interpreted, or the C library through CasADi
 when no Python headers were there to build the extension).
@@ -26,6 +26,7 @@ when no Python headers were there to build the extension).
 
 from __future__ import annotations
 
+import functools
 import threading
 from pathlib import Path
 
@@ -34,6 +35,13 @@ import numpy as np
 
 from vfdsl.errors import VfError
 from vfdsl.runtime.values import MAX_PERIOD, RuntimeValues
+
+
+def checked_step(values: RuntimeValues, runner, q, inputs=None, params=None, dt=None) -> np.ndarray:
+    """Controller.step through the Python checks (which explain what is wrong: VfError), then ``runner.run``: the
+    interpreted path, and the generated one's for the values its C fast path does not take (``runner`` is then the
+    task's Stepper, which has the same ``run`` and ``margins``)."""
+    return runner.run(values.q(q), values.inputs(inputs), values.params(params, runner.margins), values.dt(dt), 0.0)
 
 
 class BufferedFunction:
@@ -164,6 +172,7 @@ class StepperRunner:
         except RuntimeError as e:
             raise VfError(f"cannot start another controller of this task: {e}",
                           hint="close (delete) controllers you no longer use") from None
+        self.stepper.checked = functools.partial(checked_step, values)    # (not holding the stepper: no cycle)
         self.fast_step = self.stepper.step
         self.run = self.stepper.run
         self.margins = self.stepper.margins
