@@ -223,6 +223,17 @@ def test_the_certificate_shortcuts_imply_the_general_one(monkeypatch):
     assert accepted["factors"] >= 200 and accepted["dims"] >= 20, accepted
 
 
+def guesses(rng, problem, x_daqp, random_ones: int) -> list[np.ndarray]:
+    """Working sets to try on ``problem``: x_daqp's (DAQP's answer, if any), then ``random_ones`` random ones, every
+    fixed row held."""
+    _, _, A_hard, lo, up, _ = lexls.split(*problem)
+    tried = [] if x_daqp is None else [lexls.working_set(A_hard, lo, up, x_daqp)]
+    tried += [rng.choice([0, 1, -1], size=len(lo)).astype(np.intc) for _ in range(random_ones)]
+    for s in tried:
+        s[lo == up] = lexls.FIXED
+    return tried
+
+
 def compile_harness(directory, *flags):
     """tests/lexls_harness.c (with lexls.c) compiled with ``flags`` into ``directory``, loaded."""
     so = directory / "lexls_harness.so"
@@ -250,14 +261,8 @@ def test_the_build_for_one_n_answers_as_the_general_one(harness, tmp_path):
     compared = certified = 0
     while compared < 240:
         problem = random_problem(rng)
-        H, _, _, lower, upper, _ = problem
-        n = H.shape[0]
-        _, _, A_hard, lo, up, _ = lexls.split(*problem)
-        x_daqp = daqp_answer(problem)
-        guesses = [] if x_daqp is None else [lexls.working_set(A_hard, lo, up, x_daqp)]
-        guesses += [rng.choice([0, 1, -1], size=len(lo)).astype(np.intc) for _ in range(2)]
-        for s in guesses:
-            s[lo == up] = lexls.FIXED
+        n = problem[0].shape[0]
+        for s in guesses(rng, problem, daqp_answer(problem), 2):
             if n != 5:
                 x = np.zeros(n)
                 assert fixed.lexls_solve(n, len(problem[5]), np.array(problem[5], dtype=np.intc),
@@ -292,11 +297,9 @@ def test_c_and_python_decide_and_answer_alike(harness):
         H, f, A, lower, upper, break_points = problem
         H_, f_, A_hard, lo, up, levels = lexls.split(*problem)
         x_daqp = daqp_answer(problem)
-        guesses = [] if x_daqp is None else [lexls.working_set(A_hard, lo, up, x_daqp)]
-        guesses += [rng.choice([0, 1, -1], size=len(lo)).astype(np.intc) for _ in range(3)]
-        for s in guesses:
-            s[lo == up] = lexls.FIXED
-            if x_daqp is not None and s is guesses[0]:
+        tried = guesses(rng, problem, x_daqp, 3)
+        for s in tried:
+            if x_daqp is not None and s is tried[0]:
                 s_c = np.zeros(len(lo), dtype=np.intc)
                 harness.lexls_working_set(H.shape[0], len(break_points), np.array(break_points, dtype=np.intc),
                                           np.ascontiguousarray(A), lower, upper, x_daqp, s_c)
