@@ -17,7 +17,9 @@ DAQP solve (+ the least-violation machinery's checks), i.e. one call of the task
 - pink        : pink.solve_ik on the Panda, one FrameTask, default limits, DAQP (qpsolvers).
 
 Each figure is time.perf_counter_ns around one call, after 1,000 warm-up ticks, with the garbage collector
-disabled, over states of a closed-loop trajectory recorded beforehand (same states for every variant).
+disabled, over states of a closed-loop trajectory recorded beforehand (same states for every variant). The
+variants of sections 2 and 3 (every task's and pink's) are timed in turns of 250 ticks, as are those of
+section 6, so that a burst of load on the shared machine falls on all of them alike.
 Progress goes to stderr; the report goes to stdout.
 """
 
@@ -34,6 +36,7 @@ import subprocess
 import sys
 import tempfile
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 import casadi as ca
@@ -52,6 +55,9 @@ ROOT = Path(__file__).resolve().parent.parent
 TASKS = ROOT / "tasks"
 BENCH = Path(__file__).resolve().parent
 WARMUP = 1_000
+BLOCK = 250     # ticks a variant runs before the next one's turn (interleaved): 80 turns each in a full run, so that
+                # a second of load on the shared machine falls on a few turns of every variant, not on the median of
+                # one; the first tick of a turn runs with cold caches (0.4 % of the ticks)
 READY_DEG = [0, -45, 0, -135, 0, 90, 45]           # the Panda's ready pose
 # A row-count task of section 4: one stays_at polytope of n x n directions on shr7.
 ROWS_TASK = """task rows_{n}x{n}
@@ -173,54 +179,82 @@ def one_level(task, cache: Path) -> BufferedFunction:
     return BufferedFunction.native(library.so_path, prefix)
 
 
-def time_raw(step, qs, us, p, dt: float, ticks: int) -> tuple[dict, dict]:
-    """One evaluate() per tick, inputs written into the bound arrays first (outside the timed region)."""
+def interleaved(timers: dict, ticks: int, block: int = BLOCK) -> dict:
+    """Every timer's ticks 0..ticks-1, taken in turns of ``block`` ticks (after WARMUP ticks each, k < 0), with the
+    garbage collector disabled: ``timer(k)`` runs and times tick k. In turns, a burst of load on the shared machine
+    falls on every variant alike instead of on the few milliseconds one variant's ticks would take in a row (B's
+    20,000 ticks: 60 ms), and the ratios of one run compare ticks of the same moments. Returns name -> the ticks'
+    figures (what the timer returns) as an array."""
+    samples: dict = {name: [] for name in timers}
+    gc.disable()
+    try:
+        for timer in timers.values():
+            for k in range(-WARMUP, 0):
+                timer(k)
+        for first in range(0, ticks, block):
+            for name, timer in timers.items():
+                samples[name].extend(timer(k) for k in range(first, min(first + block, ticks)))
+    finally:
+        gc.enable()
+    return {name: np.array(values) for name, values in samples.items()}
+
+
+def raw_ticks(step, qs, us, p, dt: float, statuses: dict) -> Callable[[int], int]:
+    """tick(k) -> ns of one evaluate() at recorded state k, its inputs written into the bound arrays first (outside
+    the timed region); the status of every timed tick (k >= 0) counted in ``statuses``."""
     q_buf, u_buf, p_buf, dt_buf, _ = step.inputs
     p_buf[:] = p
     dt_buf[...] = dt
     evaluate, pc, m = step.evaluate, time.perf_counter_ns, len(qs)
-    status_buf = step._outputs[1]
-    out = np.empty(ticks, np.int64)
+    status_buf = step.outputs[1]
+
+    def tick(k: int) -> int:
+        i = k % m
+        q_buf[:] = qs[i]
+        u_buf[:] = us[i]
+        t0 = pc()
+        evaluate()
+        t1 = pc()
+        if k >= 0:
+            s = int(status_buf[0])
+            statuses[s] = statuses.get(s, 0) + 1
+        return t1 - t0
+    return tick
+
+
+def step_ticks(ctrl, qs, inputs: list[dict], dt: float, params: dict | None = None,
+               move=lambda i: None) -> Callable[[int], int]:
+    """tick(k) -> ns of the whole Controller.step API at recorded state k, its q and inputs first copied into arrays
+    and a mapping made beforehand (outside the timed region), as a control loop updates its own from the sensors
+    (and as :func:`raw_ticks` writes the bound arrays: no variant reads its inputs cold from the recording);
+    ``params`` (preallocated arrays, or lists) are changed by move(i) before the tick at recorded state i, as they
+    were when the states were recorded."""
+    step, pc, m = ctrl.step, time.perf_counter_ns, len(qs)
+    q = np.empty(qs.shape[1])
+    u = {name: np.empty_like(value) for name, value in inputs[0].items()}
+
+    def tick(k: int) -> int:
+        i = k % m
+        q[:] = qs[i]
+        for name, value in inputs[i].items():
+            u[name][...] = value
+        move(i)
+        t0 = pc()
+        step(q, u, params, dt)
+        return pc() - t0
+    return tick
+
+
+def time_raw(step, qs, us, p, dt: float, ticks: int) -> tuple[dict, dict]:
+    """Statistics of :func:`raw_ticks` alone, and the statuses of its ticks."""
     statuses: dict[int, int] = {}
-    gc.disable()
-    try:
-        for k in range(WARMUP + ticks):
-            i = k % m
-            q_buf[:] = qs[i]
-            u_buf[:] = us[i]
-            t0 = pc()
-            evaluate()
-            t1 = pc()
-            if k >= WARMUP:
-                out[k - WARMUP] = t1 - t0
-                s = int(status_buf[0])
-                statuses[s] = statuses.get(s, 0) + 1
-    finally:
-        gc.enable()
-    return stats(out), statuses
+    return stats(interleaved({"raw": raw_ticks(step, qs, us, p, dt, statuses)}, ticks)["raw"]), statuses
 
 
 def time_step(ctrl, qs, inputs: list[dict], dt: float, ticks: int, params: dict | None = None,
               move=lambda i: None) -> dict:
-    """The whole Controller.step API per tick (the input mappings are built beforehand, as a caller's are);
-    ``params`` (preallocated arrays, or lists) are changed by move(i) before the tick at recorded state i, as
-    they were when the states were recorded."""
-    step, pc, m = ctrl.step, time.perf_counter_ns, len(qs)
-    out = np.empty(ticks, np.int64)
-    gc.disable()
-    try:
-        for k in range(WARMUP + ticks):
-            i = k % m
-            q, u = qs[i], inputs[i]
-            move(i)
-            t0 = pc()
-            step(q, u, params, dt)
-            t1 = pc()
-            if k >= WARMUP:
-                out[k - WARMUP] = t1 - t0
-    finally:
-        gc.enable()
-    return stats(out)
+    """Statistics of :func:`step_ticks` alone."""
+    return stats(interleaved({"step": step_ticks(ctrl, qs, inputs, dt, params, move)}, ticks)["step"])
 
 
 def record(ctrl, q0, inputs_of, dt: float, count: int,
@@ -286,44 +320,48 @@ def slide_on_polytope(k, q):
 
 
 # ---------------------------------------------------------------------------------------- pink
-def pink_baseline(ticks: int, dt: float) -> dict:
+def pink_ticks(dt: float, errors: list) -> Callable[[int], tuple[int, int]]:
+    """tick(k) -> (ns of pink's solve_ik, ns of its integrate + update) at tick k of the moving target (ticks are
+    taken in order, warm-up first); every 100th timed tick, the tip's distance from the target appended to errors."""
     import pink
     import pinocchio as pin
     from pink.tasks import FrameTask
 
     model = pin.buildModelFromUrdf(str(ROOT / "vfdsl" / "robots" / "panda7.urdf"))
     data = model.createData()
-    q = np.radians(READY_DEG)
-    configuration = pink.Configuration(model, data, q)
+    configuration = pink.Configuration(model, data, np.radians(READY_DEG))
     task = FrameTask("tool_tip", position_cost=1.0, orientation_cost=1.0)
     start = configuration.get_transform_frame_to_world("tool_tip").copy()
     target = start.copy()
     solve_ik, pc = pink.solve_ik, time.perf_counter_ns
-    solve_ns, update_ns = np.empty(ticks, np.int64), np.empty(ticks, np.int64)
-    errors = []
-    gc.disable()
-    try:
-        for k in range(WARMUP + ticks):
-            offset, yaw, _, _ = circle_target(k + 1, dt)      # where the target is at the end of this tick
-            target.translation = start.translation + offset
-            target.rotation = pin.rpy.rpyToMatrix(0.0, 0.0, yaw) @ start.rotation
-            task.set_target(target)
-            t0 = pc()
-            v = solve_ik(configuration, [task], dt, solver="daqp")
-            t1 = pc()
-            q = configuration.integrate(v, dt)
-            configuration.update(q)
-            t2 = pc()
-            if k >= WARMUP:
-                solve_ns[k - WARMUP] = t1 - t0
-                update_ns[k - WARMUP] = t2 - t1
-                if k % 100 == 0:
-                    errors.append(np.linalg.norm(
-                        configuration.get_transform_frame_to_world("tool_tip").translation - target.translation))
-    finally:
-        gc.enable()
-    return {"solve_ik": stats(solve_ns), "solve_ik_plus_update": stats(solve_ns + update_ns),
+
+    def tick(k: int) -> tuple[int, int]:
+        offset, yaw, _, _ = circle_target(k + WARMUP + 1, dt)      # where the target is at the end of this tick
+        target.translation = start.translation + offset
+        target.rotation = pin.rpy.rpyToMatrix(0.0, 0.0, yaw) @ start.rotation
+        task.set_target(target)
+        t0 = pc()
+        v = solve_ik(configuration, [task], dt, solver="daqp")
+        t1 = pc()
+        configuration.update(configuration.integrate(v, dt))
+        t2 = pc()
+        if k >= 0 and k % 100 == 0:
+            errors.append(np.linalg.norm(configuration.get_transform_frame_to_world("tool_tip").translation
+                                         - target.translation))
+        return t1 - t0, t2 - t1
+    return tick
+
+
+def pink_figures(ns: np.ndarray, errors: list) -> dict:
+    """pink's statistics from its ticks' (solve_ik, update) ns."""
+    return {"solve_ik": stats(ns[:, 0]), "solve_ik_plus_update": stats(ns[:, 0] + ns[:, 1]),
             "tip_error_mm": 1e3 * float(np.max(errors))}
+
+
+def pink_baseline(ticks: int, dt: float) -> dict:
+    """pink's figures timed alone (benchmarks/export_tick.py)."""
+    errors: list = []
+    return pink_figures(interleaved({"pink": pink_ticks(dt, errors)}, ticks)["pink"], errors)
 
 
 # --------------------------------------------------------------------------------------- sections
@@ -334,25 +372,42 @@ def load_panda_track():
     return task
 
 
-def experiment(name: str, task, driver, ticks: int, record_ticks: int, cache: Path) -> dict:
+VARIANTS = ("interpreted", "one_level", "generated", "step")
+
+
+def experiment(name: str, task, driver, record_ticks: int, cache: Path) -> tuple[dict, dict]:
+    """(figures so far, timers): the task's controllers built and its closed-loop states recorded; one timer per
+    variant of :data:`VARIANTS` (timed together with the others' by :func:`timed_experiments`)."""
     log(f"[{name}] building generated and interpreted controllers")
     native, library = pipeline.build(task, backend="native", cache_dir=cache)
     interpreted = vfdsl.compile(task, backend="interpreted")
     dt = task.scene.period
     qs, us, dicts, rec_status = record(native, task.start, driver, dt, record_ticks)
     p = native.assembled.context.layout.defaults
-    log(f"[{name}] timing ({ticks} ticks each, {len(qs)} recorded states, dt {dt * 1e3:g} ms)")
-    gen, statuses = time_raw(raw_generated(task, library), qs, us, p, dt, ticks)
-    interp, _ = time_raw(interpreted._runner._function, qs, us, p, dt, ticks)
-    one, _ = time_raw(one_level(task, cache), qs, us, p, dt, ticks)
-    api = time_step(native, qs, dicts, dt, ticks)
-    return {"rows": len(native.row_labels), "nq": native.nq, "dt": dt,
-            "interpreted": interp, "one_level": one, "generated": gen, "step": api,
-            "levels": len(native.assembled.levels),
-            "optimal_fraction": statuses.get(int(StepStatus.OPTIMAL), 0) / ticks,
-            "statuses": {StepStatus(s).name or str(s): c for s, c in statuses.items()},
-            "recorded_statuses": {StepStatus(s).name or str(s): c for s, c in rec_status.items()},
-            "_states": (qs, dicts)}
+    statuses: dict[int, int] = {}
+    timers = {"interpreted": raw_ticks(interpreted._runner._function, qs, us, p, dt, {}),
+              "one_level": raw_ticks(one_level(task, cache), qs, us, p, dt, {}),
+              "generated": raw_ticks(raw_generated(task, library), qs, us, p, dt, statuses),
+              "step": step_ticks(native, qs, dicts, dt)}
+    return {"rows": len(native.row_labels), "nq": native.nq, "dt": dt, "levels": len(native.assembled.levels),
+            "_statuses": statuses, "recorded_statuses": {StepStatus(s).name or str(s): c for s, c in rec_status.items()},
+            "_states": (qs, dicts)}, timers
+
+
+def timed_experiments(exps: dict, timers: dict, pink_timer, ticks: int) -> dict:
+    """Every experiment's variants and pink timed together (:func:`interleaved`); the experiments' figures filled in,
+    pink's ticks returned."""
+    everything = {(name, variant): timer for name, of_task in timers.items() for variant, timer in of_task.items()}
+    everything["pink"] = pink_timer
+    log(f"[timing] {len(everything)} variants ({', '.join(timers)}, pink), {ticks} ticks each, in turns of {BLOCK}")
+    samples = interleaved(everything, ticks)
+    for name, e in exps.items():
+        for variant in VARIANTS:
+            e[variant] = stats(samples[(name, variant)])
+        statuses = e.pop("_statuses")
+        e["optimal_fraction"] = statuses.get(int(StepStatus.OPTIMAL), 0) / ticks
+        e["statuses"] = {StepStatus(s).name or str(s): c for s, c in statuses.items()}
+    return samples["pink"]
 
 
 def params_section(exps: dict, ticks: int, cache: Path) -> dict:
@@ -372,10 +427,9 @@ def params_section(exps: dict, ticks: int, cache: Path) -> dict:
 
     def move_list(k):
         listed["pivot"] = [pivot0[0] + 1e-6 * np.cos(0.01 * k), pivot0[1], pivot0[2]]
-    log(f"[params] B with a re-registered pivot ({ticks} ticks each)")
-    out["B pivot"] = {"without": time_step(native, qs, dicts, dt, ticks),
-                      "array": time_step(native, qs, dicts, dt, ticks, array, move_array),
-                      "list": time_step(native, qs, dicts, dt, ticks, listed, move_list)}
+    timers = {("B pivot", "without"): step_ticks(native, qs, dicts, dt),
+              ("B pivot", "array"): step_ticks(native, qs, dicts, dt, array, move_array),
+              ("B pivot", "list"): step_ticks(native, qs, dicts, dt, listed, move_list)}
     s = np.linspace(0, 1, 20)
     vessel0 = np.column_stack([0.06 * (s - 0.5), 0.004 * np.sin(3 * s), np.full(20, 0.28)])
     vessel_task_path = cache / "vessel_20.vf"
@@ -396,9 +450,12 @@ def params_section(exps: dict, ticks: int, cache: Path) -> dict:
         return drive(k, q)
     still_qs, _, still_dicts, _ = record(ctrl, start, drive, dt, 4_000, None)
     vqs, _, vdicts, _ = record(ctrl, start, drive_breathing, dt, 4_000, moving)   # closed loop on the moving curve
-    log(f"[params] a 20-point run-time curve moved every tick ({ticks} ticks each)")
-    out["curve 20 points"] = {"without": time_step(ctrl, still_qs, still_dicts, dt, ticks),
-                              "array": time_step(ctrl, vqs, vdicts, dt, ticks, moving, breathe)}
+    timers[("curve 20 points", "without")] = step_ticks(ctrl, still_qs, still_dicts, dt)
+    timers[("curve 20 points", "array")] = step_ticks(ctrl, vqs, vdicts, dt, moving, breathe)
+    log(f"[params] B with a re-registered pivot, and a 20-point run-time curve moved every tick ({ticks} ticks "
+        f"each, in turns)")
+    for (name, variant), ns in interleaved(timers, ticks).items():
+        out.setdefault(name, {})[variant] = stats(ns)
     return out
 
 
@@ -478,7 +535,7 @@ def report(m: dict, exps: dict, pink: dict, rows: list[dict], compiles: list[dic
       f"daqp {m['daqp']}, qpsolvers {m['qpsolvers']}, vfdsl {m['vfdsl']}")
     w(f"cc         {m['cc']}")
     w(f"timing     perf_counter_ns per call (its own overhead {m['timer_overhead_ns']:.0f} ns, included), "
-      f"{WARMUP} warm-up ticks, gc disabled")
+      f"{WARMUP} warm-up ticks, gc disabled; variants timed in turns of {BLOCK} ticks")
 
     w("")
     w("2. Tick time, shr7 paper experiments and the Panda task (us; closed-loop states, user-like inputs)")
@@ -594,16 +651,17 @@ def main(argv=None) -> int:
     with tempfile.TemporaryDirectory(prefix="vfdsl-bench-") as tmp_name:
         tmp = Path(tmp_name)
         cache = tmp / "cache"
-        exps = {}
+        exps, timers = {}, {}
         for name, driver in (("paper_a_follow_curve", push_along_curve), ("paper_b_virtual_rcm", twist_about_cone)):
             task = vfdsl.load(TASKS / f"{name}.vf")
-            exps[name] = experiment(name, task, driver(task), ticks, 4_000, cache)
+            exps[name], timers[name] = experiment(name, task, driver(task), 4_000, cache)
         panda = load_panda_track()
-        exps["panda_track"] = experiment("panda_track", panda, follow_circle(panda.scene.period), ticks, 4_000, cache)
+        exps["panda_track"], timers["panda_track"] = experiment("panda_track", panda, follow_circle(panda.scene.period),
+                                                                4_000, cache)
         exps["panda_track"]["tip_error_mm"] = panda_tip_error(panda, exps["panda_track"]["_states"],
                                                               panda.scene.period)
-        log(f"[pink] timing ({ticks} ticks)")
-        pink = pink_baseline(ticks, 0.01)
+        pink_errors: list = []
+        pink = pink_figures(timed_experiments(exps, timers, pink_ticks(0.01, pink_errors), ticks), pink_errors)
         params = params_section(exps, ticks, cache)
         rows = sweep(SWEEP_QUICK if args.quick else SWEEP_FULL, sweep_ticks, tmp)
         compiles = compile_times(sorted(TASKS.glob("*.vf")), tmp)
