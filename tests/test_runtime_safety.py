@@ -119,8 +119,10 @@ def test_keywords_and_positions_give_the_same_tick(task_b):
     by_position = ctrl.step(task_b.start, u, None, 0.01)
     ctrl_2 = vfdsl.compile(task_b)
     assert np.array_equal(ctrl_2.step(q=task_b.start, inputs=u, dt=0.01), by_position)
-    with pytest.raises(TypeError):
-        ctrl.step(task_b.start, u, None, 0.01, 1)
+    for wrong in (lambda: ctrl.step(task_b.start, u, None, 0.01, 1), lambda: ctrl.step(),
+                  lambda: ctrl.step(task_b.start, u, dtt=0.01)):
+        with pytest.raises(TypeError, match=r"Controller\.step\(\)"):     # (Python's words, on the call made)
+            wrong()
 
 
 def test_the_c_entry_point_refuses_a_slot_it_did_not_hand_out(task_b, tmp_path):

@@ -26,7 +26,6 @@ when no Python headers were there to build the extension).
 
 from __future__ import annotations
 
-import functools
 import threading
 from pathlib import Path
 
@@ -172,7 +171,10 @@ class StepperRunner:
         except RuntimeError as e:
             raise VfError(f"cannot start another controller of this task: {e}",
                           hint="close (delete) controllers you no longer use") from None
-        self.stepper.checked = functools.partial(checked_step, values)    # (not holding the stepper: no cycle)
+        def step(stepper, q, inputs=None, params=None, dt=None):    # (holds the values, not the stepper: no cycle)
+            return checked_step(values, stepper, q, inputs, params, dt)
+        step.__qualname__ = "Controller.step"       # (as Python's errors name a wrong call: the one the user made)
+        self.stepper.checked = step
         self.fast_step = self.stepper.step
         self.run = self.stepper.run
         self.margins = self.stepper.margins
