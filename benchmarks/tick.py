@@ -390,7 +390,8 @@ def experiment(name: str, task, driver, record_ticks: int, cache: Path) -> tuple
               "generated": raw_ticks(raw_generated(task, library), qs, us, p, dt, statuses),
               "step": step_ticks(native, qs, dicts, dt)}
     return {"rows": len(native.row_labels), "nq": native.nq, "dt": dt, "levels": len(native.assembled.levels),
-            "_statuses": statuses, "recorded_statuses": {StepStatus(s).name or str(s): c for s, c in rec_status.items()},
+            "_statuses": statuses,
+            "recorded_statuses": {StepStatus(s).name or str(s): c for s, c in rec_status.items()},
             "_states": (qs, dicts)}, timers
 
 

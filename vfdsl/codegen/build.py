@@ -36,7 +36,8 @@ Codegen policy, two edits of CasADi's generated C:
   whose name holds ``_levels_b1_..._bk_rhoE`` is solved as DAQP's hierarchical QP with those break points
   (:func:`vfdsl.runtime.qp.build_step_function`); with ``_exact`` its levels are first solved exactly over the
   previous tick's working set (``lexls.c``, compiled for the task's number of variables into a static library of
-  its own, :func:`lexls_library`; its header ``lexls.h`` is prepended to ``daqp_persistent.c``; its memory is a pointer added to CasADi's DAQP data struct).
+  its own, :func:`lexls_library`; its header ``lexls.h`` is prepended to ``daqp_persistent.c``; its memory is a
+  pointer added to CasADi's DAQP data struct).
   The replaced definitions are matched exactly; a CasADi whose generated DAQP interface differs is refused with an
   error, never half-patched.
 """
@@ -462,8 +463,8 @@ def _static_library(compiler: Compiler, library: Path, objects: dict[str, list[s
             _cc(compiler, Path(tmp), [*FLAGS, "-c", *args, "-o", name])
         archive = shutil.which("ar") or shutil.which("gcc-ar")
         if archive is None:
-            raise CompilerUnavailable("no archiver (ar) found to build DAQP's static library",
-                                      hint="install binutils")
+            raise CompilerUnavailable(f"no archiver (ar) found to build {library.name} (a static library of the "
+                                      "QP solver)", hint="install binutils")
         result = subprocess.run([archive, "rcs", "lib.a", *objects], cwd=tmp, capture_output=True, text=True)
         if result.returncode != 0:
             raise VfError(f"ar failed on the objects of {library.name}: {_tail(result.stderr)}")
