@@ -115,3 +115,13 @@ def test_a_daqp_archive_that_is_not_the_recorded_one_is_refused(tmp_path, task_b
     with pytest.raises(VfError, match="is not DAQP 0.11.0's source distribution"):
         pipeline.build(task_b, backend="native", cache_dir=tmp_path / "build")
     assert not (tmp_path / "fresh" / "daqp-0.11.0").exists()
+
+
+def test_no_archiver_is_a_clear_error_and_leaves_no_half_library(tmp_path, monkeypatch):
+    """Without ar (binutils), building a solver library says so and how to fix it, and publishes nothing."""
+    which = codegen.shutil.which
+    monkeypatch.setattr(codegen.shutil, "which", lambda name: None if name in ("ar", "gcc-ar") else which(name))
+    with pytest.raises(codegen.CompilerUnavailable, match=r"no archiver \(ar\) found to build liblexls-n3-") as info:
+        codegen.lexls_library(codegen.find_compiler(), 3, tmp_path)
+    assert "binutils" in str(info.value.hint)
+    assert not list((tmp_path / "lib").iterdir())
