@@ -1,7 +1,7 @@
 """Tick-time benchmark of vfdsl's controllers, with pink as the baseline, in one run.
 
     python benchmarks/tick.py              # full run (a few minutes)
-    python benchmarks/tick.py --quick      # short run (< ~40 s): fewer ticks, smaller row sweep
+    python benchmarks/tick.py --quick      # short run (~1.5 min): fewer ticks, smaller row sweep
     python benchmarks/tick.py --json out.json
 
 What is timed (see benchmarks/README.md): one control tick = kinematics + constraint rows + QP assembly +
