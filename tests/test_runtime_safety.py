@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import ctypes
 import gc
+import subprocess
+import sys
 import threading
 
 import numpy as np
@@ -351,3 +353,121 @@ def test_frames_are_what_pinocchio_says(task_b, ctrl_b):
             np.testing.assert_allclose(frames[decl.name].position, p, atol=1e-12)
             np.testing.assert_allclose(frames[decl.name].rotation, R, atol=1e-12)
             np.testing.assert_allclose(frames[decl.name].tool_axis, R @ decl.tool_axis, atol=1e-12)
+
+
+# ------------------------------------------------------------------- values that only look like numbers
+class _Lies(float):
+    """A float whose __float__ says another number: the value is what float() gives, on both paths."""
+
+    def __float__(self):
+        return 0.05
+
+
+class _Raises(float):
+    def __float__(self):
+        raise ZeroDivisionError("no value")
+
+
+@pytest.mark.parametrize("backend", ["native", "interpreted"])
+def test_values_that_only_look_like_numbers_are_read_alike_on_both_paths(task_b, backend):
+    """Masked arrays (a masked entry is a missing value: refused, whatever lies under the mask), float subclasses
+    (read through their own __float__ on both paths: the C fast path leaves them to the Python checks) and numbers
+    whose conversion fails (a VfError, not the user type's exception)."""
+    ctrl = vfdsl.compile(task_b, backend=backend)
+    q0, u = np.array(task_b.start), {"tau": [0.0, 0.0, 0.02]}
+    masked = [lambda: ctrl.step(np.ma.array(np.r_[q0[:6], np.nan], mask=[0] * 6 + [1]), u),
+              lambda: ctrl.step(np.ma.array(np.r_[0.05, q0[1:]], mask=[1] + [0] * 6), u),     # a sound value under it
+              lambda: ctrl.step(q0, {"tau": np.ma.array([np.nan, 0, 0.02], mask=[1, 0, 0])}),
+              lambda: ctrl.step(q0, u, {"pivot": np.ma.array([np.nan, 0, 0.29], mask=[1, 0, 0])})]
+    for call in masked:
+        with pytest.raises(VfError, match="masked"):
+            call()
+    assert np.array_equal(ctrl.step(np.ma.array(q0), u), vfdsl.compile(task_b, backend=backend).step(q0, u))
+    lied = ctrl.step([_Lies(0.0), *q0[1:]], u)
+    np.testing.assert_allclose(lied, vfdsl.compile(task_b, backend=backend).step([0.05, *q0[1:]], u), atol=1e-12)
+    for call in (lambda: ctrl.step([_Raises(0.0), *q0[1:]], u), lambda: ctrl.step(q0, u, None, _Raises(0.01))):
+        with pytest.raises(VfError, match="cannot be read as a number"):
+            call()
+
+
+def test_a_line_param_as_a_2x3_array_is_refused_on_both_paths():
+    """The C fast path takes N x 3 arrays only for run-time curves; elsewhere the Python checks decide (and refuse)."""
+    task = vfdsl.load(TASKS_DIR / "lecture_follow_path.vf")
+    for backend in ("native", "interpreted"):
+        ctrl = vfdsl.compile(task, backend=backend)
+        u = {name: np.zeros(size) for name, size in ctrl.input_sizes.items()}
+        slot = ctrl._values.layout.slots["path"]
+        line = ctrl._values.layout.defaults[slot.offset:slot.offset + slot.size]
+        assert np.all(np.isfinite(ctrl.step(task.start, u, {"path": line.copy()})))
+        with pytest.raises(VfError, match="path"):
+            ctrl.step(task.start, u, {"path": line.reshape(2, 3).copy()})
+
+
+_IN_A_PROCESS = """
+import numpy as np, vfdsl
+from vfdsl.errors import VfError
+task = vfdsl.load({path!r})
+ctrl = vfdsl.compile(task)
+assert ctrl.backend == "native"
+q0, u = task.start, {{"tau": [0.0, 0.0, 0.02]}}
+{body}
+print("done")
+"""
+
+
+def _run(body: str) -> str:
+    code = _IN_A_PROCESS.format(path=str(TASKS_DIR / "paper_b_virtual_rcm.vf"), body=body)
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0 and done.stdout.strip().endswith("done"), (done.returncode, done.stderr[-2000:])
+    return done.stdout
+
+
+def test_a_key_that_runs_code_in_its_comparison_cannot_hang_the_step():
+    """A key hashing like 'tau' whose __eq__ calls step again: the C path looks up only exact str keys (no user
+    code while it holds the controller's lock); the Python checks refuse the key."""
+    _run("""
+class Key:
+    def __hash__(self):
+        return hash("tau")
+    def __eq__(self, other):
+        ctrl.step(q0, u)
+        return False
+try:
+    ctrl.step(q0, {Key(): [0.0, 0.0, 0.02]})
+except VfError as e:
+    assert "unknown input" in str(e), e
+else:
+    raise AssertionError("accepted")
+""")
+
+
+def test_the_extension_type_refuses_a_second_init_and_a_missing_one():
+    """Stepper.__init__ runs once (a second call is refused before it changes anything: the period limit and the
+    default params stay); a Stepper made without __init__ raises instead of reading memory it does not have."""
+    _run("""
+stepper = ctrl._runner.stepper
+before = ctrl.step(q0, u)
+try:
+    stepper.__init__(tuple(np.zeros(1) for _ in range(8)), np.zeros(1), (), (), (), np.zeros(2), 0.0, 100.0, (), (),
+                     (), (), np.zeros(0, np.uint8))
+except RuntimeError as e:
+    assert "once" in str(e)
+else:
+    raise AssertionError("initialised twice")
+try:
+    ctrl.step(q0, u, None, 50.0)
+except VfError:
+    pass
+else:
+    raise AssertionError("dt 50 accepted")
+assert np.array_equal(ctrl.step(q0, u), vfdsl.compile(task).step(q0, u))
+bare = type(stepper).__new__(type(stepper))
+for call in (lambda: bare.step(q0), lambda: bare.run(np.zeros(7), np.zeros(3), None, 0.01, 0.0),
+             lambda: bare.margins(np.zeros(1))):
+    try:
+        call()
+    except RuntimeError as e:
+        assert "not initialised" in str(e)
+    else:
+        raise AssertionError("an uninitialised Stepper ran")
+""")

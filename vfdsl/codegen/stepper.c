@@ -11,16 +11,18 @@
  * different threads run in parallel (the GIL is released during the solve).
  *
  * Stepper.step(q, inputs=None, params=None, dt=None) is Controller.step on the generated path (the Controller
- * makes it its own step: no Python call in between, ~0.1 us a tick). Its fast path accepts only the plainest arguments -- q a list/tuple of Python floats/ints or a 1-D float64 array, inputs
- * an exact dict holding exactly the declared names with such values, params None or an exact dict of
- * run-time param names with such values (a run-time curve also as an N x 3 float64 array, a scalar
- * also as a number), dt None or a float -- with every number finite, q inside its admissible range,
+ * makes it its own step: no Python call in between, ~0.1 us a tick). Its fast path accepts only the plainest arguments
+ * -- q a list/tuple of exact Python floats/ints (or NumPy float64 scalars) or a 1-D float64 array, inputs an exact
+ * dict of exact str keys holding exactly the declared names with such values, params None or an exact dict of
+ * run-time param names with such values (a run-time curve only as an N x 3 float64 array, a scalar also as a
+ * number), dt None or such a number -- with every number finite, q inside its admissible range,
  * dt inside (0, dt_max] and every check of the params holding (checked_step.h). For anything else
  * it evaluates nothing and hands the call to ``Stepper.checked`` (checked(stepper, q, inputs, params, dt), set by
  * vfdsl.runtime.native: the detailed checks in Python, which explain what is wrong, from the same column, or convert
  * the values and call Stepper.run), or returns NotImplemented when that is None. So this file never decides that a
  * value is wrong: it only recognises values that are certainly right. Nothing on the fast path allocates memory
- * but the returned dq.
+ * but the returned dq, and no user code runs while it holds the lock (no float subclass's __float__, no key's __eq__:
+ * such values go to the checks).
  */
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
@@ -47,6 +49,8 @@ typedef struct {
   PyObject* param_names;        /* tuple of the run-time param names (str) */
   Py_ssize_t* param_offsets;
   Py_ssize_t* param_sizes;
+  int* param_points;            /* 1 where the param is a run-time curve (N x 3 points) */
+  int init_called;              /* __init__ runs once (a second call is refused before it touches anything) */
   PyObject* strict;             /* uint8 array: 1 where a check's margin must be > 0 */
   PyObject* q_range;            /* float64 array [lo_0..lo_n-1, hi_0..hi_n-1] of admissible q */
   double dt_default;            /* NAN when the task has no default period */
@@ -55,9 +59,10 @@ typedef struct {
 
 /* ------------------------------------------------------------------------------ reading values */
 
-/* 1 when ``value`` is a finite real written as a Python float or int (not bool), stored in *out. */
+/* 1 when ``value`` is a finite real written as an exact Python float or int (not bool; no subclass, whose __float__
+ * only the Python checks call) or a NumPy float64 scalar, stored in *out. */
 static int plain_number(PyObject* value, double* out) {
-  if (PyFloat_Check(value)) {
+  if (PyFloat_CheckExact(value) || Py_IS_TYPE(value, &PyDoubleArrType_Type)) {
     *out = PyFloat_AS_DOUBLE(value);
   } else if (PyLong_CheckExact(value)) {
     *out = PyLong_AsDouble(value);
@@ -68,10 +73,12 @@ static int plain_number(PyObject* value, double* out) {
   return isfinite(*out);
 }
 
-/* 1 when ``value`` is n plain finite numbers (list, tuple or 1-D float64 array), copied to out. */
-static int plain_vector(PyObject* value, Py_ssize_t n, double* out) {
+/* 1 when ``value`` is n plain finite numbers, copied to out: a list, tuple or 1-D float64 array, or, for points
+ * (a run-time curve), only a C-contiguous float64 array of n / 3 rows [x, y, z] (the Python checks take the other
+ * forms, and refuse a flat curve or a 2-D array elsewhere). */
+static int plain_vector(PyObject* value, Py_ssize_t n, double* out, int points) {
   Py_ssize_t i;
-  if (PyList_CheckExact(value) || PyTuple_CheckExact(value)) {
+  if (!points && (PyList_CheckExact(value) || PyTuple_CheckExact(value))) {
     PyObject** items;
     if (PySequence_Fast_GET_SIZE(value) != n) return 0;
     items = PySequence_Fast_ITEMS(value);
@@ -83,9 +90,9 @@ static int plain_vector(PyObject* value, Py_ssize_t n, double* out) {
     const char* base;
     npy_intp stride;
     if (PyArray_TYPE(a) != NPY_DOUBLE || !PyArray_ISALIGNED(a) || PyArray_ISBYTESWAPPED(a)) return 0;
-    if (PyArray_NDIM(a) == 1 && PyArray_DIM(a, 0) == n) {
+    if (!points && PyArray_NDIM(a) == 1 && PyArray_DIM(a, 0) == n) {
       stride = PyArray_STRIDE(a, 0);
-    } else if (PyArray_NDIM(a) == 2 && PyArray_DIM(a, 1) == 3 && 3 * PyArray_DIM(a, 0) == n
+    } else if (points && PyArray_NDIM(a) == 2 && PyArray_DIM(a, 1) == 3 && 3 * PyArray_DIM(a, 0) == n
                && PyArray_IS_C_CONTIGUOUS(a)) {      /* points, one a row */
       stride = sizeof(double);
     } else {
@@ -102,13 +109,17 @@ static int plain_vector(PyObject* value, Py_ssize_t n, double* out) {
 }
 
 static int plain_inputs(Stepper* s, PyObject* inputs) {
-  Py_ssize_t k, n = PyTuple_GET_SIZE(s->names);
+  Py_ssize_t k, pos = 0, n = PyTuple_GET_SIZE(s->names);
+  PyObject *key, *value;
   if (inputs == Py_None || inputs == NULL) return n == 0;
   if (!PyDict_CheckExact(inputs) || PyDict_GET_SIZE(inputs) != n) return 0;
+  while (PyDict_Next(inputs, &pos, &key, &value)) {      /* exact str keys: the lookups below run no __eq__ */
+    if (!PyUnicode_CheckExact(key)) return 0;
+  }
   for (k=0; k<n; ++k) {
-    PyObject* value = PyDict_GetItemWithError(inputs, PyTuple_GET_ITEM(s->names, k));
+    value = PyDict_GetItemWithError(inputs, PyTuple_GET_ITEM(s->names, k));
     if (value == NULL) { PyErr_Clear(); return 0; }
-    if (!plain_vector(value, s->sizes[k], s->core.data[U] + s->offsets[k])) return 0;
+    if (!plain_vector(value, s->sizes[k], s->core.data[U] + s->offsets[k], 0)) return 0;
   }
   return 1;
 }
@@ -144,7 +155,7 @@ static int plain_params(Stepper* s, PyObject* params) {
     if (s->param_sizes[k] == 1 && !PyList_CheckExact(value) && !PyTuple_CheckExact(value)
         && !PyArray_CheckExact(value)) {
       if (!plain_number(value, out)) return 0;
-    } else if (!plain_vector(value, s->param_sizes[k], out)) {
+    } else if (!plain_vector(value, s->param_sizes[k], out, s->param_points[k])) {
       return 0;
     }
   }
@@ -200,16 +211,25 @@ static PyObject* hand_over(Stepper* s, PyObject* const* args, Py_ssize_t nargs, 
   return result;
 }
 
+/* 1 when s was initialised (else a RuntimeError is set): a Stepper made without a successful __init__ has no
+ * lock, slot nor layout. */
+static int ready(Stepper* s) {
+  if (s->arrays) return 1;
+  PyErr_SetString(PyExc_RuntimeError, "this Stepper was not initialised");
+  return 0;
+}
+
 static PyObject* Stepper_step(Stepper* s, PyObject* const* args, Py_ssize_t nargs, PyObject* kwnames) {
   PyObject *q, *inputs = NULL, *params = NULL, *dt = NULL, *result;
   double dt_value;
+  if (!ready(s)) return NULL;
   if (kwnames || nargs < 1 || nargs > 4) return hand_over(s, args, nargs, kwnames);
   q = args[0];
   if (nargs > 1) inputs = args[1];
   if (nargs > 2) params = args[2];
   if (nargs > 3) dt = args[3];
   lock(s);
-  if (!plain_vector(q, s->core.size[Q], s->core.data[Q]) || vfdsl_q_outside(&s->core, s->core.data[Q]) >= 0
+  if (!plain_vector(q, s->core.size[Q], s->core.data[Q], 0) || vfdsl_q_outside(&s->core, s->core.data[Q]) >= 0
       || !plain_inputs(s, inputs) || !plain_dt(s, dt, &dt_value) || !plain_params(s, params)) {
     PyThread_release_lock(s->lock);
     return hand_over(s, args, nargs, kwnames);
@@ -223,6 +243,7 @@ static PyObject* Stepper_step(Stepper* s, PyObject* const* args, Py_ssize_t narg
 static PyObject* Stepper_run(Stepper* s, PyObject* args) {
   PyObject *q, *u, *p, *result;
   double dt, recover;
+  if (!ready(s)) return NULL;
   if (!PyArg_ParseTuple(args, "O!O!Odd", &PyArray_Type, &q, &PyArray_Type, &u, &p, &dt, &recover)) return NULL;
   if (p != Py_None && !PyArray_Check(p)) {
     PyErr_SetString(PyExc_TypeError, "p must be an array or None");
@@ -256,6 +277,7 @@ static PyObject* Stepper_run(Stepper* s, PyObject* args) {
 static PyObject* Stepper_margins(Stepper* s, PyObject* p) {
   PyObject* out;
   npy_intp n = s->core.n_margins;
+  if (!ready(s)) return NULL;
   if (!PyArray_Check(p) || PyArray_TYPE((PyArrayObject*) p) != NPY_DOUBLE
       || !PyArray_IS_C_CONTIGUOUS((PyArrayObject*) p) || PyArray_SIZE((PyArrayObject*) p) != s->core.size[P]) {
     PyErr_SetString(PyExc_ValueError, "margins() takes a contiguous float64 array of the task's params");
@@ -296,20 +318,22 @@ inconsistent:
 }
 
 /* Stepper(arrays, p_default, input names, offsets, sizes, q_range, dt_default, dt_max,
- *         param names, offsets, sizes, strict) */
+ *         param names, offsets, sizes, points, strict) */
 static int Stepper_init(Stepper* s, PyObject* args, PyObject* kwds) {
-  PyObject *arrays, *names, *offsets, *sizes, *param_names, *param_offsets, *param_sizes;
+  PyObject *arrays, *names, *offsets, *sizes, *param_names, *param_offsets, *param_sizes, *points;
   Py_ssize_t k;
   int opened;
-  if (!PyArg_ParseTuple(args, "O!O!O!O!O!O!ddO!O!O!O!", &PyTuple_Type, &arrays, &PyArray_Type, &s->p_default,
-                        &PyTuple_Type, &names, &PyTuple_Type, &offsets, &PyTuple_Type, &sizes,
-                        &PyArray_Type, &s->q_range, &s->dt_default, &s->core.dt_max, &PyTuple_Type, &param_names,
-                        &PyTuple_Type, &param_offsets, &PyTuple_Type, &param_sizes, &PyArray_Type, &s->strict))
-    return -1;
-  if (s->arrays) {
+  if (s->init_called) {
     PyErr_SetString(PyExc_RuntimeError, "Stepper is initialised once");
     return -1;
   }
+  s->init_called = 1;
+  if (!PyArg_ParseTuple(args, "O!O!O!O!O!O!ddO!O!O!O!O!", &PyTuple_Type, &arrays, &PyArray_Type, &s->p_default,
+                        &PyTuple_Type, &names, &PyTuple_Type, &offsets, &PyTuple_Type, &sizes,
+                        &PyArray_Type, &s->q_range, &s->dt_default, &s->core.dt_max, &PyTuple_Type, &param_names,
+                        &PyTuple_Type, &param_offsets, &PyTuple_Type, &param_sizes, &PyTuple_Type, &points,
+                        &PyArray_Type, &s->strict))
+    return -1;
   if (PyTuple_GET_SIZE(arrays) != N_ARRAYS) {
     PyErr_SetString(PyExc_ValueError, "Stepper needs 8 arrays: q, u, p, dt, recover, x, status, violation");
     return -1;
@@ -337,6 +361,13 @@ static int Stepper_init(Stepper* s, PyObject* args, PyObject* kwds) {
   if (read_layout(names, offsets, sizes, s->core.size[U], &s->offsets, &s->sizes) < 0
       || read_layout(param_names, param_offsets, param_sizes, s->core.size[P], &s->param_offsets, &s->param_sizes) < 0)
     return -1;
+  if (PyTuple_GET_SIZE(points) != PyTuple_GET_SIZE(param_names)) {
+    PyErr_SetString(PyExc_ValueError, "Stepper: one 'points' flag per param");
+    return -1;
+  }
+  s->param_points = (int*) calloc(PyTuple_GET_SIZE(points) + 1, sizeof(int));
+  if (!s->param_points) { PyErr_NoMemory(); return -1; }
+  for (k=0; k<PyTuple_GET_SIZE(points); ++k) s->param_points[k] = PyTuple_GET_ITEM(points, k) == Py_True;
   s->core.q_lower = (const double*) PyArray_DATA((PyArrayObject*) s->q_range);
   s->core.q_upper = s->core.q_lower + s->core.size[Q];
   s->core.strict = (const unsigned char*) PyArray_DATA((PyArrayObject*) s->strict);
@@ -362,7 +393,7 @@ static int Stepper_init(Stepper* s, PyObject* args, PyObject* kwds) {
 static void Stepper_dealloc(Stepper* s) {
   vfdsl_core_close(&s->core);
   if (s->lock) PyThread_free_lock(s->lock);
-  free(s->offsets); free(s->sizes); free(s->param_offsets); free(s->param_sizes);
+  free(s->offsets); free(s->sizes); free(s->param_offsets); free(s->param_sizes); free(s->param_points);
   if (s->arrays) {               /* the references below were taken only when init succeeded */
     Py_DECREF(s->arrays);
     Py_DECREF(s->names);

@@ -167,7 +167,7 @@ class StepperRunner:
                                           float("nan") if dt_default is None else float(dt_default),
                                           float(MAX_PERIOD), tuple(slot.name for slot in slots),
                                           tuple(slot.offset for slot in slots), tuple(slot.size for slot in slots),
-                                          values.admissible.strict)
+                                          tuple(slot.type == "curve" for slot in slots), values.admissible.strict)
         except RuntimeError as e:
             raise VfError(f"cannot start another controller of this task: {e}",
                           hint="close (delete) controllers you no longer use") from None

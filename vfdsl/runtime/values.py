@@ -43,6 +43,7 @@ def real_vector(value, size: int, what: str) -> np.ndarray:
     """``value`` as ``size`` finite float64 numbers: a list or tuple of real numbers, or a real NumPy
     array (1-D, or 2-D with one row or one column)."""
     if isinstance(value, np.ndarray):
+        value = plain_array(value, what)
         if value.dtype.kind not in "fiu":
             raise VfError(f"{what} must be real numbers, got an array of {value.dtype}")
         if value.ndim > 2 or (value.ndim == 2 and 1 not in value.shape) or value.ndim == 0:
@@ -52,10 +53,7 @@ def real_vector(value, size: int, what: str) -> np.ndarray:
         for i, item in enumerate(value):
             if not _is_real(item):
                 raise VfError(f"{what} must be {size} real numbers; item {i} is {_describe(item)}")
-        try:
-            arr = np.array([float(item) for item in value], dtype=float)
-        except OverflowError:
-            raise VfError(f"{what} holds a number too large for a float") from None
+        arr = np.array([_as_float(item, f"{what}'s item {i}") for i, item in enumerate(value)], dtype=float)
     else:
         raise VfError(f"{what} must have {size} numbers (a list or array), got {_describe(value)}")
     if arr.size != size:
@@ -71,10 +69,36 @@ def real_scalar(value, what: str) -> float:
     range check)."""
     if not _is_real(value):
         raise VfError(f"{what} must be a real number, got {_describe(value)}")
+    return _as_float(value, what)
+
+
+def _as_float(x, what: str) -> float:
+    """float(x) for a real number x (inf when too large: the caller's check refuses it); VfError when x's own
+    conversion fails (a numbers.Real whose __float__ raises)."""
     try:
-        return float(value)
+        return float(x)
     except OverflowError:
         return math.inf
+    except Exception as exc:  # noqa: BLE001 - any failure of a user type's __float__ is a bad value
+        raise VfError(f"{what} cannot be read as a number ({type(exc).__name__}: {exc})") from None
+
+
+def plain_array(value: np.ndarray, what: str) -> np.ndarray:
+    """A NumPy array as a plain ndarray: a masked array's masked entries are missing values, refused (its data
+    under the mask are no value the caller meant); any other subclass is viewed as an ndarray."""
+    if np.ma.isMaskedArray(value):
+        if np.ma.count_masked(value):
+            raise VfError(f"{what} has masked (missing) entries", hint="pass every number, e.g. array.filled(...)")
+        value = np.ma.getdata(value)
+    return np.asarray(value)
+
+
+def plain_mapping(value, what: str) -> dict:
+    """A mapping as a dict (its items read once, here): VfError when a user mapping fails to give them."""
+    try:
+        return dict(value)
+    except Exception as exc:  # noqa: BLE001 - any failure of a user mapping is a bad value
+        raise VfError(f"{what} cannot be read as a mapping ({type(exc).__name__}: {exc})") from None
 
 
 def _is_real(x) -> bool:
@@ -125,6 +149,7 @@ class RuntimeValues:
             value = {}
         if not isinstance(value, Mapping):
             raise VfError(f"inputs must be a mapping from input names to values, got {_describe(value)}")
+        value = plain_mapping(value, "inputs")
         for name in value:
             if name not in self.input_offsets:
                 raise VfError(f"unknown input {name!r}", hint=suggest(str(name), self.input_offsets, "inputs"))
@@ -144,6 +169,7 @@ class RuntimeValues:
             return None
         if not isinstance(value, Mapping):
             raise VfError(f"params must be a mapping from param names to values, got {_describe(value)}")
+        value = plain_mapping(value, "params")
         if not value:
             return None
         p = self.layout.defaults.copy()
@@ -170,7 +196,7 @@ class RuntimeValues:
                 raise VfError(f"{what} is {_article(kind)}, got {_article(getattr(value, 'kind', '?'))} value")
             value = flatten(value)
         elif isinstance(value, Mapping):
-            value = self._from_mapping(what, kind, value)
+            value = self._from_mapping(what, kind, plain_mapping(value, what))
         elif size == 1 and not isinstance(value, (list, tuple, np.ndarray)):
             value = [real_scalar(value, what)]          # a scalar param given as a number
         return real_vector(value, size, what)
@@ -183,6 +209,8 @@ class RuntimeValues:
             if value.degree != default.degree:
                 raise VfError(f"{what} is a degree-{default.degree} curve, got a degree-{value.degree} one")
             value = value.points
+        if isinstance(value, np.ndarray):
+            value = plain_array(value, what)
         if isinstance(value, np.ndarray) and value.shape == (n, 3) and value.dtype.kind in "fiu":
             points = value.astype(float)
             bad = np.flatnonzero(~np.isfinite(points).all(axis=1))
