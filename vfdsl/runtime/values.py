@@ -53,7 +53,8 @@ def real_vector(value, size: int, what: str) -> np.ndarray:
         for i, item in enumerate(value):
             if not _is_real(item):
                 raise VfError(f"{what} must be {size} real numbers; item {i} is {_describe(item)}")
-        arr = np.array([_as_float(item, f"{what}'s item {i}") for i, item in enumerate(value)], dtype=float)
+        arr = np.array([_as_float(item, f"{what}'s item {i}", too_large=f"{what} holds a number too large for a float")
+                        for i, item in enumerate(value)], dtype=float)
     else:
         raise VfError(f"{what} must have {size} numbers (a list or array), got {_describe(value)}")
     if arr.size != size:
@@ -72,12 +73,14 @@ def real_scalar(value, what: str) -> float:
     return _as_float(value, what)
 
 
-def _as_float(x, what: str) -> float:
-    """float(x) for a real number x (inf when too large: the caller's check refuses it); VfError when x's own
-    conversion fails (a numbers.Real whose __float__ raises)."""
+def _as_float(x, what: str, too_large: str | None = None) -> float:
+    """float(x) for a real number x; when too large for a float, VfError(too_large), or inf without it (the caller's
+    range check refuses it); VfError when x's own conversion fails (a numbers.Real whose __float__ raises)."""
     try:
         return float(x)
     except OverflowError:
+        if too_large:
+            raise VfError(too_large) from None
         return math.inf
     except Exception as exc:  # noqa: BLE001 - any failure of a user type's __float__ is a bad value
         raise VfError(f"{what} cannot be read as a number ({type(exc).__name__}: {exc})") from None
