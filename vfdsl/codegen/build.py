@@ -369,7 +369,7 @@ def _compile(fn: ca.Function, prefix: str, work: Path, compiler: Compiler, diges
     nonce = secrets.token_hex(4)
     so_name = f"lib{prefix}-{nonce}.so"
     root = daqp_sources(daqp_home())
-    daqp = solver_libraries(compiler, fn.size1_out(0))
+    daqp = solver_libraries(compiler, fn.size1_out(0), root)
     _cc(compiler, work, [*FLAGS, f"-I{root / 'include'}", "-c", f"{prefix}.c", "-o", f"{prefix}.o"])
     objects = [f"{prefix}.o"]
     for source in extra:     # kept in the entry (for `vfdsl export`); their symbols stay hidden in the library
@@ -445,9 +445,10 @@ def lexls_library(compiler: Compiler, n: int, root: Path | None = None) -> Path:
                            {"vfdsl_lexls.o": [f"-DVFDSL_LEX_N={int(n)}", str(LEXLS_SOURCE)]})
 
 
-def solver_libraries(compiler: Compiler, n: int) -> list[str]:
-    """The link arguments of a task's step with ``n`` variables: lexls for n, DAQP, libm, their symbols hidden."""
-    root = daqp_sources(daqp_home())
+def solver_libraries(compiler: Compiler, n: int, root: Path | None = None) -> list[str]:
+    """The link arguments of a task's step with ``n`` variables: lexls for n, DAQP, libm, their symbols hidden (the
+    libraries beside the sources in ``root``, as :func:`daqp_library`)."""
+    root = root if root is not None else daqp_sources(daqp_home())
     return [str(lexls_library(compiler, n, root)), str(daqp_library(compiler, root)), "-lm",
             "-Wl,--exclude-libs,ALL"]
 
