@@ -138,6 +138,51 @@ def test_cutoff_relaxes_rows(channel):
     assert np.isinf(d).any() and np.all(u.reshape(3, K, order="F")[:, np.isinf(d.ravel())] == 0)
 
 
+def _far(rng, distance, side):
+    """Points and capsules whose ends lie ``distance`` beyond the channel's wall on the forbidden side of ``side``
+    (-1, keep in: outside the channel; +1, keep out: the channel read as a solid, ends deep inside it)."""
+    out = []
+    for _ in range(4):
+        angle = rng.uniform(0, 2 * np.pi)
+        radial = np.array([np.cos(angle), np.sin(angle), 0.0])
+        z = rng.uniform(0.26, 0.29)
+        a = np.array([0.0, 0.0, z]) + (0.005 + distance if side < 0 else 0.0) * radial
+        b = a + (rng.normal(size=3) * (0.001 if side > 0 else 0.015))
+        out += [(a, a), (a, b)]
+    return out
+
+
+@pytest.mark.parametrize("side", [-1.0, 1.0], ids=["outside_keep_in", "inside_keep_out"])
+@pytest.mark.parametrize("distance", [1e-3, 1e-2, 1.0])
+def test_an_end_on_the_forbidden_side_always_has_a_row(channel, side, distance):
+    """Wherever an end is on the forbidden side (1 mm, 10 mm, 1 m outside a keep-in channel; inside the channel read
+    as a keep-out solid), far beyond the cutoff, its nearest feature gives a row that asks back by the whole
+    distance: d < 0 with |d| the brute-force distance, u from the wall toward the free side, as brute.features."""
+    mesh, query = channel
+    rng = np.random.default_rng(7)
+    cutoff = 0.0015 + REACH
+    for a, b in _far(rng, distance, side):
+        d, s, u = (np.array(x) for x in query.function(a, b, [cutoff, side]))
+        d, s, u = d.ravel(), s.ravel(), u.reshape(3, K, order="F")
+        _same((d, s, u), brute.features(a, b, mesh.vertices, mesh.triangles, cutoff, side, K, SIMILAR))
+        inside = brute.winding_number(a, mesh.vertices, mesh.triangles) > 0.5
+        if inside != (side < 0):                         # a is on the forbidden side: a row of its own, s = 0
+            row = np.flatnonzero(np.isfinite(d) & (s == 0))[0]
+            nearest = brute.segment_distances(a, a, mesh.vertices, mesh.triangles).min()
+            assert d[row] < 0 and abs(abs(d[row]) - nearest) < 1e-12
+            x = a + 1e-6 * u[:, row]                      # a step along u brings the end nearer to the wall
+            assert brute.segment_distances(x, x, mesh.vertices, mesh.triangles).min() < nearest
+        assert np.any(d < 0) or np.all(np.isinf(d) | (d > 0))
+
+
+def test_an_end_far_on_the_free_side_has_no_row(channel):
+    """A keep-out fixture far from the tool gives no row (0 >= -inf), whatever the query's far-end rule."""
+    _, query = channel
+    a = np.array([0.5, 0.0, 0.27])
+    d = np.array(query.function(a, a + [0, 0, 0.03], [0.0035, 1.0])[0]).ravel()
+    assert np.all(np.isinf(d))
+
+
 def _rows(ctrl, q):
     qp = ctrl.problem(q, {"f": [0, 0, 0]}, dt=0.01)
     idx = [i for i, label in enumerate(qp.labels) if "inside_mesh" in label or "outside_mesh" in label]

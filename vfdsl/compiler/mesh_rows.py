@@ -12,7 +12,9 @@ row (the paper's forbidden half-space on the feature's tangent plane, as ``outsi
 d_i, s_i, u_i are data (the query's outputs, no derivative); the Jacobian is the frames'. A feature the segment
 is on the wrong side of has d_i < 0, and its row asks to move back by |d_i| + r + margin. Features farther
 than r + margin + reach give no row (d = +inf: the row 0 >= -inf always holds), so the number of rows is K
-whatever the mesh, and the tick allocates nothing.
+whatever the mesh, and the tick allocates nothing; but an end of the segment on the forbidden side always keeps
+its nearest feature, however far (a tool outside a keep-in channel, deep inside a keep-out volume): a violated
+fixture is never without a row.
 
 **Which features.** The query (:mod:`vfdsl.mesh.external`; its C source states the answer exactly, and
 :func:`vfdsl.mesh.brute.features` computes the same from every triangle) takes, for each part of the segment

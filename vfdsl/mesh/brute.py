@@ -107,8 +107,9 @@ def features(a, b, vertices: np.ndarray, triangles: np.ndarray, cutoff: float, s
     """The C query's answer (d[k], s[k], u[3 x k]; see :mod:`vfdsl.mesh.external`) from every triangle's hits:
     its closest point to a (part 0) and to b (part 2), and its closest pair with the segment when that pair's
     point is strictly between a and b (part 1), within ``cutoff``; per part in the order (distance, part, c, s),
-    a hit within ``similar`` (cosine) of one kept before it is merged; the rows are the first kept hit of each
-    part, then the nearest others. A part's side is read here from the winding number at its first hit's point
+    a hit within ``similar`` (cosine) of one kept before it is merged; an end with no hit within the cutoff that
+    lies on the forbidden side keeps its nearest feature, whatever its distance; the rows are the first kept hit of
+    each part, then the nearest others. A part's side is read here from the winding number at its first hit's point
     (the query reads pseudo-normals: the same on a closed, consistently oriented mesh). The same answer up to
     rounding: where two hits' distances differ by rounding only (a shaft exactly parallel to a flat wall), which
     of them comes first may differ."""
@@ -142,6 +143,14 @@ def features(a, b, vertices: np.ndarray, triangles: np.ndarray, cutoff: float, s
             first = chosen[0]
             inside = first[0] > 0 and winding_number(first[6], vertices, triangles) > 0.5
             signs[part] = 1.0 if first[0] == 0 or inside == (side < 0) else -1.0
+    for part, x in ends:        # an end far on the forbidden side: its nearest feature, whatever its distance
+        inside = winding_number(x, vertices, triangles) > 0.5
+        if not kept[part] and inside != (side < 0):
+            c = point_triangles(x, corners)
+            dist = np.sqrt(_squared(x - c))
+            i = int(np.argmin(dist))
+            kept[part].append((dist[i], part, *c[i], float(part == 2), x, (x - c[i]) / dist[i]))
+            signs[part] = -1.0
     rows = [chosen[0] for chosen in kept.values() if chosen][:k]
     rows += sorted((h for chosen in kept.values() for h in chosen[1:]), key=lambda h: h[:6])[:k - len(rows)]
     rows.sort(key=lambda h: h[:6])

@@ -9,7 +9,8 @@
  *     res[0] d[K]      signed distance of each feature: > 0 on the free side, < 0 through the surface
  *     res[1] s[K]      parameter of the segment's closest point x = a + s (b - a), in [0, 1]
  *     res[2] u[3K]     unit direction (column per feature) from the feature toward the free side at x
- *   Unused entries (fewer than K features within the cutoff): d = +inf, s = 0, u = 0.
+ *   Unused entries (fewer than K features within the cutoff): d = +inf, s = 0, u = 0. A violated fixture is
+ *   never without a row: an end on the forbidden side always has one (see "far ends" below).
  *
  * The answer (vfdsl.mesh.brute.features computes the same by brute force over every triangle):
  * - hits: each triangle gives up to three, one per part of the segment: its closest point to the segment's start
@@ -21,6 +22,11 @@
  * - order: by distance, then part, then the coordinates of c, then s (a total order up to repeats of a hit).
  * - merging: per part, in that order, a hit is kept unless its u is within VFM_SIMILAR (cosine) of a hit kept
  *   before it in its part (a feature seen through several triangles, a patch of one wall: one row).
+ * - far ends: an end (a point's only part) with no hit within the cutoff whose nearest feature on the mesh, at
+ *   whatever distance, puts it on the forbidden side keeps that feature as its one hit (a tool 14 mm outside a
+ *   keep-in channel, or deep inside a keep-out volume: the row asks back by the whole distance). An end far on the
+ *   free side has no hit: its rows would be 0 >= -inf. Between the ends no such rule is needed: a segment whose
+ *   ends are both on the free side and whose middle is not crosses the surface (a hit at distance 0).
  * - rows: the first kept hit of each part, then the nearest of the other kept hits, K in all, in that order.
  * - side: the side of a part's point comes from the angle-weighted pseudo-normal (Baerentzen & Aanaes 2005) of
  *   its nearest feature (face, edge or vertex) on the mesh, which is right at faces, edges and vertices of a
@@ -529,21 +535,17 @@ static void vfm_take(vfm_walk* w, const vfm_hit* hit) {
   ++w->total;
 }
 
-/* The side of the points between the ends: that of the first hit's point x, from x's nearest feature, which is the
- * hit's own unless a triangle whose pair with the segment is at an end is nearer to x (a depth-first search
- * within the hit's distance). */
-static void vfm_inner_side(vfm_walk* w) {
-  const vfm_hit* first = &w->kept[1][0];
-  double x[3], best2, c[3], y[3], near[3];
-  int stack[VFM_STACK], top = 0, i, t, t_best = first->t, r_best = first->region, region;
-  for (i = 0; i < 3; ++i) { x[i] = w->a[i] + first->s * w->ab[i]; near[i] = first->c[i]; }
-  best2 = first->dist * first->dist;
+/* The nearest feature of the mesh to x nearer than sqrt(*best2) (a depth-first search, the nearer child first):
+ * updates *best2, *t, *region and c when one is found. */
+static void vfm_nearest(const double* x, double* best2, int* t_best, int* r_best, double* near) {
+  double y[3], c[3];
+  int stack[VFM_STACK], top = 0, i, t, region;
   stack[top++] = 0;
   while (top > 0) {
     int node = stack[--top];
     vfm_local(node, x, y);
     double bound = vfm_point_box(y, vfm_boxes + 15 * node + 12);
-    if (!(bound * bound < best2)) continue;
+    if (!(bound * bound < *best2)) continue;
     if (vfm_is_leaf(node)) {
       int from = -1 - vfm_nodes[2 * node];
       for (t = from; t < from + vfm_nodes[2 * node + 1]; ++t) {
@@ -551,15 +553,50 @@ static void vfm_inner_side(vfm_walk* w) {
         vfm_point_triangle(x, vfm_vertices + 3 * tri[0], vfm_vertices + 3 * tri[1], vfm_vertices + 3 * tri[2], c,
                            &region);
         double d2 = vfm_dist2(x, c);
-        if (d2 < best2) { best2 = d2; t_best = t; r_best = region; for (i = 0; i < 3; ++i) near[i] = c[i]; }
+        if (d2 < *best2) { *best2 = d2; *t_best = t; *r_best = region; for (i = 0; i < 3; ++i) near[i] = c[i]; }
       }
       continue;
     }
     if (top + 2 > VFM_STACK) continue;   /* unreachable: the builder bounds the depth below VFM_STACK / 2 */
-    stack[top++] = vfm_nodes[2 * node + 1];
-    stack[top++] = vfm_nodes[2 * node];
+    int left = vfm_nodes[2 * node], right = vfm_nodes[2 * node + 1];
+    double yl[3], yr[3];
+    vfm_local(left, x, yl);
+    vfm_local(right, x, yr);
+    int left_nearer = vfm_point_box(yl, vfm_boxes + 15 * left + 12) <= vfm_point_box(yr, vfm_boxes + 15 * right + 12);
+    stack[top++] = left_nearer ? right : left;
+    stack[top++] = left_nearer ? left : right;
   }
+}
+
+/* The side of the points between the ends: that of the first hit's point x, from x's nearest feature, which is the
+ * hit's own unless a triangle whose pair with the segment is at an end is nearer to x. */
+static void vfm_inner_side(vfm_walk* w) {
+  const vfm_hit* first = &w->kept[1][0];
+  double x[3], best2, near[3];
+  int i, t_best = first->t, r_best = first->region;
+  for (i = 0; i < 3; ++i) { x[i] = w->a[i] + first->s * w->ab[i]; near[i] = first->c[i]; }
+  best2 = first->dist * first->dist;
+  vfm_nearest(x, &best2, &t_best, &r_best, near);
   w->part_side[1] = vfm_side_of(w, x, near, t_best, r_best);
+}
+
+/* An end with no hit within the cutoff may still be on the forbidden side, far from the surface (a tool outside a
+ * keep-in volume, deep inside a keep-out one): its nearest feature, at whatever distance, is kept when it puts the
+ * end on the forbidden side, so that a violated fixture always has a row that asks back. */
+static void vfm_far_ends(vfm_walk* w) {
+  int p;
+  for (p = 0; p < 3; p += 2) {
+    if (!(w->parts >> p & 1) || w->count[p] > 0) continue;
+    const double* x = p ? w->b : w->a;
+    double best2 = INFINITY, near[3] = {0, 0, 0};
+    int t = -1, region = 0;
+    vfm_nearest(x, &best2, &t, &region, near);
+    if (t < 0 || vfm_side_of(w, x, near, t, region) > 0) continue;
+    vfm_make_hit(w, t, p, p == 2, near, region, best2, &w->kept[p][0]);
+    w->count[p] = 1;
+    ++w->total;
+    w->part_side[p] = -1;
+  }
 }
 
 static int vfm_all_done(const vfm_walk* w) {
@@ -665,6 +702,7 @@ static void vfm_query(vfm_walk* w, const double* a, const double* b, double cuto
     }
   }
   if (w->count[1] > 0) vfm_inner_side(w);
+  vfm_far_ends(w);
 }
 
 /* The K rows: the first kept hit of each part, then the nearest of the others; in the hits' order. */
