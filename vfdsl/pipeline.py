@@ -29,7 +29,8 @@ from vfdsl.runtime.native import BufferedFunction, LockedRunner, StepperRunner
 from vfdsl.runtime.values import INPUT_UNITS, JOINT_UNITS, MAX_PERIOD, PARAM_UNITS, RuntimeValues
 from vfdsl.runtime.qp import build_step_function
 
-# A row or bound is satisfied within this much (m or rad): far below any tolerance a task can express.
+# Phase 1's answer meets every row and bound within this much (m or rad; LEVEL_ACCEPTANCE times it on a task with
+# priority levels, vfdsl.runtime.qp): far below any tolerance a task can express.
 FEASIBILITY_TOLERANCE = 1e-9
 BACKENDS = ("auto", "native", "interpreted")
 NAME_IN_SYMBOL = 48

@@ -305,7 +305,8 @@ class Resolver(Declarations):
         scale = u.UNITS[unit][1]
         if tolerance < allowed.low:
             raise VfError(f"tolerance {tolerance / scale:g} {unit} is below what the solver can honour: it holds "
-                          f"rows to {clause_ranges.FEASIBILITY_TOLERANCE / scale:g} {unit} (its feasibility tolerance)",
+                          f"rows to {clause_ranges.FEASIBILITY_TOLERANCE / scale:g} {unit} (its feasibility tolerance; "
+                          f"{clause_ranges.LEVELS_TOLERANCE / scale:g} {unit} with priority levels)",
                           written.pos(), hint=f"use at least {allowed.low / scale:g} {unit} "
                                               f"({clause_ranges.TOLERANCE_MARGIN} times the solver's tolerance)")
         raise VfError(f"an angle tolerance must be below 90 deg, got {math.degrees(tolerance):g} deg", written.pos())
