@@ -11,8 +11,8 @@
  * different threads run in parallel (the GIL is released during the solve).
  *
  * Stepper.step(q, inputs=None, params=None, dt=None) is Controller.step on the generated path (the Controller
- * makes it its own step: no Python call in between, ~0.1 us a tick). Its fast path accepts only the plainest arguments
- * -- q a list/tuple of exact Python floats/ints (or NumPy float64 scalars) or a 1-D float64 array, inputs an exact
+ * makes it its own step: no Python call in between, ~0.1 us a tick). Its fast path accepts only the plainest arguments,
+ * given by position or by keyword -- q a list/tuple of exact Python floats/ints (or NumPy float64 scalars) or a 1-D float64 array, inputs an exact
  * dict of exact str keys holding exactly the declared names with such values, params None or an exact dict of
  * run-time param names with such values (a run-time curve only as an N x 3 float64 array, a scalar also as a
  * number), dt None or such a number -- with every number finite, q inside its admissible range,
@@ -168,6 +168,27 @@ static int plain_dt(Stepper* s, PyObject* dt, double* out) {
   return vfdsl_dt_admissible(&s->core, *out);   /* false for NAN (no default period) */
 }
 
+static PyObject* step_keywords[4];   /* "q", "inputs", "params", "dt" (interned): step's parameters in order */
+
+/* Step's arguments q, inputs, params, dt (NULL where not given) from a vectorcall's args and kwnames, given by
+ * position or keyword; 0 when they are not plainly that (more than four, an unknown or repeated keyword, no q), for the
+ * Python checks to explain. Only exact str keywords are compared (no user __eq__). */
+static int step_arguments(PyObject* const* args, Py_ssize_t nargs, PyObject* kwnames, PyObject** out) {
+  Py_ssize_t k, n = kwnames ? PyTuple_GET_SIZE(kwnames) : 0;
+  int i;
+  if (nargs > 4) return 0;
+  for (i=0; i<4; ++i) out[i] = i < nargs ? args[i] : NULL;
+  for (k=0; k<n; ++k) {
+    PyObject* key = PyTuple_GET_ITEM(kwnames, k);
+    for (i=0; i<4 && key != step_keywords[i]; ++i) ;
+    if (i == 4 && PyUnicode_CheckExact(key))
+      for (i=0; i<4 && PyUnicode_Compare(key, step_keywords[i]) != 0; ++i) ;
+    if (i == 4 || out[i]) return 0;
+    out[i] = args[nargs + k];
+  }
+  return out[0] != NULL;
+}
+
 /* ----------------------------------------------------------------------------------- one tick */
 
 static void lock(Stepper* s) {
@@ -220,14 +241,14 @@ static int ready(Stepper* s) {
 }
 
 static PyObject* Stepper_step(Stepper* s, PyObject* const* args, Py_ssize_t nargs, PyObject* kwnames) {
-  PyObject *q, *inputs = NULL, *params = NULL, *dt = NULL, *result;
+  PyObject *a[4], *q, *inputs, *params, *dt, *result;
   double dt_value;
   if (!ready(s)) return NULL;
-  if (kwnames || nargs < 1 || nargs > 4) return hand_over(s, args, nargs, kwnames);
-  q = args[0];
-  if (nargs > 1) inputs = args[1];
-  if (nargs > 2) params = args[2];
-  if (nargs > 3) dt = args[3];
+  if (!step_arguments(args, nargs, kwnames, a)) return hand_over(s, args, nargs, kwnames);
+  q = a[0];
+  inputs = a[1];
+  params = a[2];
+  dt = a[3];
   lock(s);
   if (!plain_vector(q, s->core.size[Q], s->core.data[Q], 0) || vfdsl_q_outside(&s->core, s->core.data[Q]) >= 0
       || !plain_inputs(s, inputs) || !plain_dt(s, dt, &dt_value) || !plain_params(s, params)) {
@@ -420,7 +441,7 @@ static PyMethodDef Stepper_methods[] = {
   {"step", (PyCFunction) (void (*)(void)) Stepper_step, METH_FASTCALL | METH_KEYWORDS,
    "step(q, inputs=None, params=None, dt=None) -> dq: the joint increment for this tick (SI), as "
    "vfdsl.runtime.controller.Controller.step documents. Plain values (lists, tuples or float64 arrays of finite "
-   "numbers, exact dicts) are checked here; anything else goes to the detailed checks of ``checked`` (which "
+   "numbers, exact dicts), by position or keyword, are checked here; anything else goes to the detailed checks of ``checked`` (which "
    "explain what is wrong), or gives NotImplemented when ``checked`` is None."},
   {"margins", (PyCFunction) Stepper_margins, METH_O,
    "margins(p) -> the column of checks of the params p (contiguous float64), from the generated C"},
@@ -460,8 +481,11 @@ static struct PyModuleDef module = {
 };
 
 PyMODINIT_FUNC VFDSL_CAT(PyInit_, VFDSL_MODULE)(void) {
+  static const char* const keywords[4] = {"q", "inputs", "params", "dt"};
   PyObject* m;
+  int i;
   import_array();
+  for (i=0; i<4; ++i) if (!step_keywords[i] && !(step_keywords[i] = PyUnicode_InternFromString(keywords[i]))) return NULL;
   if (PyType_Ready(&StepperType) < 0) return NULL;
   m = PyModule_Create(&module);
   if (!m) return NULL;
