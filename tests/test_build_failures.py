@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import errno
 import os
+import subprocess
 import tempfile
 import warnings
 
@@ -13,8 +14,9 @@ import vfdsl
 from vfdsl import pipeline
 from vfdsl.cli import main as cli_main
 from vfdsl.codegen import build as codegen
+from vfdsl.codegen import daqp_sources as sources
 from vfdsl.errors import VfError
-from conftest import TASKS_DIR
+from conftest import REPO, TASKS_DIR
 
 B = TASKS_DIR / "paper_b_virtual_rcm.vf"
 
@@ -125,3 +127,42 @@ def test_no_archiver_is_a_clear_error_and_leaves_no_half_library(tmp_path, monke
         codegen.lexls_library(codegen.find_compiler(), 3, tmp_path)
     assert "binutils" in str(info.value.hint)
     assert not list((tmp_path / "lib").iterdir())
+
+
+def test_fetching_daqp_asks_pip_for_daqp_alone_and_says_so(tmp_path, monkeypatch, capsys):
+    """The first controller on a machine fetches DAQP's sdist with `--no-binary daqp`: `--no-binary :all:` made pip
+    build daqp's build requirements (Cython among them) from source just to prepare its metadata, 368 s on a fresh
+    2-core machine with nothing printed. Fetching says so in one line on stderr; an index that cannot be reached
+    is a clear error naming the command (the README's), for a machine that can reach it."""
+    calls = []
+
+    def unreachable(argv, **kwargs):
+        calls.append(argv)
+        return subprocess.CompletedProcess(argv, 1, "", "WARNING: retrying\nERROR: No matching distribution found\n")
+
+    monkeypatch.delenv("VFDSL_DAQP_SDIST", raising=False)
+    monkeypatch.setattr(sources.subprocess, "run", unreachable)
+    with pytest.raises(sources.DaqpSourcesUnavailable, match="cannot download DAQP 0.11.0's C sources") as info:
+        sources.daqp_sources(tmp_path)
+    [argv] = calls
+    assert argv[argv.index("--no-binary") + 1] == "daqp" and ":all:" not in argv
+    assert {"download", "--no-deps", "daqp==0.11.0"} <= set(argv)
+    assert str(info.value.message).endswith(": ERROR: No matching distribution found")
+    command = "pip download --no-deps --no-binary daqp daqp==0.11.0"
+    assert command in info.value.hint and command in (REPO / "README.md").read_text()
+    assert capsys.readouterr().err == "vfdsl: fetching DAQP 0.11.0's C sources with pip (once) ...\n"
+    assert not (tmp_path / "daqp-0.11.0").exists()
+
+
+def test_building_daqp_says_so_once(tmp_path, monkeypatch, capsys):
+    """Building DAQP's static library (tens of seconds on a loaded machine) says so in one line, only when it is
+    built: a library already in the cache is used silently."""
+    built = []
+    monkeypatch.setattr(codegen, "_static_library", lambda compiler, library, objects: built.append(library) or library)
+    compiler = codegen.Compiler(("cc",), "cc (test) 1.0", "x86_64")
+    library = codegen.daqp_library(compiler, tmp_path)
+    assert capsys.readouterr().err == "vfdsl: building DAQP 0.11.0's solver library with cc (once) ...\n"
+    library.parent.mkdir(parents=True)
+    library.write_bytes(b"")
+    assert codegen.daqp_library(compiler, tmp_path) == library and len(built) == 2
+    assert capsys.readouterr().err == ""

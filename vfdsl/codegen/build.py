@@ -67,7 +67,7 @@ from typing import Any
 
 import casadi as ca
 
-from vfdsl.codegen.daqp_sources import daqp_sources, daqp_version, source_files
+from vfdsl.codegen.daqp_sources import announce, daqp_sources, daqp_version, source_files
 from vfdsl.errors import VfError
 
 FLAGS = ("-O3", "-march=native", "-ffp-contract=off", "-fPIC", "-pthread", "-fvisibility=hidden", "-fno-math-errno",
@@ -428,9 +428,11 @@ def daqp_library(compiler: Compiler, root: Path | None = None) -> Path:
     sources (:mod:`vfdsl.codegen.daqp_sources`)."""
     root = root if root is not None else daqp_sources(daqp_home())
     key = hashlib.sha256(json.dumps([FLAGS, compiler.version, compiler.target]).encode()).hexdigest()[:16]
-    return _static_library(compiler, root / "lib" / f"libdaqp-{key}.a",
-                           {f"{source.stem}.o": [f"-I{root / 'include' / 'daqp'}", str(source)]
-                            for source in source_files(root)})
+    library = root / "lib" / f"libdaqp-{key}.a"
+    if not library.is_file():
+        announce(f"building DAQP {daqp_version()}'s solver library with {Path(compiler.command[0]).name}")
+    return _static_library(compiler, library, {f"{source.stem}.o": [f"-I{root / 'include' / 'daqp'}", str(source)]
+                                               for source in source_files(root)})
 
 
 def lexls_library(compiler: Compiler, n: int, root: Path | None = None) -> Path:

@@ -11,8 +11,12 @@ both paths run the same solver):
         include/daqp/*.h   the headers (generated code includes <daqp/api.h>)
         src/*.c            the sources
 
-The source distribution is fetched once with ``pip download`` (so a configured index or mirror is used) and checked
-against its recorded sha256; ``VFDSL_DAQP_SDIST`` may name an already downloaded ``daqp-<version>.tar.gz``.
+The source distribution is fetched once with ``pip download --no-binary daqp`` (so a configured index or mirror is
+used; only daqp itself as source: ``--no-binary :all:`` would also build daqp's build requirements, Cython among
+them, from source to prepare its metadata, minutes on a small machine) and checked against its recorded sha256;
+``VFDSL_DAQP_SDIST`` may name an already downloaded ``daqp-<version>.tar.gz``. Fetching, and building the solver
+library after it, each say so in one line on stderr (:func:`announce`): the first controller on a machine is the
+only one that waits for them.
 """
 
 from __future__ import annotations
@@ -46,6 +50,17 @@ def daqp_version() -> str:
                                      hint="pip install 'daqp==0.11.0'") from None
 
 
+def announce(action: str) -> None:
+    """One line on stderr for work done once per machine that takes more than a moment."""
+    print(f"vfdsl: {action} (once) ...", file=sys.stderr, flush=True)
+
+
+def pip_download(version: str) -> list[str]:
+    """The pip command that downloads DAQP ``version``'s source distribution (only it: no dependency, and no build
+    requirement built from source)."""
+    return ["pip", "download", "--no-deps", "--no-binary", "daqp", f"daqp=={version}"]
+
+
 def daqp_sources(cache_dir: Path) -> Path:
     """The directory holding DAQP's ``LICENSE``, ``include/daqp/`` and ``src/`` for the installed version,
     fetched into ``cache_dir`` on first use."""
@@ -76,16 +91,16 @@ def _sdist(version: str, tmp: Path) -> Path:
     if given:
         path = Path(given)
     else:
-        argv = [sys.executable, "-m", "pip", "download", "--no-deps", "--no-binary", ":all:",
-                "--disable-pip-version-check", "-q", "-d", str(tmp), f"daqp=={version}"]
+        announce(f"fetching DAQP {version}'s C sources with pip")
+        argv = [sys.executable, "-m", *pip_download(version), "-d", str(tmp), "--disable-pip-version-check", "-q"]
         result = subprocess.run(argv, capture_output=True, text=True)
         found = sorted(tmp.glob(f"daqp-{version}.tar.gz"))
         if not found:
             raise DaqpSourcesUnavailable(
                 f"cannot download DAQP {version}'s C sources (its source distribution from the package index): "
-                f"{(result.stderr or result.stdout).strip().splitlines()[-1:] or 'no file'}",
-                hint=f"run `pip download --no-deps --no-binary :all: daqp=={version}` where the index is reachable "
-                     "and set VFDSL_DAQP_SDIST to the .tar.gz")
+                f"{((result.stderr or result.stdout).strip().splitlines() or ['no file'])[-1]}",
+                hint=f"run `{' '.join(pip_download(version))}` where the index is reachable and set "
+                     "VFDSL_DAQP_SDIST to the .tar.gz")
         path = found[0]
     try:
         digest = hashlib.sha256(path.read_bytes()).hexdigest()
