@@ -14,12 +14,18 @@ DAQP solve (+ the least-violation machinery's checks), i.e. one call of the task
                 same raw call): the baseline of the priority levels, which DAQP solves in one
                 hierarchical call;
 - step()      : the full Controller.step(q, inputs) API on the generated path (input checks, copy of dq);
-- pink        : pink.solve_ik on the Panda, one FrameTask, default limits, DAQP (qpsolvers).
+- pink        : pink.solve_ik, DAQP (qpsolvers), default limits, on two jobs: the Panda with one FrameTask (6 cost rows,
+                no constraint rows: the baseline of the targets), and a job close to experiment B's (shr7 at B's
+                states: hold the pivot, track B's orientation, damping, a +-1 um PositionBarrier); every ratio is
+                printed with the job it is against.
+
+Section 7 times B's step() in every documented call form (positional and keyword dt and params, inputs as a dict
+of arrays, lists or tuples), each as a ratio to the fastest.
 
 Each figure is time.perf_counter_ns around one call, after 1,000 warm-up ticks, with the garbage collector
 disabled, over states of a closed-loop trajectory recorded beforehand (same states for every variant). The
 variants of sections 2 and 3 (every task's and pink's) are timed in turns of 250 ticks, as are those of
-section 6, so that a burst of load on the shared machine falls on all of them alike.
+sections 6 and 7, so that a burst of load on the shared machine falls on all of them alike.
 Progress goes to stderr; the report goes to stdout.
 """
 
@@ -81,13 +87,20 @@ TARGETS = {  # (what, limit in us) per experiment, checked against the generated
     "paper_b_virtual_rcm": [("median", 10.0), ("p99", 30.0)],
     "paper_a_follow_curve": [("median", 20.0)],
 }
+PINK_JOBS = {"frame_task": "frame task (Panda)", "pivot": "pivot (shr7, B-like)"}
+PINK_RATIOS = (  # (task, vfdsl path, pink job) of section 3's ratios: the like-for-like pairs first
+    ("panda_track", "generated", "frame_task"), ("panda_track", "step", "frame_task"),
+    ("paper_b_virtual_rcm", "generated", "pivot"), ("paper_b_virtual_rcm", "step", "pivot"),
+    ("paper_b_virtual_rcm", "generated", "frame_task"), ("paper_b_virtual_rcm", "step", "frame_task"),
+    ("paper_a_follow_curve", "generated", "frame_task"), ("paper_a_follow_curve", "step", "frame_task"))
 PINK_RATIO_TARGET = 20.0
-B_PINK_RATIO_TARGET = 25.0    # experiment B's step() (its priority levels included) against pink's solve_ik
+B_PINK_RATIO_TARGET = 25.0    # experiment B's step() against pink's solve_ik on the Panda frame task (a lighter job)
 LEVELS_RATIO_TARGET = 1.2     # experiment B's generated tick with its levels / the same task as one level, median
 STEP_RATIO_TARGET = 1.3       # Controller.step() / bare generated call, median
 ROWS_TARGET = (1000, 150.0)
 COMPILE_TARGET = 10.0
 PARAMS_RATIO_TARGET = 2.0     # step() with params updated every tick / step() without, median
+FORMS_RATIO_TARGET = 1.2      # each documented call form of step() / the fastest form, median (section 7)
 # Section 6: a tracked vessel, a 20-point run-time b-spline 10 mm under the paper B tip, followed by the tip.
 VESSEL_TASK = """task vessel_20
 robot shr = urdf "shr7"
@@ -352,6 +365,50 @@ def pink_ticks(dt: float, errors: list) -> Callable[[int], tuple[int, int]]:
     return tick
 
 
+def pink_pivot_ticks(task, qs: np.ndarray, errors: list) -> Callable[[int], tuple[int, int]]:
+    """tick(k) -> (ns of pink's solve_ik, ns of its Configuration.update) on a job close to experiment B's, at B's
+    recorded state k (shr7, ``vfdsl/robots/shr7.urdf``): one FrameTask on tool_tip whose position target is the pivot
+    (position_cost 100: hold it) and whose orientation target is B's tip at the next recorded state (track B's
+    motion), a DampingTask (cost 1e-3: weight 1e-6 as B's damping), a PositionBarrier keeping the tip in the box of
+    +-1 um about the pivot, pink's default limits, DAQP. pink has no cone barrier: B's 15 deg cone (8 rows) has no
+    counterpart. The configuration is set to the recorded state before the tick (update, outside solve_ik's time,
+    as in :func:`pink_ticks`); every 100th timed tick, the tip's distance from the pivot after pink's step is
+    appended to errors."""
+    import pink
+    import pinocchio as pin
+    from pink.barriers import PositionBarrier
+    from pink.tasks import DampingTask, FrameTask
+
+    model = pin.buildModelFromUrdf(str(ROOT / "vfdsl" / "robots" / "shr7.urdf"))
+    configuration = pink.Configuration(model, model.createData(), qs[0])
+    pivot = np.array(task.param("pivot").value.xyz)
+    rotations = []
+    for q in qs:                                # B's tip orientation at every recorded state
+        configuration.update(q)
+        rotations.append(configuration.get_transform_frame_to_world("tool_tip").rotation.copy())
+    frame = FrameTask("tool_tip", position_cost=100.0, orientation_cost=1.0)
+    tasks = [frame, DampingTask(cost=1e-3)]
+    barriers = [PositionBarrier("tool_tip", p_min=pivot - 1e-6, p_max=pivot + 1e-6)]
+    target = pin.SE3(rotations[0], pivot)
+    solve_ik, pc, m, dt = pink.solve_ik, time.perf_counter_ns, len(qs), task.scene.period
+    after = model.createData()
+
+    def tick(k: int) -> tuple[int, int]:
+        i = k % m
+        target.rotation = rotations[(i + 1) % m]
+        frame.set_target(target)
+        t0 = pc()
+        configuration.update(qs[i])
+        t1 = pc()
+        v = solve_ik(configuration, tasks, dt, solver="daqp", barriers=barriers)
+        t2 = pc()
+        if k >= 0 and k % 100 == 0:
+            pin.framesForwardKinematics(model, after, configuration.integrate(v, dt))
+            errors.append(np.linalg.norm(after.oMf[model.getFrameId("tool_tip")].translation - pivot))
+        return t2 - t1, t1 - t0
+    return tick
+
+
 def pink_figures(ns: np.ndarray, errors: list) -> dict:
     """pink's statistics from its ticks' (solve_ik, update) ns."""
     return {"solve_ik": stats(ns[:, 0]), "solve_ik_plus_update": stats(ns[:, 0] + ns[:, 1]),
@@ -395,12 +452,13 @@ def experiment(name: str, task, driver, record_ticks: int, cache: Path) -> tuple
             "_states": (qs, dicts)}, timers
 
 
-def timed_experiments(exps: dict, timers: dict, pink_timer, ticks: int) -> dict:
-    """Every experiment's variants and pink timed together (:func:`interleaved`); the experiments' figures filled in,
-    pink's ticks returned."""
+def timed_experiments(exps: dict, timers: dict, pink_timers: dict, ticks: int) -> dict:
+    """Every experiment's variants and pink's jobs timed together (:func:`interleaved`); the experiments' figures
+    filled in, each pink job's ticks returned by name."""
     everything = {(name, variant): timer for name, of_task in timers.items() for variant, timer in of_task.items()}
-    everything["pink"] = pink_timer
-    log(f"[timing] {len(everything)} variants ({', '.join(timers)}, pink), {ticks} ticks each, in turns of {BLOCK}")
+    everything.update({("pink", job): timer for job, timer in pink_timers.items()})
+    log(f"[timing] {len(everything)} variants ({', '.join(timers)}, pink: {', '.join(pink_timers)}), {ticks} ticks "
+        f"each, in turns of {BLOCK}")
     samples = interleaved(everything, ticks)
     for name, e in exps.items():
         for variant in VARIANTS:
@@ -408,7 +466,7 @@ def timed_experiments(exps: dict, timers: dict, pink_timer, ticks: int) -> dict:
         statuses = e.pop("_statuses")
         e["optimal_fraction"] = statuses.get(int(StepStatus.OPTIMAL), 0) / ticks
         e["statuses"] = {StepStatus(s).name or str(s): c for s, c in statuses.items()}
-    return samples["pink"]
+    return {job: samples[("pink", job)] for job in pink_timers}
 
 
 def params_section(exps: dict, ticks: int, cache: Path) -> dict:
@@ -458,6 +516,75 @@ def params_section(exps: dict, ticks: int, cache: Path) -> dict:
     for (name, variant), ns in interleaved(timers, ticks).items():
         out.setdefault(name, {})[variant] = stats(ns)
     return out
+
+
+def call_forms_section(exps: dict, ticks: int, cache: Path) -> dict:
+    """Section 7: experiment B's step() in every documented call form, on B's recorded states, timed in turns. Each
+    form's q and inputs are written into the caller's own objects before the tick (outside the timed region, as
+    :func:`step_ticks`): arrays and lists in place, a new tuple per tick; ``params`` is B's pivot as an array."""
+    task = vfdsl.load(TASKS / "paper_b_virtual_rcm.vf")
+    ctrl, _ = pipeline.build(task, backend="native", cache_dir=cache)
+    qs, dicts = exps["paper_b_virtual_rcm"]["_states"]
+    step, pc, m, dt = ctrl.step, time.perf_counter_ns, len(qs), task.scene.period
+    q = np.empty(qs.shape[1])
+    arrays = {"tau": np.empty(3)}
+    lists = {"tau": [0.0, 0.0, 0.0]}
+    tuples = {"tau": (0.0, 0.0, 0.0)}
+    params = {"pivot": np.array(task.param("pivot").value.xyz)}
+
+    def load(k: int) -> np.ndarray:
+        i = k % m
+        q[:] = qs[i]
+        arrays["tau"][:] = dicts[i]["tau"]
+        return dicts[i]["tau"]
+
+    def positional(k):
+        load(k)
+        t0 = pc()
+        step(q, arrays)
+        return pc() - t0
+
+    def dt_positional(k):
+        load(k)
+        t0 = pc()
+        step(q, arrays, None, dt)
+        return pc() - t0
+
+    def dt_keyword(k):
+        load(k)
+        t0 = pc()
+        step(q, arrays, dt=dt)
+        return pc() - t0
+
+    def params_positional(k):
+        load(k)
+        t0 = pc()
+        step(q, arrays, params, dt)
+        return pc() - t0
+
+    def params_keyword(k):
+        load(k)
+        t0 = pc()
+        step(q, arrays, params=params)
+        return pc() - t0
+
+    def of_lists(k):
+        lists["tau"][:] = load(k).tolist()
+        t0 = pc()
+        step(q, lists, None, dt)
+        return pc() - t0
+
+    def of_tuples(k):
+        tuples["tau"] = tuple(load(k).tolist())
+        t0 = pc()
+        step(q, tuples, None, dt)
+        return pc() - t0
+    timers = {"step(q, inputs)": positional, "step(q, inputs, None, dt)": dt_positional,
+              "step(q, inputs, dt=dt)": dt_keyword, "step(q, inputs, params, dt)": params_positional,
+              "step(q, inputs, params=params)": params_keyword, "inputs a dict of lists": of_lists,
+              "inputs a dict of tuples": of_tuples}
+    log(f"[call forms] B's step() in {len(timers)} call forms ({ticks} ticks each, in turns)")
+    return {form: stats(ns) for form, ns in interleaved(timers, ticks).items()}
 
 
 def panda_tip_error(task, states, dt) -> float:
@@ -521,8 +648,8 @@ def verdict(ok: bool) -> str:
     return "PASS" if ok else "MISS"
 
 
-def report(m: dict, exps: dict, pink: dict, rows: list[dict], compiles: list[dict], params: dict, quick: bool,
-           elapsed: float) -> str:
+def report(m: dict, exps: dict, pink: dict, rows: list[dict], compiles: list[dict], params: dict, forms: dict,
+           quick: bool, elapsed: float) -> str:
     out = []
     w = out.append
     w("vfdsl tick benchmark" + ("  (--quick: fewer ticks, smaller sweep)" if quick else ""))
@@ -541,7 +668,7 @@ def report(m: dict, exps: dict, pink: dict, rows: list[dict], compiles: list[dic
     w("")
     w("2. Tick time, shr7 paper experiments and the Panda task (us; closed-loop states, user-like inputs)")
     w("-" * 100)
-    w(f"{'task':<22}{'rows':>5}  {'path':<13}{'median':>8}{'p99':>8}{'max':>9}   {'ticks':>6}   targets")
+    w(f"{'task':<22}{'rows':>5}  {'path':<13}{'median':>8}{'p99':>9}{'max':>9}   {'ticks':>6}   targets")
     for name, e in exps.items():
         label = {"paper_a_follow_curve": "A  follow curve", "paper_b_virtual_rcm": "B  virtual RCM",
                  "panda_track": "panda_track"}[name]
@@ -556,7 +683,7 @@ def report(m: dict, exps: dict, pink: dict, rows: list[dict], compiles: list[dic
                     "step": "step() API"}[kind]
             n_rows = (str(e["rows"]) if e["rows"] else "0*") if i == 0 else ""
             w(f"{label if i == 0 else '':<22}{n_rows:>5}  {path:<13}"
-              f"{s['median_us']:8.2f}{s['p99_us']:8.2f}{s['max_us']:9.1f}   {s['ticks']:>6}   "
+              f"{s['median_us']:8.2f}{s['p99_us']:9.2f}{s['max_us']:9.1f}   {s['ticks']:>6}   "
               + ",  ".join(checks))
         w(f"{'':<29}speed-up generated vs interpreted {e['interpreted']['median_us'] / e['generated']['median_us']:.1f}x;"
           f" {e['levels'] or 1} levels / one level {e['generated']['median_us'] / e['one_level']['median_us']:.2f}"
@@ -570,33 +697,39 @@ def report(m: dict, exps: dict, pink: dict, rows: list[dict], compiles: list[dic
 
     w(f"{'':<29}* panda_track has no general rows, only variable bounds (joint limits and speeds)")
     w("")
-    w("3. pink baseline: Panda, one FrameTask on tool_tip, default limits, solver daqp, dt 10 ms")
+    w("3. pink, two jobs (dt 10 ms, solver daqp through qpsolvers, pink's default limits; in turns with section 2)")
     w("-" * 100)
-    ps, pu = pink["solve_ik"], pink["solve_ik_plus_update"]
-    w(f"{'':<36}{'median':>8}{'p99':>8}{'max':>9}   {'ticks':>6}")
-    w(f"{'pink solve_ik':<36}{ps['median_us']:8.2f}{ps['p99_us']:8.2f}{ps['max_us']:9.1f}   {ps['ticks']:>6}")
-    w(f"{'pink solve_ik + integrate + update':<36}{pu['median_us']:8.2f}{pu['p99_us']:8.2f}{pu['max_us']:9.1f}"
-      f"   {pu['ticks']:>6}")
+    w("frame task: the Panda, one FrameTask on tool_tip (6 cost rows, no constraint rows), a target on a 20 mm circle")
+    w("pivot:      shr7 at experiment B's recorded states, a job close to B's: a FrameTask holding the pivot")
+    w("            (position cost 100) and tracking B's next orientation (cost 1), a DampingTask, a PositionBarrier")
+    w("            of +-1 um about the pivot (6 rows); no counterpart of B's 15 deg cone (pink has no cone barrier)")
+    w(f"{'':<56}{'median':>8}{'p99':>9}{'max':>9}   {'ticks':>6}")
+    for job, update in (("frame_task", "solve_ik + integrate + update"), ("pivot", "solve_ik + update")):
+        for key, what in (("solve_ik", "solve_ik"), ("solve_ik_plus_update", update)):
+            s = pink[job][key]
+            w(f"{'pink ' + PINK_JOBS[job] + ', ' + what:<56}{s['median_us']:8.2f}{s['p99_us']:9.2f}"
+              f"{s['max_us']:9.1f}   {s['ticks']:>6}")
     pt = exps["panda_track"]
-    w(f"tip distance from the moving target, max: pink {1e3 * pink['tip_error_mm']:.1f} um (pose feedback); "
-      f"vfdsl panda_track {1e3 * pt['tip_error_mm']:.0f} um")
+    w(f"frame task: tip distance from the moving target, max: pink {1e3 * pink['frame_task']['tip_error_mm']:.1f} um "
+      f"(pose feedback); vfdsl panda_track {1e3 * pt['tip_error_mm']:.0f} um")
     w("(the vfdsl task integrates the target's twist without pose feedback: it drifts, as expected)")
+    w(f"pivot: tip distance from the pivot after pink's step, max {1e3 * pink['pivot']['tip_error_mm']:.2f} um")
     w("")
-    w(f"{'ratio pink solve_ik / vfdsl':<36}{'median':>8}{'p99':>8}   target")
-    for name, e in exps.items():
-        for kind, path in (("generated", "generated"), ("step", "step() API")):
-            rm = ps["median_us"] / e[kind]["median_us"]
-            r99 = ps["p99_us"] / e[kind]["p99_us"]
-            target = ""
-            if name == "panda_track" and kind == "generated":
-                target = f"median >= {PINK_RATIO_TARGET:g}x: {verdict(rm >= PINK_RATIO_TARGET)}"
-            elif name == "paper_b_virtual_rcm" and kind == "step":
-                target = f"median >= {B_PINK_RATIO_TARGET:g}x: {verdict(rm >= B_PINK_RATIO_TARGET)}"
-            elif name != "panda_track" and kind == "generated":
-                target = "(reference: different robot and task)"
-            w(f"{'  ' + name + ', ' + path:<36}{rm:7.1f}x{r99:7.1f}x   {target}")
-
-    w("")
+    w(f"{'ratio pink solve_ik / vfdsl':<36}{'against pink':<22}{'median':>8}{'p99':>8}   target")
+    for name, kind, job in PINK_RATIOS:
+        ps, e = pink[job]["solve_ik"], exps[name]
+        rm = ps["median_us"] / e[kind]["median_us"]
+        r99 = ps["p99_us"] / e[kind]["p99_us"]
+        target = ""
+        if name == "panda_track" and kind == "generated":
+            target = f"median >= {PINK_RATIO_TARGET:g}x: {verdict(rm >= PINK_RATIO_TARGET)}"
+        elif name == "paper_b_virtual_rcm" and kind == "step" and job == "frame_task":
+            target = (f"median >= {B_PINK_RATIO_TARGET:g}x: {verdict(rm >= B_PINK_RATIO_TARGET)} "
+                      f"(a lighter job than B's)")
+        elif name != "panda_track" and job == "frame_task":
+            target = "(reference: different robot and task)"
+        path = {"generated": "generated", "step": "step() API"}[kind]
+        w(f"{'  ' + name + ', ' + path:<36}{PINK_JOBS[job]:<22}{rm:7.1f}x{r99:7.1f}x   {target}")
     w("4. Scaling with the number of rows: shr7, require tip stays_at(p) within 1 um resolution NxN "
       "(generated, feasible states)")
     w("-" * 100)
@@ -625,7 +758,7 @@ def report(m: dict, exps: dict, pink: dict, rows: list[dict], compiles: list[dic
     w("")
     w("6. Run-time params: step() with params changed every tick, against step() on the same states without")
     w("-" * 100)
-    w(f"{'task':<22}{'params':<24}{'median':>8}{'p99':>8}{'max':>9}   ratio to without (median)")
+    w(f"{'task':<22}{'params':<24}{'median':>8}{'p99':>9}{'max':>9}   ratio to without (median)")
     for name, variants in params.items():
         base = variants["without"]["median_us"]
         for kind, v in variants.items():
@@ -633,7 +766,16 @@ def report(m: dict, exps: dict, pink: dict, rows: list[dict], compiles: list[dic
             target = "" if kind == "without" else (f"{ratio:.2f}  target <= {PARAMS_RATIO_TARGET:g}: "
                                                    f"{verdict(ratio <= PARAMS_RATIO_TARGET)}")
             what = {"without": "none (defaults)", "array": "preallocated arrays", "list": "a new list"}[kind]
-            w(f"{name:<22}{what:<24}{v['median_us']:8.2f}{v['p99_us']:8.2f}{v['max_us']:9.1f}   {target}")
+            w(f"{name:<22}{what:<24}{v['median_us']:8.2f}{v['p99_us']:9.2f}{v['max_us']:9.1f}   {target}")
+    w("")
+    w("7. Call forms of Controller.step on experiment B (q and inputs the caller's; dict of arrays unless said)")
+    w("-" * 100)
+    fastest = min(f["median_us"] for f in forms.values())
+    w(f"{'form':<36}{'median':>8}{'p99':>9}{'max':>9}   ratio to the fastest (median)")
+    for form, f in forms.items():
+        ratio = f["median_us"] / fastest
+        w(f"{form:<36}{f['median_us']:8.2f}{f['p99_us']:9.2f}{f['max_us']:9.1f}   {ratio:.2f}  "
+          f"target <= {FORMS_RATIO_TARGET:g}: {verdict(ratio <= FORMS_RATIO_TARGET)}")
     w("")
     w(f"total run time {elapsed:.0f} s")
     return "\n".join(out)
@@ -661,9 +803,14 @@ def main(argv=None) -> int:
                                                                 4_000, cache)
         exps["panda_track"]["tip_error_mm"] = panda_tip_error(panda, exps["panda_track"]["_states"],
                                                               panda.scene.period)
-        pink_errors: list = []
-        pink = pink_figures(timed_experiments(exps, timers, pink_ticks(0.01, pink_errors), ticks), pink_errors)
+        b = vfdsl.load(TASKS / "paper_b_virtual_rcm.vf")
+        errors: dict = {"frame_task": [], "pivot": []}
+        pink_ns = timed_experiments(exps, timers, {
+            "frame_task": pink_ticks(0.01, errors["frame_task"]),
+            "pivot": pink_pivot_ticks(b, exps["paper_b_virtual_rcm"]["_states"][0], errors["pivot"])}, ticks)
+        pink = {job: pink_figures(ns, errors[job]) for job, ns in pink_ns.items()}
         params = params_section(exps, ticks, cache)
+        forms = call_forms_section(exps, ticks, cache)
         rows = sweep(SWEEP_QUICK if args.quick else SWEEP_FULL, sweep_ticks, tmp)
         compiles = compile_times(sorted(TASKS.glob("*.vf")), tmp)
     for e in exps.values():
@@ -673,9 +820,9 @@ def main(argv=None) -> int:
     if args.json:
         Path(args.json).write_text(json.dumps({"machine": m, "quick": args.quick, "experiments": exps,
                                                "pink": pink, "rows_sweep": rows, "compile": compiles,
-                                               "params": params,
+                                               "params": params, "call_forms": forms,
                                                "elapsed_s": elapsed}, indent=2))
-    print(report(m, exps, pink, rows, compiles, params, args.quick, elapsed))
+    print(report(m, exps, pink, rows, compiles, params, forms, args.quick, elapsed))
     return 0
 
 
