@@ -44,7 +44,7 @@ CLEAN_ENV = {"PATH": os.environ.get("PATH", "/usr/bin:/bin"), "LANG": "C"}
 """make's environment: no CPATH, C_INCLUDE_PATH or CFLAGS from this (Python) session."""
 
 # Error codes of vf_<task>.h
-ERR_Q_NONFINITE, ERR_Q_RANGE, ERR_INPUT, ERR_DT, ERR_PARAM = -2, -3, -4, -5, -7
+ERR_Q_NONFINITE, ERR_Q_RANGE, ERR_INPUT, ERR_DT, ERR_PARAM, ERR_DT_PERIOD = -2, -3, -4, -5, -7, -10
 
 
 class Exported:
@@ -136,7 +136,10 @@ def test_bad_values_are_refused_with_their_code_and_zero_dq(exported, tmp_path):
     if tick.u.size:
         cases += [(tick.q, _set(tick.u, tick.u.size - 1, np.nan), tick.dt, ERR_INPUT),
                   (tick.q, _set(tick.u, 0, np.inf), tick.dt, ERR_INPUT)]
-    cases += [(tick.q, tick.u, dt, ERR_DT) for dt in (0.0, -0.01, np.nextafter(1.0, 2.0), 2.0, np.nan, np.inf)]
+    cases += [(tick.q, tick.u, dt, ERR_DT) for dt in (0.0, -0.01, np.nan, np.inf)]
+    low, high = ctrl._values.dt_min, ctrl._values.dt_max               # the task's range around its period
+    cases += [(tick.q, tick.u, float(dt), ERR_DT_PERIOD)
+              for dt in (np.nextafter(high, 2.0), 1000 * tick.dt, 2.0, np.nextafter(low, 0.0), tick.dt / 1000)]
     exe = _contract(exported, tmp_path, [])
     for q, u, dt, code in cases:
         with pytest.raises(VfError):
@@ -144,9 +147,10 @@ def test_bad_values_are_refused_with_their_code_and_zero_dq(exported, tmp_path):
         line = " ".join(f"{x:.17g}" for x in (*q, *u))
         (answer, message), = replay(exported.directory, [line], dt)
         assert answer == code and message, (code, line, dt)
+        assert code != ERR_DT_PERIOD or f"dt {ctrl._values.dt_rule}" in message       # the period and the range
         result = subprocess.run([str(exe), "refuse", repr(dt)], input=line + "\n", capture_output=True, text=True)
         assert result.stdout.split() == [str(code), "1"]            # dq_out zeros
-    assert replay(exported.directory, [tick.line()], 1.0)[0][0] >= 0      # (0, 1] s: 1 s is accepted
+    assert replay(exported.directory, [tick.line()], high)[0][0] >= 0 and replay(exported.directory, [tick.line()], low)[0][0] >= 0
 
 
 def _set(x: np.ndarray, i: int, value: float) -> np.ndarray:

@@ -237,3 +237,57 @@ def test_mesh_clearance_is_measured_on_its_own(tmp_path):
         a, b = frame_pose(robot, task.frame("tip"), q)[0], frame_pose(robot, task.frame("shaft"), q)[0]
         assert all(brute.winding_number(x, channel.vertices, channel.triangles) > 0.5 for x in (a, b))
         assert traced[k] == pytest.approx(_capsule_distance(a, b, corners) - 0.001, abs=1e-6), k
+
+
+def test_mesh_metrics_are_brute_force_without_computing_it(monkeypatch):
+    """The three metrics of each mesh fixture of tasks/bone_nerve.vf, on a tool path down onto the bone and past
+    the nerve (through both), equal brute force over every triangle; computing them calls no brute-force routine
+    (they take 10 ms a tick on these meshes: a mesh task's simulation ran at 1/50 of real time)."""
+    task = vfdsl.load(TASKS_DIR / "bone_nerve.vf")
+    robot = Robot.load(task.robots[0].urdf)
+    t = np.linspace(0, 1, 40)[:, None]
+    tip = np.array([-0.030, 0.0, 0.262]) + t * np.array([0.040, 0.0, -0.018])     # into the bone, under the nerve
+    R = np.repeat(np.eye(3)[None], len(t), axis=0)
+    poses = Poses({"tip": tip, "neck": tip + [0, 0, 0.005], "shaft": tip + [0, 0, 0.040]}, {f: R for f in
+                                                                                           ("tip", "neck", "shaft")})
+    scene = Scene(task)
+    expected = {}
+    for frame, mesh, keep_off in (("neck", "bone", 0.001), ("tip", "nerve", 0.002)):
+        m = read_mesh(TASKS_DIR / "anatomy" / f"{mesh}.stl", 1e-3)
+        expected[frame] = np.array([brute.signed_clearance(a, b, 0.001, m.vertices, m.triangles, False)
+                                    for a, b in zip(poses.p[frame], poses.p["shaft"])]), keep_off
+    for frame in ("neck", "tip"):                 # clear of the bone and nerve, then inside or through them
+        assert expected[frame][0].min() <= -0.001 < 0.001 < expected[frame][0].max()
+    for name in ("signed_clearance", "segment_distances", "winding_number", "point_triangles"):
+        monkeypatch.setattr(brute, name, lambda *a, **k: pytest.fail("brute force in a metric"))
+    defs = [d for d in metric_defs(task, robot, ()) if d.constraint is not None and "mesh" in d.constraint.primitive]
+    assert len(defs) == 6
+    for d in defs:
+        clearance, margin = expected[d.constraint.frame]
+        value = errors(d, task, robot, scene, poses, np.zeros((len(t), robot.nq)), 0.01)
+        want = {"clearance": 1e3 * clearance, "contact": 100.0 * (clearance <= margin + 0.05e-3),
+                "length": 1e3 * np.maximum(0.0, margin - clearance)}[d.dimension]
+        np.testing.assert_allclose(value, want, rtol=0, atol=1e-9, err_msg=d.name)
+
+
+def test_scoring_a_mesh_task_shows_progress(monkeypatch):
+    """Scoring a trial of a mesh task reports progress as its clearances are measured (every CHUNK capsules),
+    the scoring's share of the trial's ticks in all (the loop reports the other share): the bar moves while a
+    long run is scored. Without a tracker, and with one (which measures the clearances a second time)."""
+    from vfdsl.mesh import clearance
+    from vfdsl.sim import runner
+    from vfdsl.sim.scene_file import default_scene, load_settings
+
+    monkeypatch.setattr(clearance, "CHUNK", 10)
+    file = str(TASKS_DIR / "bone_nerve.vf")
+    task = vfdsl.load(file)
+    robot = Robot.load(task.robots[0].urdf)
+    qs = task.start + np.linspace(0, 1, 100)[:, None] * np.linspace(-0.01, 0.01, robot.nq)
+    for noise, per_tick in ((0.0, 2), (2e-4, 4)):          # clearances measured per tick: 2 meshes (x 2 tracked)
+        settings = load_settings(task, default_scene(file)).replace(duration=1.0, trials=1, noise=noise)
+        [job] = runner.make_jobs(file, settings)
+        reports = []
+        runner._score(job, task, robot, qs, [(0, dict(Scene(task).values))], np.random.default_rng(0), 0, None, {},
+                      None, reports.append)
+        assert sum(reports) == pytest.approx((1 - runner.SIMULATED) * 100)
+        assert len(reports) == per_tick * 100 // 10

@@ -32,6 +32,7 @@ LENGTH = 1_000.0                 # m: a task frame's distance from its link (its
 # Work a command may be asked to do (`vfdsl simulate`, `vfdsl check`): a mistaken option or scene value
 # must not fill the memory or run for days before anything is printed.
 MIN_PERIOD = 1e-5                # s: the shortest control period (100 kHz)
+MAX_PERIOD = 1.0                 # s: the longest control period: a longer tick lets the speed bounds allow large jumps
 TRIAL_TICKS = 1_000_000          # control ticks of one trial (duration / period; 10,000 s at 10 ms)
 RUN_TICKS = 20_000_000           # control ticks of one `simulate` run, all trials and grid points
 TRIALS = 100_000                 # trials per setting

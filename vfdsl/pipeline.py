@@ -26,7 +26,7 @@ from vfdsl.ir import model as ir
 from vfdsl.kinematics.robot import Robot
 from vfdsl.runtime.controller import Controller, row_unit
 from vfdsl.runtime.native import BufferedFunction, LockedRunner, StepperRunner
-from vfdsl.runtime.values import INPUT_UNITS, JOINT_UNITS, MAX_PERIOD, PARAM_UNITS, RuntimeValues
+from vfdsl.runtime.values import INPUT_UNITS, JOINT_UNITS, PARAM_UNITS, RuntimeValues
 from vfdsl.runtime.qp import build_step_function
 
 # Phase 1's answer meets every row and bound within this much (m or rad; LEVEL_ACCEPTANCE times it on a task with
@@ -111,7 +111,7 @@ def _native_runner(values: RuntimeValues, problem: AssembledProblem, library: Bu
 
 def metadata(task: ir.Task, problem: AssembledProblem, values: RuntimeValues, digest: str) -> dict:
     """What a caller of the generated library needs to know: layouts and units, the admissible run-time values
-    (q's range, dt's bound, the meaning of each check of the params), rows and where they come from."""
+    (q's range, dt's range, the meaning of each check of the params), rows and where they come from."""
     ctx = problem.context
     admissible = values.admissible
     types = {d.name: d.type for d in task.inputs}
@@ -136,7 +136,9 @@ def metadata(task: ir.Task, problem: AssembledProblem, values: RuntimeValues, di
         "param_checks": {"count": len(admissible.margins), "strict": admissible.strict.tolist(),
                          "meaning": admissible.margins.meanings},
         "period": task.scene.period,
-        "max_period": MAX_PERIOD,
+        "min_period": values.dt_min,
+        "max_period": values.dt_max,
+        "dt_rule": values.dt_rule,
         "feasibility_tolerance": FEASIBILITY_TOLERANCE,
         "rows": [{"label": str(label), "primitive": label.primitive, "frame": label.frame,
                   "file": label.span.file, "line": label.span.line, "group": group, "soft": label.soft,

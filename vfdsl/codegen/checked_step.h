@@ -9,7 +9,8 @@
  *
  *   q       every entry finite and within [q_lower_i, q_upper_i] (the joint limits widened by the
  *           joint's span on each side: further out is a unit mistake or a faulty encoder);
- *   dt      0 < dt <= dt_max (false for NaN);
+ *   dt      positive and finite (else VFDSL_DT_NOT_POSITIVE), and within [dt_min, dt_max], the task's range around
+ *           its period computed at compile time (vfdsl.runtime.values.dt_range; else VFDSL_DT_FAR: a unit slip);
  *   params  the task's column of checks, evaluated by the generated <prefix>_admissible: check i holds
  *           iff margin i is finite and >= 0 (> 0 where strict[i]);
  *   inputs  finite (any finite size: beyond the speed bounds they saturate).
@@ -43,7 +44,7 @@ typedef struct {
   long size[VFDSL_N_BUFFERS];
   const double* q_lower;           /* nq admissible bounds each */
   const double* q_upper;
-  double dt_max;
+  double dt_min, dt_max;            /* the admissible dt, s */
   const unsigned char* strict;     /* n_margins flags: 1 where a margin must be > 0 */
   long n_margins;
   double* margins;                 /* the column of the last evaluated params */
@@ -106,9 +107,12 @@ static long vfdsl_q_outside(const vfdsl_core* c, const double* q) {
   return -1;
 }
 
-/* 1 when 0 < dt <= dt_max (0 for NaN). */
-static int vfdsl_dt_admissible(const vfdsl_core* c, double dt) {
-  return dt > 0 && dt <= c->dt_max;
+enum { VFDSL_DT_OK = 0, VFDSL_DT_NOT_POSITIVE = 1, VFDSL_DT_FAR = 2 };
+
+/* VFDSL_DT_OK when dt_min <= dt <= dt_max; VFDSL_DT_NOT_POSITIVE for NaN, inf and dt <= 0; else VFDSL_DT_FAR. */
+static int vfdsl_dt_check(const vfdsl_core* c, double dt) {
+  if (!(dt > 0 && isfinite(dt))) return VFDSL_DT_NOT_POSITIVE;
+  return dt >= c->dt_min && dt <= c->dt_max ? VFDSL_DT_OK : VFDSL_DT_FAR;
 }
 
 /* The index of the first check of the params p that fails, or -1 (evaluates the column into margins). */

@@ -16,7 +16,7 @@
  * dict of exact str keys holding exactly the declared names with such values, params None or an exact dict of
  * run-time param names with such values (a run-time curve only as an N x 3 float64 array, a scalar also as a
  * number), dt None or such a number -- with every number finite, q inside its admissible range,
- * dt inside (0, dt_max] and every check of the params holding (checked_step.h). For anything else
+ * dt inside the task's [dt_min, dt_max] and every check of the params holding (checked_step.h). For anything else
  * it evaluates nothing and hands the call to ``Stepper.checked`` (checked(stepper, q, inputs, params, dt), set by
  * vfdsl.runtime.native: the detailed checks in Python, which explain what is wrong, from the same column, or convert
  * the values and call Stepper.run), or returns NotImplemented when that is None. So this file never decides that a
@@ -165,7 +165,7 @@ static int plain_params(Stepper* s, PyObject* params) {
 static int plain_dt(Stepper* s, PyObject* dt, double* out) {
   if (dt == Py_None || dt == NULL) *out = s->dt_default;
   else if (!plain_number(dt, out)) return 0;
-  return vfdsl_dt_admissible(&s->core, *out);   /* false for NAN (no default period) */
+  return vfdsl_dt_check(&s->core, *out) == VFDSL_DT_OK;   /* not for NAN (no default period) */
 }
 
 static PyObject* step_keywords[4];   /* "q", "inputs", "params", "dt" (interned): step's parameters in order */
@@ -338,7 +338,7 @@ inconsistent:
   return -1;
 }
 
-/* Stepper(arrays, p_default, input names, offsets, sizes, q_range, dt_default, dt_max,
+/* Stepper(arrays, p_default, input names, offsets, sizes, q_range, dt_default, dt_min, dt_max,
  *         param names, offsets, sizes, points, strict) */
 static int Stepper_init(Stepper* s, PyObject* args, PyObject* kwds) {
   PyObject *arrays, *names, *offsets, *sizes, *param_names, *param_offsets, *param_sizes, *points;
@@ -349,9 +349,9 @@ static int Stepper_init(Stepper* s, PyObject* args, PyObject* kwds) {
     return -1;
   }
   s->init_called = 1;
-  if (!PyArg_ParseTuple(args, "O!O!O!O!O!O!ddO!O!O!O!O!", &PyTuple_Type, &arrays, &PyArray_Type, &s->p_default,
-                        &PyTuple_Type, &names, &PyTuple_Type, &offsets, &PyTuple_Type, &sizes,
-                        &PyArray_Type, &s->q_range, &s->dt_default, &s->core.dt_max, &PyTuple_Type, &param_names,
+  if (!PyArg_ParseTuple(args, "O!O!O!O!O!O!dddO!O!O!O!O!", &PyTuple_Type, &arrays, &PyArray_Type, &s->p_default,
+                        &PyTuple_Type, &names, &PyTuple_Type, &offsets, &PyTuple_Type, &sizes, &PyArray_Type,
+                        &s->q_range, &s->dt_default, &s->core.dt_min, &s->core.dt_max, &PyTuple_Type, &param_names,
                         &PyTuple_Type, &param_offsets, &PyTuple_Type, &param_sizes, &PyTuple_Type, &points,
                         &PyArray_Type, &s->strict))
     return -1;

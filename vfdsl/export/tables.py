@@ -49,7 +49,9 @@ def task_tables(meta: dict) -> str:
              "NCHECKS": meta["param_checks"]["count"], "NINPUTS": len(inputs), "NPARAMS": len(params)}
     out = [f"#define {name} {value}\n" for name, value in sizes.items()]
     out += [f"#define DEFAULT_PERIOD {c_number(meta['period'] or 0.0)}\n",
+            f"#define MIN_PERIOD {c_number(meta['min_period'])}\n",
             f"#define MAX_PERIOD {c_number(meta['max_period'])}\n",
+            f"#define DT_RULE {c_string(meta['dt_rule'])}\n",
             f"#define FEASIBILITY_TOLERANCE {c_number(meta['feasibility_tolerance'])}\n\n"]
     out += [_array("char* const", "joint_names", [c_string(n) for n in meta["joints"]]),
             _array("char* const", "joint_units", [c_string(u) for u in meta["joint_units"]]),

@@ -113,7 +113,7 @@ def _values(meta: dict, api: str, tick: str, daqp_sources: list[str], daqp_versi
     return {
         "API": api, "TICK": tick, "TASK": meta["task"], "TASK_ID": api[3:], "GUARD": api.upper() + "_H",
         "SOURCE": meta["file"], "VERSION": vfdsl.__version__, "MAX": str(meta["max_slots"]),
-        "MAX_PERIOD": f"{meta['max_period']:g}", "TABLES": task_tables(meta),
+        "MIN_PERIOD": f"{meta['min_period']:g}", "MAX_PERIOD": f"{meta['max_period']:g}", "TABLES": task_tables(meta),
         "NQ": str(meta["variables"]["dq"]), "NU": str(sum(i["size"] for i in inputs)),
         "NP": str(len(meta["default_params"])),
         "N": str(meta["outputs"][0]["shape"][0]),     # the QP's variables (dq and slacks): lexls.c is compiled for them

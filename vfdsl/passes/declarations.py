@@ -314,6 +314,10 @@ class Declarations:
                 raise limits.exceeded(f"a period of {period:g} s is too short", limits.MIN_PERIOD,
                                       scene.period.span.pos(), hint="the shortest control period is 10 us (100 kHz)",
                                       unit="s")
+            if period > limits.MAX_PERIOD:
+                raise limits.exceeded(f"a period of {period:g} s is too long", limits.MAX_PERIOD,
+                                      scene.period.span.pos(), hint="the longest control period is 1 s: a longer tick "
+                                      "lets the joints' speed bounds allow large jumps", unit="s")
         start = None
         if scene.start is not None:
             start = self._start(scene.start, scene.start_span, reader, robot)

@@ -23,7 +23,7 @@ from vfdsl.runtime.levels import PriorityLevel, priority_levels
 from vfdsl.runtime.native import checked_step
 from vfdsl.runtime.qp import StepStatus
 from vfdsl.runtime.tracking import Tracking, readout, tracked_terms
-from vfdsl.runtime.values import RuntimeValues
+from vfdsl.runtime.values import ASSUMED_PERIOD, RuntimeValues
 
 _UNITS = {"length": "m", "angle": "rad"}
 
@@ -101,7 +101,9 @@ class Controller:
     # -------------------------------------------------------------------------------------- API
     def step(self, q, inputs=None, params=None, dt=None) -> np.ndarray:
         """The joint increment dq for this tick (SI), from the joint coordinates q, every declared input,
-        optionally params that replace their defaults for this tick, and dt (default: the scene's period).
+        optionally params that replace their defaults for this tick, and dt (default: the scene's period; within
+        [period / 100, 10 x period], :func:`~vfdsl.runtime.values.dt_range`: further is a unit slip). Each argument
+        may be given by position or by keyword.
 
         Bad arguments (wrong type or shape, NaN or inf, unknown names, values out of their range) raise
         VfError before anything is evaluated. When the hard rows cannot all hold, dq solves the
@@ -185,7 +187,7 @@ class Controller:
         start = self.task.start if self.task.start is not None else np.zeros(self.nq)
         u = np.zeros(sum(self.input_sizes.values()))
         for recover in (1.0, 0.0):
-            self._runner.run(np.asarray(start, dtype=float), u, None, self.default_dt or 0.01, recover)
+            self._runner.run(np.asarray(start, dtype=float), u, None, self.default_dt or ASSUMED_PERIOD, recover)
 
     @cached_property
     def _frames_function(self) -> ca.Function:

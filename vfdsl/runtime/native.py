@@ -33,7 +33,7 @@ import casadi as ca
 import numpy as np
 
 from vfdsl.errors import VfError
-from vfdsl.runtime.values import MAX_PERIOD, RuntimeValues
+from vfdsl.runtime.values import RuntimeValues
 
 
 def checked_step(values: RuntimeValues, runner, q, inputs=None, params=None, dt=None) -> np.ndarray:
@@ -165,7 +165,7 @@ class StepperRunner:
                                           tuple(values.input_offsets[k][1] for k in names),
                                           np.concatenate([values.q_min, values.q_max]).astype(float),
                                           float("nan") if dt_default is None else float(dt_default),
-                                          float(MAX_PERIOD), tuple(slot.name for slot in slots),
+                                          values.dt_min, values.dt_max, tuple(slot.name for slot in slots),
                                           tuple(slot.offset for slot in slots), tuple(slot.size for slot in slots),
                                           tuple(slot.type == "curve" for slot in slots), values.admissible.strict)
         except RuntimeError as e:

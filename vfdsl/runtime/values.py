@@ -10,7 +10,8 @@ argument (``q``, ``input 'tau'``, ``param 'axis'``, ``dt``). Everything is SI.
 - params: read here (types, shapes, finiteness), then checked by the task's column of margins
   (:mod:`vfdsl.compiler.admissible`: zero directions, implausible points, lengths and angles, scalar
   ranges, run-time curves, degenerate derived values), the same checks as at load time and in the generated C;
-- dt: in (0, MAX_PERIOD].
+- dt: a positive number of seconds within the task's range around its period (:func:`dt_range`): a dt far from
+  it is a unit slip (milliseconds given as seconds), not a late tick.
 """
 
 from __future__ import annotations
@@ -26,9 +27,17 @@ from vfdsl.compiler.admissible import Admissible
 from vfdsl.compiler.context import flatten
 from vfdsl.errors import VfError, show_vector, suggest
 from vfdsl.ir import model as ir
+from vfdsl.limits import MAX_PERIOD, MIN_PERIOD
 
-MAX_PERIOD = 1.0
-"""Longest control period accepted (s): a longer tick lets the speed bounds allow large jumps."""
+DT_LONGER = 10
+"""A dt may be up to this many times the task's period: the speed bounds scale with dt, so a dt K times the loop's
+real period lets the joints reach K times their speed limits in that tick; 10 passes jitter and a late tick."""
+DT_SHORTER = 100
+"""A dt may be down to the period over this: a shorter dt only slows the motion (the speed bounds shrink with it, the
+fixtures' rows do not depend on it), so the floor catches unit slips (x1000) and leaves room to run a task at a faster
+loop (paper A's 40 ms scene simulated at 1 ms)."""
+ASSUMED_PERIOD = 0.01
+"""s: the period a task without a scene period is checked against (the one `check` and `simulate` assume)."""
 _FIELDS = {"line": ("point", "direction"), "plane": ("point", "normal"), "pose": ("translation", "rpy")}
 JOINT_UNITS = {"revolute": "rad", "continuous": "rad", "prismatic": "m"}
 INPUT_UNITS = {"force": "N", "torque": "N m", "wrench": "N (0-2), N m (3-5)", "twist": "m/s (0-2), rad/s (3-5)"}
@@ -37,6 +46,14 @@ PARAM_UNITS = {"point": "m", "vector": "m", "direction": "1 (normalized)", "line
                "length": "m", "angle": "rad", "speed": "m/s", "angular_speed": "rad/s", "number": "1", "time": "s",
                "force": "N"}
 """SI units of run-time values, by joint type, input type and param type (what a C caller passes)."""
+
+
+def dt_range(period: float | None) -> tuple[float, float]:
+    """The dt a task of scene period P accepts (s): [max(P / DT_SHORTER, MIN_PERIOD), min(P * DT_LONGER, MAX_PERIOD)],
+    P = ASSUMED_PERIOD when the scene gives none. A scene period lies within [MIN_PERIOD, MAX_PERIOD] (checked at load),
+    so its range holds it."""
+    p = ASSUMED_PERIOD if period is None else period
+    return max(p / DT_SHORTER, MIN_PERIOD), min(p * DT_LONGER, MAX_PERIOD)
 
 
 def real_vector(value, size: int, what: str) -> np.ndarray:
@@ -134,6 +151,7 @@ class RuntimeValues:
         self.lower, self.upper = lower, upper
         self.q_min, self.q_max = lower - span, upper + span
         self.default_period = task.scene.period
+        self.dt_min, self.dt_max = dt_range(self.default_period)
 
     # ------------------------------------------------------------------------------------------ q
     def q(self, value) -> np.ndarray:
@@ -242,9 +260,26 @@ class RuntimeValues:
                 raise VfError("no control period: pass dt, or set `period` in the task's scene")
             return self.default_period
         dt = real_scalar(value, "dt (the control period, s)")
-        if not 0 < dt <= MAX_PERIOD:
-            raise VfError(f"dt must be a positive number of seconds, at most {MAX_PERIOD:g}, got {dt:.6g}")
+        if not (dt > 0 and math.isfinite(dt)):
+            raise VfError(f"dt must be a positive number of seconds, got {dt:.6g}",
+                          hint="dt is the control period in seconds, e.g. 0.001 for a 1 kHz loop")
+        if not self.dt_min <= dt <= self.dt_max:
+            raise VfError(f"dt = {dt:.6g} s {self.dt_rule}",
+                          hint="dt is in seconds (1 ms is 0.001): pass the loop's period; if the loop really runs at "
+                               "that period, give it as the `period` of the task's scene")
         return dt
+
+    @property
+    def dt_rule(self) -> str:
+        """What a dt outside [dt_min, dt_max] is told (also the C library's message, after "dt")."""
+        period = (f"{_time(self.default_period)}, its scene's `period`" if self.default_period is not None
+                  else f"none in its scene: {_time(ASSUMED_PERIOD)} assumed")
+        return (f"is far from the task's period ({period}): it must be within "
+                f"[{_time(self.dt_min)}, {_time(self.dt_max)}]")
+
+
+def _time(seconds: float) -> str:
+    return f"{seconds:g} s" if seconds >= 1 else f"{seconds * 1e3:g} ms"
 
 
 def _ir_kind(kind: str) -> str:

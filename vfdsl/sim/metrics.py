@@ -17,7 +17,7 @@ The error of a constraint is how far the frame is from the set the constraint de
     cone              | angle(l, axis) - angle |           deg
     tilt_at_most      max(0, angle(l, axis) - angle)       deg
     outside_mesh,     max(0, margin - clearance), the clearance of the capsule from the frame to its shaft frame
-    inside_mesh       (less its radius) by brute force over the triangles (vfdsl.mesh.brute)   mm
+    inside_mesh       (less its radius), by coal's BVH distance and pseudo-normals (vfdsl.mesh.clearance)   mm
                       and, as a second metric <...>_contact_pct, the share of ticks the tool is on its margin
                       (clearance <= margin + CONTACT_BAND): the time in contact   %
                       and, as a third, <...>_clearance_mm: the clearance itself (negative through the surface),
@@ -42,12 +42,13 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import Callable
 
 import numpy as np
 
 from vfdsl.ir import model as ir
 from vfdsl.kinematics.robot import Robot
-from vfdsl.mesh import brute
+from vfdsl.mesh.clearance import mesh_clearance
 from vfdsl.mesh.load import read_mesh
 from vfdsl.sim.geometry import Curve, Scene, pose_matrix
 from vfdsl.sim.robot import LinkPose, frame_offset
@@ -71,11 +72,13 @@ JOINT_PRIMITIVES = ("joint_limits", "joint_speed")
 @dataclass
 class Poses:
     """Frame poses over a run: origin p (N x 3) and rotation R (N x 3 x 3) of each task frame; ``clearances``
-    keeps each mesh fixture's clearance at these poses, which three metrics read."""
+    keeps each mesh fixture's clearance at these poses, which three metrics read; ``progress(n)``, when given, is
+    called as the clearances of n more samples are measured (the slow part of scoring a run)."""
 
     p: dict[str, np.ndarray]
     R: dict[str, np.ndarray]
     clearances: dict = field(default_factory=dict, repr=False)
+    progress: Callable[[int], None] | None = field(default=None, repr=False)
 
     def axis(self, frame: ir.FrameDecl) -> np.ndarray:
         return self.R[frame.name] @ np.asarray(frame.tool_axis)
@@ -191,10 +194,17 @@ def _clearance(c: ir.Constraint, scene: Scene, poses: Poses) -> np.ndarray:
     mesh = read_mesh(value.file, value.unit)
     a = np.atleast_2d(scene.local(c.args["mesh"], poses.p[c.frame]))
     b = np.atleast_2d(scene.local(c.args["mesh"], poses.p[c.args["shaft"].name]))
-    radius = scene.scalar(c.args["radius"])
-    keep_in = c.primitive == "inside_mesh"
-    return np.array([brute.signed_clearance(x, y, radius, mesh.vertices, mesh.triangles, keep_in)
-                     for x, y in zip(a, b)])
+    return mesh_clearance(mesh)(a, b, scene.scalar(c.args["radius"]), c.primitive == "inside_mesh", poses.progress)
+
+
+def prepare_meshes(task: ir.Task) -> None:
+    """Build the clearance query (BVH and pseudo-normals) of every mesh a metric of ``task`` reads, once per process
+    and before the trials (like the controller), so that a run's wall time is its trials'."""
+    scene = Scene(task)
+    for c in task.constraints:
+        if c.primitive in MESH_PRIMITIVES:
+            value = scene.value(c.args["mesh"])
+            mesh_clearance(read_mesh(value.file, value.unit))
 
 
 def _frame_error(c: ir.Constraint, task: ir.Task, scene: Scene, poses: Poses, period: float) -> np.ndarray:

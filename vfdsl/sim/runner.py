@@ -37,11 +37,14 @@ from vfdsl.sim import tracker
 from vfdsl.sim.cluster import connect
 from vfdsl.sim.geometry import Scene
 from vfdsl.sim.hand import Hand, generic_hand
-from vfdsl.sim.metrics import Stats, errors, frame_poses, metric_defs
+from vfdsl.sim.metrics import Stats, errors, frame_poses, metric_defs, prepare_meshes
 from vfdsl.sim.robot import SimRobot
 from vfdsl.sim.settings import SimSettings, hand_dimension, tracked_frame
 
 PROGRESS_EVERY = 500                 # ticks between progress updates of an in-process trial
+SIMULATED = 0.5
+"""An in-process trial reports each tick as this much done when simulated, and the rest when scored (its mesh
+clearances as they are measured): a long run's progress moves while its metrics are computed too."""
 CHUNKS_PER_WORKER = 4
 PARALLEL_TICKS = 50_000              # runs of at least this many ticks in all use every core by default
 
@@ -91,7 +94,7 @@ _cache_lock = threading.Lock()
 
 
 def loaded(task_file: str, backend: str = "auto") -> _Loaded:
-    """The task, its controller and robot models, built once per process.
+    """The task, its controller and robot models, and its mesh metrics' queries, built once per process.
 
     One per thread (a Dask worker may run several threads): each controller owns its solver memory, so the
     threads' trials run in parallel and give what they give alone."""
@@ -103,6 +106,7 @@ def loaded(task_file: str, backend: str = "auto") -> _Loaded:
                 raise VfError(f"task '{task.name}': the simulator runs tasks with one robot, this one has "
                               f"{len(task.robots)}")
             controller = vfdsl.compile(task, backend=backend)
+            prepare_meshes(task)
             _cache[key] = _Loaded(task, controller, Robot.load(task.robots[0].urdf, Path(task.file).parent),
                                   threading.Lock())
         return _cache[key]
@@ -172,10 +176,11 @@ def _simulate(job: Job, task: ir.Task, ctrl: vfdsl.Controller, robot: Robot, pro
         sim.command(t, dq)
         sim.advance(t, t + dt)
         if progress is not None and (k + 1) % PROGRESS_EVERY == 0:
-            progress(PROGRESS_EVERY)
+            progress(SIMULATED * PROGRESS_EVERY)
     if progress is not None:
-        progress(ticks % PROGRESS_EVERY)
-    result = _score(job, task, robot, qs, segments, tracker_rng, fallback, hand_settings, moving.tables, record)
+        progress(SIMULATED * (ticks % PROGRESS_EVERY))
+    result = _score(job, task, robot, qs, segments, tracker_rng, fallback, hand_settings, moving.tables, record,
+                    progress)
     if result.motion is not None:
         result.motion["commanded"] = commanded_fraction(ctrl, qs, us, dt)
     return result
@@ -289,11 +294,17 @@ class Moving:
 
 
 def _score(job: Job, task: ir.Task, robot: Robot, qs: np.ndarray, segments, rng, fallback: int,
-           hand_settings, shifts: dict[str, np.ndarray], record: _Recorder | None = None) -> TrialResult:
+           hand_settings, shifts: dict[str, np.ndarray], record: _Recorder | None = None,
+           progress=None) -> TrialResult:
     s = job.settings
     poses = frame_poses(robot, task, qs)
     seen = tracker.measure(poses, task, s.noise, s.marker_distance, rng) if s.noise > 0 else None
     defs = metric_defs(task, robot, s.metrics)
+    meshes = sum(d.dimension == "clearance" for d in defs) * (1 if seen is None else 2)     # clearances per tick
+    if progress is not None and meshes:
+        for measured in (poses, seen):
+            if measured is not None:
+                measured.progress = lambda n: progress((1 - SIMULATED) * n / meshes)
     values: dict[str, list[np.ndarray]] = {}
     units: dict[str, str] = {}
     bounds = [k for k, _ in segments] + [len(qs)]
@@ -301,13 +312,13 @@ def _score(job: Job, task: ir.Task, robot: Robot, qs: np.ndarray, segments, rng,
         part = slice(start, end)
         scene = Scene(task).with_values(snapshot, {name: table[part] for name, table in shifts.items()})
         view = _slice(poses, part)
+        seen_view = _slice(seen, part) if seen is not None else None     # one per segment: its clearances kept
         for d in defs:
             values.setdefault(d.name, []).append(errors(d, task, robot, scene, view, qs[part], s.period))
             units[d.name] = d.unit
-            if seen is not None and d.pose_based:
+            if seen_view is not None and d.pose_based:
                 name = f"tracker_{d.name}"
-                values.setdefault(name, []).append(errors(d, task, robot, scene, _slice(seen, part), qs[part],
-                                                          s.period))
+                values.setdefault(name, []).append(errors(d, task, robot, scene, seen_view, qs[part], s.period))
                 units[name] = d.unit
     series_values = {name: np.concatenate(v) for name, v in values.items()}
     trace = None
@@ -320,6 +331,8 @@ def _score(job: Job, task: ir.Task, robot: Robot, qs: np.ndarray, segments, rng,
                                       else name, units[name])
             trace[column] = tr.per_tick(parts, lengths) * tr.metric_factor(units[name])
     stats = {name: Stats().add(v) for name, v in series_values.items()}
+    if progress is not None and not meshes:
+        progress((1 - SIMULATED) * len(qs))
     series = None
     if job.keep_series:
         series = {"t": np.arange(len(qs)) * s.period, "metrics": series_values, "p": poses.p, "shifts": shifts,
@@ -347,7 +360,8 @@ def achieved_motion(p: np.ndarray, axis: np.ndarray) -> dict:
 
 
 def _slice(poses, part: slice):
-    return type(poses)({k: v[part] for k, v in poses.p.items()}, {k: v[part] for k, v in poses.R.items()})
+    return type(poses)({k: v[part] for k, v in poses.p.items()}, {k: v[part] for k, v in poses.R.items()},
+                       progress=poses.progress)
 
 
 def make_jobs(task_file: str, settings: SimSettings, grid: list[tuple[str, list]] | None = None,

@@ -58,6 +58,7 @@ VF_EXPORT @API@* @API@_new(void) {
   }
   c->core.q_lower = q_lower;
   c->core.q_upper = q_upper;
+  c->core.dt_min = MIN_PERIOD;
   c->core.dt_max = MAX_PERIOD;
   c->core.strict = strict;
   c->core.n_margins = NCHECKS;
@@ -90,7 +91,10 @@ static int tick(@API@* c, const double* q, const double* inputs, double dt) {
   if (i >= 0) return refuse(c, VF_ERR_Q_RANGE, i, -1);
   i = vfdsl_first_nonfinite(inputs, NU);
   if (i >= 0) return refuse(c, VF_ERR_INPUT, i, -1);
-  if (!vfdsl_dt_admissible(&c->core, dt)) return refuse(c, VF_ERR_DT, -1, -1);
+  switch (vfdsl_dt_check(&c->core, dt)) {
+    case VFDSL_DT_NOT_POSITIVE: return refuse(c, VF_ERR_DT, -1, -1);
+    case VFDSL_DT_FAR: return refuse(c, VF_ERR_DT_PERIOD, -1, -1);
+  }
   memcpy(c->q, q, sizeof(double) * NQ);
   memcpy(c->u, inputs, sizeof(double) * NU);
   if (vfdsl_core_eval(&c->core, dt, 0.0)) return refuse(c, VF_ERR_SOLVER, -1, -1);
@@ -182,7 +186,8 @@ VF_EXPORT const char* @API@_error_message(int code) {
     case VF_ERR_Q_RANGE: return "q is far outside its joint's limits: check the unit (radians, metres), the joint "
                                 "order, or the encoder";
     case VF_ERR_INPUT: return "an input contains NaN or inf";
-    case VF_ERR_DT: return "dt must be a positive number of seconds, at most the max period";
+    case VF_ERR_DT: return "dt must be a positive number of seconds";
+    case VF_ERR_DT_PERIOD: return "dt " DT_RULE " (dt is in seconds: 1 ms is 0.001)";
     case VF_ERR_PARAM_INDEX: return "no run-time param has this index";
     case VF_ERR_PARAM: return "a param value is NaN or inf, or fails a check (see _error_check, _check_meaning)";
     case VF_ERR_BUSY: return "another thread is inside a call on this controller: nothing was done";
@@ -195,6 +200,7 @@ VF_EXPORT int @API@_num_joints(void) { return NQ; }
 VF_EXPORT const char* @API@_joint_name(int i) { return i >= 0 && i < NQ ? joint_names[i] : 0; }
 VF_EXPORT const char* @API@_joint_unit(int i) { return i >= 0 && i < NQ ? joint_units[i] : 0; }
 VF_EXPORT double @API@_default_period(void) { return DEFAULT_PERIOD; }
+VF_EXPORT double @API@_min_period(void) { return MIN_PERIOD; }
 VF_EXPORT double @API@_max_period(void) { return MAX_PERIOD; }
 VF_EXPORT const double* @API@_start(void) { return start; }
 VF_EXPORT int @API@_input_length(void) { return NU; }

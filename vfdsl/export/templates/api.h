@@ -14,7 +14,8 @@
  * @API@_step returns the status bits of the tick (>= 0: VF_OPTIMAL, or VF_LEAST_VIOLATION,
  * VF_BOUNDS_CLIPPED, VF_FALLBACK set) or a negative VF_ERR_* code naming the argument it refuses; it
  * checks before anything moves what Python's Controller.step() checks: every number finite, each q_i
- * within its joint's limits widened by the joint's span on each side, 0 < dt <= @MAX_PERIOD@ s.
+ * within its joint's limits widened by the joint's span on each side, dt within [@MIN_PERIOD@, @MAX_PERIOD@] s (the
+ * task's range around its period: further is a unit slip, VF_ERR_DT_PERIOD).
  * @API@_set_param checks the params with the task's column of checks (zero and derived directions,
  * implausible points, lengths and angles, scalar ranges, run-time curve chords), the same code as
  * Python's, and keeps the previous values when it refuses them.
@@ -42,11 +43,12 @@ extern "C" {
 #define VF_ERR_Q_NONFINITE (-2)  /* q holds NaN or inf */
 #define VF_ERR_Q_RANGE (-3)      /* q is far outside its joint limits (a unit mistake, a faulty encoder) */
 #define VF_ERR_INPUT (-4)        /* inputs hold NaN or inf */
-#define VF_ERR_DT (-5)           /* dt is not in (0, max period] s */
+#define VF_ERR_DT (-5)           /* dt is NaN, inf or <= 0 */
 #define VF_ERR_PARAM_INDEX (-6)  /* no run-time param has this index */
 #define VF_ERR_PARAM (-7)        /* a param value is NaN or inf, or fails a check */
 #define VF_ERR_BUSY (-8)         /* another thread is inside a call on this controller */
 #define VF_ERR_SOLVER (-9)       /* the generated step failed (should not happen; report it) */
+#define VF_ERR_DT_PERIOD (-10)   /* dt is far from the task's period (a unit slip): outside [_min_period, _max_period] */
 #endif
 
 typedef struct @API@ @API@;     /* one controller: opaque */
@@ -89,6 +91,7 @@ int @API@_num_joints(void);
 const char* @API@_joint_name(int i);
 const char* @API@_joint_unit(int i);
 double @API@_default_period(void);   /* the scene's period in s, or 0 when the task has none */
+double @API@_min_period(void);      /* the shortest dt accepted, s */
 double @API@_max_period(void);      /* the longest dt accepted, s */
 const double* @API@_start(void);     /* the scene's start configuration (zeros when none): q of the priming */
 int @API@_input_length(void);
