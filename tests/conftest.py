@@ -41,6 +41,20 @@ def private_cache(tmp_path_factory) -> Path:
         os.environ["VFDSL_CACHE"] = previous
 
 
+@pytest.fixture(scope="session")
+def solver_ready(private_cache) -> None:
+    """DAQP's C sources fetched and its library built in the session's cache, once, here: on a fresh machine the
+    first controller waits for them (tens of seconds), which must not count against a subprocess's timeout.
+    Without a compiler or the sources the commands run interpreted, as the tests then expect."""
+    from vfdsl.codegen import build
+    from vfdsl.errors import VfError
+
+    try:
+        build.daqp_library(build.find_compiler())
+    except VfError:
+        pass
+
+
 PORT_START = {"panda7": (TASKS_DIR / "lecture_remote_center.vf", "[0, -45, 0, -135, 0, 90, 45]"),
               "shr7": (TASKS_DIR / "paper_b_virtual_rcm.vf",
                        "{x: 0, y: -4.432266, z: -1.035904, rcm_a: 26.309932, rcm_b: 0, roll: 0, insert: 10}")}

@@ -255,11 +255,13 @@ def test_infeasible_start_names_an_irreducible_subset(tmp_path):
 # ------------------------------------------------------------------------------------------ the command
 
 def vfdsl_cli(*args: str) -> subprocess.CompletedProcess:
+    """The command in a subprocess; a test whose command compiles a controller takes ``solver_ready``, so that the
+    timeout never includes fetching and building DAQP (the first controller of a fresh machine)."""
     return subprocess.run([sys.executable, "-P", "-m", "vfdsl.cli", *args], capture_output=True, text=True,
                           check=False, timeout=120)
 
 
-def test_cli_exit_codes_and_json(tmp_path):
+def test_cli_exit_codes_and_json(tmp_path, solver_ready):
     probe(tmp_path, PROBE.replace("resolution 12x12", "resolution 4x4"))
     proc = vfdsl_cli("check", str(tmp_path / "probe.vf"))
     assert proc.returncode == 0, proc.stdout + proc.stderr
@@ -284,7 +286,7 @@ def test_cli_usage_and_front_end_errors_exit_2(tmp_path):
     assert proc.returncode == 2 and "scene file not found" in proc.stderr
 
 
-def test_cli_scene_option_replaces_the_scene(tmp_path):
+def test_cli_scene_option_replaces_the_scene(tmp_path, solver_ready):
     probe(tmp_path)
     (tmp_path / "far.yaml").write_text(SCENE.replace("insert: 10", "insert: 20"))     # tip 10 mm below target
     proc = vfdsl_cli("check", str(tmp_path / "probe.vf"), "--scene", str(tmp_path / "far.yaml"), "--json")
