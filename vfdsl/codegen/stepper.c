@@ -11,13 +11,13 @@
  * different threads run in parallel (the GIL is released during the solve).
  *
  * Stepper.step(q, inputs=None, params=None, dt=None) is Controller.step on the generated path (the Controller
- * makes it its own step: no Python call in between, ~0.1 us a tick). Its fast path accepts only the plainest arguments,
- * given by position or by keyword -- q a list/tuple of exact Python floats/ints (or NumPy float64 scalars) or a 1-D float64 array, inputs an exact
- * dict of exact str keys holding exactly the declared names with such values, params None or an exact dict of
- * run-time param names with such values (a run-time curve only as an N x 3 float64 array, a scalar also as a
- * number), dt None or such a number -- with every number finite, q inside its admissible range,
- * dt inside the task's [dt_min, dt_max] and every check of the params holding (checked_step.h). For anything else
- * it evaluates nothing and hands the call to ``Stepper.checked`` (checked(stepper, q, inputs, params, dt), set by
+ * makes it its own step: no Python call in between, ~0.1 us a tick). Its fast path accepts only the plainest
+ * arguments, given by position or by keyword -- q a list/tuple of exact Python floats/ints (or NumPy float64 scalars)
+ * or a 1-D float64 array, inputs an exact dict of exact str keys holding exactly the declared names with such values,
+ * params None or an exact dict of run-time param names with such values (a run-time curve only as an N x 3 float64
+ * array, a scalar also as a number), dt None or such a number -- with every number finite, q inside its admissible
+ * range, dt inside the task's [dt_min, dt_max] and every check of the params holding (checked_step.h). For anything
+ * else it evaluates nothing and hands the call to ``Stepper.checked`` (checked(stepper, q, inputs, params, dt), set by
  * vfdsl.runtime.native: the detailed checks in Python, which explain what is wrong, from the same column, or convert
  * the values and call Stepper.run), or returns NotImplemented when that is None. So this file never decides that a
  * value is wrong: it only recognises values that are certainly right. Nothing on the fast path allocates memory
@@ -441,8 +441,8 @@ static PyMethodDef Stepper_methods[] = {
   {"step", (PyCFunction) (void (*)(void)) Stepper_step, METH_FASTCALL | METH_KEYWORDS,
    "step(q, inputs=None, params=None, dt=None) -> dq: the joint increment for this tick (SI), as "
    "vfdsl.runtime.controller.Controller.step documents. Plain values (lists, tuples or float64 arrays of finite "
-   "numbers, exact dicts), by position or keyword, are checked here; anything else goes to the detailed checks of ``checked`` (which "
-   "explain what is wrong), or gives NotImplemented when ``checked`` is None."},
+   "numbers, exact dicts), by position or keyword, are checked here; anything else goes to the detailed checks of "
+   "``checked`` (which explain what is wrong), or gives NotImplemented when ``checked`` is None."},
   {"margins", (PyCFunction) Stepper_margins, METH_O,
    "margins(p) -> the column of checks of the params p (contiguous float64), from the generated C"},
   {"run", (PyCFunction) Stepper_run, METH_VARARGS,
@@ -485,7 +485,8 @@ PyMODINIT_FUNC VFDSL_CAT(PyInit_, VFDSL_MODULE)(void) {
   PyObject* m;
   int i;
   import_array();
-  for (i=0; i<4; ++i) if (!step_keywords[i] && !(step_keywords[i] = PyUnicode_InternFromString(keywords[i]))) return NULL;
+  for (i=0; i<4; ++i)
+    if (!step_keywords[i] && !(step_keywords[i] = PyUnicode_InternFromString(keywords[i]))) return NULL;
   if (PyType_Ready(&StepperType) < 0) return NULL;
   m = PyModule_Create(&module);
   if (!m) return NULL;
