@@ -28,6 +28,10 @@ CURVE_SAMPLES = 2_048            # closest-point samples of one curve (about 2 m
 YAML_NODES = 100_000             # nodes of a scene after alias expansion
 YAML_DEPTH = 16                  # nesting of lists and mappings in a scene
 LENGTH = 1_000.0                 # m: a task frame's distance from its link (its offset, composed)
+MESH_TRIANGLES = 100_000         # triangles of one mesh: its query's tables are C arrays, compiled with each task
+                                 # (3 min at this size on a loaded 2-core machine, 6 min at 200,000; docs/language.md)
+MESH_FILE_BYTES = 500 * MESH_TRIANGLES   # bytes of one mesh file, refused unparsed: above, it holds more triangles
+                                 # in any format (an ASCII STL facet, the most verbose, ~290 at full precision)
 
 # Work a command may be asked to do (`vfdsl simulate`, `vfdsl check`): a mistaken option or scene value
 # must not fill the memory or run for days before anything is printed.

@@ -18,7 +18,7 @@ from vfdsl.compiler.geometry import compose, rotation
 from vfdsl.errors import VfError, suggest
 from vfdsl.ir import model as ir
 from vfdsl.kinematics.robot import ROBOTS_DIR, Robot
-from vfdsl.mesh.load import MeshExtentError, MeshFileError, read_mesh
+from vfdsl.mesh.load import MeshExtentError, MeshFileError, MeshSizeError, read_mesh
 from vfdsl.passes import expressions as ex
 from vfdsl.passes.scene import SceneData, load_scene
 from vfdsl.passes.shapes import LiteralReader
@@ -252,9 +252,13 @@ class Declarations:
                            "as ./10.stl")
             raise VfError("a mesh is given by its file name", source.span.pos(), hint=example)
         base = scene.file.parent if scene is not None else self.path.parent
-        path = (base / source.text).resolve()
+        path = (base / source.text).absolute()
         try:
             mesh = read_mesh(path, unit)
+        except MeshSizeError as exc:
+            raise VfError(str(exc), source.span.pos(),
+                          hint=f"decimate the mesh to at most {limits.MESH_TRIANGLES:,} triangles (quadric edge "
+                               "collapse): a fixture needs the anatomy's shape, not the scanner's resolution") from None
         except MeshExtentError as exc:
             raise VfError(str(exc), source.span.pos(),
                           hint="state the file's unit: {file: ..., unit: 1 mm} (without it, the param type's unit, "
