@@ -91,6 +91,43 @@ def test_a_degenerate_row_is_never_redundant():
     assert hygiene.redundant([_rows(0, 0.0, 1), zero], 1) == []
 
 
+def _inactive(index: int, line: int) -> ConstraintRows:
+    """A row that always holds, 0 >= -inf: a mesh feature beyond reach."""
+    return ConstraintRows(index, _rows(index, 0.0, line).constraint, np.zeros((1, 1)), np.array([-np.inf]),
+                          np.array([np.inf]), ["feature 1/8"], False)
+
+
+@pytest.mark.parametrize("reached", [0, 3])
+def test_a_constraint_inactive_at_every_state_is_a_note_never_redundant(reached):
+    start = [_rows(0, 0.0, 1), _inactive(1, 2)]
+    [note] = hygiene.redundant(start, 1, ["q"] * reached, {"q": start}.__getitem__)
+    assert note.name == "inactive-constraint" and note.severity == Severity.NOTE and note.span.line == 2
+    assert note.data == {"states": 1 + reached} and note.message.startswith("inactive at the start")
+    assert "remove" not in note.message + note.suggestion
+
+
+def test_redundancy_is_judged_only_where_the_constraint_has_bounded_rows():
+    """Inactive at the start; at the reached state dq >= -1, implied by dq >= 0: redundant, from that one state,
+    and said so. dq >= 0.5 there: not redundant (the inactive start proves nothing either way)."""
+    start = [_rows(0, 0.0, 1), _inactive(1, 2)]
+    implied = {"q": [_rows(0, 0.0, 1), _rows(1, -1.0, 2)]}
+    [finding] = hygiene.redundant(start, 1, ["q"], implied.__getitem__)
+    assert finding.name == "redundant-constraint" and finding.data["acting_states"] == 1
+    assert finding.data["states"] == 2 and "at the 1 of these 2 where it has a bounded row" in finding.message
+    assert "before removing it" in finding.suggestion
+    not_implied = {"q": [_rows(0, 0.0, 1), _rows(1, 0.5, 2)]}
+    assert hygiene.redundant(start, 1, ["q"], not_implied.__getitem__) == []
+
+
+def test_inactive_rows_of_a_constraint_with_bounded_ones_are_not_tested():
+    """One bounded row implied by the others and one row 0 >= -inf: redundant at every state, as before."""
+    both = ConstraintRows(1, _rows(1, 0, 2).constraint, np.array([[1.0], [0.0]]), np.array([-1.0, -np.inf]),
+                          np.array([np.inf, np.inf]), ["feature 1/8", "feature 2/8"], False)
+    [finding] = hygiene.redundant([_rows(0, 0.0, 1), both], 1)
+    assert finding.data["acting_states"] == finding.data["states"] == 1
+    assert finding.suggestion.startswith("remove it")
+
+
 # --------------------------------------------------------------------------- F: implausible speed limits
 
 @pytest.mark.parametrize("statement, severity, message", [

@@ -84,6 +84,37 @@ def test_margin_against_one_tick(tmp_path):
     assert "mesh-margin-linearization" not in found
 
 
+# A mesh beyond reach gives rows that always hold (0 >= -inf): inactive is not redundant (VF804, never VF802)
+
+@pytest.mark.parametrize("primitive, mesh", [
+    ("outside_mesh", _ball(centre=(60, 0, 280))),               # 54 mm from the tip; rows within 1 + 2 mm
+    ("inside_mesh", _ball(radius=20, centre=(0, 0, 280))),      # the tip at the centre, 20 mm from the wall
+])
+def test_a_mesh_beyond_reach_is_inactive_never_redundant(tmp_path, primitive, mesh):
+    found = _probe(tmp_path, mesh, primitive, extra="require joint_limits()\n")
+    assert "redundant-constraint" not in found
+    [note] = found["inactive-constraint"]
+    assert note.severity == Severity.NOTE and note.code == "VF804" and note.span.line == 9
+    assert note.data == {"states": 1} and "remove" not in note.message + note.suggestion
+
+
+def test_a_duplicate_mesh_fixture_within_reach_is_still_redundant(tmp_path):
+    """2.5 mm from the ball (rows within 1 mm + 2 mm): the second of two equal fixtures adds nothing."""
+    found = _probe(tmp_path, _ball(centre=(8.5, 0, 280)), extra="require tip outside_mesh(m, margin = 1 mm)\n")
+    [finding] = found["redundant-constraint"]
+    assert finding.span.line == 10 and finding.data["acting_states"] == finding.data["states"] == 1
+    assert finding.data["implied_by"] == ["t.vf:9"] and "inactive-constraint" not in found
+
+
+@pytest.mark.parametrize("name, samples, inactive", [("bone_nerve", 20, 2), ("sinus_channel", 0, 1)])
+def test_the_example_mesh_tasks_are_never_told_to_remove_a_fixture(name, samples, inactive):
+    """bone_nerve: the tool stays more than 2 mm from both meshes at the start and in random motion;
+    sinus_channel: at the start it is in the middle of the channel. Both were VF802 ("remove it")."""
+    task = vfdsl.load(Path(__file__).resolve().parent.parent / "tasks" / f"{name}.vf")
+    names = [f.name for f in check(task, samples=samples, backend="interpreted").findings]
+    assert "redundant-constraint" not in names and names.count("inactive-constraint") == inactive
+
+
 def test_view_draws_the_mesh_in_its_registration():
     """`vfdsl view` draws a mesh fixture as the mesh in the world (moved by its pose param) and the clearance
     capsule around the tool (tests/test_view.py checks the tool's shapes)."""

@@ -3,11 +3,15 @@
 - **Unused declarations** (VF801): a frame, input or param that no constraint, objective, used param
   (through ``in``) or other frame (as its base, ``frame b = a ...``) refers to.
 - **Redundant constraints** (VF802): constraint c is implied by the other hard geometric constraints and
-  the joint limits when every row a_i dq >= lb_i of c holds at the minimum of a_i dq over the others' rows
-  (an LP per row, HiGHS), at the start and at every 10th state of check's random walk (the region the
-  task reaches; at most REDUNDANCY_STATES of them, evenly spaced); never when a row of c is degenerate (zero gradient) at one of them. Rate limits (joint
-  and frame speeds) are left out: within one tick they make almost every bound look redundant. Later
-  statements are tested first, so of two duplicates the second is reported.
+  the joint limits when every bounded row a_i dq >= lb_i of c holds at the minimum of a_i dq over the
+  others' rows (an LP per row, HiGHS), at the start and at every 10th state of check's random walk (the
+  region the task reaches; at most REDUNDANCY_STATES of them, evenly spaced) where c has a bounded row; never
+  when a row of c is degenerate (zero gradient) at one of them. Rate limits (joint and frame speeds) are left
+  out: within one tick they make almost every bound look redundant. Later statements are tested first, so of
+  two duplicates the second is reported.
+- **Inactive constraints** (VF804, a note): every row of c is unbounded (``0 >= -inf``: a mesh beyond reach)
+  at all of these states. Such rows hold whatever the motion, which shows nothing about the states where c
+  acts: inactive is not redundant.
 - **Contradictory tolerances** (VF803): two hard geometric constraints whose rows alone, without any
   joint limit or speed, have no common motion (their margin LP is negative): e.g. two points to stay at,
   farther apart than the sum of their tolerances.
@@ -62,10 +66,12 @@ def _geometric(rows: list[ConstraintRows]) -> list[ConstraintRows]:
 
 
 def redundant(rows: list[ConstraintRows], nq: int, reached: list = (), rows_at=None) -> list[Finding]:
-    """VF802 over the region the task reaches: a constraint is redundant when it is implied by the others
-    at the start and at every state of ``reached`` (states of check's random walk; ``rows_at(q)`` gives the
-    rows there). A constraint with a degenerate row (zero gradient: the row measures nothing about the
-    motion, e.g. ``tilt_at_most`` exactly on its axis) at any of these states is never called redundant:
+    """VF802 and VF804 over the region the task reaches: the start and the states of ``reached`` (states of
+    check's random walk; ``rows_at(q)`` gives the rows there). A constraint is redundant when it has a bounded
+    row at one of these states at least, and at each such state the others imply its bounded rows. A state
+    where every row of it is unbounded (inactive) is no evidence: inactive at all of them, it gets a note
+    (VF804), never VF802. A constraint with a degenerate row (zero gradient: the row measures nothing about
+    the motion, e.g. ``tilt_at_most`` exactly on its axis) at any of these states is never called redundant:
     what it adds shows only away from that point."""
     reached = list(reached)
     if len(reached) > REDUNDANCY_STATES:        # evenly spaced, the last included: bounded LPs at any --samples
@@ -79,21 +85,36 @@ def redundant(rows: list[ConstraintRows], nq: int, reached: list = (), rows_at=N
             states[k] = {r.index: r for r in rows_at(reached[k - 1])}
         return states[k]
 
+    region = f"at the start and at {len(reached)} states the task reaches under random input" if reached \
+        else "at the start"
     findings = []
     for r in reversed([r for r in kept if not r.bounds and len(r.A)]):
+        acting = [k for k in range(len(states)) if at(k)[r.index].bounded.any()]
+        if not acting:
+            findings.append(Finding(
+                "inactive-constraint", Severity.NOTE,
+                f"inactive {region}: every row of this constraint is unbounded there (such as `0 >= -inf` for "
+                f"a mesh beyond reach) and holds whatever the motion; it acts only where the tool comes closer. "
+                f"Inactive is not redundant: whether the others imply it was not tested",
+                r.constraint.span, "to see it act, check from a start where it binds (--scene), or simulate",
+                subject(r.constraint), {"states": len(states)}))
+            continue
         others = [o for o in kept if o is not r]
-        if not all(_implied_at(at(k)[r.index], [at(k)[o.index] for o in others], nq)
-                   for k in range(len(states))):
+        if not all(_implied_at(at(k)[r.index], [at(k)[o.index] for o in others], nq) for k in acting):
             continue
         kept = others
         names = ", ".join(f"{describe(o.constraint)} at {where(o.constraint)}" for o in others) or "the joint limits"
-        region = (f"at the start and at {len(reached)} states the task reaches under random input"
-                  if reached else "at the start")
+        everywhere = len(acting) == len(states)
+        scope = region if everywhere else (f"{region}, at the {len(acting)} of these {len(states)} where it has "
+                                           f"a bounded row (inactive at the others),")
+        hint = "remove it, or check its reference and tolerance" if everywhere else \
+            (f"it acts at only {len(acting)} of the {len(states)} states: check from a start where it binds "
+             f"(--scene) before removing it, or check its reference and tolerance")
         findings.append(Finding("redundant-constraint", Severity.WARNING,
-                                f"{region} every row of this constraint is implied by the others ({names}): "
-                                f"it adds nothing there", r.constraint.span,
-                                "remove it, or check its reference and tolerance", subject(r.constraint),
-                                {"implied_by": [where(o.constraint) for o in others], "states": 1 + len(reached)}))
+                                f"{scope} every row of this constraint is implied by the others ({names}): "
+                                f"it adds nothing there", r.constraint.span, hint, subject(r.constraint),
+                                {"implied_by": [where(o.constraint) for o in others], "states": len(states),
+                                 "acting_states": len(acting)}))
     return findings
 
 
@@ -109,8 +130,7 @@ def _degenerate(r: ConstraintRows) -> bool:
     """A bounded row with (numerically) zero gradient: it says nothing about the motion at this state."""
     scale = max(1.0, float(np.max(np.abs(r.A)))) if r.A.size else 1.0
     norms = np.linalg.norm(r.A, axis=1)
-    bounded = np.isfinite(r.lb) | np.isfinite(r.ub)
-    return bool(np.any(bounded & (norms <= DEGENERATE * scale)))
+    return bool(np.any(r.bounded & (norms <= DEGENERATE * scale)))
 
 
 def _implied(r: ConstraintRows, others: LinearSystem) -> bool:

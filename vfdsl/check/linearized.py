@@ -39,6 +39,12 @@ class ConstraintRows:
     bounds: bool
 
     @property
+    def bounded(self) -> np.ndarray:
+        """Which rows have a finite side at this state. The others (lb = -inf, ub = inf: ``0 >= -inf`` for a
+        mesh feature beyond reach) hold whatever the motion: inactive here, which says nothing about elsewhere."""
+        return np.isfinite(self.lb) | np.isfinite(self.ub)
+
+    @property
     def violation_at_rest(self) -> float:
         """How much the rows are violated with no motion (dq = 0); <= 0 when the state satisfies them."""
         if not len(self.lb):

@@ -46,6 +46,7 @@ CODES: dict[str, str] = {
     "unused-declaration": "VF801",
     "redundant-constraint": "VF802",
     "contradictory-tolerances": "VF803",
+    "inactive-constraint": "VF804",
     "mesh-start-clearance": "VF901",
     "mesh-open": "VF902",
     "mesh-degenerate": "VF903",
