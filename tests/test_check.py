@@ -286,6 +286,47 @@ def test_cli_usage_and_front_end_errors_exit_2(tmp_path):
     assert proc.returncode == 2 and "scene file not found" in proc.stderr
 
 
+@pytest.mark.parametrize("change, line, column, message", [
+    ((("link(\"tool_tip\")", "link(\"tool_tip\"))"),), 4, 33, "unexpected ')'"),                 # syntax
+    ((("stays_at(target)", "stays_at(tagret)"),), 9, 22, "unknown point 'tagret'"),              # a name
+    ((("[0, 0, 290]", "[0, 0, 29000]"),), 6, 24, "param 'target' is [0, 0, 29] m: beyond"),       # out of reach
+    ((("point = [0, 0, 290]", "vector = [1e300, 0, 0]"), ("stays_at(target)", "stays_at([0, 0, 290] + target)")),
+     9, 1, "at the start, the rows of stays_at(tip) hold 1e+297"),                              # found by check
+    ("no task", None, None, "file not found: "),
+    ("no scene", None, None, "scene file not found: "),
+])
+def test_cli_json_reports_a_task_that_does_not_load(tmp_path, capsys, monkeypatch, change, line, column, message):
+    """--json always prints a report: one that fails to load (or to be analysed) has the error as its one
+    finding, VF000, with its file, line and column, and the exit status stays 2 (the diagnostic still goes to
+    stderr)."""
+    import functools
+
+    from vfdsl.cli import main
+
+    monkeypatch.setattr(sys.modules["vfdsl.check"], "check", functools.partial(check, backend="interpreted"))
+    text = PROBE
+    for old, new in change if isinstance(change, tuple) else ():
+        text = text.replace(old, new)
+    path = write_probe(tmp_path, text)
+    args = {"no task": [str(tmp_path / "none.vf")],
+            "no scene": [str(path), "--scene", str(tmp_path / "none.yaml")]}.get(change, [str(path)])
+    assert main(["check", *args, "--json"]) == 2
+    out, err = capsys.readouterr()
+    data = json.loads(out)
+    assert data["exit_status"] == 2 and data["sound"] is False and data["task"] is None
+    assert data["file"] == args[0] and data["counts"] == {"error": 1, "warning": 0, "note": 0}
+    [finding] = data["findings"]
+    assert finding["code"] == "VF000" and finding["name"] == "input-error" and finding["severity"] == "error"
+    assert message in finding["message"] and finding["message"] in err and "Traceback" not in err
+    if line is None:
+        assert finding["location"] is None
+    else:
+        assert finding["location"]["file"] == str(path)
+        assert (finding["location"]["line"], finding["location"]["column"]) == (line, column)
+        assert f"{path}:{line}:{column}: error: " in err
+    assert main(["check", *args]) == 2 and capsys.readouterr().out == ""         # no JSON asked, none printed
+
+
 def test_cli_scene_option_replaces_the_scene(tmp_path, solver_ready):
     probe(tmp_path)
     (tmp_path / "far.yaml").write_text(SCENE.replace("insert: 10", "insert: 20"))     # tip 10 mm below target

@@ -16,9 +16,7 @@ import yaml
 
 import vfdsl
 from vfdsl.check import command as check_command
-from vfdsl.errors import VfError
-
-EXIT_USER_ERROR = 2
+from vfdsl.errors import EXIT_USER_ERROR, VfError
 
 _DESCRIPTION = """\
 vfdsl compiles virtual fixtures written as .vf task files into constrained least-squares controllers.

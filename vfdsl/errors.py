@@ -22,6 +22,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Iterable
 
+EXIT_USER_ERROR = 2
+"""The command line's exit status for a user's mistake (usage, syntax, names, units, files)."""
+
 
 @dataclass(frozen=True)
 class SourcePos:

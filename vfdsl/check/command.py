@@ -7,7 +7,7 @@ import json
 import sys
 from pathlib import Path
 
-from vfdsl.check import DEFAULT_OVERSHOOT
+from vfdsl.check import DEFAULT_OVERSHOOT, Report
 from vfdsl.check.sampling import DEFAULT_SAMPLES
 from vfdsl.errors import VfError
 from vfdsl import limits
@@ -26,7 +26,7 @@ code, the math behind it and the --json format. The table of guaranteed bounds g
 worst error its polytope admits (its circumradius) against the stated tolerance.
 
 exit status: 0 sound (warnings allowed), 1 an error (or a warning under --strict), 2 a usage, parse or
-semantic error in the files."""
+semantic error in the files (with --json, still a report on stdout: the error as finding VF000)."""
 
 
 def register(commands: argparse._SubParsersAction) -> None:
@@ -56,14 +56,23 @@ def run(args: argparse.Namespace) -> int:
     import vfdsl
     from vfdsl.check import check
 
-    task = load_with_scene(args.file, args.scene) if args.scene else vfdsl.load(args.file)
-    report = check(task, overshoot=args.overshoot, samples=args.samples, seed=args.seed)
+    try:
+        task = load_with_scene(args.file, args.scene) if args.scene else vfdsl.load(args.file)
+        report = check(task, overshoot=args.overshoot, samples=args.samples, seed=args.seed)
+    except VfError as error:
+        if args.json:              # whoever reads the JSON gets a report: the error as its finding (VF000)
+            _print_json(Report.input_error(args.file, error).to_json(args.strict))
+        raise                      # and, as for every front-end error, the diagnostic on stderr, exit status 2
     if args.json:
-        json.dump(report.to_json(args.strict), sys.stdout, indent=2)
-        sys.stdout.write("\n")
+        _print_json(report.to_json(args.strict))
     else:
         print(report.render_text(args.strict))
     return report.exit_status(args.strict)
+
+
+def _print_json(data: dict) -> None:
+    json.dump(data, sys.stdout, indent=2)
+    sys.stdout.write("\n")
 
 
 def load_with_scene(path: str | Path, scene: str | Path):

@@ -13,13 +13,14 @@ import enum
 import math
 from dataclasses import dataclass, field
 
-from vfdsl.errors import VfError
+from vfdsl.errors import EXIT_USER_ERROR, VfError
 from vfdsl.syntax.ast import Span
 
 JSON_SCHEMA_VERSION = 1
 
 # Stable codes: a code never changes meaning; new findings get new codes.
 CODES: dict[str, str] = {
+    "input-error": "VF000",
     "no-start": "VF001",
     "no-period": "VF002",
     "polytope-unbounded": "VF101",
@@ -119,11 +120,21 @@ class Bound:
 
 @dataclass
 class Report:
-    task: str
+    task: str | None                                   # None when the files did not load
     file: str
     findings: list[Finding] = field(default_factory=list)
     bounds: list[Bound] = field(default_factory=list)
     figures: dict = field(default_factory=dict)        # measured numbers (margins, drift, timings), SI
+
+    @classmethod
+    def input_error(cls, file: str, error: VfError) -> "Report":
+        """The report of a check that could not run: a usage, parse or semantic error in the files (or a
+        value the analyses cannot hold) as its one finding, VF000, with the error's position, hint and notes."""
+        pos = error.pos
+        span = None if pos is None else Span(file=pos.file, line=pos.line, column=pos.column,
+                                             end_line=pos.end_line or pos.line, end_column=pos.end_column or pos.column)
+        return cls(None, str(file), [Finding("input-error", Severity.ERROR, error.message, span, error.hint,
+                                             notes=error.notes)])
 
     def add(self, findings) -> None:
         self.findings.extend(findings)
@@ -132,7 +143,10 @@ class Report:
         return sum(f.severity == severity for f in self.findings)
 
     def exit_status(self, strict: bool = False) -> int:
-        """0 when sound; 1 when a finding is an error (or, under ``strict``, a warning)."""
+        """0 when sound; 1 when a finding is an error (or, under ``strict``, a warning); 2 when the check could
+        not run (VF000), as for any error in the files."""
+        if any(f.name == "input-error" for f in self.findings):
+            return EXIT_USER_ERROR
         bad = self.count(Severity.ERROR) + (self.count(Severity.WARNING) if strict else 0)
         return 1 if bad else 0
 
