@@ -15,12 +15,21 @@
  *   refuse   per tick, _step with dq_out filled with ones first: the code and 1 if dq_out is all zeros after
  *   params   stdin holds param vectors instead (_param_length() numbers each): per vector, _set_params's code,
  *            _error_check and _error_index on one controller (refused vectors leave the params unchanged)
+ *   errors   per line "what code index check": each kind of refusal after a refusal of another kind (the index
+ *            and check must be the last error's), then "strings N" (the NULL strings of the string functions
+ *            out of range; 0 expected)
+ *   readers  steps the first tick over and over while a signal handler (every ms of CPU time, 100 times)
+ *            calls _violations, _error_index and _error_check, mostly in the middle of a step: prints the
+ *            readers' refused calls, their wrong answers (not the answer alone) and the answered calls
+ *            (expected: > 0, 0, any)
  */
 #include <math.h>
 #include <pthread.h>
 #include <stdio.h>
 #include <stdlib.h>
+#include <signal.h>
 #include <string.h>
+#include <sys/time.h>
 
 #define CAT_(a, b) a##b
 #define CAT(a, b) CAT_(a, b)
@@ -198,6 +207,78 @@ static int busy(void) {
   return 0;
 }
 
+/* ----------------------------------------------------------------------------------------- errors */
+static void report(controller* c, const char* what, int code) {
+  printf("%s %d %d %d\n", what, code, F(_error_index)(c), F(_error_check)(c));
+}
+
+static int errors(void) {
+  double p[WIDTH], dq[32];
+  const int np = F(_param_length)(), last = F(_num_params)() - 1;
+  int k, nulls = 0;
+  controller* c = F(_new)();
+  memcpy(p, F(_param_default)(0), sizeof(double) * np);
+  p[np - 1] = NAN;                                             /* a NaN in the last param */
+  report(c, "nan", F(_set_params)(c, p));
+  report(c, "index", F(_set_param)(c, 99, p));                 /* then a wrong index: 99, not the NaN's */
+  report(c, "nan", F(_set_param)(c, last, p + np - F(_param_size)(last)));
+  report(c, "negative", F(_set_param)(c, -3, p));
+  for (k=0; k<np; ++k) p[k] = 0;                               /* zeros: a check fails */
+  report(c, "zeros", F(_set_params)(c, p));
+  report(c, "null", F(_set_params)(c, 0));
+  report(c, "step", F(_step)(c, ticks[0], ticks[0] + nq, dt, dq));
+  report(c, "zeros", F(_set_params)(c, p));
+  report(c, "q", F(_step)(c, ticks[1], ticks[1] + nq, dt, dq));
+  F(_free)(c);
+  nulls += !F(_check_meaning)(-1) + !F(_check_meaning)(-8) + !F(_check_meaning)(1 << 20);
+  nulls += !F(_joint_name)(-1) + !F(_joint_unit)(nq) + !F(_input_name)(-1) + !F(_input_unit)(1 << 20);
+  nulls += !F(_param_name)(-1) + !F(_param_type)(1 << 20) + !F(_param_unit)(-1) + !F(_row_label)(-1);
+  nulls += !F(_error_message)(-1000) + !F(_error_message)(1);
+  printf("strings %d\n", nulls);
+  return 0;
+}
+
+/* ---------------------------------------------------------------------------------------- readers */
+static controller* read_c;
+static F(_violation) read_reference[16];
+static int read_n, read_index;
+static volatile long read_signals, read_refused, read_wrong, read_answered;
+
+/* SIGPROF's handler: the readers, called while the loop below is (almost always) inside a step, as another
+ * thread would call them; deterministic, unlike two threads on a loaded machine. */
+static void read_during_step(int signal) {
+  F(_violation) found[16];
+  int n = F(_violations)(read_c, found, 16), index = F(_error_index)(read_c), check = F(_error_check)(read_c);
+  int j, same = n == read_n;
+  (void) signal;
+  ++read_signals;
+  read_refused += (n == VF_ERR_BUSY) + (index == VF_ERR_BUSY) + (check == VF_ERR_BUSY);
+  if (n == VF_ERR_BUSY) return;
+  for (j=0; j<n && j<16 && same; ++j) same = found[j].amount == read_reference[j].amount;
+  read_wrong += !same + (index != VF_ERR_BUSY && index != read_index);
+  ++read_answered;
+}
+
+static int readers(void) {
+  double dq[32];
+  struct itimerval every = {{0, 1000}, {0, 1000}}, off = {{0, 0}, {0, 0}};
+  struct sigaction action;
+  read_c = F(_new)();
+  F(_step)(read_c, ticks[0], ticks[0] + nq, dt, dq);
+  F(_step)(read_c, ticks[0], ticks[0] + nq, dt, dq);
+  read_n = F(_violations)(read_c, read_reference, 16);
+  read_index = F(_error_index)(read_c);
+  memset(&action, 0, sizeof action);
+  action.sa_handler = read_during_step;
+  sigaction(SIGPROF, &action, 0);
+  setitimer(ITIMER_PROF, &every, 0);                         /* every ms of CPU time */
+  while (read_signals < 100) F(_step)(read_c, ticks[0], ticks[0] + nq, dt, dq);
+  setitimer(ITIMER_PROF, &off, 0);
+  F(_free)(read_c);
+  printf("%ld %ld %ld\n", read_refused, read_wrong, read_answered);
+  return 0;
+}
+
 /* ----------------------------------------------------------------------------------------- refuse */
 static int refuse(void) {
   double dq[32];
@@ -234,12 +315,14 @@ int main(int argc, char** argv) {
   if (nq > 32 || nq + nu > WIDTH) { printf("task too large for this harness\n"); return 2; }
   if (argc > 1 && !strcmp(argv[1], "params")) return params();
   read_ticks();
-  if (argc < 2 || n_ticks == 0) { printf("usage: %s leaks|alloc|threads|busy|refuse|params [dt] < ticks\n", argv[0]); return 2; }
+  if (argc < 2 || n_ticks == 0) { printf("usage: %s leaks|alloc|threads|busy|refuse|params|errors|readers [dt] < ticks\n", argv[0]); return 2; }
   if (!strcmp(argv[1], "leaks")) return leaks();
   if (!strcmp(argv[1], "alloc")) return alloc();
   if (!strcmp(argv[1], "threads")) return threads();
   if (!strcmp(argv[1], "busy")) return busy();
   if (!strcmp(argv[1], "refuse")) return refuse();
+  if (!strcmp(argv[1], "errors")) return errors();
+  if (!strcmp(argv[1], "readers")) return readers();
   printf("unknown mode %s\n", argv[1]);
   return 2;
 }

@@ -12,7 +12,9 @@ threads, one controller from two threads.
 
 from __future__ import annotations
 
+import dataclasses
 import filecmp
+import json
 import os
 import shutil
 import subprocess
@@ -28,8 +30,9 @@ from vfdsl.cli import main
 from vfdsl.compiler.admissible import Admissible
 from vfdsl.compiler.context import ParamLayout
 from vfdsl.errors import VfError
-from vfdsl.export import api_name, export
+from vfdsl.export import Export, api_name, export
 from vfdsl.export.selftest import build, record, replay
+from vfdsl.export.writer import cpp_class_name
 from vfdsl.kinematics.robot import Robot
 
 pytestmark = pytest.mark.skipif(shutil.which("make") is None or shutil.which("cc") is None,
@@ -378,3 +381,135 @@ def test_cli_errors_are_clear(tmp_path, capsys, monkeypatch):
     monkeypatch.setenv("PATH", str(tmp_path))          # no make (nor anything else) on the PATH
     with pytest.raises(VfError, match="make not found"):
         build(tmp_path)
+
+
+# ------------------------------------------------------------------------------- errors and sizes (C)
+def test_error_index_and_check_name_the_last_refusal(experiment_b, tmp_path):
+    """Every refusal sets _error_index and _error_check to its own (a wrong param index after a NaN gives the
+    index, not the NaN's place); a failed check gives the param it is about; a success resets both to -1; no
+    string function returns NULL, _check_meaning(-1) included."""
+    exported = experiment_b
+    exe = _contract(exported, tmp_path, [])
+    tick = record(exported.controller(), 1)[0]
+    nan_joint = " ".join(f"{x:.17g}" for x in _set(tick.q, 3, np.nan))
+    out = subprocess.run([str(exe), "errors", repr(tick.dt)], input=f"{tick.line()}\n{nan_joint} 0 0 0\n",
+                         capture_output=True, text=True, check=True).stdout.splitlines()
+    rows = [line.split() for line in out]
+    meta = _meta(exported)
+    axis = [p["name"] for p in meta["param_layout"]].index("axis")       # the last param, a direction
+    zeros = int(rows[4][3])
+    assert meta["param_checks"]["param"][zeros] == axis and "axis" in meta["param_checks"]["meaning"][zeros]
+    assert rows == [["nan", str(ERR_PARAM), str(axis), "-1"],
+                    ["index", "-6", "99", "-1"],
+                    ["nan", str(ERR_PARAM), str(axis), "-1"],
+                    ["negative", "-6", "-3", "-1"],
+                    ["zeros", str(ERR_PARAM), str(axis), str(zeros)],
+                    ["null", "-1", "-1", "-1"],
+                    ["step", str(tick.status), "-1", "-1"],
+                    ["zeros", str(ERR_PARAM), str(axis), str(zeros)],
+                    ["q", str(ERR_Q_NONFINITE), "3", "-1"],
+                    ["strings", "0"]]
+
+
+def _meta(exported: Exported) -> dict:
+    return json.loads(pipeline.build(exported.task, backend="native")[1].meta_path.read_text())
+
+
+def test_the_header_sizes_make_a_too_small_array_a_compile_error(experiment_b, tmp_path):
+    """vf_<task>.h's prototypes carry the sizes (VF_<TASK>_NUM_JOINTS, _INPUT_LENGTH, _PARAM_LENGTH): with
+    -Werror, C refuses a 2-number q, a 2-number input array or a 3-number dq; C++'s owner refuses them for a C array
+    or a std::array (static_assert); the right sizes, a pointer and std::array compile."""
+    exported = experiment_b
+    api, macro = exported.result.api, exported.result.api.upper()
+    owner = f"vfdsl::{api[3:]}"
+    c_calls = {"good": "double q[NQ] = {0}, u[NU] = {0}, dq[NQ], p[NP] = {0}; return s(0, q, u, 0.001, dq) + sp(0, p);",
+               "short q": "double q[2] = {0}, u[NU] = {0}, dq[NQ]; return s(0, q, u, 0.001, dq);",
+               "short inputs": "double q[NQ] = {0}, u[2] = {0}, dq[NQ]; return s(0, q, u, 0.001, dq);",
+               "short dq": "double q[NQ] = {0}, u[NU] = {0}, dq[3]; return s(0, q, u, 0.001, dq);",
+               "short params": "double p[2] = {0}; return sp(0, p);"}
+    cpp_calls = {"good": f"{owner} f; std::array<double, NQ> q{{}}, dq{{}}; double u[NU] = {{0}}, p[NP] = {{0}};"
+                         f" std::vector<double> v(NQ); return f.step(q, u, 0.001, dq) + f.step(v.data(), u, 0.001, "
+                         "v.data()) + f.set_params(p);",
+                 "short q": f"{owner} f; double q[2] = {{0}}, u[NU] = {{0}}, dq[NQ]; return f.step(q, u, 0.001, dq);",
+                 "short dq": f"{owner} f; std::array<double, NQ> q{{}}; std::array<double, 3> dq{{}}; "
+                             "double u[NU] = {0}; return f.step(q, u, 0.001, dq);",
+                 "short inputs": f"{owner} f; double q[NQ] = {{0}}, u[1] = {{0}}, dq[NQ]; "
+                                 "return f.step(q, u, 0.001, dq);"}
+    defines = [f"-DNQ={macro}_NUM_JOINTS", f"-DNU={macro}_INPUT_LENGTH", f"-DNP={macro}_PARAM_LENGTH",
+               f"-Ds={api}_step", f"-Dsp={api}_set_params"]
+    for language, compiler, header, calls in (("c", "cc", f"{api}.h", c_calls),
+                                              ("c++", "c++", f"{api}.hpp", cpp_calls)):
+        if shutil.which(compiler) is None:
+            continue
+        for name, body in calls.items():
+            source = tmp_path / ("caller.c" if language == "c" else "caller.cpp")
+            source.write_text(f'#include <array>\n#include <vector>\n#include "{header}"\nint main(void) {{ {body} }}\n'
+                              if language == "c++" else f'#include "{header}"\nint main(void) {{ {body} }}\n')
+            result = subprocess.run([compiler, "-O2", "-Wall", "-Werror", *defines, f"-I{exported.directory}",
+                                     "-c", str(source), "-o", str(tmp_path / "caller.o")],
+                                    capture_output=True, text=True, env=CLEAN_ENV)
+            assert (result.returncode == 0) == (name == "good"), (language, name, result.stderr[-2000:])
+            if name != "good":
+                assert "region of size" in result.stderr or "fewer numbers" in result.stderr, result.stderr[-2000:]
+
+
+def test_readers_and_a_step_of_one_controller_never_overlap(experiment_b, tmp_path):
+    """_violations, _error_index and _error_check take the controller's busy flag as _step does: called in the middle
+    of steps (from a signal handler, as another thread would, but every time) they return VF_ERR_BUSY (nothing
+    read), or the answer alone; never a torn read. Without the flag they read the step's buffers as it writes them."""
+    exported = experiment_b
+    exe = _contract(exported, tmp_path, [])
+    refused, wrong, _ = map(int, _run_contract(exe, "readers", record(exported.controller(), 1)).split())
+    assert refused > 0 and wrong == 0
+
+
+# ------------------------------------------------------------------------------- what the folder holds
+def _write_as(exported: Exported, directory: Path, **meta) -> Export:
+    """write_export of experiment B's generated library into ``directory``, its metadata changed by ``meta``."""
+    from vfdsl.codegen.build import daqp_home
+    from vfdsl.codegen.daqp_sources import daqp_sources
+    from vfdsl.export.writer import write_export
+    library = pipeline.build(exported.task, backend="native")[1]
+    if meta:
+        changed = directory.parent / f"{directory.name}.json"
+        changed.write_text(json.dumps({**json.loads(library.meta_path.read_text()), **meta}))
+        library = dataclasses.replace(library, meta_path=changed)
+    return write_export(library, daqp_sources(daqp_home()), directory)
+
+
+def test_a_path_in_a_comment_cannot_end_it(experiment_b, tmp_path):
+    """A source path with '*/', '/*', '??/' (a trigraph) or a newline is escaped in the header's comment: the header
+    compiles as C and as C++ (trigraphs on) with -Wall -Werror, and holds the path's text."""
+    exported = experiment_b
+    written = _write_as(exported, tmp_path / "out", file="a*/b/*c??/\nd.vf")
+    header = (written.directory / f"{written.api}.h").read_text()
+    assert "a*\\/b/\\*c?\\?/\\012d.vf" in header
+    _compile_headers(written, tmp_path)
+
+
+def _compile_headers(written: Export, tmp_path: Path) -> None:
+    """vf_<task>.h as C, and .hpp as C++ (its class constructed and stepped), with -Wall -Werror (-trigraphs)."""
+    api = written.api
+    (tmp_path / "use.c").write_text(f'#include "{api}.h"\nint main(void) {{ return {api}_num_joints(); }}\n')
+    (tmp_path / "use.cpp").write_text(f'#include <array>\n#include "{api}.hpp"\nint main() {{\n'
+                                      f'  vfdsl::{cpp_class_name(api[3:])} f;\n'
+                                      f'  std::array<double, {api.upper()}_NUM_JOINTS> q{{}}, dq{{}};\n'
+                                      f'  std::array<double, {api.upper()}_INPUT_LENGTH> u{{}};\n'
+                                      f'  return f.step(q, u, 0.001, dq);\n}}\n')
+    for compiler, source, flags in (("cc", "use.c", ["-std=c99"]), ("c++", "use.cpp", ["-std=c++11", "-trigraphs"])):
+        if shutil.which(compiler):
+            result = subprocess.run([compiler, *flags, "-Wall", "-Wextra", "-Werror", f"-I{written.directory}",
+                                     "-c", str(tmp_path / source), "-o", str(tmp_path / "use.o")],
+                                    capture_output=True, text=True, env=CLEAN_ENV)
+            assert result.returncode == 0, (api, source, result.stderr[-3000:])
+
+
+@pytest.mark.parametrize("name", ["class", "step", "new", "delete", "int", "and", "errno", "NULL", "numbers",
+                                  "violations", "get"])
+def test_a_task_named_as_a_keyword_gives_a_compiling_cpp_header(experiment_b, tmp_path, name):
+    """Task names are any identifier: a C++ keyword, a standard macro or a member of the owner class names the
+    class with a '_' appended (vfdsl::class_); the C API keeps vf_<name>."""
+    written = _write_as(experiment_b, tmp_path / "out", task=name)
+    assert written.api == f"vf_{name}" and cpp_class_name(name) == name + "_"
+    _compile_headers(written, tmp_path)
+    assert cpp_class_name("paper_b_virtual_rcm") == "paper_b_virtual_rcm"

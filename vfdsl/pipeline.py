@@ -115,6 +115,7 @@ def metadata(task: ir.Task, problem: AssembledProblem, values: RuntimeValues, di
     ctx = problem.context
     admissible = values.admissible
     types = {d.name: d.type for d in task.inputs}
+    runtime = [s.name for s in ctx.layout.slots.values() if s.size]     # the run-time params, in param_layout's order
     return {
         "task": task.name,
         "file": task.file,
@@ -134,7 +135,9 @@ def metadata(task: ir.Task, problem: AssembledProblem, values: RuntimeValues, di
                          for s in ctx.layout.slots.values() if s.size],
         "default_params": ctx.layout.defaults.tolist(),
         "param_checks": {"count": len(admissible.margins), "strict": admissible.strict.tolist(),
-                         "meaning": admissible.margins.meanings},
+                         "meaning": admissible.margins.meanings,
+                         "param": [runtime.index(c.param) if c.param in runtime else -1
+                                   for c in admissible.margins.checks]},
         "period": task.scene.period,
         "min_period": values.dt_min,
         "max_period": values.dt_max,

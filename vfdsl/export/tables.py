@@ -8,6 +8,7 @@ back to the same double) or ``HUGE_VAL``; strings as C literals. Same metadata, 
 from __future__ import annotations
 
 import math
+import re
 
 
 def c_string(text: str | None) -> str:
@@ -24,6 +25,14 @@ def c_string(text: str | None) -> str:
         else:
             out.append(f"\\{byte:03o}")
     return '"' + "".join(out) + '"'
+
+
+def comment_text(text: str) -> str:
+    """``text`` (e.g. a file path) safe inside a C block comment or a line of text: ``*/`` and ``/*`` written
+    ``*\\/`` and ``/\\*``, a ``?`` before another ``?`` followed by ``\\`` (no trigraph), control characters (a
+    newline) as ``\\ooo``."""
+    text = re.sub(r"\?(?=\?)", "?\\\\", text.replace("*/", "*\\/").replace("/*", "/\\*"))
+    return "".join(char if char.isprintable() else f"\\{ord(char):03o}" for char in text)
 
 
 def c_number(x: float) -> str:
@@ -68,7 +77,8 @@ def task_tables(meta: dict) -> str:
             _array("int", "param_sizes", [str(p["size"]) for p in params]),
             _array("double", "p_default", [c_number(x) for x in meta["default_params"]]),
             _array("unsigned char", "strict", [str(int(s)) for s in meta["param_checks"]["strict"]]),
-            _array("char* const", "check_meanings", [c_string(m) for m in meta["param_checks"]["meaning"]])]
+            _array("char* const", "check_meanings", [c_string(m) for m in meta["param_checks"]["meaning"]]),
+            _array("int", "check_params", [str(k) for k in meta["param_checks"]["param"]])]
     out.append("\nstruct row { const char* label; const char* primitive; const char* file; int line; "
                "const char* unit; int soft; };\n")
     for name, table in (("rows", rows), ("slacks", slacks)):

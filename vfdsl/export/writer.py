@@ -26,7 +26,7 @@ from pathlib import Path
 import vfdsl
 from vfdsl.codegen.build import CHECKED_STEP, LEXLS_HEADER, LEXLS_SOURCE, BuiltLibrary
 from vfdsl.errors import VfError
-from vfdsl.export.tables import task_tables
+from vfdsl.export.tables import comment_text, task_tables
 
 TEMPLATES = Path(__file__).parent / "templates"
 _PLACEHOLDER = re.compile(r"@([A-Z_]+)@")
@@ -44,6 +44,29 @@ class Export:
 def api_name(task_name: str) -> str:
     """The C prefix of a task's API: ``vf_`` and the task name with every non-identifier character as ``_``."""
     return "vf_" + re.sub(r"[^A-Za-z0-9_]", "_", task_name)
+
+
+_CPP_TAKEN = frozenset("""
+    alignas alignof and and_eq asm auto bitand bitor bool break case catch char char8_t char16_t char32_t class
+    compl concept const consteval constexpr constinit const_cast continue co_await co_return co_yield decltype
+    default delete do double dynamic_cast else enum explicit export extern false float for friend goto if inline
+    int long mutable namespace new noexcept not not_eq nullptr operator or or_eq private protected public register
+    reinterpret_cast requires return short signed sizeof static static_assert static_cast struct switch template
+    this thread_local throw true try typedef typeid typename union unsigned using virtual void volatile wchar_t
+    while xor xor_eq final override import module
+    NULL EOF errno assert offsetof stdin stdout stderr setjmp va_arg va_start va_end va_copy
+    numbers num_joints input_length param_length joints_in joints_out inputs_in params_in step set_param set_params
+    violations error_message get ctrl_
+""".split())
+"""Names the C++ owner's class cannot take: C++ keywords (and contextual ones), standard macros a C++ header
+may define, and the names inside ``vfdsl::`` (the class's members and the argument type ``numbers``)."""
+
+
+def cpp_class_name(task_name: str) -> str:
+    """The C++ owner's class in ``vfdsl::``: the API's name without ``vf_``, with ``_`` appended when it is taken
+    (:data:`_CPP_TAKEN`, e.g. a task named ``class`` or ``step``) or starts with a digit."""
+    name = api_name(task_name)[3:]
+    return name + "_" if name in _CPP_TAKEN or name[:1].isdigit() else name
 
 
 def write_export(library: BuiltLibrary, daqp_root: Path, directory: Path) -> Export:
@@ -111,16 +134,19 @@ def _values(meta: dict, api: str, tick: str, daqp_sources: list[str], daqp_versi
     inputs, params = meta["input_layout"], meta["param_layout"]
     period = meta["period"]
     return {
-        "API": api, "TICK": tick, "TASK": meta["task"], "TASK_ID": api[3:], "GUARD": api.upper() + "_H",
-        "SOURCE": meta["file"], "VERSION": vfdsl.__version__, "MAX": str(meta["max_slots"]),
+        "API": api, "TICK": tick, "TASK": meta["task"], "CLASS": cpp_class_name(meta["task"]), "MACRO": api.upper(),
+        "GUARD": api.upper() + "_H", "SOURCE": comment_text(meta["file"]), "VERSION": vfdsl.__version__,
+        "MAX": str(meta["max_slots"]),
         "MIN_PERIOD": f"{meta['min_period']:g}", "MAX_PERIOD": f"{meta['max_period']:g}", "TABLES": task_tables(meta),
         "NQ": str(meta["variables"]["dq"]), "NU": str(sum(i["size"] for i in inputs)),
-        "NP": str(len(meta["default_params"])),
+        "NP": str(len(meta["default_params"])), "NINPUTS": str(len(inputs)), "NPARAMS": str(len(params)),
         "N": str(meta["outputs"][0]["shape"][0]),     # the QP's variables (dq and slacks): lexls.c is compiled for them
         "DAQP_SOURCES": " \\\n  ".join(daqp_sources), "DAQP_SOURCES_CMAKE": "\n  ".join(daqp_sources),
         "DAQP_VERSION": daqp_version,
         "JOINTS": ", ".join(f"{n} ({u})" for n, u in zip(meta["joints"], meta["joint_units"])),
         "INPUTS": ", ".join(f"`{i['name']}` ({i['type']}, {i['size']} numbers, {i['unit']})" for i in inputs) or "none",
         "PARAMS": ", ".join(f"`{p['name']}` ({p['type']}, {p['size']} numbers, {p['unit']})" for p in params) or "none",
+        "INPUTS_ARGUMENT": f"const double inputs[{api.upper()}_INPUT_LENGTH]" if inputs else "const double* inputs",
+        "PARAMS_ARGUMENT": f"const double values[{api.upper()}_PARAM_LENGTH]" if params else "const double* values",
         "ROWS": str(len(meta["rows"])), "PERIOD": f"{period:g} s" if period else "none (pass dt)",
     }

@@ -1,8 +1,10 @@
 /* @API@: the C API of the virtual fixture "@TASK@" (see @API@.h), written by `vfdsl export`.
  *
  * A controller is one vfdsl_core (checked_step.h: the checks and the evaluation of a tick, the same
- * code as Python's Controller.step) over buffers inside the controller, plus a busy flag: a call that
- * finds it set returns VF_ERR_BUSY without touching anything (an atomic exchange, not a lock).
+ * code as Python's Controller.step) over buffers inside the controller, plus a busy flag: every call on a
+ * controller (the readers _violations, _error_index and _error_check included) sets it for its duration,
+ * and a call that finds it set returns VF_ERR_BUSY without touching anything (an atomic exchange, not a
+ * lock: no call ever waits).
  */
 #include "@TICK@.h"
 #define VFDSL_PREFIX @TICK@
@@ -28,12 +30,13 @@ struct @API@ {
   int error_index, error_check;
 };
 
-static int enter(@API@* c) {
-  return !__atomic_exchange_n(&c->busy, 1, __ATOMIC_ACQUIRE);
+/* The flag is the only field a reader (a const controller) writes: controllers are never const objects. */
+static int enter(const @API@* c) {
+  return !__atomic_exchange_n(&((@API@*) c)->busy, 1, __ATOMIC_ACQUIRE);
 }
 
-static void leave(@API@* c) {
-  __atomic_store_n(&c->busy, 0, __ATOMIC_RELEASE);
+static void leave(const @API@* c) {
+  __atomic_store_n(&((@API@*) c)->busy, 0, __ATOMIC_RELEASE);
 }
 
 static int refuse(@API@* c, int code, long index, long check) {
@@ -102,20 +105,27 @@ static int tick(@API@* c, const double* q, const double* inputs, double dt) {
   return (int) c->status[0];
 }
 
-VF_EXPORT int @API@_step(@API@* c, const double* q, const double* inputs, double dt, double* dq_out) {
+VF_EXPORT int @API@_step(@API@* c, const double q[@MACRO@_NUM_JOINTS], @INPUTS_ARGUMENT@, double dt,
+                         double dq_out[@MACRO@_NUM_JOINTS]) {
   int code;
-  if (!dq_out) return VF_ERR_NULL;
-  if (!c || !q || (!inputs && NU > 0)) {
+  if (!c) {
     code = VF_ERR_NULL;
   } else if (!enter(c)) {
     code = VF_ERR_BUSY;
   } else {
-    code = tick(c, q, inputs, dt);
+    code = !q || !dq_out || (!inputs && NU > 0) ? refuse(c, VF_ERR_NULL, -1, -1) : tick(c, q, inputs, dt);
     if (code >= 0) memcpy(dq_out, c->x, sizeof(double) * NQ);
     leave(c);
   }
-  if (code < 0) memset(dq_out, 0, sizeof(double) * NQ);
+  if (code < 0 && dq_out) memset(dq_out, 0, sizeof(double) * NQ);
   return code;
+}
+
+/* The run-time param holding number `at` of the params' vector. */
+static int param_of(long at) {
+  int k = 0;
+  while (k + 1 < NPARAMS && at >= param_offsets[k + 1]) ++k;
+  return k;
 }
 
 /* candidate = the current params with [offset, offset + n) replaced by values; kept if every check holds. */
@@ -124,9 +134,9 @@ static int set_values(@API@* c, long offset, long n, const double* values) {
   memcpy(c->candidate, c->p, sizeof(double) * NP);
   memcpy(c->candidate + offset, values, sizeof(double) * n);
   i = vfdsl_first_nonfinite(values, n);
-  if (i >= 0) return refuse(c, VF_ERR_PARAM, offset + i, -1);
+  if (i >= 0) return refuse(c, VF_ERR_PARAM, param_of(offset + i), -1);
   i = vfdsl_first_failure(&c->core, c->candidate);
-  if (i >= 0) return refuse(c, VF_ERR_PARAM, -1, i);
+  if (i >= 0) return refuse(c, VF_ERR_PARAM, check_params[i], i);
   memcpy(c->p, c->candidate, sizeof(double) * NP);
   c->error_index = c->error_check = -1;
   return 0;
@@ -134,30 +144,45 @@ static int set_values(@API@* c, long offset, long n, const double* values) {
 
 VF_EXPORT int @API@_set_param(@API@* c, int index, const double* values) {
   int code;
-  if (!c || !values) return VF_ERR_NULL;
-  if (index < 0 || index >= NPARAMS) return VF_ERR_PARAM_INDEX;
+  if (!c) return VF_ERR_NULL;
   if (!enter(c)) return VF_ERR_BUSY;
-  code = set_values(c, param_offsets[index], param_sizes[index], values);
+  if (!values) code = refuse(c, VF_ERR_NULL, -1, -1);
+  else if (index < 0 || index >= NPARAMS) code = refuse(c, VF_ERR_PARAM_INDEX, index, -1);
+  else code = set_values(c, param_offsets[index], param_sizes[index], values);
   leave(c);
   return code;
 }
 
-VF_EXPORT int @API@_set_params(@API@* c, const double* values) {
+VF_EXPORT int @API@_set_params(@API@* c, @PARAMS_ARGUMENT@) {
   int code;
-  if (!c || !values) return VF_ERR_NULL;
+  if (!c) return VF_ERR_NULL;
   if (!enter(c)) return VF_ERR_BUSY;
-  code = set_values(c, 0, NP, values);
+  code = !values && NP > 0 ? refuse(c, VF_ERR_NULL, -1, -1) : set_values(c, 0, NP, values);
   leave(c);
   return code;
 }
 
-VF_EXPORT int @API@_error_index(const @API@* c) { return c ? c->error_index : -1; }
-VF_EXPORT int @API@_error_check(const @API@* c) { return c ? c->error_check : -1; }
-VF_EXPORT const char* @API@_check_meaning(int k) { return k >= 0 && k < NCHECKS ? check_meanings[k] : 0; }
+static int last_error(const @API@* c, int check) {
+  int value;
+  if (!c) return -1;
+  if (!enter(c)) return VF_ERR_BUSY;
+  value = check ? c->error_check : c->error_index;
+  leave(c);
+  return value;
+}
+
+VF_EXPORT int @API@_error_index(const @API@* c) { return last_error(c, 0); }
+VF_EXPORT int @API@_error_check(const @API@* c) { return last_error(c, 1); }
+VF_EXPORT const char* @API@_check_meaning(int k) {
+  if (k >= 0 && k < NCHECKS) return check_meanings[k];
+  return k == -1 ? "no check of the task failed (the value was NaN or inf, or the error was not VF_ERR_PARAM)"
+                 : "not a check of this task";
+}
 
 VF_EXPORT int @API@_violations(const @API@* c, @API@_violation* out, int capacity) {
   int i, n = 0;
-  if (!c) return 0;
+  if (!c) return VF_ERR_NULL;
+  if (!enter(c)) return VF_ERR_BUSY;
   for (i=0; i<NROWS; ++i) {
     if (rows[i].soft || !(c->violation[i] > 0)) continue;
     if (out && n < capacity) {
@@ -176,6 +201,7 @@ VF_EXPORT int @API@_violations(const @API@* c, @API@_violation* out, int capacit
     }
     ++n;
   }
+  leave(c);
   return n;
 }
 
@@ -197,25 +223,25 @@ VF_EXPORT const char* @API@_error_message(int code) {
 }
 
 VF_EXPORT int @API@_num_joints(void) { return NQ; }
-VF_EXPORT const char* @API@_joint_name(int i) { return i >= 0 && i < NQ ? joint_names[i] : 0; }
-VF_EXPORT const char* @API@_joint_unit(int i) { return i >= 0 && i < NQ ? joint_units[i] : 0; }
+VF_EXPORT const char* @API@_joint_name(int i) { return i >= 0 && i < NQ ? joint_names[i] : ""; }
+VF_EXPORT const char* @API@_joint_unit(int i) { return i >= 0 && i < NQ ? joint_units[i] : ""; }
 VF_EXPORT double @API@_default_period(void) { return DEFAULT_PERIOD; }
 VF_EXPORT double @API@_min_period(void) { return MIN_PERIOD; }
 VF_EXPORT double @API@_max_period(void) { return MAX_PERIOD; }
 VF_EXPORT const double* @API@_start(void) { return start; }
 VF_EXPORT int @API@_input_length(void) { return NU; }
 VF_EXPORT int @API@_num_inputs(void) { return NINPUTS; }
-VF_EXPORT const char* @API@_input_name(int k) { return k >= 0 && k < NINPUTS ? input_names[k] : 0; }
+VF_EXPORT const char* @API@_input_name(int k) { return k >= 0 && k < NINPUTS ? input_names[k] : ""; }
 VF_EXPORT int @API@_input_size(int k) { return k >= 0 && k < NINPUTS ? input_sizes[k] : 0; }
-VF_EXPORT const char* @API@_input_unit(int k) { return k >= 0 && k < NINPUTS ? input_units[k] : 0; }
+VF_EXPORT const char* @API@_input_unit(int k) { return k >= 0 && k < NINPUTS ? input_units[k] : ""; }
 VF_EXPORT int @API@_param_length(void) { return NP; }
 VF_EXPORT int @API@_num_params(void) { return NPARAMS; }
-VF_EXPORT const char* @API@_param_name(int k) { return k >= 0 && k < NPARAMS ? param_names[k] : 0; }
-VF_EXPORT const char* @API@_param_type(int k) { return k >= 0 && k < NPARAMS ? param_types[k] : 0; }
+VF_EXPORT const char* @API@_param_name(int k) { return k >= 0 && k < NPARAMS ? param_names[k] : ""; }
+VF_EXPORT const char* @API@_param_type(int k) { return k >= 0 && k < NPARAMS ? param_types[k] : ""; }
 VF_EXPORT int @API@_param_size(int k) { return k >= 0 && k < NPARAMS ? param_sizes[k] : 0; }
-VF_EXPORT const char* @API@_param_unit(int k) { return k >= 0 && k < NPARAMS ? param_units[k] : 0; }
+VF_EXPORT const char* @API@_param_unit(int k) { return k >= 0 && k < NPARAMS ? param_units[k] : ""; }
 VF_EXPORT const double* @API@_param_default(int k) {
   return k >= 0 && k < NPARAMS ? p_default + param_offsets[k] : 0;
 }
 VF_EXPORT int @API@_num_rows(void) { return NROWS; }
-VF_EXPORT const char* @API@_row_label(int i) { return i >= 0 && i < NROWS ? rows[i].label : 0; }
+VF_EXPORT const char* @API@_row_label(int i) { return i >= 0 && i < NROWS ? rows[i].label : ""; }

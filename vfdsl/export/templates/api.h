@@ -8,8 +8,10 @@
  *     if (s < 0) puts(@API@_error_message(s));        refused before anything moved: dq is zeros
  *     @API@_free(ctrl);
  *
- * Units are SI (m, rad, s, N, N m). q has @API@_num_joints() entries; inputs holds every input in
- * declaration order, @API@_input_length() numbers in all (see @API@_input_name/_size/_unit).
+ * Units are SI (m, rad, s, N, N m). q has @MACRO@_NUM_JOINTS entries; inputs holds every input in
+ * declaration order, @MACRO@_INPUT_LENGTH numbers in all (see @API@_input_name/_size/_unit). The
+ * arrays of the prototypes carry these sizes: a C compiler (GCC 11 or later) warns when a smaller
+ * array is passed.
  *
  * @API@_step returns the status bits of the tick (>= 0: VF_OPTIMAL, or VF_LEAST_VIOLATION,
  * VF_BOUNDS_CLIPPED, VF_FALLBACK set) or a negative VF_ERR_* code naming the argument it refuses; it
@@ -20,9 +22,12 @@
  * implausible points, lengths and angles, scalar ranges, run-time curve chords), the same code as
  * Python's, and keeps the previous values when it refuses them.
  *
- * Threads: controllers are independent and run in parallel threads. One controller called from two
- * threads at once refuses the second call (VF_ERR_BUSY, dq zeros), never mixes them. After
- * @API@_new, @API@_step and @API@_set_param allocate no memory, take no lock and make no system call.
+ * Threads: controllers are independent and run in parallel threads. The calls on one controller
+ * (_step, _set_param, _set_params, _violations, _error_index, _error_check) run one at a time: a
+ * call that finds another one running on the same controller returns VF_ERR_BUSY at once and touches
+ * nothing (dq zeros). The functions without a controller run in any thread at any time; _free must
+ * not overlap another call on the same controller. After @API@_new, no call allocates memory, takes
+ * a lock or makes a system call.
  */
 #ifndef @GUARD@
 #define @GUARD@
@@ -51,6 +56,14 @@ extern "C" {
 #define VF_ERR_DT_PERIOD (-10)   /* dt is far from the task's period (a unit slip): outside [_min_period, _max_period] */
 #endif
 
+/* The task's sizes, for arrays: double q[@MACRO@_NUM_JOINTS], inputs[@MACRO@_INPUT_LENGTH]. */
+#define @MACRO@_NUM_JOINTS @NQ@     /* q and dq */
+#define @MACRO@_INPUT_LENGTH @NU@   /* every input's numbers */
+#define @MACRO@_NUM_INPUTS @NINPUTS@
+#define @MACRO@_PARAM_LENGTH @NP@   /* every run-time param's numbers (_set_params) */
+#define @MACRO@_NUM_PARAMS @NPARAMS@
+#define @MACRO@_NUM_ROWS @ROWS@
+
 typedef struct @API@ @API@;     /* one controller: opaque */
 
 /* One violated constraint after a tick: a hard row's excess over its bound, or a soft constraint's
@@ -67,24 +80,36 @@ typedef struct {
 @API@* @API@_new(void);
 void @API@_free(@API@* ctrl);
 
-int @API@_step(@API@* ctrl, const double* q, const double* inputs, double dt, double* dq_out);
+/* inputs may be NULL when the task has none. */
+int @API@_step(@API@* ctrl, const double q[@MACRO@_NUM_JOINTS], @INPUTS_ARGUMENT@, double dt,
+               double dq_out[@MACRO@_NUM_JOINTS]);
 
 /* Run-time param `index` (0 .. @API@_num_params() - 1) = values (@API@_param_size(index) numbers). 0, or
  * VF_ERR_PARAM_INDEX, VF_ERR_PARAM (see @API@_error_check), VF_ERR_NULL, VF_ERR_BUSY; a refused value
  * changes nothing. @API@_set_params sets all at once (@API@_param_length() numbers, in param order:
  * needed when a check involves several params, e.g. two points of a line). */
 int @API@_set_param(@API@* ctrl, int index, const double* values);
-int @API@_set_params(@API@* ctrl, const double* values);
-/* The index of the check the last VF_ERR_PARAM failed (-1: a non-finite value), and what it asks. */
-int @API@_error_check(const @API@* ctrl);
-const char* @API@_check_meaning(int check);
-/* The index of the joint, input number or param number the last error is about (-1: none). */
+int @API@_set_params(@API@* ctrl, @PARAMS_ARGUMENT@);
+/* What the last error returned by a call on this controller is about (every error but VF_ERR_BUSY, which
+ * touches nothing, and VF_ERR_NULL without a controller, sets both; a call that succeeds sets both to -1):
+ * _error_index: the joint (VF_ERR_Q_*), the number in inputs (VF_ERR_INPUT), the param's index k of
+ *   _param_name(k) (VF_ERR_PARAM: the param holding NaN or inf, or the param the failed check is about;
+ *   -1 when the check is about a value derived from several params), the index given (VF_ERR_PARAM_INDEX);
+ *   -1 otherwise.
+ * _error_check: the task's check that failed (VF_ERR_PARAM), -1 otherwise (a NaN or inf value included).
+ * Both return VF_ERR_BUSY while another call runs on the controller. */
 int @API@_error_index(const @API@* ctrl);
+int @API@_error_check(const @API@* ctrl);
+/* What check `check` asks (e.g. "param 'axis' must not be a zero direction"); never NULL: for -1 or
+ * any other number that is not a check, a sentence saying so. */
+const char* @API@_check_meaning(int check);
 
 /* After a tick: the violated constraints in row order (hard rows, then soft constraints); writes at most
- * `capacity` of them and returns how many there are. */
+ * `capacity` of them and returns how many there are, or VF_ERR_BUSY while another call runs on the
+ * controller (nothing written). */
 int @API@_violations(const @API@* ctrl, @API@_violation* out, int capacity);
 
+/* The strings below are static and never NULL: an index out of range gives "". */
 const char* @API@_error_message(int code);
 
 int @API@_num_joints(void);
