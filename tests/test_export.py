@@ -412,7 +412,8 @@ def test_error_index_and_check_name_the_last_refusal(experiment_b, tmp_path):
 
 
 def _meta(exported: Exported) -> dict:
-    return json.loads(pipeline.build(exported.task, backend="native")[1].meta_path.read_text())
+    from vfdsl.export.writer import portable
+    return json.loads(pipeline.build(portable(exported.task), backend="native")[1].meta_path.read_text())
 
 
 def test_the_header_sizes_make_a_too_small_array_a_compile_error(experiment_b, tmp_path):
@@ -463,18 +464,92 @@ def test_readers_and_a_step_of_one_controller_never_overlap(experiment_b, tmp_pa
     assert refused > 0 and wrong == 0
 
 
+# ----------------------------------------------------------------------------- replay's lines (C)
+def test_replay_lines_carry_params_as_a_recording_with_re_registrations(experiment_b):
+    """A line may end with every param (q, inputs, params): they are set before its tick and kept, so a recording
+    whose pivot is re-registered every 100 ticks replays as Controller.step() ran it; refused params print the
+    error and the check's meaning and run no tick; another count of numbers names both accepted counts."""
+    exported = experiment_b
+    ctrl = exported.controller()
+
+    def params(k: int) -> dict:            # the pivot re-registered within its 1 um tolerance, the axis tilted
+        return {"pivot": [1e-7 * (k // 100 % 4), 0.0, 0.290], "axis": [0.01 * (k // 100), -0.2, 1.0]}
+
+    ticks = record(ctrl, 400, params=params)
+    assert len(ticks[0].line().split()) == ctrl.nq + ticks[0].u.size + ticks[0].p.size
+    answers = replay(exported.directory, [t.line() for t in ticks], ticks[0].dt)
+    assert [status for status, _ in answers] == [t.status for t in ticks]
+    assert max(float(np.max(np.abs(dq - t.dq))) for (_, dq), t in zip(answers, ticks)) <= 1e-12
+    fixed = record(exported.controller(), 400, params=params(0))
+    assert max(float(np.max(np.abs(a.dq - b.dq))) for a, b in zip(ticks, fixed)) > 1e-9    # the changes matter
+    zero_axis = " ".join(f"{x:.17g}" for x in (*ticks[0].q, *ticks[0].u, 0, 0, 0.29, 0, 0, 0))
+    (code, message), (status, dq) = replay(exported.directory, [zero_axis, ticks[0].line()], ticks[0].dt)
+    assert code == ERR_PARAM and "'axis' must not be a zero direction" in message
+    assert status == ticks[0].status and np.allclose(dq, ticks[0].dq, rtol=0, atol=1e-12)
+    result = subprocess.run([str(exported.directory / "replay")], input=" ".join(["0"] * 34) + "\n",
+                            capture_output=True, text=True)
+    assert result.returncode == 2 and "34 numbers, expected 10 (q, then every input) or 16" in result.stderr
+
+
+def test_replay_refuses_an_overlong_line_or_a_nul_byte(experiment_b, tmp_path):
+    """A line of 65,535 characters is one tick; a longer line, or a NUL byte in a line or in the params file,
+    ends the run with exit status 2 and a message, after the ticks before it (never a tick split or cut)."""
+    exported = experiment_b
+    tick = record(exported.controller(), 1)[0]
+    line = tick.line()
+    exe = str(exported.directory / "replay")
+
+    def run(text: bytes, *args: str) -> subprocess.CompletedProcess:
+        return subprocess.run([exe, "--dt", repr(tick.dt), *args], input=text, capture_output=True)
+
+    longest = run((line.ljust(65535) + "\n").encode())
+    assert longest.returncode == 0 and len(longest.stdout.splitlines()) == 1
+    for text, message in (((line + "\n" + line.ljust(65536) + "\n").encode(), b"line 2 is longer than the limit"),
+                          ((line + "\n" + " 0" * 40000 + "\n").encode(), b"line 2 is longer than the limit"),
+                          ((line + "\n" + line + "\0 1 2\n").encode(), b"line 2 holds a NUL byte"),
+                          ((line + "\n" + "\0" + line + "\n").encode(), b"line 2 holds a NUL byte")):
+        result = run(text)
+        assert result.returncode == 2 and message in result.stderr, result.stderr
+        assert len(result.stdout.splitlines()) == 1                 # line 1's tick only
+    params = tmp_path / "params.txt"
+    params.write_bytes(b"0 0 0.29\0 0 0 1\n")
+    result = run((line + "\n").encode(), "--params", str(params))
+    assert result.returncode == 2 and b"holds a NUL byte" in result.stderr and not result.stdout
+    result = run((line + "\n").encode(), "--dt", "0.001s")
+    assert result.returncode == 2 and b"not a number of seconds" in result.stderr
+
+
 # ------------------------------------------------------------------------------- what the folder holds
 def _write_as(exported: Exported, directory: Path, **meta) -> Export:
     """write_export of experiment B's generated library into ``directory``, its metadata changed by ``meta``."""
     from vfdsl.codegen.build import daqp_home
     from vfdsl.codegen.daqp_sources import daqp_sources
-    from vfdsl.export.writer import write_export
-    library = pipeline.build(exported.task, backend="native")[1]
+    from vfdsl.export.writer import portable, write_export
+    library = pipeline.build(portable(exported.task), backend="native")[1]
     if meta:
         changed = directory.parent / f"{directory.name}.json"
         changed.write_text(json.dumps({**json.loads(library.meta_path.read_text()), **meta}))
         library = dataclasses.replace(library, meta_path=changed)
     return write_export(library, daqp_sources(daqp_home()), directory)
+
+
+def test_the_export_does_not_depend_on_how_the_task_path_is_given(experiment_b, tmp_path, monkeypatch):
+    """The task given by its absolute path from another folder, or from a copy of tasks/ under a folder named
+    'c*/d??' by a relative path, exports the same bytes as tasks/... from the repository (labels and the generated
+    tick's name included)."""
+    exported = experiment_b
+    names = sorted(str(p.relative_to(exported.directory)) for p in exported.result.files)
+    odd = tmp_path / "c*" / "d??"
+    shutil.copytree(TASKS_DIR, odd / "tasks")
+    monkeypatch.chdir(tmp_path / "c*")
+    given = {"absolute": TASKS_DIR.resolve() / "paper_b_virtual_rcm.vf",
+             "relative, copied": Path("d??/tasks/paper_b_virtual_rcm.vf")}
+    for how, path in given.items():
+        again = export(vfdsl.load(path), tmp_path / how)
+        assert sorted(str(p.relative_to(again.directory)) for p in again.files) == names, how
+        match, mismatch, errors = filecmp.cmpfiles(exported.directory, again.directory, names, shallow=False)
+        assert not mismatch and not errors, (how, mismatch)
+    assert "paper_b_virtual_rcm.vf:" in (tmp_path / "absolute" / f"{exported.result.api}.c").read_text()
 
 
 def test_a_path_in_a_comment_cannot_end_it(experiment_b, tmp_path):

@@ -8,19 +8,20 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from vfdsl.export.writer import Export, api_name, prepare_directory, write_export
+from vfdsl.export.writer import Export, api_name, portable, prepare_directory, write_export
 from vfdsl.ir import model as ir
 
 
 def export(task: ir.Task, directory: str | Path, *, cache_dir: str | Path | None = None) -> Export:
     """Generate and build ``task``'s controller (the build cache: ``cache_dir``, default as
     :func:`vfdsl.compile`) and write its folder into ``directory``. Needs a C compiler: the generated C is
-    compiled once here, as for :func:`vfdsl.compile`, before it is exported."""
+    compiled once here, as for :func:`vfdsl.compile`, before it is exported. The task's source paths are made
+    relative to its file's folder first (:func:`~vfdsl.export.writer.portable`)."""
     from vfdsl import pipeline
     from vfdsl.codegen.build import daqp_home
     from vfdsl.codegen.daqp_sources import daqp_sources
     directory = prepare_directory(Path(directory))
-    _, library = pipeline.build(task, backend="native", cache_dir=cache_dir)
+    _, library = pipeline.build(portable(task), backend="native", cache_dir=cache_dir)
     return write_export(library, daqp_sources(daqp_home()), directory)
 
 

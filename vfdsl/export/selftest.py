@@ -2,7 +2,7 @@
 
     ticks = record(ctrl, count=200)            # q_{k+1} = q_k + dq_k from the start, a user pushing on every input
     build(directory)                           # make (needs make and a C compiler)
-    answers = replay(directory, ticks)         # [(status or error code, dq or message), ...]
+    answers = replay(directory, [t.line() for t in ticks], ticks[0].dt)   # [(status or code, dq or message)]
 
 ``vfdsl export --self-test`` and tests/test_export.py use these; each tick is one line of numbers written with 17
 significant digits, so C reads back the very doubles Python used.
@@ -14,6 +14,7 @@ import math
 import shutil
 import subprocess
 import tempfile
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -28,16 +29,19 @@ _SCALE = {"force": [3.0] * 3, "torque": [0.02] * 3, "wrench": [3.0] * 3 + [0.02]
 
 @dataclass(frozen=True)
 class Tick:
-    """One recorded tick: the arguments (q, inputs flat in declaration order, dt) and Python's answer."""
+    """One recorded tick: the arguments (q, inputs flat in declaration order, dt, the params' numbers when the
+    tick sets them) and Python's answer."""
 
     q: np.ndarray
     u: np.ndarray
     dt: float
     status: int
     dq: np.ndarray
+    p: np.ndarray | None = None
 
     def line(self) -> str:
-        return " ".join(f"{x:.17g}" for x in (*self.q, *self.u))
+        """replay's line: q, the inputs, then the params when the tick carries them."""
+        return " ".join(f"{x:.17g}" for x in (*self.q, *self.u, *(() if self.p is None else self.p)))
 
 
 def user_inputs(ctrl, k: int) -> dict[str, np.ndarray]:
@@ -47,18 +51,21 @@ def user_inputs(ctrl, k: int) -> dict[str, np.ndarray]:
             for name in ctrl.input_sizes}
 
 
-def record(ctrl, count: int, dt: float | None = None, params: dict | None = None) -> list[Tick]:
+def record(ctrl, count: int, dt: float | None = None,
+           params: dict | Callable[[int], dict] | None = None) -> list[Tick]:
     """``count`` closed-loop ticks of ``ctrl`` (a fresh Controller) from the task's start, dt the scene's period
     (0.01 s when it has none), ``params`` (the run-time params, as ``Controller.step`` takes them) or the
-    defaults."""
+    defaults. ``params`` a function: tick k's params, ``params(k)``, which each tick then carries in its line."""
     dt = dt or ctrl.default_dt or 0.01
     q = np.array(ctrl.task.start if ctrl.task.start is not None else np.zeros(ctrl.nq), dtype=float)
     ticks = []
     for k in range(count):
         inputs = user_inputs(ctrl, k)
-        dq = ctrl.step(q, inputs, params, dt)
+        given = params(k) if callable(params) else params
+        dq = ctrl.step(q, inputs, given, dt)
         u = np.concatenate([inputs[name] for name in ctrl.input_sizes]) if inputs else np.zeros(0)
-        ticks.append(Tick(q.copy(), u, dt, int(ctrl.status), dq.copy()))
+        p = ctrl._values.params(given) if callable(params) else None
+        ticks.append(Tick(q.copy(), u, dt, int(ctrl.status), dq.copy(), p))
         q = q + dq
     return ticks
 

@@ -11,8 +11,9 @@
 
 Everything comes from the files of the task's :class:`~vfdsl.codegen.build.BuiltLibrary` (generated C and
 header, metadata) and from DAQP's sources; templates are filled by ``@NAME@`` replacement. Nothing written
-depends on the time, the machine or the build cache, so exporting an unchanged task again writes the same
-bytes. Files the export does not write are left alone; files it writes are replaced.
+depends on the time, the machine, the build cache or how the task's path was given (:func:`portable`), so
+exporting an unchanged task again writes the same bytes. Files the export does not write are left alone; files it
+writes are replaced.
 """
 
 from __future__ import annotations
@@ -21,12 +22,13 @@ import json
 import os
 import re
 from dataclasses import dataclass
-from pathlib import Path
+from pathlib import Path, PurePath
 
 import vfdsl
 from vfdsl.codegen.build import CHECKED_STEP, LEXLS_HEADER, LEXLS_SOURCE, BuiltLibrary
 from vfdsl.errors import VfError
 from vfdsl.export.tables import comment_text, task_tables
+from vfdsl.ir import model as ir
 
 TEMPLATES = Path(__file__).parent / "templates"
 _PLACEHOLDER = re.compile(r"@([A-Z_]+)@")
@@ -67,6 +69,27 @@ def cpp_class_name(task_name: str) -> str:
     (:data:`_CPP_TAKEN`, e.g. a task named ``class`` or ``step``) or starts with a digit."""
     name = api_name(task_name)[3:]
     return name + "_" if name in _CPP_TAKEN or name[:1].isdigit() else name
+
+
+def portable(task: ir.Task) -> ir.Task:
+    """``task`` with its source paths (the task file, imports, scene, every span) relative to the task file's
+    folder, so that what is exported (labels, the generated tick's name, which hashes the IR) does not depend on
+    the current directory or on the path being given absolute or relative. A mesh's or URDF's absolute path
+    stays: it names the file itself, not how the task was given."""
+    if not task.file:
+        return task
+    home = Path(task.file).resolve().parent
+    sources = {task.file, *task.imports, *([task.scene.file] if task.scene and task.scene.file else [])}
+    moved = {path: PurePath(os.path.relpath(Path(path).resolve(), home)).as_posix() for path in sources}
+
+    def walk(node):
+        if isinstance(node, dict):
+            return {key: moved.get(value, value) if key == "file" and isinstance(value, str) else
+                    [moved.get(path, path) for path in value] if key == "imports" else walk(value)
+                    for key, value in node.items()}
+        return [walk(value) for value in node] if isinstance(node, list) else node
+
+    return ir.Task.model_validate(walk(task.model_dump(mode="json")))
 
 
 def write_export(library: BuiltLibrary, daqp_root: Path, directory: Path) -> Export:
