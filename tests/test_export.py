@@ -31,7 +31,7 @@ from vfdsl.compiler.admissible import Admissible
 from vfdsl.compiler.context import ParamLayout
 from vfdsl.errors import VfError
 from vfdsl.export import Export, api_name, export
-from vfdsl.export.selftest import build, record, replay
+from vfdsl.export.selftest import MAX_TICKS, build, check_count, record, replay
 from vfdsl.export.writer import cpp_class_name
 from vfdsl.kinematics.robot import Robot
 
@@ -364,11 +364,19 @@ bool stop_requested() { return ++n > 200; }
 
 # ----------------------------------------------------------------------------------------------- CLI
 def test_cli_exports_with_a_self_test(tmp_path, capsys):
-    assert main(["export", str(TASKS_DIR / "lecture_forbidden_half_space.vf"), "-o", str(tmp_path / "out"),
+    """The self-test builds a copy of the files the export wrote: the user's files in the folder (a FIFO, a link to
+    itself, a link to /) are neither read nor copied."""
+    out = tmp_path / "out"
+    out.mkdir()
+    os.mkfifo(out / "a_fifo")
+    (out / "loop").symlink_to("loop")
+    (out / "root").symlink_to("/")
+    assert main(["export", str(TASKS_DIR / "lecture_forbidden_half_space.vf"), "-o", str(out),
                  "--self-test", "50"]) == 0
-    out = capsys.readouterr().out
-    assert f"exported {api_name('lecture_forbidden_half_space')}" in out and "50 closed-loop ticks replayed" in out
-    assert not list((tmp_path / "out").glob("*.o"))          # the self-test builds a copy
+    printed = capsys.readouterr().out
+    assert f"exported {api_name('lecture_forbidden_half_space')}" in printed
+    assert "50 closed-loop ticks replayed" in printed
+    assert not list(out.glob("*.o"))          # the self-test builds a copy
 
 
 def test_cli_errors_are_clear(tmp_path, capsys, monkeypatch):
@@ -588,3 +596,55 @@ def test_a_task_named_as_a_keyword_gives_a_compiling_cpp_header(experiment_b, tm
     assert written.api == f"vf_{name}" and cpp_class_name(name) == name + "_"
     _compile_headers(written, tmp_path)
     assert cpp_class_name("paper_b_virtual_rcm") == "paper_b_virtual_rcm"
+
+
+# ------------------------------------------------------------------------- writing the folder (links)
+def test_the_export_never_writes_through_a_link(experiment_b, tmp_path):
+    """A link in the folder where the export writes (a file or a subfolder), or a FIFO there, is refused before
+    anything is written, and what it points to is untouched; a hard link is replaced (the other name keeps its
+    text); the folder itself given as a link is the user's choice and is written."""
+    exported = experiment_b
+    outside = tmp_path / "outside.txt"
+    outside.write_text("the user's file")
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    setups = {"Makefile": lambda d: (d / "Makefile").symlink_to(outside),
+              "dangling": lambda d: (d / "README.md").symlink_to(tmp_path / "missing"),
+              "generated": lambda d: (d / "generated").symlink_to(elsewhere),
+              "daqp/include": lambda d: ((d / "daqp").mkdir(), (d / "daqp" / "include").symlink_to(elsewhere)),
+              "fifo": lambda d: os.mkfifo(d / "replay.c"),
+              "folder": lambda d: (d / "example.c").mkdir()}
+    for what, setup in setups.items():
+        folder = tmp_path / what.replace("/", "_")
+        folder.mkdir()
+        setup(folder)
+        before = sorted(p.name for p in folder.rglob("*"))
+        with pytest.raises(VfError, match="link|not a regular file") as error:
+            _write_as(exported, folder)
+        assert "nothing was written" in str(error.value) and error.value.hint
+        assert sorted(p.name for p in folder.rglob("*")) == before, what
+    assert outside.read_text() == "the user's file" and not list(elsewhere.iterdir())
+    folder = tmp_path / "hard"
+    folder.mkdir()
+    os.link(outside, folder / "Makefile")
+    written = _write_as(exported, folder)
+    assert outside.read_text() == "the user's file"
+    assert (folder / "Makefile").read_bytes() == (exported.directory / "Makefile").read_bytes()
+    assert not list(folder.rglob(".*.vfdsl-export"))                      # no temporary file left
+    (tmp_path / "link_to_folder").symlink_to(elsewhere)
+    written = _write_as(exported, tmp_path / "link_to_folder")
+    assert len(list(elsewhere.rglob("*.c"))) == sum(p.suffix == ".c" for p in written.files)
+
+
+def test_self_test_count_has_a_limit(tmp_path, capsys):
+    """--self-test takes 1 to MAX_TICKS ticks: past it (or not a whole number) a usage error, before anything is
+    exported; self_test() itself refuses it too."""
+    for text in ("1000000000", "1e9", "0", str(MAX_TICKS + 1)):
+        with pytest.raises(SystemExit) as exit_:
+            main(["export", str(TASKS_DIR / "lecture_stay_near_goal.vf"), "-o", str(tmp_path / "out"),
+                  "--self-test", text])
+        assert exit_.value.code == 2 and f"from 1 to {MAX_TICKS:,}" in capsys.readouterr().err
+    assert not (tmp_path / "out").exists()
+    with pytest.raises(VfError, match="1 to 100,000 ticks"):
+        check_count(MAX_TICKS + 1)
+    assert check_count(MAX_TICKS) == MAX_TICKS

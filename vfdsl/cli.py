@@ -116,17 +116,19 @@ def _export(args: argparse.Namespace) -> int:
     print(f"  API        {written.directory / (written.api + '.h')}")
     if args.self_test:
         controller, _ = pipeline.build(task, backend="native", cache_dir=args.cache)
-        worst = self_test(controller, written.directory, args.self_test)
+        worst = self_test(controller, written, args.self_test)
         print(f"  self-test  built with make; {args.self_test} closed-loop ticks replayed: statuses equal, "
               f"largest |dq| difference from Controller.step() {worst:.3g}")
     return 0
 
 
 def _ticks(text: str) -> int:
-    value = int(text)
-    if value < 1:
-        raise argparse.ArgumentTypeError("give a number of ticks >= 1")
-    return value
+    from vfdsl.export.selftest import MAX_TICKS, check_count
+    try:
+        return check_count(int(text))
+    except (ValueError, VfError):
+        raise argparse.ArgumentTypeError(f"give a whole number of ticks from 1 to {MAX_TICKS:,}, not {text!r}") \
+            from None
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -152,6 +154,7 @@ def _parser() -> argparse.ArgumentParser:
     build.add_argument("-o", "--output", metavar="DIR",
                        help="where to put the build (default: $VFDSL_CACHE or ~/.cache/vfdsl)")
     build.set_defaults(run=_compile)
+    from vfdsl.export.selftest import MAX_TICKS
     export = commands.add_parser(
         "export", help="write the task's controller as a C library folder (builds with a C compiler and make)",
         description="Write a self-contained folder with the task's controller as C: the generated tick, DAQP's "
@@ -162,8 +165,9 @@ def _parser() -> argparse.ArgumentParser:
     export.add_argument("-o", "--output", metavar="DIR", required=True,
                         help="the folder to write (created if missing; files of the same names are replaced)")
     export.add_argument("--self-test", metavar="TICKS", type=_ticks, nargs="?", const=200, default=None,
-                        help="then build a copy with make and replay TICKS (default 200) closed-loop ticks recorded "
-                             "from Controller.step(): statuses must be equal; prints the largest dq difference")
+                        help="then build a copy of the written files with make and replay TICKS (default 200, at most "
+                             f"{MAX_TICKS:,}) closed-loop ticks recorded from Controller.step(): statuses must be "
+                             "equal; prints the largest dq difference")
     export.add_argument("--cache", metavar="DIR",
                         help="the build cache of the generated library (default: $VFDSL_CACHE or ~/.cache/vfdsl)")
     export.set_defaults(run=_export)

@@ -12,8 +12,9 @@
 Everything comes from the files of the task's :class:`~vfdsl.codegen.build.BuiltLibrary` (generated C and
 header, metadata) and from DAQP's sources; templates are filled by ``@NAME@`` replacement. Nothing written
 depends on the time, the machine, the build cache or how the task's path was given (:func:`portable`), so
-exporting an unchanged task again writes the same bytes. Files the export does not write are left alone; files it
-writes are replaced.
+exporting an unchanged task again writes the same bytes. Files the export does not write are left alone; a file
+it writes is replaced (a new file renamed over it), never written through: a link, or a path under a link, in
+the folder is refused before anything is written.
 """
 
 from __future__ import annotations
@@ -118,17 +119,48 @@ def write_export(library: BuiltLibrary, daqp_root: Path, directory: Path) -> Exp
         **{f"daqp/src/{p.name}": p.read_bytes() for p in daqp_sources},
     }
     directory = Path(directory)
+    for name in files:
+        _refuse_links(directory, name)
     written = []
     try:
         for name, data in files.items():
             path = directory / name
             path.parent.mkdir(parents=True, exist_ok=True)
-            path.write_bytes(data)
+            _replace(path, data)
             written.append(path)
     except OSError as exc:
         raise VfError(f"cannot write the export into {directory}: {exc.strerror or exc} ({exc.filename or directory})",
                       hint="choose a writable directory with -o") from None
     return Export(directory, api, tuple(written))
+
+
+def _refuse_links(directory: Path, name: str) -> None:
+    """VfError when writing ``directory/name`` would go through a link, or replace what is not a regular file
+    (a folder, a FIFO, a device): the export writes regular files inside ``directory`` only."""
+    path = directory
+    for part in PurePath(name).parts:
+        path = path / part
+        if path.is_symlink():
+            raise VfError(f"the export will not write through the link {path} (-> {os.readlink(path)}): it writes "
+                          f"regular files inside {directory} only, and nothing was written",
+                          hint=f"remove the link {path}, or export into an empty folder with -o")
+    if path.exists() and not path.is_file():
+        raise VfError(f"the export cannot replace {path}: it is not a regular file, and nothing was written",
+                      hint=f"move {path} away, or export into an empty folder with -o")
+
+
+def _replace(path: Path, data: bytes) -> None:
+    """``path`` = ``data``, written to a new file renamed over ``path``: a link or a hard link there is replaced,
+    never written through."""
+    temporary = path.with_name(f".{path.name}.vfdsl-export")
+    temporary.unlink(missing_ok=True)
+    try:
+        descriptor = os.open(temporary, os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_NOFOLLOW", 0), 0o666)
+        with os.fdopen(descriptor, "wb") as out:
+            out.write(data)
+        os.replace(temporary, path)
+    finally:
+        temporary.unlink(missing_ok=True)
 
 
 def prepare_directory(directory: Path) -> Path:
