@@ -108,6 +108,19 @@ BAD_SCENES = [
     ("latnecy: 3 ms\n", 1, "unknown key 'latnecy'"),
     ("duration: 3 mm\n", 1, "expected a time"),
     ("metrics:\n  pivot: {error_of: tip stays_near}\n", 2, "no constraint"),
+    # values no hand, tracker or disturbance has (a unit mistake, or 1e308 overflowing into non-finite metrics)
+    ("hand: {input: tau, kind: turn, axis: [0, 0, 1], magnitude: 1e308 Nmm}\n", 1,
+     "a hand's magnitude of 1e+308 Nmm is beyond the 100000 Nmm a simulation scene may give it"),
+    ("hand: {input: tau, kind: turn, axis: [0, 0, 1], magnitude: 1 Nmm, drift: 200 Nm}\n", 1,
+     "a hand's drift of 200000 Nmm is beyond"),
+    ("hand: {input: tau, kind: turn, axis: [0, 0, 1], magnitude: 1 Nmm, tremor_band: [8, 1e308]}\n", 1,
+     "a tremor band up to 1e+308 Hz is beyond the 1000 Hz"),
+    ("units: mm\ntracker: {noise: 1e308}\n", 2, "a tracker noise of 1e+308 mm RMS is beyond the 10 mm"),
+    ("units: mm\ntracker: {marker_distance: 1e308}\n", 2, "marker_distance must be from 1 mm to 1000 mm, got 1e+308 mm"),
+    ("units: mm\ndisturbances:\n  - {at: 1 s, kind: push_tool, frame: tip, by: [1e308, 0, 0]}\n", 3,
+     "a push_tool displacement of 1e+308 mm is beyond the 100 mm"),
+    ("units: mm\ndisturbances:\n  - {at: 1 s, kind: move_param, param: pivot, translate: [0, 1e300, 1e300]}\n", 3,
+     "a move_param translation of 1.41421e+300 mm is beyond the 100 mm"),
 ]
 
 
@@ -128,6 +141,7 @@ def test_bad_scene_is_a_clear_error_with_file_and_line(tmp_path, capsys, text, l
     (["--trials", "0"], "trials must be a positive whole number"),
     (["--json", "no/such/dir/out.json"], "cannot write no/such/dir/out.json: no directory"),
     (["--scene", "no_such.sim.yaml"], "simulation scene not found: no_such.sim.yaml"),
+    (["--noise", "1e308m"], "a tracker noise of 1e+308 m RMS is beyond the 10 mm"),
 ])
 def test_bad_setting_on_the_command_line_is_a_clear_error(capsys, args, message):
     assert main(["simulate", B, "--quiet", *args]) == 2
@@ -228,3 +242,73 @@ def test_events_after_the_end_of_the_run_are_warned_at_their_line(capsys):
     assert "paper_a_plate_moves.sim.yaml:21:5: warning: the move_param disturbance at 6 s" in capsys.readouterr().err
     assert main([*plate, "--grid", "duration=1s,6.2s"]) == 0
     assert "warning" not in capsys.readouterr().err
+
+
+def _finite(text: str) -> dict:
+    """A JSON document read strictly: NaN and Infinity (which json.dumps writes for non-finite floats) refused."""
+    def refuse(constant):
+        raise AssertionError(f"non-finite value in the JSON: {constant}")
+    return json.loads(text, parse_constant=refuse)
+
+
+EXTREMES = [   # every number a scene may hold, at an extreme, on lecture_forbidden_half_space (force f, plane wall)
+    "latency: 1e308 s", "servo_lag: 1e308 s", "latency: 1e-308 s", "servo_lag: 1e-308 s", "period: 1e-308 s",
+    "duration: 1e308 s", "trials: 1e308", "seed: 1e308",
+    "tracker: {noise: 1e-308 mm, marker_distance: 1e-308 mm}",
+    "hand: {input: f, kind: push, direction: [1e308, 1e308, 0], magnitude: 5 N}",
+    "hand: {input: f, kind: push, direction: [1e-308, 0, 1e-308], magnitude: 5 N}",
+    "hand: {input: f, kind: push, direction: [1, 0, 0], magnitude: 1e308 N}",
+    "hand: {input: f, kind: push, direction: [1, 0, 0], magnitude: 5 N, tremor: 1e308 N}",
+    "hand: {input: f, kind: push, direction: [1, 0, 0], magnitude: 5 N, drift: 1e308 N}",
+    "hand: {input: f, kind: push, direction: [1, 0, 0], magnitude: 5 N, tremor: 1 N, tremor_band: [1e-308, 1e-308]}",
+    "hand: {input: f, kind: push, direction: [1, 0, 0], magnitude: 5 N, drift: 1 N, drift_time: 1e308 s}",
+    "hand: {input: f, kind: push, direction: [1, 0, 0], magnitude: 5 N, drift: 1 N, drift_time: 1e-308 s}",
+    "hand: {input: f, kind: push, direction: [1, 0, 0], magnitude: 5 N, reaction: 1e308 s}",
+    "hand: {input: f, kind: push, direction: [1, 0, 0], magnitude: 5 N, reaction: 1e-308 s}",
+    "disturbances: [{at: 1e308 s, kind: push_tool, frame: tip, by: [1, 0, 0]}]",
+    "disturbances: [{at: 0.05 s, kind: push_tool, frame: tip, by: [1e-308, 0, 0]}]",
+    "disturbances: [{at: 0.05 s, kind: move_param, param: wall, translate: [0, 0, 1e308]}]",
+    "motions: [{param: wall, kind: sine, amplitude: [0, 0, 1e308], frequency: 1 Hz}]",
+    "motions: [{param: wall, kind: sine, amplitude: [0, 0, 1], frequency: 1e308 Hz}]",
+    "motions: [{param: wall, kind: sine, amplitude: [0, 0, 1], frequency: 1 Hz, phase: 1e308 deg}]",
+    "motions: [{param: wall, kind: ramp, start: 0 s, end: 1e308 s, offset: [0, 0, 1]}]",
+    "motions: [{param: wall, kind: step, at: 1e-308 s, offset: [0, 0, 1e-308]}]",
+    "metrics: {wall: {error_of: tip above, paper: {encoders: [1e308, 1e308]}}}",
+]
+
+
+@pytest.mark.parametrize("line", EXTREMES)
+def test_an_extreme_scene_value_is_refused_at_its_line_or_every_figure_stays_finite(tmp_path, capsys, line):
+    """Each number of a scene at an extreme (1e308 or 1e-308 in its unit): the run is refused at the value's line
+    (exit 2, no traceback), or it runs and its --json holds finite numbers only and no line of its report ends in
+    an empty phrase."""
+    scene, out = tmp_path / "x.sim.yaml", tmp_path / "out.json"
+    scene.write_text(f"units: mm, deg\nduration: 0.2 s\n{line}\n")
+    status = main(["simulate", str(TASKS_DIR / "lecture_forbidden_half_space.vf"), "--scene", str(scene),
+                   "--json", str(out)])
+    captured = capsys.readouterr()
+    assert "Traceback" not in captured.err
+    if status == 2:
+        assert f"{scene}:3:" in captured.err, captured.err
+        return
+    assert status == 0
+    _finite(out.read_text())
+    assert not [text for text in captured.out.splitlines() if text.rstrip().endswith(":")], captured.out
+
+
+def test_a_part_the_hand_never_commands_is_left_out_and_no_phrase_is_empty(tmp_path, capsys):
+    """A twist-driven task (lecture_remote_center): a turning hand commands the angular part only, which is the
+    only part reported (the linear one was NaN in --json, and left the report's phrase empty when both were); a
+    hand of magnitude 0 commands nothing, and the report says so."""
+    task = TASKS_DIR / "lecture_remote_center.vf"
+    for hand, said in (("{input: stick, kind: turn, axis: [0, 0, 1], magnitude: 10 deg/s}",
+                        "the robot made: track(tip) angular "),
+                       ("{input: stick, kind: push, direction: [1, 0, 0], magnitude: 0 mm/s}",
+                        "the hand commanded no motion of a tracked part")):
+        scene, out = tmp_path / "x.sim.yaml", tmp_path / "out.json"
+        scene.write_text(f"units: mm, deg\nduration: 0.5 s\nhand: {hand}\n")
+        assert main(["simulate", str(task), "--scene", str(scene), "--json", str(out)]) == 0
+        printed = capsys.readouterr().out
+        assert said in printed
+        fractions = _finite(out.read_text())["motion"]["commanded_fraction"]
+        assert list(fractions) == (["track(tip) angular"] if "turn" in hand else [])

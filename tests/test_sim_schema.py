@@ -77,7 +77,7 @@ _KINDS = lambda schema, section, kind: next(x for x in schema["properties"][sect
                                             if x["title"] == kind)
 SECTIONS = {   # task, a valid scene, the section in it, the section's schema
     "top": (FOLLOW, {"units": "mm"}, lambda d: d, lambda sc: sc),
-    "tracker": (FOLLOW, {"tracker": {"noise": 0.1}}, lambda d: d["tracker"], lambda sc: sc["properties"]["tracker"]),
+    "tracker": (FOLLOW, {"tracker": {"noise": 0.0002}}, lambda d: d["tracker"], lambda sc: sc["properties"]["tracker"]),
     "hand": (FOLLOW, {"hand": {"input": "f", "kind": "push", "direction": [1, 0, 0], "magnitude": 1}},
              lambda d: d["hand"], lambda sc: sc["properties"]["hand"]),
     "push_tool": (FOLLOW, {"disturbances": [{"at": 1, "kind": "push_tool", "frame": "tip", "by": [0, 0, 0]}]},

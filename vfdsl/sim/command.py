@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import math
 import os
 import sys
 import time
@@ -14,13 +13,12 @@ from tqdm import tqdm
 import vfdsl
 from vfdsl.errors import VfError
 from vfdsl import limits
-from vfdsl import units as u
 from vfdsl.sim import report, trace
 from vfdsl.sim.cluster import connect
 from vfdsl.sim.metrics import metric_defs
 from vfdsl.sim.runner import default_workers, loaded, make_jobs, run
 from vfdsl.sim.scene_file import default_scene, load_settings, parse_setting
-from vfdsl.sim.settings import GRID_NAMES, check_setting, check_ticks
+from vfdsl.sim.settings import GRID_NAMES, SHOWN_IN, check_setting, check_ticks
 
 DESCRIPTION = """\
 Run a task's controller in closed loop on a simulated robot (Pinocchio kinematics, with optional
@@ -240,16 +238,12 @@ def _write(name: str, write) -> None:
         raise VfError(f"cannot write {name}: {exc.strerror or exc}") from None
 
 
-_HAND_UNITS = {u.FORCE: ("N", 1.0), u.TORQUE: ("Nmm", 1e3), u.SPEED: ("mm/s", 1e3),
-               u.ANGULAR_SPEED: ("deg/s", 180 / math.pi)}
-
-
 def _heading(name: str, s, doc: dict, trials: int, seconds: float, simulated: float | None) -> str:
     hand = doc["hand"]
     if hand is None:
         hand_text = "no hand (the task has no tracked input)"
     else:
-        unit, factor = _HAND_UNITS[hand["dimension"]]
+        unit, factor = SHOWN_IN[hand["dimension"]]
         aim = hand["curve"] or hand["target"] or hand["direction"]
         aim = aim if isinstance(aim, str) else "[" + ", ".join(f"{x:.3g}" for x in aim) + "]"
         hand_text = (f"hand: {hand['kind']} {aim} with input '{hand['input']}', {hand['magnitude'] * factor:.3g} "
@@ -261,10 +255,10 @@ def _heading(name: str, s, doc: dict, trials: int, seconds: float, simulated: fl
                       f"{moved['net_mm']:.3g} mm) and turned its tool axis {moved['turn_deg']:.3g} deg"
                       + (f" (mean of {moved['trials']} trials)" if moved["trials"] > 1 else ""))
         fractions = moved.get("commanded_fraction") or {}
-        if fractions:
-            hand_text += ("\n  of the motion the hand commanded, the robot made: "
-                          + ", ".join(f"{name} {fraction:.1%}" for name, fraction in fractions.items()
-                                      if math.isfinite(fraction)))
+        hand_text += ("\n  of the motion the hand commanded, the robot made: "
+                      + ", ".join(f"{name} {fraction:.1%}" for name, fraction in fractions.items()) if fractions
+                      else "\n  the hand commanded no motion of a tracked part (its input is zero, or no `minimize "
+                           "track` reads it)")
     speed = f", {simulated / seconds:.0f}x real time" if simulated else ""
     return (f"{name}: {trials} trial(s) of {s.duration:g} s at a {s.period * 1e3:g} ms period, latency "
             f"{s.latency * 1e3:g} ms, servo lag {s.servo_lag * 1e3:g} ms, resolution {s.resolution}, tracker "

@@ -72,16 +72,18 @@ def document(task_name: str, task_file: str, settings: SimSettings, results: lis
 def motion(results: list[TrialResult]) -> dict | None:
     """How far the hand moved its frame, by the encoders, as the mean over the trials: its origin's path
     length and net displacement (mm), the angle its tool axis turned from start to end (deg), and for every
-    tracked part the fraction of the commanded motion the robot made (:func:`vfdsl.sim.runner.commanded_fraction`)."""
+    tracked part the hand commanded the fraction of the commanded motion the robot made, the mean over the trials
+    that commanded it (:func:`vfdsl.sim.runner.commanded_fraction`)."""
     moved = [r.motion for r in results if r.motion is not None]
     if not moved:
         return None
-    parts = moved[0].get("commanded", {})
+    parts = dict.fromkeys(name for m in moved for name in m.get("commanded", {}))
+    fractions = {name: [m["commanded"][name] for m in moved if name in m.get("commanded", {})] for name in parts}
     return {"frame": moved[0]["frame"], "trials": len(moved),
             "path_mm": 1e3 * sum(m["path"] for m in moved) / len(moved),
             "net_mm": 1e3 * sum(m["net"] for m in moved) / len(moved),
             "turn_deg": math.degrees(sum(m["turn"] for m in moved) / len(moved)),
-            "commanded_fraction": {name: sum(m["commanded"][name] for m in moved) / len(moved) for name in parts}}
+            "commanded_fraction": {name: sum(f) / len(f) for name, f in fractions.items()}}
 
 
 def trial_rows(results: list[TrialResult]) -> list[dict]:

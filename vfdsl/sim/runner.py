@@ -187,9 +187,10 @@ def _simulate(job: Job, task: ir.Task, ctrl: vfdsl.Controller, robot: Robot, pro
 
 
 def commanded_fraction(ctrl: vfdsl.Controller, qs: np.ndarray, us: np.ndarray, dt: float) -> dict[str, float]:
-    """For every tracked part, how much of the commanded motion the robot made over the trial, by the encoders:
-    sum_k a_k . f_k / sum_k f_k . f_k, with f_k the rate commanded at tick k and a_k = E_k (q_k+1 - q_k) / dt the
-    rate the robot then moved at (NaN for a part never commanded)."""
+    """For every tracked part the hand commanded, how much of the commanded motion the robot made over the trial,
+    by the encoders: sum_k a_k . f_k / sum_k f_k . f_k, with f_k the rate commanded at tick k and
+    a_k = E_k (q_k+1 - q_k) / dt the rate the robot then moved at. Both sums are taken with f and a divided by
+    the largest |f| (no overflow); a part never commanded (f = 0 throughout) is left out."""
     names, rows = ctrl.tracked_parts
     n = len(qs) - 1
     if n < 1 or not names:
@@ -201,9 +202,10 @@ def commanded_fraction(ctrl: vfdsl.Controller, qs: np.ndarray, us: np.ndarray, d
     for k, name in enumerate(names):
         E, f = np.array(out[2 * k]), np.array(out[2 * k + 1])
         E = E.reshape(E.shape[0], n, -1)                           # rows x ticks x joints
-        achieved = np.einsum("rkj,kj->rk", E, dq) / dt
-        commanded = float(np.sum(f * f))
-        fractions[name] = float(np.sum(achieved * f)) / commanded if commanded > 0 else float("nan")
+        scale = float(np.abs(f).max(initial=0.0))
+        if scale > 0:
+            achieved = np.einsum("rkj,kj->rk", E, dq) / (dt * scale)
+            fractions[name] = float(np.sum(achieved * (f / scale)) / np.sum((f / scale) ** 2))
     return fractions
 
 

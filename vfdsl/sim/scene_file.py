@@ -62,9 +62,11 @@ from vfdsl.files import read_text
 from vfdsl.ir import model as ir
 from vfdsl.passes.scene import _mapping, _span, _units, _Values, compose   # the task scene's YAML reading
 from vfdsl.primitives.spec import SCALAR_DIMENSIONS
-from vfdsl.sim.settings import (DEFAULT_PERIOD, DISTURBANCE_KINDS, HAND_KINDS, MAX_MOTION, MOTION_KINDS, MOVABLE,
+from vfdsl.sim.settings import (DEFAULT_PERIOD, DISTURBANCE_KINDS, HAND_KINDS, MARKER_DISTANCES,
+                                MAX_TREMOR_FREQUENCY, MOTION_KINDS, MOVABLE, SCENE_LIMITS,
                                 GRID_NAMES, SCALARS, Disturbance, HandSettings, MetricSpec, Motion, SimSettings, check_motions,
-                                check_setting, check_ticks, constraint_of, hand_dimension, tracked_frame)
+                                check_setting, check_ticks, constraint_of, hand_dimension, shown,
+                                tracked_frame)
 from vfdsl.syntax import ast
 
 TOP_KEYS = ("units", "duration", "period", "latency", "servo_lag", "resolution", "trials", "seed", "tracker",
@@ -152,6 +154,24 @@ class _Reader:
             raise VfError(f"expected 3 numbers ({u.describe(dim)} each), like [0, 1, 0]", self.pos(node))
         return tuple(self.scalar(item, dim) for item in node.value)
 
+    def direction(self, node: yaml.Node, what: str) -> tuple[float, float, float]:
+        """A direction written as 3 numbers, scaled so its largest is +-1 (its length neither overflows nor
+        underflows: [1e300, 1e300, 0] is the direction [1, 1, 0])."""
+        vector = np.array(self.vector(node, u.DIMENSIONLESS))
+        largest = np.abs(vector).max()
+        if largest == 0:
+            raise VfError(f"{what} must not be zero", self.pos(node))
+        return tuple(float(x) for x in vector / largest)
+
+    def plausible(self, value: float, dim: u.Dim, node: yaml.Node, what: str) -> None:
+        """Refuse a magnitude beyond SCENE_LIMITS for its dimension, at its line."""
+        limit = SCENE_LIMITS[dim]
+        if abs(value) > limit:
+            raise VfError(f"{what} of {shown(value, dim)} is beyond the {shown(limit, dim)} a simulation scene may give "
+                          "it", self.pos(node),
+                          hint="bare numbers take the scene's units (units: mm, deg?); a hand pushes with tens of "
+                               "N and moves a tool at mm/s (docs/simulate.md)")
+
     def integer(self, node: yaml.Node, what: str) -> int:
         value = self.scalar(node, u.DIMENSIONLESS)
         if value != int(value):
@@ -192,8 +212,10 @@ class _Reader:
                 check_setting("noise", values["noise"], self.pos(tracker["noise"][1]))
             if "marker_distance" in tracker:
                 values["marker_distance"] = self.scalar(tracker["marker_distance"][1], u.LENGTH)
-                if values["marker_distance"] <= 0:
-                    raise VfError("marker_distance must be positive", self.pos(tracker["marker_distance"][1]))
+                near, far = MARKER_DISTANCES
+                if not near <= values["marker_distance"] <= far:
+                    raise VfError(f"marker_distance must be from {shown(near, u.LENGTH)} to {shown(far, u.LENGTH)}, got "
+                                  f"{shown(values['marker_distance'], u.LENGTH)}", self.pos(tracker["marker_distance"][1]))
         if "hand" in top:
             values["hand"] = self.hand(top["hand"][1])
         if "disturbances" in top:
@@ -247,6 +269,8 @@ class _Reader:
         for key in ("magnitude", "tremor", "drift"):
             if key in out and out[key] < 0:
                 raise VfError(f"{key} must be zero or positive", self.pos(fields[key][1]))
+            if key in out:
+                self.plausible(out[key], dim, fields[key][1], f"a hand's {key}")
         if "tremor_band" in fields:
             band_node = fields["tremor_band"][1]
             if not isinstance(band_node, yaml.SequenceNode) or len(band_node.value) != 2:
@@ -254,19 +278,22 @@ class _Reader:
             band = tuple(self.scalar(n, u.DIMENSIONLESS) for n in band_node.value)
             if not 0 < band[0] <= band[1]:
                 raise VfError("tremor_band needs 0 < low <= high (Hz)", self.pos(band_node))
+            if band[1] > MAX_TREMOR_FREQUENCY:
+                raise VfError(f"a tremor band up to {band[1]:.6g} Hz is beyond the {MAX_TREMOR_FREQUENCY:g} Hz a "
+                              "simulated tremor may reach", self.pos(band_node),
+                              hint="physiological tremor is 8-12 Hz")
             out["tremor_band"] = band
         for key in ("drift_time", "reaction"):
             if key in fields:
                 out[key] = self.scalar(fields[key][1], u.TIME)
                 if out[key] <= 0:
                     raise VfError(f"{key} must be a positive time", self.pos(fields[key][1]))
+                self.plausible(out[key], u.TIME, fields[key][1], f"a hand's {key}")
         for key in ("direction", "axis"):
             if key in fields:
                 value = fields[key][1]
                 out["direction"] = (self.param(value, ("direction", "vector"), key) if isinstance(value, yaml.ScalarNode)
-                                    else self.vector(value, u.DIMENSIONLESS))
-                if not isinstance(out["direction"], str) and np.linalg.norm(out["direction"]) == 0:
-                    raise VfError(f"{key} must not be zero", self.pos(value))
+                                    else self.direction(value, key))
         if "curve" in fields:
             out["curve"] = self.param(fields["curve"][1], ("curve",), "curve")
         if "target" in fields:
@@ -324,16 +351,16 @@ class _Reader:
                 raise VfError("a move_param disturbance needs 'param'", self.pos(node))
             out["param"] = self.param(fields["param"][1], ("pose", "point"), "param")
             if "translate" in fields:
-                out["translate"] = self.vector(fields["translate"][1], u.LENGTH)
+                out["translate"] = self.bounded_vector(fields["translate"][1], u.LENGTH, "a move_param translation")
             if "tilt" in fields:
                 if self.task.param(out["param"]).type != "pose":
                     raise VfError("only a pose param can tilt", self.pos(fields["tilt"][0]))
-                out["tilt"] = self.vector(fields["tilt"][1], u.ANGLE)
+                out["tilt"] = self.bounded_vector(fields["tilt"][1], u.ANGLE, "a move_param tilt")
         else:
             if "frame" not in fields or "by" not in fields:
                 raise VfError("a push_tool disturbance needs 'frame' and 'by'", self.pos(node))
             out["frame"] = self.frame(fields["frame"][1])
-            out["by"] = self.vector(fields["by"][1], u.LENGTH)
+            out["by"] = self.bounded_vector(fields["by"][1], u.LENGTH, "a push_tool displacement")
         return Disturbance(**out)
 
     # ------------------------------------------------------------------------------------- motions
@@ -400,12 +427,21 @@ class _Reader:
             if isinstance(node, yaml.SequenceNode):
                 raise VfError(f"param '{decl.name}' is a scalar ({decl.type}): give one number, like "
                               f"{u.example(SCALAR_DIMENSIONS[decl.type]).split('e.g. ')[-1]}", self.pos(node))
-            return (self.scalar(node, SCALAR_DIMENSIONS[decl.type]),)
-        vector = self.vector(node, u.LENGTH)
-        if not np.linalg.norm(vector) <= MAX_MOTION:
-            raise VfError(f"a motion of {np.linalg.norm(vector) * 1e3:.6g} mm is beyond the {MAX_MOTION * 1e3:g} mm a "
-                          "simulated motion may move a param", self.pos(node),
-                          hint="bare numbers take the scene's units (units: mm?)")
+            value = self.scalar(node, SCALAR_DIMENSIONS[decl.type])
+            self.plausible(value, SCALAR_DIMENSIONS[decl.type], node, f"a motion of param '{decl.name}'")
+            return (value,)
+        return self.bounded_vector(node, u.LENGTH, "a motion")
+
+    def bounded_vector(self, node: yaml.Node, dim: u.Dim, what: str) -> tuple[float, float, float]:
+        """3 numbers of ``dim`` whose length is at most SCENE_LIMITS[dim] (MAX_MOTION for a length)."""
+        vector = self.vector(node, dim)
+        limit = SCENE_LIMITS[dim]
+        largest = float(np.abs(vector).max())
+        with np.errstate(over="ignore"):           # (|vector| = largest * |vector / largest| overflows only past 1e308)
+            length = largest * float(np.linalg.norm(np.array(vector) / largest)) if largest > 0 else 0.0
+        if not length <= limit:
+            raise VfError(f"{what} of {shown(length, dim)} is beyond the {shown(limit, dim)} a simulation scene may "
+                          "give it", self.pos(node), hint="bare numbers take the scene's units (units: mm, deg?)")
         return vector
 
     # ------------------------------------------------------------------------------------- metrics

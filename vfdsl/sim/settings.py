@@ -25,6 +25,31 @@ MOTION_KINDS = ("sine", "step", "ramp")
 MAX_MOTION = 0.1
 """Largest displacement (m) a motion may give a point, curve, line, plane, pose or vector param: a breath or a
 re-registration moves anatomy by millimetres, and a bigger number is a unit mistake."""
+SCENE_LIMITS: dict[u.Dim, float] = {u.FORCE: 1e3, u.TORQUE: 100.0, u.SPEED: 1.0, u.ANGULAR_SPEED: 10.0,
+                                    u.LENGTH: MAX_MOTION, u.ANGLE: math.pi, u.TIME: 3600.0, u.DIMENSIONLESS: 1e6}
+"""The largest magnitude (SI), per dimension, of a hand's magnitude, tremor, drift, drift_time and reaction, of a
+scalar param's motion, and of a disturbance's translate, by and tilt (their length): 1 kN, 100 N m, 1 m/s,
+10 rad/s; 100 mm, 180 deg, 1 h, 1e6. A hand on a surgical robot pushes with tens
+of newtons and moves a tool at millimetres a second: a larger number is a unit mistake (a torque in Nmm read as
+N m), and an astronomic one (1e308) would overflow the run's arithmetic into non-finite metrics."""
+MAX_TREMOR_FREQUENCY = 1e3
+"""Hz: the highest frequency of a tremor band (physiological tremor is 8-12 Hz)."""
+MAX_NOISE = 0.01
+"""m: the largest tracker noise (RMS per marker; optical trackers: 0.1-0.3 mm)."""
+MARKER_DISTANCES = (1e-3, 1.0)
+"""m: how near and how far a tracker's second marker may be up the tool axis."""
+SHOWN_IN = {u.FORCE: ("N", 1.0), u.TORQUE: ("Nmm", 1e3), u.SPEED: ("mm/s", 1e3),
+            u.ANGULAR_SPEED: ("deg/s", 180 / math.pi), u.LENGTH: ("mm", 1e3), u.ANGLE: ("deg", 180 / math.pi),
+            u.TIME: ("s", 1.0), u.DIMENSIONLESS: ("", 1.0)}
+"""How the simulator shows a value of each dimension (a hand's magnitude, a limit): unit and factor from SI."""
+
+
+def shown(value: float, dim: u.Dim) -> str:
+    """``value`` (SI) in the unit SHOWN_IN gives its dimension ('0.2 mm'); in SI where that unit overflows."""
+    unit, factor = SHOWN_IN[dim]
+    if not math.isfinite(value * factor):
+        unit, factor = u.si_formula(dim), 1.0
+    return f"{value * factor:.6g} {unit}".rstrip()
 RESOLUTIONS = ("off", "robot")
 MOVABLE = ("point", "vector", "line", "plane", "pose", "curve")
 
@@ -168,6 +193,10 @@ def check_setting(name: str, value, where: SourcePos | None = None) -> None:
     elif name in ("latency", "servo_lag", "noise"):
         if not (isinstance(value, float) and math.isfinite(value) and value >= 0):
             raise VfError(f"{name} must be zero or positive, got {value!r}", where)
+        if name == "noise" and value > MAX_NOISE:
+            raise VfError(f"a tracker noise of {shown(value, u.LENGTH)} RMS is beyond the {shown(MAX_NOISE, u.LENGTH)} "
+                          "a simulated tracker may have", where,
+                          hint="optical trackers: 0.1-0.3 mm; bare numbers take the scene's units (units: mm?)")
     elif name == "resolution":
         if value not in RESOLUTIONS:
             raise VfError(f"resolution must be {' or '.join(RESOLUTIONS)}, got {value!r}", where,
