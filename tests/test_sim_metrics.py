@@ -242,7 +242,7 @@ def test_mesh_clearance_is_measured_on_its_own(tmp_path):
 def test_mesh_metrics_are_brute_force_without_computing_it(monkeypatch):
     """The three metrics of each mesh fixture of tasks/bone_nerve.vf, on a tool path down onto the bone and past
     the nerve (through both), equal brute force over every triangle; computing them calls no brute-force routine
-    (they take 10 ms a tick on these meshes: a mesh task's simulation ran at 1/50 of real time)."""
+    (10 ms a tick on these meshes: a mesh task simulated slower than real time)."""
     task = vfdsl.load(TASKS_DIR / "bone_nerve.vf")
     robot = Robot.load(task.robots[0].urdf)
     t = np.linspace(0, 1, 40)[:, None]
