@@ -600,11 +600,12 @@ def test_joint_limits_and_speed_are_variable_bounds(tmp_path, robot):
     nq = len(names)
     for _ in range(TRIALS):
         q = random_q(robot, rng, shrink=0.999)
-        dt = rng.uniform(0.001, 1.0)                  # long periods (up to the 1 s maximum) make the position limits bind too
+        dt = rng.uniform(0.001, 0.1)                  # long periods (up to 10x the assumed 10 ms) make the position limits bind too
         qp = only_limits.problem(q, {}, dt=dt)
         assert qp.A.shape[0] == nq and np.array_equal(qp.A[:nq], np.eye(nq))   # no rows, only bounds
-        np.testing.assert_allclose(qp.lb, lo - q, atol=1e-15)
-        np.testing.assert_allclose(qp.ub, hi - q, atol=1e-15)
+        np.testing.assert_allclose(qp.lb, np.maximum(lo - q, -vmax * dt), atol=1e-15)   # without joint_speed(): the
+        np.testing.assert_allclose(qp.ub, np.minimum(hi - q, vmax * dt), atol=1e-15)    # URDF's velocity limits
+        assert all("the URDF's velocity limit" in label for label in qp.labels[:nq])
         qp = both.problem(q, {}, dt=dt)
         assert qp.A.shape[0] == nq and not both.row_labels
         np.testing.assert_allclose(qp.lb, np.maximum(lo - q, -0.4 * vmax * dt), atol=1e-15)
@@ -635,9 +636,11 @@ def test_soft_constraints_slack_columns(tmp_path):
         qp = ctrl.problem(q, {}, dt=0.1)        # restore share min(1, k dt) = 1: the rows of the hard form
         nq, n = qp.nq, qp.P.shape[0]
         assert n == nq + 3
-        # variable bounds: the dq are free (joint_limits is soft), the slacks are >= 0
+        # variable bounds: the dq only within the URDF's speed (joint_limits is soft), the slacks are >= 0
         assert np.array_equal(qp.A[:n], np.eye(n))
-        assert np.all(np.isinf(qp.lb[:nq])) and np.all(np.isinf(qp.ub[:nq]))
+        vmax = np.array([limits[j][2] for j in names])
+        np.testing.assert_allclose(qp.lb[:nq], -vmax * 0.1, rtol=1e-15)
+        np.testing.assert_allclose(qp.ub[:nq], vmax * 0.1, rtol=1e-15)
         assert np.all(qp.lb[nq:n] == 0) and np.all(np.isinf(qp.ub[nq:n]))
         # costs: 2 w on the slack diagonal (default soft weight 1 for `above`), no linear term
         np.testing.assert_allclose(np.diag(qp.P)[nq:], [2 * 250, 2 * 1, 2 * 7])

@@ -183,16 +183,24 @@ def test_infeasible_least_violation_against_slsqp(random_paths, seed):
     assert measure < violation_measure(A, lba, uba, np.zeros(N))
     relaxed_margin = A.shape[0] * FEAS_TOL / 100          # phase (B) relaxes violated rows by tol / 100
     assert measure <= slsqp_least_violation(A, lba, uba, lbx, ubx) + 1e-7 + relaxed_margin
+    rest = np.clip(np.zeros(N), lbx, ubx)                  # no row ends worse than at rest
+    assert np.all(row_violation(A, lba, uba, x) <= row_violation(A, lba, uba, rest) + 1e-8)
 
 
 def slsqp_least_violation(A, lba, uba, lbx, ubx) -> float:
-    """An independent solve of min sum(rho t + t^2/2) s.t. lba - t <= A x <= uba + t, t >= 0."""
+    """An independent solve of min sum(rho t + t^2/2) s.t. lba - t <= A x <= uba + t, t >= 0, and no row worse than
+    at rest: min(lba, A x0) <= A x <= max(uba, A x0), x0 the point of the box nearest 0."""
     m, n = A.shape
     finite_upper = np.isfinite(uba)
+    at_rest = A @ np.clip(np.zeros(n), lbx, ubx)
+    floor, ceiling = np.minimum(lba, at_rest), np.maximum(uba, at_rest)
+    finite_floor, finite_ceiling = np.isfinite(floor), np.isfinite(ceiling)
     constraints = [
         {"type": "ineq", "fun": lambda z: A @ z[:n] + z[n:] - lba},
         {"type": "ineq", "fun": lambda z: (uba[finite_upper] - A[finite_upper] @ z[:n]
                                            + z[n:][finite_upper])},
+        {"type": "ineq", "fun": lambda z: A[finite_floor] @ z[:n] - floor[finite_floor]},
+        {"type": "ineq", "fun": lambda z: ceiling[finite_ceiling] - A[finite_ceiling] @ z[:n]},
     ]
     bounds = list(zip(lbx, ubx, strict=True)) + [(0, None)] * m
     best = np.inf

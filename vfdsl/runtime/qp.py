@@ -37,13 +37,16 @@ constraint, see ``row_groups``); E in {0,1}^{m x G} is the incidence matrix and 
 per-group violation.
 
     (A) least violation:   minimize   1/2 |t|^2 + rho 1't + mu/2 |x|^2
-                           subject to  lba - E t <= A x <= uba + E t,   x in B,   t >= 0
+                           subject to  lba - E t <= A x <= uba + E t,   x in B,   t >= 0,
+                                       min(lba, A x_0) <= A x <= max(uba, A x_0)   (x_0: the rest motion in B)
 
     (B) objective:         minimize   1/2 x'Hx + g'x
                            subject to  lba_i <= a_i'x <= uba_i  for the rows x_A satisfies,   x in B,
                                        a_i'x = a_i'x_A          for the rows x_A violates (a soft level)
 
-(A) is always feasible (any x in B with t large enough). Its measure sum_g (rho t_g + t_g^2/2) is
+(A) is always feasible (x_0 with t large enough). Its last rows say that no row ends worse than at rest: a
+least-violation tick never trades one fixture's excess for another's (without them, paper A's plate moved 10 mm
+gave a step that took the shaft further off its curve to bring the tip nearer its own). Its measure sum_g (rho t_g + t_g^2/2) is
 strictly increasing and strictly convex in t, so the least violation t* is unique. With one group
 per row it sums over rows; with coarser groups each group counts its worst row (an L-infinity
 measure inside one polytope). The linear term makes the penalty exact at t = 0: a group that can
@@ -60,7 +63,7 @@ conflicting neighbours make any thin band around x_A nearly empty: as hard rows 
 infeasible at 14 to 23 of 24 least-violation states of polyline_guide (bands of 1e-11 to 1e-9, or equalities).
 So they form a soft level of DAQP's hierarchical mode above the objective: least squares, met to ~1e-8 per tick
 where they are many (polyline_guide, measured; 1e-10 and closer elsewhere), and (B) never failed there; an answer
-that misses them by more than ``HELD_ROWS`` feas_tol is not taken. (A) has n + G variables and 2m rows; DAQP is dense,
+that misses them by more than ``HELD_ROWS`` feas_tol is not taken. (A) has n + G variables and 3m rows; DAQP is dense,
 so G = m costs O((n + m)^3) per solve: pass coarse groups for large m (docs/runtime.md: timings).
 
 (A) is feasible by construction, so its answer is taken unless the solve failed outright (rows or
@@ -531,11 +534,13 @@ def _least_violation(H, g, A, lba, uba, lo, hi, E: ca.DM, tol, rho, mu, native) 
     n, m, G = H.size1(), A.size1(), E.size2()
     H_a = ca.diagcat(mu * ca.DM.eye(n), ca.DM.eye(G))
     g_a = ca.vertcat(ca.DM.zeros(n), rho * ca.DM.ones(G))
-    A_a = ca.vertcat(ca.horzcat(A, E), ca.horzcat(A, -E))
+    A_a = ca.vertcat(ca.horzcat(A, E), ca.horzcat(A, -E), ca.horzcat(A, ca.DM.zeros(m, G)))
     inf_m, inf_G = ca.inf * ca.DM.ones(m), ca.inf * ca.DM.ones(G)
-    lba_a, uba_a = ca.vertcat(lba, -inf_m), ca.vertcat(inf_m, uba)
+    at_rest = A @ _rest(lo, hi)                   # no row ends worse than at rest: nothing goes further the wrong way
+    lba_a = ca.vertcat(lba, -inf_m, ca.fmin(lba, at_rest))
+    uba_a = ca.vertcat(inf_m, uba, ca.fmax(uba, at_rest))
     lbz, ubz = ca.vertcat(lo, ca.DM.zeros(G)), ca.vertcat(hi, inf_G)
-    z = _daqp(n + G, 2 * m, tol * 1e-3, "phase2a", native)(H_a, g_a, *_stack(A_a, lba_a, uba_a, lbz, ubz))
+    z = _daqp(n + G, 3 * m, tol * 1e-3, "phase2a", native)(H_a, g_a, *_stack(A_a, lba_a, uba_a, lbz, ubz))
     x_a = _clip(z[:n], lo, hi)      # used only when (A) is acceptable, i.e. z is finite
     Ax_a = A @ x_a
     violated = ca.logic_or(Ax_a < lba, Ax_a > uba)        # these rows leave level 0 and are held at x_a's values
