@@ -364,4 +364,4 @@ def test_far_on_the_wrong_side_in_an_exported_build(name, tmp_path):
     answers = replay(tmp_path / name, lines, dt)
     assert [status for status, _ in answers] == [status for status, _ in expected]
     assert max(float(np.max(np.abs(a[1] - e[1]))) for a, e in zip(answers, expected)) <= 1e-12
-    assert sum(status & StepStatus.LEAST_VIOLATION for status, _ in expected) >= 3
+    assert any(status & StepStatus.LEAST_VIOLATION for status, _ in expected)
