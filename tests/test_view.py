@@ -15,10 +15,13 @@ import math
 import os
 import queue
 import signal
+import socket
 import subprocess
 import sys
+import tempfile
 import threading
 import time
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -28,7 +31,8 @@ from vfdsl.errors import VfError
 from vfdsl.sim.geometry import Scene
 from vfdsl.view import replay, shapes
 from vfdsl.view.browser import Browser, find_chromium
-from vfdsl.view.command import STATE_PREFIX, free_port
+from vfdsl.view.command import STATE_PREFIX
+from vfdsl.view.options import free_port
 
 from conftest import REPO, TASKS_DIR
 
@@ -337,14 +341,243 @@ def test_a_urdf_with_visual_geometry_is_drawn_from_it(tmp_path):
     assert len(shaft) == 1 and np.allclose(shaft[0], tip_p + tip_R @ [0, 0, 0.05])
 
 
+# -------------------------------------------------------------------------------- flags checked up front
+_INTERPRETED = ("import functools, sys, vfdsl; from vfdsl.cli import main; "
+                "vfdsl.compile = functools.partial(vfdsl.compile, backend='interpreted'); sys.exit(main(sys.argv[1:]))")
+
+
+def _view(*args, env=None, timeout=60):
+    """`vfdsl view ARGS --no-browser` in a subprocess (its controller interpreted: no C build); it must exit by
+    itself within ``timeout`` s."""
+    return subprocess.run([sys.executable, "-c", _INTERPRETED, "view", *args, "--no-browser"], capture_output=True,
+                          text=True, cwd=REPO, timeout=timeout, env=env)
+
+
+def _refused(proc, message):
+    """Exit status 2 and the one-line error (and its hint) on stderr: no traceback, no server output."""
+    assert proc.returncode == 2, proc.stderr
+    assert message in proc.stderr and "Traceback" not in proc.stderr, proc.stderr
+    assert proc.stderr.startswith("error: ") and len(proc.stderr.strip().splitlines()) <= 2, proc.stderr
+    assert "vfdsl view:" not in proc.stdout                     # the server never said it was up
+
+
+def _check(*args):
+    """The flags checked in-process, by the command's own parser, without ever starting a server."""
+    import argparse
+    from vfdsl.view import command, options
+    parser = argparse.ArgumentParser()
+    command.add_parser(parser.add_subparsers())
+    return options.check(parser.parse_args(["view", str(TASK_B), *args]))
+
+
 @pytest.mark.parametrize("args, message", [
-    (["--push", "1,2"], "--push takes three numbers"),
-    (["--replay", "missing.csv"], "cannot read the trace"),
+    (["--port", "70000"], "--port 70000: a port is a whole number from 0 to 65535"),     # hung after a traceback
+    (["--port", "-1"], "--port -1: a port is a whole number from 0 to 65535"),
+    (["--host", "nosuch.invalid"], "--host nosuch.invalid: not an address"),
+    (["--host", "192.0.2.1"], "--host 192.0.2.1: not an address of this machine"),        # TEST-NET-1
 ])
-def test_view_usage_errors_exit_2_with_a_message(args, message):
-    proc = subprocess.run([sys.executable, "-m", "vfdsl.cli", "view", str(TASK_B), "--no-browser", *args],
-                          capture_output=True, text=True, cwd=REPO, timeout=60)
-    assert proc.returncode == 2 and message in proc.stderr and "Traceback" not in proc.stderr
+def test_a_port_or_host_the_server_cannot_listen_on_is_refused_and_the_process_exits(args, message):
+    _refused(_view(str(TASK_B), *args), message)
+
+
+def test_a_busy_port_is_refused_not_silently_moved():
+    with socket.socket() as busy:
+        busy.bind(("127.0.0.1", 0))
+        busy.listen()
+        port = busy.getsockname()[1]
+        _refused(_view(str(TASK_B), "--port", str(port)), f"--port {port}: in use at 127.0.0.1")
+        with pytest.raises(VfError, match="in use"):
+            free_port("127.0.0.1", port)                         # the Viewer itself checks it too
+    assert free_port("127.0.0.1", port) == port
+    assert 0 < free_port() <= 65535
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--magnify", "nan"], "--magnify nan: the tolerances are drawn from 1 (to scale) to 1000"),
+    (["--magnify", "0"], "--magnify 0: the tolerances are drawn from 1"),
+    (["--magnify", "-5"], "--magnify -5:"),
+    (["--magnify", "1e6"], "--magnify 1e+06:"),
+    (["--magnify", "inf"], "--magnify inf:"),
+    (["--seconds", "inf", "--screenshot", "x.png"], "--seconds inf: a time is a finite number of seconds"),
+    (["--seconds", "nan", "--screenshot", "x.png"], "--seconds nan:"),
+    (["--seconds", "-1", "--screenshot", "x.png"], "--seconds -1:"),
+    (["--push", "1,2"], "--push 1,2: three numbers (mm)"),
+    (["--push", "nan,0,0"], "--push nan,0,0: the offset's numbers must be finite"),
+    (["--push", "1e999,0,0"], "must be finite"),
+    (["--size", "0x3", "--screenshot", "x.png"], "--size 0x3: a picture is at least 1 pixel"),
+    (["--size", "100000x3", "--screenshot", "x.png"], "too large a picture: the limit is 8,192"),
+    (["--size", "100", "--screenshot", "x.png"], "--size 100: write WIDTHxHEIGHT"),
+    (["--size", "5x-5", "--screenshot", "x.png"], "write WIDTHxHEIGHT"),
+])
+def test_a_number_no_view_can_use_is_refused(tmp_path, args, message):
+    with pytest.raises(VfError) as err:
+        _check(*[str(tmp_path / a) if a == "x.png" else a for a in args])
+    assert message in str(err.value)
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--seconds", "inf", "--screenshot", "x.png"], "--seconds inf:"),     # was a traceback
+    (["--magnify", "nan"], "--magnify nan:"),                             # was a traceback
+])
+def test_a_non_finite_number_exits_without_a_traceback(args, message):
+    _refused(_view(str(TASK_B), *args), message)
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--trial", "2"], "--trial 2: a trial is picked from a --replay trace"),
+    (["--size", "640x480"], "--size 640x480: the size of a --screenshot"),
+    (["--seconds", "2"], "--seconds 2: the time a --screenshot runs the controller"),
+    (["--push", "5,0,0", "--replay", "run.csv"], "--push 5,0,0: a replay has no hand to hold"),
+])
+def test_a_flag_that_would_be_ignored_is_refused(args, message):
+    with pytest.raises(VfError, match=message):
+        _check(*args)
+
+
+def test_a_flag_that_would_be_ignored_exits_instead_of_serving():
+    _refused(_view(str(TASK_B), "--seconds", "2"), "--seconds 2: the time a --screenshot")     # served forever
+
+
+def test_good_flags_pass_with_their_values_in_si():
+    opts = _check("--magnify", "2.5", "--push", "5,0,-1", "--port", "0")
+    assert opts.magnify == 2.5 and np.allclose(opts.push, [0.005, 0, -0.001]) and 0 < opts.port <= 65535
+    assert opts.size == (1280, 800) and opts.seconds is None
+
+
+def _unwritable(tmp_path):
+    """A path no one can create a file at: in a read-only directory (or, for root, in /sys)."""
+    if os.geteuid() == 0:
+        return "/sys/vfdsl-view-test.png"
+    locked = tmp_path / "locked"
+    locked.mkdir(mode=0o500)
+    return str(locked / "b.png")
+
+
+def test_a_screenshot_that_cannot_be_written_is_refused_before_any_browser(tmp_path):
+    (tmp_path / "file").write_text("")
+    fifo = tmp_path / "pipe.png"
+    os.mkfifo(fifo)
+    cases = [(str(tmp_path / "no" / "b.png"), "no directory"), (str(tmp_path / "file" / "b.png"), "is not a directory"),
+             (str(tmp_path / "dir.png"), "it is a directory"), (str(fifo), "cannot write"),     # no reader: no wait
+             (_unwritable(tmp_path), "cannot write"), (str(tmp_path / "b.jpg"), "the picture is a PNG file")]
+    (tmp_path / "dir.png").mkdir()
+    for path, message in cases:
+        with pytest.raises(VfError, match=message):
+            _check("--screenshot", path)
+    # in a subprocess, with a Chromium that records being started: it never is, and the command exits at once
+    marker = tmp_path / "started"
+    fake = tmp_path / "chromium"
+    fake.write_text(f"#!/bin/sh\ntouch {marker}\nsleep 30\n")
+    fake.chmod(0o755)
+    start = time.monotonic()
+    proc = _view(str(TASK_B), "--screenshot", cases[0][0], env=dict(os.environ, VFDSL_CHROMIUM=str(fake)))
+    _refused(proc, "cannot write")
+    assert not marker.exists() and time.monotonic() - start < 20
+
+
+def test_a_replay_file_that_is_no_trace_is_refused(tmp_path):
+    joints = ["a", "b"]
+    cases = {"binary.csv": (b"\x89PNG\r\n\x1a\n\x00\x00\xff\xfe", "not a text file"),
+             "nul.csv": (b"t,q0,q1\n0,1\x00,2\n", "no row with a time and every joint"),
+             "empty.csv": (b"", "no rows"),
+             "header.csv": (b"t,q0,q1\n", "no rows"),
+             "notime.csv": (b"x,q0,q1\n0,1,2\n", "no time column"),
+             "run.parquet": (b"PAR1\x00", "a trace to replay is a CSV file, not Parquet"),
+             "huge_field.csv": (b"t,q0,q1\n0,1," + b"2" * 200_000 + b"\n", "not a CSV file")}
+    for name, (data, message) in cases.items():
+        (tmp_path / name).write_bytes(data)
+        with pytest.raises(VfError, match=message):
+            replay.read(tmp_path / name, joints)
+    os.mkfifo(tmp_path / "pipe.csv")                           # no writer: it would block forever
+    for path in (tmp_path / "pipe.csv", tmp_path, "/dev/zero"):
+        with pytest.raises(VfError, match="not a regular file"):
+            replay.read(path, joints)
+    with pytest.raises(VfError, match="trace not found"):
+        replay.read(tmp_path / "missing.csv", joints)
+    (tmp_path / "one.csv").write_text("t,q0,q1\n0,1,2\n")
+    with pytest.raises(VfError, match="no trial column, so no trial '2'"):
+        replay.read(tmp_path / "one.csv", joints, trial="2")    # was silently ignored
+
+
+def test_a_binary_replay_exits_with_a_message(tmp_path):
+    (tmp_path / "run.csv").write_bytes(bytes(range(256)) * 4)
+    _refused(_view(str(TASK_B), "--replay", str(tmp_path / "run.csv")), "not a text file")     # was a traceback
+
+
+def test_an_infinite_error_is_missing_not_the_scale_of_the_colours(tmp_path):
+    (tmp_path / "run.csv").write_text("t,q0,q1,error,status\n0,1,2,inf,1e999\n0.1,1,2,0.001,0\n")
+    trace = replay.read(tmp_path / "run.csv", ["a", "b"])
+    assert np.isnan(trace.error[0]) and trace.error[1] == 0.001 and np.isnan(trace.status[0])
+
+
+def test_a_push_without_a_hand_is_refused_not_ignored():
+    _refused(_view(str(TASKS_DIR / "lecture_stay_near_goal.vf"), "--push", "5,0,0"),
+             "task 'lecture_stay_near_goal' has no input, so no hand to hold")         # the viewer served, unpushed
+
+
+def test_a_replay_time_after_the_trace_is_refused(tmp_path):
+    task = vfdsl.load(TASK_B)
+    lines = ["t," + ",".join(f"q[{i}]" for i in range(7))] + \
+        [f"{0.01 * k}," + ",".join(map(str, task.start)) for k in range(11)]
+    (tmp_path / "b.csv").write_text("\n".join(lines) + "\n")
+    _refused(_view(str(TASK_B), "--replay", str(tmp_path / "b.csv"), "--seconds", "5"),
+             "--seconds 5: the trace lasts 0.1 s")                                     # served forever
+
+
+def test_a_screenshot_run_beyond_the_tick_limit_is_refused_before_the_server(tmp_path):
+    fake = tmp_path / "chromium"
+    fake.write_text("#!/bin/sh\nexit 1\n")
+    fake.chmod(0o755)
+    proc = _view(str(TASK_B), "--screenshot", str(tmp_path / "b.png"), "--seconds", "1e9",
+                 env=dict(os.environ, VFDSL_CHROMIUM=str(fake)))
+    _refused(proc, "control ticks per trial: the limit is 1,000,000")
+
+
+def test_a_browser_that_fails_after_the_server_started_ends_the_process(tmp_path):
+    """Chromium exits at once: the error is one line, the viewer's server does not keep the process alive, and
+    the browser's profile folder is removed."""
+    fake = tmp_path / "chromium"
+    fake.write_text("#!/bin/sh\nexit 3\n")
+    fake.chmod(0o755)
+    tmp = tmp_path / "tmp"
+    tmp.mkdir()
+    proc = _view(str(TASK_B), "--screenshot", str(tmp_path / "b.png"),
+                 env=dict(os.environ, VFDSL_CHROMIUM=str(fake), TMPDIR=str(tmp)))
+    _refused(proc, "Chromium exited with status 3 before it opened its DevTools port")
+    assert not (tmp_path / "b.png").exists() and not list(tmp.glob("vfdsl-chromium-*"))
+
+
+def test_a_browser_that_never_answers_is_stopped_with_its_whole_group(tmp_path):
+    """A Chromium that starts a helper and never opens its DevTools port: a VfError after the timeout, and
+    neither it nor its helper is left running, nor its profile folder."""
+    from vfdsl.view import browser as browser_module
+    pids = tmp_path / "pids"
+    fake = tmp_path / "chromium"
+    fake.write_text(f"#!/bin/sh\nsleep 60 &\necho $$ $! > {pids}\nwait\n")
+    fake.chmod(0o755)
+    profiles = lambda: set(Path(tempfile.gettempdir()).glob("vfdsl-chromium-*"))
+    before = profiles()
+    os.environ["VFDSL_CHROMIUM"] = str(fake)
+    try:
+        with pytest.raises(VfError, match="did not open its DevTools port within 1 s"):
+            with Browser(timeout=1.0):
+                pass
+    finally:
+        del os.environ["VFDSL_CHROMIUM"]
+    assert profiles() <= before
+    deadline = time.monotonic() + 3.0                           # the killed helper is gone once the kernel is done
+    while any(_running(int(pid)) for pid in pids.read_text().split()) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert not any(_running(int(pid)) for pid in pids.read_text().split())
+    assert browser_module.find_chromium() != str(fake)
+
+
+def _running(pid: int) -> bool:
+    """The process exists and is not a zombie (an orphan waits to be reaped by init)."""
+    try:
+        return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0] not in ("Z", "X")
+    except (FileNotFoundError, ProcessLookupError):
+        return False
 
 
 # ------------------------------------------------------------------------------------ in a real browser

@@ -1,4 +1,5 @@
-"""Reading the user's files (tasks, libraries, scenes, URDFs and their sidecars) within the limits.
+"""Reading the user's files (tasks, libraries, scenes, URDFs and their sidecars) within the limits, and checking
+that an output file can be written before the work that makes it.
 
 A file must be a regular file (not a directory, FIFO or device: those could block or never end) of at most
 :data:`~vfdsl.limits.FILE_BYTES`, in UTF-8 (a leading byte-order mark is dropped); the check is
@@ -18,8 +19,10 @@ from vfdsl.errors import SourcePos, VfError
 from vfdsl import limits
 
 
-def read_text(path: Path, what: str, pos: SourcePos | None = None, hint: str | None = None) -> str:
-    """The text of the ``what`` (e.g. 'scene file') at ``path``; VfError at ``pos`` when it cannot be read."""
+def open_file(path: Path, what: str, pos: SourcePos | None = None, hint: str | None = None,
+              limit: int = limits.FILE_BYTES) -> int:
+    """A descriptor, open for reading, of the regular file of at most ``limit`` bytes at ``path``; VfError at
+    ``pos`` when there is none. Opened without blocking, so a FIFO fails here instead of waiting for a writer."""
     try:
         fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | getattr(os, "O_NOCTTY", 0))
     except FileNotFoundError:
@@ -28,21 +31,60 @@ def read_text(path: Path, what: str, pos: SourcePos | None = None, hint: str | N
         reason = exc.strerror if isinstance(exc, OSError) and exc.strerror else str(exc)
         raise VfError(f"cannot read {what} {path}: {reason.lower()}", pos) from None
     try:
-        if not stat.S_ISREG(os.fstat(fd).st_mode):
+        info = os.fstat(fd)
+        if not stat.S_ISREG(info.st_mode):
             raise VfError(f"cannot read {what} {path}: not a regular file", pos,
                           hint="name a file (not a directory, a pipe or a device)")
-        data = os.read(fd, limits.FILE_BYTES + 1)
+        if info.st_size > limit:
+            raise _too_large(what, path, limit, pos)
+    except BaseException as exc:
+        os.close(fd)
+        if isinstance(exc, OSError):
+            raise VfError(f"cannot read {what} {path}: {(exc.strerror or str(exc)).lower()}", pos) from None
+        raise
+    return fd
+
+
+def _too_large(what: str, path: Path, limit: int, pos: SourcePos | None) -> VfError:
+    return limits.exceeded(f"{what} {path} is too large", limit, pos, hint="the limit is in bytes")
+
+
+def read_text(path: Path, what: str, pos: SourcePos | None = None, hint: str | None = None) -> str:
+    """The text of the ``what`` (e.g. 'scene file') at ``path``; VfError at ``pos`` when it cannot be read."""
+    fd = open_file(path, what, pos, hint)
+    try:
+        data = os.read(fd, limits.FILE_BYTES + 1)      # a file whose size fstat does not know (/proc) is bounded here
     except OSError as exc:
         raise VfError(f"cannot read {what} {path}: {(exc.strerror or str(exc)).lower()}", pos) from None
     finally:
         os.close(fd)
     if len(data) > limits.FILE_BYTES:
-        raise limits.exceeded(f"{what} {path} is too large", limits.FILE_BYTES, pos,
-                              hint="the limit is in bytes")
+        raise _too_large(what, path, limits.FILE_BYTES, pos)
     try:
         return data.decode("utf-8-sig")          # a leading byte-order mark (some Windows editors) is not text
     except UnicodeDecodeError as exc:
         raise VfError(f"{what} {path} is not UTF-8 text (byte {exc.start})", pos) from None
+
+
+def check_writable(name: str | Path) -> None:
+    """Refuse an output file before the work that makes it rather than after: its directory must exist, it
+    must not be a directory, and it must open for writing, without waiting (a FIFO without a reader is
+    refused); a file this creates is removed again."""
+    path = Path(name)
+    try:
+        parent = path.resolve().parent
+        if not parent.is_dir():
+            raise VfError(f"cannot write {name}: {parent} is not a directory" if parent.exists()
+                          else f"cannot write {name}: no directory {parent}")
+        if path.is_dir():
+            raise VfError(f"cannot write {name}: it is a directory")
+        existed = path.exists()
+        os.close(os.open(path, os.O_WRONLY | os.O_CREAT | os.O_APPEND | os.O_NONBLOCK, 0o666))   # a FIFO: no wait
+    except (OSError, ValueError) as exc:          # a name too long, not writable, with a NUL byte, ...
+        reason = exc.strerror if isinstance(exc, OSError) and exc.strerror else str(exc)
+        raise VfError(f"cannot write {name}: {reason}") from None
+    if not existed:
+        path.unlink(missing_ok=True)
 
 
 class BoundedLoader(yaml.SafeLoader):

@@ -33,7 +33,7 @@ MESH_TRIANGLES = 100_000         # triangles of one mesh: its query's tables are
 MESH_FILE_BYTES = 500 * MESH_TRIANGLES   # bytes of one mesh file, refused unparsed: above, it holds more triangles
                                  # in any format (an ASCII STL facet, the most verbose, ~290 at full precision)
 
-# Work a command may be asked to do (`vfdsl simulate`, `vfdsl check`): a mistaken option or scene value
+# Work a command may be asked to do (`vfdsl simulate`, `vfdsl check`, `vfdsl view`): a mistaken option or scene value
 # must not fill the memory or run for days before anything is printed.
 MIN_PERIOD = 1e-5                # s: the shortest control period (100 kHz)
 MAX_PERIOD = 1.0                 # s: the longest control period: a longer tick lets the speed bounds allow large jumps
@@ -45,6 +45,8 @@ ROW_VALUE = 1e6                  # m or rad: the largest number in a constraint'
 CHECK_SAMPLES = 5_000            # states of check's random walk (about 7 ms each on a loaded 2-core machine)
 SEED = 2 ** 32 - 1               # the largest seed (seeds are 0 or more)
 CONNECT_TIMEOUT = 10.0           # s: to reach a Dask scheduler and hear its handshake
+TRACE_BYTES = 1_000_000_000      # a trace `view --replay` plays (about 1.6 million ticks of a simulate trace)
+PICTURE_SIDE = 8_192             # pixels: the width or height of a `view --screenshot`
 
 def exceeded(what: str, limit: int | float, pos: SourcePos | None, hint: str | None = None,
              unit: str = "") -> VfError:

@@ -30,7 +30,8 @@ from vfdsl.kinematics.robot import Robot
 from vfdsl.sim.geometry import Curve, Scene
 from vfdsl.view import replay
 from vfdsl.view.app import Viewer
-from vfdsl.view.command import free_port, take_picture
+from vfdsl.view.command import take_picture
+from vfdsl.view.options import free_port
 
 HERE = Path(__file__).resolve().parent
 REPO = HERE.parent.parent

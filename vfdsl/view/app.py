@@ -39,6 +39,7 @@ from vfdsl.sim.geometry import Scene
 from vfdsl.compiler.context import flatten
 from vfdsl.view import replay as replay_module
 from vfdsl.view import shapes as sh
+from vfdsl.view.options import MAGNIFY, free_port
 from vfdsl.view.robot import RobotDrawing, rotation_to_z
 
 REACH_TIME = 0.5            # s: the hand's spring brings the tool to a still hand in about this time
@@ -48,6 +49,7 @@ HAND_SCALE = 0.025          # m: size of the hand's transform controls
 FRAME_DEPENDENT = {"along", "above", "on_plane", "near_plane", "keeps_direction", "cone", "tilt_at_most",
                    "rotates_around", "passes_through"}
 TOOL_MOVE = 1e-4            # m: the shapes drawn at the tool are redrawn once it has moved this far
+DEFAULT_PERIOD = 0.01       # s: the period of a task that gives none
 
 COLORS = {
     False: {"reference": (30, 100, 220), "tolerance": (70, 160, 245), "bound": (20, 50, 150),
@@ -121,6 +123,11 @@ class HandModel:
         return self.gain * u[:3], self.angular_gain * u[3:]
 
 
+def control_period(task: ir.Task) -> float:
+    """The period the viewer runs the controller at (s): the task's, else DEFAULT_PERIOD."""
+    return float(task.scene.period or DEFAULT_PERIOD)
+
+
 def hand_model(task: ir.Task) -> HandModel | None:
     if not task.inputs:
         return None
@@ -137,7 +144,8 @@ def hand_model(task: ir.Task) -> HandModel | None:
 
 class Viewer:
     """One viser server showing one task. ``replay``: a :class:`vfdsl.view.replay.Trace` to play instead of
-    running the controller live."""
+    running the controller live. The address is checked before the server starts (:func:`free_port`): a busy
+    port or a wrong host is a VfError, not a server that never starts and a call that never returns."""
 
     def __init__(self, task: ir.Task, controller, host: str = "127.0.0.1", port: int = 8080, replay=None,
                  magnify: float = 1.0):
@@ -145,7 +153,7 @@ class Viewer:
         self.robot = Robot.load(task.robots[0].urdf, base_dir=None)
         self.drawing = RobotDrawing(self.robot)
         self.start = np.array(task.start if task.start is not None else np.zeros(self.robot.nq), dtype=float)
-        self.period = float(controller.default_dt or 0.01)
+        self.period = control_period(task)
         self.magnify = magnify
         self.hand = hand_model(task) if replay is None else None
         self.lock = threading.RLock()
@@ -165,7 +173,7 @@ class Viewer:
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
         with contextlib.redirect_stdout(io.StringIO()):          # viser prints a banner; the command prints the URL
-            self.server = viser.ViserServer(host=host, port=port, verbose=False)
+            self.server = viser.ViserServer(host=host, port=free_port(host, port), verbose=False)
         self.server.scene.set_up_direction("+z")
         self.q = self.start.copy()
         try:
@@ -331,7 +339,7 @@ class Viewer:
                 reset = gui.add_button("Reset")
                 reset.on_click(lambda _: self.reset())
         with gui.add_folder("Fixtures"):
-            self.magnify_slider = gui.add_slider("Tolerance x", min=1, max=1000, step=1,
+            self.magnify_slider = gui.add_slider("Tolerance x", min=MAGNIFY[0], max=MAGNIFY[1], step=1,
                                                  initial_value=float(self.magnify))
             self.magnify_slider.on_update(lambda _: self._set_magnify(self.magnify_slider.value))
             self.fixture_boxes = {}

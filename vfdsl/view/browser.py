@@ -37,22 +37,41 @@ def find_chromium() -> str | None:
     return None
 
 
+def chromium() -> str:
+    """The path of a Chromium-like browser; VfError, saying how to get one, when there is none."""
+    path = find_chromium()
+    if path is None:
+        raise VfError("no Chromium found for the screenshot",
+                      hint="install it (Debian: apt-get install chromium) or set VFDSL_CHROMIUM")
+    return path
+
+
 class Browser:
-    """One headless Chromium with one page. Use as a context manager."""
+    """One headless Chromium with one page. Use as a context manager. Whatever fails, once started, the
+    browser is stopped and its profile removed: on leaving the context, or when entering it fails. What the
+    browser does wrong (it exits, does not answer in ``timeout`` s, drops the connection) is a VfError."""
 
     def __init__(self, width: int = 1280, height: int = 800, timeout: float = 20.0):
         self.width, self.height, self.timeout = width, height, timeout
-        self._profile = tempfile.mkdtemp(prefix="vfdsl-chromium-")
+        self._profile: str | None = None
         self._process: subprocess.Popen | None = None
         self._socket = None
         self._ids = itertools.count(1)
 
     # ----------------------------------------------------------------------------------- lifecycle
     def __enter__(self) -> "Browser":
-        executable = find_chromium()
-        if executable is None:
-            raise VfError("no Chromium found for the screenshot",
-                          hint="install it (Debian: apt-get install chromium) or set VFDSL_CHROMIUM")
+        executable = chromium()
+        self._profile = tempfile.mkdtemp(prefix="vfdsl-chromium-")
+        try:
+            self._start(executable)
+        except BaseException as err:
+            self.close()
+            if isinstance(err, Exception) and not isinstance(err, VfError):   # not executable, a bad reply, ...
+                raise VfError(f"Chromium ({executable}) did not start: {type(err).__name__}: {err}") from None
+            raise
+        return self
+
+    def _start(self, executable: str) -> None:
         args = [executable, "--headless=new", "--no-sandbox", "--disable-gpu-sandbox", "--no-first-run",
                 "--no-default-browser-check", "--disable-extensions", "--disable-dev-shm-usage",
                 "--use-angle=swiftshader", "--enable-unsafe-swiftshader", "--ignore-gpu-blocklist",
@@ -70,7 +89,6 @@ class Browser:
         self.call("Runtime.enable")
         self.call("Emulation.setDeviceMetricsOverride", width=self.width, height=self.height,
                   deviceScaleFactor=1, mobile=False)
-        return self
 
     def __exit__(self, *exc) -> None:
         self.close()
@@ -82,18 +100,20 @@ class Browser:
             except Exception:
                 pass
             self._socket = None
-        if self._process is not None and self._process.poll() is None:
-            try:
-                os.killpg(self._process.pid, signal.SIGTERM)
-                self._process.wait(timeout=5)
-            except (ProcessLookupError, subprocess.TimeoutExpired):
+        if self._process is not None:       # its whole group: helpers can outlive the main process
+            for sig in (signal.SIGTERM, signal.SIGKILL):
                 try:
-                    os.killpg(self._process.pid, signal.SIGKILL)
+                    os.killpg(self._process.pid, sig)
                 except ProcessLookupError:
+                    break
+                try:
+                    self._process.wait(timeout=5)
+                except subprocess.TimeoutExpired:
                     pass
-                self._process.wait(timeout=5)
         self._process = None
-        shutil.rmtree(self._profile, ignore_errors=True)
+        if self._profile is not None:
+            shutil.rmtree(self._profile, ignore_errors=True)
+            self._profile = None
 
     def _devtools_port(self) -> int:
         marker = Path(self._profile) / "DevToolsActivePort"
@@ -104,7 +124,7 @@ class Browser:
                               "DevTools port")
             if marker.exists():
                 text = marker.read_text().split()
-                if text:
+                if text and text[0].isdigit():                  # else: still being written
                     return int(text[0])
             time.sleep(0.05)
         raise VfError(f"Chromium did not open its DevTools port within {self.timeout:g} s")
@@ -112,15 +132,22 @@ class Browser:
     # -------------------------------------------------------------------------------------- protocol
     def call(self, method: str, **params):
         """Send one DevTools command and return its result (events that arrive meanwhile are dropped)."""
+        from websockets.exceptions import ConnectionClosed
         ident = next(self._ids)
-        self._socket.send(json.dumps({"id": ident, "method": method, "params": params}))
         deadline = time.monotonic() + self.timeout
-        while True:
-            message = json.loads(self._socket.recv(timeout=max(0.01, deadline - time.monotonic())))
-            if message.get("id") == ident:
-                if "error" in message:
-                    raise VfError(f"Chromium: {method} failed: {message['error'].get('message')}")
-                return message.get("result", {})
+        try:
+            self._socket.send(json.dumps({"id": ident, "method": method, "params": params}))
+            while True:
+                message = json.loads(self._socket.recv(timeout=max(0.01, deadline - time.monotonic())))
+                if message.get("id") == ident:
+                    break
+        except TimeoutError:
+            raise VfError(f"Chromium did not answer {method} within {self.timeout:g} s") from None
+        except (ConnectionClosed, OSError) as err:
+            raise VfError(f"Chromium dropped its connection during {method}: {err}") from None
+        if "error" in message:
+            raise VfError(f"Chromium: {method} failed: {message['error'].get('message')}")
+        return message.get("result", {})
 
     def open(self, url: str) -> None:
         self.call("Page.navigate", url=url)

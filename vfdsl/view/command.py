@@ -5,7 +5,6 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import socket
 import sys
 import threading
 import time
@@ -13,6 +12,8 @@ import webbrowser
 from pathlib import Path
 
 from vfdsl.errors import VfError
+from vfdsl import limits
+from vfdsl.view import options
 
 STATE_PREFIX = "VFDSL-VIEW-STATE "
 
@@ -40,51 +41,42 @@ def add_parser(commands) -> None:
     view.add_argument("file", help="the .vf task file")
     view.add_argument("--host", default="127.0.0.1", help="address to listen on (default: 127.0.0.1)")
     view.add_argument("--port", type=int, default=0,
-                      help="port to listen on (default: a free port)")
+                      help="port to listen on, 0 to 65535 (default 0: a free port)")
     view.add_argument("--no-browser", action="store_true", help="do not open a browser")
     view.add_argument("--replay", metavar="FILE", help="play a per-tick trace (CSV; see docs/view.md)")
     view.add_argument("--trial", help="with --replay: the trial to play (default: the first)")
     view.add_argument("--screenshot", metavar="PNG", help="save a picture of the page (headless Chromium) and exit")
-    view.add_argument("--size", default="1280x800", help="--screenshot: picture size (default 1280x800)")
+    view.add_argument("--size", help=f"--screenshot: picture size in pixels, at most {limits.PICTURE_SIDE} a side "
+                                       "(default 1280x800)")
     view.add_argument("--magnify", type=float, default=1.0,
-                      help="draw tolerances this many times larger (default 1: to scale)")
+                      help=f"draw tolerances this many times larger, {options.MAGNIFY[0]:g} to "
+                           f"{options.MAGNIFY[1]:g} (default 1: to scale)")
     view.add_argument("--push", metavar="X,Y,Z",
                       help="start with the hand held this far from the tool (mm, world axes), e.g. 5,0,0")
     view.add_argument("--seconds", type=float, default=None,
-                      help="with --screenshot: run the controller this long (s) before the picture (with "
-                           "--replay: show this time)")
+                      help="with --screenshot: run the controller this long (s) before the picture; with "
+                           "--replay: show this time (s after the trace's first row)")
     view.add_argument("--control", action="store_true", help=argparse.SUPPRESS)   # JSON commands on stdin
     view.set_defaults(run=run)
-
-
-def free_port(host: str = "127.0.0.1") -> int:
-    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
-        s.bind((host, 0))
-        return s.getsockname()[1]
 
 
 def run(args: argparse.Namespace) -> int:
     import vfdsl
     from vfdsl.view.app import Viewer
 
+    opts = options.check(args)                   # before the task: a wrong flag fails in a second
     task = vfdsl.load(args.file)
+    trace = _replay(args, task) if args.replay else None
+    ticks = _check_with_task(opts, task, trace)   # and before the compiler
     controller = vfdsl.compile(task)
-    trace = None
-    if args.replay:
-        from vfdsl.view import replay
-        from vfdsl.compiler.context import flatten
-        from vfdsl.kinematics.robot import Robot
-        robot = Robot.load(task.robots[0].urdf)
-        sizes = {name: len(flatten(controller.param_defaults[name])) for name in controller.param_names}
-        trace = replay.read(args.replay, robot.joint_names, controller.default_dt, args.trial, sizes)
-    push = _vector(args.push, "--push") if args.push else None
-    port = args.port or free_port(args.host)
-    viewer = Viewer(task, controller, host=args.host, port=port, replay=trace, magnify=args.magnify)
+    viewer = Viewer(task, controller, host=args.host, port=opts.port, replay=trace, magnify=opts.magnify)
     try:
-        if push is not None and viewer.hand is not None:
-            viewer.push(push * 1e-3)
+        if opts.push is not None:
+            viewer.push(opts.push)
+        if trace is not None and opts.seconds is not None:
+            viewer.show_time(float(trace.t[0]) + opts.seconds)
         if args.screenshot:
-            return _screenshot(viewer, args)
+            return _screenshot(viewer, args.screenshot, opts.size, ticks)
         print(f"vfdsl view: {task.name} at {viewer.url}  (Ctrl-C to stop)", flush=True)
         viewer.start_live()
         if not args.no_browser:
@@ -99,35 +91,47 @@ def run(args: argparse.Namespace) -> int:
         viewer.close()
 
 
-def _vector(text: str, what: str):
-    import numpy as np
-    try:
-        values = [float(x) for x in text.split(",")]
-    except ValueError:
-        values = []
-    if len(values) != 3:
-        raise VfError(f"{what} takes three numbers separated by commas, got {text!r}")
-    return np.array(values)
+def _replay(args: argparse.Namespace, task):
+    """The trace of ``--replay``, with the run-time params of the task (those with numbers at run time)."""
+    from vfdsl.view import replay
+    from vfdsl.compiler.context import flatten
+    from vfdsl.kinematics.robot import Robot
+    robot = Robot.load(task.robots[0].urdf)
+    sizes = {d.name: size for d in task.params if (size := len(flatten(d.value)))}
+    return replay.read(args.replay, robot.joint_names, task.scene.period, args.trial, sizes)
 
 
-def _screenshot(viewer, args) -> int:
-    try:
-        width, height = (int(x) for x in args.size.lower().split("x"))
-    except ValueError:
-        raise VfError(f"--size takes WIDTHxHEIGHT, got {args.size!r}") from None
-    if args.seconds:
-        ticks = int(round(args.seconds / viewer.period))
-        if viewer.replay is None and viewer.hand is not None:
-            for k in range(ticks):
-                viewer.tick(draw=k == ticks - 1)
-        elif viewer.replay is not None:
-            viewer.show_time(float(viewer.replay.t[0]) + args.seconds)
+def _check_with_task(opts: options.Options, task, trace) -> int:
+    """The flags that depend on the task: ``--push`` needs a hand (an input), ``--seconds`` a run within the
+    limits or a time the trace has. The ticks to run before a picture."""
+    from vfdsl.sim.settings import check_ticks
+    from vfdsl.view.app import control_period, hand_model
+    if opts.push is not None and hand_model(task) is None:
+        raise VfError(f"--push: task '{task.name}' has no input, so no hand to hold",
+                      hint="leave --push out: the task runs hands off")
+    if opts.seconds is None or opts.seconds == 0:
+        return 0
+    if trace is not None:
+        length = float(trace.t[-1] - trace.t[0])
+        if opts.seconds > length + 1e-9:
+            raise VfError(f"--seconds {opts.seconds:g}: the trace lasts {length:g} s",
+                          hint=f"a time from 0 to {length:g} s after its first row")
+        return 0
+    return check_ticks(opts.seconds, control_period(task), what=f"--seconds {opts.seconds:g}: ")
+
+
+def _screenshot(viewer, path: str, size: tuple[int, int], ticks: int) -> int:
+    for k in range(ticks):
+        viewer.tick(draw=k == ticks - 1)
     for name, node in viewer.nodes.items():          # pictures show the scene, not the handles
         if name == "/hand" or name.startswith("/params/"):
             node.visible = False
-    png = take_picture(viewer, width, height)
-    Path(args.screenshot).write_bytes(png)
-    print(f"vfdsl view: {viewer.task.name}: wrote {args.screenshot} ({width}x{height})")
+    png = take_picture(viewer, *size)
+    try:
+        Path(path).write_bytes(png)
+    except OSError as err:
+        raise VfError(f"cannot write {path}: {err.strerror or err}") from None
+    print(f"vfdsl view: {viewer.task.name}: wrote {path} ({size[0]}x{size[1]})")
     return 0
 
 

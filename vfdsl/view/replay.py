@@ -25,12 +25,15 @@ from __future__ import annotations
 import csv
 import math
 import re
+from array import array
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
+from vfdsl import limits
 from vfdsl.errors import VfError
+from vfdsl.files import open_file
 
 TIME_NAMES = ("t", "time", "t_s", "time_s")
 _SCALE = {"mm": 1e-3, "deg": math.pi / 180}
@@ -100,63 +103,90 @@ def unflatten(old, flat):
 def read(path: str | Path, joint_names: list[str], period: float | None = None, trial: str | None = None,
          params: dict[str, int] | None = None) -> Trace:
     """The trace in ``path`` for a robot with joints ``joint_names`` (see the module's docstring); ``params``:
-    the run-time params to read (name -> number of values)."""
+    the run-time params to read (name -> number of values). The file is read row by row, keeping only the
+    numbers of the columns used."""
     path = Path(path)
+    if path.suffix.lower() == ".parquet":
+        raise VfError(f"{path}: a trace to replay is a CSV file, not Parquet",
+                      hint="write the run's trace as CSV: vfdsl simulate TASK --trace run.csv")
+    fd = open_file(path, "trace", limit=limits.TRACE_BYTES)
     try:
-        with path.open(newline="") as handle:
-            rows = list(csv.reader(handle))
+        with open(fd, encoding="utf-8-sig", newline="") as handle:
+            return _parse(path, csv.reader(handle), joint_names, period, trial, params or {})
+    except UnicodeDecodeError:
+        raise VfError(f"{path}: not a text file (it holds bytes that are not UTF-8)",
+                      hint="a trace is a CSV file with a header row and one row per tick") from None
+    except csv.Error as err:
+        raise VfError(f"{path}: not a CSV file ({err})",
+                      hint="a trace is a CSV file with a header row and one row per tick") from None
     except OSError as err:
         raise VfError(f"cannot read the trace {path}: {err.strerror or err}") from None
-    if len(rows) < 2:
+
+
+def _parse(path: Path, reader, joint_names: list[str], period: float | None, trial: str | None,
+           params: dict[str, int]) -> Trace:
+    header = next(reader, None)
+    if header is None:
         raise VfError(f"{path}: no rows (a trace is a CSV file with a header row and one row per tick)")
-    header = [h.strip() for h in rows[0]]
+    header = [h.strip() for h in header]
     lower = [h.lower() for h in header]
-    data = rows[1:]
-    if "trial" in lower:
-        k = lower.index("trial")
-        trials = list(dict.fromkeys(r[k] for r in data if len(r) > k))
-        if trial is None:
-            trial = trials[0]
-        elif trial not in trials:
-            raise VfError(f"{path}: no trial {trial!r}", hint=f"trials in the file: {', '.join(trials[:20])}")
-        data = [r for r in data if len(r) > k and r[k] == trial]
+    trial_col = lower.index("trial") if "trial" in lower else None
+    if trial is not None and trial_col is None:
+        raise VfError(f"{path}: no trial column, so no trial {trial!r} to pick",
+                      hint="leave --trial out: the trace holds one run")
     time_col = next((lower.index(n) for n in TIME_NAMES if n in lower), None)
     if time_col is not None:
-        t = np.array([_number(r[time_col]) if len(r) > time_col else math.nan for r in data])
+        columns = [(time_col, 1.0)]
     elif "tick" in lower and period:
-        k = lower.index("tick")
-        t = np.array([_number(r[k]) * period if len(r) > k else math.nan for r in data])
+        columns = [(lower.index("tick"), period)]
     else:
         raise VfError(f"{path}: no time column", hint=f"name one of {', '.join(TIME_NAMES)} (seconds), or "
                       "give a 'tick' column and a scene period")
-    q = np.empty((len(data), len(joint_names)))
     for i, name in enumerate(joint_names):
         found = joint_column(header, i, name)
         if found is None:
             raise VfError(f"{path}: no column for joint {i} ({name})",
                           hint=f"name it q[{i}], q_{name} or q.{name}_<unit>; columns: {', '.join(header[:12])}"
                                + (" ..." if len(header) > 12 else ""))
-        column, scale = found
-        k = header.index(column)
-        q[:, i] = [_number(r[k]) * scale if len(r) > k else math.nan for r in data]
+        columns.append((header.index(found[0]), found[1]))
     error_name = _error_column(header)
-    error = None
     if error_name is not None:
-        k = header.index(error_name)
         suffix = error_name.rsplit("_", 1)[-1].lower() if "_" in error_name else ""
-        error = np.array([_number(r[k]) if len(r) > k else math.nan for r in data]) * _SCALE.get(suffix, 1.0)
-    status = None
+        columns.append((header.index(error_name), _SCALE.get(suffix, 1.0)))
     if "status" in lower:
-        k = lower.index("status")
-        status = np.array([_number(r[k]) if len(r) > k else math.nan for r in data])
-    values = {}
-    for name, size in (params or {}).items():
+        columns.append((lower.index("status"), 1.0))
+    read_params = {}
+    for name, size in params.items():
         found = [k for k, c in enumerate(header) if c.startswith(f"param.{name}.")]
         if len(found) == size:
-            scale = [_SCALE.get(header[k].rsplit("_", 1)[-1].lower(), 1.0) if "_" in header[k] else 1.0
-                     for k in found]
-            values[name] = np.array([[_number(r[k]) * f if len(r) > k else math.nan for k, f in zip(found, scale)]
-                                     for r in data]).reshape(len(data), size)
+            read_params[name] = len(columns)
+            columns += [(k, _SCALE.get(header[k].rsplit("_", 1)[-1].lower(), 1.0) if "_" in header[k] else 1.0)
+                        for k in found]
+    values, trials = array("d"), {}
+    for r in reader:
+        if trial_col is not None:
+            if len(r) <= trial_col:
+                continue
+            if len(trials) <= 20:
+                trials.setdefault(r[trial_col], None)
+            if trial is None:
+                trial = r[trial_col]
+            if r[trial_col] != trial:
+                continue
+        values.extend(_number(r[k]) * f if len(r) > k else math.nan for k, f in columns)
+    if not values and not trials:
+        raise VfError(f"{path}: no rows (a trace is a CSV file with a header row and one row per tick)")
+    if not values:
+        raise VfError(f"{path}: no trial {trial!r}", hint=f"trials in the file: {', '.join(list(trials)[:20])}")
+    data = np.frombuffer(values, dtype=float).reshape(-1, len(columns))
+    nq = len(joint_names)
+    t, q = data[:, 0], data[:, 1:1 + nq]
+    k = 1 + nq
+    error = status = None
+    if error_name is not None:
+        error, k = data[:, k], k + 1
+    if "status" in lower:
+        status = data[:, k]
     keep = np.isfinite(t) & np.all(np.isfinite(q), axis=1)
     backwards = np.flatnonzero(np.diff(t[keep]) < 0)
     if backwards.size:                                    # another run follows: keep the first
@@ -164,6 +194,12 @@ def read(path: str | Path, joint_names: list[str], period: float | None = None, 
         keep[last + 1:] = False
     if not keep.any():
         raise VfError(f"{path}: no row with a time and every joint")
-    return Trace(t=t[keep], q=q[keep], error=None if error is None else error[keep], error_name=error_name,
-                 status=None if status is None else status[keep], trial=trial, columns=tuple(header),
-                 params={name: v[keep] for name, v in values.items()})
+    return Trace(t=t[keep], q=q[keep], error=None if error is None else _finite_or_nan(error[keep]),
+                 error_name=error_name, status=None if status is None else _finite_or_nan(status[keep]),
+                 trial=trial, columns=tuple(header),
+                 params={name: data[keep, k:k + params[name]] for name, k in read_params.items()})
+
+
+def _finite_or_nan(x: np.ndarray) -> np.ndarray:
+    """Missing (NaN) where a value is not finite: an infinite error would scale the trace's colours to nothing."""
+    return np.where(np.isfinite(x), x, math.nan)
