@@ -17,7 +17,9 @@ Accepted format: a CSV file with a header row, one row per tick (extra columns a
   normal; pose x y z roll pitch yaw; a run-time curve's points one after the other; a scalar), SI, or mm /
   deg by a ``_mm`` / ``_deg`` suffix; used when there are exactly as many as the param has numbers.
 
-Empty cells are missing values; rows without a time or with a missing joint are dropped.
+Empty cells are missing values (and so is an error or status that is not finite); rows without a time or
+with a missing joint are dropped. The file is a regular file of UTF-8 text of at most
+``limits.TRACE_BYTES``; anything else is a VfError.
 """
 
 from __future__ import annotations
