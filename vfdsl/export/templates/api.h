@@ -26,8 +26,8 @@
  * (_step, _set_param, _set_params, _violations, _error_index, _error_check) run one at a time: a
  * call that finds another one running on the same controller returns VF_ERR_BUSY at once and touches
  * nothing (dq zeros). The functions without a controller run in any thread at any time; _free must
- * not overlap another call on the same controller. After @API@_new, no call allocates memory, takes
- * a lock or makes a system call.
+ * not overlap another call on the same controller. After @API@_new, no call but @API@_free allocates
+ * memory, takes a lock or makes a system call.
  */
 #ifndef @GUARD@
 #define @GUARD@
