@@ -149,6 +149,20 @@ def test_bad_setting_on_the_command_line_is_a_clear_error(capsys, args, message)
     assert message in err and "Traceback" not in err
 
 
+def test_an_output_that_is_a_fifo_without_a_reader_is_refused_not_waited_on(tmp_path):
+    """--json, --csv, --trace and --plot to a FIFO nobody reads: a clear error at once (opening it for writing used
+    to wait for a reader forever)."""
+    import os
+    import subprocess
+    import sys
+    for flag, name in (("--json", "out.json"), ("--plot", "out.png")):
+        fifo = tmp_path / name
+        os.mkfifo(fifo)
+        result = subprocess.run([sys.executable, "-m", "vfdsl.cli", "simulate", B, "--quiet", flag, str(fifo)],
+                                capture_output=True, text=True, timeout=120)
+        assert result.returncode == 2 and f"cannot write {fifo}" in result.stderr, result.stderr
+
+
 def test_readme_first_command_simulates_experiment_b(capsys, monkeypatch):
     """The README's quick start: install, then `vfdsl simulate` of experiment B, which needs nothing else."""
     from conftest import REPO

@@ -12,6 +12,7 @@ from tqdm import tqdm
 
 import vfdsl
 from vfdsl.errors import VfError
+from vfdsl.files import check_writable
 from vfdsl import limits
 from vfdsl.sim import report, trace
 from vfdsl.sim.cluster import connect
@@ -204,31 +205,16 @@ def _check_work(settings, grid: list[tuple[str, list]]) -> None:
 
 
 def _check_writable(name: str, plot: bool = False) -> None:
-    """An output file that can be written, found out before the run rather than after it: its directory
-    exists, it is not a directory, it can be opened for writing (a file it creates is removed again), and
-    a plot's extension is a format matplotlib writes."""
+    """An output file that can be written (:func:`vfdsl.files.check_writable`, a FIFO without a reader refused
+    rather than waited on), and a plot's extension a format matplotlib writes."""
     path = Path(name)
-    try:
-        if not path.resolve().parent.is_dir():
-            raise VfError(f"cannot write {name}: no directory {path.resolve().parent}")
-        if path.is_dir():
-            raise VfError(f"cannot write {name}: it is a directory")
-        existed = path.exists()
-    except OSError as exc:                     # e.g. a name too long for the file system
-        raise VfError(f"cannot write {name}: {exc.strerror or exc}") from None
     if plot and path.suffix:
         from matplotlib.backend_bases import FigureCanvasBase
         formats = FigureCanvasBase.get_supported_filetypes()
         if path.suffix[1:].lower() not in formats:
             raise VfError(f"cannot write {name}: matplotlib writes no '{path.suffix}' files",
                           hint="use one of " + ", ".join(f".{f}" for f in sorted(formats)))
-    try:
-        with open(path, "ab"):
-            pass
-    except OSError as exc:
-        raise VfError(f"cannot write {name}: {exc.strerror or exc}") from None
-    if not existed:
-        path.unlink(missing_ok=True)
+    check_writable(path)
 
 
 def _write(name: str, write) -> None:
