@@ -41,10 +41,11 @@ def private_cache(tmp_path_factory) -> Path:
         os.environ["VFDSL_CACHE"] = previous
 
 
-@pytest.fixture(scope="session")
+@pytest.fixture(scope="session", autouse=True)
 def solver_ready(private_cache) -> None:
-    """DAQP's C sources fetched and its library built in the session's cache, once, here: on a fresh machine the
-    first controller waits for them (tens of seconds), which must not count against a subprocess's timeout.
+    """DAQP's C sources fetched and its library built in the session's cache, once, before any test: on a fresh
+    machine the first controller waits for them (tens of seconds), which must not count against the timeout of any
+    test that runs a command in a subprocess (check, simulate, view, the example tasks).
     Without a compiler or the sources the commands run interpreted, as the tests then expect."""
     from vfdsl.codegen import build
     from vfdsl.errors import VfError

@@ -255,13 +255,13 @@ def test_infeasible_start_names_an_irreducible_subset(tmp_path):
 # ------------------------------------------------------------------------------------------ the command
 
 def vfdsl_cli(*args: str) -> subprocess.CompletedProcess:
-    """The command in a subprocess; a test whose command compiles a controller takes ``solver_ready``, so that the
-    timeout never includes fetching and building DAQP (the first controller of a fresh machine)."""
+    """The command in a subprocess (conftest's ``solver_ready`` has fetched and built DAQP before any test, so the
+    timeout never includes the first controller of a fresh machine)."""
     return subprocess.run([sys.executable, "-P", "-m", "vfdsl.cli", *args], capture_output=True, text=True,
                           check=False, timeout=120)
 
 
-def test_cli_exit_codes_and_json(tmp_path, solver_ready):
+def test_cli_exit_codes_and_json(tmp_path):
     probe(tmp_path, PROBE.replace("resolution 12x12", "resolution 4x4"))
     proc = vfdsl_cli("check", str(tmp_path / "probe.vf"))
     assert proc.returncode == 0, proc.stdout + proc.stderr
@@ -327,7 +327,7 @@ def test_cli_json_reports_a_task_that_does_not_load(tmp_path, capsys, monkeypatc
     assert main(["check", *args]) == 2 and capsys.readouterr().out == ""         # no JSON asked, none printed
 
 
-def test_cli_scene_option_replaces_the_scene(tmp_path, solver_ready):
+def test_cli_scene_option_replaces_the_scene(tmp_path):
     probe(tmp_path)
     (tmp_path / "far.yaml").write_text(SCENE.replace("insert: 10", "insert: 20"))     # tip 10 mm below target
     proc = vfdsl_cli("check", str(tmp_path / "probe.vf"), "--scene", str(tmp_path / "far.yaml"), "--json")
