@@ -26,6 +26,7 @@ import numpy as np
 import pytest
 
 import vfdsl
+from vfdsl.compiler.context import flatten
 from vfdsl.errors import VfError
 from vfdsl.kinematics.robot import Robot
 from vfdsl.mesh import brute
@@ -224,18 +225,9 @@ def _translated(value, v):
     return None
 
 
-def _runtime(value):
-    """What step() takes for an ir value."""
-    from vfdsl.ir import model as ir
-    if isinstance(value, ir.PointValue):
-        return list(value.xyz)
-    if isinstance(value, ir.LineValue):
-        return [*value.point, *value.direction]
-    if isinstance(value, ir.PlaneValue):
-        return [*value.point, *value.normal]
-    if isinstance(value, ir.PoseValue):
-        return [*value.translation, *value.rpy]
-    return np.array(value.points)
+def _given(value):
+    """What step() takes for an ir value: its slot's numbers (a curve's as N x 3)."""
+    return np.reshape(flatten(value), (-1, 3)) if value.kind == "curve" else flatten(value)
 
 
 def _placements(task, ctrl, q0):
@@ -251,7 +243,7 @@ def _placements(task, ctrl, q0):
             if movable:
                 moved = {p.name: _translated(p.value, m * axis) for p in movable}
                 out.append((f"params +{m} m along {axis}", q0, {**values, **moved},
-                            {k: _runtime(v) for k, v in moved.items()}))
+                            {k: _given(v) for k, v in moved.items()}))
         if task.robots[0].urdf.startswith("shr7"):
             for m in (0.001, 0.01):
                 out.append((f"stage -{m} m along {axis}", q0 - np.r_[m * axis, np.zeros(len(q0) - 3)], values, None))
