@@ -145,11 +145,6 @@ class BuiltLibrary:
     module_path: Path | None = None  # the Python extension (stepper.c), None without Python headers
     reused: bool = False             # True when a verified cache entry was used, nothing compiled
 
-    @property
-    def module_name(self) -> str:
-        """The extension's module name (its ``PyInit_`` symbol)."""
-        return self.module_path.name.split("-")[0] if self.module_path else ""
-
 
 @dataclass(frozen=True)
 class Compiler:
