@@ -12,8 +12,6 @@ from vfdsl.check.sampling import DEFAULT_SAMPLES
 from vfdsl.errors import VfError
 from vfdsl import limits
 
-EXIT_NOT_SOUND = 1
-
 EPILOG = """\
 examples:
   vfdsl check tasks/paper_b_virtual_rcm.vf

@@ -11,8 +11,6 @@ from dataclasses import dataclass
 
 import casadi as ca
 
-INF = ca.inf
-
 
 @dataclass(frozen=True)
 class Rows:

@@ -132,7 +132,7 @@ class Const(_Model):
 class Derived(_Model):
     """A value computed from other arguments (derived geometry), evaluated each tick because an operand is a
     run-time param (all-constant expressions are folded to :class:`Const` at load time). Vectors inside may
-    have any dimension (checked at load time); the math of each op is in :mod:`vfdsl.ir.derived`."""
+    have any dimension (checked at load time); the math of each op is in :mod:`vfdsl.compiler.derived`."""
 
     ref: Literal["derived"] = "derived"
     op: Literal["add", "sub", "neg", "scale", "cross", "normalize", "midpoint", "line", "line2", "plane"]
