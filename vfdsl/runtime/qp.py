@@ -92,21 +92,7 @@ STEP_OUTPUTS = ("x", "status", "violation")
 GRADIENT_SATURATION = 1e3
 """K of :func:`_saturated_gradient`: a user push beyond K box widths is saturated."""
 LEVEL_ATTEMPTS = ((1e-10, 1e-6), (1e-10, 1e-8), (1e-8, 1e-6))
-"""(primal tolerance, rho) of the hierarchical solve, then of its retries on the ticks where the one before fails.
-The primal tolerance is DAQP's (rows' units; a solve with levels meets the hard rows to ~1e-10): tighter, DAQP fails a
-level more often (100 random states of paper_a_follow_curve: 5 at 1e-11, 0 at 1e-10, 1 at 1e-9). rho is DAQP's
-reciprocal weight of every soft row of a level (rows scaled to a longest row of 1), given in the problem's own
-scale, so that a level minimizes the plain sum of its rows' squared errors (DAQP normalizes rows internally; with
-one weight in its normalized scale a level would weigh a row by 1/|row|^2: tested). It sets how hard DAQP's inner
-proximal iterations pull a level towards its least squares, not what they converge to; at one value DAQP may
-fail a level that another solves (the port 4 mm above panda7's tip: level 2 fails at 1e-8, not at 1e-6). Over
-1,000 ticks (the port 2, 4, 12 mm above the tip of both robots, 100 pushed ticks each; 100 random states of four
-example tasks; damping as DAQP's cost) rho = 1e-6 failed 41 times, 1e-8 52 times, never both (measured with the
-daqp package); 1e-6 is also the faster (5.9 against 7.3 us on experiment B) and its worst level 1.6e-4 against
-4.2e-4 above the reference's cost (tests/levels_reference.py), so it comes first. Both failed at 3 ticks of paper
-A's plate moving 2 mm under the tip (tasks/paper_a_plate_moves.sim.yaml), where a primal tolerance of 1e-8
-solved every level (meeting the rows to 1.4e-9: phase 1 with levels is accepted within LEVEL_ACCEPTANCE
-feas_tol); if that fails too, the last attempt's answer for the levels above the one DAQP failed is taken."""
+"""(primal tolerance, rho) of the hierarchical solve, then of its retries on the ticks where the one before fails."""
 LEVEL_ACCEPTANCE = 10.0
 """Phase 1 with priority levels is accepted when it meets the rows and bounds within LEVEL_ACCEPTANCE * feas_tol
 (1e-8 m or rad per tick at vfdsl.compile's feas_tol): the last of LEVEL_ATTEMPTS runs at a primal tolerance of
@@ -119,19 +105,13 @@ MAX_LEVELS = 15
 """Priority levels one solve takes (VFDSL_LEVELS_MAX - 1 in daqp_persistent.c; a task has at most 5 priorities, each
 at most 2 levels: a track term's two parts)."""
 HELD_ROWS = 10.0
-"""(B)'s answer is taken only if it holds the rows x_A violates within HELD_ROWS * feas_tol of their values at x_A
-(1e-8 m or rad per tick); else x_A is (the least violation, without the objective). Its soft level meets them to
-~1e-8 where they are many; at 1e-6 the two paths' violations differed by 1.3e-7 on paper_b_virtual_rcm."""
+"""(B)'s answer is taken only if it holds the rows x_A violates within HELD_ROWS * feas_tol of their values at x_A."""
 PER_ROW_GROUPS_LIMIT = 100
-"""Above this many rows one group per row makes phase 2 slow (~30 ms at m = 200; seconds, DAQP
-iteration-limit failures and megabytes of generated C at m = 1000): a warning asks for groups."""
+"""Above this many rows, one group per row makes phase 2 slow: a warning asks for groups."""
 
 
 STRAIGHT_LINE_ENTRIES = 512
-"""The step's solver-free parts are expanded to straight-line code (:func:`_straight_line`) when the general rows
-have at most this many entries (m x n; every example task, at most 28 x 7): that code grows with them. Measured on
-the stays_at sweep of benchmarks/tick.py (shr7), expanded against kept as loops: 62 rows, tick 4.9 against 9.9 us,
-compile 4.6 against 2.7 s; 114 rows, 6.7 against 15.3 us, 8.6 against 3.6 s; 482 rows, compile 55 against 9 s."""
+"""The step's solver-free parts are straight-line code when the general rows have at most this many entries."""
 
 
 class StepStatus(enum.IntFlag):
