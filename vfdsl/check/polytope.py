@@ -27,13 +27,6 @@ from vfdsl.compiler.geometry import polygon_angles, sphere_directions
 from vfdsl.ir import model as ir
 from vfdsl.primitives import CONSTRAINTS
 
-# Kind of the bounded quantity, and where its stated size is, for primitives whose polytope bounds
-# something other than the `within` tolerance.
-_STATED_BY_ARG = {"within_distance": ("length", "distance"), "speed": ("speed", "max"),
-                  "angular_speed": ("angular_speed", "max"), "within_sphere": ("length", "radius"),
-                  "near_plane": ("length", "half_width")}
-# How the table names exact rows that are not planes or joint bounds.
-_EXACT = {"within_sphere": "exact (tangent plane)"}
 SEARCH_LIMIT = 24              # largest n (and m) tried for the smallest resolution under an overshoot
 
 
@@ -123,12 +116,13 @@ def constraint_geometry(c: ir.Constraint) -> PolytopeGeometry | None:
 
 def stated_size(c: ir.Constraint, task: ir.Task) -> tuple[str, float] | None:
     """(kind, SI value) of what the constraint bounds: its tolerance, or its distance or speed argument."""
-    if c.primitive in _STATED_BY_ARG:
-        kind, name = _STATED_BY_ARG[c.primitive]
+    spec = CONSTRAINTS[c.primitive]
+    if spec.stated_by is not None:
+        kind, name = spec.stated_by
         return kind, float(value_of(c.args[name], task).value)
     if c.tolerance is None:
         return None
-    return CONSTRAINTS[c.primitive].tolerance, float(c.tolerance)
+    return spec.tolerance, float(c.tolerance)
 
 
 def bounds_table(task: ir.Task) -> list[Bound]:
@@ -141,7 +135,7 @@ def bounds_table(task: ir.Task) -> list[Bound]:
         kind, size = stated
         g = constraint_geometry(c)
         if g is None:
-            table.append(Bound(describe(c), where(c), kind, size, _EXACT.get(c.primitive, "exact"), None, size))
+            table.append(Bound(describe(c), where(c), kind, size, CONSTRAINTS[c.primitive].exact_rows, None, size))
         else:
             table.append(Bound(describe(c), where(c), kind, size, g.label, g.unique, g.circumradius * size))
     return table

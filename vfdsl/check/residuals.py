@@ -4,14 +4,11 @@ The rows measure the state at rest (dq = 0): a constraint's error is ``gauge = e
 its rows, i.e. max_i u_i . delta for a polytope (between cos(pi/n) ||delta|| and ||delta||), the signed
 depth for a plane. Direction constraints linearize with a cross product, whose length is sin(angle): a
 tool axis pointing exactly the *opposite* way shows no error at all in the rows (and the controller then
-drives it further off). For those the true angle is measured instead:
-
-- keeps_direction: angle(l_t, l_d);
-- cone: | angle(l_t, l_a) - gamma |;
-- tilt_at_most: max(0, angle(l_t, a) - gamma);
-- rotates_around: | asin(l_t . w) |, the tool axis' angle out of the plane normal to w;
-
-and for stays_at, within_distance and within_sphere the distance || p - P || itself.
+drives it further off). For those the true angle is measured instead, the ``true_angle`` of the
+primitive's spec (keeps_direction: angle(l_t, l_d); cone: | angle(l_t, l_a) - gamma |; tilt_at_most:
+max(0, angle(l_t, a) - gamma); rotates_around: | asin(l_t . w) |), and where the spec says
+``error_is_distance`` (stays_at, within_distance, within_sphere) the distance || p - P || to its
+``reference_point`` itself.
 
 A constraint whose error exceeds its tolerance is VF402 (warning); beyond FAR x the tolerance (or
 FAR_ABSOLUTE for exact rows without one) it is VF401 (error), with the likely cause: an opposite
@@ -38,48 +35,22 @@ FAR_ABSOLUTE = 1e-4              # m or rad, for rows without a tolerance (a hal
 UNIT_FACTORS = (1e3, 1e-3)       # mm <-> m slips
 
 
-def _angle(a, b):
-    return ca.atan2(ca.norm_2(ca.cross(a, b)), ca.dot(a, b))
-
-
-def _keeps_direction(c, ctx):
-    return _angle(ctx.frame(c.frame).axis, ctx.direction(c.args["direction"]))
-
-
-def _cone(c, ctx):
-    return ca.fabs(_angle(ctx.frame(c.frame).axis, ctx.direction(c.args["axis"])) - ctx.scalar(c.args["angle"]))
-
-
-def _tilt_at_most(c, ctx):
-    return ca.fmax(0, _angle(ctx.frame(c.frame).axis, ctx.direction(c.args["axis"])) - ctx.scalar(c.args["angle"]))
-
-
-def _rotates_around(c, ctx):
-    return ca.fabs(ca.asin(ca.fmin(1, ca.fmax(-1, ca.dot(ctx.frame(c.frame).axis, ctx.direction(c.args["axis"]))))))
-
-
-TRUE_ANGLE = {"keeps_direction": _keeps_direction, "cone": _cone, "rotates_around": _rotates_around,
-              "tilt_at_most": _tilt_at_most}
-REFERENCE_POINT = {"stays_at": "target", "within_distance": "center", "passes_through": "port",
-                   "within_sphere": "center"}
-DISTANCE_TO_REFERENCE = ("stays_at", "within_distance", "within_sphere")      # their error is || p - P || itself
-
-
 class Residuals:
     """Numeric true-angle errors and reference points of a task's constraints, at any q."""
 
     def __init__(self, task: ir.Task, context: Context):
         self.context = context
         symbols = [context.q, context.p]
-        self._angles = {i: ca.Function("angle", symbols, [TRUE_ANGLE[c.primitive](c, context)])
-                        for i, c in enumerate(task.constraints) if c.primitive in TRUE_ANGLE}
+        specs = [CONSTRAINTS[c.primitive] for c in task.constraints]
+        self._angles = {i: ca.Function("angle", symbols, [specs[i].true_angle(c, context)])
+                        for i, c in enumerate(task.constraints) if specs[i].true_angle}
         self._axes = {i: ca.Function("axes", symbols, [context.frame(c.frame).axis,
                                                         context.direction(c.args["axis"] if "axis" in c.args
                                                                           else c.args["direction"])])
-                      for i, c in enumerate(task.constraints) if c.primitive in TRUE_ANGLE}
+                      for i, c in enumerate(task.constraints) if specs[i].true_angle}
         self._points = {i: ca.Function("point", symbols, [context.frame(c.frame).p,
-                                                         context.point(c.args[REFERENCE_POINT[c.primitive]])])
-                        for i, c in enumerate(task.constraints) if c.primitive in REFERENCE_POINT}
+                                                         context.point(c.args[specs[i].reference_point])])
+                        for i, c in enumerate(task.constraints) if specs[i].reference_point}
 
     def true_angle(self, index: int, q, p) -> float | None:
         f = self._angles.get(index)
@@ -101,10 +72,11 @@ def _error(task: ir.Task, r: ConstraintRows, residuals: Residuals, q, p):
     stated = stated_size(c, task)
     if r.bounds or not len(r.A) or (stated is not None and stated[0] not in ("length", "angle")):
         return None
-    kind, limit = stated if stated is not None else (("angle" if c.primitive in TRUE_ANGLE else "length"), 0.0)
+    spec = CONSTRAINTS[c.primitive]
+    kind, limit = stated if stated is not None else (("angle" if spec.true_angle else "length"), 0.0)
     angle = residuals.true_angle(r.index, q, p)
     error = angle if angle is not None else limit + r.violation_at_rest
-    if c.primitive in DISTANCE_TO_REFERENCE:
+    if spec.error_is_distance:
         frame, reference = residuals.frame_and_reference(r.index, q, p)
         error = float(np.linalg.norm(frame - reference))
     return kind, limit, error, angle
@@ -150,7 +122,7 @@ def analyse(task: ir.Task, linear: Linearization, rows: list[ConstraintRows], q)
 
 
 def _likely_cause(index: int, c: ir.Constraint, residuals: Residuals, q, p, error: float) -> str:
-    if c.primitive in TRUE_ANGLE:
+    if CONSTRAINTS[c.primitive].true_angle:
         theta = residuals.between_axes(index, q, p)
         between = math.degrees(theta)
         if c.primitive == "keeps_direction" and between > 150:

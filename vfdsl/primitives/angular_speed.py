@@ -1,8 +1,16 @@
 """Angular speed limit of a frame:  || dx_r || <= w_max dt, by the n x m sphere polytope."""
 
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
 from vfdsl.compiler.rows import Rows
+from vfdsl.ir import model as ir
 from vfdsl.primitives.spec import POSITIVE, ArgSpec, ConstraintSpec
 from vfdsl.primitives.speed import speed_rows
+
+if TYPE_CHECKING:
+    from vfdsl.compiler.context import Context
 
 SPEC = ConstraintSpec(
     name="angular_speed",
@@ -12,8 +20,9 @@ SPEC = ConstraintSpec(
     resolution="sphere",
     source="Li, Kapoor & Taylor 2005, II-C",
     rate=True,
+    metric="angular_speed", row_unit="rad", stated_by=("angular_speed", "max"),
 )
 
 
-def lower(c, ctx) -> Rows:
+def lower(c: ir.Constraint, ctx: Context) -> Rows:
     return speed_rows(c, ctx, ctx.frame(c.frame).Jw)

@@ -6,14 +6,28 @@ R = [d2, l_a/||l_a||, -d1] (eq. 22); delta_r = d1 sin gamma - l_t x l_a (eq. 23)
 "rotate around a line" rows (eq. 13) about w_d.
 """
 
+from __future__ import annotations
+
 import math
+from typing import TYPE_CHECKING
 
 import casadi as ca
 
 from vfdsl.compiler.geometry import normalize
 from vfdsl.compiler.rows import Rows
+from vfdsl.ir import model as ir
+from vfdsl.primitives.keeps_direction import angle_between
 from vfdsl.primitives.rotates_around import around_axis
 from vfdsl.primitives.spec import ArgSpec, ConstraintSpec, Range
+
+if TYPE_CHECKING:
+    from vfdsl.compiler.context import Context
+
+
+def true_angle(c: ir.Constraint, ctx: Context):
+    """| angle(l_t, l_a) - gamma |."""
+    return ca.fabs(angle_between(ctx.frame(c.frame).axis, ctx.direction(c.args["axis"])) - ctx.scalar(c.args["angle"]))
+
 
 SPEC = ConstraintSpec(
     name="cone",
@@ -25,10 +39,11 @@ SPEC = ConstraintSpec(
     tolerance="angle", default_tolerance=1e-3,
     resolution="polygon",
     source="Li, Kapoor & Taylor 2005, III-B, eqs. (22)-(23)",
+    metric="angle", true_angle=true_angle, drawn_around_frame=True,
 )
 
 
-def lower(c, ctx) -> Rows:
+def lower(c: ir.Constraint, ctx: Context) -> Rows:
     f = ctx.frame(c.frame)
     l_t = f.axis
     l_a = ctx.direction(c.args["axis"])

@@ -10,12 +10,19 @@ stops at a corner instead of running past it along the old segment; it turns the
 the next segment (the closest point moves there, ties going to the later segment).
 """
 
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
 import casadi as ca
 
 from vfdsl.compiler.rows import Rows
 from vfdsl.ir import model as ir
 from vfdsl.primitives.along import along_line
 from vfdsl.primitives.spec import ArgSpec, ConstraintSpec
+
+if TYPE_CHECKING:
+    from vfdsl.compiler.context import Context
 
 SPEC = ConstraintSpec(
     name="follows",
@@ -28,10 +35,11 @@ SPEC = ConstraintSpec(
     tolerance="length", default_tolerance=1e-5,
     resolution="polygon",
     source="Li, Kapoor & Taylor 2005, III-A, eqs. (19)-(21)",
+    metric="length",
 )
 
 
-def lower(c, ctx) -> Rows:
+def lower(c: ir.Constraint, ctx: Context) -> Rows:
     curve = ctx.curve(c.args["curve"])
     anchor = ctx.frame(c.args["anchor"].name)
     found = ctx.closest_point(c.args["curve"], c.args["anchor"].name, curve, anchor.p)

@@ -12,9 +12,17 @@ with u_i now pointing from the wall into the volume, and d_i < 0 for a capsule a
 comes closer by |dx_t|^2 / (2 rho) for a tangential step (:mod:`vfdsl.compiler.mesh_rows` gives the bound).
 """
 
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
 from vfdsl.compiler.mesh_rows import MESH_ARGS, mesh_rows
 from vfdsl.compiler.rows import Rows
+from vfdsl.ir import model as ir
 from vfdsl.primitives.spec import ConstraintSpec
+
+if TYPE_CHECKING:
+    from vfdsl.compiler.context import Context
 
 SPEC = ConstraintSpec(
     name="inside_mesh",
@@ -22,8 +30,9 @@ SPEC = ConstraintSpec(
     subject=True,
     args=MESH_ARGS,
     source="Li & Taylor, ICRA 2004 (working volume from anatomy); half-spaces as Li, Kapoor & Taylor 2005, II-B.5",
+    metric="length", row_unit="",
 )
 
 
-def lower(c, ctx) -> Rows:
+def lower(c: ir.Constraint, ctx: Context) -> Rows:
     return mesh_rows(c, ctx, side=-1.0)

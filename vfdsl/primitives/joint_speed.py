@@ -1,10 +1,17 @@
 """Joint speed limits:  |dq_i| <= fraction * qdot_max_i * dt, with qdot_max from the URDF."""
 
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
 import casadi as ca
 
 from vfdsl.compiler.rows import Rows
 from vfdsl.ir import model as ir
 from vfdsl.primitives.spec import ArgSpec, ConstraintSpec, Range
+
+if TYPE_CHECKING:
+    from vfdsl.compiler.context import Context
 
 SPEC = ConstraintSpec(
     name="joint_speed",
@@ -15,10 +22,11 @@ SPEC = ConstraintSpec(
                   range=Range(0.0, 1.0, low_open=True)),),
     source="Li, Kapoor & Taylor 2005, II-C (an upper bound on the incremental motion)",
     rate=True,
+    metric="speed", row_unit="",
 )
 
 
-def lower(c, ctx) -> Rows:
+def lower(c: ir.Constraint, ctx: Context) -> Rows:
     robot = ctx.robot
     step = ctx.scalar(c.args["fraction"]) * ca.DM(robot.velocity_limit) * ctx.dt
     return Rows(A=ca.SX.eye(robot.nq), lb=-step, ub=step, facets=list(robot.joint_names), bounds=True)

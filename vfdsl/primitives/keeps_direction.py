@@ -6,12 +6,30 @@ tool roll; the default is roll-free: only the two components of (delta_r + dx_r)
 (an n-gon in the plane normal to l_t). ``pin_roll = true`` gives the paper's n x m sphere form.
 """
 
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
 import casadi as ca
 
 from vfdsl.compiler.geometry import polygon_directions, sphere_directions
 from vfdsl.compiler.rows import Rows, facets
 from vfdsl.ir import model as ir
 from vfdsl.primitives.spec import ArgSpec, ConstraintSpec, flag
+
+if TYPE_CHECKING:
+    from vfdsl.compiler.context import Context
+
+
+def angle_between(a, b):
+    """The angle between two vectors, exact at 0 and 180 deg (a cross product's length alone is sin(angle))."""
+    return ca.atan2(ca.norm_2(ca.cross(a, b)), ca.dot(a, b))
+
+
+def true_angle(c: ir.Constraint, ctx: Context):
+    """angle(l_t, l_d): the rows' cross product shows no error for an axis pointing the opposite way."""
+    return angle_between(ctx.frame(c.frame).axis, ctx.direction(c.args["direction"]))
+
 
 SPEC = ConstraintSpec(
     name="keeps_direction",
@@ -23,10 +41,11 @@ SPEC = ConstraintSpec(
     tolerance="angle", default_tolerance=1e-3,
     resolution=lambda args: "sphere" if flag(args, "pin_roll") else "polygon",
     source="Li, Kapoor & Taylor 2005, II-B.2, eqs. (5)-(6); DESIGN erratum 4",
+    metric="angle", true_angle=true_angle, drawn_around_frame=True,
 )
 
 
-def lower(c, ctx) -> Rows:
+def lower(c: ir.Constraint, ctx: Context) -> Rows:
     f = ctx.frame(c.frame)
     delta_r = ca.cross(ctx.direction(c.args["direction"]), f.axis)
     if flag(c.args, "pin_roll"):

@@ -9,10 +9,18 @@ Keep the frame origin within w of a plane (point P, unit normal d), on either si
 Exact (planes need no polytope); the sign of d does not matter.
 """
 
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
 import casadi as ca
 
 from vfdsl.compiler.rows import Rows, lower_bounds
+from vfdsl.ir import model as ir
 from vfdsl.primitives.spec import POSITIVE, ArgSpec, ConstraintSpec
+
+if TYPE_CHECKING:
+    from vfdsl.compiler.context import Context
 
 SPEC = ConstraintSpec(
     name="near_plane",
@@ -21,10 +29,11 @@ SPEC = ConstraintSpec(
     args=(ArgSpec("plane", "plane", "the band's middle plane"),
           ArgSpec("half_width", "length", "the largest distance from the plane, either side", range=POSITIVE)),
     source="Li, Kapoor & Taylor 2005, II-B.5, eqs. (16)-(17), made symmetric",
+    metric="length", row_unit="m", stated_by=("length", "half_width"), drawn_around_frame=True,
 )
 
 
-def lower(c, ctx) -> Rows:
+def lower(c: ir.Constraint, ctx: Context) -> Rows:
     f = ctx.frame(c.frame)
     plane = ctx.plane(c.args["plane"])
     d = plane.normal

@@ -12,9 +12,17 @@ the unit from the feature toward the free side (:mod:`vfdsl.compiler.mesh_rows`,
 features kept and the bound of one tick's linearization error).
 """
 
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
 from vfdsl.compiler.mesh_rows import MESH_ARGS, mesh_rows
 from vfdsl.compiler.rows import Rows
+from vfdsl.ir import model as ir
 from vfdsl.primitives.spec import ConstraintSpec
+
+if TYPE_CHECKING:
+    from vfdsl.compiler.context import Context
 
 SPEC = ConstraintSpec(
     name="outside_mesh",
@@ -23,8 +31,9 @@ SPEC = ConstraintSpec(
     args=MESH_ARGS,
     source="Li, Kapoor & Taylor 2005, II-B.5 (forbidden half-spaces), on the K nearest features of a mesh "
            "(Li & Taylor, ICRA 2004)",
+    metric="length", row_unit="",
 )
 
 
-def lower(c, ctx) -> Rows:
+def lower(c: ir.Constraint, ctx: Context) -> Rows:
     return mesh_rows(c, ctx, side=1.0)

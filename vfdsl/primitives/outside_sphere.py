@@ -12,9 +12,17 @@ first-order model of the kinematics); motion along the plane slides around the b
 axis (from the tip toward the handle on the shipped robots): the row then asks to retract along it by r.
 """
 
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
 from vfdsl.compiler.rows import Rows, lower_bounds
+from vfdsl.ir import model as ir
 from vfdsl.primitives.spec import ConstraintSpec
 from vfdsl.primitives.within_sphere import BALL, tangent_plane
+
+if TYPE_CHECKING:
+    from vfdsl.compiler.context import Context
 
 SPEC = ConstraintSpec(
     name="outside_sphere",
@@ -22,9 +30,10 @@ SPEC = ConstraintSpec(
     subject=True,
     args=BALL,
     source="Li, Kapoor & Taylor 2005, II-B.5 (a forbidden half-space on the sphere's tangent plane)",
+    metric="length", row_unit="m",
 )
 
 
-def lower(c, ctx) -> Rows:
+def lower(c: ir.Constraint, ctx: Context) -> Rows:
     a, height, r = tangent_plane(c, ctx)
     return lower_bounds(a, r - height, ["tangent plane"])

@@ -5,11 +5,19 @@ the perpendicular offset e = (I - l_t l_t^T)(c - p) after the step, linearized i
 bounded by an n-gon in the plane normal to l_t.
 """
 
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
 import casadi as ca
 
 from vfdsl.compiler.geometry import polygon_directions, skew
 from vfdsl.compiler.rows import Rows, facets
+from vfdsl.ir import model as ir
 from vfdsl.primitives.spec import ArgSpec, ConstraintSpec
+
+if TYPE_CHECKING:
+    from vfdsl.compiler.context import Context
 
 SPEC = ConstraintSpec(
     name="passes_through",
@@ -19,10 +27,11 @@ SPEC = ConstraintSpec(
     tolerance="length", default_tolerance=1e-5,
     resolution="polygon",
     source="Taylor, lecture notes, slide 46",
+    metric="length", reference_point="port", drawn_around_frame=True,
 )
 
 
-def lower(c, ctx) -> Rows:
+def lower(c: ir.Constraint, ctx: Context) -> Rows:
     f = ctx.frame(c.frame)
     l = f.axis
     r = ctx.point(c.args["port"]) - f.p

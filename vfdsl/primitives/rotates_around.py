@@ -5,11 +5,25 @@ l_Pi = normalized projection of l_t on Pi,  delta_r = l_Pi x l_t,  u_r = project
 || u_r || <= eps with the n-gon of R4 = [v1 v2 w_d]. Erratum 2: the rows act on (delta_r + dx_r).
 """
 
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
 import casadi as ca
 
 from vfdsl.compiler.geometry import normalize, polygon_directions
 from vfdsl.compiler.rows import Rows, facets
+from vfdsl.ir import model as ir
 from vfdsl.primitives.spec import ArgSpec, ConstraintSpec
+
+if TYPE_CHECKING:
+    from vfdsl.compiler.context import Context
+
+
+def true_angle(c: ir.Constraint, ctx: Context):
+    """| asin(l_t . w) |: the tool axis' angle out of the plane normal to w."""
+    return ca.fabs(ca.asin(ca.fmin(1, ca.fmax(-1, ca.dot(ctx.frame(c.frame).axis, ctx.direction(c.args["axis"]))))))
+
 
 SPEC = ConstraintSpec(
     name="rotates_around",
@@ -19,10 +33,11 @@ SPEC = ConstraintSpec(
     tolerance="angle", default_tolerance=1e-3,
     resolution="polygon",
     source="Li, Kapoor & Taylor 2005, II-B.4, eqs. (11)-(13); DESIGN erratum 2",
+    metric="angle", true_angle=true_angle, drawn_around_frame=True,
 )
 
 
-def lower(c, ctx) -> Rows:
+def lower(c: ir.Constraint, ctx: Context) -> Rows:
     return around_axis(ctx.frame(c.frame), ctx.direction(c.args["axis"]), c.tolerance, c.resolution[0])
 
 

@@ -18,10 +18,15 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Callable, Literal
+from typing import TYPE_CHECKING, Callable, Literal
 
 from vfdsl.ir import model as ir
 from vfdsl import units as u
+
+if TYPE_CHECKING:
+    import casadi as ca
+
+    from vfdsl.compiler.context import Context
 
 GEOMETRIC_KINDS = ("point", "vector", "direction", "line", "plane", "pose", "curve", "mesh")
 SCALAR_DIMENSIONS: dict[str, u.Dim] = {
@@ -96,7 +101,24 @@ class ArgSpec:
 
 @dataclass(frozen=True)
 class ConstraintSpec:
-    """A ``require`` primitive. ``subject``: applied to a task frame (``require tip stays_at(p)``)."""
+    """A ``require`` primitive. ``subject``: applied to a task frame (``require tip stays_at(p)``).
+
+    Besides its signature it states what the tools around the compiler read of it, so that its module is
+    its one home (``tests/test_registry.py`` names the tool that misses a primitive):
+
+    - ``metric``: the dimension of its error in ``simulate`` ("length", "angle", "speed", "angular_speed"; a
+      joint primitive: that of its prismatic joints, the revolute ones' is the angular counterpart);
+    - ``row_unit``: without a tolerance, the unit of what its rows bound ("m", "rad"; "" when not stated);
+      with one, the tolerance's unit;
+    - ``stated_by``: (kind, argument) of the size its rows bound when an argument states it, not the tolerance;
+    - ``exact_rows``: how ``check``'s bounds table names its rows when they are exact (no polytope);
+    - ``true_angle``: for rows that linearize a direction with a cross product (blind to an opposite axis),
+      the true angle error as a CasADi expression of (constraint, context); ``check`` measures it at the start;
+    - ``reference_point``: the argument naming the point its frame is held to or by, and
+      ``error_is_distance``: its error at rest is the distance to that point itself;
+    - ``drawn_around_frame``: the viewer draws it around the frame's position (a plane's square, a line's
+      stretch, a cone's apex), so it is redrawn as the frame moves.
+    """
 
     name: str
     summary: str
@@ -108,6 +130,19 @@ class ConstraintSpec:
     default_resolution: dict = field(default_factory=lambda: {"sphere": [4, 4], "polygon": [8]})
     source: str = ""                             # where the math comes from (paper equation, lecture slide)
     rate: bool = False                           # rows bound a motion per tick (a speed), not a position
+    metric: str | None = None
+    row_unit: str | None = None
+    stated_by: tuple[str, str] | None = None
+    exact_rows: str = "exact"
+    true_angle: Callable[[ir.Constraint, Context], ca.SX] | None = None
+    reference_point: str | None = None
+    error_is_distance: bool = False
+    drawn_around_frame: bool = False
+
+    @property
+    def reads_mesh(self) -> bool:
+        """Whether it keeps the frame clear of a triangle mesh (a ``mesh`` argument)."""
+        return any(a.kind == "mesh" for a in self.args)
 
     def resolution_shape(self, args: dict[str, ir.Arg]) -> ResolutionShape:
         return self.resolution(args) if callable(self.resolution) else self.resolution

@@ -1,10 +1,18 @@
 """Cartesian speed limit of a frame origin:  || dx_p || <= v_max dt, by the n x m sphere polytope."""
 
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
 import casadi as ca
 
 from vfdsl.compiler.geometry import sphere_directions
 from vfdsl.compiler.rows import Rows, facets
+from vfdsl.ir import model as ir
 from vfdsl.primitives.spec import POSITIVE, ArgSpec, ConstraintSpec
+
+if TYPE_CHECKING:
+    from vfdsl.compiler.context import Context
 
 SPEC = ConstraintSpec(
     name="speed",
@@ -14,10 +22,11 @@ SPEC = ConstraintSpec(
     resolution="sphere",
     source="Li, Kapoor & Taylor 2005, II-C",
     rate=True,
+    metric="speed", row_unit="m", stated_by=("speed", "max"),
 )
 
 
-def lower(c, ctx) -> Rows:
+def lower(c: ir.Constraint, ctx: Context) -> Rows:
     return speed_rows(c, ctx, ctx.frame(c.frame).Jv)
 
 

@@ -16,12 +16,27 @@ so the tilt passes gamma by at most arccos(cos gamma - phi^2/2 - phi^3/6) - gamm
 tick, and the next tick's row pulls it back.
 """
 
+from __future__ import annotations
+
 import math
+from typing import TYPE_CHECKING
 
 import casadi as ca
 
 from vfdsl.compiler.rows import Rows, lower_bounds
+from vfdsl.ir import model as ir
+from vfdsl.primitives.keeps_direction import angle_between
 from vfdsl.primitives.spec import ArgSpec, ConstraintSpec, Range
+
+if TYPE_CHECKING:
+    from vfdsl.compiler.context import Context
+
+
+def true_angle(c: ir.Constraint, ctx: Context):
+    """max(0, angle(l, a) - gamma)."""
+    angle = angle_between(ctx.frame(c.frame).axis, ctx.direction(c.args["axis"]))
+    return ca.fmax(0, angle - ctx.scalar(c.args["angle"]))
+
 
 SPEC = ConstraintSpec(
     name="tilt_at_most",
@@ -31,10 +46,11 @@ SPEC = ConstraintSpec(
           ArgSpec("angle", "angle", "the largest tilt gamma from the axis",
                   range=Range(0.0, math.pi, low_open=True, high_open=True, unit="deg"))),
     source="the cone of Li, Kapoor & Taylor 2005, III-B, as an inequality",
+    metric="angle", row_unit="", true_angle=true_angle, drawn_around_frame=True,
 )
 
 
-def lower(c, ctx) -> Rows:
+def lower(c: ir.Constraint, ctx: Context) -> Rows:
     f = ctx.frame(c.frame)
     a = ctx.direction(c.args["axis"])
     gradient = ca.cross(f.axis, a)                       # d(l . a) = alpha . (l x a)

@@ -11,11 +11,19 @@ s = || dx_p ||; the next tick's plane pulls it back. When no coordinate of p - c
 n is the tool axis (any unit vector keeps that bound; the row is then far from binding).
 """
 
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
 import casadi as ca
 
 from vfdsl.compiler.geometry import normalize
 from vfdsl.compiler.rows import Rows, lower_bounds
+from vfdsl.ir import model as ir
 from vfdsl.primitives.spec import POSITIVE, ArgSpec, ConstraintSpec
+
+if TYPE_CHECKING:
+    from vfdsl.compiler.context import Context
 
 COINCIDENT = 1e-12     # m: when no coordinate of p - c is larger, the direction p - c is not used
 
@@ -28,6 +36,8 @@ SPEC = ConstraintSpec(
     subject=True,
     args=BALL,
     source="Taylor, lecture notes, slide 44 (the ball linearized at its closest point)",
+    metric="length", row_unit="m", stated_by=("length", "radius"), exact_rows="exact (tangent plane)",
+    reference_point="center", error_is_distance=True,
 )
 
 
@@ -42,6 +52,6 @@ def tangent_plane(c, ctx):
     return n.T @ f.Jv, n.T @ v, ctx.scalar(c.args["radius"])
 
 
-def lower(c, ctx) -> Rows:
+def lower(c: ir.Constraint, ctx: Context) -> Rows:
     a, height, r = tangent_plane(c, ctx)
     return lower_bounds(-a, height - r, ["tangent plane"])

@@ -207,11 +207,9 @@ class Controller:
         return bounds + [str(label) for label in self.assembled.row_labels]
 
 
-_ROW_UNITS = {"above": "m", "within_distance": "m", "speed": "m", "angular_speed": "rad", "within_sphere": "m",
-              "outside_sphere": "m", "near_plane": "m"}
-
-
 def row_unit(primitive: str) -> str:
     """The unit of a primitive's rows: its tolerance's, or (without a tolerance) what its rows bound."""
     spec = CONSTRAINTS.get(primitive)
-    return _UNITS.get(spec.tolerance, "") if spec and spec.tolerance else _ROW_UNITS.get(primitive, "")
+    if spec is None:
+        return ""
+    return _UNITS.get(spec.tolerance, "") if spec.tolerance else spec.row_unit

@@ -34,6 +34,7 @@ from scipy.spatial.transform import Rotation
 from vfdsl.errors import VfError
 from vfdsl.ir import model as ir
 from vfdsl.kinematics.robot import Robot
+from vfdsl.primitives import CONSTRAINTS
 from vfdsl.runtime.qp import StepStatus
 from vfdsl.sim.geometry import Scene
 from vfdsl.compiler.context import flatten
@@ -46,8 +47,6 @@ REACH_TIME = 0.5            # s: the hand's spring brings the tool to a still ha
 LEVER = 0.05                # m: where a torque-only hand holds the tool, up its axis
 DRAW_RATE = 25.0            # Hz: scene updates while running
 HAND_SCALE = 0.025          # m: size of the hand's transform controls
-FRAME_DEPENDENT = {"along", "above", "on_plane", "near_plane", "keeps_direction", "cone", "tilt_at_most",
-                   "rotates_around", "passes_through"}
 TOOL_MOVE = 1e-4            # m: the shapes drawn at the tool are redrawn once it has moved this far
 DEFAULT_PERIOD = 0.01       # s: the period of a task that gives none
 
@@ -481,7 +480,7 @@ class Viewer:
         for k, c in enumerate(self.task.constraints):
             key = sh.fixture_key(k, c)
             if c.frame in self.frames and (key not in self._drawn_at or (
-                    c.primitive in FRAME_DEPENDENT
+                    CONSTRAINTS[c.primitive].drawn_around_frame
                     and np.linalg.norm(self.frames[c.frame].position - self._drawn_at[key]) > 0.002)):
                 stale.add(k)
             elif key in self._tool_at and np.abs(self._tool(c) - self._tool_at[key]).max() > TOOL_MOVE:

@@ -29,6 +29,7 @@ from vfdsl.check.polytope import constraint_geometry, directions
 from vfdsl.compiler.geometry import polygon_angles
 from vfdsl.ir import model as ir
 from vfdsl.mesh.load import read_mesh
+from vfdsl.primitives import CONSTRAINTS
 from vfdsl.sim.geometry import Curve, Scene, unit
 
 PLANE_SIZE = 0.06           # m: side of the square drawn for a plane (around the frame's closest point)
@@ -36,8 +37,8 @@ LINE_LENGTH = 0.08          # m: length of a line drawn either side of the frame
 AXIS_LENGTH = 0.05          # m: length of a direction's arrow and a cone's side
 REFERENCE_RADIUS = 0.0006   # m: radius of the marker of a point, and of a line's or curve's polyline
 SIDES = 24                  # facets of a round tube or cone that is not a polytope
-NO_GEOMETRY = {"joint_limits", "joint_speed", "speed", "angular_speed"}
-MESH_PRIMITIVES = ("outside_mesh", "inside_mesh")
+NO_GEOMETRY = {name for name, spec in CONSTRAINTS.items() if not spec.subject or spec.rate}
+"""Primitives with nothing to draw: joint bounds and speed limits."""
 
 
 @dataclass
@@ -83,8 +84,7 @@ def build(task: ir.Task, scene: Scene, frames: dict, magnify: float = 1.0) -> li
         fixture = Fixture(k, fixture_key(k, c), describe(c), where(c), c.soft, tolerance_text(c, task))
         frame = frames.get(c.frame) if c.frame else None
         if c.primitive not in NO_GEOMETRY and frame is not None:
-            draw = _DRAW.get(c.primitive)
-            fixture.shapes = (draw(c, scene, frame, magnify) if draw else []) + tool_shapes(c, scene, frames)
+            fixture.shapes = DRAWINGS[c.primitive](c, scene, frame, magnify) + tool_shapes(c, scene, frames)
             fixture.anchor = _anchor(fixture.shapes, frame.position)
         fixtures.append(fixture)
     return fixtures
@@ -426,7 +426,7 @@ def tool_shapes(c: ir.Constraint, scene: Scene, frames: dict) -> list[Shape]:
     rows keep clear, from the frame's origin a to its ``shaft`` frame's b: the segment a b (when b is not a),
     the capsule of the tool's ``radius`` around it (when not 0), and the wire capsule of radius + margin, the
     clearance the rows keep from the surface (a ball at a point tool)."""
-    if c.primitive not in MESH_PRIMITIVES or c.frame not in frames or c.args["shaft"].name not in frames:
+    if not CONSTRAINTS[c.primitive].reads_mesh or c.frame not in frames or c.args["shaft"].name not in frames:
         return []
     a, b = frames[c.frame].position, frames[c.args["shaft"].name].position
     radius, margin = float(scene.scalar(c.args["radius"])), float(scene.scalar(c.args["margin"]))
@@ -442,8 +442,9 @@ def tool_shapes(c: ir.Constraint, scene: Scene, frames: dict) -> list[Shape]:
     return shapes
 
 
-_DRAW = {"stays_at": _stays_at, "within_distance": _within_distance, "along": _along, "follows": _follows,
-         "above": _above, "on_plane": _on_plane, "near_plane": _near_plane, "within_sphere": _within_sphere,
-         "outside_sphere": _outside_sphere, "keeps_direction": _keeps_direction, "cone": _cone,
-         "tilt_at_most": _tilt_at_most, "rotates_around": _rotates_around, "passes_through": _passes_through,
-         "outside_mesh": _mesh, "inside_mesh": _mesh}
+DRAWINGS = {"stays_at": _stays_at, "within_distance": _within_distance, "along": _along, "follows": _follows,
+            "above": _above, "on_plane": _on_plane, "near_plane": _near_plane, "within_sphere": _within_sphere,
+            "outside_sphere": _outside_sphere, "keeps_direction": _keeps_direction, "cone": _cone,
+            "tilt_at_most": _tilt_at_most, "rotates_around": _rotates_around, "passes_through": _passes_through,
+            "outside_mesh": _mesh, "inside_mesh": _mesh}
+"""How each primitive with geometry (all but :data:`NO_GEOMETRY`) is drawn, around its frame's pose."""
