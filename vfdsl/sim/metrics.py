@@ -1,7 +1,8 @@
 """Scoring a run: each constraint's error in its own units, measured on the simulator's exact kinematics
 (the encoders) and, for frame poses, by the simulated tracker.
 
-The error of a constraint is how far the frame is from the set the constraint describes (0 inside it):
+The error of a constraint is how far the frame is from the set the constraint describes (0 inside it), one
+function per primitive in :data:`ERRORS`, in the dimension its spec states (``ConstraintSpec.metric``):
 
     stays_at          |p - target|                         mm
     along             distance from p to the line          mm
@@ -50,6 +51,7 @@ from vfdsl.ir import model as ir
 from vfdsl.kinematics.robot import Robot
 from vfdsl.mesh.clearance import mesh_clearance
 from vfdsl.mesh.load import read_mesh
+from vfdsl.primitives import CONSTRAINTS
 from vfdsl.sim.geometry import Curve, Scene, pose_matrix
 from vfdsl.sim.robot import LinkPose, frame_offset
 from vfdsl.sim.settings import MetricSpec, constraint_of
@@ -58,15 +60,9 @@ from vfdsl.sim.settings import MetricSpec, constraint_of
 DISPLAY = {"length": ("mm", 1e3), "angle": ("deg", 180 / math.pi), "speed": ("mm/s", 1e3),
            "angular_speed": ("deg/s", 180 / math.pi), "contact": ("%", 100.0), "clearance": ("mm", 1e3)}
 _SUFFIX = {"mm": "mm", "deg": "deg", "mm/s": "mm_s", "deg/s": "deg_s", "%": "pct"}
-MESH_PRIMITIVES = ("outside_mesh", "inside_mesh")
+_REVOLUTE = {"length": "angle", "speed": "angular_speed"}     # a joint metric's dimension on revolute joints
 CONTACT_BAND = 0.05e-3
 """m: a tool within this of its margin is in contact with the fixture's surface."""
-_DIMENSION = {"stays_at": "length", "along": "length", "follows": "length", "on_plane": "length",
-              "above": "length", "within_distance": "length", "passes_through": "length", "cone": "angle",
-              "within_sphere": "length", "outside_sphere": "length", "near_plane": "length",
-              "keeps_direction": "angle", "rotates_around": "angle", "tilt_at_most": "angle", "speed": "speed",
-              "angular_speed": "angular_speed", "outside_mesh": "length", "inside_mesh": "length"}
-JOINT_PRIMITIVES = ("joint_limits", "joint_speed")
 
 
 @dataclass
@@ -124,20 +120,21 @@ def metric_defs(task: ir.Task, robot: Robot, specs: tuple[MetricSpec, ...]) -> l
     defs: list[MetricDef] = []
     for c in task.constraints:
         spec = named.get(id(c))
-        if c.primitive in JOINT_PRIMITIVES:
-            dims = ("length", "angle") if c.primitive == "joint_limits" else ("speed", "angular_speed")
+        primitive = CONSTRAINTS[c.primitive]
+        if not primitive.subject:            # a joint primitive: one metric per joint kind
+            dims = (primitive.metric, _REVOLUTE[primitive.metric])
             for kind, dim in zip(("prismatic", "revolute"), dims):
                 if any(_joint_kind(t) == kind for t in robot.joint_types):
                     unit, _ = DISPLAY[dim]
                     defs.append(MetricDef(f"{c.primitive}_{_SUFFIX[unit]}", unit, dim, c, joint_kind=kind,
                                           pose_based=False))
             continue
-        dim = _DIMENSION[c.primitive]
+        dim = primitive.metric
         unit, factor = DISPLAY[dim]
         base = spec.name if spec else f"{c.frame}_{c.primitive}_error"
         tolerance = c.tolerance * factor if c.tolerance is not None else None
         defs.append(MetricDef(f"{base}_{_SUFFIX[unit]}", unit, dim, c, spec, tolerance=tolerance))
-        if c.primitive in MESH_PRIMITIVES:
+        if primitive.reads_mesh:
             base = spec.name if spec else f"{c.frame}_{c.primitive}"
             defs.append(MetricDef(f"{base}_contact_pct", "%", "contact", c, spec))
             defs.append(MetricDef(f"{base}_clearance_mm", "mm", "clearance", c, spec))
@@ -166,18 +163,25 @@ def errors(d: MetricDef, task: ir.Task, robot: Robot, scene: Scene, poses: Poses
         frame = task.frame(d.spec.tilt_of)
         normal = pose_matrix(scene.values[d.spec.normal_of])[0][:, 2]
         return np.degrees(np.arccos(np.clip(np.abs(poses.axis(frame) @ normal), -1, 1)))
-    c = d.constraint
-    if c.primitive in JOINT_PRIMITIVES:
-        return factor * _joint_error(c, d.joint_kind, robot, qs, period)
-    if c.primitive in MESH_PRIMITIVES:
-        margin = scene.scalar(c.args["margin"])
-        clearance = _mesh_clearance(c, scene, poses)
-        if d.dimension == "contact":
-            return factor * (clearance <= margin + CONTACT_BAND)
-        if d.dimension == "clearance":
-            return factor * clearance
-        return factor * np.maximum(0.0, margin - clearance)
-    return factor * _frame_error(c, task, scene, poses, period)
+    return factor * ERRORS[d.constraint.primitive](d, Measured(task, robot, scene, poses, qs, period))
+
+
+@dataclass(frozen=True)
+class Measured:
+    """What a metric is measured on: one segment of a run (a constant scene) and its samples."""
+
+    task: ir.Task
+    robot: Robot
+    scene: Scene
+    poses: Poses
+    qs: np.ndarray
+    period: float
+
+    def origin(self, c: ir.Constraint) -> np.ndarray:
+        return self.poses.p[c.frame]
+
+    def axis(self, c: ir.Constraint) -> np.ndarray:
+        return self.poses.axis(self.task.frame(c.frame))
 
 
 def _mesh_clearance(c: ir.Constraint, scene: Scene, poses: Poses) -> np.ndarray:
@@ -202,54 +206,120 @@ def prepare_meshes(task: ir.Task) -> None:
     and before the trials (like the controller), so that a run's wall time is its trials'."""
     scene = Scene(task)
     for c in task.constraints:
-        if c.primitive in MESH_PRIMITIVES:
+        if CONSTRAINTS[c.primitive].reads_mesh:
             value = scene.value(c.args["mesh"])
             mesh_clearance(read_mesh(value.file, value.unit))
 
 
-def _frame_error(c: ir.Constraint, task: ir.Task, scene: Scene, poses: Poses, period: float) -> np.ndarray:
-    frame = task.frame(c.frame)
-    p, l = poses.p[c.frame], poses.axis(frame)
-    a = c.args
-    kind = c.primitive
-    if kind == "stays_at":
-        return np.linalg.norm(p - scene.point(a["target"]), axis=1)
-    if kind in ("within_distance", "within_sphere", "outside_sphere"):
-        distance = np.linalg.norm(p - scene.point(a["center"]), axis=1)
-        radius = scene.scalar(a["radius" if "radius" in a else "distance"])
-        return np.maximum(0.0, radius - distance if kind == "outside_sphere" else distance - radius)
-    if kind == "along":
-        point, direction = scene.line(a["line"])
-        return np.linalg.norm(np.cross(p - point, direction), axis=-1)
-    if kind in ("on_plane", "above", "near_plane"):
-        point, normal = scene.plane(a["plane"])
-        height = np.sum((p - point) * normal, axis=-1)
-        if kind == "near_plane":
-            return np.maximum(0.0, np.abs(height) - scene.scalar(a["half_width"]))
-        return np.abs(height) if kind == "on_plane" else np.maximum(0.0, -height)
-    if kind == "passes_through":
-        return np.linalg.norm(np.cross(scene.point(a["port"]) - p, l), axis=1)
-    if kind == "follows":
-        curve_arg, shift = a["curve"], a.get("shift")
-        curve = _curve(scene.value(curve_arg), tuple(scene.value(shift).xyz) if shift is not None else (0, 0, 0))
-        return curve.closest(np.atleast_2d(scene.local(curve_arg, p) - scene.shift(shift)))[1]
-    if kind in ("cone", "keeps_direction", "rotates_around", "tilt_at_most"):
-        key = "direction" if kind == "keeps_direction" else "axis"
-        angle = np.arccos(np.clip(np.sum(l * scene.direction(a[key]), axis=-1), -1.0, 1.0))
-        if kind == "cone":
-            return np.abs(angle - scene.scalar(a["angle"]))
-        if kind == "tilt_at_most":
-            return np.maximum(0.0, angle - scene.scalar(a["angle"]))
-        return angle if kind == "keeps_direction" else np.abs(np.pi / 2 - angle)
-    if kind == "speed":
-        speed = np.linalg.norm(_steps(p), axis=1) / period
-        return np.maximum(0.0, speed - scene.scalar(a["max"]))
-    if kind == "angular_speed":
-        R = poses.R[c.frame]
-        relative = np.einsum("nji,njk->nik", np.concatenate([R[:1], R[:-1]]), R)
-        cos = np.clip((np.trace(relative, axis1=1, axis2=2) - 1) / 2, -1.0, 1.0)
-        return np.maximum(0.0, np.arccos(cos) / period - scene.scalar(a["max"]))
-    raise ValueError(f"no metric for primitive '{kind}'")
+def _stays_at(d: MetricDef, m: Measured) -> np.ndarray:
+    c = d.constraint
+    return np.linalg.norm(m.origin(c) - m.scene.point(c.args["target"]), axis=1)
+
+
+def _distance_to_center(c: ir.Constraint, m: Measured) -> np.ndarray:
+    return np.linalg.norm(m.origin(c) - m.scene.point(c.args["center"]), axis=1)
+
+
+def _within_distance(d: MetricDef, m: Measured) -> np.ndarray:
+    c = d.constraint
+    return np.maximum(0.0, _distance_to_center(c, m) - m.scene.scalar(c.args["distance"]))
+
+
+def _within_sphere(d: MetricDef, m: Measured) -> np.ndarray:
+    c = d.constraint
+    return np.maximum(0.0, _distance_to_center(c, m) - m.scene.scalar(c.args["radius"]))
+
+
+def _outside_sphere(d: MetricDef, m: Measured) -> np.ndarray:
+    c = d.constraint
+    return np.maximum(0.0, m.scene.scalar(c.args["radius"]) - _distance_to_center(c, m))
+
+
+def _along(d: MetricDef, m: Measured) -> np.ndarray:
+    c = d.constraint
+    point, direction = m.scene.line(c.args["line"])
+    return np.linalg.norm(np.cross(m.origin(c) - point, direction), axis=-1)
+
+
+def _height(c: ir.Constraint, m: Measured) -> np.ndarray:
+    """n . (p - p0): the frame origin's signed height over the constraint's plane."""
+    point, normal = m.scene.plane(c.args["plane"])
+    return np.sum((m.origin(c) - point) * normal, axis=-1)
+
+
+def _on_plane(d: MetricDef, m: Measured) -> np.ndarray:
+    return np.abs(_height(d.constraint, m))
+
+
+def _above(d: MetricDef, m: Measured) -> np.ndarray:
+    return np.maximum(0.0, -_height(d.constraint, m))
+
+
+def _near_plane(d: MetricDef, m: Measured) -> np.ndarray:
+    c = d.constraint
+    return np.maximum(0.0, np.abs(_height(c, m)) - m.scene.scalar(c.args["half_width"]))
+
+
+def _passes_through(d: MetricDef, m: Measured) -> np.ndarray:
+    c = d.constraint
+    return np.linalg.norm(np.cross(m.scene.point(c.args["port"]) - m.origin(c), m.axis(c)), axis=1)
+
+
+def _follows(d: MetricDef, m: Measured) -> np.ndarray:
+    c = d.constraint
+    scene, curve_arg, shift = m.scene, c.args["curve"], c.args.get("shift")
+    curve = _curve(scene.value(curve_arg), tuple(scene.value(shift).xyz) if shift is not None else (0, 0, 0))
+    return curve.closest(np.atleast_2d(scene.local(curve_arg, m.origin(c)) - scene.shift(shift)))[1]
+
+
+def _angle_to(c: ir.Constraint, m: Measured, name: str) -> np.ndarray:
+    """angle(l, a): the tool axis' angle from the direction argument ``name``."""
+    return np.arccos(np.clip(np.sum(m.axis(c) * m.scene.direction(c.args[name]), axis=-1), -1.0, 1.0))
+
+
+def _keeps_direction(d: MetricDef, m: Measured) -> np.ndarray:
+    return _angle_to(d.constraint, m, "direction")
+
+
+def _rotates_around(d: MetricDef, m: Measured) -> np.ndarray:
+    return np.abs(np.pi / 2 - _angle_to(d.constraint, m, "axis"))
+
+
+def _cone(d: MetricDef, m: Measured) -> np.ndarray:
+    c = d.constraint
+    return np.abs(_angle_to(c, m, "axis") - m.scene.scalar(c.args["angle"]))
+
+
+def _tilt_at_most(d: MetricDef, m: Measured) -> np.ndarray:
+    c = d.constraint
+    return np.maximum(0.0, _angle_to(c, m, "axis") - m.scene.scalar(c.args["angle"]))
+
+
+def _speed(d: MetricDef, m: Measured) -> np.ndarray:
+    c = d.constraint
+    speed = np.linalg.norm(_steps(m.origin(c)), axis=1) / m.period
+    return np.maximum(0.0, speed - m.scene.scalar(c.args["max"]))
+
+
+def _angular_speed(d: MetricDef, m: Measured) -> np.ndarray:
+    c = d.constraint
+    R = m.poses.R[c.frame]
+    relative = np.einsum("nji,njk->nik", np.concatenate([R[:1], R[:-1]]), R)
+    cos = np.clip((np.trace(relative, axis1=1, axis2=2) - 1) / 2, -1.0, 1.0)
+    return np.maximum(0.0, np.arccos(cos) / m.period - m.scene.scalar(c.args["max"]))
+
+
+def _mesh(d: MetricDef, m: Measured) -> np.ndarray:
+    """The metric's dimension says which: the error max(0, margin - clearance), the contact (1 on the margin)
+    or the clearance itself."""
+    c = d.constraint
+    margin = m.scene.scalar(c.args["margin"])
+    clearance = _mesh_clearance(c, m.scene, m.poses)
+    if d.dimension == "contact":
+        return clearance <= margin + CONTACT_BAND
+    if d.dimension == "clearance":
+        return clearance
+    return np.maximum(0.0, margin - clearance)
 
 
 def _steps(x: np.ndarray) -> np.ndarray:
@@ -267,14 +337,32 @@ def _curve(value: ir.CurveValue, shift: tuple) -> Curve:
     return _CURVES[key]
 
 
-def _joint_error(c: ir.Constraint, kind: str, robot: Robot, qs: np.ndarray, period: float) -> np.ndarray:
-    mask = np.array([_joint_kind(t) == kind for t in robot.joint_types])
-    if c.primitive == "joint_limits":
-        outside = np.maximum(robot.lower - qs, qs - robot.upper)
-        return np.maximum(0.0, outside[:, mask]).max(axis=1)
+def _joint_mask(d: MetricDef, m: Measured) -> np.ndarray:
+    return np.array([_joint_kind(t) == d.joint_kind for t in m.robot.joint_types])
+
+
+def _joint_limits(d: MetricDef, m: Measured) -> np.ndarray:
+    outside = np.maximum(m.robot.lower - m.qs, m.qs - m.robot.upper)
+    return np.maximum(0.0, outside[:, _joint_mask(d, m)]).max(axis=1)
+
+
+def _joint_speed(d: MetricDef, m: Measured) -> np.ndarray:
+    c = d.constraint
     fraction = c.args["fraction"].value.value if "fraction" in c.args else 1.0
-    speed = np.abs(_steps(qs)) / period
-    return np.maximum(0.0, speed - fraction * robot.velocity_limit)[:, mask].max(axis=1)
+    speed = np.abs(_steps(m.qs)) / m.period
+    return np.maximum(0.0, speed - fraction * m.robot.velocity_limit)[:, _joint_mask(d, m)].max(axis=1)
+
+
+ERRORS: dict[str, Callable[[MetricDef, Measured], np.ndarray]] = {
+    "stays_at": _stays_at, "within_distance": _within_distance, "within_sphere": _within_sphere,
+    "outside_sphere": _outside_sphere, "along": _along, "on_plane": _on_plane, "above": _above,
+    "near_plane": _near_plane, "passes_through": _passes_through, "follows": _follows,
+    "keeps_direction": _keeps_direction, "rotates_around": _rotates_around, "cone": _cone,
+    "tilt_at_most": _tilt_at_most, "speed": _speed, "angular_speed": _angular_speed,
+    "outside_mesh": _mesh, "inside_mesh": _mesh, "joint_limits": _joint_limits, "joint_speed": _joint_speed,
+}
+"""Each primitive's true error in SI units, simulate's own numpy geometry (an oracle independent of the
+compiled rows), as the table at the top of this module states it."""
 
 
 @dataclass
