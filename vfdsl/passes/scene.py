@@ -53,27 +53,29 @@ def load_scene(path: Path, task_units: DefaultUnits, pos: SourcePos | None) -> S
         return SceneData(path, task_units, None, None, None, {})
     if not isinstance(root, yaml.MappingNode):
         raise VfError("a scene file is a mapping with keys " + ", ".join(_TOP_KEYS), _pos(root, file))
-    top = _mapping(root, file)
+    top = read_mapping(root, file)
     for key, (key_node, _) in top.items():
         if key not in _TOP_KEYS:
             raise VfError(f"unknown scene key '{key}'", _pos(key_node, file), hint=suggest(key, _TOP_KEYS, "keys"))
-    values = _Values(file)
+    values = ValueReader(file)
     units = task_units
     if "units" in top:
-        units = _units(top["units"][1], file, task_units)
+        units = read_units(top["units"][1], file, task_units)
     period = values.read(top["period"][1]) if "period" in top else None
     start, start_span = None, None
     if "start" in top:
         node = top["start"][1]
-        start_span = _span(node, file)
-        start = ({k: (values.read(v), _span(kn, file)) for k, (kn, v) in _mapping(node, file).items()}
+        start_span = node_span(node, file)
+        start = ({k: (values.read(v), node_span(kn, file))
+                  for k, (kn, v) in read_mapping(node, file).items()}
                  if isinstance(node, yaml.MappingNode) else values.read(node))
     params = {}
     if "params" in top:
         node = top["params"][1]
         if not isinstance(node, yaml.MappingNode):
             raise VfError("'params' is a mapping from param names to values", _pos(node, file))
-        params = {k: (values.read(v, text=True), _span(kn, file)) for k, (kn, v) in _mapping(node, file).items()}
+        params = {k: (values.read(v, text=True), node_span(kn, file))
+                  for k, (kn, v) in read_mapping(node, file).items()}
     return SceneData(path, units, period, start, start_span, params)
 
 
@@ -87,7 +89,8 @@ def compose(text: str, path: Path) -> yaml.Node | None:
         raise VfError(f"malformed YAML: {getattr(exc, 'problem', exc)}", where, source_text=text) from None
 
 
-def _mapping(node: yaml.MappingNode, file: str) -> dict[str, tuple[yaml.Node, yaml.Node]]:
+def read_mapping(node: yaml.MappingNode, file: str) -> dict[str, tuple[yaml.Node, yaml.Node]]:
+    """A YAML mapping's entries, key -> (key node, value node); VfError at a key that is not a name or repeated."""
     out = {}
     for key_node, value_node in node.value:
         if not isinstance(key_node, yaml.ScalarNode):
@@ -99,15 +102,16 @@ def _mapping(node: yaml.MappingNode, file: str) -> dict[str, tuple[yaml.Node, ya
     return out
 
 
-def _units(node: yaml.Node, file: str, base: DefaultUnits) -> DefaultUnits:
+def read_units(node: yaml.Node, file: str, base: DefaultUnits) -> DefaultUnits:
+    """A scene's ``units:`` entry (``mm, deg`` or ``[mm, deg]``) over the units ``base`` gives."""
     items = node.value if isinstance(node, yaml.SequenceNode) else [node]
     if not all(isinstance(n, yaml.ScalarNode) for n in items):
         raise VfError("units are written as `units: mm, deg` or `units: [mm, deg]`", _pos(node, file))
-    names = [(name.strip(), _span(n, file)) for n in items for name in str(n.value).split(",")]
+    names = [(name.strip(), node_span(n, file)) for n in items for name in str(n.value).split(",")]
     return default_units(names, base)
 
 
-class _Values:
+class ValueReader:
     """YAML nodes -> the syntax nodes a .vf file would give for the same values, counting every node read so
     that aliases cannot expand a small file into a huge value (at most ``limits.YAML_NODES`` in all)."""
 
@@ -119,7 +123,7 @@ class _Values:
         """``text``: a scalar that is not a number (with or without a unit) nor true/false is a string (else an
         error)."""
         file = self.file
-        span = _span(node, file)
+        span = node_span(node, file)
         self.nodes += 1
         if self.nodes > limits.YAML_NODES:
             raise limits.exceeded("the scene's values are too large (YAML aliases expand them)", limits.YAML_NODES,
@@ -131,8 +135,8 @@ class _Values:
         if isinstance(node, yaml.SequenceNode):
             return ast.Vector(span=span, items=[self.read(n, inside, text) for n in node.value])
         if isinstance(node, yaml.MappingNode):
-            fields = _mapping(node, file)
-            kwargs = [ast.KeywordArg(span=_span(k, file), name=ast.Name(span=_span(k, file), text=key),
+            fields = read_mapping(node, file)
+            kwargs = [ast.KeywordArg(span=node_span(k, file), name=ast.Name(span=node_span(k, file), text=key),
                                      value=self.read(v, inside, text)) for key, (k, v) in fields.items()]
             return ast.Call(span=span, name=ast.Name(span=span, text="{mapping}"), kwargs=kwargs)
         return _scalar(node, span, text)
@@ -151,11 +155,12 @@ def _scalar(node: yaml.ScalarNode, span: ast.Span, strings: bool = False) -> ast
     return ast.Quantity(span=span, number=float(match.group(1)), unit=match.group(2))
 
 
-def _span(node: yaml.Node, file: str) -> ast.Span:
+def node_span(node: yaml.Node, file: str) -> ast.Span:
+    """The span of a YAML node in ``file``."""
     start, end = node.start_mark, node.end_mark
     return ast.Span(file=file, line=start.line + 1, column=start.column + 1, end_line=end.line + 1,
                     end_column=end.column + 1)
 
 
 def _pos(node: yaml.Node, file: str) -> SourcePos:
-    return _span(node, file).pos()
+    return node_span(node, file).pos()

@@ -60,7 +60,8 @@ from vfdsl import units as u
 from vfdsl.errors import SourcePos, VfError, suggest
 from vfdsl.files import read_text
 from vfdsl.ir import model as ir
-from vfdsl.passes.scene import _mapping, _span, _units, _Values, compose   # the task scene's YAML reading
+from vfdsl.passes.scene import (ValueReader, compose, node_span, read_mapping,   # the task scene's YAML reading
+                                read_units)
 from vfdsl.primitives.spec import SCALAR_DIMENSIONS
 from vfdsl.sim.settings import (DEFAULT_PERIOD, DISTURBANCE_KINDS, HAND_KINDS, MARKER_DISTANCES,
                                 MAX_TREMOR_FREQUENCY, MOTION_KINDS, MOVABLE, SCENE_LIMITS,
@@ -93,7 +94,7 @@ def parse_setting(name: str, text: str) -> object:
         if node is None:
             raise VfError(f"{name}: expected a value like 10ms, got nothing")
         where = "<command line>"
-        quantity = _Values(where).read(node)
+        quantity = ValueReader(where).read(node)
         value = _si(quantity, SCALARS[name], u.DefaultUnits())
     check_setting(name, value)
     return value
@@ -130,12 +131,12 @@ class _Reader:
         self.units = u.DefaultUnits()
 
     def pos(self, node: yaml.Node) -> SourcePos:
-        return _span(node, self.file).pos()
+        return node_span(node, self.file).pos()
 
     def mapping(self, node: yaml.Node, keys: tuple[str, ...], what: str) -> dict[str, tuple[yaml.Node, yaml.Node]]:
         if not isinstance(node, yaml.MappingNode):
             raise VfError(f"{what} is a mapping with keys {', '.join(keys)}", self.pos(node))
-        fields = _mapping(node, self.file)
+        fields = read_mapping(node, self.file)
         for key, (key_node, _) in fields.items():
             if key not in keys:
                 raise VfError(f"unknown key '{key}' in {what}", self.pos(key_node), hint=suggest(key, keys, "keys"))
@@ -147,7 +148,7 @@ class _Reader:
         return str(node.value).strip()
 
     def scalar(self, node: yaml.Node, dim: u.Dim) -> float:
-        return _si(_Values(self.file).read(node), dim, self.units)
+        return _si(ValueReader(self.file).read(node), dim, self.units)
 
     def vector(self, node: yaml.Node, dim: u.Dim) -> tuple[float, float, float]:
         if not isinstance(node, yaml.SequenceNode) or len(node.value) != 3:
@@ -183,7 +184,7 @@ class _Reader:
             return dataclasses.replace(base, scene=self.file)
         top = self.mapping(root, TOP_KEYS, "a simulation scene")
         if "units" in top:
-            self.units = _units(top["units"][1], self.file, self.units)
+            self.units = read_units(top["units"][1], self.file, self.units)
         values: dict = {"scene": self.file}
         for name, dim in SCALARS.items():
             if name in top and name != "noise":
@@ -236,7 +237,7 @@ class _Reader:
             if not isinstance(node, yaml.MappingNode):
                 raise VfError("metrics is a mapping from names to {error_of: ...} or {tilt_of: ...}", self.pos(node))
             values["metrics"] = tuple(self.metric(name, key, value)
-                                      for name, (key, value) in _mapping(node, self.file).items())
+                                      for name, (key, value) in read_mapping(node, self.file).items())
         return dataclasses.replace(base, **values)
 
     # ---------------------------------------------------------------------------------------- hand
