@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
-from vfdsl.compiler.assemble import _module
+from vfdsl.compiler import registry
 from vfdsl.compiler.context import Context
 from vfdsl.ir import model as ir
 
@@ -70,13 +70,13 @@ class Linearization:
         symbols = [context.q, context.u, context.p, context.dt]
         self._rows, self._facets, self._is_bounds = [], [], []
         for c in task.constraints:
-            rows = _module("primitives", c.primitive).lower(c, context)
+            rows = registry.constraint(c.primitive).lower(c, context)
             self._rows.append(ca.Function("rows", symbols, [ca.densify(ca.SX(x)) for x in (rows.A, rows.lb, rows.ub)]))
             self._facets.append(list(rows.facets))
             self._is_bounds.append(rows.A.shape[0] > 0 and _is_selection(rows.A))
         self._terms = []            # (objective index, its term's E and f as a Function)
         for k, o in enumerate(task.objectives):
-            for term in _module("objectives", o.term).lower(o, context):
+            for term in registry.objective(o.term).lower(o, context):
                 self._terms.append((k, ca.Function("term", symbols, [ca.densify(ca.SX(term.E)),
                                                                      ca.densify(ca.SX(term.f))])))
         self.default_params = context.layout.defaults.copy()

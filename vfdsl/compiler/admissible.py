@@ -31,7 +31,7 @@ from functools import cached_property
 import casadi as ca
 import numpy as np
 
-from vfdsl.compiler import derived
+from vfdsl.compiler import derived, registry
 from vfdsl.compiler.context import ParamReader, ParamSlot
 from vfdsl.compiler.geometry import scaled_norm
 from vfdsl.compiler.margins import Check, Margins
@@ -176,12 +176,11 @@ class Admissible:
 def _param_ranges(task: ir.Task) -> dict[str, list]:
     """param name -> [(Range, 'argument x of y'), ...]: the allowed range (``ArgSpec.range``) of every
     argument the param feeds, so that a run-time value meets the same range as a literal."""
-    from vfdsl.objectives import OBJECTIVES
-    from vfdsl.primitives import CONSTRAINTS
     out: dict[str, list] = {}
     for statement in [*task.constraints, *task.objectives]:
         name = statement.primitive if isinstance(statement, ir.Constraint) else statement.term
-        spec = CONSTRAINTS.get(name) or OBJECTIVES.get(name)
+        lowering = registry.CONSTRAINTS.get(name) or registry.OBJECTIVES.get(name)
+        spec = lowering.spec if lowering else None
         for arg_spec in spec.args if spec else ():
             arg = statement.args.get(arg_spec.name)
             allowed = getattr(arg_spec, "range", None)

@@ -32,17 +32,16 @@ source line (and the fixture ``use`` sites it came through).
 
 from __future__ import annotations
 
-import importlib
 from dataclasses import dataclass, field
 
 import casadi as ca
 import numpy as np
 
+from vfdsl.compiler import registry
 from vfdsl.compiler.context import Context
 from vfdsl.compiler.rows import Rows
 from vfdsl.ir import model as ir
 from vfdsl.kinematics.robot import Robot
-from vfdsl.primitives import CONSTRAINTS
 from vfdsl.syntax.ast import Span
 
 HESSIAN_FLOOR = 1e-9
@@ -96,10 +95,6 @@ class AssembledProblem:
         return len(self.levels) > 1 and all(name.startswith("damping(") for name in self.levels[-1])
 
 
-def _module(kind: str, name: str):
-    return importlib.import_module(f"vfdsl.{kind}.{name}")
-
-
 def _velocity_limits(task: ir.Task, ctx: Context, lbx: list, ubx: list, labels: list[list[RowLabel]]) -> None:
     """|dq_i| <= qdot_max_i dt, the URDF's velocity limits, for a task without ``require joint_speed()``: its rows are
     linearized, right only for small motions, and a step beyond what the joints can do in one tick is not a motion
@@ -146,7 +141,7 @@ def _objective_levels(task: ir.Task, ctx: Context, soft: list[ir.Constraint], n:
         level.terms.add(term)
 
     for objective in task.objectives:
-        for term in _module("objectives", objective.term).lower(objective, ctx):
+        for term in registry.objective(objective.term).lower(objective, ctx):
             E = ca.horzcat(term.E, ca.SX.zeros(term.E.shape[0], n - ctx.nq))
             name = f"{objective.term}{_frame_of(objective)}{' ' + term.part if term.part else ''}"
             add((objective.priority, term.after), objective.weight, E, term.f * ctx.dt, name, objective.term)
@@ -172,7 +167,7 @@ def assemble(task: ir.Task, robot: Robot) -> AssembledProblem:
     rows_A, rows_lb, rows_ub, labels, groups = [], [], [], [], []
     soft_rows: list[tuple[int, Rows, ir.Constraint, int]] = []
     for number, c in enumerate(task.constraints):
-        rows = _module("primitives", c.primitive).lower(c, ctx)
+        rows = registry.constraint(c.primitive).lower(c, ctx)
         if c.soft:
             soft_rows.append((len(soft_rows), rows, c, number))
         elif rows.bounds:
@@ -199,7 +194,7 @@ def assemble(task: ir.Task, robot: Robot) -> AssembledProblem:
         column[index] = 1
         k = rows.A.shape[0]
         one_sided = rows.ub.is_constant() and bool(np.all(np.isinf(np.array(ca.DM(rows.ub)))))
-        restore = 1 if CONSTRAINTS[c.primitive].rate else ca.fmin(1, SOFT_RESTORE_RATE * ctx.dt)
+        restore = 1 if registry.constraint(c.primitive).spec.rate else ca.fmin(1, SOFT_RESTORE_RATE * ctx.dt)
         A_full.append(ca.horzcat(rows.A, ca.repmat(column, k, 1)))
         rows_lb.append(restore * rows.lb)
         rows_ub.append(ca.DM.inf(k))

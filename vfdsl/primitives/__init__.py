@@ -1,4 +1,5 @@
-"""Constraint primitives, one module each: its math in the docstring and its ``SPEC`` (signature)."""
+"""Constraint primitives, one module each: its math in the docstring, its ``SPEC`` (signature) and its ``lower()``
+(registered with the compiler here)."""
 
 from vfdsl.primitives import (
                               above,
@@ -22,6 +23,7 @@ from vfdsl.primitives import (
                               within_distance,
                               within_sphere,
 )
+from vfdsl.compiler import registry
 from vfdsl.primitives.spec import ConstraintSpec
 
 _MODULES = (stays_at, keeps_direction, along, rotates_around, above, on_plane, follows, cone, passes_through,
@@ -29,3 +31,6 @@ _MODULES = (stays_at, keeps_direction, along, rotates_around, above, on_plane, f
             within_sphere, outside_sphere, near_plane, tilt_at_most, outside_mesh, inside_mesh)
 
 CONSTRAINTS: dict[str, ConstraintSpec] = {m.SPEC.name: m.SPEC for m in _MODULES}
+
+for _module in _MODULES:
+    registry.register_constraint(_module.SPEC, _module.lower)
