@@ -22,24 +22,10 @@ directory inside ``cache_dir`` (same filesystem) and is published with one ``os.
 whole directory; two processes racing on one entry both end up with a complete, verified library,
 and a library file already mapped by a process is never written to.
 
-Codegen policy, two edits of CasADi's generated C:
-
-- Conics built with ``error_on_fail=False`` continue after a failed solve when CasADi evaluates
-  them, but CasADi's generated C still aborts the whole function (``return -1``). That early return
-  is removed, so the generated code has the interpreted semantics (failure reported through the
-  outputs, see :mod:`vfdsl.runtime.qp`); conics with ``error_on_fail=True`` (``return -1000``) are
-  left alone.
-- CasADi's DAQP interface (``casadi_daqp_solve``, ``casadi_daqp_free_mem``) is replaced by
-  ``daqp_persistent.c``: the DAQP workspace is allocated on a conic's first call and kept, later
-  calls update it in place, so a step allocates nothing. A conic whose name ends in ``_warm``
-  starts DAQP from its previous working set; the others start cold, as CasADi's interface does. A conic
-  whose name holds ``_levels_b1_..._bk_rhoE`` is solved as DAQP's hierarchical QP with those break points
-  (:func:`vfdsl.runtime.qp.build_step_function`); with ``_exact`` its levels are first solved exactly over the
-  previous tick's working set (``lexls.c``, compiled for the task's number of variables into a static library of
-  its own, :func:`lexls_library`; its header ``lexls.h`` is prepended to ``daqp_persistent.c``; its memory is a
-  pointer added to CasADi's DAQP data struct).
-  The replaced definitions are matched exactly; a CasADi whose generated DAQP interface differs is refused with an
-  error, never half-patched.
+Building is three steps: :func:`_generate` (CasADi's C of the step, patched by
+:func:`vfdsl.codegen.patch.patch_generated_c` as each conic's :class:`~vfdsl.codegen.solve_plan.SolvePlan` says),
+:func:`_compile` (the libraries and their metadata, in the private directory) and :func:`_publish` (the atomic move
+into the cache).
 """
 
 from __future__ import annotations
@@ -68,6 +54,8 @@ from typing import Any
 import casadi as ca
 
 from vfdsl.codegen.daqp_sources import announce, daqp_sources, daqp_version, source_files
+from vfdsl.codegen.patch import LEXLS_HEADER, LEXLS_SOURCE, MAX_SLOTS, patch_generated_c
+from vfdsl.codegen.solve_plan import plans_of
 from vfdsl.errors import VfError
 
 FLAGS = ("-O3", "-march=native", "-ffp-contract=off", "-fPIC", "-pthread", "-fvisibility=hidden", "-fno-math-errno",
@@ -78,31 +66,9 @@ STEPPER = Path(__file__).parent / "stepper.c"
 CHECKED_STEP = Path(__file__).parent / "checked_step.h"
 """The checks and the evaluation of a tick in plain C: included by stepper.c and by `vfdsl export`'s library."""
 
-_NONFATAL_FAILURE = re.compile(r"if \(!d_qp\.success\) \{\s*return -1;\s*\}")
-_MATH_INCLUDE = "#include <math.h>\n"
-INLINE_MIN_MAX = """/* vfdsl: C99's fmax and fmin (a NaN argument ignored, as libm's), inlined: without -ffinite-math-only, which the
-   step's NaN checks forbid, GCC calls libm for each (~5 % of a tick, measured on experiment B) */
-static inline double vfdsl_fmax(double x, double y) { return (x > y || y != y) ? x : y; }
-static inline double vfdsl_fmin(double x, double y) { return (x < y || y != y) ? x : y; }
-#define fmax vfdsl_fmax
-#define fmin vfdsl_fmin
-"""
-_DAQP_SOLVE = re.compile(r"^int casadi_daqp_solve\(struct casadi_daqp_data\* d, [^\n]*\{\n.*?^\}\n",
-                         re.MULTILINE | re.DOTALL)
-_DAQP_FREE_MEM = re.compile(r"^void casadi_daqp_free_mem\(struct casadi_daqp_data\* d\) \{\n\}\n",
-                            re.MULTILINE)
-_CONIC_CALL = re.compile(r"(/\* (\w+):\(h\[[^\n]*\*/\nstatic int \w+\([^\n]*\{\n(?:(?!\n\}\n).)*?)"
-                         r"casadi_daqp_solve\(d, arg, res, iw, w\);", re.DOTALL)
-_LEVELS = re.compile(r"_levels((?:_\d+)+)_rho(\d+)(_partial)?(_exact)?")
-_DAQP_DATA_END = "  int bnb_itercount;\n};\n"
-LEXLS_SOURCE, LEXLS_HEADER = Path(__file__).with_name("lexls.c"), Path(__file__).with_name("lexls.h")
-PERSISTENT_DAQP = LEXLS_HEADER.read_text() + (Path(__file__).parent / "daqp_persistent.c").read_text()
 _LEXLS_KEY = hashlib.sha256(LEXLS_SOURCE.read_bytes() + LEXLS_HEADER.read_bytes()).hexdigest()
 """lexls.c is compiled into a static library per number of variables (:func:`lexls_library`), not into each task's C:
 its hash names those libraries and enters every task's digest."""
-MEMORY_SLOTS = (Path(__file__).parent / "memory_slots.c").read_text()
-MAX_SLOTS = 64
-"""Controllers of one task that may exist at once in a process (memory slots of its generated code)."""
 HEADER_CONTRACT = """
 /* vfdsl: how to call @PREFIX@ from C (no Python needed).
  *
@@ -125,9 +91,6 @@ HEADER_CONTRACT = """
  * - The first call on a slot allocates the DAQP workspaces; later calls allocate nothing.
  */
 """
-_MAX_THREADS = "#ifndef CASADI_MAX_NUM_THREADS\n#define CASADI_MAX_NUM_THREADS 1\n#endif\n"
-_POOL_CHECKOUT = re.compile(r"^int (casadi_f\d+)_checkout\(void\) \{\n.*?^\}\n", re.MULTILINE | re.DOTALL)
-_POOL_RELEASE = re.compile(r"^void (casadi_f\d+)_release\(int mem\) \{\n.*?^\}\n", re.MULTILINE | re.DOTALL)
 _IDENTIFIER = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
 
 
@@ -243,24 +206,23 @@ def _tail(text: str, lines: int = 25) -> str:
 
 def _generate(fn: ca.Function, prefix: str, work: Path, checks: ca.Function) -> tuple[str, str]:
     """Write ``<prefix>.c``/``.h`` into ``work`` (the step exported as ``prefix``, the checks as
-    ``<prefix>_admissible``)."""
+    ``<prefix>_admissible``): CasADi's C patched for ``fn``'s solve plans, its header with vfdsl's contract."""
+    source, header = casadi_c(fn, prefix, work, checks)
+    source = patch_generated_c(source, prefix, plans_of(fn))
+    header += HEADER_CONTRACT.replace("@PREFIX@", prefix).replace("@SLOTS@", str(MAX_SLOTS))
+    (work / f"{prefix}.c").write_text(source)
+    (work / f"{prefix}.h").write_text(header)
+    return source, header
+
+
+def casadi_c(fn: ca.Function, prefix: str, work: Path, checks: ca.Function) -> tuple[str, str]:
+    """(C source, header) as CasADi generates them in ``work`` for ``fn`` exported as ``prefix`` and ``checks`` as
+    ``<prefix>_admissible``, before vfdsl's patch."""
     generator = ca.CodeGenerator(f"{prefix}.c", {"with_header": True})
     generator.add(_renamed(fn, prefix))
     generator.add(_renamed(checks, f"{prefix}_admissible"))
     generator.generate(str(work) + os.sep)
-    c_path, h_path = work / f"{prefix}.c", work / f"{prefix}.h"
-    source = _NONFATAL_FAILURE.sub("/* vfdsl: solver failure reported through the outputs */",
-                                   c_path.read_text())
-    if source.count(_MATH_INCLUDE) != 1:
-        raise VfError(f"CasADi {ca.__version__} generates C this vfdsl does not know (no single <math.h>)",
-                      hint="install the CasADi version vfdsl requires (pip install 'casadi>=3.8.2,<3.9')")
-    source = source.replace(_MATH_INCLUDE, _MATH_INCLUDE + INLINE_MIN_MAX)
-    source = _with_persistent_daqp(source)
-    source = _with_memory_slots(source, prefix)
-    c_path.write_text(source)
-    header = h_path.read_text() + HEADER_CONTRACT.replace("@PREFIX@", prefix).replace("@SLOTS@", str(MAX_SLOTS))
-    h_path.write_text(header)
-    return source, header
+    return (work / f"{prefix}.c").read_text(), (work / f"{prefix}.h").read_text()
 
 
 def _renamed(fn: ca.Function, name: str) -> ca.Function:
@@ -268,65 +230,6 @@ def _renamed(fn: ca.Function, name: str) -> ca.Function:
         return fn
     args = fn.mx_in()
     return ca.Function(name, args, fn.call(args), fn.name_in(), fn.name_out())
-
-
-def _with_persistent_daqp(source: str) -> str:
-    """``source`` with CasADi's DAQP interface replaced by ``daqp_persistent.c`` (unchanged if it
-    has no DAQP conic)."""
-    if "casadi_daqp_solve" not in source:
-        return source
-    solve, free_mem = _DAQP_SOLVE.findall(source), _DAQP_FREE_MEM.findall(source)
-    if len(solve) != 1 or len(free_mem) != 1:
-        raise VfError(f"CasADi {ca.__version__} generates a DAQP interface this vfdsl does not know",
-                      hint="install the CasADi version vfdsl requires (pip install 'casadi>=3.8.2,<3.9')")
-    source, calls = _CONIC_CALL.subn(_conic_call, source)
-    if calls != len(re.findall(r"/\* \w+:\(h\[", source)):
-        raise VfError(f"CasADi {ca.__version__}: a conic's DAQP call was not found")
-    if source.count(_DAQP_DATA_END) != 1:
-        raise VfError(f"CasADi {ca.__version__} generates DAQP data this vfdsl does not know",
-                      hint="install the CasADi version vfdsl requires (pip install 'casadi>=3.8.2,<3.9')")
-    source = source.replace(_DAQP_DATA_END, _DAQP_DATA_END.replace("};", "  struct vfdsl_lex* lex;    /* vfdsl: lexls.c's memory */\n};"))
-    source = _DAQP_FREE_MEM.sub("", source)
-    return _DAQP_SOLVE.sub(lambda _: PERSISTENT_DAQP, source)
-
-
-def _conic_call(match: re.Match) -> str:
-    """The DAQP call of one conic, by its name: ``..._warm`` starts from the previous working set, and
-    ``..._levels_b1_..._bk_rhoE[_partial][_exact]...`` solves priority levels, b the constraint indices where each
-    level ends, 1e-E the soft rows' weight (:data:`vfdsl.runtime.qp.LEVEL_ATTEMPTS`), ``_partial``: a failed level
-    gives the answer of the levels above it, ``_exact``: the levels solved exactly where certified (lexls.c)."""
-    body, name = match.group(1), match.group(2)
-    levels = _LEVELS.search(name)
-    if levels is None:
-        return f"{body}vfdsl_daqp_solve(d, {int(name.endswith('_warm'))}, 0);"
-    points = [int(b) for b in levels.group(1).strip("_").split("_")]
-    table = (f"static const vfdsl_levels levels = {{{len(points)}, 1e-{levels.group(2)}, {int(bool(levels.group(3)))}, "
-             f"{int(bool(levels.group(4)))}, {{{', '.join(map(str, points))}}}}};")
-    return f"{body}{{\n    {table}\n    vfdsl_daqp_solve(d, {int(name.endswith('_warm'))}, &levels);\n  }}"
-
-
-def _with_memory_slots(source: str, prefix: str) -> str:
-    """``source`` with one memory slot per caller (``memory_slots.c``): the exported checkout/release
-    hand out slots, and every solver's memory pool answers with the running call's slot."""
-    entry = (f"CASADI_SYMBOL_EXPORT int {prefix}(const casadi_real** arg, casadi_real** res, "
-             f"casadi_int* iw, casadi_real* w, int mem){{\n  return casadi_f0(arg, res, iw, w, mem);\n}}\n\n"
-             f"CASADI_SYMBOL_EXPORT int {prefix}_checkout(void) {{\n  return 0;\n}}\n\n"
-             f"CASADI_SYMBOL_EXPORT void {prefix}_release(int mem) {{\n}}\n")
-    checkouts = _POOL_CHECKOUT.findall(source)
-    pools = [f for f in checkouts if f"{f}_init_mem" in source]   # external functions (mesh queries) have no memory
-    if source.count(entry) != 1 or source.count(_MAX_THREADS) != 1 or len(_POOL_RELEASE.findall(source)) != len(checkouts):
-        raise VfError(f"CasADi {ca.__version__} generates an entry point this vfdsl does not know",
-                      hint="install the CasADi version vfdsl requires (pip install 'casadi>=3.8.2,<3.9')")
-    source = source.replace(_MAX_THREADS, f"#define CASADI_MAX_NUM_THREADS {MAX_SLOTS}\n"
-                            "#define VFDSL_MAX_SLOTS CASADI_MAX_NUM_THREADS\n"
-                            "static int vfdsl_current_slot(void);\n")
-    source = _POOL_CHECKOUT.sub(r"int \1_checkout(void) {\n  return vfdsl_current_slot();\n}\n", source)
-    source = _POOL_RELEASE.sub(r"void \1_release(int mem) {\n}\n", source)
-    slots = (MEMORY_SLOTS.replace("@PREFIX@", prefix)
-             .replace("@INIT_SLOT@", "\n".join(f"  {pool}_init_mem(s);" for pool in pools))
-             .replace("@FREE_SLOT@", "\n".join(f"  {pool}_free_mem(s);\n  memset(&{pool}_mem[s], 0, sizeof {pool}_mem[s]);"
-                                                for pool in pools)))
-    return source.replace(entry, slots)
 
 
 def _digest(source: str, header: str, compiler: Compiler, metadata: dict) -> str:

@@ -85,6 +85,7 @@ from collections.abc import Callable, Hashable, Sequence
 import casadi as ca
 import numpy as np
 
+from vfdsl.codegen.solve_plan import PlannedFunction, SolvePlan, record
 from vfdsl.runtime import lexls
 
 QP_DATA_OUTPUTS = ("H", "g", "A", "lba", "uba", "lbx", "ubx")
@@ -128,8 +129,9 @@ def build_step_function(qp_data: ca.Function, prefix: str, *,
                         feas_tol: float = 1e-6,
                         penalty: float = 1.0,
                         tie_break: float = 1e-3, native: bool = False,
-                        last_level_is_cost: bool = False) -> ca.Function:
-    """``prefix(q, u, p, dt, recover) -> (x[n], status, violation[m])`` solving ``qp_data``'s QP.
+                        last_level_is_cost: bool = False) -> PlannedFunction:
+    """``prefix(q, u, p, dt, recover) -> (x[n], status, violation[m])`` solving ``qp_data``'s QP, with the solve
+    plan of each of its DAQP conics (for the build).
 
     ``recover`` nonzero evaluates phase 2 even when phase 1 succeeds: the generated controller does
     it once when it is loaded, so that every solver's workspace exists before the first tick.
@@ -156,15 +158,16 @@ def build_step_function(qp_data: ca.Function, prefix: str, *,
                                   qp_data.call(inputs), expand)
     H, g, A, lba, uba, lo, hi, clipped = prepared[:8]
     args = prepared[8:]     # the solve's H, g and rows (_stack)
+    plans: dict[str, SolvePlan] = {}
     if levels > 1:      # one hierarchical solve over the levels' rows
         sizes = [qp_data.size1_out(7 + 2 * j) for j in range(levels - last_level_is_cost)]
         x1 = None
         for k, (tol, rho) in enumerate(LEVEL_ATTEMPTS):
-            solve = _daqp(n, m, tol, f"phase1_try{k}", native, sizes, rho, partial=k == len(LEVEL_ATTEMPTS) - 1,
+            solve = _daqp(n, m, tol, f"phase1_try{k}", native, plans, sizes, rho, partial=k == len(LEVEL_ATTEMPTS) - 1,
                           exact=True)
             x1 = solve(*args) if x1 is None else _retried(x1, recover, solve, args)
     else:
-        x1 = _daqp(n, m, feas_tol * 1e-3, "phase1_warm", native)(*args)
+        x1 = _daqp(n, m, feas_tol * 1e-3, "phase1_warm", native, plans, warm_start=True)(*args)
 
     if m == 0:
         picked = ca.vertcat(x1, int(StepStatus.OPTIMAL))
@@ -173,12 +176,12 @@ def build_step_function(qp_data: ca.Function, prefix: str, *,
         ok1 = _straight_line(f"{prefix}_accept", lambda x, A, *box: [_acceptable(x, A @ x, *box, accept_tol)],
                              [x1, A, lba, uba, lo, hi], expand)
         switch = _phase2_switch([H, g, A, lba, uba, lo, hi, x1], _incidence(m, row_groups),
-                                feas_tol, penalty, tie_break, native)
+                                feas_tol, penalty, tie_break, native, plans)
         picked = switch(ca.logic_and(ok1, recover == 0), H, g, A, lba, uba, lo, hi, x1)
     x, status, violation = _straight_line(f"{prefix}_finish", lambda *v: _finish(*v, m, feas_tol),
                                           [picked, A, lba, uba, lo, hi, clipped], expand)
-    return ca.Function(prefix, [*inputs, recover], [x, status, violation],
-                       [*qp_data.name_in(), "recover"], list(STEP_OUTPUTS))
+    return PlannedFunction(ca.Function(prefix, [*inputs, recover], [x, status, violation],
+                                       [*qp_data.name_in(), "recover"], list(STEP_OUTPUTS)), plans)
 
 
 def _straight_line(name: str, build: Callable[..., list[ca.MX]], values: Sequence[ca.MX], expand: bool):
@@ -289,9 +292,9 @@ def _box_width(lo: ca.MX, hi: ca.MX) -> ca.MX:
     return ca.mmax(ca.fmax(finite_abs(lo), finite_abs(hi)))
 
 
-def _daqp(n: int, m: int, primal_tol: float, name: str, native: bool,
+def _daqp(n: int, m: int, primal_tol: float, name: str, native: bool, plans: dict[str, SolvePlan],
           level_rows: Sequence[int] = (), rho: float = 1e-8, partial: bool = False,
-          exact: bool = False) -> Callable[..., ca.MX]:
+          exact: bool = False, warm_start: bool = False) -> Callable[..., ca.MX]:
     """solve(H, g, *_stack(A, lba, uba, lbx, ubx[, R, r[, r_upper]])) -> x: one dense DAQP solve, x = NaN when it
     fails.
     ``primal_tol``: DAQP's (1e-3 feas_tol for the solves without levels, :data:`LEVEL_ATTEMPTS` with them).
@@ -305,8 +308,9 @@ def _daqp(n: int, m: int, primal_tol: float, name: str, native: bool,
     above it (which meets the rows and bounds) instead of NaN.
     ``exact``: the levels' targets are equalities (phase 1), so their exact solve (:mod:`vfdsl.runtime.lexls`)
     replaces DAQP's answer where it is certified.
+    ``warm_start``: the generated C starts DAQP from the previous call's working set.
     ``native``: a CasADi conic, which only the generated C evaluates (vfdsl.codegen.build puts DAQP's own sources
-    behind it and passes the levels, named in the conic's name); else the same solver, settings and rows through
+    behind it, solving as the conic's plan in ``plans`` says); else the same solver, settings and rows through
     the ``daqp`` package (:class:`_DaqpNode`), for CasADi's evaluation."""
     free = ca.inf * ca.DM.ones(n)
     extra = sum(level_rows)
@@ -314,11 +318,7 @@ def _daqp(n: int, m: int, primal_tol: float, name: str, native: bool,
     if breaks:
         if len(breaks) > MAX_LEVELS + 1:
             raise ValueError(f"{len(level_rows)} priority levels; the generated solver takes at most {MAX_LEVELS}")
-        exponent = round(-np.log10(rho))
-        if rho != 10.0 ** -exponent:
-            raise ValueError(f"rho {rho} is not a power of ten (the generated C names it by its exponent)")
-        name = (f"{name}_levels_{'_'.join(map(str, breaks))}_rho{exponent}{'_partial' if partial else ''}"
-                f"{'_exact' if exact else ''}")
+    record(plans, name, SolvePlan(warm_start, tuple(breaks), rho, partial, exact) if breaks else SolvePlan(warm_start))
     if native:
         sparsity = {"h": ca.Sparsity.dense(n, n), "a": ca.Sparsity.dense(m + n + extra, n)}
         options = {"error_on_fail": False, "daqp": {"primal_tol": primal_tol}}
@@ -488,7 +488,7 @@ def _incidence(m: int, row_groups: Sequence[Hashable] | None) -> ca.DM:
     return ca.sparsify(ca.DM(E))
 
 
-def _phase2_switch(values: list[ca.MX], E: ca.DM, tol, rho, mu, native) -> ca.Function:
+def _phase2_switch(values: list[ca.MX], E: ca.DM, tol, rho, mu, native, plans) -> ca.Function:
     """switch(ok, H, g, A, lba, uba, lo, hi, x1) -> [x1; 0] when ok (phase 1's answer), else phase 2's [x; status].
 
     The branches are Functions of values already computed: a short-circuit ``if_else`` on
@@ -499,7 +499,7 @@ def _phase2_switch(values: list[ca.MX], E: ca.DM, tol, rho, mu, native) -> ca.Fu
     H, g, A, lba, uba, lo, hi, x1 = args
     keep = ca.Function("keep", args, [ca.vertcat(x1, int(StepStatus.OPTIMAL))])
     recover = ca.Function("recover", args,
-                          [_least_violation(H, g, A, lba, uba, lo, hi, E, tol, rho, mu, native)])
+                          [_least_violation(H, g, A, lba, uba, lo, hi, E, tol, rho, mu, native, plans)])
     return ca.Function.if_else("phase2_if_needed", keep, recover)
 
 
@@ -509,7 +509,7 @@ def _phase2_switch(values: list[ca.MX], E: ca.DM, tol, rho, mu, native) -> ca.Fu
 _GROSS_FAILURE = 1e-6
 
 
-def _least_violation(H, g, A, lba, uba, lo, hi, E: ca.DM, tol, rho, mu, native) -> ca.MX:
+def _least_violation(H, g, A, lba, uba, lo, hi, E: ca.DM, tol, rho, mu, native, plans) -> ca.MX:
     """Phase 2 (A then B), returning [x; status]."""
     n, m, G = H.size1(), A.size1(), E.size2()
     H_a = ca.diagcat(mu * ca.DM.eye(n), ca.DM.eye(G))
@@ -520,7 +520,7 @@ def _least_violation(H, g, A, lba, uba, lo, hi, E: ca.DM, tol, rho, mu, native) 
     lba_a = ca.vertcat(lba, -inf_m, ca.fmin(lba, at_rest))
     uba_a = ca.vertcat(inf_m, uba, ca.fmax(uba, at_rest))
     lbz, ubz = ca.vertcat(lo, ca.DM.zeros(G)), ca.vertcat(hi, inf_G)
-    z = _daqp(n + G, 3 * m, tol * 1e-3, "phase2a", native)(H_a, g_a, *_stack(A_a, lba_a, uba_a, lbz, ubz))
+    z = _daqp(n + G, 3 * m, tol * 1e-3, "phase2a", native, plans)(H_a, g_a, *_stack(A_a, lba_a, uba_a, lbz, ubz))
     x_a = _clip(z[:n], lo, hi)      # used only when (A) is acceptable, i.e. z is finite
     Ax_a = A @ x_a
     violated = ca.logic_or(Ax_a < lba, Ax_a > uba)        # these rows leave level 0 and are held at x_a's values
@@ -528,7 +528,7 @@ def _least_violation(H, g, A, lba, uba, lo, hi, E: ca.DM, tol, rho, mu, native) 
     lba_b, uba_b = ca.if_else(violated, -inf, lba), ca.if_else(violated, inf, uba)
     pin_lo, pin_hi = ca.if_else(violated, Ax_a, -inf), ca.if_else(violated, Ax_a, inf)
     row_scale, cost_scale = _unit_rows(A), _unit_diagonal(H)   # (the held rows weigh the same against any objective)
-    x_b = _daqp(n, m, tol * 1e-3, "phase2b", native, [m])(
+    x_b = _daqp(n, m, tol * 1e-3, "phase2b", native, plans, [m])(
         cost_scale * H, cost_scale * g, *_stack(A, lba_b, uba_b, lo, hi, row_scale * A, row_scale * pin_lo,
                                                 row_scale * pin_hi))
 
