@@ -27,7 +27,7 @@ import numpy as np
 import vfdsl
 from vfdsl.kinematics.robot import Robot
 from vfdsl.runtime.qp import StepStatus
-from vfdsl.sim.runner import Job, _simulate
+from vfdsl.sim.runner import Job, simulate_with
 from vfdsl.sim.scene_file import load_settings
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -108,7 +108,7 @@ def measure(task_file: str | Path, scene: str | Path, trials: int | None = None,
     figures = Figures()
     twin = _Twin(native, interpreted, figures)
     for trial in range(settings.trials):
-        _simulate(Job(str(task_file), settings, trial), task, twin, robot, None)
+        simulate_with(Job(str(task_file), settings, trial), task, twin, robot, None)
     return figures
 
 

@@ -121,10 +121,11 @@ def run_trial(job: Job, progress=None) -> TrialResult:
     """Simulate one trial and score it."""
     ctx = loaded(job.task_file, job.backend)
     with ctx.lock:
-        return _simulate(job, ctx.task, ctx.controller, ctx.robot, progress)
+        return simulate_with(job, ctx.task, ctx.controller, ctx.robot, progress)
 
 
-def _simulate(job: Job, task: ir.Task, ctrl: vfdsl.Controller, robot: Robot, progress) -> TrialResult:
+def simulate_with(job: Job, task: ir.Task, ctrl: vfdsl.Controller, robot: Robot, progress) -> TrialResult:
+    """Simulate one trial of ``job`` with a given controller (anything with Controller's interface) and score it."""
     s = job.settings
     dt = s.period
     ticks = max(1, int(round(s.duration / dt)))
