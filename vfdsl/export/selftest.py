@@ -69,7 +69,7 @@ def record(ctrl, count: int, dt: float | None = None,
         given = params(k) if callable(params) else params
         dq = ctrl.step(q, inputs, given, dt)
         u = np.concatenate([inputs[name] for name in ctrl.input_sizes]) if inputs else np.zeros(0)
-        p = ctrl._values.params(given) if callable(params) else None
+        p = ctrl.param_vector(given) if callable(params) else None
         ticks.append(Tick(q.copy(), u, dt, int(ctrl.status), dq.copy(), p))
         q = q + dq
     return ticks

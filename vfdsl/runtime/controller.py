@@ -111,6 +111,11 @@ class Controller:
         always finite and within the joint bounds."""
         return checked_step(self._values, self._runner, q, inputs, params, dt)
 
+    def param_vector(self, params=None) -> np.ndarray | None:
+        """The flat run-time param vector the step is given for ``params`` (checked as :meth:`step` checks them),
+        or None for the defaults."""
+        return self._values.params(params)
+
     def problem(self, q, inputs=None, params=None, dt=None) -> QuadraticProgram:
         """The numeric QP of this tick (before the solver's safeguards), one label per row."""
         v = self._values

@@ -128,6 +128,11 @@ class Scene:
         self._poses.pop(name, None)
         return value
 
+    def set_value(self, name: str, value: ir.Value) -> None:
+        """Give param ``name`` another value (what is expressed in a pose param moves with it)."""
+        self.values[name] = value
+        self._poses.clear()
+
     def shift(self, arg: ir.Arg | None):
         """The displacement of a param argument (0 when it does not move): 3 numbers or N x 3 in its own
         coordinates; 1 number or N x 1 for a scalar."""

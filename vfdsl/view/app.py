@@ -224,8 +224,7 @@ class Viewer:
                 self._place_param_gizmos()
                 return False
             self.overrides = candidate
-            self.scene.values[name] = candidate[name]
-            self.scene._poses.clear()                      # a pose param moves what is expressed in it
+            self.scene.set_value(name, candidate[name])
             self._show_error("")
             self._draw_fixtures(force=True)
             self._place_param_gizmos()
@@ -695,8 +694,7 @@ class Viewer:
             for name, rows in trace.params.items():
                 row = rows[i]
                 if np.all(np.isfinite(row)) and not np.allclose(row, flatten(self.scene.values[name]), rtol=0, atol=1e-12):
-                    self.scene.values[name] = replay_module.unflatten(self.scene.values[name], row)
-                    self.scene._poses.clear()
+                    self.scene.set_value(name, replay_module.unflatten(self.scene.values[name], row))
                     moved = True
             parts = []
             if trace.error is not None and np.isfinite(trace.error[i]):
