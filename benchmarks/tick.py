@@ -615,7 +615,7 @@ def sweep(ns, ticks: int, tmp: Path) -> list[dict]:
         ctrl, lib = pipeline.build(task, backend="native", cache_dir=folder / "cache")
         compile_s = time.perf_counter() - t0
         c_mb = lib.c_path.stat().st_size / 1e6
-        p = ctrl._values.params({"p": tip})        # the polytope centred on the tip at the start
+        p = ctrl.param_vector({"p": tip})           # the polytope centred on the tip at the start
         qs, us, _, _ = record(ctrl, start, slide_on_polytope, 0.01, 400, params={"p": tip})
         log(f"[rows {n}x{n}] {len(ctrl.row_labels)} rows, compiled in {compile_s:.1f} s; timing")
         timing, statuses = time_raw(raw_generated(task, lib), qs, us, p, 0.01, ticks)
