@@ -318,13 +318,14 @@ def _daqp(n: int, m: int, primal_tol: float, name: str, native: bool, plans: dic
     if breaks:
         if len(breaks) > MAX_LEVELS + 1:
             raise ValueError(f"{len(level_rows)} priority levels; the generated solver takes at most {MAX_LEVELS}")
-    record(plans, name, SolvePlan(warm_start, tuple(breaks), rho, partial, exact) if breaks else SolvePlan(warm_start))
+    plan = SolvePlan(warm_start, tuple(breaks), rho, partial, exact) if breaks else SolvePlan(warm_start)
+    record(plans, name, plan)
     if native:
         sparsity = {"h": ca.Sparsity.dense(n, n), "a": ca.Sparsity.dense(m + n + extra, n)}
         options = {"error_on_fail": False, "daqp": {"primal_tol": primal_tol}}
         conic = ca.conic(name, "daqp", sparsity, options)
     else:
-        conic = _DaqpNode.function(name, n, m + n + extra, primal_tol, breaks, rho, partial, exact)
+        conic = _DaqpNode.function(name, n, m + n + extra, primal_tol, plan)
 
     def solve(H, g, a, lower, upper):
         return conic(h=H, g=g, a=a, lba=lower, uba=upper, lbx=-free, ubx=free)["x"]
@@ -344,26 +345,25 @@ def _stack(A, lba, uba, lbx, ubx, R=None, r=None, r_upper=None):
 class _DaqpNode(ca.Callback):
     """(h, g, a, lba, uba, lbx, ubx) -> x: the generated conic's DAQP solve, cold, through the ``daqp`` package
     (the same DAQP version the generated C is built from): the same problem (bounds as simple bounds, rows with
-    lba = uba as equalities), tolerance and settings; x = NaN unless DAQP reports success. ``exact``: DAQP's answer
-    solved again exactly over the rows it holds, taken when certified (:func:`vfdsl.runtime.lexls.polish`)."""
+    lba = uba as equalities), tolerance and settings; x = NaN unless DAQP reports success. The plan's ``exact``:
+    DAQP's answer solved again exactly over the rows it holds, taken when certified (:func:`vfdsl.runtime.lexls.polish`)."""
 
     _alive: dict = {}        # CasADi holds a Callback by reference: each node lives as long as the process; nodes
     # hold no state between calls, so one node serves every graph that needs its problem (bounded by their kinds)
 
     @classmethod
-    def function(cls, name: str, n: int, rows: int, primal_tol: float, break_points: list[int],
-                 rho: float, partial: bool, exact: bool) -> ca.Function:
-        key = (name, n, rows, primal_tol, tuple(break_points), rho, partial, exact)
+    def function(cls, name: str, n: int, rows: int, primal_tol: float, plan: SolvePlan) -> ca.Function:
+        key = (name, n, rows, primal_tol, plan)
         if key not in cls._alive:
-            cls._alive[key] = cls(name, n, rows, primal_tol, break_points, rho, partial, exact)
+            cls._alive[key] = cls(name, n, rows, primal_tol, plan)
         return cls._alive[key]
 
-    def __init__(self, name: str, n: int, rows: int, primal_tol: float, break_points: list[int], rho: float,
-                 partial: bool, exact: bool):
+    def __init__(self, name: str, n: int, rows: int, primal_tol: float, plan: SolvePlan):
         ca.Callback.__init__(self)
-        self.n, self.rows, self.primal_tol, self.break_points, self.rho = n, rows, primal_tol, break_points, rho
-        self.exact = exact
-        self.success = DAQP_SUCCESS + (DAQP_PARTIAL,) * partial
+        self.n, self.rows, self.primal_tol = n, rows, primal_tol
+        self.break_points, self.rho = list(plan.break_points), plan.rho
+        self.exact = plan.exact
+        self.success = DAQP_SUCCESS + (DAQP_PARTIAL,) * plan.partial
         self.construct(name, {})
 
     def get_n_in(self):
