@@ -23,56 +23,58 @@
 
 
 void vfdsl_lex_free(vfdsl_lex* L) {
-  if (!L) return;
-  free(L->guess); free(L->piv); free(L->cols);
-  free(L->inv); free(L->lo); free(L->up); free(L->M); free(L->t);
-  free(L->B); free(L->T); free(L->tau); free(L->tau2); free(L->c);
-  free(L->Z); free(L->U); free(L->x); free(L->g); free(L->y); free(L->K2);
-  free(L->N); free(L->NP); free(L->lam); free(L->sol); free(L->w); free(L->res);
-  free(L->off); free(L->r); free(L->p); free(L->fpiv); free(L->fpiv_at); free(L->fR_at); free(L->side);
-  free(L->rows); free(L->fR);
-  free(L);
+  free(L);                            /* the workspace and its arrays are one block (vfdsl_lex_alloc) */
+}
+
+static double* lex_doubles(double** at, size_t count) {
+  double* taken = *at;
+  *at += count;
+  return taken;
+}
+
+static int* lex_ints(int** at, size_t count) {
+  int* taken = *at;
+  *at += count;
+  return taken;
 }
 
 vfdsl_lex* vfdsl_lex_alloc(int n, int K, int P) {
-  int R = K + P + n;                  /* most rows gathered at once (a step, or the fixed rows and every level) */
-  int S = P + 2;                      /* most steps: W's, then one per level (a level has a row at least) */
+  size_t N = (size_t) n, K1 = (size_t) K + 1;
+  size_t R = (size_t) K + P + n;      /* most rows gathered at once (a step, or the fixed rows and every level) */
+  size_t S = (size_t) P + 2;          /* most steps: W's, then one per level (a level has a row at least) */
+  size_t head = (sizeof(vfdsl_lex) + sizeof(double) - 1) / sizeof(double) * sizeof(double);
+  size_t doubles = 6 * K1 + 3 * R * N + 4 * R + 3 * N * N + 3 * N + 2 * N * K1 + (N + 1) + (N * N + 1);
+  size_t ints = 3 * K1 + 2 * R + 3 * S + 2 * (S + 1);
+  char* block;
+  double* d;
+  int* i;
   vfdsl_lex* L;
 #ifdef VFDSL_LEX_N
   if (n != VFDSL_LEX_N) return 0;     /* compiled for another n: no exact solve (the caller keeps DAQP's answer) */
 #endif
-  L = (vfdsl_lex*) calloc(1, sizeof(vfdsl_lex));
-  if (!L) return 0;
+  /* one zeroed block: the struct, then its arrays of doubles, the rows' pointers and the ints (in that order, each
+     aligned for the next) */
+  block = (char*) calloc(1, head + doubles * sizeof(double) + S * sizeof(const double*) + ints * sizeof(int));
+  if (!block) return 0;
+  L = (vfdsl_lex*) block;
   L->n = n; L->K = K;
-  L->guess = (int*) calloc(K + 1, sizeof(int));
-  L->piv = (int*) calloc(R, sizeof(int)); L->cols = (int*) calloc(K + 1, sizeof(int));
-  L->inv = (double*) malloc(sizeof(double) * (K + 1));
-  L->lo = (double*) malloc(sizeof(double) * (K + 1)); L->up = (double*) malloc(sizeof(double) * (K + 1));
-  L->M = (double*) malloc(sizeof(double) * R * n); L->t = (double*) malloc(sizeof(double) * R);
-  L->B = (double*) malloc(sizeof(double) * R * n); L->T = (double*) malloc(sizeof(double) * R * n);
-  L->tau = (double*) malloc(sizeof(double) * R); L->tau2 = (double*) malloc(sizeof(double) * R);
-  L->c = (double*) malloc(sizeof(double) * R);
-  L->Z = (double*) malloc(sizeof(double) * n * n); L->U = (double*) malloc(sizeof(double) * n * n);
-  L->x = (double*) malloc(sizeof(double) * n); L->g = (double*) malloc(sizeof(double) * n);
-  L->y = (double*) malloc(sizeof(double) * n); L->K2 = (double*) malloc(sizeof(double) * n * n);
-  L->N = (double*) malloc(sizeof(double) * n * (K + 1)); L->NP = (double*) malloc(sizeof(double) * n * (K + 1));
-  L->lam = (double*) malloc(sizeof(double) * (K + 1)); L->sol = (double*) malloc(sizeof(double) * (K + 1));
-  L->w = (double*) malloc(sizeof(double) * (K + 1)); L->res = (double*) malloc(sizeof(double) * (n + 1));
-  L->max_steps = S;
-  L->off = (int*) calloc(S, sizeof(int)); L->r = (int*) calloc(S, sizeof(int)); L->p = (int*) calloc(S, sizeof(int));
-  L->fpiv_at = (int*) calloc(S + 1, sizeof(int)); L->fR_at = (int*) calloc(S + 1, sizeof(int));
-  L->fpiv = (int*) calloc(R, sizeof(int)); L->side = (int*) calloc(K + 1, sizeof(int));
-  L->rows = (const double**) calloc(S, sizeof(double*)); L->fR = (double*) malloc(sizeof(double) * (n * n + 1));
-  if (!L->off || !L->r || !L->p || !L->fpiv_at || !L->fR_at || !L->fpiv || !L->side || !L->rows || !L->fR) {
-    vfdsl_lex_free(L);
-    return 0;
-  }
-  if (!L->guess || !L->piv || !L->cols || !L->inv || !L->lo || !L->up || !L->M || !L->t || !L->B || !L->T
-      || !L->tau || !L->tau2 || !L->c || !L->Z || !L->U || !L->x || !L->g || !L->y || !L->K2 || !L->N || !L->NP
-      || !L->lam || !L->sol || !L->w || !L->res) {
-    vfdsl_lex_free(L);
-    return 0;
-  }
+  d = (double*) (block + head);
+  L->inv = lex_doubles(&d, K1); L->lo = lex_doubles(&d, K1); L->up = lex_doubles(&d, K1);
+  L->M = lex_doubles(&d, R * N); L->t = lex_doubles(&d, R);
+  L->B = lex_doubles(&d, R * N); L->T = lex_doubles(&d, R * N);
+  L->tau = lex_doubles(&d, R); L->tau2 = lex_doubles(&d, R); L->c = lex_doubles(&d, R);
+  L->Z = lex_doubles(&d, N * N); L->U = lex_doubles(&d, N * N);
+  L->x = lex_doubles(&d, N); L->g = lex_doubles(&d, N); L->y = lex_doubles(&d, N); L->K2 = lex_doubles(&d, N * N);
+  L->N = lex_doubles(&d, N * K1); L->NP = lex_doubles(&d, N * K1);
+  L->lam = lex_doubles(&d, K1); L->sol = lex_doubles(&d, K1); L->w = lex_doubles(&d, K1);
+  L->res = lex_doubles(&d, N + 1); L->fR = lex_doubles(&d, N * N + 1);
+  L->rows = (const double**) d;
+  i = (int*) (L->rows + S);
+  L->guess = lex_ints(&i, K1); L->piv = lex_ints(&i, R); L->cols = lex_ints(&i, K1);
+  L->max_steps = (int) S;
+  L->off = lex_ints(&i, S); L->r = lex_ints(&i, S); L->p = lex_ints(&i, S);
+  L->fpiv_at = lex_ints(&i, S + 1); L->fR_at = lex_ints(&i, S + 1);
+  L->fpiv = lex_ints(&i, R); L->side = lex_ints(&i, K1);
   return L;
 }
 

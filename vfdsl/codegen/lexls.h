@@ -13,8 +13,8 @@
  * problem, 0 otherwise (x then undefined; L->hint names a row whose change may fix the working set: the most
  * violated row, or the held row with the most negative multiplier). vfdsl_lex_repair(lex, s) applies the hint to s
  * (1 when there was one). The certificate tries, per level, the multipliers from the solve's own factors and a
- * test by dimensions before its nonnegative least squares (as lexls.py). All memory is allocated once by
- * vfdsl_lex_alloc.
+ * test by dimensions before its nonnegative least squares (as lexls.py). All memory is one block, allocated once by
+ * vfdsl_lex_alloc and released by vfdsl_lex_free.
  */
 #ifndef VFDSL_LEXLS_H
 #define VFDSL_LEXLS_H
