@@ -18,20 +18,16 @@ from vfdsl.primitives import CONSTRAINTS
 KNOWN_UPWARD_IMPORTS = {("mesh_rows.py", "vfdsl.primitives.spec")}
 
 
-def test_every_primitive_is_registered_with_its_module():
-    assert set(registry.CONSTRAINTS) == set(CONSTRAINTS)
-    for name, spec in CONSTRAINTS.items():
-        lowering = registry.constraint(name)
+@pytest.mark.parametrize("kind", ["primitives", "objectives"])
+def test_every_lowering_is_registered_with_its_module(kind):
+    """Every primitive (objective term) is registered with its spec and its own module's lower."""
+    table, specs, lookup = ((registry.CONSTRAINTS, CONSTRAINTS, registry.constraint) if kind == "primitives"
+                            else (registry.OBJECTIVES, OBJECTIVES, registry.objective))
+    assert set(table) == set(specs)
+    for name, spec in specs.items():
+        lowering = lookup(name)
         assert lowering.spec is spec
-        assert lowering.lower is importlib.import_module(f"vfdsl.primitives.{name}").lower
-
-
-def test_every_objective_term_is_registered_with_its_module():
-    assert set(registry.OBJECTIVES) == set(OBJECTIVES)
-    for name, spec in OBJECTIVES.items():
-        lowering = registry.objective(name)
-        assert lowering.spec is spec
-        assert lowering.lower is importlib.import_module(f"vfdsl.objectives.{name}").lower
+        assert lowering.lower is importlib.import_module(f"vfdsl.{kind}.{name}").lower
 
 
 def test_an_unregistered_name_is_named():
