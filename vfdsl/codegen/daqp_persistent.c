@@ -1,9 +1,9 @@
 /* vfdsl: DAQP (the daqp package's C sources) with a persistent, warm-started workspace, and priority levels.
  *
- * Replaces CasADi's casadi_daqp_free_mem and casadi_daqp_solve in a generated file (see build.py).
+ * Replaces CasADi's casadi_daqp_free_mem and casadi_daqp_solve in a generated file (see patch.py).
  * CasADi's solve calls setup_daqp (malloc, Cholesky) and frees the workspace on every call, and
- * starts DAQP from the equality rows alone. vfdsl_daqp_solve(d, warm, levels) is called instead: build.py
- * passes warm = 1 for the conics it marks as warm-started, and for a conic with priority levels the
+ * starts DAQP from the equality rows alone. vfdsl_daqp_solve(d, warm, levels) is called instead: patch.py
+ * passes warm = 1 for the conics whose SolvePlan says so, and for a conic with priority levels the
  * constraint indices where each level ends (DAQP's break points), else levels = 0:
  *   - sets DAQP up on a conic's first call and keeps the workspace in the conic's static memory
  *     (d->work) until casadi_daqp_free_mem: later calls allocate nothing;
@@ -28,7 +28,7 @@
 
 #define VFDSL_LEVELS_MAX 16
 #define VFDSL_REPAIRS 2    /* changes of one row to a refused guess (lexls.c's hint) before DAQP is called */
-/* A conic's levels (from its name): DAQP's break points, rho (the soft rows' reciprocal weight), partial: a
+/* A conic's levels (from its SolvePlan): DAQP's break points, rho (the soft rows' reciprocal weight), partial: a
    failed level gives the answer of the levels above it (which meets the hard level) rather than NaN, and exact:
    the levels' rows are targets (lower = upper), so lexls.c may solve them exactly (see vfdsl_daqp_solve). */
 typedef struct { int nh; double rho; int partial; int exact; int break_points[VFDSL_LEVELS_MAX]; } vfdsl_levels;
