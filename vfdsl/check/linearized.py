@@ -22,8 +22,8 @@ import numpy as np
 from vfdsl.compiler import registry
 from vfdsl.compiler.context import Context
 from vfdsl.ir import model as ir
+from vfdsl.runtime.values import ASSUMED_PERIOD
 
-DEFAULT_PERIOD = 0.01          # s, when the scene gives none (the check says so)
 
 
 @dataclass(frozen=True)
@@ -80,7 +80,7 @@ class Linearization:
                 self._terms.append((k, ca.Function("term", symbols, [ca.densify(ca.SX(term.E)),
                                                                      ca.densify(ca.SX(term.f))])))
         self.default_params = context.layout.defaults.copy()
-        self.period = task.scene.period or DEFAULT_PERIOD
+        self.period = task.scene.period or ASSUMED_PERIOD
         self.n_inputs = context.u.shape[0]
 
     def _args(self, q, u, p, dt):

@@ -37,7 +37,8 @@ DT_SHORTER = 100
 fixtures' rows do not depend on it), so the floor catches unit slips (x1000) and leaves room to run a task at a faster
 loop (paper A's 40 ms scene simulated at 1 ms)."""
 ASSUMED_PERIOD = 0.01
-"""s: the period a task without a scene period is checked against (the one `check` and `simulate` assume)."""
+"""s: the period of a task without a scene period: dt is checked against it, and `check`, `simulate` and `view` run
+at it."""
 _FIELDS = {"line": ("point", "direction"), "plane": ("point", "normal"), "pose": ("translation", "rpy")}
 JOINT_UNITS = {"revolute": "rad", "continuous": "rad", "prismatic": "m"}
 INPUT_UNITS = {"force": "N", "torque": "N m", "wrench": "N (0-2), N m (3-5)", "twist": "m/s (0-2), rad/s (3-5)"}

@@ -63,7 +63,8 @@ from vfdsl.ir import model as ir
 from vfdsl.passes.scene import (ValueReader, compose, node_span, read_mapping,   # the task scene's YAML reading
                                 read_units)
 from vfdsl.primitives.spec import SCALAR_DIMENSIONS
-from vfdsl.sim.settings import (DEFAULT_PERIOD, DISTURBANCE_KINDS, HAND_KINDS, MARKER_DISTANCES,
+from vfdsl.runtime.values import ASSUMED_PERIOD
+from vfdsl.sim.settings import (DISTURBANCE_KINDS, HAND_KINDS, MARKER_DISTANCES,
                                 MAX_TREMOR_FREQUENCY, MOTION_KINDS, MOVABLE, SCENE_LIMITS,
                                 GRID_NAMES, SCALARS, Disturbance, HandSettings, MetricSpec, Motion, SimSettings, check_motions,
                                 check_setting, check_ticks, constraint_of, hand_dimension, shown,
@@ -108,7 +109,7 @@ def default_scene(task_file: str | Path) -> Path | None:
 
 def load_settings(task: ir.Task, scene: str | Path | None) -> SimSettings:
     """The settings of ``scene`` (a ``.sim.yaml`` file), checked against ``task``; defaults without one."""
-    base = SimSettings(period=task.scene.period or DEFAULT_PERIOD)
+    base = SimSettings(period=task.scene.period or ASSUMED_PERIOD)
     if scene is None:
         return base
     path = Path(scene)

@@ -16,8 +16,8 @@ from vfdsl import limits
 from vfdsl import units as u
 from vfdsl.errors import SourcePos, VfError, suggest
 from vfdsl.ir import model as ir
+from vfdsl.runtime.values import ASSUMED_PERIOD
 
-DEFAULT_PERIOD = 0.01
 DEFAULT_DURATION = 10.0
 HAND_KINDS = ("push", "turn", "follow", "toward")
 DISTURBANCE_KINDS = ("move_param", "push_tool")
@@ -145,7 +145,7 @@ class MetricSpec:
 @dataclass(frozen=True)
 class SimSettings:
     duration: float = DEFAULT_DURATION
-    period: float = DEFAULT_PERIOD
+    period: float = ASSUMED_PERIOD
     latency: float = 0.0
     servo_lag: float = 0.0
     resolution: str = "off"

@@ -36,6 +36,7 @@ from vfdsl.ir import model as ir
 from vfdsl.kinematics.robot import Robot
 from vfdsl.primitives import CONSTRAINTS
 from vfdsl.runtime.qp import StepStatus
+from vfdsl.runtime.values import ASSUMED_PERIOD
 from vfdsl.sim.geometry import Scene
 from vfdsl.compiler.context import flatten
 from vfdsl.view import replay as replay_module
@@ -48,7 +49,6 @@ LEVER = 0.05                # m: where a torque-only hand holds the tool, up its
 DRAW_RATE = 25.0            # Hz: scene updates while running
 HAND_SCALE = 0.025          # m: size of the hand's transform controls
 TOOL_MOVE = 1e-4            # m: the shapes drawn at the tool are redrawn once it has moved this far
-DEFAULT_PERIOD = 0.01       # s: the period of a task that gives none
 
 COLORS = {
     False: {"reference": (30, 100, 220), "tolerance": (70, 160, 245), "bound": (20, 50, 150),
@@ -123,8 +123,8 @@ class HandModel:
 
 
 def control_period(task: ir.Task) -> float:
-    """The period the viewer runs the controller at (s): the task's, else DEFAULT_PERIOD."""
-    return float(task.scene.period or DEFAULT_PERIOD)
+    """The period the viewer runs the controller at (s): the task's, else ASSUMED_PERIOD."""
+    return float(task.scene.period or ASSUMED_PERIOD)
 
 
 def hand_model(task: ir.Task) -> HandModel | None:
