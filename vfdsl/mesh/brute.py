@@ -143,13 +143,11 @@ def features(a, b, vertices: np.ndarray, triangles: np.ndarray, cutoff: float, s
             first = chosen[0]
             inside = first[0] > 0 and winding_number(first[6], vertices, triangles) > 0.5
             signs[part] = 1.0 if first[0] == 0 or inside == (side < 0) else -1.0
-    for part, x in ends:        # an end far on the forbidden side: its nearest feature, whatever its distance
-        inside = winding_number(x, vertices, triangles) > 0.5
-        if not kept[part] and inside != (side < 0):
-            c = point_triangles(x, corners)
+    for part, _, c, x in found[:len(ends)]:     # an end far on the forbidden side: its nearest feature, however far
+        if not kept[part] and (winding_number(x[0], vertices, triangles) > 0.5) != (side < 0):
             dist = np.sqrt(_squared(x - c))
             i = int(np.argmin(dist))
-            kept[part].append((dist[i], part, *c[i], float(part == 2), x, (x - c[i]) / dist[i]))
+            kept[part].append((dist[i], part, *c[i], float(part == 2), x[i], (x[i] - c[i]) / dist[i]))
             signs[part] = -1.0
     rows = [chosen[0] for chosen in kept.values() if chosen][:k]
     rows += sorted((h for chosen in kept.values() for h in chosen[1:]), key=lambda h: h[:6])[:k - len(rows)]
