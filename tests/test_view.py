@@ -247,7 +247,8 @@ def test_a_refused_param_is_shown_and_the_controller_keeps_running():
 
 
 def test_a_violated_fixture_is_marked():
-    from vfdsl.view.app import VIOLATED, Viewer
+    from vfdsl.view.app import Viewer
+    from vfdsl.view.scene import VIOLATED
     task = vfdsl.load(TASKS_DIR / "keep_out.vf")
     viewer = Viewer(task, vfdsl.compile(task, backend="interpreted"), port=free_port())
     try:
@@ -288,7 +289,8 @@ def test_a_runtime_curve_point_dragged_moves_the_curve_the_controller_follows():
 
 
 def test_hard_and_soft_fixtures_look_different(tmp_path):
-    from vfdsl.view.app import COLORS, Viewer
+    from vfdsl.view.app import Viewer
+    from vfdsl.view.scene import COLORS
     text = (TASKS_DIR / "keep_out.vf").read_text().replace("require tip outside_sphere(artery, margin)",
                                                            "require tip outside_sphere(artery, margin) soft weight 10")
     (tmp_path / "soft.vf").write_text(text.replace('import "library/fixtures.vf"',
@@ -305,7 +307,8 @@ def test_hard_and_soft_fixtures_look_different(tmp_path):
 
 
 def test_a_plane_tilted_by_its_gizmo_tilts_the_wall():
-    from vfdsl.view.app import Viewer, wxyz
+    from vfdsl.view.app import Viewer
+    from vfdsl.view.scene import wxyz
     from vfdsl.view.robot import rotation_to_z
     task = vfdsl.load(TASKS_DIR / "lecture_forbidden_half_space.vf")
     viewer = Viewer(task, vfdsl.compile(task, backend="interpreted"), port=free_port())
@@ -634,7 +637,8 @@ class ViewerProcess:
 
 def drag_hand(browser: Browser, state: dict, width: int, height: int) -> None:
     """Press on the hand's x arrow (projected with the page's camera, OpenCV convention) and drag 80 px along it."""
-    from vfdsl.view.app import HAND_SCALE, matrix
+    from vfdsl.view.live import HAND_SCALE
+    from vfdsl.view.scene import matrix
     camera = state["camera"]
     R, eye = matrix(camera["wxyz"]), np.asarray(camera["position"])
     focal = (height / 2) / math.tan(camera["fov"] / 2)

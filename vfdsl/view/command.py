@@ -105,7 +105,7 @@ def _check_with_task(opts: options.Options, task, trace) -> int:
     """The flags that depend on the task: ``--push`` needs a hand (an input), ``--seconds`` a run within the
     limits or a time the trace has. The ticks to run before a picture."""
     from vfdsl.sim.settings import check_ticks
-    from vfdsl.view.app import control_period, hand_model
+    from vfdsl.view.live import control_period, hand_model
     if opts.push is not None and hand_model(task) is None:
         raise VfError(f"--push: task '{task.name}' has no input, so no hand to hold",
                       hint="leave --push out: the task runs hands off")

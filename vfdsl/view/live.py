@@ -1,0 +1,219 @@
+"""The live loop: the user's hand as the task's first input, the controller run at the task's period.
+
+The hand: its offset from the tool's rest pose is the task's first input. The rest pose is the tracked
+frame (the frame of the first ``track`` term that reads the input): a force is ``k (p_hand - p_tool)`` with
+``k = 1 / (gain T)``, so the tool reaches a still hand in about T = 0.5 s where the fixture lets it; a torque
+comes from the hand's rotation and, where the input has no force part, from the hand held on the shaft
+LEVER up the tool axis (the torque of the spring force about the frame); a twist is the offset over T.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+import time
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from vfdsl.errors import VfError
+from vfdsl.ir import model as ir
+from vfdsl.runtime.values import ASSUMED_PERIOD
+from vfdsl.view.scene import DRAW_RATE, matrix, wxyz
+
+REACH_TIME = 0.5            # s: the hand's spring brings the tool to a still hand in about this time
+LEVER = 0.05                # m: where a torque-only hand holds the tool, up its axis
+HAND_SCALE = 0.025          # m: size of the hand's transform controls
+
+
+@dataclass
+class HandModel:
+    """How the hand's pose becomes the first input."""
+
+    input: ir.InputDecl
+    frame: str
+    gain: float
+    angular_gain: float
+
+    @property
+    def linear(self) -> bool:
+        return self.input.type in ("force", "wrench", "twist")
+
+    @property
+    def angular(self) -> bool:
+        return self.input.type in ("torque", "wrench", "twist")
+
+    @property
+    def lever(self) -> float:
+        return LEVER if not self.linear else 0.0
+
+    def rest(self, pose) -> tuple[np.ndarray, np.ndarray]:
+        return pose.position + self.lever * pose.tool_axis, pose.rotation
+
+    def value(self, pose, position, rotation) -> np.ndarray:
+        p0, R0 = self.rest(pose)
+        offset = np.asarray(position) - p0
+        turn = Rotation.from_matrix(np.asarray(rotation) @ R0.T).as_rotvec()
+        T = REACH_TIME
+        if self.input.type == "twist":
+            return np.concatenate([offset / T, turn / T])
+        force = offset / (self.gain * T) if self.gain else np.zeros(3)
+        torque = turn / (self.angular_gain * T) if self.angular_gain else np.zeros(3)
+        if self.input.type == "force":
+            return force
+        if self.input.type == "wrench":
+            return np.concatenate([force, torque])
+        if self.angular_gain:                         # torque only: the spring on the shaft turns the tool
+            torque = torque + np.cross(self.lever * pose.tool_axis, offset) / (self.angular_gain * T * self.lever ** 2)
+        return torque
+
+    def commanded(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(v, w) the track term asks for (m/s, rad/s)."""
+        if self.input.type == "twist":
+            return self.gain * u[:3], self.angular_gain * u[3:]
+        if self.input.type == "force":
+            return self.gain * u, np.zeros(3)
+        if self.input.type == "torque":
+            return np.zeros(3), self.angular_gain * u
+        return self.gain * u[:3], self.angular_gain * u[3:]
+
+
+def control_period(task: ir.Task) -> float:
+    """The period the viewer runs the controller at (s): the task's, else ASSUMED_PERIOD."""
+    return float(task.scene.period or ASSUMED_PERIOD)
+
+
+def hand_model(task: ir.Task) -> HandModel | None:
+    if not task.inputs:
+        return None
+    decl = task.inputs[0]
+    for o in task.objectives:
+        if o.term == "track" and getattr(o.args.get("input"), "name", None) == decl.name:
+            gain = o.args.get("gain")
+            angular = o.args.get("angular_gain")
+            return HandModel(decl, o.args["frame"].name,
+                             float(gain.value.value) if isinstance(gain, ir.Const) else (1.0 if decl.type == "twist" else 0.0),
+                             float(angular.value.value) if isinstance(angular, ir.Const) else (1.0 if decl.type == "twist" else 0.0))
+    return HandModel(decl, task.frames[0].name, 1e-3, 0.1) if task.frames else None
+
+
+class LiveLoop:
+    """The viewer's live mode: the hand (:meth:`push`), one control tick (:meth:`tick`) and the loop that
+    runs it (:meth:`start_live`)."""
+
+    def start_live(self) -> None:
+        """Run the controller at the task's period in a background thread (live mode)."""
+        if self.replay is not None or self._thread is not None:
+            return
+        self._thread = threading.Thread(target=self._loop, name="vfdsl-view-loop", daemon=True)
+        self._thread.start()
+
+    def push(self, offset) -> None:
+        """Put the hand at the tool's rest pose plus ``offset`` (m, world), as a user dragging it would."""
+        if self.hand is None:
+            raise VfError(f"task '{self.task.name}' has no input: there is no hand to push")
+        with self.lock:
+            pose = self.frames[self.hand.frame]
+            p0, R0 = self.hand.rest(pose)
+            self.hand_node.position = p0 + np.asarray(offset, dtype=float)
+            self.hand_node.wxyz = wxyz(R0)
+
+    def _add_hand(self) -> None:
+        """The hand's transform controls, at the tool's rest pose."""
+        p0, R0 = self.hand.rest(self.frames[self.hand.frame])
+        self.hand_node = self.server.scene.add_transform_controls(
+            "/hand", scale=HAND_SCALE, position=p0, wxyz=wxyz(R0), disable_rotations=not self.hand.angular,
+            depth_test=False)
+        self.nodes["/hand"] = self.hand_node
+
+    def _zero_inputs(self) -> dict:
+        return {d.name: np.zeros(d.size) for d in self.task.inputs}
+
+    def _static_step(self) -> None:
+        """One step with the hands off at the current state, not applied: which rows are violated here."""
+        try:
+            self.ctrl.step(self.q, self._zero_inputs(), params=self.overrides or None, dt=self.period)
+        except VfError as err:
+            self._show_error(str(err))
+            return
+        self._read_status()
+
+    def _loop(self) -> None:
+        next_tick = time.perf_counter()
+        self._rate_mark = (time.perf_counter(), self.ticks)
+        draw_every = max(1, round(1.0 / (DRAW_RATE * self.period)))
+        while not self._stop.is_set():
+            if getattr(self, "run_box", None) is None or self.run_box.value:
+                try:
+                    self.tick(draw=self.ticks % draw_every == 0)
+                except Exception as err:          # shown, and the loop goes on: the viewer never dies of a tick
+                    self._show_error(f"tick failed: {type(err).__name__}: {err}")
+            next_tick += self.period
+            delay = next_tick - time.perf_counter()
+            if delay > 0:
+                self._stop.wait(delay)
+            else:
+                next_tick = time.perf_counter()
+
+    def tick(self, draw: bool = True) -> None:
+        """One control tick: the hand's input (zero inputs for a task without one), one controller step, the
+        new state."""
+        with self.lock:
+            inputs = self._zero_inputs()
+            hand = self.hand
+            if hand is not None:
+                before = self.frames[hand.frame]
+                u = hand.value(before, self.hand_node.position, matrix(self.hand_node.wxyz))
+                inputs[hand.input.name] = u
+            try:
+                dq = self.ctrl.step(self.q, inputs, params=self.overrides or None, dt=self.period)
+            except VfError as err:
+                self._show_error(str(err))
+                return
+            self.q = self.q + dq
+            self.ticks += 1
+            self.time += self.period
+            self.frames = self.ctrl.frames(self.q)
+            self._read_status()
+            if hand is not None:
+                after = self.frames[hand.frame]
+                v_cmd, w_cmd = hand.commanded(u)
+                v = (after.position - before.position) / self.period
+                w = Rotation.from_matrix(after.rotation @ before.rotation.T).as_rotvec() / self.period
+                self.readout = _tracking(v_cmd, v, w_cmd, w, hand.linear)
+            else:
+                self.readout = "no input: the task runs hands off"
+            if draw:
+                self._draw_state()
+                self._draw_fixtures()
+
+    def _read_status(self) -> None:
+        self.status = self.ctrl.status
+        self.violations = self.ctrl.violations()
+        violated = set()
+        for v in self.violations:
+            k = self._constraint_of.get((v.label.primitive, v.label.frame, v.label.span))
+            if k is not None:
+                violated.add(k)
+        if violated != self._violated:
+            changed = violated ^ self._violated
+            self._violated = violated
+            for f in getattr(self, "fixtures", []):
+                if f.index in changed:
+                    self._draw_fixture(f)
+
+
+def _tracking(v_cmd, v, w_cmd, w, linear: bool) -> str:
+    """``asked 5.00 mm/s, moved 4.98 mm/s (100% along, 0.01 mm/s across)``, or the same in deg/s."""
+    if linear:
+        asked, got, unit, scale = v_cmd, v, "mm/s", 1e3
+    else:
+        asked, got, unit, scale = w_cmd, w, "deg/s", 180 / math.pi
+    n = float(np.linalg.norm(asked))
+    if n < 1e-12:
+        return f"hands off · moving {np.linalg.norm(got) * scale:.3g} {unit}"
+    along = float(np.dot(got, asked)) / n
+    across = float(np.linalg.norm(got - along * asked / n))
+    return (f"asked {n * scale:.3g} {unit}, moved {np.linalg.norm(got) * scale:.3g} {unit} "
+            f"({along / n:.0%} along, {across * scale:.3g} {unit} across)")
