@@ -14,8 +14,8 @@ import vfdsl
 from vfdsl.check import check, hygiene
 from vfdsl.check.linearized import ConstraintRows, Linearization
 from vfdsl.check.report import Severity
+from vfdsl.errors import Span
 from vfdsl.ir import model as ir
-from vfdsl.syntax.ast import Span
 
 # ------------------------------------------------------------------------------ D: frames built on frames
 

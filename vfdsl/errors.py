@@ -18,23 +18,25 @@ from __future__ import annotations
 
 import difflib
 import unicodedata
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Iterable
+
+from pydantic import BaseModel, ConfigDict
 
 EXIT_USER_ERROR = 2
 """The command line's exit status for a user's mistake (usage, syntax, names, units, files)."""
 
 
-@dataclass(frozen=True)
-class SourcePos:
-    """A 1-based position range in a source file (end is exclusive, like Lark's)."""
+class Span(BaseModel):
+    """A range of source text: 1-based line and column, end exclusive (like Lark's). Errors, the syntax tree
+    and the IR use it (a pydantic model, so the IR serializes it)."""
 
+    model_config = ConfigDict(frozen=True)
     file: str
     line: int
     column: int
-    end_line: int | None = None
-    end_column: int | None = None
+    end_line: int
+    end_column: int
 
     def __str__(self) -> str:
         return f"{self.file}:{self.line}:{self.column}"
@@ -43,7 +45,7 @@ class SourcePos:
 class VfError(Exception):
     """A user-facing error: message, optional position, optional hint."""
 
-    def __init__(self, message: str, pos: SourcePos | None = None, hint: str | None = None,
+    def __init__(self, message: str, pos: Span | None = None, hint: str | None = None,
                  source_text: str | None = None, notes: tuple[str, ...] = ()):
         super().__init__(message)
         self.message = message

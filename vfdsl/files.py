@@ -15,11 +15,11 @@ from pathlib import Path
 
 import yaml
 
-from vfdsl.errors import SourcePos, VfError
+from vfdsl.errors import Span, VfError
 from vfdsl import limits
 
 
-def open_file(path: Path, what: str, pos: SourcePos | None = None, hint: str | None = None,
+def open_file(path: Path, what: str, pos: Span | None = None, hint: str | None = None,
               limit: int = limits.FILE_BYTES) -> int:
     """A descriptor, open for reading, of the regular file of at most ``limit`` bytes at ``path``; VfError at
     ``pos`` when there is none. Opened without blocking, so a FIFO fails here instead of waiting for a writer."""
@@ -45,11 +45,11 @@ def open_file(path: Path, what: str, pos: SourcePos | None = None, hint: str | N
     return fd
 
 
-def _too_large(what: str, path: Path, limit: int, pos: SourcePos | None) -> VfError:
+def _too_large(what: str, path: Path, limit: int, pos: Span | None) -> VfError:
     return limits.exceeded(f"{what} {path} is too large", limit, pos, hint="the limit is in bytes")
 
 
-def read_text(path: Path, what: str, pos: SourcePos | None = None, hint: str | None = None) -> str:
+def read_text(path: Path, what: str, pos: Span | None = None, hint: str | None = None) -> str:
     """The text of the ``what`` (e.g. 'scene file') at ``path``; VfError at ``pos`` when it cannot be read."""
     fd = open_file(path, what, pos, hint)
     try:

@@ -8,7 +8,7 @@ that names the limit instead of taking the machine's time or memory. They are li
 
 from __future__ import annotations
 
-from vfdsl.errors import SourcePos, VfError
+from vfdsl.errors import Span, VfError
 
 FILE_BYTES = 1_000_000           # a task, library, scene or sidecar file
 IMPORT_DEPTH = 16                # libraries importing libraries
@@ -48,7 +48,7 @@ CONNECT_TIMEOUT = 10.0           # s: to reach a Dask scheduler and hear its han
 TRACE_BYTES = 1_000_000_000      # a trace `view --replay` plays (about 1.6 million ticks of a simulate trace)
 PICTURE_SIDE = 8_192             # pixels: the width or height of a `view --screenshot`
 
-def exceeded(what: str, limit: int | float, pos: SourcePos | None, hint: str | None = None,
+def exceeded(what: str, limit: int | float, pos: Span | None, hint: str | None = None,
              unit: str = "") -> VfError:
     """The error for a resource limit: which one was hit, and its value."""
     value = f"{limit:,}" if isinstance(limit, int) else f"{limit:g}"

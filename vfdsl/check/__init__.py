@@ -142,4 +142,4 @@ def _check_magnitudes(rows) -> None:
         if not worst <= limits.ROW_VALUE:
             raise VfError(f"at the start, the rows of {describe(r.constraint)} hold {worst:g} (m or rad): the limit "
                           f"is {limits.ROW_VALUE:g}; its geometry lies far beyond any robot's reach",
-                          r.constraint.span.pos(), hint="is a point, a distance or a frame offset in the wrong unit?")
+                          r.constraint.span, hint="is a point, a distance or a frame offset in the wrong unit?")

@@ -13,8 +13,7 @@ import enum
 import math
 from dataclasses import dataclass, field
 
-from vfdsl.errors import EXIT_USER_ERROR, VfError
-from vfdsl.syntax.ast import Span
+from vfdsl.errors import EXIT_USER_ERROR, Span, VfError
 
 JSON_SCHEMA_VERSION = 1
 
@@ -83,7 +82,7 @@ class Finding:
 
     def render(self) -> str:
         """file:line:col, severity and code, message, the source line with a caret, the suggestion."""
-        diagnostic = VfError(self.message, self.span.pos() if self.span else None, hint=self.suggestion,
+        diagnostic = VfError(self.message, self.span, hint=self.suggestion,
                              notes=self.notes)
         return diagnostic.render(f"{self.severity.value} {self.code} {self.name}")
 
@@ -130,10 +129,7 @@ class Report:
     def input_error(cls, file: str, error: VfError) -> "Report":
         """The report of a check that could not run: a usage, parse or semantic error in the files (or a
         value the analyses cannot hold) as its one finding, VF000, with the error's position, hint and notes."""
-        pos = error.pos
-        span = None if pos is None else Span(file=pos.file, line=pos.line, column=pos.column,
-                                             end_line=pos.end_line or pos.line, end_column=pos.end_column or pos.column)
-        return cls(None, str(file), [Finding("input-error", Severity.ERROR, error.message, span, error.hint,
+        return cls(None, str(file), [Finding("input-error", Severity.ERROR, error.message, error.pos, error.hint,
                                              notes=error.notes)])
 
     def add(self, findings) -> None:

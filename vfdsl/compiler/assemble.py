@@ -40,9 +40,9 @@ import numpy as np
 from vfdsl.compiler import registry
 from vfdsl.compiler.context import Context
 from vfdsl.compiler.rows import Rows
+from vfdsl.errors import Span
 from vfdsl.ir import model as ir
 from vfdsl.kinematics.robot import Robot
-from vfdsl.syntax.ast import Span
 
 HESSIAN_FLOOR = 1e-9
 SOFT_RESTORE_RATE = 10.0

@@ -212,7 +212,7 @@ class ParamReader:
             data = read_mesh(value.file, value.unit)
             query = mesh_query(data, k)
         except (MeshFileError, CompilerUnavailable) as exc:
-            raise VfError(f"mesh '{arg.name}': {getattr(exc, 'message', exc)}", decl.span.pos(),
+            raise VfError(f"mesh '{arg.name}': {getattr(exc, 'message', exc)}", decl.span,
                           hint="a mesh fixture runs its proximity query in C, on the interpreted path too: "
                                "install gcc or clang (or set CC)") from None
         self.c_sources[query.name] = query.source

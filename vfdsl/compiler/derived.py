@@ -63,13 +63,13 @@ def add_checks(margins: Margins, arg: ir.Derived, read: Read, notes: tuple[str, 
     def unit(v, node: ir.Derived):
         margins.add(ca.norm_2(v) - MIN_NORM,
                     Check(partial(_zero_message, node), _ZERO_MEANING.get(node.op, _ZERO_MEANING["direction"]),
-                          node.span.pos(), _ZERO_HINT, notes=notes))
+                          node.span, _ZERO_HINT, notes=notes))
         return normalize(v)
     value = evaluate(arg, read, unit)
     numbers = ca.vertcat(*value) if isinstance(value, tuple) else value
     margins.add(_LARGEST - ca.mmax(ca.fabs(numbers)),          # not 0 * |v|: CasADi folds that to 0
                 Check(lambda margin, p: "this value is too large (SI numbers overflow)",
-                      "a derived value must be finite", arg.span.pos(), notes=notes))
+                      "a derived value must be finite", arg.span, notes=notes))
 
 
 def check(arg: ir.Derived, read: Read, when: str = "") -> None:

@@ -18,7 +18,7 @@ from typing import Callable
 import casadi as ca
 import numpy as np
 
-from vfdsl.errors import SourcePos, VfError
+from vfdsl.errors import Span, VfError
 
 
 @dataclass(frozen=True)
@@ -27,7 +27,7 @@ class Check:
 
     message: Callable[[float, np.ndarray | None], str]
     meaning: str                     # what the check asks, without numbers (C error strings, metadata)
-    pos: SourcePos | None = None     # where the checked expression is written (a derived argument)
+    pos: Span | None = None     # where the checked expression is written (a derived argument)
     hint: str | None = None
     strict: bool = False             # True: the margin must be > 0, not only >= 0
     param: str | None = None         # the param whose own value is checked (None: a derived argument)

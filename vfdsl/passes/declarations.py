@@ -54,11 +54,11 @@ class Declarations:
             if isinstance(stmt, ast.RobotStmt):
                 self._robot(stmt)
         if not self.robots:
-            raise VfError("a task drives exactly one robot; none is declared", self.module.name.span.pos(),
+            raise VfError("a task drives exactly one robot; none is declared", self.module.name.span,
                           hint='declare it with: robot shr = urdf "shr7"')
         if len(self.robots) > 1:
             first, second = (decl.span for decl, _ in list(self.robots.values())[:2])
-            raise VfError("a task drives exactly one robot", second.pos(),
+            raise VfError("a task drives exactly one robot", second,
                           hint=f"the first is declared at {first}; split the task, one per robot")
         for stmt in statements:
             if isinstance(stmt, ast.FrameStmt):
@@ -80,13 +80,13 @@ class Declarations:
         error = admissible.margins.error(i, numbers, p, "with the params' values, ")
         name = admissible.margins.checks[i].param
         if name is not None:
-            error = VfError(error.message, self.param_values[name].span.pos(), error.hint,
+            error = VfError(error.message, self.param_values[name].span, error.hint,
                             notes=(f"param '{name}' is declared at {self.params[name].span}",))
         raise error
 
     def _declare(self, name: ast.Name) -> None:
         if name.text in self.declared:
-            raise VfError(f"'{name.text}' is declared twice", name.span.pos(),
+            raise VfError(f"'{name.text}' is declared twice", name.span,
                           hint=f"first declared at {self.declared[name.text].span}")
         self.declared[name.text] = name
 
@@ -94,7 +94,7 @@ class Declarations:
         try:
             robot = Robot.load(stmt.urdf, base_dir=self.path.parent)
         except VfError as exc:
-            raise VfError(exc.message, stmt.span.pos(), exc.hint) from None
+            raise VfError(exc.message, stmt.span, exc.hint) from None
         shipped = robot.urdf_path.parent == ROBOTS_DIR
         decl = ir.RobotDecl(name=stmt.name.text, urdf=robot.name if shipped else str(robot.urdf_path), span=stmt.span)
         self.robots[stmt.name.text] = (decl, robot)
@@ -111,10 +111,10 @@ class Declarations:
                 hint = (f"'{stmt.robot.text}' is a frame; a frame on it is written `frame {stmt.name.text} = "
                         f"{stmt.robot.text} offset [...]`" if self._is_frame_statement(stmt.robot.text)
                         else suggest(stmt.robot.text, self.robots, "robots"))
-                raise VfError(f"unknown robot '{stmt.robot.text}'", stmt.robot.span.pos(), hint=hint)
+                raise VfError(f"unknown robot '{stmt.robot.text}'", stmt.robot.span, hint=hint)
             robot_name, link, robot = stmt.robot.text, stmt.link.text, self.robots[stmt.robot.text][1]
             if link not in robot.link_names():
-                raise VfError(f"robot '{robot_name}' has no link '{link}'", stmt.link.span.pos(),
+                raise VfError(f"robot '{robot_name}' has no link '{link}'", stmt.link.span,
                               hint=suggest(link, robot.link_names(), "links"))
         offset = self._literal(stmt.offset, "vector", self.units).xyz if stmt.offset else [0.0, 0.0, 0.0]
         rpy = self._literal(stmt.rotate, "rpy", self.units).xyz if stmt.rotate else [0.0, 0.0, 0.0]
@@ -129,11 +129,11 @@ class Declarations:
             offset, rpy = compose(base.offset, base.rpy, offset, rpy)
             if not all(map(math.isfinite, offset)):
                 raise VfError(f"frame '{stmt.name.text}' is too far from its link: its offset composed with frame "
-                              f"'{base.name}''s overflows", stmt.span.pos())
+                              f"'{base.name}''s overflows", stmt.span)
         distance = math.hypot(*offset)
         if distance > limits.LENGTH:
             raise limits.exceeded(f"frame '{stmt.name.text}' is {distance:g} m from its link", limits.LENGTH,
-                                  (stmt.offset.span if stmt.offset is not None else stmt.span).pos(),
+                                  (stmt.offset.span if stmt.offset is not None else stmt.span),
                                   hint="is the unit right? (bare numbers take the file's `units`)", unit="m")
         self.frames[stmt.name.text] = ir.FrameDecl(name=stmt.name.text, robot=robot_name, link=link,
                                                    offset=offset, rpy=rpy, tool_axis=axis, span=stmt.span,
@@ -143,7 +143,7 @@ class Declarations:
         name = stmt.base.text
         if name in self.frames:
             return self.frames[name]
-        where = stmt.base.span.pos()
+        where = stmt.base.span
         if name == stmt.name.text:
             raise VfError(f"frame '{name}' is defined from itself", where,
                           hint=f"build it on a robot link: frame {name} = <robot>.link(\"...\")")
@@ -171,7 +171,7 @@ class Declarations:
 
     def _input(self, stmt: ast.InputStmt) -> None:
         if stmt.type.text not in ir.INPUT_SIZES:
-            raise VfError(f"unknown input type '{stmt.type.text}'", stmt.type.span.pos(),
+            raise VfError(f"unknown input type '{stmt.type.text}'", stmt.type.span,
                           hint=suggest(stmt.type.text, ir.INPUT_SIZES, "input types"))
         self.inputs[stmt.name.text] = ir.InputDecl(name=stmt.name.text, type=stmt.type.text, span=stmt.span)
 
@@ -180,31 +180,31 @@ class Declarations:
         if scene is not None:
             for name, (_, key_span) in scene.params.items():
                 if name not in by_name:
-                    raise VfError(f"the scene sets '{name}', which is not a param of this task", key_span.pos(),
+                    raise VfError(f"the scene sets '{name}', which is not a param of this task", key_span,
                                   hint=suggest(name, by_name, "params"))
         for stmt in statements:
             kind = stmt.type.text
             if kind not in PARAM_KINDS:
-                raise VfError(f"unknown param type '{kind}'", stmt.type.span.pos(),
+                raise VfError(f"unknown param type '{kind}'", stmt.type.span,
                               hint=suggest(kind, PARAM_KINDS, "param types"))
             degree, runtime = self._curve_type(stmt)
             if stmt.frame is not None:
                 target = by_name.get(stmt.frame.text)
                 if target is None or target.type.text != "pose":
                     poses = [s.name.text for s in statements if s.type.text == "pose"]
-                    raise VfError(f"'{stmt.frame.text}' is not a pose param", stmt.frame.span.pos(),
+                    raise VfError(f"'{stmt.frame.text}' is not a pose param", stmt.frame.span,
                                   hint=suggest(stmt.frame.text, poses, "pose params"))
                 if kind == "pose":
-                    raise VfError("a pose cannot be expressed `in` another pose", stmt.frame.span.pos(),
+                    raise VfError("a pose cannot be expressed `in` another pose", stmt.frame.span,
                                   hint="nested frames are not supported: give the pose in the robot's base frame")
                 if kind not in ("point", "vector", "direction", "line", "plane", "curve", "mesh"):
-                    raise VfError(f"a {kind} cannot be expressed in a frame", stmt.frame.span.pos())
+                    raise VfError(f"a {kind} cannot be expressed in a frame", stmt.frame.span)
             if scene is not None and stmt.name.text in scene.params:
                 source, units = scene.params[stmt.name.text][0], scene.units
             elif stmt.default is not None:
                 source, units = stmt.default, self.units
             else:
-                raise VfError(f"param '{stmt.name.text}' has no value", stmt.name.span.pos(),
+                raise VfError(f"param '{stmt.name.text}' has no value", stmt.name.span,
                               hint=f"give a default (`= ...`) or set params.{stmt.name.text} in the scene file")
             source = _named_mapping(source, kind)
             self.param_values[stmt.name.text] = source
@@ -229,7 +229,7 @@ class Declarations:
         unit = u.UNITS[units.length][1]
         for kw in stmt.type_args:
             if kw.name.text != "unit":
-                raise VfError(f"mesh has no type argument '{kw.name.text}'", kw.name.span.pos(),
+                raise VfError(f"mesh has no type argument '{kw.name.text}'", kw.name.span,
                               hint="state the file's unit of length: mesh(unit = 1 mm)")
             unit = self._mesh_unit(kw.value, self.units)
         name = stmt.name.text
@@ -239,10 +239,10 @@ class Declarations:
             fields = {kw.name.text: kw for kw in source.kwargs}
             for name, kw in fields.items():
                 if name not in ("file", "unit"):
-                    raise VfError(f"a mesh in a scene has no key '{name}'", kw.name.span.pos(),
+                    raise VfError(f"a mesh in a scene has no key '{name}'", kw.name.span,
                                   hint=suggest(name, ("file", "unit"), "keys"))
             if "file" not in fields:
-                raise VfError("a mesh in a scene needs its file", source.span.pos(), hint=example)
+                raise VfError("a mesh in a scene needs its file", source.span, hint=example)
             if "unit" in fields:
                 unit = self._mesh_unit(fields["unit"].value, units)
             source = fields["file"].value
@@ -250,29 +250,29 @@ class Declarations:
             if scene is not None and isinstance(source, ast.Quantity):
                 example = ("a file name that starts like a number (10.stl) reads as a number with a unit: write it "
                            "as ./10.stl")
-            raise VfError("a mesh is given by its file name", source.span.pos(), hint=example)
+            raise VfError("a mesh is given by its file name", source.span, hint=example)
         base = scene.file.parent if scene is not None else self.path.parent
         path = (base / source.text).absolute()
         try:
             mesh = read_mesh(path, unit)
         except MeshSizeError as exc:
-            raise VfError(str(exc), source.span.pos(),
+            raise VfError(str(exc), source.span,
                           hint=f"decimate the mesh to at most {limits.MESH_TRIANGLES:,} triangles (quadric edge "
                                "collapse): a fixture needs the anatomy's shape, not the scanner's resolution") from None
         except MeshExtentError as exc:
-            raise VfError(str(exc), source.span.pos(),
+            raise VfError(str(exc), source.span,
                           hint="state the file's unit: {file: ..., unit: 1 mm} (without it, the param type's unit, "
                                "else the scene's length unit)" if scene is not None else
                                "state the file's unit: mesh(unit = 1 mm) (without it, the task's length unit)") from None
         except MeshFileError as exc:
-            raise VfError(str(exc), source.span.pos(),
+            raise VfError(str(exc), source.span,
                           hint=f"the path is relative to {base.resolve()}; STL, OBJ and PLY are read") from None
         return ir.MeshValue(file=str(path), unit=unit, sha256=mesh.sha256)
 
     def _mesh_unit(self, value: ast.Value, units: u.DefaultUnits) -> float:
         unit = LiteralReader(units, self._no_names).scalar(value, u.LENGTH, "unit")
         if not unit > 0:
-            raise VfError("a mesh's unit must be a positive length", value.span.pos())
+            raise VfError("a mesh's unit must be a positive length", value.span)
         return unit
 
     def _curve_type(self, stmt: ast.ParamStmt) -> tuple[int | None, bool]:
@@ -281,7 +281,7 @@ class Declarations:
             return None, False
         if stmt.type.text != "curve":
             if stmt.type_args:
-                raise VfError(f"a {stmt.type.text} param takes no type arguments", stmt.type_args[0].span.pos())
+                raise VfError(f"a {stmt.type.text} param takes no type arguments", stmt.type_args[0].span)
             return None, False
         degree, runtime = None, False
         reader = LiteralReader(self.units, self._no_names)
@@ -291,7 +291,7 @@ class Declarations:
             elif kw.name.text == "runtime":
                 runtime = reader.read(kw.value, "flag").value
             else:
-                raise VfError(f"curve has no type argument '{kw.name.text}'", kw.name.span.pos(),
+                raise VfError(f"curve has no type argument '{kw.name.text}'", kw.name.span,
                               hint="write curve(degree = 5), or curve(degree = 1, runtime = true)")
         return degree, runtime
 
@@ -299,9 +299,9 @@ class Declarations:
     def _scene(self, statements) -> SceneData | None:
         explicit = [s for s in statements if isinstance(s, ast.SceneStmt)]
         if len(explicit) > 1:
-            raise VfError("only one `scene` statement per task", explicit[1].span.pos())
+            raise VfError("only one `scene` statement per task", explicit[1].span)
         if explicit:
-            return load_scene(self.path.parent / explicit[0].path, self.units, explicit[0].span.pos())
+            return load_scene(self.path.parent / explicit[0].path, self.units, explicit[0].span)
         default = self.path.with_suffix(".yaml")
         return load_scene(default, self.units, None) if default.is_file() else None
 
@@ -313,14 +313,14 @@ class Declarations:
         if scene.period is not None:
             period = reader.scalar(scene.period, u.TIME, "period")
             if period <= 0:
-                raise VfError("the period must be positive", scene.period.span.pos())
+                raise VfError("the period must be positive", scene.period.span)
             if period < limits.MIN_PERIOD:
                 raise limits.exceeded(f"a period of {period:g} s is too short", limits.MIN_PERIOD,
-                                      scene.period.span.pos(), hint="the shortest control period is 10 us (100 kHz)",
+                                      scene.period.span, hint="the shortest control period is 10 us (100 kHz)",
                                       unit="s")
             if period > limits.MAX_PERIOD:
                 raise limits.exceeded(f"a period of {period:g} s is too long", limits.MAX_PERIOD,
-                                      scene.period.span.pos(), hint="the longest control period is 1 s: a longer tick "
+                                      scene.period.span, hint="the longest control period is 1 s: a longer tick "
                                       "lets the joints' speed bounds allow large jumps", unit="s")
         start = None
         if scene.start is not None:
@@ -332,26 +332,26 @@ class Declarations:
         if isinstance(value, dict):
             for name, (_, key_span) in value.items():
                 if name not in robot.joint_names:
-                    raise VfError(f"robot '{robot.name}' has no joint '{name}'", key_span.pos(),
+                    raise VfError(f"robot '{robot.name}' has no joint '{name}'", key_span,
                                   hint=suggest(name, robot.joint_names, "joints"))
             missing = [n for n in robot.joint_names if n not in value]
             if missing:
                 raise VfError(f"the start configuration misses joint{'s' if len(missing) > 1 else ''} "
-                              f"{', '.join(missing)}", span.pos(), hint="give a value for every joint")
+                              f"{', '.join(missing)}", span, hint="give a value for every joint")
             values = [value[n][0] for n in robot.joint_names]
         else:
             if not isinstance(value, ast.Vector) or len(value.items) != robot.nq:
                 raise VfError(f"the start configuration needs {robot.nq} joint values "
-                              f"({', '.join(robot.joint_names)})", span.pos())
+                              f"({', '.join(robot.joint_names)})", span)
             values = value.items
         q = [reader.scalar(v, d, "joint value") for v, d in zip(values, dims)]
         for name, x, lo, hi, v in zip(robot.joint_names, q, robot.lower, robot.upper, values):
             if not lo - 1e-12 <= x <= hi + 1e-12:
-                raise VfError(f"joint {name} starts outside its limits [{lo:g}, {hi:g}] (SI units)", v.span.pos())
+                raise VfError(f"joint {name} starts outside its limits [{lo:g}, {hi:g}] (SI units)", v.span)
         return q
 
     def _no_names(self, ref: ast.NameRef, kind: str) -> ir.Value:
-        raise VfError(f"a name ('{ref.name}') cannot stand here; write the value itself", ref.span.pos())
+        raise VfError(f"a name ('{ref.name}') cannot stand here; write the value itself", ref.span)
 
 
 def _named_mapping(value: ast.Value, kind: str) -> ast.Value:

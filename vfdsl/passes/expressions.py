@@ -86,7 +86,7 @@ class Expressions:
         if kind in SCALAR_DIMENSIONS:
             t = self._expect(t, "scalar", SCALAR_DIMENSIONS[kind], f"expected {describe_kind(kind)}")
             if not isinstance(t.arg, ir.Const):
-                raise VfError("arithmetic on run-time scalars is not supported", value.span.pos(),
+                raise VfError("arithmetic on run-time scalars is not supported", value.span,
                               hint="compute the value in the scene, or use constants here")
             return ir.Const(value=ir.ScalarValue(dimension=kind, value=t.arg.value.value))
         if kind == "direction":
@@ -115,7 +115,7 @@ class Expressions:
         if isinstance(value, ast.Call) and value.name.text in CALLS:
             return getattr(self, "_" + value.name.text)(value)
         what = f"{value.name.text}(...)" if isinstance(value, ast.Call) else "this value"
-        raise VfError(f"{what} cannot be used in derived geometry", value.span.pos(),
+        raise VfError(f"{what} cannot be used in derived geometry", value.span,
                       hint="expressions combine points, vectors, directions and numbers")
 
     def _name(self, ref: ast.NameRef) -> Typed:
@@ -129,7 +129,7 @@ class Expressions:
             return Typed(kind, None, arg, ref)
         if kind in SCALAR_DIMENSIONS:
             return Typed("scalar", SCALAR_DIMENSIONS[kind], arg, ref)
-        raise VfError(f"'{ref.name}' is {describe_kind(kind)}; it cannot be used in derived geometry", ref.span.pos(),
+        raise VfError(f"'{ref.name}' is {describe_kind(kind)}; it cannot be used in derived geometry", ref.span,
                       hint="expressions combine points, vectors, directions and numbers"
                            + ("; a frame moves with the robot" if kind == "frame" else ""))
 
@@ -153,7 +153,7 @@ class Expressions:
             return Typed("vector", u.DIMENSIONLESS, t.arg, t.node)
         if t.kind != "vector":
             hint = "subtract two points to get a vector: b - a" if t.kind == "point" else None
-            raise VfError(f"{what} needs a vector here, got {t.words()}", t.node.span.pos(), hint=hint)
+            raise VfError(f"{what} needs a vector here, got {t.words()}", t.node.span, hint=hint)
         return self._settle(t, dim)
 
     def _as_point(self, t: Typed) -> Typed:
@@ -183,7 +183,7 @@ class Expressions:
             hint = "normalize it and scale by a length: 10 mm * normalize(...)"
         elif kind == "point" and t.kind == "vector":
             hint = "add the vector to a point: p + v"
-        raise VfError(f"{what}, got {t.words()}", t.node.span.pos(), hint=hint)
+        raise VfError(f"{what}, got {t.words()}", t.node.span, hint=hint)
 
     def direction(self, t: Typed, what: str) -> Typed:
         """``t`` where a direction is expected: a direction, or a vector of plain numbers (normalized)."""
@@ -196,12 +196,12 @@ class Expressions:
             hint = "normalize it: normalize(...)"
         elif t.kind == "point":
             hint = "a point has no direction; did you mean normalize(b - a)?"
-        raise VfError(f"{what}, got {t.words()}", t.node.span.pos(), hint=hint)
+        raise VfError(f"{what}, got {t.words()}", t.node.span, hint=hint)
 
     # -------------------------------------------------------------------------------------- operators
     def _add(self, node: ast.BinOp, a: Typed, b: Typed) -> Typed:
         if a.kind == "point" and b.kind == "point":
-            raise VfError("adding two points has no meaning", node.span.pos(), hint="did you mean midpoint(a, b)?")
+            raise VfError("adding two points has no meaning", node.span, hint="did you mean midpoint(a, b)?")
         if "point" in (a.kind, b.kind):
             point, vector = (a, b) if a.kind == "point" else (b, a)
             vector = self._length_vector(vector, node.op)
@@ -215,7 +215,7 @@ class Expressions:
             b = self._length_vector(b, node.op)
             return self._node("sub", "point", [a, b], node, u.LENGTH)
         if b.kind == "point":
-            raise VfError("subtracting a point from a vector has no meaning", node.span.pos(),
+            raise VfError("subtracting a point from a vector has no meaning", node.span,
                           hint="write point - vector, or point - point for the vector between them")
         return self._same_dims("sub", node, a, b)
 
@@ -223,7 +223,7 @@ class Expressions:
         """The vector a point moves by (``op`` + or -): lengths."""
         t = self._vector(t, u.LENGTH, f"'{op}'")
         if t.dim != u.LENGTH:
-            raise VfError(f"a point moves by a vector of lengths, got {t.words()}", t.node.span.pos(),
+            raise VfError(f"a point moves by a vector of lengths, got {t.words()}", t.node.span,
                           hint="scale it by a length: 10 mm * v" if t.dim == u.DIMENSIONLESS else None)
         return t
 
@@ -238,7 +238,7 @@ class Expressions:
             return self._scalar(node, a, b, np.add if op == "add" else np.subtract)
         if a.kind != b.kind or a.dim != b.dim:
             raise VfError(f"cannot {'add' if op == 'add' else 'subtract'} {b.words()} "
-                          f"{'to' if op == 'add' else 'from'} {a.words()}", node.span.pos())
+                          f"{'to' if op == 'add' else 'from'} {a.words()}", node.span)
         placeable = a.dim == u.LENGTH and (a.placeable or (op == "add" and b.placeable))
         return replace(self._node(op, "vector", [a, b], node, a.dim), placeable=placeable)
 
@@ -247,7 +247,7 @@ class Expressions:
         if t.kind == "scalar":
             return self._scalar(node, t, None, np.negative)
         if t.kind == "point":
-            raise VfError("negating a point has no meaning", node.span.pos(), hint="negate a vector: -(b - a)")
+            raise VfError("negating a point has no meaning", node.span, hint="negate a vector: -(b - a)")
         if t.kind == "direction":
             return self._node("neg", "direction", [t], node, u.DIMENSIONLESS)
         if t.kind == "vector" and t.dim is None:
@@ -259,11 +259,11 @@ class Expressions:
         if a.kind == "scalar" and b.kind == "scalar":
             return self._scalar(node, a, b, np.multiply)
         if "scalar" not in (a.kind, b.kind):
-            raise VfError(f"'*' multiplies a number and a vector, got {a.words()} and {b.words()}", node.span.pos(),
+            raise VfError(f"'*' multiplies a number and a vector, got {a.words()} and {b.words()}", node.span,
                           hint="for the cross product write cross(a, b)")
         scalar, vector = (a, b) if a.kind == "scalar" else (b, a)
         if vector.kind == "point":
-            raise VfError("scaling a point has no meaning", vector.node.span.pos(),
+            raise VfError("scaling a point has no meaning", vector.node.span,
                           hint="scale a vector, e.g. 2 * (b - a)")
         vector = self._vector(vector, u.DIMENSIONLESS, "'*'")
         return self._node("scale", "vector", [scalar, vector], node, _times(scalar.dim, vector.dim))
@@ -280,7 +280,7 @@ class Expressions:
     def _normalize(self, call: ast.Call) -> Typed:
         (t,) = self._args(call, 1)
         if t.kind == "point":
-            raise VfError("normalize(...) needs a vector; a point has no direction", t.node.span.pos(),
+            raise VfError("normalize(...) needs a vector; a point has no direction", t.node.span,
                           hint="did you mean normalize(b - a)?")
         t = self._vector(t, u.DIMENSIONLESS, "normalize(...)")
         return self._node("normalize", "direction", [t], call, u.DIMENSIONLESS)
@@ -307,7 +307,7 @@ class Expressions:
             return self._node("line2", "line", [point, second], call, None)
         if kind == "line" and second.kind == "vector" and second.dim == u.LENGTH:
             raise VfError("line(a, b) needs two points, or a point and a direction; got a vector of lengths",
-                          second.node.span.pos(), hint="write line(a, a + v) or line(a, normalize(v))")
+                          second.node.span, hint="write line(a, a + v) or line(a, normalize(v))")
         direction = self.direction(second, f"the {names[1]} of {kind}(...) must be a direction")
         return self._node(kind, kind, [point, direction], call, None)
 
@@ -328,14 +328,14 @@ class Expressions:
 
     def _scalar(self, node: ast.Value, a: Typed, b: Typed | None, op) -> Typed:
         if not all(isinstance(t.arg, ir.Const) for t in (a, b) if t is not None):
-            raise VfError("arithmetic on run-time scalars is not supported", node.span.pos(),
+            raise VfError("arithmetic on run-time scalars is not supported", node.span,
                           hint="compute the value in the scene, or use constants here")
         numbers = [t.arg.value.value for t in (a, b) if t is not None]
         dim = _times(a.dim, b.dim) if op is np.multiply else a.dim
         with np.errstate(over="ignore"):
             value = float(op(*numbers))
         if not np.isfinite(value):
-            raise VfError("this value is too large (SI numbers overflow)", node.span.pos())
+            raise VfError("this value is too large (SI numbers overflow)", node.span)
         return Typed("scalar", dim, _const_scalar(dim, value), node)
 
 

@@ -70,7 +70,7 @@ def collect(modules: list[tuple[ast.Module, DefaultUnits]]) -> dict[str, Fixture
                 continue
             if stmt.name.text in table:
                 first = table[stmt.name.text].definition.name.span
-                raise VfError(f"fixture '{stmt.name.text}' is defined twice", stmt.name.span.pos(),
+                raise VfError(f"fixture '{stmt.name.text}' is defined twice", stmt.name.span,
                               hint=f"first defined at {first}")
             _check_formals(stmt)
             table[stmt.name.text] = Fixture(stmt, units)
@@ -81,10 +81,10 @@ def _check_formals(fixture: ast.FixtureDef) -> None:
     seen: set[str] = set()
     for formal in fixture.formals:
         if formal.name.text in seen:
-            raise VfError(f"formal '{formal.name.text}' appears twice", formal.name.span.pos())
+            raise VfError(f"formal '{formal.name.text}' appears twice", formal.name.span)
         seen.add(formal.name.text)
         if formal.type.text not in FORMAL_KINDS:
-            raise VfError(f"unknown kind '{formal.type.text}'", formal.type.span.pos(),
+            raise VfError(f"unknown kind '{formal.type.text}'", formal.type.span,
                           hint=suggest(formal.type.text, FORMAL_KINDS, "kinds"))
 
 
@@ -104,7 +104,7 @@ def expand(statements: list, scope: Scope, fixtures: dict[str, Fixture], evaluat
                               active + (inner.fixture,)))
         if len(out) > limits.EXPANDED_STATEMENTS:
             raise scope.note(limits.exceeded("too many statements after expanding fixtures",
-                                             limits.EXPANDED_STATEMENTS, stmt.span.pos()))
+                                             limits.EXPANDED_STATEMENTS, stmt.span))
     return out
 
 
@@ -113,15 +113,15 @@ def _bind_use(use: ast.UseStmt, scope: Scope, fixtures: dict[str, Fixture], eval
     """The scope of the body of the fixture that ``use`` names, with its formals bound."""
     name = use.call.name
     if name.text not in fixtures:
-        raise VfError(f"unknown fixture '{name.text}'", name.span.pos(), hint=suggest(name.text, fixtures, "fixtures"))
+        raise VfError(f"unknown fixture '{name.text}'", name.span, hint=suggest(name.text, fixtures, "fixtures"))
     if name.text in active:
         chain = " -> ".join(active[active.index(name.text):] + (name.text,))
-        raise VfError(f"fixture '{name.text}' uses itself: {chain}", use.span.pos())
+        raise VfError(f"fixture '{name.text}' uses itself: {chain}", use.span)
     if len(active) >= limits.FIXTURE_DEPTH:
-        raise limits.exceeded("fixtures nested too deeply", limits.FIXTURE_DEPTH, use.span.pos())
+        raise limits.exceeded("fixtures nested too deeply", limits.FIXTURE_DEPTH, use.span)
     clauses = use.clauses
     if clauses.within or clauses.resolution or clauses.weight or clauses.priority or clauses.soft:
-        raise VfError("`use` takes no clauses", use.span.pos(),
+        raise VfError("`use` takes no clauses", use.span,
                       hint="put within/resolution/soft/weight/priority on the statements inside the fixture, "
                            "or make them formals of the fixture")
     fixture = fixtures[name.text]

@@ -42,7 +42,7 @@ def file_units(module: ast.Module) -> u.DefaultUnits:
     """The defaults set by a file's (single) ``units`` statement."""
     statements = [s for s in module.statements if isinstance(s, ast.UnitsStmt)]
     if len(statements) > 1:
-        raise VfError("only one `units` statement per file", statements[1].span.pos(),
+        raise VfError("only one `units` statement per file", statements[1].span,
                       hint=f"the first is at {statements[0].span}")
     if not statements:
         return u.DefaultUnits()
@@ -72,11 +72,11 @@ class Resolver(Declarations):
                     continue
                 constraints.append(self._constraint(stmt, scope))
                 if len(constraints) > limits.CONSTRAINTS:
-                    raise limits.exceeded("too many constraints", limits.CONSTRAINTS, stmt.span.pos())
+                    raise limits.exceeded("too many constraints", limits.CONSTRAINTS, stmt.span)
                 rows += _row_estimate(constraints[-1])
                 if rows > limits.ROWS:
                     raise limits.exceeded(f"too many constraint rows (about {rows:,} so far)", limits.ROWS,
-                                          stmt.span.pos(), hint="lower the resolution of the polytopes")
+                                          stmt.span, hint="lower the resolution of the polytopes")
             except VfError as error:
                 raise scope.note(error) from None
         robot_decl, robot = next(iter(self.robots.values()))
@@ -94,7 +94,7 @@ class Resolver(Declarations):
         if isinstance(value, ast.NameRef):
             return self._resolve_name(value, kind, scope)
         if kind in ("frame", "input"):
-            raise VfError(f"expected the name of {describe_kind(kind)}", value.span.pos(),
+            raise VfError(f"expected the name of {describe_kind(kind)}", value.span,
                           hint=suggest("", self._names_of(kind, scope), f"{kind}s"))
         if kind in ex.KINDS and ex.is_expression(value):
             return ex.Expressions(scope.units, lambda ref: self._lookup(ref, "name", scope), self._arg_kind,
@@ -103,7 +103,7 @@ class Resolver(Declarations):
         if kind in ("gain", "angular_gain"):
             dim = gain_dimension(input_type, kind)
             if dim is None:
-                raise VfError(f"a {input_type} input has no {kind.replace('_', ' ')}", value.span.pos(),
+                raise VfError(f"a {input_type} input has no {kind.replace('_', ' ')}", value.span,
                               hint="a force drives translation (gain), a torque drives rotation (angular_gain)")
             return ir.Const(value=ir.ScalarValue(dimension=kind, value=reader.scalar(value, dim, kind)))
         return ir.Const(value=reader.read(value, kind))
@@ -121,14 +121,14 @@ class Resolver(Declarations):
         actual = self._arg_kind(arg)
         if not _compatible(actual, kind):
             raise VfError(f"expected {describe_kind(kind)}, but '{ref.name}' is {describe_kind(actual)}",
-                          ref.span.pos())
+                          ref.span)
         return arg
 
     def _lookup(self, ref: ast.NameRef, kind: str, scope: fx.Scope) -> ir.Arg:
         """The argument a name stands for in ``scope`` (``kind``: what is expected, for messages)."""
         if scope.bindings is not None:
             if ref.name not in scope.bindings:
-                raise VfError(f"unknown name '{ref.name}' in fixture '{scope.fixture}'", ref.span.pos(),
+                raise VfError(f"unknown name '{ref.name}' in fixture '{scope.fixture}'", ref.span,
                               hint=suggest(ref.name, scope.bindings, "formals") +
                               " (a fixture body sees only its formals)")
             arg = scope.bindings[ref.name]
@@ -139,9 +139,9 @@ class Resolver(Declarations):
         elif ref.name in self.params:
             arg = ir.ParamRef(name=ref.name)
         elif ref.name in self.robots:
-            raise VfError(f"'{ref.name}' is a robot; expected {describe_kind(kind)}", ref.span.pos())
+            raise VfError(f"'{ref.name}' is a robot; expected {describe_kind(kind)}", ref.span)
         else:
-            raise VfError(f"unknown {kind.replace('_', ' ')} '{ref.name}'", ref.span.pos(),
+            raise VfError(f"unknown {kind.replace('_', ' ')} '{ref.name}'", ref.span,
                           hint=suggest(ref.name, self._names_of(kind, scope), f"{kind.replace('_', ' ')}s"))
         return arg
 
@@ -153,7 +153,7 @@ class Resolver(Declarations):
         """A name inside a composite literal or a clause: it must stand for a compile-time constant."""
         arg = self._resolve_name(ref, kind, scope)
         if not isinstance(arg, ir.Const):
-            raise VfError(f"'{ref.name}' is a run-time {kind}; only constants can stand here", ref.span.pos(),
+            raise VfError(f"'{ref.name}' is a run-time {kind}; only constants can stand here", ref.span,
                           hint="write the value itself here (or pass a literal into the fixture)")
         return arg.value
 
@@ -198,14 +198,14 @@ class Resolver(Declarations):
         if isinstance(arg, ir.Const) and isinstance(arg.value, ir.ScalarValue):
             problem = spec.range.violation(arg.value.value)
             if problem:
-                raise VfError(f"{what} {problem}, got {shown(arg.value.value, scope.units)}", written.pos(),
+                raise VfError(f"{what} {problem}, got {shown(arg.value.value, scope.units)}", written,
                               hint=f"{spec.name} is {spec.doc}; allowed: {spec.range.describe()}")
         elif isinstance(arg, ir.ParamRef) and isinstance(self.params[arg.name].value, ir.ScalarValue):
             value = self.params[arg.name].value.value
             problem = spec.range.violation(value)
             if problem:
                 raise VfError(f"param '{arg.name}' is used as {what}, which {problem}; its value is "
-                              f"{shown(value, self.units)}", self.param_values[arg.name].span.pos(),
+                              f"{shown(value, self.units)}", self.param_values[arg.name].span,
                               hint=f"{spec.name} is {spec.doc}; allowed: {spec.range.describe()}",
                               notes=(f"used at {written}",))
 
@@ -216,7 +216,7 @@ class Resolver(Declarations):
         clauses = stmt.clauses
         for clause, word in ((clauses.within, "within"), (clauses.resolution, "resolution"), (clauses.soft, "soft")):
             if clause is not None:
-                raise VfError(f"`{word}` applies to constraints, not to objective terms", _span(clause).pos())
+                raise VfError(f"`{word}` applies to constraints, not to objective terms", _span(clause))
         args = self._bind(stmt.call, spec.args, scope, f"{name.text}(...)")
         if name.text == "track":
             self._check_track(stmt.call, args)
@@ -231,14 +231,14 @@ class Resolver(Declarations):
         level = self._scoped_reader(scope).integer(value, "a priority")
         if level > limits.PRIORITY_LEVELS:
             raise limits.exceeded(f"priority {level} is too low a level", limits.PRIORITY_LEVELS,
-                                  scope.source_span(value).pos(),
+                                  scope.source_span(value),
                                   hint="1 is solved first; each level is one more solve per tick")
         return level
 
     def _check_track(self, call: ast.Call, args: dict[str, ir.Arg]) -> None:
         """Gains the input needs, and something left to track."""
         if not (flag(args, "linear") or flag(args, "angular")):
-            raise VfError("track with `linear = false` and `angular = false` tracks nothing", call.span.pos(),
+            raise VfError("track with `linear = false` and `angular = false` tracks nothing", call.span,
                           hint="leave one part tracked, or remove the term")
         input_type = self.inputs[args["input"].name].type
         for kind in ("gain", "angular_gain"):
@@ -247,7 +247,7 @@ class Resolver(Declarations):
                     args[kind] = ir.Const(value=ir.ScalarValue(dimension=kind, value=1.0))
                 else:
                     example = "gain = 2 mm/s/N" if kind == "gain" else "angular_gain = 5 deg/s/Nm"
-                    raise VfError(f"track with a {input_type} input needs {kind}", call.span.pos(),
+                    raise VfError(f"track with a {input_type} input needs {kind}", call.span,
                                   hint=f"e.g. {example}")
 
     def _constraint(self, stmt: ast.RequireStmt, scope: fx.Scope) -> ir.Constraint:
@@ -257,18 +257,18 @@ class Resolver(Declarations):
         subject = None
         if spec.subject:
             if stmt.subject is None:
-                raise VfError(f"{name.text} applies to a task frame", name.span.pos(),
+                raise VfError(f"{name.text} applies to a task frame", name.span,
                               hint=f"write `require <frame> {name.text}(...)`")
             subject = self.evaluate(ast.NameRef(span=stmt.subject.span, name=stmt.subject.text), "frame", scope)
         elif stmt.subject is not None:
-            raise VfError(f"{name.text} applies to the whole robot, not to a frame", stmt.subject.span.pos(),
+            raise VfError(f"{name.text} applies to the whole robot, not to a frame", stmt.subject.span,
                           hint=f"write `require {name.text}(...)`")
         args = self._bind(stmt.call, spec.args, scope, f"{name.text}(...)", subject)
         clauses = stmt.clauses
         tolerance = None
         if spec.tolerance is None:
             if clauses.within is not None:
-                raise VfError(f"{name.text} takes no tolerance (`within`)", clauses.within.span.pos())
+                raise VfError(f"{name.text} takes no tolerance (`within`)", clauses.within.span)
         elif clauses.within is not None:
             reader = self._scoped_reader(scope)
             tolerance = reader.scalar(clauses.within, SCALAR_DIMENSIONS[spec.tolerance], spec.tolerance)
@@ -279,12 +279,12 @@ class Resolver(Declarations):
         resolution = None
         if shape is None:
             if clauses.resolution is not None:
-                raise VfError(f"{name.text} takes no polytope resolution", clauses.resolution.span.pos())
+                raise VfError(f"{name.text} takes no polytope resolution", clauses.resolution.span)
         else:
             resolution = self._resolution(clauses.resolution, shape, spec)
         for clause, word in ((clauses.weight, "weight"), (clauses.priority, "priority")):
             if clause is not None and clauses.soft is None:
-                raise VfError(f"`{word}` applies to soft constraints", clause.span.pos(),
+                raise VfError(f"`{word}` applies to soft constraints", clause.span,
                               hint=f"add `soft` to make this constraint soft; hard constraints have no {word}: "
                                    "they always hold")
         soft = clauses.soft is not None
@@ -297,7 +297,7 @@ class Resolver(Declarations):
     def _check_tolerance(self, tolerance: float, kind: str, written: ast.Span, units: u.DefaultUnits) -> None:
         """A ``within`` value must be positive and large enough for the solver to honour it."""
         if tolerance <= 0:
-            raise VfError("a tolerance must be positive", written.pos())
+            raise VfError("a tolerance must be positive", written)
         allowed = clause_ranges.tolerance_range(kind)
         if allowed.violation(tolerance) is None:
             return
@@ -307,25 +307,25 @@ class Resolver(Declarations):
             raise VfError(f"tolerance {tolerance / scale:g} {unit} is below what the solver can honour: it holds "
                           f"rows to {clause_ranges.FEASIBILITY_TOLERANCE / scale:g} {unit} (its feasibility tolerance; "
                           f"{clause_ranges.LEVELS_TOLERANCE / scale:g} {unit} with priority levels)",
-                          written.pos(), hint=f"use at least {allowed.low / scale:g} {unit} "
+                          written, hint=f"use at least {allowed.low / scale:g} {unit} "
                                               f"({clause_ranges.TOLERANCE_MARGIN} times the solver's tolerance)")
-        raise VfError(f"an angle tolerance must be below 90 deg, got {math.degrees(tolerance):g} deg", written.pos())
+        raise VfError(f"an angle tolerance must be below 90 deg, got {math.degrees(tolerance):g} deg", written)
 
     def _resolution(self, given: ast.Resolution | None, shape: str, spec) -> list[int]:
         if given is None:
             return list(spec.default_resolution[shape])
         counts = given.counts
         if shape == "sphere" and len(counts) != 2:
-            raise VfError(f"{spec.name} is bounded by a sphere polytope: give n x m directions", given.span.pos(),
+            raise VfError(f"{spec.name} is bounded by a sphere polytope: give n x m directions", given.span,
                           hint="e.g. resolution 4x4")
         if shape == "polygon" and len(counts) != 1:
-            raise VfError(f"{spec.name} is bounded by a polygon: give its number of sides", given.span.pos(),
+            raise VfError(f"{spec.name} is bounded by a polygon: give its number of sides", given.span,
                           hint="e.g. resolution 8")
         if min(counts) < 3:
-            raise VfError("a bounded polytope needs at least 3 directions per angle", given.span.pos(),
+            raise VfError("a bounded polytope needs at least 3 directions per angle", given.span,
                           hint="use 3 or more (the paper uses 4x4 for a sphere and 8 for a polygon)")
         if max(counts) > limits.RESOLUTION:
-            raise limits.exceeded(f"resolution {max(counts)} is too fine", limits.RESOLUTION, given.span.pos(),
+            raise limits.exceeded(f"resolution {max(counts)} is too fine", limits.RESOLUTION, given.span,
                                   hint="directions per angle of a polytope; the paper uses 4x4 and 8")
         return counts
 
@@ -336,7 +336,7 @@ class Resolver(Declarations):
         weight = reader.scalar(value, u.DIMENSIONLESS, "number")
         problem = clause_ranges.WEIGHT.violation(weight)
         if problem:
-            raise VfError(f"a weight {problem}, got {weight:g}", scope.source_span(value).pos(),
+            raise VfError(f"a weight {problem}, got {weight:g}", scope.source_span(value),
                           hint=f"a weight is a plain number in {clause_ranges.WEIGHT.describe()}, e.g. 10 or 1e-6")
         return weight
 
@@ -346,7 +346,7 @@ def _lookup_spec(name: ast.Name, table: dict, what: str, other: dict, other_hint
     if name.text in table:
         return table[name.text]
     hint = other_hint if name.text in other else suggest(name.text, table, f"{what}s")
-    raise VfError(f"unknown {what} '{name.text}'", name.span.pos(), hint=hint)
+    raise VfError(f"unknown {what} '{name.text}'", name.span, hint=hint)
 
 
 def _compatible(actual: str, expected: str) -> bool:

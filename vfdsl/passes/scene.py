@@ -22,7 +22,7 @@ from pathlib import Path
 
 import yaml
 
-from vfdsl.errors import SourcePos, VfError, suggest
+from vfdsl.errors import Span, VfError, suggest
 from vfdsl import limits
 from vfdsl.files import BoundedLoader, read_text
 from vfdsl.units import DefaultUnits, default_units
@@ -42,7 +42,7 @@ class SceneData:
     params: dict[str, tuple[ast.Value, ast.Span]]        # value, and the span of its key
 
 
-def load_scene(path: Path, task_units: DefaultUnits, pos: SourcePos | None) -> SceneData:
+def load_scene(path: Path, task_units: DefaultUnits, pos: Span | None) -> SceneData:
     if path.suffix not in (".yaml", ".yml"):
         raise VfError(f"a scene file is YAML (.yaml or .yml), not '{path.name}'", pos)
     text = read_text(path, "scene file", pos,
@@ -52,11 +52,11 @@ def load_scene(path: Path, task_units: DefaultUnits, pos: SourcePos | None) -> S
     if root is None:
         return SceneData(path, task_units, None, None, None, {})
     if not isinstance(root, yaml.MappingNode):
-        raise VfError("a scene file is a mapping with keys " + ", ".join(_TOP_KEYS), _pos(root, file))
+        raise VfError("a scene file is a mapping with keys " + ", ".join(_TOP_KEYS), node_span(root, file))
     top = read_mapping(root, file)
     for key, (key_node, _) in top.items():
         if key not in _TOP_KEYS:
-            raise VfError(f"unknown scene key '{key}'", _pos(key_node, file), hint=suggest(key, _TOP_KEYS, "keys"))
+            raise VfError(f"unknown scene key '{key}'", node_span(key_node, file), hint=suggest(key, _TOP_KEYS, "keys"))
     values = ValueReader(file)
     units = task_units
     if "units" in top:
@@ -73,7 +73,7 @@ def load_scene(path: Path, task_units: DefaultUnits, pos: SourcePos | None) -> S
     if "params" in top:
         node = top["params"][1]
         if not isinstance(node, yaml.MappingNode):
-            raise VfError("'params' is a mapping from param names to values", _pos(node, file))
+            raise VfError("'params' is a mapping from param names to values", node_span(node, file))
         params = {k: (values.read(v, text=True), node_span(kn, file))
                   for k, (kn, v) in read_mapping(node, file).items()}
     return SceneData(path, units, period, start, start_span, params)
@@ -85,7 +85,8 @@ def compose(text: str, path: Path) -> yaml.Node | None:
         return yaml.compose(text, Loader=BoundedLoader)
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
-        where = SourcePos(str(path), mark.line + 1, mark.column + 1) if mark else SourcePos(str(path), 1, 1)
+        line, column = (mark.line + 1, mark.column + 1) if mark else (1, 1)
+        where = Span(file=str(path), line=line, column=column, end_line=line, end_column=column + 1)
         raise VfError(f"malformed YAML: {getattr(exc, 'problem', exc)}", where, source_text=text) from None
 
 
@@ -94,10 +95,10 @@ def read_mapping(node: yaml.MappingNode, file: str) -> dict[str, tuple[yaml.Node
     out = {}
     for key_node, value_node in node.value:
         if not isinstance(key_node, yaml.ScalarNode):
-            raise VfError("a key must be a plain name", _pos(key_node, file))
+            raise VfError("a key must be a plain name", node_span(key_node, file))
         key = str(key_node.value)
         if key in out:
-            raise VfError(f"key '{key}' appears twice", _pos(key_node, file))
+            raise VfError(f"key '{key}' appears twice", node_span(key_node, file))
         out[key] = (key_node, value_node)
     return out
 
@@ -106,7 +107,7 @@ def read_units(node: yaml.Node, file: str, base: DefaultUnits) -> DefaultUnits:
     """A scene's ``units:`` entry (``mm, deg`` or ``[mm, deg]``) over the units ``base`` gives."""
     items = node.value if isinstance(node, yaml.SequenceNode) else [node]
     if not all(isinstance(n, yaml.ScalarNode) for n in items):
-        raise VfError("units are written as `units: mm, deg` or `units: [mm, deg]`", _pos(node, file))
+        raise VfError("units are written as `units: mm, deg` or `units: [mm, deg]`", node_span(node, file))
     names = [(name.strip(), node_span(n, file)) for n in items for name in str(n.value).split(",")]
     return default_units(names, base)
 
@@ -127,10 +128,10 @@ class ValueReader:
         self.nodes += 1
         if self.nodes > limits.YAML_NODES:
             raise limits.exceeded("the scene's values are too large (YAML aliases expand them)", limits.YAML_NODES,
-                                  span.pos(), hint="the limit counts list items and mapping values after "
+                                  span, hint="the limit counts list items and mapping values after "
                                                    "expanding aliases")
         if any(node is outer for outer in inside):
-            raise VfError("a value cannot contain itself (recursive YAML alias)", span.pos())
+            raise VfError("a value cannot contain itself (recursive YAML alias)", span)
         inside = inside + (node,)
         if isinstance(node, yaml.SequenceNode):
             return ast.Vector(span=span, items=[self.read(n, inside, text) for n in node.value])
@@ -151,7 +152,7 @@ def _scalar(node: yaml.ScalarNode, span: ast.Span, strings: bool = False) -> ast
         return ast.String(span=span, text=text)
     if match is None:
         shown = repr(text) if len(text) <= 40 else repr(text[:40]) + "..."
-        raise VfError(f"expected a number (optionally with a unit, like \"10 mm\"), got {shown}", span.pos())
+        raise VfError(f"expected a number (optionally with a unit, like \"10 mm\"), got {shown}", span)
     return ast.Quantity(span=span, number=float(match.group(1)), unit=match.group(2))
 
 
@@ -162,5 +163,3 @@ def node_span(node: yaml.Node, file: str) -> ast.Span:
                     end_column=end.column + 1)
 
 
-def _pos(node: yaml.Node, file: str) -> SourcePos:
-    return node_span(node, file).pos()

@@ -57,7 +57,7 @@ import yaml
 
 from vfdsl import limits
 from vfdsl import units as u
-from vfdsl.errors import SourcePos, VfError, suggest
+from vfdsl.errors import Span, VfError, suggest
 from vfdsl.files import read_text
 from vfdsl.ir import model as ir
 from vfdsl.passes.scene import (ValueReader, compose, node_span, read_mapping,   # the task scene's YAML reading
@@ -119,7 +119,7 @@ def load_settings(task: ir.Task, scene: str | Path | None) -> SimSettings:
 
 def _si(node: ast.Value, dim: u.Dim, units: u.DefaultUnits) -> float:
     if not isinstance(node, ast.Quantity):
-        raise VfError(f"expected {u.describe(dim)}", node.span.pos())
+        raise VfError(f"expected {u.describe(dim)}", node.span)
     return u.to_si(node.number, node.unit, dim, units, node.span)
 
 
@@ -131,8 +131,8 @@ class _Reader:
         self.file = file
         self.units = u.DefaultUnits()
 
-    def pos(self, node: yaml.Node) -> SourcePos:
-        return node_span(node, self.file).pos()
+    def pos(self, node: yaml.Node) -> Span:
+        return node_span(node, self.file)
 
     def mapping(self, node: yaml.Node, keys: tuple[str, ...], what: str) -> dict[str, tuple[yaml.Node, yaml.Node]]:
         if not isinstance(node, yaml.MappingNode):

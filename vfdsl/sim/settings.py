@@ -14,7 +14,7 @@ import numpy as np
 
 from vfdsl import limits
 from vfdsl import units as u
-from vfdsl.errors import SourcePos, VfError, suggest
+from vfdsl.errors import Span, VfError, suggest
 from vfdsl.ir import model as ir
 from vfdsl.runtime.values import ASSUMED_PERIOD
 
@@ -82,7 +82,7 @@ class Disturbance:
     tilt: tuple[float, float, float] = (0.0, 0.0, 0.0)        # rad, rotation vector (world axes) of a pose
     frame: str | None = None                    # push_tool: the task frame pushed
     by: tuple[float, float, float] = (0.0, 0.0, 0.0)          # push_tool: displacement, m
-    where: SourcePos | None = None
+    where: Span | None = None
 
 
 @dataclass(frozen=True)
@@ -107,7 +107,7 @@ class Motion:
     start: float = 0.0                          # ramp: s
     end: float = 0.0                            # ramp: s, after start
     offset: tuple[float, ...] = ()              # step, ramp: like amplitude
-    where: SourcePos | None = None
+    where: Span | None = None
 
     def displacement(self, t) -> np.ndarray:
         """d at the times ``t`` (N numbers, s): N x 3, or N x 1 for a scalar param."""
@@ -139,7 +139,7 @@ class MetricSpec:
     tilt_of: str | None = None
     normal_of: str | None = None
     paper: dict[str, tuple[float, float]] = field(default_factory=dict)   # source -> (mean, std), mm or deg
-    where: SourcePos | None = None
+    where: Span | None = None
 
 
 @dataclass(frozen=True)
@@ -182,7 +182,7 @@ SCALARS: dict[str, u.Dim] = {"duration": u.TIME, "period": u.TIME, "latency": u.
                              "noise": u.LENGTH}
 
 
-def check_setting(name: str, value, where: SourcePos | None = None) -> None:
+def check_setting(name: str, value, where: Span | None = None) -> None:
     """Refuse a value no simulation can use (a non-positive period, a negative latency, ...)."""
     if name in ("duration", "period"):
         if not (isinstance(value, float) and math.isfinite(value) and value > 0):
@@ -214,7 +214,7 @@ def check_setting(name: str, value, where: SourcePos | None = None) -> None:
         raise VfError(f"unknown setting '{name}'", where, hint=suggest(name, GRID_NAMES, "settings"))
 
 
-def check_ticks(duration: float, period: float, where: SourcePos | None = None, what: str = "") -> int:
+def check_ticks(duration: float, period: float, where: Span | None = None, what: str = "") -> int:
     """The control ticks of one trial, refused above ``limits.TRIAL_TICKS``."""
     ticks = duration / period
     if ticks > limits.TRIAL_TICKS:
@@ -242,7 +242,7 @@ def hand_dimension(input_type: str, kind: str) -> u.Dim:
     return u.TORQUE if kind == "turn" else u.FORCE
 
 
-def constraint_of(task: ir.Task, ref: str, where: SourcePos | None = None) -> ir.Constraint:
+def constraint_of(task: ir.Task, ref: str, where: Span | None = None) -> ir.Constraint:
     """The constraint named by ``"frame primitive"`` (``"tip stays_at"``) or ``"primitive"``; exactly one."""
     words = ref.split()
     if len(words) not in (1, 2):

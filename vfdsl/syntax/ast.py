@@ -1,6 +1,6 @@
 """The surface syntax tree: what a ``.vf`` file says, before any name, unit or shape is checked.
 
-Every node is a pydantic model with a :class:`Span`, so later passes can point at the exact text.
+Every node is a pydantic model with a :class:`~vfdsl.errors.Span`, so later passes can point at the exact text.
 Values keep their units as written; :mod:`vfdsl.passes` turns them into SI numbers.
 """
 
@@ -10,24 +10,7 @@ from typing import Annotated, Literal, Union
 
 from pydantic import BaseModel, ConfigDict, Field
 
-from vfdsl.errors import SourcePos
-
-
-class Span(BaseModel):
-    """A range of source text: 1-based line and column, end exclusive."""
-
-    model_config = ConfigDict(frozen=True)
-    file: str
-    line: int
-    column: int
-    end_line: int
-    end_column: int
-
-    def pos(self) -> SourcePos:
-        return SourcePos(self.file, self.line, self.column, self.end_line, self.end_column)
-
-    def __str__(self) -> str:
-        return f"{self.file}:{self.line}:{self.column}"
+from vfdsl.errors import Span
 
 
 class Node(BaseModel):

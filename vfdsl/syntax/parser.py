@@ -25,7 +25,7 @@ from lark.exceptions import (
     VisitError,
 )
 
-from vfdsl.errors import SourcePos, VfError
+from vfdsl.errors import Span, VfError
 from vfdsl import limits
 from vfdsl.syntax import ast
 
@@ -101,11 +101,11 @@ def _check_limits(tree: Tree, text: str, file: str) -> None:
                             else (limits.NAME_CHARS, "name") if child.type == "NAME" else None)
                 if too_long and len(child) > too_long[0]:
                     raise limits.exceeded(f"this {too_long[1]} is {len(child):,} characters long", too_long[0],
-                                          _span_of_token(child, file).pos()).with_source(text)
+                                          _span_of_token(child, file)).with_source(text)
 
 
-def _pos_of_meta(meta, file: str) -> SourcePos:
-    return SourcePos(file, meta.line, meta.column, meta.end_line, meta.end_column)
+def _pos_of_meta(meta, file: str) -> Span:
+    return Span(file=file, line=meta.line, column=meta.column, end_line=meta.end_line, end_column=meta.end_column)
 
 
 # ------------------------------------------------------------------------------------------------ errors
@@ -159,7 +159,7 @@ def _syntax_error(exc: UnexpectedInput, text: str, file: str, parser: Lark) -> V
         message = "syntax error"
     if words:
         message += "; expected " + _join_or(words)
-    pos = SourcePos(file, line, column, line, column + width)
+    pos = Span(file=file, line=line, column=column, end_line=line, end_column=column + width)
     return VfError(message, pos, hint, source_text=text)
 
 
@@ -190,9 +190,9 @@ def _string_value(tok: Token, file: str) -> str:
     try:
         text = json.loads(tok)
     except json.JSONDecodeError as exc:
-        raise VfError(f"malformed string: {exc.msg.lower()}", _span_of_token(tok, file).pos()) from None
+        raise VfError(f"malformed string: {exc.msg.lower()}", _span_of_token(tok, file)) from None
     if any(ord(ch) < 32 for ch in text):
-        raise VfError("a string cannot contain control characters", _span_of_token(tok, file).pos())
+        raise VfError("a string cannot contain control characters", _span_of_token(tok, file))
     return text
 
 
@@ -252,7 +252,7 @@ class _ToAst(Transformer):
         fields = {}
         for key, value in clauses:
             if key in fields:
-                raise VfError(f"the '{key}' clause is given twice", value.span.pos())
+                raise VfError(f"the '{key}' clause is given twice", value.span)
             fields[key] = value
         return fields
 
@@ -279,7 +279,7 @@ class _ToAst(Transformer):
         name = self._name(children[0])
         args, kwargs = children[1] if len(children) > 1 else ([], [])
         if args:
-            raise VfError("type arguments must be named, e.g. curve(degree = 5)", args[0].span.pos())
+            raise VfError("type arguments must be named, e.g. curve(degree = 5)", args[0].span)
         return (name, kwargs)
 
     def param_frame(self, meta, children):
@@ -293,7 +293,7 @@ class _ToAst(Transformer):
         fields: dict = {}
         for key, value, span in items:
             if key in fields:
-                raise VfError(f"the '{key}' clause is given twice", span.pos())
+                raise VfError(f"the '{key}' clause is given twice", span)
             fields[key] = value
         return ast.Clauses(**fields)
 
@@ -352,10 +352,10 @@ class _ToAst(Transformer):
         for child in children:
             if isinstance(child, ast.KeywordArg):
                 if any(k.name.text == child.name.text for k in kwargs):
-                    raise VfError(f"argument '{child.name.text}' is given twice", child.name.span.pos())
+                    raise VfError(f"argument '{child.name.text}' is given twice", child.name.span)
                 kwargs.append(child)
             elif kwargs:
-                raise VfError("a positional argument cannot follow a keyword argument", child.span.pos())
+                raise VfError("a positional argument cannot follow a keyword argument", child.span)
             else:
                 args.append(child)
         return (args, kwargs)
