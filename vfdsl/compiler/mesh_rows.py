@@ -51,25 +51,12 @@ from __future__ import annotations
 import casadi as ca
 
 from vfdsl.compiler.rows import Rows
-from vfdsl.ir import model as ir
-from vfdsl.primitives.spec import ArgSpec, Range
 
 K = 8
 """Rows per mesh fixture (see the module's docstring)."""
 REACH = 2e-3
 """m: default reach, 2 mm (the motion of one tick at 200 mm/s and 100 Hz; ``vfdsl check`` compares it with the
 speed limits)."""
-
-MESH_ARGS = (
-    ArgSpec("mesh", "mesh", "the mesh (a mesh param)"),
-    ArgSpec("margin", "length", "clearance kept from the surface", range=Range(low=0.0)),
-    ArgSpec("shaft", "frame", "the other end of the tool's segment (default: the frame itself, a point)",
-            default="subject"),
-    ArgSpec("radius", "length", "the tool's radius around the segment",
-            default=ir.ScalarValue(dimension="length", value=0.0), range=Range(low=0.0)),
-    ArgSpec("reach", "length", "features farther than radius + margin + reach get no row (at least the motion "
-            "of one tick)", default=ir.ScalarValue(dimension="length", value=REACH), range=Range(low=0.0, low_open=True)),
-)
 
 
 def mesh_rows(c, ctx, side: float) -> Rows:

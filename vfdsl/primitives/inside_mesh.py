@@ -16,9 +16,10 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from vfdsl.compiler.mesh_rows import MESH_ARGS, mesh_rows
+from vfdsl.compiler.mesh_rows import mesh_rows
 from vfdsl.compiler.rows import Rows
 from vfdsl.ir import model as ir
+from vfdsl.primitives.mesh_args import MESH_ARGS
 from vfdsl.primitives.spec import ConstraintSpec
 
 if TYPE_CHECKING:
