@@ -104,7 +104,7 @@ def analyse(task: ir.Task, linear: Linearization, rows: list[ConstraintRows], q)
         message = (f"at the start the error is {quantity(error, kind)}, "
                    f"{error / limit:.3g} x its {what}" if limit > 0 else
                    f"at the start the frame is {quantity(error, kind)} on the wrong side of its {what}")
-        if c.primitive == "tilt_at_most":
+        if CONSTRAINTS[c.primitive].angle_rows == "cos":
             message += f" (the row, which measures cos gamma - cos of the angle, sees {r.violation_at_rest:.3g})"
         elif angle is not None:
             message += f" (the rows, which measure sin of the angle, see {quantity(limit + r.violation_at_rest, kind)})"
@@ -122,14 +122,17 @@ def analyse(task: ir.Task, linear: Linearization, rows: list[ConstraintRows], q)
 
 
 def _likely_cause(index: int, c: ir.Constraint, residuals: Residuals, q, p, error: float) -> str:
-    if CONSTRAINTS[c.primitive].true_angle:
+    """The likely cause of an error far beyond the tolerance: for a true angle, by the angle the spec's
+    ``kept_angle`` says the tool axis keeps; for a reference point, a unit slip if one would fit."""
+    spec = CONSTRAINTS[c.primitive]
+    if spec.true_angle:
         theta = residuals.between_axes(index, q, p)
         between = math.degrees(theta)
-        if c.primitive == "keeps_direction" and between > 150:
+        if spec.kept_angle == 0.0 and between > 150:
             return (f"opposite direction: the tool axis points {between:.1f} deg away from the direction "
                     f"(given the insertion direction instead of the tool axis?)")
-        if c.primitive in ("cone", "tilt_at_most"):
-            gamma = _gamma(c, residuals, p)
+        if isinstance(spec.kept_angle, str):
+            gamma = _gamma(c, spec.kept_angle, residuals, p)
             if abs(theta - (math.pi - gamma)) < abs(theta - gamma):
                 return (f"opposite direction: the tool axis is {between:.1f} deg from the cone axis, "
                         f"{math.degrees(math.pi - theta):.1f} deg from its opposite: the axis points the other way?")
@@ -152,8 +155,9 @@ def _likely_cause(index: int, c: ir.Constraint, residuals: Residuals, q, p, erro
     return "the start configuration or the reference"
 
 
-def _gamma(c: ir.Constraint, residuals: Residuals, p) -> float:
-    return float(ca.Function("gamma", [residuals.context.p], [residuals.context.scalar(c.args["angle"])])(p))
+def _gamma(c: ir.Constraint, name: str, residuals: Residuals, p) -> float:
+    """The angle argument ``name`` of ``c`` at params p (rad)."""
+    return float(ca.Function("gamma", [residuals.context.p], [residuals.context.scalar(c.args[name])])(p))
 
 
 def soft_at_start(task: ir.Task, linear: Linearization, rows: list[ConstraintRows], q, nq: int,

@@ -39,7 +39,7 @@ SPEC = ConstraintSpec(
     tolerance="angle", default_tolerance=1e-3,
     resolution="polygon",
     source="Li, Kapoor & Taylor 2005, III-B, eqs. (22)-(23)",
-    metric="angle", true_angle=true_angle, drawn_around_frame=True,
+    metric="angle", true_angle=true_angle, kept_angle="angle", drawn_around_frame=True,
 )
 
 

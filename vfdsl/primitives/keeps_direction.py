@@ -41,7 +41,7 @@ SPEC = ConstraintSpec(
     tolerance="angle", default_tolerance=1e-3,
     resolution=lambda args: "sphere" if flag(args, "pin_roll") else "polygon",
     source="Li, Kapoor & Taylor 2005, II-B.2, eqs. (5)-(6); DESIGN erratum 4",
-    metric="angle", true_angle=true_angle, drawn_around_frame=True,
+    metric="angle", true_angle=true_angle, kept_angle=0.0, drawn_around_frame=True,
 )
 
 

@@ -117,7 +117,13 @@ class ConstraintSpec:
     - ``reference_point``: the argument naming the point its frame is held to or by, and
       ``error_is_distance``: its error at rest is the distance to that point itself;
     - ``drawn_around_frame``: the viewer draws it around the frame's position (a plane's square, a line's
-      stretch, a cone's apex), so it is redrawn as the frame moves.
+      stretch, a cone's apex), so it is redrawn as the frame moves;
+    - ``kept_angle``: with ``true_angle``, the angle its tool axis keeps from its direction or axis, by which
+      ``check`` names the likely cause of an error far beyond the tolerance: 0.0 (along it: beyond 150 deg the
+      direction is the opposite one), the argument stating it (a cone's half-angle gamma: nearer pi - gamma
+      the axis is reversed, at gamma read in deg a unit slip), or None;
+    - ``angle_rows``: with ``true_angle``, what its rows measure of the angle, for ``check``'s messages:
+      "sin" (a cross product) or "cos" (one row, cos gamma - cos of the angle, unitless).
     """
 
     name: str
@@ -138,6 +144,8 @@ class ConstraintSpec:
     reference_point: str | None = None
     error_is_distance: bool = False
     drawn_around_frame: bool = False
+    kept_angle: float | str | None = None
+    angle_rows: Literal["sin", "cos"] = "sin"
 
     @property
     def reads_mesh(self) -> bool:

@@ -46,7 +46,8 @@ SPEC = ConstraintSpec(
           ArgSpec("angle", "angle", "the largest tilt gamma from the axis",
                   range=Range(0.0, math.pi, low_open=True, high_open=True, unit="deg"))),
     source="the cone of Li, Kapoor & Taylor 2005, III-B, as an inequality",
-    metric="angle", row_unit="", true_angle=true_angle, drawn_around_frame=True,
+    metric="angle", row_unit="", true_angle=true_angle, kept_angle="angle", angle_rows="cos",
+    drawn_around_frame=True,
 )
 
 
