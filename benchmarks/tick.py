@@ -32,56 +32,24 @@ Progress goes to stderr; the report goes to stdout.
 from __future__ import annotations
 
 import argparse
-import contextlib
-import gc
-import importlib.metadata
 import json
-import os
-import platform
-import subprocess
 import sys
 import tempfile
 import time
-from collections.abc import Callable
 from pathlib import Path
 
-import casadi as ca
 import numpy as np
 
 import vfdsl
 from vfdsl import pipeline
-from vfdsl.codegen.build import build_library
-from vfdsl.compiler.admissible import Admissible
-from vfdsl.compiler.assemble import assemble
 from vfdsl.kinematics.robot import Robot
-from vfdsl.runtime.native import BufferedFunction
-from vfdsl.runtime.qp import StepStatus, build_step_function
+from vfdsl.runtime.qp import StepStatus
 
-ROOT = Path(__file__).resolve().parent.parent
-TASKS = ROOT / "tasks"
-BENCH = Path(__file__).resolve().parent
-WARMUP = 1_000
-BLOCK = 250     # ticks a variant runs before the next one's turn (interleaved): 80 turns each in a full run, so that
-                # a second of load on the shared machine falls on a few turns of every variant, not on the median of
-                # one; the first tick of a turn runs with cold caches (0.4 % of the ticks)
-READY_DEG = [0, -45, 0, -135, 0, 90, 45]           # the Panda's ready pose
-# A row-count task of section 4: one stays_at polytope of n x n directions on shr7.
-ROWS_TASK = """task rows_{n}x{n}
-units mm, deg
-robot shr = urdf "shr7"
-frame tip = shr.link("tool_tip")
-input f : force
-param p : point = [0, 0, 290]
-minimize track(tip, f, gain = 1 mm/s/N)
-minimize damping() weight 1e-6
-require tip stays_at(p) within 1 um resolution {n}x{n}
-require joint_limits()
-require joint_speed()
-"""
-# n of the sweep. Unique facets: n^2 for odd n, about n^2/2 for even n (erratum 3 removes repeats);
-# 31x31 gives 961 rows (closest to 1,000), 45x45 gives 2,025 (the first >= 2,000).
-SWEEP_FULL = (3, 8, 12, 16, 24, 32, 31, 45)
-SWEEP_QUICK = (3, 8, 16, 24)
+from tick_jobs import (ROWS_TASK, SWEEP_FULL, SWEEP_QUICK, TASKS, VESSEL_TASK, follow_circle, load_panda_track,
+                       panda_tip_error, pink_figures, pink_pivot_ticks, pink_ticks, push_along_curve,
+                       slide_on_polytope, twist_about_cone)
+from tick_timing import (BLOCK, WARMUP, interleaved, log, machine, one_level, raw_generated, raw_ticks, record,
+                         stats, step_ticks, time_raw)
 
 TARGETS = {  # (what, limit in us) per experiment, checked against the generated paths
     "paper_b_virtual_rcm": [("median", 10.0), ("p99", 30.0)],
@@ -101,334 +69,9 @@ ROWS_TARGET = (1000, 150.0)
 COMPILE_TARGET = 10.0
 PARAMS_RATIO_TARGET = 2.0     # step() with params updated every tick / step() without, median
 FORMS_RATIO_TARGET = 1.2      # each documented call form of step() / the fastest form, median (section 7)
-# Section 6: a tracked vessel, a 20-point run-time b-spline 10 mm under the paper B tip, followed by the tip.
-VESSEL_TASK = """task vessel_20
-robot shr = urdf "shr7"
-frame tip = shr.link("tool_tip")
-input f : force
-param vessel : curve(degree = 3, runtime = true) = [{points}]
-minimize track(tip, f, gain = 0.002)
-minimize damping() weight 1e-6
-require tip follows(vessel) within 0.0005 resolution 8
-require joint_limits()
-require joint_speed()
-"""
-
-
-def log(msg: str) -> None:
-    print(msg, file=sys.stderr, flush=True)
-
-
-# ------------------------------------------------------------------------------------------ machine
-def machine() -> dict:
-    cpu = "unknown"
-    with contextlib.suppress(OSError):
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                cpu = line.split(":", 1)[1].strip()
-                break
-    try:
-        cc = subprocess.run([os.environ.get("CC", "cc"), "--version"], check=False, capture_output=True, text=True)
-        cc_line = cc.stdout.splitlines()[0] if cc.stdout else "unavailable"
-    except OSError:
-        cc_line = "unavailable"
-
-    def version(dist: str) -> str:
-        try:
-            return importlib.metadata.version(dist)
-        except importlib.metadata.PackageNotFoundError:
-            return "not installed"
-
-    import casadi
-    info = {
-        "cpu": cpu,
-        "cores": os.cpu_count(),
-        "cores_usable": len(os.sched_getaffinity(0)),
-        "kernel": platform.release(),
-        "python": platform.python_version(),
-        "numpy": np.__version__,
-        "casadi": casadi.__version__,
-        "pinocchio": version("pin"),
-        "pink": version("pin-pink"),
-        "daqp": version("daqp"),
-        "qpsolvers": version("qpsolvers"),
-        "vfdsl": vfdsl.__version__,
-        "cc": cc_line,
-        "loadavg": os.getloadavg()[0],
-    }
-    pc = time.perf_counter_ns
-    samples = np.empty(20_000, np.int64)
-    for k in range(samples.size):
-        t0 = pc()
-        samples[k] = pc() - t0
-    info["timer_overhead_ns"] = float(np.median(samples))
-    return info
-
-
-# ------------------------------------------------------------------------------------------- timing
-def stats(ns: np.ndarray) -> dict:
-    us = ns / 1e3
-    return {"median_us": float(np.median(us)), "p99_us": float(np.percentile(us, 99)),
-            "max_us": float(us.max()), "ticks": int(us.size)}
-
-
-def raw_generated(task, library) -> BufferedFunction:
-    """The library's generated step, called bare: inputs already in its buffers, no argument handling."""
-    return BufferedFunction.native(library.so_path, pipeline.symbol_prefix(task))
-
-
-def one_level(task, cache: Path) -> BufferedFunction:
-    """The task's generated step with its priority levels summed into one cost (qp_data's first 7 outputs: what
-    the least-violation phase minimizes), built and called bare as :func:`raw_generated`."""
-    robot = Robot.load(task.robots[0].urdf)
-    problem = assemble(task, robot)
-    f = problem.function
-    args = f.sx_in() if f.is_a("SXFunction") else f.mx_in()     # (of the same kind as the task's own qp_data)
-    summed = ca.Function("qp_data", args, f.call(args)[:7], f.name_in(), f.name_out()[:7])
-    prefix = pipeline.symbol_prefix(task) + "_one"
-    step = build_step_function(summed, prefix, row_groups=problem.row_groups,
-                               feas_tol=pipeline.FEASIBILITY_TOLERANCE, native=True)
-    library = build_library(step, prefix, cache, {"one_level": True}, Admissible(task, robot.reach).function)
-    return BufferedFunction.native(library.so_path, prefix)
-
-
-def interleaved(timers: dict, ticks: int, block: int = BLOCK) -> dict:
-    """Every timer's ticks 0..ticks-1, taken in turns of ``block`` ticks (after WARMUP ticks each, k < 0), with the
-    garbage collector disabled: ``timer(k)`` runs and times tick k. In turns, a burst of load on the shared machine
-    falls on every variant alike instead of on the few milliseconds one variant's ticks would take in a row (B's
-    20,000 ticks: 60 ms), and the ratios of one run compare ticks of the same moments. Returns name -> the ticks'
-    figures (what the timer returns) as an array."""
-    samples: dict = {name: [] for name in timers}
-    gc.disable()
-    try:
-        for timer in timers.values():
-            for k in range(-WARMUP, 0):
-                timer(k)
-        for first in range(0, ticks, block):
-            for name, timer in timers.items():
-                samples[name].extend(timer(k) for k in range(first, min(first + block, ticks)))
-    finally:
-        gc.enable()
-    return {name: np.array(values) for name, values in samples.items()}
-
-
-def raw_ticks(step, qs, us, p, dt: float, statuses: dict) -> Callable[[int], int]:
-    """tick(k) -> ns of one evaluate() at recorded state k, its inputs written into the bound arrays first (outside
-    the timed region); the status of every timed tick (k >= 0) counted in ``statuses``."""
-    q_buf, u_buf, p_buf, dt_buf, _ = step.inputs
-    p_buf[:] = p
-    dt_buf[...] = dt
-    evaluate, pc, m = step.evaluate, time.perf_counter_ns, len(qs)
-    status_buf = step.outputs[1]
-
-    def tick(k: int) -> int:
-        i = k % m
-        q_buf[:] = qs[i]
-        u_buf[:] = us[i]
-        t0 = pc()
-        evaluate()
-        t1 = pc()
-        if k >= 0:
-            s = int(status_buf[0])
-            statuses[s] = statuses.get(s, 0) + 1
-        return t1 - t0
-    return tick
-
-
-def step_ticks(ctrl, qs, inputs: list[dict], dt: float, params: dict | None = None,
-               move=lambda i: None) -> Callable[[int], int]:
-    """tick(k) -> ns of the whole Controller.step API at recorded state k, its q and inputs first copied into arrays
-    and a mapping made beforehand (outside the timed region), as a control loop updates its own from the sensors
-    (and as :func:`raw_ticks` writes the bound arrays: no variant reads its inputs cold from the recording);
-    ``params`` (preallocated arrays, or lists) are changed by move(i) before the tick at recorded state i, as they
-    were when the states were recorded."""
-    step, pc, m = ctrl.step, time.perf_counter_ns, len(qs)
-    q = np.empty(qs.shape[1])
-    u = {name: np.empty_like(value) for name, value in inputs[0].items()}
-
-    def tick(k: int) -> int:
-        i = k % m
-        q[:] = qs[i]
-        for name, value in inputs[i].items():
-            u[name][...] = value
-        move(i)
-        t0 = pc()
-        step(q, u, params, dt)
-        return pc() - t0
-    return tick
-
-
-def time_raw(step, qs, us, p, dt: float, ticks: int) -> tuple[dict, dict]:
-    """Statistics of :func:`raw_ticks` alone, and the statuses of its ticks."""
-    statuses: dict[int, int] = {}
-    return stats(interleaved({"raw": raw_ticks(step, qs, us, p, dt, statuses)}, ticks)["raw"]), statuses
-
-
-def time_step(ctrl, qs, inputs: list[dict], dt: float, ticks: int, params: dict | None = None,
-              move=lambda i: None) -> dict:
-    """Statistics of :func:`step_ticks` alone."""
-    return stats(interleaved({"step": step_ticks(ctrl, qs, inputs, dt, params, move)}, ticks)["step"])
-
-
-def record(ctrl, q0, inputs_of, dt: float, count: int,
-           params: dict | None = None) -> tuple[np.ndarray, np.ndarray, list[dict], dict]:
-    """A closed-loop trajectory (q <- q + dq) driven by inputs_of(k, q) -> {name: array}."""
-    q = np.array(q0, dtype=float)
-    qs, us, dicts, statuses = [], [], [], {}
-    for k in range(count):
-        inputs = inputs_of(k, q)
-        qs.append(q.copy())
-        dicts.append({name: np.asarray(v, dtype=float) for name, v in inputs.items()})
-        us.append(np.concatenate([np.ravel(inputs[name]) for name in ctrl.input_sizes]))
-        q = q + ctrl.step(q, inputs, params, dt)
-        statuses[int(ctrl.status)] = statuses.get(int(ctrl.status), 0) + 1
-    return np.array(qs), np.array(us), dicts, statuses
-
-
-# ------------------------------------------------------------------------------------- trajectories
-def push_along_curve(task):
-    """Experiment A: the hand pushes the tip 3 N along the plate's x axis (the curve's overall direction),
-    forward for 500 ticks then back, with a 0.5 N sideways wobble."""
-    from scipy.spatial.transform import Rotation
-    plate = task.param("plate").value
-    x_axis = Rotation.from_euler("xyz", plate.rpy).as_matrix()[:, 0]
-
-    def inputs(k, q):
-        direction = 1.0 if (k // 500) % 2 == 0 else -1.0
-        wobble = 0.5 * np.array([np.sin(0.3 * k), np.cos(0.2 * k), 0.0])
-        return {"f": 3.0 * direction * x_axis + wobble}
-    return inputs
-
-
-def twist_about_cone(task):
-    """Experiment B: a torque about the cone axis (reversed every 1,000 ticks) plus a slowly turning wobble."""
-    axis = np.array(task.param("axis").value.xyz)
-
-    def inputs(k, q):
-        direction = 1.0 if (k // 1000) % 2 == 0 else -1.0
-        return {"tau": 0.01 * direction * axis + 0.005 * np.array([np.cos(0.01 * k), np.sin(0.01 * k), 0.0])}
-    return inputs
-
-
-def circle_target(k: int, dt: float) -> tuple[np.ndarray, float, np.ndarray, np.ndarray]:
-    """The moving target of the Panda comparison: a 20 mm circle in 4 s, yawing +-0.1 rad.
-    Returns (translation offset, yaw, linear velocity, angular velocity) at tick k."""
-    t, w = k * dt, 2 * np.pi / 4.0
-    offset = 0.02 * np.array([np.cos(w * t) - 1.0, np.sin(w * t), 0.0])
-    velocity = 0.02 * w * np.array([-np.sin(w * t), np.cos(w * t), 0.0])
-    yaw = 0.1 * np.sin(w * t)
-    return offset, yaw, velocity, np.array([0.0, 0.0, 0.1 * w * np.cos(w * t)])
-
-
-def follow_circle(dt: float):
-    def inputs(k, q):
-        _, _, v, omega = circle_target(k, dt)
-        return {"v": np.concatenate([v, omega])}
-    return inputs
-
-
-def slide_on_polytope(k, q):
-    """Section 4: a force turning in the plane (and a little out of it): the tip slides over the polytope."""
-    return {"f": 2.0 * np.array([np.cos(0.02 * k), np.sin(0.02 * k), 0.3 * np.sin(0.013 * k)])}
-
-
-# ---------------------------------------------------------------------------------------- pink
-def pink_ticks(dt: float, errors: list) -> Callable[[int], tuple[int, int]]:
-    """tick(k) -> (ns of pink's solve_ik, ns of its integrate + update) at tick k of the moving target (ticks are
-    taken in order, warm-up first); every 100th timed tick, the tip's distance from the target appended to errors."""
-    import pink
-    import pinocchio as pin
-    from pink.tasks import FrameTask
-
-    model = pin.buildModelFromUrdf(str(ROOT / "vfdsl" / "robots" / "panda7.urdf"))
-    data = model.createData()
-    configuration = pink.Configuration(model, data, np.radians(READY_DEG))
-    task = FrameTask("tool_tip", position_cost=1.0, orientation_cost=1.0)
-    start = configuration.get_transform_frame_to_world("tool_tip").copy()
-    target = start.copy()
-    solve_ik, pc = pink.solve_ik, time.perf_counter_ns
-
-    def tick(k: int) -> tuple[int, int]:
-        offset, yaw, _, _ = circle_target(k + WARMUP + 1, dt)      # where the target is at the end of this tick
-        target.translation = start.translation + offset
-        target.rotation = pin.rpy.rpyToMatrix(0.0, 0.0, yaw) @ start.rotation
-        task.set_target(target)
-        t0 = pc()
-        v = solve_ik(configuration, [task], dt, solver="daqp")
-        t1 = pc()
-        configuration.update(configuration.integrate(v, dt))
-        t2 = pc()
-        if k >= 0 and k % 100 == 0:
-            errors.append(np.linalg.norm(configuration.get_transform_frame_to_world("tool_tip").translation
-                                         - target.translation))
-        return t1 - t0, t2 - t1
-    return tick
-
-
-def pink_pivot_ticks(task, qs: np.ndarray, errors: list) -> Callable[[int], tuple[int, int]]:
-    """tick(k) -> (ns of pink's solve_ik, ns of its Configuration.update) on a job close to experiment B's, at B's
-    recorded state k (shr7, ``vfdsl/robots/shr7.urdf``): one FrameTask on tool_tip whose position target is the pivot
-    (position_cost 100: hold it) and whose orientation target is B's tip at the next recorded state (track B's
-    motion), a DampingTask (cost 1e-3: weight 1e-6 as B's damping), a PositionBarrier keeping the tip in the box of
-    +-1 um about the pivot, pink's default limits, DAQP. pink has no cone barrier: B's 15 deg cone (8 rows) has no
-    counterpart. The configuration is set to the recorded state before the tick (update, outside solve_ik's time,
-    as in :func:`pink_ticks`); every 100th timed tick, the tip's distance from the pivot after pink's step is
-    appended to errors."""
-    import pink
-    import pinocchio as pin
-    from pink.barriers import PositionBarrier
-    from pink.tasks import DampingTask, FrameTask
-
-    model = pin.buildModelFromUrdf(str(ROOT / "vfdsl" / "robots" / "shr7.urdf"))
-    configuration = pink.Configuration(model, model.createData(), qs[0])
-    pivot = np.array(task.param("pivot").value.xyz)
-    rotations = []
-    for q in qs:                                # B's tip orientation at every recorded state
-        configuration.update(q)
-        rotations.append(configuration.get_transform_frame_to_world("tool_tip").rotation.copy())
-    frame = FrameTask("tool_tip", position_cost=100.0, orientation_cost=1.0)
-    tasks = [frame, DampingTask(cost=1e-3)]
-    barriers = [PositionBarrier("tool_tip", p_min=pivot - 1e-6, p_max=pivot + 1e-6)]
-    target = pin.SE3(rotations[0], pivot)
-    solve_ik, pc, m, dt = pink.solve_ik, time.perf_counter_ns, len(qs), task.scene.period
-    after = model.createData()
-
-    def tick(k: int) -> tuple[int, int]:
-        i = k % m
-        target.rotation = rotations[(i + 1) % m]
-        frame.set_target(target)
-        t0 = pc()
-        configuration.update(qs[i])
-        t1 = pc()
-        v = solve_ik(configuration, tasks, dt, solver="daqp", barriers=barriers)
-        t2 = pc()
-        if k >= 0 and k % 100 == 0:
-            pin.framesForwardKinematics(model, after, configuration.integrate(v, dt))
-            errors.append(np.linalg.norm(after.oMf[model.getFrameId("tool_tip")].translation - pivot))
-        return t2 - t1, t1 - t0
-    return tick
-
-
-def pink_figures(ns: np.ndarray, errors: list) -> dict:
-    """pink's statistics from its ticks' (solve_ik, update) ns."""
-    return {"solve_ik": stats(ns[:, 0]), "solve_ik_plus_update": stats(ns[:, 0] + ns[:, 1]),
-            "tip_error_mm": 1e3 * float(np.max(errors))}
-
-
-def pink_baseline(ticks: int, dt: float) -> dict:
-    """pink's figures timed alone (benchmarks/export_tick.py)."""
-    errors: list = []
-    return pink_figures(interleaved({"pink": pink_ticks(dt, errors)}, ticks)["pink"], errors)
 
 
 # --------------------------------------------------------------------------------------- sections
-def load_panda_track():
-    """benchmarks/panda_track.vf with its scene benchmarks/panda_track.yaml."""
-    task = vfdsl.load(BENCH / "panda_track.vf")
-    assert np.allclose(task.start, np.radians(READY_DEG)) and abs(task.scene.period - 0.01) < 1e-12
-    return task
-
-
 VARIANTS = ("interpreted", "one_level", "generated", "step")
 
 
@@ -585,18 +228,6 @@ def call_forms_section(exps: dict, ticks: int, cache: Path) -> dict:
               "inputs a dict of tuples": of_tuples}
     log(f"[call forms] B's step() in {len(timers)} call forms ({ticks} ticks each, in turns)")
     return {form: stats(ns) for form, ns in interleaved(timers, ticks).items()}
-
-
-def panda_tip_error(task, states, dt) -> float:
-    """vfdsl's open-loop tracking: largest distance of the tip from the circle target over the recording (mm)."""
-    robot = Robot.load("panda7")
-    qs, _ = states
-    start, _ = robot.frame_pose(task.start, "tool_tip")
-    worst = 0.0
-    for k in range(0, len(qs), 100):
-        tip, _ = robot.frame_pose(qs[k], "tool_tip")
-        worst = max(worst, float(np.linalg.norm(tip - (start + circle_target(k, dt)[0]))))
-    return 1e3 * worst
 
 
 def sweep(ns, ticks: int, tmp: Path) -> list[dict]:
