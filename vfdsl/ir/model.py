@@ -13,6 +13,7 @@ from typing import Annotated, Literal, Union
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
+from vfdsl.inputs import INPUT_TYPES
 from vfdsl.syntax.ast import Span
 
 Vec3 = Annotated[list[float], Field(min_length=3, max_length=3)]
@@ -166,14 +167,15 @@ class FrameDecl(_Model):
     base: str | None = None          # the frame it was built on (`frame b = a offset ...`), already composed in
 
 
-INPUT_SIZES = {"force": 3, "torque": 3, "wrench": 6, "twist": 6}
+INPUT_SIZES = {name: kind.size for name, kind in INPUT_TYPES.items()}
 
 
 class InputDecl(_Model):
-    """A signal read every tick: force (N), torque (N m), wrench [f; tau] or twist [v; w] (SI)."""
+    """A signal read every tick: force (N), torque (N m), wrench [f; tau] or twist [v; w] (SI); its type is one
+    of :data:`vfdsl.inputs.INPUT_TYPES`."""
 
     name: str
-    type: Literal["force", "torque", "wrench", "twist"]
+    type: Literal[tuple(INPUT_TYPES)]
     span: Span
 
     @property

@@ -20,6 +20,7 @@ import math
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Callable, Literal
 
+from vfdsl.inputs import INPUT_TYPES
 from vfdsl.ir import model as ir
 from vfdsl import units as u
 
@@ -174,20 +175,10 @@ class ObjectiveSpec:
     priority: int = TASK_LEVEL
 
 
-# Input type -> dimensions of (gain, angular_gain): the admittance law maps the input to a frame velocity.
-_GAIN_DIMENSIONS: dict[str, tuple[u.Dim | None, u.Dim | None]] = {
-    "force": ((1, 0, -1, -1), None),            # m/s per N
-    "torque": (None, (-1, 1, -1, -1)),          # rad/s per N m
-    "wrench": ((1, 0, -1, -1), (-1, 1, -1, -1)),
-    "twist": (u.DIMENSIONLESS, u.DIMENSIONLESS),
-}
-
-
 def gain_dimension(input_type: str, kind: str) -> u.Dim | None:
     """Dimension of a ``gain`` (linear part) or ``angular_gain`` for an input of ``input_type``;
     None when that input has no such part (a force has no angular gain)."""
-    linear, angular = _GAIN_DIMENSIONS[input_type]
-    return linear if kind == "gain" else angular
+    return INPUT_TYPES[input_type].gain_dimension(angular=kind == "angular_gain")
 
 
 def flag(args: dict[str, ir.Arg], name: str) -> bool:

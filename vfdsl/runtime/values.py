@@ -7,6 +7,8 @@ argument (``q``, ``input 'tau'``, ``param 'axis'``, ``dt``). Everything is SI.
 
 - q: within the joint limits widened by the joint's span on each side (a value further out is a
   faulty encoder or a unit mistake, e.g. degrees for radians, not a state to recover from);
+- inputs: read here (types, shapes), then checked by their type's plausibility checks (:mod:`vfdsl.inputs`: every
+  component finite);
 - params: read here (types, shapes, finiteness), then checked by the task's column of margins
   (:mod:`vfdsl.compiler.admissible`: zero directions, implausible points, lengths and angles, scalar
   ranges, run-time curves, degenerate derived values), the same checks as at load time and in the generated C;
@@ -26,6 +28,7 @@ from pydantic import BaseModel
 from vfdsl.compiler.admissible import Admissible
 from vfdsl.compiler.context import flatten
 from vfdsl.errors import VfError, show_vector, suggest
+from vfdsl.inputs import INPUT_TYPES
 from vfdsl.ir import model as ir
 from vfdsl.limits import MAX_PERIOD, MIN_PERIOD
 
@@ -41,7 +44,7 @@ ASSUMED_PERIOD = 0.01
 at it."""
 _FIELDS = {"line": ("point", "direction"), "plane": ("point", "normal"), "pose": ("translation", "rpy")}
 JOINT_UNITS = {"revolute": "rad", "continuous": "rad", "prismatic": "m"}
-INPUT_UNITS = {"force": "N", "torque": "N m", "wrench": "N (0-2), N m (3-5)", "twist": "m/s (0-2), rad/s (3-5)"}
+INPUT_UNITS = {name: kind.unit_text for name, kind in INPUT_TYPES.items()}
 PARAM_UNITS = {"point": "m", "vector": "m", "direction": "1 (normalized)", "line": "m (0-2), 1 (3-5)",
                "plane": "m (0-2), 1 (3-5)", "pose": "m (0-2), rad (3-5)", "curve": "m (x y z per point)",
                "length": "m", "angle": "rad", "speed": "m/s", "angular_speed": "rad/s", "number": "1", "time": "s",
@@ -57,9 +60,9 @@ def dt_range(period: float | None) -> tuple[float, float]:
     return max(p / DT_SHORTER, MIN_PERIOD), min(p * DT_LONGER, MAX_PERIOD)
 
 
-def real_vector(value, size: int, what: str) -> np.ndarray:
-    """``value`` as ``size`` finite float64 numbers: a list or tuple of real numbers, or a real NumPy
-    array (1-D, or 2-D with one row or one column)."""
+def real_vector(value, size: int, what: str, finite: bool = True) -> np.ndarray:
+    """``value`` as ``size`` float64 numbers, finite unless ``finite`` is False (the caller checks them): a list
+    or tuple of real numbers, or a real NumPy array (1-D, or 2-D with one row or one column)."""
     if isinstance(value, np.ndarray):
         value = plain_array(value, what)
         if value.dtype.kind not in "fiu":
@@ -77,8 +80,8 @@ def real_vector(value, size: int, what: str) -> np.ndarray:
         raise VfError(f"{what} must have {size} numbers (a list or array), got {_describe(value)}")
     if arr.size != size:
         raise VfError(f"{what} must have {size} numbers, got {arr.size}")
-    bad = np.flatnonzero(~np.isfinite(arr))
-    if bad.size:
+    bad = np.flatnonzero(~np.isfinite(arr)) if finite else ()
+    if len(bad):
         raise VfError(f"{what} contains NaN or inf (index {int(bad[0])}): {show_vector(arr)}")
     return arr
 
@@ -145,6 +148,7 @@ class RuntimeValues:
         self.nq = len(lower)
         self.input_offsets = input_offsets
         self.n_inputs = sum(size for _, size in input_offsets.values())
+        self.input_types = {d.name: INPUT_TYPES[d.type] for d in task.inputs}
         self.admissible = admissible
         self.layout = admissible.layout
         self.joint_names = joint_names
@@ -180,7 +184,12 @@ class RuntimeValues:
             if name not in value:
                 raise VfError(f"missing input '{name}' ({size} numbers)",
                               hint="pass every declared input each tick, zeros when idle")
-            u[offset:offset + size] = real_vector(value[name], size, f"input '{name}'")
+            x = real_vector(value[name], size, f"input '{name}'", finite=False)
+            failed = self.input_types[name].first_failure(x)
+            if failed:
+                check, i = failed
+                raise VfError(check.message(name, i, x))
+            u[offset:offset + size] = x
         return u
 
     # ------------------------------------------------------------------------------------- params
