@@ -40,6 +40,7 @@ from vfdsl.check.kinematics import frame_jacobian, frame_pose
 from vfdsl.check.linearized import ConstraintRows, Linearization, describe, subject, value_of, where
 from vfdsl.check.report import Finding, Severity, quantity
 from vfdsl.check.sampling import SAMPLE_SPEED
+from vfdsl.inputs import INPUT_TYPES
 from vfdsl.ir import model as ir
 from vfdsl.primitives.spec import flag
 
@@ -52,7 +53,7 @@ def tracked(task: ir.Task) -> list[ir.Objective]:
     """The ``track`` terms that command a linear velocity: a force, wrench or twist input, a gain, linear on."""
     return [o for o in task.objectives
             if o.term == "track" and "gain" in o.args and flag(o.args, "linear")
-            and task.input(o.args["input"].name).type != "torque"]
+            and INPUT_TYPES[task.input(o.args["input"].name).type].linear]
 
 
 def speed_limits(task: ir.Task, robot) -> np.ndarray:
@@ -99,7 +100,7 @@ def _row_space(A: np.ndarray) -> np.ndarray:
 def _input_limit(task: ir.Task, o: ir.Objective, speed: float) -> str:
     """The sideways input beyond which the motion is cut, at the term's gain: 'a push above 11.3 N at ...'."""
     gain = abs(value_of(o.args["gain"], task).value)
-    if task.input(o.args["input"].name).type == "twist":
+    if INPUT_TYPES[task.input(o.args["input"].name).type].linear.rate:
         return f"a sideways command above {quantity(speed / gain, 'speed')} at the track term's gain of {gain:.3g}"
     return f"a sideways push above {speed / gain:.3g} N at the track term's gain of {gain * 1e3:.3g} mm/s/N"
 

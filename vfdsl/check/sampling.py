@@ -21,6 +21,7 @@ from vfdsl.check.kinematics import NEAR_SINGULAR, worst_conditioning
 from vfdsl.check.linearized import Linearization, describe, value_of, where
 from vfdsl.check.lp import FEASIBLE
 from vfdsl.check.report import Finding, Severity
+from vfdsl.inputs import INPUT_TYPES
 from vfdsl.ir import model as ir
 from vfdsl.runtime.qp import StepStatus
 
@@ -41,9 +42,12 @@ def input_scales(task: ir.Task) -> dict[str, np.ndarray]:
         angular = abs(value_of(o.args["angular_gain"], task).value) if "angular_gain" in o.args else 0.0
         linear_size = SAMPLE_SPEED / gain if gain > 0 else 1.0
         angular_size = SAMPLE_RATE / angular if angular > 0 else 1.0
-        parts = {"force": [linear_size] * 3, "torque": [angular_size] * 3,
-                 "wrench": [linear_size] * 3 + [angular_size] * 3, "twist": [linear_size] * 3 + [angular_size] * 3}
-        scales[decl.name] = np.array(parts[decl.type])
+        kind = INPUT_TYPES[decl.type]
+        scale = np.empty(kind.size)
+        for part, size in ((kind.linear_range, linear_size), (kind.angular_range, angular_size)):
+            if part:
+                scale[part] = size
+        scales[decl.name] = scale
     return scales
 
 

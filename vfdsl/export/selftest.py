@@ -22,15 +22,11 @@ import numpy as np
 
 from vfdsl.errors import VfError
 from vfdsl.export.writer import Export
+from vfdsl.inputs import INPUT_TYPES
 
 MAX_TICKS = 100_000
 """The most ticks ``--self-test`` records and replays: on experiment B, 58 s and 379 MB at most in all (200 ticks:
 35 s, 181 MB, the build of the copy included)."""
-
-_SCALE = {"force": [3.0] * 3, "torque": [0.02] * 3, "wrench": [3.0] * 3 + [0.02] * 3,
-          "twist": [0.01] * 3 + [0.05] * 3}
-"""Size of the user's push per input type (SI: N, N m, m/s, rad/s): a firm hand, a slow joystick."""
-
 
 @dataclass(frozen=True)
 class Tick:
@@ -50,9 +46,11 @@ class Tick:
 
 
 def user_inputs(ctrl, k: int) -> dict[str, np.ndarray]:
-    """A hand pushing on every input along a slowly turning direction (different rates per component)."""
+    """A hand pushing on every input along a slowly turning direction (different rates per component), each
+    component up to its input type's self-test scale (a firm hand, a slow joystick)."""
     types = {d.name: d.type for d in ctrl.task.inputs}
-    return {name: np.array([s * math.sin(0.011 * (j + 1) * k + j) for j, s in enumerate(_SCALE[types[name]])])
+    return {name: np.array([s * math.sin(0.011 * (j + 1) * k + j)
+                            for j, s in enumerate(INPUT_TYPES[types[name]].self_test_scale)])
             for name in ctrl.input_sizes}
 
 

@@ -31,6 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
+from vfdsl.inputs import INPUT_TYPES
 from vfdsl.ir import model as ir
 from vfdsl.kinematics.robot import Robot
 from vfdsl.sim.geometry import Curve, Scene, unit
@@ -54,8 +55,10 @@ class Hand:
     def __init__(self, settings: HandSettings, task: ir.Task, robot: Robot, scene: Scene, period: float,
                  ticks: int, rng: np.random.Generator):
         self.settings = settings
-        self.size = task.input(settings.input).size
+        kind = INPUT_TYPES[task.input(settings.input).type]
+        self.size = kind.size
         self.rotational = settings.kind == "turn"
+        self.part = kind.part_range(angular=self.rotational)      # the part of the input the hand drives
         self.scene = scene
         frame_name = settings.frame or tracked_frame(task, settings.input)
         self.frame = task.frame(frame_name) if frame_name else None
@@ -75,8 +78,7 @@ class Hand:
         """The input at tick k, with the robot at q (what the user sees)."""
         if k % self.every == 0:
             self._aim = self.settings.magnitude * self.aim(q)
-        part = slice(3, 6) if self.rotational and self.size == 6 else slice(0, 3)
-        self._out[part] = self._aim + self.noise[k]
+        self._out[self.part] = self._aim + self.noise[k]
         return self._out
 
     def aim(self, q: np.ndarray) -> np.ndarray:
@@ -155,8 +157,7 @@ def generic_hand(task: ir.Task, controller, robot: Robot, q0: np.ndarray, period
     if track is None:
         return None
     name = track.args["input"].name
-    input_type = task.input(name).type
-    rotational = input_type == "torque" or (input_type in ("wrench", "twist") and "gain" not in track.args)
+    rotational = not INPUT_TYPES[task.input(name).type].linear or "gain" not in track.args
     gain_name = "angular_gain" if rotational else "gain"
     gain = track.args.get(gain_name)
     frame = task.frame(track.args["frame"].name)
@@ -208,7 +209,7 @@ def _free_direction(task, controller, robot, scene: Scene, frame, name: str, rot
     what = "turning about" if rotational else "along"
     candidates += [(axis, f"{what} the world's {'xyz'[i]} axis") for i, axis in enumerate(np.eye(3))]
     speed = GENERIC_ANGULAR_SPEED if rotational else GENERIC_SPEED
-    size = task.input(name).size
+    kind = INPUT_TYPES[task.input(name).type]
     offset = frame_offset(frame)
     tolerances = [c.tolerance for c in task.constraints if c.tolerance is not None] or [0.0]
     ticks = min(PROBE_TICKS, 2 + math.ceil(max(tolerances) / (speed * period)))
@@ -217,8 +218,8 @@ def _free_direction(task, controller, robot, scene: Scene, frame, name: str, rot
     magnitude = speed / gain.value.value if gain is not None and gain.value.value > 0 else 1.0
     best, best_ratio = None, -math.inf
     for axis, text in candidates:
-        value = np.zeros(size)
-        value[slice(3, 6) if rotational and size == 6 else slice(0, 3)] = magnitude * axis
+        value = np.zeros(kind.size)
+        value[kind.part_range(angular=rotational)] = magnitude * axis
         inputs = {i.name: (value if i.name == name else np.zeros(i.size)) for i in task.inputs}
         q = q0.copy()
         for _ in range(ticks):

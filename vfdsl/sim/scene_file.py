@@ -59,6 +59,7 @@ from vfdsl import limits
 from vfdsl import units as u
 from vfdsl.errors import Span, VfError, suggest
 from vfdsl.files import read_text
+from vfdsl.inputs import INPUT_TYPES, described
 from vfdsl.ir import model as ir
 from vfdsl.passes.scene import (ValueReader, compose, node_span, read_mapping,   # the task scene's YAML reading
                                 read_units)
@@ -257,11 +258,11 @@ class _Reader:
             raise VfError(f"unknown hand kind '{kind}'", self.pos(fields["kind"][1]),
                           hint=suggest(kind, HAND_KINDS, "kinds"))
         input_type = inputs[name].type
-        if kind == "turn" and input_type == "force":
-            raise VfError(f"a turning hand needs a torque, wrench or twist input; '{name}' is a force",
+        if kind == "turn" and not INPUT_TYPES[input_type].angular:
+            raise VfError(f"a turning hand needs {described(lambda t: t.angular)}; '{name}' is a {input_type}",
                           self.pos(fields["kind"][1]), hint="use kind: push, follow or toward")
-        if kind != "turn" and input_type == "torque":
-            raise VfError(f"a {kind} hand needs a force, wrench or twist input; '{name}' is a torque",
+        if kind != "turn" and not INPUT_TYPES[input_type].linear:
+            raise VfError(f"a {kind} hand needs {described(lambda t: t.linear)}; '{name}' is a {input_type}",
                           self.pos(fields["kind"][1]), hint="use kind: turn")
         dim = hand_dimension(input_type, kind)
         out: dict = {"input": name, "kind": kind, "magnitude": self.scalar(fields["magnitude"][1], dim)}

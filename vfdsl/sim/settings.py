@@ -15,6 +15,7 @@ import numpy as np
 from vfdsl import limits
 from vfdsl import units as u
 from vfdsl.errors import Span, VfError, suggest
+from vfdsl.inputs import INPUT_TYPES
 from vfdsl.ir import model as ir
 from vfdsl.runtime.values import ASSUMED_PERIOD
 
@@ -236,10 +237,10 @@ def tracked_frame(task: ir.Task, input_name: str) -> str | None:
 
 
 def hand_dimension(input_type: str, kind: str) -> u.Dim:
-    """The dimension of a hand's magnitude: a force or torque (a speed for a twist input)."""
-    if input_type == "twist":
-        return u.ANGULAR_SPEED if kind == "turn" else u.SPEED
-    return u.TORQUE if kind == "turn" else u.FORCE
+    """The dimension of a hand's magnitude: its input's angular part's quantity (a torque, an angular speed for a
+    twist) for a turning hand, else its linear part's (a force, a speed)."""
+    parts = INPUT_TYPES[input_type]
+    return (parts.angular if kind == "turn" else parts.linear).dimension
 
 
 def constraint_of(task: ir.Task, ref: str, where: Span | None = None) -> ir.Constraint:

@@ -40,6 +40,7 @@ import numpy as np
 
 from vfdsl.compiler.context import flatten
 from vfdsl.errors import VfError
+from vfdsl.inputs import INPUT_TYPES
 from vfdsl.ir import model as ir
 
 FORMATS = (".csv", ".parquet")
@@ -47,9 +48,6 @@ _SI_SUFFIX = {"mm": "m", "deg": "rad", "mm/s": "m_s", "deg/s": "rad_s", "%": ""}
 _DISPLAY_SUFFIX = {"mm": "mm", "deg": "deg", "mm/s": "mm_s", "deg/s": "deg_s", "%": "pct"}
 _SCALAR_UNITS = {"length": "_m", "angle": "_rad", "speed": "_m_s", "angular_speed": "_rad_s", "number": "",
                  "time": "_s", "force": "_N"}
-_INPUT_PARTS = {"force": ("fx_N", "fy_N", "fz_N"), "torque": ("tx_Nm", "ty_Nm", "tz_Nm"),
-                "wrench": ("fx_N", "fy_N", "fz_N", "tx_Nm", "ty_Nm", "tz_Nm"),
-                "twist": ("vx_m_s", "vy_m_s", "vz_m_s", "wx_rad_s", "wy_rad_s", "wz_rad_s")}
 _XYZ_M = ("x_m", "y_m", "z_m")
 _PARAM_PARTS = {"point": _XYZ_M, "vector": _XYZ_M, "direction": ("x", "y", "z"),
                 "line": ("px_m", "py_m", "pz_m", "dx", "dy", "dz"),
@@ -63,7 +61,7 @@ def joint_columns(prefix: str, names, types) -> list[str]:
 
 
 def input_columns(task: ir.Task) -> list[str]:
-    return [f"input.{i.name}.{part}" for i in task.inputs for part in _INPUT_PARTS[i.type]]
+    return [f"input.{i.name}.{part}" for i in task.inputs for part in INPUT_TYPES[i.type].columns]
 
 
 def param_columns(decl: ir.ParamDecl) -> list[str]:
