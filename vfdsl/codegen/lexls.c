@@ -1,5 +1,10 @@
 /* vfdsl: priority levels solved exactly over a working set, with a certificate of optimality: the C of
- * vfdsl/runtime/lexls.py. The types and the API are in lexls.h. */
+ * vfdsl/runtime/lexls.py. The types and the API are in lexls.h.
+ *
+ * One file, over 500 lines, on purpose: it is the twin of lexls.py function for function (a test holds the two
+ * to the same answers), and one translation unit, compiled once per n with VFDSL_LEX_N (vfdsl.codegen.build) and
+ * copied as it is into an export, whose static kernels (QR, the steps, NNLS, the certificate) the compiler
+ * inlines and unrolls within the unit. */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>

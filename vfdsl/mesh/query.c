@@ -48,6 +48,11 @@
  * dropped and the walk stops before that distance (the horizon); the rest of the answer is then found one kept
  * hit at a time, each the first hit after the last taken, by depth-first walks with a fixed stack: the same
  * answer. Nothing is allocated; iw and mem are unused.
+ *
+ * One file, over 500 lines, on purpose: it is the text of one translation unit per mesh (vfdsl/mesh/external.py
+ * puts the mesh's tables above it, names its symbols and keys the cache by this text), compiled alone or into the
+ * task's library, and this comment states the answer that the whole walk implements; its parts (the closest-point
+ * geometry, the queue, the walk, CasADi's interface) are static functions of that unit, inlined into the walk.
  */
 #include <math.h>
 
