@@ -12,6 +12,10 @@ diagnostic::
 Notes add context, such as the ``use`` site of a fixture whose body holds the mistake. The source line is
 the one the parser counted (lines end at "\n" only, so form feeds, U+0085 and U+2028 stay inside a line),
 and the caret copies the line's tabs so that it lines up under tab-indented text.
+
+A mistake in a task, library or scene file has a stable code from :data:`CODES` (``E201``), printed on a last
+``code:`` line. The front end reports every independent mistake of a file at once: :func:`combined` makes
+one :class:`VfErrors`, sorted by position, which stands for its first error and renders them all.
 """
 
 from __future__ import annotations
@@ -25,6 +29,40 @@ from pydantic import BaseModel, ConfigDict
 
 EXIT_USER_ERROR = 2
 """The command line's exit status for a user's mistake (usage, syntax, names, units, files)."""
+
+
+CODES: dict[str, str] = {
+    "E101": "a syntax error: unexpected text, character or end of file",
+    "E102": "not a .vf file: it does not start with `task NAME` or `library NAME`",
+    "E103": "a malformed string",
+    "E104": "a clause or an argument given twice",
+    "E105": "an argument in the wrong form: positional after keyword, or an unnamed type argument",
+    "E201": "an unknown name: robot, frame, input, param, fixture, formal, link or joint",
+    "E202": "declared twice: a name, fixture or formal, or a second `scene` statement",
+    "E203": "a name of the wrong kind here (a robot where a frame is expected, a point where a direction is)",
+    "E204": "a frame built on itself or on a frame declared after it",
+    "E205": "an unknown primitive, objective term, input type, param type or formal kind",
+    "E206": "a name where only a value can stand (a run-time param in a constant, any name in a literal)",
+    "E301": "an unknown unit",
+    "E302": "a value of the wrong dimension (an angle where a length is expected, a unit on a direction)",
+    "E303": "a mistake in a `units` statement or entry",
+    "E304": "a number that is not finite, or too large for SI units",
+    "E401": "a value of the wrong shape (3 numbers for a point, points for a curve)",
+    "E402": "a value out of its allowed range (an argument, a tolerance, a weight, a joint, a period)",
+    "E403": "derived geometry whose operands do not fit (adding two points, a point where a direction is needed)",
+    "E501": "a call with too many, unknown or missing arguments",
+    "E502": "a clause that does not apply to this statement",
+    "E503": "a statement that does not fit its primitive, term, input or task (a frame on a whole-robot constraint)",
+    "E504": "a param with no value: no default, and the scene sets none",
+    "E601": "an import that is not a library, not a .vf file, or closes a cycle",
+    "E602": "a mistake in a scene file: its YAML, keys or values",
+    "E603": "a robot's URDF that cannot be used",
+    "E604": "a mesh file that cannot be used",
+    "E605": "a fixture that uses itself",
+    "E701": "a resource limit exceeded (vfdsl.limits)",
+}
+"""Every front-end error's code and its meaning (docs/language.md, "Error codes", lists them too). A code never
+changes meaning; a new class of mistake gets a new code."""
 
 
 class Span(BaseModel):
@@ -43,24 +81,36 @@ class Span(BaseModel):
 
 
 class VfError(Exception):
-    """A user-facing error: message, optional position, optional hint."""
+    """A user-facing error: message, optional position, hint, notes and code (a key of :data:`CODES`)."""
 
     def __init__(self, message: str, pos: Span | None = None, hint: str | None = None,
-                 source_text: str | None = None, notes: tuple[str, ...] = ()):
+                 source_text: str | None = None, notes: tuple[str, ...] = (), code: str | None = None):
         super().__init__(message)
+        if code is not None and code not in CODES:
+            raise ValueError(f"unknown error code {code!r}")
         self.message = message
         self.pos = pos
         self.hint = hint
         self.notes = tuple(notes)
+        self.code = code
         self._source_text = source_text
+
+    @property
+    def errors(self) -> tuple["VfError", ...]:
+        """The errors this one reports: itself (several for :class:`VfErrors`)."""
+        return (self,)
 
     def with_source(self, text: str) -> "VfError":
         """The same error, showing its line from ``text`` (the text as it was parsed)."""
-        return VfError(self.message, self.pos, self.hint, text, self.notes)
+        return VfError(self.message, self.pos, self.hint, text, self.notes, self.code)
+
+    def with_code(self, code: str) -> "VfError":
+        """The same error with ``code`` (a lower module's error, classified where a file's check meets it)."""
+        return VfError(self.message, self.pos, self.hint, self._source_text, self.notes, code)
 
     def with_note(self, note: str) -> "VfError":
         """The same error with one more note (e.g. the ``use`` site a fixture was expanded from)."""
-        return VfError(self.message, self.pos, self.hint, self._source_text, self.notes + (note,))
+        return VfError(self.message, self.pos, self.hint, self._source_text, self.notes + (note,), self.code)
 
     @property
     def line(self) -> int | None:
@@ -93,6 +143,8 @@ class VfError(Exception):
         if self.hint:
             lines.append(f"hint: {self.hint}")
         lines.extend(f"note: {note}" for note in self.notes)
+        if self.code:
+            lines.append(f"code: {self.code}, {CODES[self.code]}")
         return "\n".join(lines)
 
     def _source_line(self) -> str | None:
@@ -111,6 +163,33 @@ class VfError(Exception):
 
     def __str__(self) -> str:
         return self.render()
+
+
+class VfErrors(VfError):
+    """Several errors of one file, sorted by position. Its message, position, hint and code are its first
+    error's (so a caller that reads one error reads that one); it renders every error, then their count."""
+
+    def __init__(self, errors: list[VfError]):
+        first = errors[0]
+        super().__init__(first.message, first.pos, first.hint, first._source_text, first.notes, first.code)
+        self._errors = tuple(errors)
+
+    @property
+    def errors(self) -> tuple[VfError, ...]:
+        return self._errors
+
+    def render(self, severity: str = "error") -> str:
+        shown = "\n\n".join(error.render(severity) for error in self._errors)
+        return f"{shown}\n\n{len(self._errors)} {severity}s"
+
+
+def combined(errors: list[VfError]) -> VfError:
+    """One error for ``errors`` (not empty): the one, or a :class:`VfErrors` of them sorted by file, line and
+    column (unpositioned last), an error repeated at the same place with the same message shown once."""
+    unique = {(e.pos, e.message): e for e in reversed([e for error in errors for e in error.errors])}
+    ordered = sorted(unique.values(), key=lambda e: (e.pos is None,) + ((e.pos.file, e.pos.line, e.pos.column)
+                                                                         if e.pos else ()))
+    return ordered[0] if len(ordered) == 1 else VfErrors(ordered)
 
 
 _CONTEXT = 80          # characters shown on each side of the caret when a source line is long

@@ -49,8 +49,8 @@ TRACE_BYTES = 1_000_000_000      # a trace `view --replay` plays (about 1.6 mill
 PICTURE_SIDE = 8_192             # pixels: the width or height of a `view --screenshot`
 
 def exceeded(what: str, limit: int | float, pos: Span | None, hint: str | None = None,
-             unit: str = "") -> VfError:
-    """The error for a resource limit: which one was hit, and its value."""
+             unit: str = "", code: str | None = None) -> VfError:
+    """The error for a resource limit: which one was hit, and its value (``code``: E701 in a task's files)."""
     value = f"{limit:,}" if isinstance(limit, int) else f"{limit:g}"
     return VfError(f"{what}: the limit is {value}{' ' + unit if unit else ''}", pos,
-                   hint=hint or "this limit sits far above any real task; split the task or simplify it")
+                   hint=hint or "this limit sits far above any real task; split the task or simplify it", code=code)

@@ -93,7 +93,7 @@ class DefaultUnits:
         dim, _ = lookup(name, span)
         if dim not in (LENGTH, ANGLE, TIME, FORCE):
             raise VfError(f"'{name}' is not a base unit; a units statement takes units of length, angle, "
-                          "time or force", span, hint="e.g. units mm, deg")
+                          "time or force", span, hint="e.g. units mm, deg", code="E303")
         field = _BASE_NAMES[(LENGTH, ANGLE, TIME, FORCE).index(dim)]
         return DefaultUnits(**{**self.__dict__, field: name})
 
@@ -105,7 +105,7 @@ def default_units(names: list[tuple[str, Span]], base: DefaultUnits = DefaultUni
     for name, span in names:
         dim, _ = lookup(name, span)
         if dim in seen:
-            raise VfError(f"two units for {describe(dim)}: '{seen[dim]}' and '{name}'", span)
+            raise VfError(f"two units for {describe(dim)}: '{seen[dim]}' and '{name}'", span, code="E303")
         seen[dim] = name
         units = units.with_unit(name, span)
     return units
@@ -118,7 +118,7 @@ def lookup(name: str, span: Span) -> tuple[Dim, float]:
         close = difflib.get_close_matches(name, UNITS, n=1, cutoff=0.5)
         hint = f"did you mean '{close[0]}'? " if close else ""
         raise VfError(f"unknown unit '{name}'", span,
-                      hint=hint + "known units: " + ", ".join(UNITS)) from None
+                      hint=hint + "known units: " + ", ".join(UNITS), code="E301") from None
 
 
 def parse_unit(text: str, span: Span) -> tuple[Dim, float]:
@@ -142,7 +142,7 @@ def parse_unit(text: str, span: Span) -> tuple[Dim, float]:
 def to_si(number: float, unit: str | None, expected: Dim, defaults: DefaultUnits, span: Span) -> float:
     """Convert one number to SI, checking its unit's dimension against ``expected``."""
     if not math.isfinite(number):
-        raise VfError("numbers must be finite", span)
+        raise VfError("numbers must be finite", span, code="E304")
     if unit is None:
         return number * defaults.factor(expected)
     dim, factor = parse_unit(unit, span)
@@ -151,8 +151,8 @@ def to_si(number: float, unit: str | None, expected: Dim, defaults: DefaultUnits
         hint = f"write it like 5 {example}".rstrip() if example is not None else f"use units of {si_formula(expected)}"
         if expected == DIMENSIONLESS:
             hint = "write a plain number, without a unit"
-        raise VfError(f"expected {describe(expected)}, but '{unit}' is {describe(dim)}", span, hint=hint)
+        raise VfError(f"expected {describe(expected)}, but '{unit}' is {describe(dim)}", span, hint=hint, code="E302")
     value = number * factor
     if not math.isfinite(value):
-        raise VfError("this number is too large", span)
+        raise VfError("this number is too large", span, code="E304")
     return value

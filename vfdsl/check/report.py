@@ -128,9 +128,10 @@ class Report:
     @classmethod
     def input_error(cls, file: str, error: VfError) -> "Report":
         """The report of a check that could not run: a usage, parse or semantic error in the files (or a
-        value the analyses cannot hold) as its one finding, VF000, with the error's position, hint and notes."""
-        return cls(None, str(file), [Finding("input-error", Severity.ERROR, error.message, error.pos, error.hint,
-                                             notes=error.notes)])
+        value the analyses cannot hold), each of the file's errors a finding VF000 with its position, hint,
+        notes and, in ``data``, its front-end code (``error_code``: E201, ...; None for one without)."""
+        return cls(None, str(file), [Finding("input-error", Severity.ERROR, e.message, e.pos, e.hint,
+                                             data={"error_code": e.code}, notes=e.notes) for e in error.errors])
 
     def add(self, findings) -> None:
         self.findings.extend(findings)

@@ -3,7 +3,8 @@
 One namespace for robots, frames, inputs and params (a name is declared once); exactly one robot, loaded from
 its URDF; frames on robot links or on earlier frames (composed); params read as their kind (units and shapes
 via :mod:`vfdsl.passes.shapes`), from the scene file where it sets them, then checked as a run-time value
-would be (:mod:`vfdsl.compiler.admissible`). Any mistake raises :class:`~vfdsl.errors.VfError` at its position.
+would be (:mod:`vfdsl.compiler.admissible`). Each declaration is checked on its own and its mistake recorded at
+its position (:mod:`vfdsl.passes.diagnostics`); a declaration that reads a failed one is not checked.
 """
 
 from __future__ import annotations
@@ -20,6 +21,7 @@ from vfdsl.ir import model as ir
 from vfdsl.kinematics.robot import ROBOTS_DIR, Robot
 from vfdsl.mesh.load import MeshExtentError, MeshFileError, MeshSizeError, read_mesh
 from vfdsl.passes import expressions as ex
+from vfdsl.passes.diagnostics import Dependent, Errors
 from vfdsl.passes.scene import SceneData, load_scene
 from vfdsl.passes.shapes import LiteralReader
 from vfdsl.primitives.spec import GEOMETRIC_KINDS, SCALAR_DIMENSIONS
@@ -42,31 +44,44 @@ class Declarations:
         self.inputs: dict[str, ir.InputDecl] = {}
         self.params: dict[str, ir.ParamDecl] = {}
         self.param_values: dict[str, ast.Value] = {}        # param -> the literal its value was read from
+        self.errors = Errors()
+        self.failed: set[str] = set()                      # declarations whose check failed
 
     def read(self) -> SceneData | None:
-        """Read the robot, frames, inputs and params (values from the scene where it sets them); the scene."""
-        statements = self.module.statements
-        scene = self._scene(statements)
-        for stmt in statements:
+        """Read the robot, frames, inputs and params (values from the scene where it sets them), each declaration
+        checked on its own; the scene."""
+        scene = self._scene(self.module.statements)
+        statements = []                                     # each name's first declaration
+        for stmt in self.module.statements:
             if isinstance(stmt, (ast.RobotStmt, ast.FrameStmt, ast.InputStmt, ast.ParamStmt)):
-                self._declare(stmt.name)
+                with self.errors.each() as declared:
+                    self._declare(stmt.name)
+                if not declared.failed:
+                    statements.append(stmt)
         for stmt in statements:
             if isinstance(stmt, ast.RobotStmt):
-                self._robot(stmt)
-        if not self.robots:
+                self._checked(stmt, self._robot)
+        if not self.robots and not self.failed:
             raise VfError("a task drives exactly one robot; none is declared", self.module.name.span,
-                          hint='declare it with: robot shr = urdf "shr7"')
+                          hint='declare it with: robot shr = urdf "shr7"', code="E503")
         if len(self.robots) > 1:
             first, second = (decl.span for decl, _ in list(self.robots.values())[:2])
             raise VfError("a task drives exactly one robot", second,
-                          hint=f"the first is declared at {first}; split the task, one per robot")
+                          hint=f"the first is declared at {first}; split the task, one per robot", code="E503")
         for stmt in statements:
             if isinstance(stmt, ast.FrameStmt):
-                self._frame(stmt)
+                self._checked(stmt, self._frame)
             elif isinstance(stmt, ast.InputStmt):
-                self._input(stmt)
+                self._checked(stmt, self._input)
         self._params([s for s in statements if isinstance(s, ast.ParamStmt)], scene)
         return scene
+
+    def _checked(self, stmt, declare) -> None:
+        """``declare(stmt)``, its error recorded; a name that failed is not checked again where it is used."""
+        with self.errors.each() as declaration:
+            declare(stmt)
+        if declaration.failed:
+            self.failed.add(stmt.name.text)
 
     def check_param_values(self, task: ir.Task, robot: Robot) -> None:
         """The params' values (the task's defaults, or the scene's) pass the checks a run-time value gets
@@ -79,22 +94,22 @@ class Declarations:
             return
         error = admissible.margins.error(i, numbers, p, "with the params' values, ")
         name = admissible.margins.checks[i].param
-        if name is not None:
-            error = VfError(error.message, self.param_values[name].span, error.hint,
-                            notes=(f"param '{name}' is declared at {self.params[name].span}",))
-        raise error
+        if name is None:
+            raise error.with_code("E402")
+        raise VfError(error.message, self.param_values[name].span, error.hint,
+                      notes=(f"param '{name}' is declared at {self.params[name].span}",), code="E402")
 
     def _declare(self, name: ast.Name) -> None:
         if name.text in self.declared:
             raise VfError(f"'{name.text}' is declared twice", name.span,
-                          hint=f"first declared at {self.declared[name.text].span}")
+                          hint=f"first declared at {self.declared[name.text].span}", code="E202")
         self.declared[name.text] = name
 
     def _robot(self, stmt: ast.RobotStmt) -> None:
         try:
             robot = Robot.load(stmt.urdf, base_dir=self.path.parent)
         except VfError as exc:
-            raise VfError(exc.message, stmt.span, exc.hint) from None
+            raise VfError(exc.message, stmt.span, exc.hint, code="E603") from None
         shipped = robot.urdf_path.parent == ROBOTS_DIR
         decl = ir.RobotDecl(name=stmt.name.text, urdf=robot.name if shipped else str(robot.urdf_path), span=stmt.span)
         self.robots[stmt.name.text] = (decl, robot)
@@ -107,15 +122,17 @@ class Declarations:
             robot_name, link = base.robot, base.link
             robot = self.robots[robot_name][1]
         else:
+            if stmt.robot.text in self.failed:
+                raise Dependent
             if stmt.robot.text not in self.robots:
                 hint = (f"'{stmt.robot.text}' is a frame; a frame on it is written `frame {stmt.name.text} = "
                         f"{stmt.robot.text} offset [...]`" if self._is_frame_statement(stmt.robot.text)
                         else suggest(stmt.robot.text, self.robots, "robots"))
-                raise VfError(f"unknown robot '{stmt.robot.text}'", stmt.robot.span, hint=hint)
+                raise VfError(f"unknown robot '{stmt.robot.text}'", stmt.robot.span, hint=hint, code="E201")
             robot_name, link, robot = stmt.robot.text, stmt.link.text, self.robots[stmt.robot.text][1]
             if link not in robot.link_names():
                 raise VfError(f"robot '{robot_name}' has no link '{link}'", stmt.link.span,
-                              hint=suggest(link, robot.link_names(), "links"))
+                              hint=suggest(link, robot.link_names(), "links"), code="E201")
         offset = self._literal(stmt.offset, "vector", self.units).xyz if stmt.offset else [0.0, 0.0, 0.0]
         rpy = self._literal(stmt.rotate, "rpy", self.units).xyz if stmt.rotate else [0.0, 0.0, 0.0]
         if stmt.axis is not None:
@@ -129,12 +146,13 @@ class Declarations:
             offset, rpy = compose(base.offset, base.rpy, offset, rpy)
             if not all(map(math.isfinite, offset)):
                 raise VfError(f"frame '{stmt.name.text}' is too far from its link: its offset composed with frame "
-                              f"'{base.name}''s overflows", stmt.span)
+                              f"'{base.name}''s overflows", stmt.span, code="E304")
         distance = math.hypot(*offset)
         if distance > limits.LENGTH:
             raise limits.exceeded(f"frame '{stmt.name.text}' is {distance:g} m from its link", limits.LENGTH,
                                   (stmt.offset.span if stmt.offset is not None else stmt.span),
-                                  hint="is the unit right? (bare numbers take the file's `units`)", unit="m")
+                                  hint="is the unit right? (bare numbers take the file's `units`)", unit="m",
+                                  code="E701")
         self.frames[stmt.name.text] = ir.FrameDecl(name=stmt.name.text, robot=robot_name, link=link,
                                                    offset=offset, rpy=rpy, tool_axis=axis, span=stmt.span,
                                                    base=stmt.base.text if stmt.base is not None else None)
@@ -143,20 +161,23 @@ class Declarations:
         name = stmt.base.text
         if name in self.frames:
             return self.frames[name]
+        if name in self.failed:
+            raise Dependent
         where = stmt.base.span
         if name == stmt.name.text:
             raise VfError(f"frame '{name}' is defined from itself", where,
-                          hint=f"build it on a robot link: frame {name} = <robot>.link(\"...\")")
+                          hint=f"build it on a robot link: frame {name} = <robot>.link(\"...\")", code="E204")
         if self._is_frame_statement(name):
             raise VfError(f"frame '{name}' is declared later (line {self.declared[name].span.line}); a frame can "
                           f"only be built on a frame declared before it", where,
-                          hint=f"move frame '{name}' above this line")
+                          hint=f"move frame '{name}' above this line", code="E204")
         if name in self.robots:
             raise VfError(f"'{name}' is a robot, not a frame", where,
-                          hint=f'a frame on one of its links is written: frame {stmt.name.text} = {name}.link("...")')
+                          hint=f'a frame on one of its links is written: frame {stmt.name.text} = {name}.link("...")',
+                          code="E203")
         if name in self.declared:
-            raise VfError(f"'{name}' is not a frame", where, hint=suggest(name, self.frames, "frames"))
-        raise VfError(f"unknown frame '{name}'", where, hint=suggest(name, self.frames, "frames"))
+            raise VfError(f"'{name}' is not a frame", where, hint=suggest(name, self.frames, "frames"), code="E203")
+        raise VfError(f"unknown frame '{name}'", where, hint=suggest(name, self.frames, "frames"), code="E201")
 
     def _is_frame_statement(self, name: str) -> bool:
         return any(isinstance(s, ast.FrameStmt) and s.name.text == name for s in self.module.statements)
@@ -172,54 +193,60 @@ class Declarations:
     def _input(self, stmt: ast.InputStmt) -> None:
         if stmt.type.text not in ir.INPUT_SIZES:
             raise VfError(f"unknown input type '{stmt.type.text}'", stmt.type.span,
-                          hint=suggest(stmt.type.text, ir.INPUT_SIZES, "input types"))
+                          hint=suggest(stmt.type.text, ir.INPUT_SIZES, "input types"), code="E205")
         self.inputs[stmt.name.text] = ir.InputDecl(name=stmt.name.text, type=stmt.type.text, span=stmt.span)
 
     def _params(self, statements: list[ast.ParamStmt], scene: SceneData | None) -> None:
         by_name = {s.name.text: s for s in statements}
-        if scene is not None:
-            for name, (_, key_span) in scene.params.items():
+        for name, (_, key_span) in scene.params.items() if scene is not None else ():
+            with self.errors.each():
                 if name not in by_name:
                     raise VfError(f"the scene sets '{name}', which is not a param of this task", key_span,
-                                  hint=suggest(name, by_name, "params"))
+                                  hint=suggest(name, by_name, "params"), code="E201")
         for stmt in statements:
-            kind = stmt.type.text
-            if kind not in PARAM_KINDS:
-                raise VfError(f"unknown param type '{kind}'", stmt.type.span,
-                              hint=suggest(kind, PARAM_KINDS, "param types"))
-            degree, runtime = self._curve_type(stmt)
-            if stmt.frame is not None:
-                target = by_name.get(stmt.frame.text)
-                if target is None or target.type.text != "pose":
-                    poses = [s.name.text for s in statements if s.type.text == "pose"]
-                    raise VfError(f"'{stmt.frame.text}' is not a pose param", stmt.frame.span,
-                                  hint=suggest(stmt.frame.text, poses, "pose params"))
-                if kind == "pose":
-                    raise VfError("a pose cannot be expressed `in` another pose", stmt.frame.span,
-                                  hint="nested frames are not supported: give the pose in the robot's base frame")
-                if kind not in ("point", "vector", "direction", "line", "plane", "curve", "mesh"):
-                    raise VfError(f"a {kind} cannot be expressed in a frame", stmt.frame.span)
-            if scene is not None and stmt.name.text in scene.params:
-                source, units = scene.params[stmt.name.text][0], scene.units
-            elif stmt.default is not None:
-                source, units = stmt.default, self.units
-            else:
-                raise VfError(f"param '{stmt.name.text}' has no value", stmt.name.span,
-                              hint=f"give a default (`= ...`) or set params.{stmt.name.text} in the scene file")
-            source = _named_mapping(source, kind)
-            self.param_values[stmt.name.text] = source
-            if kind == "mesh":
-                from_scene = source is not stmt.default
-                self.params[stmt.name.text] = ir.ParamDecl(
-                    name=stmt.name.text, type=kind, value=self._mesh(stmt, source, scene if from_scene else None),
-                    frame=stmt.frame.text if stmt.frame else None, span=stmt.span, value_span=source.span)
-                continue
-            value = self._literal(source, kind, units, degree)
-            if runtime:
-                value = value.model_copy(update={"runtime": True})
+            self._checked(stmt, lambda s: self._param(s, by_name, scene))
+
+    def _param(self, stmt: ast.ParamStmt, by_name: dict[str, ast.ParamStmt], scene: SceneData | None) -> None:
+        """One param: its type, the frame it is expressed in, its value (from the scene where it sets it)."""
+        kind = stmt.type.text
+        if kind not in PARAM_KINDS:
+            raise VfError(f"unknown param type '{kind}'", stmt.type.span,
+                          hint=suggest(kind, PARAM_KINDS, "param types"), code="E205")
+        degree, runtime = self._curve_type(stmt)
+        if stmt.frame is not None:
+            target = by_name.get(stmt.frame.text)
+            if target is None or target.type.text != "pose":
+                poses = [s.name.text for s in by_name.values() if s.type.text == "pose"]
+                raise VfError(f"'{stmt.frame.text}' is not a pose param", stmt.frame.span,
+                              hint=suggest(stmt.frame.text, poses, "pose params"), code="E203")
+            if kind == "pose":
+                raise VfError("a pose cannot be expressed `in` another pose", stmt.frame.span,
+                              hint="nested frames are not supported: give the pose in the robot's base frame",
+                              code="E503")
+            if kind not in ("point", "vector", "direction", "line", "plane", "curve", "mesh"):
+                raise VfError(f"a {kind} cannot be expressed in a frame", stmt.frame.span, code="E503")
+        if scene is not None and stmt.name.text in scene.params:
+            source, units = scene.params[stmt.name.text][0], scene.units
+        elif stmt.default is not None:
+            source, units = stmt.default, self.units
+        else:
+            raise VfError(f"param '{stmt.name.text}' has no value", stmt.name.span,
+                          hint=f"give a default (`= ...`) or set params.{stmt.name.text} in the scene file",
+                          code="E504")
+        source = _named_mapping(source, kind)
+        self.param_values[stmt.name.text] = source
+        if kind == "mesh":
+            from_scene = source is not stmt.default
             self.params[stmt.name.text] = ir.ParamDecl(
-                name=stmt.name.text, type=kind, value=value,
+                name=stmt.name.text, type=kind, value=self._mesh(stmt, source, scene if from_scene else None),
                 frame=stmt.frame.text if stmt.frame else None, span=stmt.span, value_span=source.span)
+            return
+        value = self._literal(source, kind, units, degree)
+        if runtime:
+            value = value.model_copy(update={"runtime": True})
+        self.params[stmt.name.text] = ir.ParamDecl(
+            name=stmt.name.text, type=kind, value=value,
+            frame=stmt.frame.text if stmt.frame else None, span=stmt.span, value_span=source.span)
 
     def _mesh(self, stmt: ast.ParamStmt, source: ast.Value, scene: SceneData | None) -> ir.MeshValue:
         """A mesh param: its file, relative to the file that names it (the task, or the scene), read with its unit
@@ -230,7 +257,7 @@ class Declarations:
         for kw in stmt.type_args:
             if kw.name.text != "unit":
                 raise VfError(f"mesh has no type argument '{kw.name.text}'", kw.name.span,
-                              hint="state the file's unit of length: mesh(unit = 1 mm)")
+                              hint="state the file's unit of length: mesh(unit = 1 mm)", code="E501")
             unit = self._mesh_unit(kw.value, self.units)
         name = stmt.name.text
         example = (f'write params.{name}: "anatomy/{name}.stl", or params.{name}: {{file: anatomy/{name}.stl, unit: 1 mm}}'
@@ -240,9 +267,9 @@ class Declarations:
             for name, kw in fields.items():
                 if name not in ("file", "unit"):
                     raise VfError(f"a mesh in a scene has no key '{name}'", kw.name.span,
-                                  hint=suggest(name, ("file", "unit"), "keys"))
+                                  hint=suggest(name, ("file", "unit"), "keys"), code="E602")
             if "file" not in fields:
-                raise VfError("a mesh in a scene needs its file", source.span, hint=example)
+                raise VfError("a mesh in a scene needs its file", source.span, hint=example, code="E602")
             if "unit" in fields:
                 unit = self._mesh_unit(fields["unit"].value, units)
             source = fields["file"].value
@@ -250,7 +277,7 @@ class Declarations:
             if scene is not None and isinstance(source, ast.Quantity):
                 example = ("a file name that starts like a number (10.stl) reads as a number with a unit: write it "
                            "as ./10.stl")
-            raise VfError("a mesh is given by its file name", source.span, hint=example)
+            raise VfError("a mesh is given by its file name", source.span, hint=example, code="E401")
         base = scene.file.parent if scene is not None else self.path.parent
         path = (base / source.text).absolute()
         try:
@@ -258,21 +285,24 @@ class Declarations:
         except MeshSizeError as exc:
             raise VfError(str(exc), source.span,
                           hint=f"decimate the mesh to at most {limits.MESH_TRIANGLES:,} triangles (quadric edge "
-                               "collapse): a fixture needs the anatomy's shape, not the scanner's resolution") from None
+                               "collapse): a fixture needs the anatomy's shape, not the scanner's resolution",
+                          code="E604") from None
         except MeshExtentError as exc:
             raise VfError(str(exc), source.span,
                           hint="state the file's unit: {file: ..., unit: 1 mm} (without it, the param type's unit, "
                                "else the scene's length unit)" if scene is not None else
-                               "state the file's unit: mesh(unit = 1 mm) (without it, the task's length unit)") from None
+                               "state the file's unit: mesh(unit = 1 mm) (without it, the task's length unit)",
+                          code="E604") from None
         except MeshFileError as exc:
             raise VfError(str(exc), source.span,
-                          hint=f"the path is relative to {base.resolve()}; STL, OBJ and PLY are read") from None
+                          hint=f"the path is relative to {base.resolve()}; STL, OBJ and PLY are read",
+                          code="E604") from None
         return ir.MeshValue(file=str(path), unit=unit, sha256=mesh.sha256)
 
     def _mesh_unit(self, value: ast.Value, units: u.DefaultUnits) -> float:
         unit = LiteralReader(units, self._no_names).scalar(value, u.LENGTH, "unit")
         if not unit > 0:
-            raise VfError("a mesh's unit must be a positive length", value.span)
+            raise VfError("a mesh's unit must be a positive length", value.span, code="E402")
         return unit
 
     def _curve_type(self, stmt: ast.ParamStmt) -> tuple[int | None, bool]:
@@ -281,7 +311,7 @@ class Declarations:
             return None, False
         if stmt.type.text != "curve":
             if stmt.type_args:
-                raise VfError(f"a {stmt.type.text} param takes no type arguments", stmt.type_args[0].span)
+                raise VfError(f"a {stmt.type.text} param takes no type arguments", stmt.type_args[0].span, code="E501")
             return None, False
         degree, runtime = None, False
         reader = LiteralReader(self.units, self._no_names)
@@ -292,40 +322,50 @@ class Declarations:
                 runtime = reader.read(kw.value, "flag").value
             else:
                 raise VfError(f"curve has no type argument '{kw.name.text}'", kw.name.span,
-                              hint="write curve(degree = 5), or curve(degree = 1, runtime = true)")
+                              hint="write curve(degree = 5), or curve(degree = 1, runtime = true)", code="E501")
         return degree, runtime
 
     # ---------------------------------------------------------------------------------------- scene
     def _scene(self, statements) -> SceneData | None:
         explicit = [s for s in statements if isinstance(s, ast.SceneStmt)]
         if len(explicit) > 1:
-            raise VfError("only one `scene` statement per task", explicit[1].span)
+            raise VfError("only one `scene` statement per task", explicit[1].span, code="E202")
         if explicit:
             return load_scene(self.path.parent / explicit[0].path, self.units, explicit[0].span)
         default = self.path.with_suffix(".yaml")
         return load_scene(default, self.units, None) if default.is_file() else None
 
-    def scene_ir(self, scene: SceneData | None, robot: Robot) -> ir.Scene:
+    def scene_ir(self, scene: SceneData | None, robot: Robot | None) -> ir.Scene | None:
+        """The scene's period and start, each checked on its own (None when one failed; the start needs the
+        robot)."""
         if scene is None:
             return ir.Scene()
         reader = LiteralReader(scene.units, self._no_names)
-        period = None
-        if scene.period is not None:
-            period = reader.scalar(scene.period, u.TIME, "period")
-            if period <= 0:
-                raise VfError("the period must be positive", scene.period.span)
-            if period < limits.MIN_PERIOD:
-                raise limits.exceeded(f"a period of {period:g} s is too short", limits.MIN_PERIOD,
-                                      scene.period.span, hint="the shortest control period is 10 us (100 kHz)",
-                                      unit="s")
-            if period > limits.MAX_PERIOD:
-                raise limits.exceeded(f"a period of {period:g} s is too long", limits.MAX_PERIOD,
-                                      scene.period.span, hint="the longest control period is 1 s: a longer tick "
-                                      "lets the joints' speed bounds allow large jumps", unit="s")
-        start = None
-        if scene.start is not None:
-            start = self._start(scene.start, scene.start_span, reader, robot)
+        period = start = None
+        with self.errors.each() as timed:
+            if scene.period is not None:
+                period = self._period(scene.period, reader)
+        with self.errors.each() as started:
+            if scene.start is not None:
+                if robot is None:
+                    raise Dependent
+                start = self._start(scene.start, scene.start_span, reader, robot)
+        if timed.failed or started.failed:
+            return None
         return ir.Scene(file=str(scene.file), start=start, period=period)
+
+    def _period(self, value: ast.Value, reader: LiteralReader) -> float:
+        period = reader.scalar(value, u.TIME, "period")
+        if period <= 0:
+            raise VfError("the period must be positive", value.span, code="E402")
+        if period < limits.MIN_PERIOD:
+            raise limits.exceeded(f"a period of {period:g} s is too short", limits.MIN_PERIOD, value.span,
+                                  hint="the shortest control period is 10 us (100 kHz)", unit="s", code="E701")
+        if period > limits.MAX_PERIOD:
+            raise limits.exceeded(f"a period of {period:g} s is too long", limits.MAX_PERIOD, value.span,
+                                  hint="the longest control period is 1 s: a longer tick lets the joints' speed "
+                                  "bounds allow large jumps", unit="s", code="E701")
+        return period
 
     def _start(self, value, span: ast.Span, reader: LiteralReader, robot: Robot) -> list[float]:
         dims = [u.LENGTH if t == "prismatic" else u.ANGLE for t in robot.joint_types]
@@ -333,25 +373,26 @@ class Declarations:
             for name, (_, key_span) in value.items():
                 if name not in robot.joint_names:
                     raise VfError(f"robot '{robot.name}' has no joint '{name}'", key_span,
-                                  hint=suggest(name, robot.joint_names, "joints"))
+                                  hint=suggest(name, robot.joint_names, "joints"), code="E201")
             missing = [n for n in robot.joint_names if n not in value]
             if missing:
                 raise VfError(f"the start configuration misses joint{'s' if len(missing) > 1 else ''} "
-                              f"{', '.join(missing)}", span, hint="give a value for every joint")
+                              f"{', '.join(missing)}", span, hint="give a value for every joint", code="E401")
             values = [value[n][0] for n in robot.joint_names]
         else:
             if not isinstance(value, ast.Vector) or len(value.items) != robot.nq:
                 raise VfError(f"the start configuration needs {robot.nq} joint values "
-                              f"({', '.join(robot.joint_names)})", span)
+                              f"({', '.join(robot.joint_names)})", span, code="E401")
             values = value.items
         q = [reader.scalar(v, d, "joint value") for v, d in zip(values, dims)]
         for name, x, lo, hi, v in zip(robot.joint_names, q, robot.lower, robot.upper, values):
             if not lo - 1e-12 <= x <= hi + 1e-12:
-                raise VfError(f"joint {name} starts outside its limits [{lo:g}, {hi:g}] (SI units)", v.span)
+                raise VfError(f"joint {name} starts outside its limits [{lo:g}, {hi:g}] (SI units)", v.span,
+                              code="E402")
         return q
 
     def _no_names(self, ref: ast.NameRef, kind: str) -> ir.Value:
-        raise VfError(f"a name ('{ref.name}') cannot stand here; write the value itself", ref.span)
+        raise VfError(f"a name ('{ref.name}') cannot stand here; write the value itself", ref.span, code="E206")
 
 
 def _named_mapping(value: ast.Value, kind: str) -> ast.Value:

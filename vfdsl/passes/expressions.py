@@ -87,7 +87,7 @@ class Expressions:
             t = self._expect(t, "scalar", SCALAR_DIMENSIONS[kind], f"expected {describe_kind(kind)}")
             if not isinstance(t.arg, ir.Const):
                 raise VfError("arithmetic on run-time scalars is not supported", value.span,
-                              hint="compute the value in the scene, or use constants here")
+                              hint="compute the value in the scene, or use constants here", code="E403")
             return ir.Const(value=ir.ScalarValue(dimension=kind, value=t.arg.value.value))
         if kind == "direction":
             return self.direction(t, f"expected {describe_kind(kind)}").arg
@@ -116,7 +116,7 @@ class Expressions:
             return getattr(self, "_" + value.name.text)(value)
         what = f"{value.name.text}(...)" if isinstance(value, ast.Call) else "this value"
         raise VfError(f"{what} cannot be used in derived geometry", value.span,
-                      hint="expressions combine points, vectors, directions and numbers")
+                      hint="expressions combine points, vectors, directions and numbers", code="E403")
 
     def _name(self, ref: ast.NameRef) -> Typed:
         arg = self.name(ref)
@@ -131,7 +131,7 @@ class Expressions:
             return Typed("scalar", SCALAR_DIMENSIONS[kind], arg, ref)
         raise VfError(f"'{ref.name}' is {describe_kind(kind)}; it cannot be used in derived geometry", ref.span,
                       hint="expressions combine points, vectors, directions and numbers"
-                           + ("; a frame moves with the robot" if kind == "frame" else ""))
+                           + ("; a frame moves with the robot" if kind == "frame" else ""), code="E203")
 
     def _settle(self, t: Typed, dim: u.Dim | None) -> Typed:
         """A list of bare numbers (or a sum or negation of such lists) read with dimension ``dim`` (a Typed
@@ -153,7 +153,7 @@ class Expressions:
             return Typed("vector", u.DIMENSIONLESS, t.arg, t.node)
         if t.kind != "vector":
             hint = "subtract two points to get a vector: b - a" if t.kind == "point" else None
-            raise VfError(f"{what} needs a vector here, got {t.words()}", t.node.span, hint=hint)
+            raise VfError(f"{what} needs a vector here, got {t.words()}", t.node.span, hint=hint, code="E403")
         return self._settle(t, dim)
 
     def _as_point(self, t: Typed) -> Typed:
@@ -183,7 +183,7 @@ class Expressions:
             hint = "normalize it and scale by a length: 10 mm * normalize(...)"
         elif kind == "point" and t.kind == "vector":
             hint = "add the vector to a point: p + v"
-        raise VfError(f"{what}, got {t.words()}", t.node.span, hint=hint)
+        raise VfError(f"{what}, got {t.words()}", t.node.span, hint=hint, code="E403")
 
     def direction(self, t: Typed, what: str) -> Typed:
         """``t`` where a direction is expected: a direction, or a vector of plain numbers (normalized)."""
@@ -196,12 +196,13 @@ class Expressions:
             hint = "normalize it: normalize(...)"
         elif t.kind == "point":
             hint = "a point has no direction; did you mean normalize(b - a)?"
-        raise VfError(f"{what}, got {t.words()}", t.node.span, hint=hint)
+        raise VfError(f"{what}, got {t.words()}", t.node.span, hint=hint, code="E403")
 
     # -------------------------------------------------------------------------------------- operators
     def _add(self, node: ast.BinOp, a: Typed, b: Typed) -> Typed:
         if a.kind == "point" and b.kind == "point":
-            raise VfError("adding two points has no meaning", node.span, hint="did you mean midpoint(a, b)?")
+            raise VfError("adding two points has no meaning", node.span, hint="did you mean midpoint(a, b)?",
+                          code="E403")
         if "point" in (a.kind, b.kind):
             point, vector = (a, b) if a.kind == "point" else (b, a)
             vector = self._length_vector(vector, node.op)
@@ -216,7 +217,7 @@ class Expressions:
             return self._node("sub", "point", [a, b], node, u.LENGTH)
         if b.kind == "point":
             raise VfError("subtracting a point from a vector has no meaning", node.span,
-                          hint="write point - vector, or point - point for the vector between them")
+                          hint="write point - vector, or point - point for the vector between them", code="E403")
         return self._same_dims("sub", node, a, b)
 
     def _length_vector(self, t: Typed, op: str) -> Typed:
@@ -224,7 +225,7 @@ class Expressions:
         t = self._vector(t, u.LENGTH, f"'{op}'")
         if t.dim != u.LENGTH:
             raise VfError(f"a point moves by a vector of lengths, got {t.words()}", t.node.span,
-                          hint="scale it by a length: 10 mm * v" if t.dim == u.DIMENSIONLESS else None)
+                          hint="scale it by a length: 10 mm * v" if t.dim == u.DIMENSIONLESS else None, code="E403")
         return t
 
     def _same_dims(self, op: str, node: ast.BinOp, a: Typed, b: Typed) -> Typed:
@@ -238,7 +239,7 @@ class Expressions:
             return self._scalar(node, a, b, np.add if op == "add" else np.subtract)
         if a.kind != b.kind or a.dim != b.dim:
             raise VfError(f"cannot {'add' if op == 'add' else 'subtract'} {b.words()} "
-                          f"{'to' if op == 'add' else 'from'} {a.words()}", node.span)
+                          f"{'to' if op == 'add' else 'from'} {a.words()}", node.span, code="E403")
         placeable = a.dim == u.LENGTH and (a.placeable or (op == "add" and b.placeable))
         return replace(self._node(op, "vector", [a, b], node, a.dim), placeable=placeable)
 
@@ -247,7 +248,7 @@ class Expressions:
         if t.kind == "scalar":
             return self._scalar(node, t, None, np.negative)
         if t.kind == "point":
-            raise VfError("negating a point has no meaning", node.span, hint="negate a vector: -(b - a)")
+            raise VfError("negating a point has no meaning", node.span, hint="negate a vector: -(b - a)", code="E403")
         if t.kind == "direction":
             return self._node("neg", "direction", [t], node, u.DIMENSIONLESS)
         if t.kind == "vector" and t.dim is None:
@@ -260,11 +261,11 @@ class Expressions:
             return self._scalar(node, a, b, np.multiply)
         if "scalar" not in (a.kind, b.kind):
             raise VfError(f"'*' multiplies a number and a vector, got {a.words()} and {b.words()}", node.span,
-                          hint="for the cross product write cross(a, b)")
+                          hint="for the cross product write cross(a, b)", code="E403")
         scalar, vector = (a, b) if a.kind == "scalar" else (b, a)
         if vector.kind == "point":
             raise VfError("scaling a point has no meaning", vector.node.span,
-                          hint="scale a vector, e.g. 2 * (b - a)")
+                          hint="scale a vector, e.g. 2 * (b - a)", code="E403")
         vector = self._vector(vector, u.DIMENSIONLESS, "'*'")
         return self._node("scale", "vector", [scalar, vector], node, _times(scalar.dim, vector.dim))
 
@@ -281,7 +282,7 @@ class Expressions:
         (t,) = self._args(call, 1)
         if t.kind == "point":
             raise VfError("normalize(...) needs a vector; a point has no direction", t.node.span,
-                          hint="did you mean normalize(b - a)?")
+                          hint="did you mean normalize(b - a)?", code="E403")
         t = self._vector(t, u.DIMENSIONLESS, "normalize(...)")
         return self._node("normalize", "direction", [t], call, u.DIMENSIONLESS)
 
@@ -307,7 +308,7 @@ class Expressions:
             return self._node("line2", "line", [point, second], call, None)
         if kind == "line" and second.kind == "vector" and second.dim == u.LENGTH:
             raise VfError("line(a, b) needs two points, or a point and a direction; got a vector of lengths",
-                          second.node.span, hint="write line(a, a + v) or line(a, normalize(v))")
+                          second.node.span, hint="write line(a, a + v) or line(a, normalize(v))", code="E403")
         direction = self.direction(second, f"the {names[1]} of {kind}(...) must be a direction")
         return self._node(kind, kind, [point, direction], call, None)
 
@@ -315,11 +316,15 @@ class Expressions:
     def _node(self, op: str, kind: str, operands: list[Typed], node: ast.Value, dim: u.Dim | None) -> Typed:
         """The Derived node of ``op``, folded to a Const when every operand is constant."""
         result = ir.Derived(op=op, kind=kind, operands=[t.arg for t in operands], span=node.span)
-        if all(isinstance(t.arg, ir.Const) for t in operands):
-            derived.check(result, ParamReader([]).read)
-            value = derived.evaluate(result, ParamReader([]).read)
+        constant = all(isinstance(t.arg, ir.Const) for t in operands)
+        read = ParamReader([]).read if constant else self._defaults().read
+        try:                                # a zero direction, or a value that overflows
+            derived.check(result, read, "" if constant else "with the params' values, ")
+        except VfError as error:
+            raise error.with_code("E402") from None
+        if constant:
+            value = derived.evaluate(result, read)
             return Typed(kind, dim, ir.Const(value=derived.to_value(kind, value)), node)
-        derived.check(result, self._defaults().read, "with the params' values, ")
         return Typed(kind, dim, result, node)
 
     def _defaults(self) -> ParamReader:
@@ -329,13 +334,13 @@ class Expressions:
     def _scalar(self, node: ast.Value, a: Typed, b: Typed | None, op) -> Typed:
         if not all(isinstance(t.arg, ir.Const) for t in (a, b) if t is not None):
             raise VfError("arithmetic on run-time scalars is not supported", node.span,
-                          hint="compute the value in the scene, or use constants here")
+                          hint="compute the value in the scene, or use constants here", code="E403")
         numbers = [t.arg.value.value for t in (a, b) if t is not None]
         dim = _times(a.dim, b.dim) if op is np.multiply else a.dim
         with np.errstate(over="ignore"):
             value = float(op(*numbers))
         if not np.isfinite(value):
-            raise VfError("this value is too large (SI numbers overflow)", node.span)
+            raise VfError("this value is too large (SI numbers overflow)", node.span, code="E304")
         return Typed("scalar", dim, _const_scalar(dim, value), node)
 
 

@@ -22,6 +22,7 @@ from vfdsl.errors import VfError, suggest
 from vfdsl.ir import model as ir
 from vfdsl import limits
 from vfdsl.passes.calls import bind_arguments
+from vfdsl.passes.diagnostics import Dependent, Errors
 from vfdsl.units import DefaultUnits
 from vfdsl.primitives.spec import ARG_KINDS, REQUIRED, ArgSpec
 from vfdsl.syntax import ast
@@ -58,73 +59,89 @@ class Fixture:
     units: DefaultUnits                               # the units of the file that defines it
 
 
+@dataclass(frozen=True)
+class Fixtures:
+    """The fixtures of a program by name, and the names of those whose formals are wrong (their uses are not
+    checked: the definition's error is reported)."""
+
+    table: dict[str, Fixture]
+    failed: set[str]
+
+
 # evaluate(value, kind, scope) -> the IR argument for that value, checked against kind
 Evaluate = Callable[[ast.Value, str, Scope], ir.Arg]
 
 
-def collect(modules: list[tuple[ast.Module, DefaultUnits]]) -> dict[str, Fixture]:
-    table: dict[str, Fixture] = {}
+def collect(modules: list[tuple[ast.Module, DefaultUnits]], errors: Errors) -> Fixtures:
+    """Every fixture definition, each checked on its own (a second one of a name is an error, the first kept)."""
+    fixtures = Fixtures({}, set())
     for module, units in modules:
         for stmt in module.statements:
             if not isinstance(stmt, ast.FixtureDef):
                 continue
-            if stmt.name.text in table:
-                first = table[stmt.name.text].definition.name.span
-                raise VfError(f"fixture '{stmt.name.text}' is defined twice", stmt.name.span,
-                              hint=f"first defined at {first}")
-            _check_formals(stmt)
-            table[stmt.name.text] = Fixture(stmt, units)
-    return table
+            with errors.each() as defined:
+                if stmt.name.text in fixtures.table:
+                    first = fixtures.table[stmt.name.text].definition.name.span
+                    raise VfError(f"fixture '{stmt.name.text}' is defined twice", stmt.name.span,
+                                  hint=f"first defined at {first}", code="E202")
+                fixtures.table[stmt.name.text] = Fixture(stmt, units)
+                _check_formals(stmt)
+            if defined.failed and fixtures.table[stmt.name.text].definition is stmt:
+                fixtures.failed.add(stmt.name.text)
+    return fixtures
 
 
 def _check_formals(fixture: ast.FixtureDef) -> None:
     seen: set[str] = set()
     for formal in fixture.formals:
         if formal.name.text in seen:
-            raise VfError(f"formal '{formal.name.text}' appears twice", formal.name.span)
+            raise VfError(f"formal '{formal.name.text}' appears twice", formal.name.span, code="E202")
         seen.add(formal.name.text)
         if formal.type.text not in FORMAL_KINDS:
             raise VfError(f"unknown kind '{formal.type.text}'", formal.type.span,
-                          hint=suggest(formal.type.text, FORMAL_KINDS, "kinds"))
+                          hint=suggest(formal.type.text, FORMAL_KINDS, "kinds"), code="E205")
 
 
-def expand(statements: list, scope: Scope, fixtures: dict[str, Fixture], evaluate: Evaluate,
+def expand(statements: list, scope: Scope, fixtures: Fixtures, evaluate: Evaluate, errors: Errors,
            active: tuple[str, ...] = ()) -> list[tuple[ast.MinimizeStmt | ast.RequireStmt, Scope]]:
-    """Replace every ``use`` by its fixture's body, recursively; keep minimize/require with their scope."""
+    """Replace every ``use`` by its fixture's body, recursively; keep minimize/require with their scope. A
+    ``use`` that fails to bind is recorded in ``errors`` and brings nothing in."""
     out: list[tuple[ast.MinimizeStmt | ast.RequireStmt, Scope]] = []
     for stmt in statements:
         if isinstance(stmt, (ast.MinimizeStmt, ast.RequireStmt)):
             out.append((stmt, scope))
         elif isinstance(stmt, ast.UseStmt):
-            try:
+            with errors.each(scope.note) as used:
                 inner = _bind_use(stmt, scope, fixtures, evaluate, active)
-            except VfError as error:
-                raise scope.note(error) from None
-            out.extend(expand(fixtures[inner.fixture].definition.body, inner, fixtures, evaluate,
-                              active + (inner.fixture,)))
+            if not used.failed:
+                out.extend(expand(fixtures.table[inner.fixture].definition.body, inner, fixtures, evaluate, errors,
+                                  active + (inner.fixture,)))
         if len(out) > limits.EXPANDED_STATEMENTS:
             raise scope.note(limits.exceeded("too many statements after expanding fixtures",
-                                             limits.EXPANDED_STATEMENTS, stmt.span))
+                                             limits.EXPANDED_STATEMENTS, stmt.span, code="E701"))
     return out
 
 
-def _bind_use(use: ast.UseStmt, scope: Scope, fixtures: dict[str, Fixture], evaluate: Evaluate,
+def _bind_use(use: ast.UseStmt, scope: Scope, fixtures: Fixtures, evaluate: Evaluate,
               active: tuple[str, ...]) -> Scope:
     """The scope of the body of the fixture that ``use`` names, with its formals bound."""
     name = use.call.name
-    if name.text not in fixtures:
-        raise VfError(f"unknown fixture '{name.text}'", name.span, hint=suggest(name.text, fixtures, "fixtures"))
+    if name.text in fixtures.failed:
+        raise Dependent
+    if name.text not in fixtures.table:
+        raise VfError(f"unknown fixture '{name.text}'", name.span, hint=suggest(name.text, fixtures.table, "fixtures"),
+                      code="E201")
     if name.text in active:
         chain = " -> ".join(active[active.index(name.text):] + (name.text,))
-        raise VfError(f"fixture '{name.text}' uses itself: {chain}", use.span)
+        raise VfError(f"fixture '{name.text}' uses itself: {chain}", use.span, code="E605")
     if len(active) >= limits.FIXTURE_DEPTH:
-        raise limits.exceeded("fixtures nested too deeply", limits.FIXTURE_DEPTH, use.span)
+        raise limits.exceeded("fixtures nested too deeply", limits.FIXTURE_DEPTH, use.span, code="E701")
     clauses = use.clauses
     if clauses.within or clauses.resolution or clauses.weight or clauses.priority or clauses.soft:
         raise VfError("`use` takes no clauses", use.span,
                       hint="put within/resolution/soft/weight/priority on the statements inside the fixture, "
-                           "or make them formals of the fixture")
-    fixture = fixtures[name.text]
+                           "or make them formals of the fixture", code="E502")
+    fixture = fixtures.table[name.text]
     formals = [ArgSpec(f.name.text, f.type.text, "", default=f.default if f.default is not None else REQUIRED)
                for f in fixture.definition.formals]
     given = bind_arguments(use.call, [f.name for f in formals], {f.name for f in formals if f.required},

@@ -36,7 +36,7 @@ def load_program(entry: Path) -> tuple[SourceFile, list[SourceFile]]:
     main = read_source(entry)
     if main.module.header != "task":
         raise VfError(f"{entry.name} is a library; load a task file (one that starts with `task NAME`)",
-                      main.module.name.span)
+                      main.module.name.span, code="E601")
     libraries: dict[Path, SourceFile] = {}
     _visit(main, [main.path.resolve()], libraries)
     return main, list(libraries.values())
@@ -48,29 +48,30 @@ def _visit(source: SourceFile, stack: list[Path], done: dict[Path, SourceFile]) 
             continue
         if not stmt.path.endswith(".vf"):
             raise VfError(f"'{stmt.path}' is not a .vf file", stmt.span,
-                          hint="only libraries of fixtures (.vf files that start with `library NAME`) can be imported")
+                          hint="only libraries of fixtures (.vf files that start with `library NAME`) can be imported",
+                          code="E601")
         if len(stack) > limits.IMPORT_DEPTH:
-            raise limits.exceeded("imports nested too deeply", limits.IMPORT_DEPTH, stmt.span)
+            raise limits.exceeded("imports nested too deeply", limits.IMPORT_DEPTH, stmt.span, code="E701")
         path = source.path.parent / stmt.path
         try:
             target = path.resolve()
         except (OSError, ValueError, RuntimeError) as exc:
-            raise VfError(f"cannot read file {path}: {exc}", stmt.span) from None
+            raise VfError(f"cannot read file {path}: {exc}", stmt.span, code="E601") from None
         if target in stack:
             cycle = " -> ".join(p.name for p in stack[stack.index(target):] + [target])
             raise VfError(f"import cycle: {cycle}", stmt.span, hint="a library cannot import itself, "
-                          "directly or through other libraries")
+                          "directly or through other libraries", code="E601")
         if target in done:
             continue
         if len(done) >= limits.IMPORTED_FILES:
-            raise limits.exceeded("too many imported files", limits.IMPORTED_FILES, stmt.span)
+            raise limits.exceeded("too many imported files", limits.IMPORTED_FILES, stmt.span, code="E701")
         library = read_source(path, stmt.span)
         if library.module.header != "library":
             raise VfError(f"'{stmt.path}' is a task, not a library", stmt.span,
-                          hint="only files that start with `library NAME` can be imported")
+                          hint="only files that start with `library NAME` can be imported", code="E601")
         for inner in library.module.statements:
             if not isinstance(inner, _LIBRARY_STATEMENTS):
                 raise VfError(f"a library holds only fixtures, imports and units; this {inner.kind} statement "
-                              "belongs in a task", inner.span)
+                              "belongs in a task", inner.span, code="E601")
         _visit(library, stack + [target], done)
         done[target] = library

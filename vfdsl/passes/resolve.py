@@ -5,8 +5,9 @@ every ``require``/``minimize`` call against its
 primitive's signature (:mod:`vfdsl.primitives.spec`): argument names and kinds, units (via
 :mod:`vfdsl.units`), shapes (via :mod:`vfdsl.passes.shapes`) and the argument's allowed range (for a
 literal, at the literal; for a param, at the param's value and naming the use), then the clauses ``within``,
-``resolution``, ``soft`` and ``weight`` against :mod:`vfdsl.limits`. Any mistake raises
-:class:`~vfdsl.errors.VfError` at its position.
+``resolution``, ``soft`` and ``weight`` against :mod:`vfdsl.limits`. Each statement, and each argument and
+clause of it, is checked on its own; every mistake found is raised at once, at its position
+(:mod:`vfdsl.passes.diagnostics`).
 """
 
 from __future__ import annotations
@@ -24,6 +25,7 @@ from vfdsl.passes import expressions as ex
 from vfdsl.passes import fixtures as fx
 from vfdsl.passes.calls import bind_arguments
 from vfdsl.passes.declarations import Declarations
+from vfdsl.passes.diagnostics import Dependent
 from vfdsl.passes.shapes import LiteralReader, describe_kind
 from vfdsl.primitives import CONSTRAINTS
 from vfdsl.primitives.spec import (
@@ -43,7 +45,7 @@ def file_units(module: ast.Module) -> u.DefaultUnits:
     statements = [s for s in module.statements if isinstance(s, ast.UnitsStmt)]
     if len(statements) > 1:
         raise VfError("only one `units` statement per file", statements[1].span,
-                      hint=f"the first is at {statements[0].span}")
+                      hint=f"the first is at {statements[0].span}", code="E303")
     if not statements:
         return u.DefaultUnits()
     return u.default_units([(name.text, name.span) for name in statements[0].names])
@@ -55,36 +57,43 @@ class Resolver(Declarations):
 
     def __init__(self, module: ast.Module, path: Path, libraries: list[tuple[ast.Module, u.DefaultUnits]]):
         super().__init__(module, path, file_units(module))
-        self.fixtures = fx.collect(libraries + [(module, self.units)])
+        self.libraries = libraries
         self.task_scope = fx.Scope(units=self.units)
 
     # ----------------------------------------------------------------------------------- entry point
     def run(self, imports: list[str]) -> ir.Task:
+        """The task; every independent mistake in its files raised at once (:mod:`vfdsl.passes.diagnostics`)."""
+        with self.errors.report():
+            return self._task(imports)
+
+    def _task(self, imports: list[str]) -> ir.Task:
         statements = self.module.statements
         scene = self.read()
+        fixtures = fx.collect(self.libraries + [(self.module, self.units)], self.errors)
         body = [s for s in statements if isinstance(s, (ast.MinimizeStmt, ast.RequireStmt, ast.UseStmt))]
         objectives, constraints = [], []
         rows = 0
-        for stmt, scope in fx.expand(body, self.task_scope, self.fixtures, self.evaluate):
-            try:
+        for stmt, scope in fx.expand(body, self.task_scope, fixtures, self.evaluate, self.errors):
+            with self.errors.each(scope.note):
                 if isinstance(stmt, ast.MinimizeStmt):
                     objectives.append(self._objective(stmt, scope))
-                    continue
-                constraints.append(self._constraint(stmt, scope))
-                if len(constraints) > limits.CONSTRAINTS:
-                    raise limits.exceeded("too many constraints", limits.CONSTRAINTS, stmt.span)
-                rows += _row_estimate(constraints[-1])
-                if rows > limits.ROWS:
-                    raise limits.exceeded(f"too many constraint rows (about {rows:,} so far)", limits.ROWS,
-                                          stmt.span, hint="lower the resolution of the polytopes")
-            except VfError as error:
-                raise scope.note(error) from None
-        robot_decl, robot = next(iter(self.robots.values()))
+                else:
+                    constraints.append(self._constraint(stmt, scope))
+                    rows += _row_estimate(constraints[-1])
+            if len(constraints) > limits.CONSTRAINTS:
+                raise scope.note(limits.exceeded("too many constraints", limits.CONSTRAINTS, stmt.span, code="E701"))
+            if rows > limits.ROWS:
+                raise scope.note(limits.exceeded(f"too many constraint rows (about {rows:,} so far)", limits.ROWS,
+                                                 stmt.span, hint="lower the resolution of the polytopes",
+                                                 code="E701"))
+        robot_decl, robot = next(iter(self.robots.values()), (None, None))
+        scene_ir = self.scene_ir(scene, robot)
+        self.errors.checkpoint()
         task = ir.Task(
             name=self.module.name.text, file=str(self.path), span=self.module.span,
             robots=[robot_decl], frames=list(self.frames.values()), inputs=list(self.inputs.values()),
             params=list(self.params.values()), objectives=objectives, constraints=constraints,
-            scene=self.scene_ir(scene, robot), imports=imports)
+            scene=scene_ir, imports=imports)
         self.check_param_values(task, robot)
         return task
 
@@ -95,7 +104,7 @@ class Resolver(Declarations):
             return self._resolve_name(value, kind, scope)
         if kind in ("frame", "input"):
             raise VfError(f"expected the name of {describe_kind(kind)}", value.span,
-                          hint=suggest("", self._names_of(kind, scope), f"{kind}s"))
+                          hint=suggest("", self._names_of(kind, scope), f"{kind}s"), code="E203")
         if kind in ex.KINDS and ex.is_expression(value):
             return ex.Expressions(scope.units, lambda ref: self._lookup(ref, "name", scope), self._arg_kind,
                                   list(self.params.values())).evaluate(value, kind)
@@ -104,7 +113,8 @@ class Resolver(Declarations):
             dim = gain_dimension(input_type, kind)
             if dim is None:
                 raise VfError(f"a {input_type} input has no {kind.replace('_', ' ')}", value.span,
-                              hint="a force drives translation (gain), a torque drives rotation (angular_gain)")
+                              hint="a force drives translation (gain), a torque drives rotation (angular_gain)",
+                              code="E503")
             return ir.Const(value=ir.ScalarValue(dimension=kind, value=reader.scalar(value, dim, kind)))
         return ir.Const(value=reader.read(value, kind))
 
@@ -112,8 +122,9 @@ class Resolver(Declarations):
         if scope.bindings is not None:
             return list(scope.bindings)
         table = {"frame": self.frames, "input": self.inputs}.get(kind)
-        if table is not None:
-            return list(table)
+        if table is not None:                       # with those whose declaration failed
+            return list(table) + [s.name.text for s in self.module.statements
+                                  if s.kind == kind and s.name.text in self.failed]
         return [n for n, p in self.params.items() if p.type == kind] or list(self.params)
 
     def _resolve_name(self, ref: ast.NameRef, kind: str, scope: fx.Scope) -> ir.Arg:
@@ -121,7 +132,7 @@ class Resolver(Declarations):
         actual = self._arg_kind(arg)
         if not _compatible(actual, kind):
             raise VfError(f"expected {describe_kind(kind)}, but '{ref.name}' is {describe_kind(actual)}",
-                          ref.span)
+                          ref.span, code="E203")
         return arg
 
     def _lookup(self, ref: ast.NameRef, kind: str, scope: fx.Scope) -> ir.Arg:
@@ -130,7 +141,7 @@ class Resolver(Declarations):
             if ref.name not in scope.bindings:
                 raise VfError(f"unknown name '{ref.name}' in fixture '{scope.fixture}'", ref.span,
                               hint=suggest(ref.name, scope.bindings, "formals") +
-                              " (a fixture body sees only its formals)")
+                              " (a fixture body sees only its formals)", code="E201")
             arg = scope.bindings[ref.name]
         elif ref.name in self.frames:
             arg = ir.FrameRef(name=ref.name)
@@ -139,10 +150,13 @@ class Resolver(Declarations):
         elif ref.name in self.params:
             arg = ir.ParamRef(name=ref.name)
         elif ref.name in self.robots:
-            raise VfError(f"'{ref.name}' is a robot; expected {describe_kind(kind)}", ref.span)
+            raise VfError(f"'{ref.name}' is a robot; expected {describe_kind(kind)}", ref.span, code="E203")
+        elif ref.name in self.failed:
+            raise Dependent
         else:
             raise VfError(f"unknown {kind.replace('_', ' ')} '{ref.name}'", ref.span,
-                          hint=suggest(ref.name, self._names_of(kind, scope), f"{kind.replace('_', ' ')}s"))
+                          hint=suggest(ref.name, self._names_of(kind, scope), f"{kind.replace('_', ' ')}s"),
+                          code="E201")
         return arg
 
     def _scoped_reader(self, scope: fx.Scope) -> LiteralReader:
@@ -154,7 +168,7 @@ class Resolver(Declarations):
         arg = self._resolve_name(ref, kind, scope)
         if not isinstance(arg, ir.Const):
             raise VfError(f"'{ref.name}' is a run-time {kind}; only constants can stand here", ref.span,
-                          hint="write the value itself here (or pass a literal into the fixture)")
+                          hint="write the value itself here (or pass a literal into the fixture)", code="E206")
         return arg.value
 
     def _arg_kind(self, arg: ir.Arg) -> str:
@@ -172,20 +186,27 @@ class Resolver(Declarations):
     # ------------------------------------------------------------------------------- statements
     def _bind(self, call: ast.Call, specs: tuple[ArgSpec, ...], scope: fx.Scope, what: str,
               subject: ir.FrameRef | None = None) -> dict[str, ir.Arg]:
+        """Every argument checked on its own; a gain only once its input is known."""
         given = bind_arguments(call, [s.name for s in specs], {s.name for s in specs if s.required}, what)
         args: dict[str, ir.Arg] = {}
         input_type = None
+        checks = []
         for spec in specs:
             if spec.name in given:
-                args[spec.name] = self.evaluate(given[spec.name], spec.kind, scope, input_type)
-                if isinstance(args[spec.name], ir.InputRef):
-                    input_type = self.inputs[args[spec.name].name].type
-                if spec.range is not None:
-                    self._check_range(spec, args[spec.name], scope.source_span(given[spec.name]), call, scope)
+                with self.errors.each(scope.note) as check:
+                    if spec.kind in ("gain", "angular_gain") and input_type is None:
+                        raise Dependent
+                    args[spec.name] = self.evaluate(given[spec.name], spec.kind, scope, input_type)
+                    if isinstance(args[spec.name], ir.InputRef):
+                        input_type = self.inputs[args[spec.name].name].type
+                    if spec.range is not None:
+                        self._check_range(spec, args[spec.name], scope.source_span(given[spec.name]), call, scope)
+                checks.append(check)
             elif spec.default == "subject":
                 args[spec.name] = subject
             elif spec.default is not None:
                 args[spec.name] = ir.Const(value=spec.default)
+        self.errors.settle(*checks)
         return args
 
     def _check_range(self, spec: ArgSpec, arg: ir.Arg, written: ast.Span, call: ast.Call, scope: fx.Scope) -> None:
@@ -199,7 +220,7 @@ class Resolver(Declarations):
             problem = spec.range.violation(arg.value.value)
             if problem:
                 raise VfError(f"{what} {problem}, got {shown(arg.value.value, scope.units)}", written,
-                              hint=f"{spec.name} is {spec.doc}; allowed: {spec.range.describe()}")
+                              hint=f"{spec.name} is {spec.doc}; allowed: {spec.range.describe()}", code="E402")
         elif isinstance(arg, ir.ParamRef) and isinstance(self.params[arg.name].value, ir.ScalarValue):
             value = self.params[arg.name].value.value
             problem = spec.range.violation(value)
@@ -207,21 +228,28 @@ class Resolver(Declarations):
                 raise VfError(f"param '{arg.name}' is used as {what}, which {problem}; its value is "
                               f"{shown(value, self.units)}", self.param_values[arg.name].span,
                               hint=f"{spec.name} is {spec.doc}; allowed: {spec.range.describe()}",
-                              notes=(f"used at {written}",))
+                              notes=(f"used at {written}",), code="E402")
 
     def _objective(self, stmt: ast.MinimizeStmt, scope: fx.Scope) -> ir.Objective:
         name = stmt.call.name
         spec = _lookup_spec(name, OBJECTIVES, "objective term", CONSTRAINTS,
                             f"'{name.text}' is a constraint: write `require <frame> {name.text}(...)`")
         clauses = stmt.clauses
-        for clause, word in ((clauses.within, "within"), (clauses.resolution, "resolution"), (clauses.soft, "soft")):
-            if clause is not None:
-                raise VfError(f"`{word}` applies to constraints, not to objective terms", _span(clause))
-        args = self._bind(stmt.call, spec.args, scope, f"{name.text}(...)")
-        if name.text == "track":
-            self._check_track(stmt.call, args)
-        weight = self._weight(clauses.weight, scope, 1.0)
-        priority = self._priority(clauses.priority, scope, spec.priority)
+        with self.errors.each(scope.note) as form:
+            for clause, word in ((clauses.within, "within"), (clauses.resolution, "resolution"),
+                                 (clauses.soft, "soft")):
+                if clause is not None:
+                    raise VfError(f"`{word}` applies to constraints, not to objective terms", _span(clause),
+                                  code="E502")
+        with self.errors.each(scope.note) as bound:
+            args = self._bind(stmt.call, spec.args, scope, f"{name.text}(...)")
+            if name.text == "track":
+                self._check_track(stmt.call, args)
+        with self.errors.each(scope.note) as weighed:
+            weight = self._weight(clauses.weight, scope, 1.0)
+        with self.errors.each(scope.note) as levelled:
+            priority = self._priority(clauses.priority, scope, spec.priority)
+        self.errors.settle(form, bound, weighed, levelled)
         return ir.Objective(term=name.text, args=args, weight=weight, priority=priority, span=stmt.span,
                             via=list(scope.via))
 
@@ -232,14 +260,14 @@ class Resolver(Declarations):
         if level > limits.PRIORITY_LEVELS:
             raise limits.exceeded(f"priority {level} is too low a level", limits.PRIORITY_LEVELS,
                                   scope.source_span(value),
-                                  hint="1 is solved first; each level is one more solve per tick")
+                                  hint="1 is solved first; each level is one more solve per tick", code="E701")
         return level
 
     def _check_track(self, call: ast.Call, args: dict[str, ir.Arg]) -> None:
         """Gains the input needs, and something left to track."""
         if not (flag(args, "linear") or flag(args, "angular")):
             raise VfError("track with `linear = false` and `angular = false` tracks nothing", call.span,
-                          hint="leave one part tracked, or remove the term")
+                          hint="leave one part tracked, or remove the term", code="E503")
         input_type = self.inputs[args["input"].name].type
         for kind in ("gain", "angular_gain"):
             if gain_dimension(input_type, kind) is not None and kind not in args:
@@ -248,56 +276,69 @@ class Resolver(Declarations):
                 else:
                     example = "gain = 2 mm/s/N" if kind == "gain" else "angular_gain = 5 deg/s/Nm"
                     raise VfError(f"track with a {input_type} input needs {kind}", call.span,
-                                  hint=f"e.g. {example}")
+                                  hint=f"e.g. {example}", code="E503")
 
     def _constraint(self, stmt: ast.RequireStmt, scope: fx.Scope) -> ir.Constraint:
         name = stmt.call.name
         spec = _lookup_spec(name, CONSTRAINTS, "primitive", OBJECTIVES,
                             f"'{name.text}' is an objective term: write `minimize {name.text}(...)`")
-        subject = None
-        if spec.subject:
-            if stmt.subject is None:
-                raise VfError(f"{name.text} applies to a task frame", name.span,
-                              hint=f"write `require <frame> {name.text}(...)`")
-            subject = self.evaluate(ast.NameRef(span=stmt.subject.span, name=stmt.subject.text), "frame", scope)
-        elif stmt.subject is not None:
-            raise VfError(f"{name.text} applies to the whole robot, not to a frame", stmt.subject.span,
-                          hint=f"write `require {name.text}(...)`")
-        args = self._bind(stmt.call, spec.args, scope, f"{name.text}(...)", subject)
         clauses = stmt.clauses
-        tolerance = None
-        if spec.tolerance is None:
-            if clauses.within is not None:
-                raise VfError(f"{name.text} takes no tolerance (`within`)", clauses.within.span)
-        elif clauses.within is not None:
-            reader = self._scoped_reader(scope)
-            tolerance = reader.scalar(clauses.within, SCALAR_DIMENSIONS[spec.tolerance], spec.tolerance)
-            self._check_tolerance(tolerance, spec.tolerance, scope.source_span(clauses.within), scope.units)
-        else:
-            tolerance = spec.default_tolerance
-        shape = spec.resolution_shape(args)
-        resolution = None
-        if shape is None:
-            if clauses.resolution is not None:
-                raise VfError(f"{name.text} takes no polytope resolution", clauses.resolution.span)
-        else:
-            resolution = self._resolution(clauses.resolution, shape, spec)
-        for clause, word in ((clauses.weight, "weight"), (clauses.priority, "priority")):
-            if clause is not None and clauses.soft is None:
-                raise VfError(f"`{word}` applies to soft constraints", clause.span,
-                              hint=f"add `soft` to make this constraint soft; hard constraints have no {word}: "
-                                   "they always hold")
-        soft = clauses.soft is not None
-        weight = self._weight(clauses.weight, scope, DEFAULT_SOFT_WEIGHT) if soft else None
-        priority = self._priority(clauses.priority, scope, TASK_LEVEL) if soft else None
+        subject = None
+        with self.errors.each(scope.note) as subjected:
+            subject = self._subject(stmt, spec, scope)
+        with self.errors.each(scope.note) as bound:
+            args = self._bind(stmt.call, spec.args, scope, f"{name.text}(...)", subject)
+        with self.errors.each(scope.note) as tolerated:
+            tolerance = self._tolerance(clauses.within, spec, scope)
+        with self.errors.each(scope.note) as resolved:
+            self.errors.settle(bound)                # the polytope's shape may depend on the arguments
+            shape = spec.resolution_shape(args)
+            if shape is None and clauses.resolution is not None:
+                raise VfError(f"{name.text} takes no polytope resolution", clauses.resolution.span, code="E502")
+            resolution = None if shape is None else self._resolution(clauses.resolution, shape, spec)
+        with self.errors.each(scope.note) as softened:
+            for clause, word in ((clauses.weight, "weight"), (clauses.priority, "priority")):
+                if clause is not None and clauses.soft is None:
+                    raise VfError(f"`{word}` applies to soft constraints", clause.span,
+                                  hint=f"add `soft` to make this constraint soft; hard constraints have no {word}: "
+                                       "they always hold", code="E502")
+            soft = clauses.soft is not None
+            weight = self._weight(clauses.weight, scope, DEFAULT_SOFT_WEIGHT) if soft else None
+            priority = self._priority(clauses.priority, scope, TASK_LEVEL) if soft else None
+        self.errors.settle(subjected, bound, tolerated, resolved, softened)
         return ir.Constraint(primitive=name.text, frame=subject.name if subject else None, args=args,
                              tolerance=tolerance, resolution=resolution, soft=soft, weight=weight,
                              priority=priority, span=stmt.span, via=list(scope.via))
 
+    def _subject(self, stmt: ast.RequireStmt, spec, scope: fx.Scope) -> ir.FrameRef | None:
+        """The task frame a constraint applies to (None for a whole-robot constraint)."""
+        name = stmt.call.name
+        if spec.subject:
+            if stmt.subject is None:
+                raise VfError(f"{name.text} applies to a task frame", name.span,
+                              hint=f"write `require <frame> {name.text}(...)`", code="E503")
+            return self.evaluate(ast.NameRef(span=stmt.subject.span, name=stmt.subject.text), "frame", scope)
+        if stmt.subject is not None:
+            raise VfError(f"{name.text} applies to the whole robot, not to a frame", stmt.subject.span,
+                          hint=f"write `require {name.text}(...)`", code="E503")
+        return None
+
+    def _tolerance(self, within: ast.Value | None, spec, scope: fx.Scope) -> float | None:
+        """A constraint's ``within`` (SI), or its primitive's default; None for a primitive without one."""
+        if spec.tolerance is None:
+            if within is not None:
+                raise VfError(f"{spec.name} takes no tolerance (`within`)", within.span, code="E502")
+            return None
+        if within is None:
+            return spec.default_tolerance
+        tolerance = self._scoped_reader(scope).scalar(within, SCALAR_DIMENSIONS[spec.tolerance], spec.tolerance)
+        self._check_tolerance(tolerance, spec.tolerance, scope.source_span(within), scope.units)
+        return tolerance
+
     def _check_tolerance(self, tolerance: float, kind: str, written: ast.Span, units: u.DefaultUnits) -> None:
         """A ``within`` value must be positive and large enough for the solver to honour it."""
         if tolerance <= 0:
-            raise VfError("a tolerance must be positive", written)
+            raise VfError("a tolerance must be positive", written, code="E402")
         allowed = clause_ranges.tolerance_range(kind)
         if allowed.violation(tolerance) is None:
             return
@@ -308,8 +349,10 @@ class Resolver(Declarations):
                           f"rows to {clause_ranges.FEASIBILITY_TOLERANCE / scale:g} {unit} (its feasibility tolerance; "
                           f"{clause_ranges.LEVELS_TOLERANCE / scale:g} {unit} with priority levels)",
                           written, hint=f"use at least {allowed.low / scale:g} {unit} "
-                                              f"({clause_ranges.TOLERANCE_MARGIN} times the solver's tolerance)")
-        raise VfError(f"an angle tolerance must be below 90 deg, got {math.degrees(tolerance):g} deg", written)
+                                              f"({clause_ranges.TOLERANCE_MARGIN} times the solver's tolerance)",
+                          code="E402")
+        raise VfError(f"an angle tolerance must be below 90 deg, got {math.degrees(tolerance):g} deg", written,
+                      code="E402")
 
     def _resolution(self, given: ast.Resolution | None, shape: str, spec) -> list[int]:
         if given is None:
@@ -317,16 +360,16 @@ class Resolver(Declarations):
         counts = given.counts
         if shape == "sphere" and len(counts) != 2:
             raise VfError(f"{spec.name} is bounded by a sphere polytope: give n x m directions", given.span,
-                          hint="e.g. resolution 4x4")
+                          hint="e.g. resolution 4x4", code="E401")
         if shape == "polygon" and len(counts) != 1:
             raise VfError(f"{spec.name} is bounded by a polygon: give its number of sides", given.span,
-                          hint="e.g. resolution 8")
+                          hint="e.g. resolution 8", code="E401")
         if min(counts) < 3:
             raise VfError("a bounded polytope needs at least 3 directions per angle", given.span,
-                          hint="use 3 or more (the paper uses 4x4 for a sphere and 8 for a polygon)")
+                          hint="use 3 or more (the paper uses 4x4 for a sphere and 8 for a polygon)", code="E402")
         if max(counts) > limits.RESOLUTION:
             raise limits.exceeded(f"resolution {max(counts)} is too fine", limits.RESOLUTION, given.span,
-                                  hint="directions per angle of a polytope; the paper uses 4x4 and 8")
+                                  hint="directions per angle of a polytope; the paper uses 4x4 and 8", code="E701")
         return counts
 
     def _weight(self, value: ast.Value | None, scope: fx.Scope, default: float) -> float:
@@ -337,7 +380,8 @@ class Resolver(Declarations):
         problem = clause_ranges.WEIGHT.violation(weight)
         if problem:
             raise VfError(f"a weight {problem}, got {weight:g}", scope.source_span(value),
-                          hint=f"a weight is a plain number in {clause_ranges.WEIGHT.describe()}, e.g. 10 or 1e-6")
+                          hint=f"a weight is a plain number in {clause_ranges.WEIGHT.describe()}, e.g. 10 or 1e-6",
+                          code="E402")
         return weight
 
 
@@ -346,7 +390,7 @@ def _lookup_spec(name: ast.Name, table: dict, what: str, other: dict, other_hint
     if name.text in table:
         return table[name.text]
     hint = other_hint if name.text in other else suggest(name.text, table, f"{what}s")
-    raise VfError(f"unknown {what} '{name.text}'", name.span, hint=hint)
+    raise VfError(f"unknown {what} '{name.text}'", name.span, hint=hint, code="E205")
 
 
 def _compatible(actual: str, expected: str) -> bool:

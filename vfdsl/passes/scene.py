@@ -44,7 +44,7 @@ class SceneData:
 
 def load_scene(path: Path, task_units: DefaultUnits, pos: Span | None) -> SceneData:
     if path.suffix not in (".yaml", ".yml"):
-        raise VfError(f"a scene file is YAML (.yaml or .yml), not '{path.name}'", pos)
+        raise VfError(f"a scene file is YAML (.yaml or .yml), not '{path.name}'", pos, code="E602")
     text = read_text(path, "scene file", pos,
                      hint="write it, or point the task at another file with `scene \"file.yaml\"`")
     root = compose(text, path)
@@ -52,11 +52,12 @@ def load_scene(path: Path, task_units: DefaultUnits, pos: Span | None) -> SceneD
     if root is None:
         return SceneData(path, task_units, None, None, None, {})
     if not isinstance(root, yaml.MappingNode):
-        raise VfError("a scene file is a mapping with keys " + ", ".join(_TOP_KEYS), node_span(root, file))
+        raise VfError("a scene file is a mapping with keys " + ", ".join(_TOP_KEYS), node_span(root, file), code="E602")
     top = read_mapping(root, file)
     for key, (key_node, _) in top.items():
         if key not in _TOP_KEYS:
-            raise VfError(f"unknown scene key '{key}'", node_span(key_node, file), hint=suggest(key, _TOP_KEYS, "keys"))
+            raise VfError(f"unknown scene key '{key}'", node_span(key_node, file), hint=suggest(key, _TOP_KEYS, "keys"),
+                          code="E602")
     values = ValueReader(file)
     units = task_units
     if "units" in top:
@@ -73,7 +74,7 @@ def load_scene(path: Path, task_units: DefaultUnits, pos: Span | None) -> SceneD
     if "params" in top:
         node = top["params"][1]
         if not isinstance(node, yaml.MappingNode):
-            raise VfError("'params' is a mapping from param names to values", node_span(node, file))
+            raise VfError("'params' is a mapping from param names to values", node_span(node, file), code="E602")
         params = {k: (values.read(v, text=True), node_span(kn, file))
                   for k, (kn, v) in read_mapping(node, file).items()}
     return SceneData(path, units, period, start, start_span, params)
@@ -87,7 +88,7 @@ def compose(text: str, path: Path) -> yaml.Node | None:
         mark = getattr(exc, "problem_mark", None)
         line, column = (mark.line + 1, mark.column + 1) if mark else (1, 1)
         where = Span(file=str(path), line=line, column=column, end_line=line, end_column=column + 1)
-        raise VfError(f"malformed YAML: {getattr(exc, 'problem', exc)}", where, source_text=text) from None
+        raise VfError(f"malformed YAML: {getattr(exc, 'problem', exc)}", where, source_text=text, code="E602") from None
 
 
 def read_mapping(node: yaml.MappingNode, file: str) -> dict[str, tuple[yaml.Node, yaml.Node]]:
@@ -95,10 +96,10 @@ def read_mapping(node: yaml.MappingNode, file: str) -> dict[str, tuple[yaml.Node
     out = {}
     for key_node, value_node in node.value:
         if not isinstance(key_node, yaml.ScalarNode):
-            raise VfError("a key must be a plain name", node_span(key_node, file))
+            raise VfError("a key must be a plain name", node_span(key_node, file), code="E602")
         key = str(key_node.value)
         if key in out:
-            raise VfError(f"key '{key}' appears twice", node_span(key_node, file))
+            raise VfError(f"key '{key}' appears twice", node_span(key_node, file), code="E602")
         out[key] = (key_node, value_node)
     return out
 
@@ -107,7 +108,7 @@ def read_units(node: yaml.Node, file: str, base: DefaultUnits) -> DefaultUnits:
     """A scene's ``units:`` entry (``mm, deg`` or ``[mm, deg]``) over the units ``base`` gives."""
     items = node.value if isinstance(node, yaml.SequenceNode) else [node]
     if not all(isinstance(n, yaml.ScalarNode) for n in items):
-        raise VfError("units are written as `units: mm, deg` or `units: [mm, deg]`", node_span(node, file))
+        raise VfError("units are written as `units: mm, deg` or `units: [mm, deg]`", node_span(node, file), code="E602")
     names = [(name.strip(), node_span(n, file)) for n in items for name in str(n.value).split(",")]
     return default_units(names, base)
 
@@ -129,9 +130,9 @@ class ValueReader:
         if self.nodes > limits.YAML_NODES:
             raise limits.exceeded("the scene's values are too large (YAML aliases expand them)", limits.YAML_NODES,
                                   span, hint="the limit counts list items and mapping values after "
-                                                   "expanding aliases")
+                                                   "expanding aliases", code="E701")
         if any(node is outer for outer in inside):
-            raise VfError("a value cannot contain itself (recursive YAML alias)", span)
+            raise VfError("a value cannot contain itself (recursive YAML alias)", span, code="E602")
         inside = inside + (node,)
         if isinstance(node, yaml.SequenceNode):
             return ast.Vector(span=span, items=[self.read(n, inside, text) for n in node.value])
@@ -152,7 +153,7 @@ def _scalar(node: yaml.ScalarNode, span: ast.Span, strings: bool = False) -> ast
         return ast.String(span=span, text=text)
     if match is None:
         shown = repr(text) if len(text) <= 40 else repr(text[:40]) + "..."
-        raise VfError(f"expected a number (optionally with a unit, like \"10 mm\"), got {shown}", span)
+        raise VfError(f"expected a number (optionally with a unit, like \"10 mm\"), got {shown}", span, code="E602")
     return ast.Quantity(span=span, number=float(match.group(1)), unit=match.group(2))
 
 

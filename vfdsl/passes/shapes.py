@@ -76,7 +76,7 @@ class LiteralReader:
             return ir.FlagValue(value=value.value)
         if kind in SCALAR_DIMENSIONS:
             return ir.ScalarValue(dimension=kind, value=self.scalar(value, SCALAR_DIMENSIONS[kind], kind))
-        raise VfError(f"'{kind}' is not a value kind", value.span)  # pragma: no cover - specs are fixed
+        raise VfError(f"'{kind}' is not a value kind", value.span, code="E401")  # pragma: no cover - specs are fixed
 
     def scalar(self, value: ast.Value, dim: u.Dim, what: str) -> float:
         if isinstance(value, ast.NameRef):
@@ -85,24 +85,24 @@ class LiteralReader:
             return looked_up.value
         if not isinstance(value, ast.Quantity):
             raise VfError(f"expected {u.describe(dim)}, got {_what(value)}", value.span,
-                          hint=f"write {u.example(dim)}")
+                          hint=f"write {u.example(dim)}", code="E401")
         return u.to_si(value.number, value.unit, dim, self.units, value.span)
 
     # -- helpers ---------------------------------------------------------------------------------------
     def _wrong(self, value: ast.Value, kind: str) -> VfError:
         return VfError(f"expected {describe_kind(kind)}, got {_what(value)}", value.span,
-                       hint=f"write {_WRITE_AS[kind]}" if kind in _WRITE_AS else None)
+                       hint=f"write {_WRITE_AS[kind]}" if kind in _WRITE_AS else None, code="E401")
 
     def numbers3(self, value: ast.Value, dim: u.Dim, kind: str) -> list[float]:
         if not isinstance(value, ast.Vector):
             raise self._wrong(value, kind)
         if len(value.items) != 3:
             raise VfError(f"{describe_kind(kind)} needs 3 numbers, got {len(value.items)}", value.span,
-                          hint=f"write {_WRITE_AS.get(kind, '[x, y, z]')}")
+                          hint=f"write {_WRITE_AS.get(kind, '[x, y, z]')}", code="E401")
         out = []
         for item in value.items:
             if not isinstance(item, ast.Quantity):
-                raise VfError(f"expected a number, got {_what(item)}", item.span)
+                raise VfError(f"expected a number, got {_what(item)}", item.span, code="E401")
             unit = item.unit if item.unit is not None else value.unit
             out.append(u.to_si(item.number, unit, dim, self.units, item.span))
         return out
@@ -110,11 +110,12 @@ class LiteralReader:
     def _direction(self, value: ast.Value) -> list[float]:
         if isinstance(value, ast.Vector) and value.unit is not None:
             raise VfError(f"a direction is plain numbers; remove the unit '{value.unit}'", value.span,
-                          hint="write it like [0, -0.2, 1]")
+                          hint="write it like [0, -0.2, 1]", code="E302")
         xyz = self.numbers3(value, u.DIMENSIONLESS, "direction")
         norm = math.hypot(*xyz)
         if not norm >= MIN_DIRECTION_NORM:
-            raise VfError("a direction cannot be zero", value.span, hint="give a non-zero vector, e.g. [0, 0, 1]")
+            raise VfError("a direction cannot be zero", value.span, hint="give a non-zero vector, e.g. [0, 0, 1]",
+                          code="E402")
         return [c / norm for c in xyz]
 
     def _composite(self, value: ast.Value, kind: str) -> ir.Value:
@@ -143,35 +144,35 @@ class LiteralReader:
                 raise self._wrong(value, "curve")
             bound = bind_arguments(value, ["points", "degree"], (), "bspline(...)")
             if "points" not in bound:
-                raise VfError("bspline(...) needs points = [[x, y, z], ...]", value.span)
+                raise VfError("bspline(...) needs points = [[x, y, z], ...]", value.span, code="E401")
             points_value = bound["points"]
             if "degree" in bound:
                 given = self.integer(bound["degree"], "degree")
                 if degree is not None and given != degree:
                     raise VfError(f"the curve's degree is declared as {degree} but given here as {given}",
-                                  bound["degree"].span)
+                                  bound["degree"].span, code="E401")
                 degree = given
         if not isinstance(points_value, ast.Vector) or not all(isinstance(p, ast.Vector) for p in points_value.items):
             raise self._wrong(value, "curve")
         degree = 3 if degree is None else degree
         if degree > limits.CURVE_DEGREE:
             raise limits.exceeded(f"a degree-{degree} curve", limits.CURVE_DEGREE, value.span,
-                                  hint="the paper uses degree 5; degree 1 is a polyline")
+                                  hint="the paper uses degree 5; degree 1 is a polyline", code="E701")
         if len(points_value.items) > limits.CURVE_POINTS:
             raise limits.exceeded(f"a curve of {len(points_value.items):,} points", limits.CURVE_POINTS,
-                                  points_value.span)
+                                  points_value.span, code="E701")
         points = [self.numbers3(p if p.unit else p.model_copy(update={"unit": points_value.unit}), u.LENGTH, "point")
                   for p in points_value.items]
         if len(points) < degree + 1:
             raise VfError(f"a degree-{degree} b-spline needs at least {degree + 1} points, got {len(points)}",
-                          points_value.span, hint="give more points, or lower the degree")
+                          points_value.span, hint="give more points, or lower the degree", code="E401")
         _check_sampling(points, points_value, self.units)
         return ir.CurveValue(degree=degree, points=points)
 
     def integer(self, value: ast.Value, what: str) -> int:
         if (not isinstance(value, ast.Quantity) or value.unit or not math.isfinite(value.number)
                 or value.number != int(value.number) or value.number < 1):
-            raise VfError(f"{what} must be a positive whole number", value.span)
+            raise VfError(f"{what} must be a positive whole number", value.span, code="E402")
         return int(value.number)
 
 
@@ -184,19 +185,19 @@ def _check_sampling(points: list[list[float]], value: ast.Vector, units: u.Defau
     if not length <= (limits.CURVE_SAMPLES - 1) * SAMPLE_SPACING:      # also catches an infinite length
         raise limits.exceeded(f"this curve is too long ({units.show(length, u.LENGTH)} through its points) for "
                               f"closest-point samples {units.show(SAMPLE_SPACING, u.LENGTH)} apart",
-                              limits.CURVE_SAMPLES, value.span, hint="the limit counts samples")
+                              limits.CURVE_SAMPLES, value.span, hint="the limit counts samples", code="E701")
     samples = max(MIN_SAMPLES, math.ceil(length / SAMPLE_SPACING) + 1)
     spacing = length / (samples - 1)
     for k, chord in enumerate(chords, start=1):
         where = value.items[k].span
         if chord == 0.0:
             raise VfError(f"curve points {k} and {k + 1} are the same point", where,
-                          hint="remove the repeated point")
+                          hint="remove the repeated point", code="E402")
         if chord < 2 * spacing:
             raise VfError(f"curve points {k} and {k + 1} are {units.show(chord, u.LENGTH)} apart, too close for "
                           f"the curve's closest-point samples ({units.show(spacing, u.LENGTH)} apart)", where,
                           hint=f"keep consecutive points at least {units.show(2 * spacing, u.LENGTH)} apart "
-                               "(drop points, or space them out)")
+                               "(drop points, or space them out)", code="E402")
 
 
 def _what(value: ast.Value) -> str:

@@ -67,7 +67,7 @@ def parse_module(text: str, file: str) -> ast.Module:
     text = text.removeprefix("\ufeff")         # a byte-order mark, when the caller read the file itself
     first = _FIRST_WORD.match(text).group(1) or ""
     if not difflib.get_close_matches(first, ["task", "library"], n=1, cutoff=0.6):
-        raise VfError(f"{file} is not a .vf file: it does not start with `task NAME` or `library NAME`")
+        raise VfError(f"{file} is not a .vf file: it does not start with `task NAME` or `library NAME`", code="E102")
     try:
         tree = parser.parse(text)
     except UnexpectedInput as exc:
@@ -77,8 +77,7 @@ def parse_module(text: str, file: str) -> ast.Module:
         return _ToAst(file).transform(tree)
     except VisitError as exc:
         if isinstance(exc.orig_exc, VfError):
-            err = exc.orig_exc
-            raise VfError(err.message, err.pos, err.hint, source_text=text) from None
+            raise exc.orig_exc.with_source(text) from None
         raise
 
 
@@ -91,7 +90,7 @@ def _check_limits(tree: Tree, text: str, file: str) -> None:
             depth += 1
             if depth > limits.NESTING:
                 raise limits.exceeded("values nested too deeply", limits.NESTING, _pos_of_meta(node.meta, file),
-                                      hint="lists, calls and operators (+ - *) nest at most this deep") \
+                                      hint="lists, calls and operators (+ - *) nest at most this deep", code="E701") \
                     .with_source(text)
         for child in node.children:
             if isinstance(child, Tree):
@@ -101,7 +100,7 @@ def _check_limits(tree: Tree, text: str, file: str) -> None:
                             else (limits.NAME_CHARS, "name") if child.type == "NAME" else None)
                 if too_long and len(child) > too_long[0]:
                     raise limits.exceeded(f"this {too_long[1]} is {len(child):,} characters long", too_long[0],
-                                          _span_of_token(child, file)).with_source(text)
+                                          _span_of_token(child, file), code="E701").with_source(text)
 
 
 def _pos_of_meta(meta, file: str) -> Span:
@@ -160,7 +159,7 @@ def _syntax_error(exc: UnexpectedInput, text: str, file: str, parser: Lark) -> V
     if words:
         message += "; expected " + _join_or(words)
     pos = Span(file=file, line=line, column=column, end_line=line, end_column=column + width)
-    return VfError(message, pos, hint, source_text=text)
+    return VfError(message, pos, hint, source_text=text, code="E101")
 
 
 def _found_word(token: Token) -> str:
@@ -190,9 +189,9 @@ def _string_value(tok: Token, file: str) -> str:
     try:
         text = json.loads(tok)
     except json.JSONDecodeError as exc:
-        raise VfError(f"malformed string: {exc.msg.lower()}", _span_of_token(tok, file)) from None
+        raise VfError(f"malformed string: {exc.msg.lower()}", _span_of_token(tok, file), code="E103") from None
     if any(ord(ch) < 32 for ch in text):
-        raise VfError("a string cannot contain control characters", _span_of_token(tok, file))
+        raise VfError("a string cannot contain control characters", _span_of_token(tok, file), code="E103")
     return text
 
 
@@ -252,7 +251,7 @@ class _ToAst(Transformer):
         fields = {}
         for key, value in clauses:
             if key in fields:
-                raise VfError(f"the '{key}' clause is given twice", value.span)
+                raise VfError(f"the '{key}' clause is given twice", value.span, code="E104")
             fields[key] = value
         return fields
 
@@ -279,7 +278,7 @@ class _ToAst(Transformer):
         name = self._name(children[0])
         args, kwargs = children[1] if len(children) > 1 else ([], [])
         if args:
-            raise VfError("type arguments must be named, e.g. curve(degree = 5)", args[0].span)
+            raise VfError("type arguments must be named, e.g. curve(degree = 5)", args[0].span, code="E105")
         return (name, kwargs)
 
     def param_frame(self, meta, children):
@@ -293,7 +292,7 @@ class _ToAst(Transformer):
         fields: dict = {}
         for key, value, span in items:
             if key in fields:
-                raise VfError(f"the '{key}' clause is given twice", span)
+                raise VfError(f"the '{key}' clause is given twice", span, code="E104")
             fields[key] = value
         return ast.Clauses(**fields)
 
@@ -352,10 +351,10 @@ class _ToAst(Transformer):
         for child in children:
             if isinstance(child, ast.KeywordArg):
                 if any(k.name.text == child.name.text for k in kwargs):
-                    raise VfError(f"argument '{child.name.text}' is given twice", child.name.span)
+                    raise VfError(f"argument '{child.name.text}' is given twice", child.name.span, code="E104")
                 kwargs.append(child)
             elif kwargs:
-                raise VfError("a positional argument cannot follow a keyword argument", child.span)
+                raise VfError("a positional argument cannot follow a keyword argument", child.span, code="E105")
             else:
                 args.append(child)
         return (args, kwargs)
