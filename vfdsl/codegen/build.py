@@ -56,6 +56,7 @@ import casadi as ca
 from vfdsl.codegen.daqp_sources import announce, daqp_sources, daqp_version, source_files
 from vfdsl.codegen.patch import LEXLS_HEADER, LEXLS_SOURCE, MAX_SLOTS, patch_generated_c
 from vfdsl.codegen.solve_plan import plans_of
+from vfdsl.codegen.tick_buffers import c_call, c_declarations
 from vfdsl.errors import VfError
 
 FLAGS = ("-O3", "-march=native", "-ffp-contract=off", "-fPIC", "-pthread", "-fvisibility=hidden", "-fno-math-errno",
@@ -73,7 +74,7 @@ HEADER_CONTRACT = """
 /* vfdsl: how to call @PREFIX@ from C (no Python needed).
  *
  *   int slot = @PREFIX@_checkout();      one slot per controller: -1 when all @SLOTS@ are taken
- *   @PREFIX@(arg, res, iw, w, slot);     one tick; arg = {q, u, p, &dt, &recover}, res = {x, &status, violation}
+ *   @PREFIX@(arg, res, iw, w, slot);     one tick; @CALL@
  *   @PREFIX@_release(slot);              frees the slot's solver memory
  *
  * - A slot holds the solvers' workspaces and warm start: give each controller (each thread) its own
@@ -206,10 +207,12 @@ def _tail(text: str, lines: int = 25) -> str:
 
 def _generate(fn: ca.Function, prefix: str, work: Path, checks: ca.Function) -> tuple[str, str]:
     """Write ``<prefix>.c``/``.h`` into ``work`` (the step exported as ``prefix``, the checks as
-    ``<prefix>_admissible``): CasADi's C patched for ``fn``'s solve plans, its header with vfdsl's contract."""
+    ``<prefix>_admissible``): CasADi's C patched for ``fn``'s solve plans, its header with vfdsl's contract and the
+    C declarations of the tick's buffers (:mod:`vfdsl.codegen.tick_buffers`)."""
     source, header = casadi_c(fn, prefix, work, checks)
     source = patch_generated_c(source, prefix, plans_of(fn))
-    header += HEADER_CONTRACT.replace("@PREFIX@", prefix).replace("@SLOTS@", str(MAX_SLOTS))
+    contract = HEADER_CONTRACT.replace("@PREFIX@", prefix).replace("@SLOTS@", str(MAX_SLOTS))
+    header += contract.replace("@CALL@", c_call()) + c_declarations(fn)
     (work / f"{prefix}.c").write_text(source)
     (work / f"{prefix}.h").write_text(header)
     return source, header

@@ -4,8 +4,9 @@
  * Include it after the task's generated header, with VFDSL_PREFIX defined as the generated symbol.
  *
  * A vfdsl_core is one controller's evaluation of the generated step: its memory slot, its work arrays
- * and the buffers the step reads and writes (q, u, p, dt, recover -> x, status, violation), which the
- * caller owns. Its checks, made before anything is evaluated:
+ * and the buffers the step reads and writes, which the caller owns (their slots VFDSL_Q, ... and
+ * VFDSL_BUFFERS are declared in the generated header, from vfdsl/codegen/tick_buffers.py). Its checks,
+ * made before anything is evaluated:
  *
  *   q       every entry finite and within [q_lower_i, q_upper_i] (the joint limits widened by the
  *           joint's span on each side: further out is a unit mistake or a faulty encoder);
@@ -32,10 +33,6 @@
 #define VFDSL_STEP_WORK VFDSL_CAT(VFDSL_PREFIX, _work)
 #define VFDSL_ADMISSIBLE VFDSL_CAT(VFDSL_PREFIX, _admissible)
 #define VFDSL_ADMISSIBLE_WORK VFDSL_CAT(VFDSL_PREFIX, _admissible_work)
-
-/* The step's buffers: its inputs (q, u, p, dt, recover), then its outputs (x, status, violation). */
-enum { VFDSL_Q, VFDSL_U, VFDSL_P, VFDSL_DT, VFDSL_RECOVER, VFDSL_X, VFDSL_STATUS, VFDSL_VIOLATION,
-       VFDSL_N_BUFFERS };
 
 enum { VFDSL_OPENED = 0, VFDSL_NO_MEMORY = 1, VFDSL_NO_SLOT = 2 };
 
@@ -78,8 +75,8 @@ static int vfdsl_core_open(vfdsl_core* c) {
   c->w = (casadi_real*) calloc(sz_w + 1, sizeof(casadi_real));
   if (!c->check_arg || !c->check_res || !c->check_iw || !c->check_w || !c->margins
       || !c->arg || !c->res || !c->iw || !c->w) return VFDSL_NO_MEMORY;
-  for (k=0; k<=VFDSL_RECOVER; ++k) c->arg[k] = c->data[k];
-  for (k=VFDSL_X; k<VFDSL_N_BUFFERS; ++k) c->res[k - VFDSL_X] = c->data[k];
+  for (k=0; k<VFDSL_N_ARGS; ++k) c->arg[k] = c->data[k];
+  for (k=VFDSL_N_ARGS; k<VFDSL_N_BUFFERS; ++k) c->res[k - VFDSL_N_ARGS] = c->data[k];
   c->slot = VFDSL_STEP_CHECKOUT();
   return c->slot < 0 ? VFDSL_NO_SLOT : VFDSL_OPENED;
 }

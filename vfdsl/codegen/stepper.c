@@ -36,6 +36,11 @@
 
 enum { Q = VFDSL_Q, U = VFDSL_U, P = VFDSL_P, X = VFDSL_X, N_ARRAYS = VFDSL_N_BUFFERS };
 
+/* Each buffer's length in the generated step (the generated header's VFDSL_BUFFERS), in slot order. */
+#define VF_LENGTH(slot, name, length) length,
+static const Py_ssize_t buffer_lengths[N_ARRAYS] = {VFDSL_BUFFERS(VF_LENGTH)};
+#undef VF_LENGTH
+
 typedef struct {
   PyObject_HEAD
   vfdsl_core core;              /* slot, work arrays, and the N_ARRAYS buffers below */
@@ -356,7 +361,7 @@ static int Stepper_init(Stepper* s, PyObject* args, PyObject* kwds) {
                         &PyArray_Type, &s->strict))
     return -1;
   if (PyTuple_GET_SIZE(arrays) != N_ARRAYS) {
-    PyErr_SetString(PyExc_ValueError, "Stepper needs 8 arrays: q, u, p, dt, recover, x, status, violation");
+    PyErr_Format(PyExc_ValueError, "Stepper needs %d arrays: %s", (int) N_ARRAYS, VFDSL_BUFFER_NAMES);
     return -1;
   }
   for (k=0; k<N_ARRAYS; ++k) {
@@ -364,6 +369,11 @@ static int Stepper_init(Stepper* s, PyObject* args, PyObject* kwds) {
     if (!PyArray_Check(a) || PyArray_TYPE((PyArrayObject*) a) != NPY_DOUBLE
         || !PyArray_IS_C_CONTIGUOUS((PyArrayObject*) a) || !PyArray_ISWRITEABLE((PyArrayObject*) a)) {
       PyErr_SetString(PyExc_ValueError, "Stepper's arrays must be writeable contiguous float64 arrays");
+      return -1;
+    }
+    if (PyArray_SIZE((PyArrayObject*) a) != buffer_lengths[k]) {
+      PyErr_Format(PyExc_ValueError, "Stepper's array %zd (of %s) has %zd numbers, the generated step's %zd", k,
+                   VFDSL_BUFFER_NAMES, (Py_ssize_t) PyArray_SIZE((PyArrayObject*) a), buffer_lengths[k]);
       return -1;
     }
     s->core.data[k] = (double*) PyArray_DATA((PyArrayObject*) a);

@@ -193,9 +193,9 @@ def _values(meta: dict, api: str, tick: str, daqp_sources: list[str], daqp_versi
         "GUARD": api.upper() + "_H", "SOURCE": comment_text(meta["file"]), "VERSION": vfdsl.__version__,
         "MAX": str(meta["max_slots"]),
         "MIN_PERIOD": f"{meta['min_period']:g}", "MAX_PERIOD": f"{meta['max_period']:g}", "TABLES": task_tables(meta),
-        "NQ": str(meta["variables"]["dq"]), "NU": str(sum(i["size"] for i in inputs)),
-        "NP": str(len(meta["default_params"])), "NINPUTS": str(len(inputs)), "NPARAMS": str(len(params)),
-        "N": str(meta["outputs"][0]["shape"][0]),     # the QP's variables (dq and slacks): lexls.c is compiled for them
+        "NQ": str(_length(meta["inputs"], "q")), "NU": str(_length(meta["inputs"], "u")),
+        "NP": str(_length(meta["inputs"], "p")), "NINPUTS": str(len(inputs)), "NPARAMS": str(len(params)),
+        "N": str(_length(meta["outputs"], "x")),     # the QP's variables (dq and slacks): lexls.c is compiled for them
         "DAQP_SOURCES": " \\\n  ".join(daqp_sources), "DAQP_SOURCES_CMAKE": "\n  ".join(daqp_sources),
         "DAQP_VERSION": daqp_version,
         "JOINTS": ", ".join(f"{n} ({u})" for n, u in zip(meta["joints"], meta["joint_units"])),
@@ -205,3 +205,9 @@ def _values(meta: dict, api: str, tick: str, daqp_sources: list[str], daqp_versi
         "PARAMS_ARGUMENT": f"const double values[{api.upper()}_PARAM_LENGTH]" if params else "const double* values",
         "ROWS": str(len(meta["rows"])), "PERIOD": f"{period:g} s" if period else "none (pass dt)",
     }
+
+
+def _length(buffers: list[dict], name: str) -> int:
+    """The length of the step's buffer ``name`` (:mod:`vfdsl.codegen.tick_buffers`) among the metadata's ``inputs``
+    or ``outputs`` (the compiled step's arguments and results)."""
+    return next(b["shape"][0] for b in buffers if b["name"] == name)

@@ -32,6 +32,7 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
+from vfdsl.codegen.tick_buffers import Slot, lengths
 from vfdsl.errors import VfError
 from vfdsl.runtime.values import RuntimeValues
 
@@ -134,16 +135,15 @@ class LockedRunner:
         self._function = function
         self._p_default = values.layout.defaults
         self._lock = threading.Lock()
-        self.x, self.status, self.violation = function.outputs
+        self.x, self.status, self.violation = _results((*function.inputs, *function.outputs))
 
     def run(self, q, u, p, dt: float, recover: float) -> np.ndarray:
         with self._lock:
-            q_buf, u_buf, p_buf, dt_buf, recover_buf = self._function.inputs
-            q_buf[:], u_buf[:] = q, u
-            p_buf[:] = self._p_default if p is None else p
-            dt_buf[...], recover_buf[...] = dt, recover
-            x, _, _ = self._function.evaluate()
-            return x[:self.nq].copy()
+            arguments = (q, u, self._p_default if p is None else p, dt, recover)
+            for buffer, value in zip(self._function.inputs, arguments, strict=True):
+                buffer[...] = value
+            self._function.evaluate()
+            return self.x[:self.nq].copy()
 
 
 class StepperRunner:
@@ -154,8 +154,8 @@ class StepperRunner:
 
     def __init__(self, module, values: RuntimeValues, n: int, m: int):
         layout = values.layout
-        arrays = tuple(np.zeros(k) for k in (values.nq, values.n_inputs, layout.size, 1, 1, n, 1, m))
-        self.x, self.status, self.violation = arrays[5:]
+        arrays = tuple(np.zeros(k) for k in lengths(nq=values.nq, nu=values.n_inputs, np=layout.size, nx=n, rows=m))
+        self.x, self.status, self.violation = _results(arrays)
         names = tuple(values.input_offsets)
         slots = [slot for slot in layout.slots.values() if slot.size]
         dt_default = values.default_period
@@ -178,3 +178,8 @@ class StepperRunner:
         self.fast_step = self.stepper.step
         self.run = self.stepper.run
         self.margins = self.stepper.margins
+
+
+def _results(buffers: tuple[np.ndarray, ...]) -> tuple[np.ndarray, ...]:
+    """(x, status, violation) among a step's buffers (its arguments, then its results)."""
+    return buffers[Slot.X], buffers[Slot.STATUS], buffers[Slot.VIOLATION]

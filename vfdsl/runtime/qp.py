@@ -85,11 +85,11 @@ from collections.abc import Callable, Hashable, Sequence
 import casadi as ca
 import numpy as np
 
+from vfdsl.codegen import tick_buffers
 from vfdsl.codegen.solve_plan import PlannedFunction, SolvePlan, record
 from vfdsl.runtime import lexls
 
 QP_DATA_OUTPUTS = ("H", "g", "A", "lba", "uba", "lbx", "ubx")
-STEP_OUTPUTS = ("x", "status", "violation")
 GRADIENT_SATURATION = 1e3
 """K of :func:`_saturated_gradient`: a user push beyond K box widths is saturated."""
 LEVEL_ATTEMPTS = ((1e-10, 1e-6), (1e-10, 1e-8), (1e-8, 1e-6))
@@ -146,7 +146,7 @@ def build_step_function(qp_data: ca.Function, prefix: str, *,
     """
     levels = _check_qp_data(qp_data)
     n, m = qp_data.size1_out(0), qp_data.size1_out(2)
-    inputs = [ca.MX.sym(name, qp_data.sparsity_in(i)) for i, name in enumerate(qp_data.name_in())]
+    inputs = [ca.MX.sym(name, qp_data.sparsity_in(i)) for i, name in enumerate(tick_buffers.DATA_ARGUMENTS)]
     recover = ca.MX.sym("recover")
     expand = m * n <= STRAIGHT_LINE_ENTRIES
     if expand and qp_data.is_a("SXFunction"):   # with qp_data inside: its structural zeros prune the preparation
@@ -181,7 +181,7 @@ def build_step_function(qp_data: ca.Function, prefix: str, *,
     x, status, violation = _straight_line(f"{prefix}_finish", lambda *v: _finish(*v, m, feas_tol),
                                           [picked, A, lba, uba, lo, hi, clipped], expand)
     return PlannedFunction(ca.Function(prefix, [*inputs, recover], [x, status, violation],
-                                       [*qp_data.name_in(), "recover"], list(STEP_OUTPUTS)), plans)
+                                       list(tick_buffers.ARGUMENTS), list(tick_buffers.RESULTS)), plans)
 
 
 def _straight_line(name: str, build: Callable[..., list[ca.MX]], values: Sequence[ca.MX], expand: bool):
@@ -239,9 +239,10 @@ def _check_qp_data(qp_data: ca.Function) -> int:
     (Rj, rj per level)."""
     n_out = qp_data.n_out()
     levels = 1 if n_out == 7 else (n_out - 7) // 2
-    if qp_data.n_in() != 4 or n_out < 7 or (n_out != 7 and (levels < 2 or 7 + 2 * levels != n_out)):
-        raise ValueError(f"qp_data must map (q, u, p, dt) to {QP_DATA_OUTPUTS} (+ Rj, rj per priority level), "
-                         f"got {qp_data.n_in()} inputs and {n_out} outputs")
+    arguments = tick_buffers.DATA_ARGUMENTS
+    if qp_data.n_in() != len(arguments) or n_out < 7 or (n_out != 7 and (levels < 2 or 7 + 2 * levels != n_out)):
+        raise ValueError(f"qp_data must map ({', '.join(arguments)}) to {QP_DATA_OUTPUTS} (+ Rj, rj per priority "
+                         f"level), got {qp_data.n_in()} inputs and {n_out} outputs")
     n, m = qp_data.size1_out(0), qp_data.size1_out(2)
     expected = [(n, n), (n, 1), (m, n), (m, 1), (m, 1), (n, 1), (n, 1)]
     if levels > 1:

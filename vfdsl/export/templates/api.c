@@ -21,14 +21,17 @@
 @TABLES@
 /* ------------------------------------------------------------------------------ the controller */
 
+/* One array per buffer of the step (VFDSL_BUFFERS in the generated header): double q[...], u[...], ... */
+#define VF_BUFFER(slot, name, length) double name[(length) + 1];
+
 struct @API@ {
   vfdsl_core core;
-  double q[NQ + 1], u[NU + 1], p[NP + 1], dt[1], recover[1];      /* the step's inputs */
-  double x[NX + 1], status[1], violation[NROWS + 1];              /* its outputs */
+  VFDSL_BUFFERS(VF_BUFFER)                                        /* the step's arguments, then its results */
   double candidate[NP + 1];                                       /* params being checked */
   int busy;
   int error_index, error_check;
 };
+#undef VF_BUFFER
 
 /* The flag is the only field a reader (a const controller) writes: controllers are never const objects. */
 static int enter(const @API@* c) {
@@ -48,17 +51,10 @@ static int refuse(@API@* c, int code, long index, long check) {
 VF_EXPORT @API@* @API@_new(void) {
   @API@* c = (@API@*) calloc(1, sizeof(@API@));
   double dt = DEFAULT_PERIOD > 0 ? DEFAULT_PERIOD : 0.01;
-  double* data[VFDSL_N_BUFFERS];
-  long size[VFDSL_N_BUFFERS] = {NQ, NU, NP, 1, 1, NX, 1, NROWS};
-  int k;
   if (!c) return 0;
-  data[VFDSL_Q] = c->q; data[VFDSL_U] = c->u; data[VFDSL_P] = c->p; data[VFDSL_DT] = c->dt;
-  data[VFDSL_RECOVER] = c->recover; data[VFDSL_X] = c->x; data[VFDSL_STATUS] = c->status;
-  data[VFDSL_VIOLATION] = c->violation;
-  for (k=0; k<VFDSL_N_BUFFERS; ++k) {
-    c->core.data[k] = data[k];
-    c->core.size[k] = size[k];
-  }
+#define VF_BIND(slot, name, length) c->core.data[slot] = c->name; c->core.size[slot] = length;
+  VFDSL_BUFFERS(VF_BIND)
+#undef VF_BIND
   c->core.q_lower = q_lower;
   c->core.q_upper = q_upper;
   c->core.dt_min = MIN_PERIOD;
