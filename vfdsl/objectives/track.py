@@ -18,9 +18,12 @@ for no motion, so the frame stays still.
   error of a point at distance L: weight * (|| J_v dq/dt - v_d ||^2 + L^2 || J_w dq/dt - w_d ||^2).
 """
 
+import functools
+
 import casadi as ca
 
 from vfdsl.compiler.rows import Term
+from vfdsl.inputs import INPUT_TYPES
 from vfdsl.ir import model as ir
 from vfdsl.primitives.spec import POSITIVE, ArgSpec, ObjectiveSpec, flag
 
@@ -43,17 +46,24 @@ SPEC = ObjectiveSpec(
 )
 
 
+@functools.cache
+def commanded_motion(input_type: str) -> ca.Function:
+    """(u, gain, angular_gain) -> (v_d, w_d): the linear and angular velocity an input of ``input_type`` asks for,
+    gain times its linear part and angular_gain times its angular part (zero for a part it does not drive)."""
+    kind = INPUT_TYPES[input_type]
+    u = ca.SX.sym("u", kind.size)
+    gain, angular_gain = ca.SX.sym("gain"), ca.SX.sym("angular_gain")
+    v_d = gain * u[kind.linear_range] if kind.linear else ca.SX.zeros(3)
+    w_d = angular_gain * u[kind.angular_range] if kind.angular else ca.SX.zeros(3)
+    return ca.Function(f"commanded_{input_type}", [u, gain, angular_gain], [v_d, w_d],
+                       ["u", "gain", "angular_gain"], ["v_d", "w_d"])
+
+
 def commanded(o, ctx) -> tuple[ca.SX, ca.SX]:
-    """(v_d, w_d): the linear and angular velocity the input asks for (zero for a part it does not drive)."""
-    u = ctx.input(o.args["input"])
-    kind = ctx.task.input(o.args["input"].name).type
+    """(v_d, w_d) of the term: :func:`commanded_motion` on its input and gains."""
     gain = ctx.scalar(o.args["gain"]) if "gain" in o.args else 0.0
     angular_gain = ctx.scalar(o.args["angular_gain"]) if "angular_gain" in o.args else 0.0
-    if kind == "force":
-        return gain * u, ca.SX.zeros(3)
-    if kind == "torque":
-        return ca.SX.zeros(3), angular_gain * u
-    return gain * u[0:3], angular_gain * u[3:6]
+    return commanded_motion(ctx.task.input(o.args["input"].name).type)(ctx.input(o.args["input"]), gain, angular_gain)
 
 
 def lower(o, ctx) -> tuple[Term, ...]:
@@ -65,6 +75,6 @@ def lower(o, ctx) -> tuple[Term, ...]:
         parts = [(f.Jv, v_d)] * linear + [(lever * f.Jw, lever * w_d)] * angular
         return (Term(E=ca.vertcat(*(E for E, _ in parts)), f=ca.vertcat(*(r for _, r in parts)), part="twist"),)
     parts = [Term(E=f.Jv, f=v_d, part="linear")] * linear + [Term(E=f.Jw, f=w_d, part="angular")] * angular
-    if ctx.task.input(o.args["input"].name).type == "torque":
+    if not INPUT_TYPES[ctx.task.input(o.args["input"].name).type].linear:
         parts.reverse()                 # the driven part first
     return tuple(Term(t.E, t.f, t.part, after=k) for k, t in enumerate(parts))

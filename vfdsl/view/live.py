@@ -18,7 +18,10 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from vfdsl.errors import VfError
+from vfdsl.inputs import INPUT_TYPES
+from vfdsl.inputs.base import InputType
 from vfdsl.ir import model as ir
+from vfdsl.objectives.track import commanded_motion
 from vfdsl.runtime.values import ASSUMED_PERIOD
 from vfdsl.view.scene import DRAW_RATE, matrix, wxyz
 
@@ -37,12 +40,16 @@ class HandModel:
     angular_gain: float
 
     @property
+    def kind(self) -> InputType:
+        return INPUT_TYPES[self.input.type]
+
+    @property
     def linear(self) -> bool:
-        return self.input.type in ("force", "wrench", "twist")
+        return self.kind.linear is not None
 
     @property
     def angular(self) -> bool:
-        return self.input.type in ("torque", "wrench", "twist")
+        return self.kind.angular is not None
 
     @property
     def lever(self) -> float:
@@ -56,27 +63,21 @@ class HandModel:
         offset = np.asarray(position) - p0
         turn = Rotation.from_matrix(np.asarray(rotation) @ R0.T).as_rotvec()
         T = REACH_TIME
-        if self.input.type == "twist":
-            return np.concatenate([offset / T, turn / T])
-        force = offset / (self.gain * T) if self.gain else np.zeros(3)
-        torque = turn / (self.angular_gain * T) if self.angular_gain else np.zeros(3)
-        if self.input.type == "force":
-            return force
-        if self.input.type == "wrench":
-            return np.concatenate([force, torque])
-        if self.angular_gain:                         # torque only: the spring on the shaft turns the tool
-            torque = torque + np.cross(self.lever * pose.tool_axis, offset) / (self.angular_gain * T * self.lever ** 2)
-        return torque
+        out = np.zeros(self.kind.size)
+        for angular, motion, gain in ((False, offset, self.gain), (True, turn, self.angular_gain)):
+            part = self.kind.angular if angular else self.kind.linear
+            if part is not None and part.rate:                    # a velocity: the hand's motion over T
+                out[self.kind.part_range(angular)] = motion / T
+            elif part is not None and gain:                       # a force or torque: the spring's
+                out[self.kind.part_range(angular)] = motion / (gain * T)
+        if not self.linear and self.angular_gain:     # torque only: the spring on the shaft turns the tool
+            out += np.cross(self.lever * pose.tool_axis, offset) / (self.angular_gain * T * self.lever ** 2)
+        return out
 
     def commanded(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(v, w) the track term asks for (m/s, rad/s)."""
-        if self.input.type == "twist":
-            return self.gain * u[:3], self.angular_gain * u[3:]
-        if self.input.type == "force":
-            return self.gain * u, np.zeros(3)
-        if self.input.type == "torque":
-            return np.zeros(3), self.angular_gain * u
-        return self.gain * u[:3], self.angular_gain * u[3:]
+        """(v, w) the track term asks for (m/s, rad/s): its symbolic commanded motion, evaluated."""
+        v, w = commanded_motion(self.input.type)(u, self.gain, self.angular_gain)
+        return v.full().ravel(), w.full().ravel()
 
 
 def control_period(task: ir.Task) -> float:
@@ -92,9 +93,10 @@ def hand_model(task: ir.Task) -> HandModel | None:
         if o.term == "track" and getattr(o.args.get("input"), "name", None) == decl.name:
             gain = o.args.get("gain")
             angular = o.args.get("angular_gain")
+            default = INPUT_TYPES[decl.type].default_gain or 0.0
             return HandModel(decl, o.args["frame"].name,
-                             float(gain.value.value) if isinstance(gain, ir.Const) else (1.0 if decl.type == "twist" else 0.0),
-                             float(angular.value.value) if isinstance(angular, ir.Const) else (1.0 if decl.type == "twist" else 0.0))
+                             float(gain.value.value) if isinstance(gain, ir.Const) else default,
+                             float(angular.value.value) if isinstance(angular, ir.Const) else default)
     return HandModel(decl, task.frames[0].name, 1e-3, 0.1) if task.frames else None
 
 
