@@ -1,0 +1,173 @@
+"""Every registered input type is found by every tool that reads what an input means (vfdsl.inputs); a test id
+names the input type and the tool that would miss it. The commanded motion of ``track`` is checked against NumPy."""
+
+from __future__ import annotations
+
+from types import SimpleNamespace
+
+import casadi as ca
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+import vfdsl
+from vfdsl import units as u
+from vfdsl.check import lever, sampling
+from vfdsl.errors import VfError
+from vfdsl.export.selftest import user_inputs
+from vfdsl.inputs import INPUT_TYPES, described
+from vfdsl.objectives.track import commanded_motion
+from vfdsl.primitives.spec import gain_dimension
+from vfdsl.runtime.values import INPUT_UNITS, RuntimeValues
+from vfdsl.sim import trace
+from vfdsl.sim.settings import hand_dimension
+from vfdsl.view.live import hand_model
+
+NAMES = list(INPUT_TYPES)
+
+
+def _gains(kind) -> str:
+    """The track term's gains, written in SI units: ', gain = 2 m/s/N, angular_gain = 3 rad/m/s/N'."""
+    out = ""
+    for arg, angular, value in (("gain", False, 2.0), ("angular_gain", True, 3.0)):
+        dim = kind.gain_dimension(angular)
+        if dim is not None:
+            out += f", {arg} = {u.DefaultUnits().show(value, dim)}"
+    return out
+
+
+@pytest.fixture(scope="module")
+def tasks(tmp_path_factory) -> dict:
+    """Per input type, a task that declares one input of it and tracks it with the tool tip."""
+    folder = tmp_path_factory.mktemp("inputs")
+    out = {}
+    for name, kind in INPUT_TYPES.items():
+        path = folder / f"with_{name}.vf"
+        path.write_text(f'task with_{name}\nrobot shr = urdf "shr7"\nframe tip = shr.link("tool_tip")\n'
+                        f"input h : {name}\nminimize track(tip, h{_gains(kind)})\n")
+        out[name] = vfdsl.load(path)
+    return out
+
+
+class _Controller:
+    """What export's self-test reads of a controller."""
+
+    def __init__(self, task):
+        self.task = task
+        self.input_sizes = {d.name: d.size for d in task.inputs}
+
+
+def _ir(task, kind):
+    assert task.inputs[0].size == kind.size
+
+
+def _gain_dimensions(task, kind):
+    dims = [gain_dimension(kind.name, arg) for arg in ("gain", "angular_gain")]
+    assert dims == [kind.gain_dimension(False), kind.gain_dimension(True)]
+    assert dims != [None, None]
+
+
+def _units(task, kind):
+    assert INPUT_UNITS[kind.name]
+
+
+def _trace(task, kind):
+    assert trace.input_columns(task) == [f"input.h.{c}" for c in kind.columns]
+    assert len(kind.columns) == len(set(kind.columns)) == kind.size
+
+
+def _hand(task, kind):
+    for part, hand_kind in ((kind.linear, "push"), (kind.angular, "turn")):
+        if part is not None:
+            assert hand_dimension(kind.name, hand_kind) == part.dimension
+
+
+def _self_test(task, kind):
+    assert user_inputs(_Controller(task), 3)["h"].shape == (kind.size,)
+
+
+def _sampling(task, kind):
+    scale = sampling.input_scales(task)["h"]
+    assert scale.shape == (kind.size,) and np.all(scale > 0)
+
+
+def _lever(task, kind):
+    assert len(lever.tracked(task)) == (kind.linear is not None)
+
+
+def _runtime_checks(task, kind):
+    values = RuntimeValues(task, {"h": (0, kind.size)}, _NoParams(), np.zeros(1), np.ones(1), ["j"])
+    assert values.inputs({"h": np.arange(kind.size, dtype=float)}).shape == (kind.size,)
+    bad = np.zeros(kind.size)
+    bad[-1] = np.nan
+    with pytest.raises(VfError, match=rf"input 'h' contains NaN or inf \(index {kind.size - 1}\)"):
+        values.inputs({"h": bad})
+
+
+class _NoParams:
+    layout = None
+
+
+def _viewer(task, kind):
+    hand = hand_model(task)
+    assert hand.kind is kind and hand.frame == "tip"
+    pose = SimpleNamespace(position=np.zeros(3), rotation=np.eye(3), tool_axis=np.array([0.0, 0.0, 1.0]))
+    value = hand.value(pose, [0.01, 0.0, 0.0], Rotation.from_rotvec([0.0, 0.0, 0.1]).as_matrix())
+    assert value.shape == (kind.size,) and np.any(value != 0)
+    v, w = hand.commanded(value)
+    assert v.shape == w.shape == (3,)
+
+
+TOOLS = {"ir": _ir, "gain dimensions": _gain_dimensions, "units": _units, "trace": _trace, "hand": _hand,
+         "self-test": _self_test, "sampling": _sampling, "lever": _lever, "runtime checks": _runtime_checks,
+         "viewer": _viewer}
+
+
+@pytest.mark.parametrize("name", NAMES)
+@pytest.mark.parametrize("tool", list(TOOLS))
+def test_every_tool_finds_every_input_type(tasks, name, tool):
+    TOOLS[tool](tasks[name], INPUT_TYPES[name])
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_an_input_is_linear_then_angular_parts(name):
+    kind = INPUT_TYPES[name]
+    assert kind.parts and kind.size == 3 * len(kind.parts)
+    assert [kind.linear_range, kind.angular_range] == [
+        slice(0, 3) if kind.linear else None,
+        slice(kind.size - 3, kind.size) if kind.angular else None]
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_the_checks_compile_to_the_column_numpy_evaluates(name):
+    """Each check's margin is one expression for NumPy and CasADi: the compiled column agrees, NaN and inf
+    included."""
+    kind = INPUT_TYPES[name]
+    x = ca.SX.sym("x", kind.size)
+    for check in kind.checks:
+        compiled = ca.Function("margins", [x], [check.margin(x)])
+        for value in (np.linspace(-2, 3, kind.size), np.full(kind.size, np.inf), np.full(kind.size, np.nan)):
+            np.testing.assert_array_equal(compiled(value).full().ravel(), check.margin(value))
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_the_commanded_motion_is_the_gains_times_the_parts(tasks, name):
+    """v_d = gain f (or v), w_d = angular_gain tau (or w), zero for a part the input lacks: the symbolic function
+    ``track`` lowers, and the viewer's evaluation of it, against NumPy on the layout [linear; angular]."""
+    kind = INPUT_TYPES[name]
+    hand = hand_model(tasks[name])
+    rng = np.random.default_rng(7)
+    for _ in range(5):
+        value = rng.normal(size=kind.size)
+        hand.gain, hand.angular_gain = rng.uniform(0.1, 2.0, size=2)
+        v_numpy = hand.gain * value[:3] if kind.linear else np.zeros(3)
+        w_numpy = hand.angular_gain * value[-3:] if kind.angular else np.zeros(3)
+        symbolic = (x.full().ravel() for x in commanded_motion(name)(value, hand.gain, hand.angular_gain))
+        for v, w in (symbolic, hand.commanded(value)):
+            np.testing.assert_allclose(v, v_numpy, rtol=1e-15)
+            np.testing.assert_allclose(w, w_numpy, rtol=1e-15)
+
+
+def test_described_names_the_input_types_with_a_part():
+    assert described(lambda t: t.angular) == "a torque, wrench or twist input"
+    assert described(lambda t: t.linear) == "a force, wrench or twist input"
