@@ -1,7 +1,7 @@
 """The checked IR: a task with every name resolved, every number in SI units (m, rad, s, N) and every
 shape checked. This is exactly what the compiler sees, and what ``vfdsl show`` prints.
 
-Each declaration, constraint and objective keeps the :class:`~vfdsl.syntax.ast.Span` it came from;
+Each declaration, constraint and objective keeps the :class:`~vfdsl.errors.Span` it came from;
 statements expanded from a fixture also keep ``via``, the chain of ``use`` sites that produced them.
 The IR round-trips through JSON: ``Task.model_validate_json(task.model_dump_json()) == task``.
 """
@@ -13,8 +13,8 @@ from typing import Annotated, Literal, Union
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
+from vfdsl.errors import Span
 from vfdsl.inputs import INPUT_TYPES
-from vfdsl.syntax.ast import Span
 
 Vec3 = Annotated[list[float], Field(min_length=3, max_length=3)]
 
