@@ -42,6 +42,7 @@ class Errors:
         try:
             yield outcome
         except Dependent:
+            self._dropped()
             outcome.failed = True
         except VfError as error:
             outcome.failed = True
@@ -63,8 +64,13 @@ class Errors:
         try:
             yield
         except Dependent:
-            pass
+            self._dropped()
         except VfError as error:
             self.found.extend(error.errors)
         if self.found:
             raise combined(self.found)
+
+    def _dropped(self) -> None:
+        """A check is dropped only after an error was found: never silently."""
+        if not self.found:
+            raise RuntimeError("a check was skipped for a failure that reported no error")

@@ -186,15 +186,15 @@ class Resolver(Declarations):
     # ------------------------------------------------------------------------------- statements
     def _bind(self, call: ast.Call, specs: tuple[ArgSpec, ...], scope: fx.Scope, what: str,
               subject: ir.FrameRef | None = None) -> dict[str, ir.Arg]:
-        """Every argument checked on its own; a gain only once its input is known."""
+        """Every argument checked on its own; a gain not when its input failed (its unit depends on the input)."""
         given = bind_arguments(call, [s.name for s in specs], {s.name for s in specs if s.required}, what)
         args: dict[str, ir.Arg] = {}
-        input_type = None
+        input_type, input_failed = None, False
         checks = []
         for spec in specs:
             if spec.name in given:
                 with self.errors.each(scope.note) as check:
-                    if spec.kind in ("gain", "angular_gain") and input_type is None:
+                    if spec.kind in ("gain", "angular_gain") and input_failed:
                         raise Dependent
                     args[spec.name] = self.evaluate(given[spec.name], spec.kind, scope, input_type)
                     if isinstance(args[spec.name], ir.InputRef):
@@ -202,6 +202,7 @@ class Resolver(Declarations):
                     if spec.range is not None:
                         self._check_range(spec, args[spec.name], scope.source_span(given[spec.name]), call, scope)
                 checks.append(check)
+                input_failed = input_failed or (spec.kind == "input" and check.failed)
             elif spec.default == "subject":
                 args[spec.name] = subject
             elif spec.default is not None:
