@@ -86,7 +86,7 @@ def collect(modules: list[tuple[ast.Module, DefaultUnits]], errors: Errors) -> F
                                   hint=f"first defined at {first}", code="E202")
                 fixtures.table[stmt.name.text] = Fixture(stmt, units)
                 _check_formals(stmt)
-            if defined.failed and fixtures.table[stmt.name.text].definition is stmt:
+            if defined.failed and fixtures.table[stmt.name.text].definition is stmt:     # its formals are wrong
                 fixtures.failed.add(stmt.name.text)
     return fixtures
 
