@@ -27,7 +27,8 @@ from levels_reference import lexicographic
 import vfdsl
 from vfdsl.codegen.build import find_compiler
 from vfdsl.runtime import lexls
-from vfdsl.runtime.qp import StepStatus, solve_daqp
+from vfdsl.runtime.daqp_solve import solve_daqp
+from vfdsl.runtime.qp import StepStatus
 
 HARNESS = __import__("pathlib").Path(__file__).with_name("lexls_harness.c")
 CODEGEN = HARNESS.parent.parent / "vfdsl" / "codegen"

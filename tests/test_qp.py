@@ -312,7 +312,7 @@ def test_interpreted_solver_nodes_are_shared_not_kept_per_compile():
     task again reuses its nodes instead of keeping one more set per compile, and the answers are the same."""
     import vfdsl
     from conftest import TASKS_DIR
-    from vfdsl.runtime.qp import _DaqpNode
+    from vfdsl.runtime.daqp_solve import _DaqpNode
 
     task = vfdsl.load(TASKS_DIR / "paper_b_virtual_rcm.vf")
     tau = {"tau": [0.0, 0.01, 0.01]}

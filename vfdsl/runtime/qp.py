@@ -6,8 +6,8 @@ The compiler hands over ``qp_data(q, u, p, dt) -> (H, g, A, lba, uba, lbx, ubx)`
 
 with H positive definite, x = [dq; slack] (n entries) and m general rows.
 :func:`build_step_function` wraps it into ``step(q, u, p, dt, recover) -> (x, status, violation)`` solved
-by DAQP through CasADi's ``conic`` plugin, so the whole tick (QP data, solve, fallback) is one
-Function that CasADi evaluates or code-generates into one C function.
+by DAQP through CasADi's ``conic`` plugin (each solve: :mod:`vfdsl.runtime.daqp_solve`), so the whole tick (QP data,
+solve, fallback) is one Function that CasADi evaluates or code-generates into one C function.
 
 **Bounds.** lbx > ubx happens only when q is outside its joint limits: the position bound
 [q_lo - q, q_hi - q] and the speed bound [-v dt, v dt] (which contains 0) are then disjoint. Such
@@ -86,8 +86,8 @@ import casadi as ca
 import numpy as np
 
 from vfdsl.codegen import tick_buffers
-from vfdsl.codegen.solve_plan import PlannedFunction, SolvePlan, record
-from vfdsl.runtime import lexls
+from vfdsl.codegen.solve_plan import PlannedFunction, SolvePlan
+from vfdsl.runtime.daqp_solve import daqp_rows, daqp_solver
 
 QP_DATA_OUTPUTS = ("H", "g", "A", "lba", "uba", "lbx", "ubx")
 GRADIENT_SATURATION = 1e3
@@ -102,9 +102,6 @@ LEVEL_TIE_BREAK = 1e-6
 """epsilon: with ``last_level_is_cost``, DAQP's cost is the last level's (scaled to a unit largest diagonal) plus
 epsilon I, positive definite also along the slacks, which damping does not weigh; it biases only that last level
 (the smallest motion among the answers the levels above leave)."""
-MAX_LEVELS = 15
-"""Priority levels one solve takes (VFDSL_LEVELS_MAX - 1 in daqp_persistent.c; a task has at most 5 priorities, each
-at most 2 levels: a track term's two parts)."""
 HELD_ROWS = 10.0
 """(B)'s answer is taken only if it holds the rows x_A violates within HELD_ROWS * feas_tol of their values at x_A."""
 PER_ROW_GROUPS_LIMIT = 100
@@ -157,17 +154,17 @@ def build_step_function(qp_data: ca.Function, prefix: str, *,
         prepared = _straight_line(f"{prefix}_prepare", lambda *data: _prepare(data, levels, last_level_is_cost),
                                   qp_data.call(inputs), expand)
     H, g, A, lba, uba, lo, hi, clipped = prepared[:8]
-    args = prepared[8:]     # the solve's H, g and rows (_stack)
+    args = prepared[8:]     # the solve's H, g and rows (daqp_rows)
     plans: dict[str, SolvePlan] = {}
     if levels > 1:      # one hierarchical solve over the levels' rows
         sizes = [qp_data.size1_out(7 + 2 * j) for j in range(levels - last_level_is_cost)]
         x1 = None
         for k, (tol, rho) in enumerate(LEVEL_ATTEMPTS):
-            solve = _daqp(n, m, tol, f"phase1_try{k}", native, plans, sizes, rho, partial=k == len(LEVEL_ATTEMPTS) - 1,
-                          exact=True)
+            solve = daqp_solver(n, m, tol, f"phase1_try{k}", native, plans, sizes, rho,
+                                partial=k == len(LEVEL_ATTEMPTS) - 1, exact=True)
             x1 = solve(*args) if x1 is None else _retried(x1, recover, solve, args)
     else:
-        x1 = _daqp(n, m, feas_tol * 1e-3, "phase1_warm", native, plans, warm_start=True)(*args)
+        x1 = daqp_solver(n, m, feas_tol * 1e-3, "phase1_warm", native, plans, warm_start=True)(*args)
 
     if m == 0:
         picked = ca.vertcat(x1, int(StepStatus.OPTIMAL))
@@ -197,8 +194,8 @@ def _straight_line(name: str, build: Callable[..., list[ca.MX]], values: Sequenc
 
 def _prepare(data: Sequence[ca.MX], levels: int, last_level_is_cost: bool) -> list[ca.MX]:
     """From qp_data's outputs: [H, g, A, lba, uba, lo, hi, clipped] of the QP (the box made safe, g saturated), then
-    the phase-1 solve's [H, g, a, lower, upper] (:func:`_stack`): with priority levels, DAQP's cost and the levels'
-    rows and targets (each level scaled) after the rows and the box."""
+    the phase-1 solve's [H, g, a, lower, upper] (:func:`~vfdsl.runtime.daqp_solve.daqp_rows`): with priority levels,
+    DAQP's cost and the levels' rows and targets (each level scaled) after the rows and the box."""
     data = [ca.densify(v) for v in data]
     n = data[0].size1()
     H, g, A, lba, uba, lbx, ubx = data[:7]
@@ -217,8 +214,8 @@ def _prepare(data: Sequence[ca.MX], levels: int, last_level_is_cost: bool) -> li
             H_cost, g_cost = ca.MX(ca.DM.eye(n)), ca.MX(ca.DM.zeros(n))
         rows = [_level_rows(R, r, lo, hi) for R, r in pairs]
         R, r = ca.vertcat(*(R for R, _ in rows)), ca.vertcat(*(r for _, r in rows))
-        return prepared + [H_cost, g_cost, *_stack(A, lba, uba, lo, hi, R, r)]
-    return prepared + [H, g, *_stack(A, lba, uba, lo, hi)]
+        return prepared + [H_cost, g_cost, *daqp_rows(A, lba, uba, lo, hi, R, r)]
+    return prepared + [H, g, *daqp_rows(A, lba, uba, lo, hi)]
 
 
 def _finish(picked, A, lba, uba, lo, hi, clipped, m: int, feas_tol: float) -> list[ca.MX]:
@@ -291,141 +288,6 @@ def _box_width(lo: ca.MX, hi: ca.MX) -> ca.MX:
     """W: the largest finite bound of the box, in magnitude (0 when none is finite)."""
     finite_abs = lambda b: ca.if_else(ca.fabs(b) < ca.inf, ca.fabs(b), 0)  # noqa: E731
     return ca.mmax(ca.fmax(finite_abs(lo), finite_abs(hi)))
-
-
-def _daqp(n: int, m: int, primal_tol: float, name: str, native: bool, plans: dict[str, SolvePlan],
-          level_rows: Sequence[int] = (), rho: float = 1e-8, partial: bool = False,
-          exact: bool = False, warm_start: bool = False) -> Callable[..., ca.MX]:
-    """solve(H, g, *_stack(A, lba, uba, lbx, ubx[, R, r[, r_upper]])) -> x: one dense DAQP solve, x = NaN when it
-    fails.
-    ``primal_tol``: DAQP's (1e-3 feas_tol for the solves without levels, :data:`LEVEL_ATTEMPTS` with them).
-
-    The variable bounds reach DAQP as identity rows (through CasADi's conic interface DAQP met simple bounds only
-    to ~5e-8, measured). With ``level_rows`` (the row count of each priority level), R stacks the levels' rows and
-    r their targets (or r <= R x <= r_upper): DAQP's hierarchical mode minimizes || R_1 x - r_1 ||^2 (the rows'
-    squared violations) over the rows and bounds, then each
-    level in turn over the optimal set of the levels above, and the QP's own cost last, every soft row weighted
-    by ``rho`` (:data:`LEVEL_ATTEMPTS`). ``partial``: when DAQP fails a level, x is its answer for the levels
-    above it (which meets the rows and bounds) instead of NaN.
-    ``exact``: the levels' targets are equalities (phase 1), so their exact solve (:mod:`vfdsl.runtime.lexls`)
-    replaces DAQP's answer where it is certified.
-    ``warm_start``: the generated C starts DAQP from the previous call's working set.
-    ``native``: a CasADi conic, which only the generated C evaluates (vfdsl.codegen.build puts DAQP's own sources
-    behind it, solving as the conic's plan in ``plans`` says); else the same solver, settings and rows through
-    the ``daqp`` package (:class:`_DaqpNode`), for CasADi's evaluation."""
-    free = ca.inf * ca.DM.ones(n)
-    extra = sum(level_rows)
-    breaks = [int(b) for b in np.cumsum([2 * n + m, *level_rows])] if level_rows else []
-    if breaks:
-        if len(breaks) > MAX_LEVELS + 1:
-            raise ValueError(f"{len(level_rows)} priority levels; the generated solver takes at most {MAX_LEVELS}")
-    plan = SolvePlan(warm_start, tuple(breaks), rho, partial, exact) if breaks else SolvePlan(warm_start)
-    record(plans, name, plan)
-    if native:
-        sparsity = {"h": ca.Sparsity.dense(n, n), "a": ca.Sparsity.dense(m + n + extra, n)}
-        options = {"error_on_fail": False, "daqp": {"primal_tol": primal_tol}}
-        conic = ca.conic(name, "daqp", sparsity, options)
-    else:
-        conic = _DaqpNode.function(name, n, m + n + extra, primal_tol, plan)
-
-    def solve(H, g, a, lower, upper):
-        return conic(h=H, g=g, a=a, lba=lower, uba=upper, lbx=-free, ubx=free)["x"]
-
-    return solve
-
-
-def _stack(A, lba, uba, lbx, ubx, R=None, r=None, r_upper=None):
-    """(a, lower, upper): DAQP's rows (:func:`_daqp`), the general rows, the box as identity rows, then the levels'
-    rows R with targets r (or r <= R x <= r_upper)."""
-    rows, lower, upper = [A, ca.DM.eye(A.size2())], [lba, lbx], [uba, ubx]
-    if R is not None:
-        rows, lower, upper = [*rows, R], [*lower, r], [*upper, r if r_upper is None else r_upper]
-    return ca.densify(ca.vertcat(*rows)), ca.vertcat(*lower), ca.vertcat(*upper)
-
-
-class _DaqpNode(ca.Callback):
-    """(h, g, a, lba, uba, lbx, ubx) -> x: the generated conic's DAQP solve, cold, through the ``daqp`` package
-    (the same DAQP version the generated C is built from): the same problem (bounds as simple bounds, rows with
-    lba = uba as equalities), tolerance and settings; x = NaN unless DAQP reports success. The plan's ``exact``:
-    DAQP's answer solved again exactly over the rows it holds, taken when certified (:func:`vfdsl.runtime.lexls.polish`)."""
-
-    _alive: dict = {}        # CasADi holds a Callback by reference: each node lives as long as the process; nodes
-    # hold no state between calls, so one node serves every graph that needs its problem (bounded by their kinds)
-
-    @classmethod
-    def function(cls, name: str, n: int, rows: int, primal_tol: float, plan: SolvePlan) -> ca.Function:
-        key = (name, n, rows, primal_tol, plan)
-        if key not in cls._alive:
-            cls._alive[key] = cls(name, n, rows, primal_tol, plan)
-        return cls._alive[key]
-
-    def __init__(self, name: str, n: int, rows: int, primal_tol: float, plan: SolvePlan):
-        ca.Callback.__init__(self)
-        self.n, self.rows, self.primal_tol = n, rows, primal_tol
-        self.break_points, self.rho = list(plan.break_points), plan.rho
-        self.exact = plan.exact
-        self.success = DAQP_SUCCESS + (DAQP_PARTIAL,) * plan.partial
-        self.construct(name, {})
-
-    def get_n_in(self):
-        return 7
-
-    def get_n_out(self):
-        return 1
-
-    def get_name_in(self, i):
-        return ("h", "g", "a", "lba", "uba", "lbx", "ubx")[i]
-
-    def get_name_out(self, i):
-        return "x"
-
-    def get_sparsity_in(self, i):
-        n, rows = self.n, self.rows
-        return ca.Sparsity.dense(*((n, n), (n, 1), (rows, n), (rows, 1), (rows, 1), (n, 1), (n, 1))[i])
-
-    def get_sparsity_out(self, i):
-        return ca.Sparsity.dense(self.n, 1)
-
-    def eval(self, arg):
-        H, g, A, lba, uba, lbx, ubx = (np.array(a, dtype=float) for a in arg)
-        g = g.ravel()
-        lower, upper = np.concatenate((lbx.ravel(), lba.ravel())), np.concatenate((ubx.ravel(), uba.ravel()))
-        x, flag = solve_daqp(H, g, A, lower, upper, self.primal_tol, self.break_points, self.rho)
-        if flag not in self.success:
-            return [np.full(self.n, np.nan)]
-        if self.exact:      # the levels solved exactly over the rows DAQP's answer holds, when certified
-            x_exact, certified = lexls.polish(H, g, A, lower, upper, self.break_points, x)
-            if certified:
-                return [x_exact]
-        return [x]
-
-
-DAQP_SUCCESS = (1, 2)
-"""DAQP's exit flags of an answer: optimal; with levels also soft-optimal, its normal success; as in
-daqp_persistent.c."""
-DAQP_PARTIAL = 3
-"""DAQP's exit flag when it failed a level: x is the answer of the levels above (taken by the last attempt)."""
-
-
-def solve_daqp(H, g, A, lower, upper, primal_tol, break_points=(), rho_soft=0.0):
-    """(x, exit flag) of DAQP on min 1/2 x'Hx + g'x, lower <= [x; A x] <= upper (the first n entries simple
-    bounds), rows with lower = upper equalities; with ``break_points``, DAQP's priority levels, the rows past the
-    first break point soft with weight ``rho_soft`` in the problem's own scale."""
-    import daqp
-    n = H.shape[0]
-    sense = np.where(lower == upper, 5, 0).astype(np.intc)      # DAQP_ACTIVE + DAQP_IMMUTABLE
-    model = daqp.Model()
-    setup, _ = model.setup(np.ascontiguousarray(H), np.ascontiguousarray(g), np.ascontiguousarray(A.reshape(-1, n)),
-                np.ascontiguousarray(upper), np.ascontiguousarray(lower), sense,
-                np.asarray(break_points, dtype=np.intc) if len(break_points) else None)
-    if setup < 0:       # (e.g. a non-finite H or rows)
-        return np.full(n, np.nan), setup
-    model.settings = {"primal_tol": primal_tol, "eq_reduction": -1}
-    if len(break_points):
-        rho = np.r_[np.zeros(break_points[0]), np.full(len(lower) - break_points[0], rho_soft)]
-        model.soft_weights(rho_l=rho, rho_u=rho)
-    x, _, flag = model.solve()[:3]
-    return np.array(x), int(flag)
 
 
 def _saturated_gradient(H: ca.MX, g: ca.MX, lo: ca.MX, hi: ca.MX) -> ca.MX:
@@ -521,7 +383,8 @@ def _least_violation(H, g, A, lba, uba, lo, hi, E: ca.DM, tol, rho, mu, native, 
     lba_a = ca.vertcat(lba, -inf_m, ca.fmin(lba, at_rest))
     uba_a = ca.vertcat(inf_m, uba, ca.fmax(uba, at_rest))
     lbz, ubz = ca.vertcat(lo, ca.DM.zeros(G)), ca.vertcat(hi, inf_G)
-    z = _daqp(n + G, 3 * m, tol * 1e-3, "phase2a", native, plans)(H_a, g_a, *_stack(A_a, lba_a, uba_a, lbz, ubz))
+    z = daqp_solver(n + G, 3 * m, tol * 1e-3, "phase2a", native, plans)(H_a, g_a,
+                                                                        *daqp_rows(A_a, lba_a, uba_a, lbz, ubz))
     x_a = _clip(z[:n], lo, hi)      # used only when (A) is acceptable, i.e. z is finite
     Ax_a = A @ x_a
     violated = ca.logic_or(Ax_a < lba, Ax_a > uba)        # these rows leave level 0 and are held at x_a's values
@@ -529,9 +392,9 @@ def _least_violation(H, g, A, lba, uba, lo, hi, E: ca.DM, tol, rho, mu, native, 
     lba_b, uba_b = ca.if_else(violated, -inf, lba), ca.if_else(violated, inf, uba)
     pin_lo, pin_hi = ca.if_else(violated, Ax_a, -inf), ca.if_else(violated, Ax_a, inf)
     row_scale, cost_scale = _unit_rows(A), _unit_diagonal(H)   # (the held rows weigh the same against any objective)
-    x_b = _daqp(n, m, tol * 1e-3, "phase2b", native, plans, [m])(
-        cost_scale * H, cost_scale * g, *_stack(A, lba_b, uba_b, lo, hi, row_scale * A, row_scale * pin_lo,
-                                                row_scale * pin_hi))
+    x_b = daqp_solver(n, m, tol * 1e-3, "phase2b", native, plans, [m])(
+        cost_scale * H, cost_scale * g, *daqp_rows(A, lba_b, uba_b, lo, hi, row_scale * A, row_scale * pin_lo,
+                                                   row_scale * pin_hi))
 
     # Acceptance is decided on the solver's own answers, before any clipping: clipping a failed
     # solve's NaN into B would turn it into a full-speed motion that looks feasible.
