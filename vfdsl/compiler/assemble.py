@@ -37,6 +37,7 @@ from dataclasses import dataclass, field
 import casadi as ca
 import numpy as np
 
+from vfdsl.codegen import tick_buffers
 from vfdsl.compiler import registry
 from vfdsl.compiler.context import Context
 from vfdsl.compiler.rows import Rows
@@ -223,7 +224,7 @@ def assemble(task: ir.Task, robot: Robot) -> AssembledProblem:
         for j, level in enumerate(levels, start=1):
             outputs += [ca.vertcat(*level.R), ca.vertcat(*level.r)]
             names += [f"R{j}", f"r{j}"]
-    function = ca.Function("qp_data", [ctx.q, ctx.u, ctx.p, ctx.dt], [ca.densify(x) for x in outputs],
-                           ["q", "u", "p", "dt"], names)
+    function = ca.Function("qp_data", [getattr(ctx, name) for name in tick_buffers.DATA_ARGUMENTS],
+                           [ca.densify(x) for x in outputs], list(tick_buffers.DATA_ARGUMENTS), names)
     return AssembledProblem(function, ctx, labels, groups, bound_labels, slack_labels,
                             [level.names for level in levels])
