@@ -167,9 +167,6 @@ class FrameDecl(_Model):
     base: str | None = None          # the frame it was built on (`frame b = a offset ...`), already composed in
 
 
-INPUT_SIZES = {name: kind.size for name, kind in INPUT_TYPES.items()}
-
-
 class InputDecl(_Model):
     """A signal read every tick: force (N), torque (N m), wrench [f; tau] or twist [v; w] (SI); its type is one
     of :data:`vfdsl.inputs.INPUT_TYPES`."""
@@ -180,7 +177,7 @@ class InputDecl(_Model):
 
     @property
     def size(self) -> int:
-        return INPUT_SIZES[self.type]
+        return INPUT_TYPES[self.type].size
 
 
 class ParamDecl(_Model):

@@ -17,6 +17,7 @@ from vfdsl import units as u
 from vfdsl.compiler.admissible import Admissible
 from vfdsl.compiler.geometry import compose, rotation
 from vfdsl.errors import VfError, suggest
+from vfdsl.inputs import INPUT_TYPES
 from vfdsl.ir import model as ir
 from vfdsl.kinematics.robot import ROBOTS_DIR, Robot
 from vfdsl.mesh.load import MeshExtentError, MeshFileError, MeshSizeError, read_mesh
@@ -191,9 +192,9 @@ class Declarations:
         return LiteralReader(units, self._no_names).read(value, kind, curve_degree=curve_degree)
 
     def _input(self, stmt: ast.InputStmt) -> None:
-        if stmt.type.text not in ir.INPUT_SIZES:
+        if stmt.type.text not in INPUT_TYPES:
             raise VfError(f"unknown input type '{stmt.type.text}'", stmt.type.span,
-                          hint=suggest(stmt.type.text, ir.INPUT_SIZES, "input types"), code="E205")
+                          hint=suggest(stmt.type.text, INPUT_TYPES, "input types"), code="E205")
         self.inputs[stmt.name.text] = ir.InputDecl(name=stmt.name.text, type=stmt.type.text, span=stmt.span)
 
     def _params(self, statements: list[ast.ParamStmt], scene: SceneData | None) -> None:

@@ -18,6 +18,7 @@ from pathlib import Path
 from vfdsl import limits
 from vfdsl import units as u
 from vfdsl.errors import VfError, suggest
+from vfdsl.inputs import INPUT_TYPES
 from vfdsl.ir import model as ir
 from vfdsl.objectives import OBJECTIVES
 from vfdsl.passes import clause_ranges
@@ -270,10 +271,11 @@ class Resolver(Declarations):
             raise VfError("track with `linear = false` and `angular = false` tracks nothing", call.span,
                           hint="leave one part tracked, or remove the term", code="E503")
         input_type = self.inputs[args["input"].name].type
+        default = INPUT_TYPES[input_type].default_gain
         for kind in ("gain", "angular_gain"):
             if gain_dimension(input_type, kind) is not None and kind not in args:
-                if input_type == "twist":
-                    args[kind] = ir.Const(value=ir.ScalarValue(dimension=kind, value=1.0))
+                if default is not None:
+                    args[kind] = ir.Const(value=ir.ScalarValue(dimension=kind, value=default))
                 else:
                     example = "gain = 2 mm/s/N" if kind == "gain" else "angular_gain = 5 deg/s/Nm"
                     raise VfError(f"track with a {input_type} input needs {kind}", call.span,
