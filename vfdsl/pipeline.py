@@ -86,7 +86,7 @@ def build(task: ir.Task, *, backend: str = "auto",
         try:
             library = build_library(step(native=True), prefix, Path(cache_dir or default_cache_dir()),
                                     metadata(task, problem, values, digest), admissible.function,
-                                    tuple(problem.context.c_sources.values()))
+                                    tuple(problem.context.c_sources.values()), values.input_checks)
             return Controller(task, problem, values, _native_runner(values, problem, library, prefix),
                               FEASIBILITY_TOLERANCE), library
         except (CompilerUnavailable, DaqpSourcesUnavailable) as exc:

@@ -87,6 +87,9 @@ HEADER_CONTRACT = """
  * - Params other than the defaults: check them first with @PREFIX@_admissible(arg = {p}, res = {margins},
  *   iw, w, 0) (sizes: @PREFIX@_admissible_work); check i holds iff margins[i] is finite and >= 0 (> 0 where
  *   "strict" in the .json), and the .json lists what each check means. Step only when every check holds.
+ * - Inputs: check them each tick with @PREFIX@_input_checks(arg = {u}, res = {margins}, iw, w, 0) (sizes:
+ *   @PREFIX@_input_checks_work) after checking that every number of u is finite: margin m holds iff it is
+ *   finite and >= 0; it is check m / nu of u[m % nu] (the .json's inputs say each type's checks).
  * - status bits: 0 OPTIMAL, 1 LEAST_VIOLATION, 2 BOUNDS_CLIPPED, 4 FALLBACK; violation[i] is row i's
  *   excess (the rows are listed in the .json next to this header).
  * - The first call on a slot allocates the DAQP workspaces; later calls allocate nothing.
@@ -118,11 +121,14 @@ class Compiler:
 
 
 def build_library(fn: ca.Function, prefix: str, cache_dir: Path, metadata: dict,
-                  checks: ca.Function, extra_sources: tuple[Path, ...] = ()) -> BuiltLibrary:
+                  checks: ca.Function, extra_sources: tuple[Path, ...] = (),
+                  input_checks: ca.Function | None = None) -> BuiltLibrary:
     """The cached library of the step ``fn`` (arguments q, u, p, dt, recover), exported as C symbol ``prefix``,
     with ``checks`` (p -> the column of checks of the params, :mod:`vfdsl.compiler.admissible`) exported as
-    ``<prefix>_admissible``; built if needed. ``extra_sources``: C files defining the external functions ``fn``
-    calls (mesh queries), compiled and linked in with the same flags (their text is part of the digest)."""
+    ``<prefix>_admissible`` and ``input_checks`` (u -> the column of the inputs' checks,
+    :func:`vfdsl.runtime.values.input_checks`; None: none beyond finiteness) as ``<prefix>_input_checks``; built
+    if needed. ``extra_sources``: C files defining the external functions ``fn`` calls (mesh queries), compiled
+    and linked in with the same flags (their text is part of the digest)."""
     if not _IDENTIFIER.fullmatch(prefix):
         raise ValueError(f"prefix {prefix!r} is not a C identifier")
     cache_dir = Path(cache_dir)
@@ -140,7 +146,8 @@ def build_library(fn: ca.Function, prefix: str, cache_dir: Path, metadata: dict,
     try:
         with work_dir as tmp:
             work = Path(tmp)
-            source, header = _generate(fn, prefix, work, checks)
+            source, header = _generate(fn, prefix, work, checks, 
+                                     input_checks if input_checks is not None else _no_input_checks(fn))
             extra = tuple(Path(x) for x in extra_sources)
             digest = _digest(source + "".join(x.read_text() for x in extra), header, compiler, metadata)
             entry = cache_dir / f"{prefix}-{digest[:16]}"
@@ -205,11 +212,12 @@ def _tail(text: str, lines: int = 25) -> str:
     return "\n".join(text.strip().splitlines()[-lines:])
 
 
-def _generate(fn: ca.Function, prefix: str, work: Path, checks: ca.Function) -> tuple[str, str]:
+def _generate(fn: ca.Function, prefix: str, work: Path, checks: ca.Function,
+              input_checks: ca.Function) -> tuple[str, str]:
     """Write ``<prefix>.c``/``.h`` into ``work`` (the step exported as ``prefix``, the checks as
-    ``<prefix>_admissible``): CasADi's C patched for ``fn``'s solve plans, its header with vfdsl's contract and the
-    C declarations of the tick's buffers (:mod:`vfdsl.codegen.tick_buffers`)."""
-    source, header = casadi_c(fn, prefix, work, checks)
+    ``<prefix>_admissible`` and ``<prefix>_input_checks``): CasADi's C patched for ``fn``'s solve plans, its header
+    with vfdsl's contract and the C declarations of the tick's buffers (:mod:`vfdsl.codegen.tick_buffers`)."""
+    source, header = casadi_c(fn, prefix, work, checks, input_checks)
     source = patch_generated_c(source, prefix, plans_of(fn))
     contract = HEADER_CONTRACT.replace("@PREFIX@", prefix).replace("@SLOTS@", str(MAX_SLOTS))
     header += contract.replace("@CALL@", c_call()) + c_declarations(fn)
@@ -218,14 +226,23 @@ def _generate(fn: ca.Function, prefix: str, work: Path, checks: ca.Function) -> 
     return source, header
 
 
-def casadi_c(fn: ca.Function, prefix: str, work: Path, checks: ca.Function) -> tuple[str, str]:
-    """(C source, header) as CasADi generates them in ``work`` for ``fn`` exported as ``prefix`` and ``checks`` as
-    ``<prefix>_admissible``, before vfdsl's patch."""
+def casadi_c(fn: ca.Function, prefix: str, work: Path, checks: ca.Function,
+             input_checks: ca.Function | None = None) -> tuple[str, str]:
+    """(C source, header) as CasADi generates them in ``work`` for ``fn`` exported as ``prefix``, ``checks`` as
+    ``<prefix>_admissible`` and ``input_checks`` (when given) as ``<prefix>_input_checks``, before vfdsl's patch."""
     generator = ca.CodeGenerator(f"{prefix}.c", {"with_header": True})
     generator.add(_renamed(fn, prefix))
     generator.add(_renamed(checks, f"{prefix}_admissible"))
+    if input_checks is not None:
+        generator.add(_renamed(input_checks, f"{prefix}_input_checks"))
     generator.generate(str(work) + os.sep)
     return (work / f"{prefix}.c").read_text(), (work / f"{prefix}.h").read_text()
+
+
+def _no_input_checks(fn: ca.Function) -> ca.Function:
+    """u -> an empty column: the step's inputs need no check beyond finiteness (which the C makes first)."""
+    u = ca.SX.sym("u", fn.numel_in(fn.index_in("u")))
+    return ca.Function("input_checks", [u], [ca.SX(0, 1)], ["u"], ["margins"])
 
 
 def _renamed(fn: ca.Function, name: str) -> ca.Function:

@@ -14,7 +14,10 @@
  *           its period computed at compile time (vfdsl.runtime.values.dt_range; else VFDSL_DT_FAR: a unit slip);
  *   params  the task's column of checks, evaluated by the generated <prefix>_admissible: check i holds
  *           iff margin i is finite and >= 0 (> 0 where strict[i]);
- *   inputs  finite (any finite size: beyond the speed bounds they saturate).
+ *   inputs  every number finite, then the column of their types' checks, evaluated by the generated
+ *           <prefix>_input_checks: margin m (check m / nu of u[m % nu]) holds iff it is finite and >= 0
+ *           (vfdsl.inputs: a type's plausibility checks; any finite size passes FINITE: beyond the speed
+ *           bounds they saturate).
  *
  * vfdsl_core_open allocates everything the core needs (work arrays, a memory slot); nothing else here
  * allocates, locks or makes a system call.
@@ -33,6 +36,9 @@
 #define VFDSL_STEP_WORK VFDSL_CAT(VFDSL_PREFIX, _work)
 #define VFDSL_ADMISSIBLE VFDSL_CAT(VFDSL_PREFIX, _admissible)
 #define VFDSL_ADMISSIBLE_WORK VFDSL_CAT(VFDSL_PREFIX, _admissible_work)
+#define VFDSL_INPUT_CHECKS VFDSL_CAT(VFDSL_PREFIX, _input_checks)
+#define VFDSL_INPUT_CHECKS_WORK VFDSL_CAT(VFDSL_PREFIX, _input_checks_work)
+#define VFDSL_INPUT_CHECKS_SPARSITY VFDSL_CAT(VFDSL_PREFIX, _input_checks_sparsity_out)
 
 enum { VFDSL_OPENED = 0, VFDSL_NO_MEMORY = 1, VFDSL_NO_SLOT = 2 };
 
@@ -45,6 +51,8 @@ typedef struct {
   const unsigned char* strict;     /* n_margins flags: 1 where a margin must be > 0 */
   long n_margins;
   double* margins;                 /* the column of the last evaluated params */
+  long n_input_margins;            /* set by vfdsl_core_open: the length of the inputs' column of checks */
+  double* input_margins;           /* the column of the last checked inputs */
   const casadi_real** check_arg;
   casadi_real** check_res;
   casadi_int* check_iw;
@@ -59,21 +67,28 @@ typedef struct {
 /* Allocate the work arrays and check out a memory slot: VFDSL_OPENED, VFDSL_NO_MEMORY or VFDSL_NO_SLOT
  * (all VFDSL_MAX_SLOTS controllers of the task exist). Call vfdsl_core_close in every case. */
 static int vfdsl_core_open(vfdsl_core* c) {
-  casadi_int sz_arg, sz_res, sz_iw, sz_w;
+  casadi_int sz_arg, sz_res, sz_iw, sz_w, in_arg, in_res, in_iw, in_w;
   int k;
   c->slot = -1;
+  c->n_input_margins = (long) VFDSL_INPUT_CHECKS_SPARSITY(0)[0];    /* a dense column: its number of rows */
   VFDSL_ADMISSIBLE_WORK(&sz_arg, &sz_res, &sz_iw, &sz_w);
+  VFDSL_INPUT_CHECKS_WORK(&in_arg, &in_res, &in_iw, &in_w);     /* both checks share the work arrays */
+  if (in_arg > sz_arg) sz_arg = in_arg;
+  if (in_res > sz_res) sz_res = in_res;
+  if (in_iw > sz_iw) sz_iw = in_iw;
+  if (in_w > sz_w) sz_w = in_w;
   c->check_arg = (const casadi_real**) calloc(sz_arg + 1, sizeof(casadi_real*));
   c->check_res = (casadi_real**) calloc(sz_res + 1, sizeof(casadi_real*));
   c->check_iw = (casadi_int*) calloc(sz_iw + 1, sizeof(casadi_int));
   c->check_w = (casadi_real*) calloc(sz_w + 1, sizeof(casadi_real));
   c->margins = (double*) calloc(c->n_margins + 1, sizeof(double));
+  c->input_margins = (double*) calloc(c->n_input_margins + 1, sizeof(double));
   VFDSL_STEP_WORK(&sz_arg, &sz_res, &sz_iw, &sz_w);
   c->arg = (const casadi_real**) calloc(sz_arg + 1, sizeof(casadi_real*));
   c->res = (casadi_real**) calloc(sz_res + 1, sizeof(casadi_real*));
   c->iw = (casadi_int*) calloc(sz_iw + 1, sizeof(casadi_int));
   c->w = (casadi_real*) calloc(sz_w + 1, sizeof(casadi_real));
-  if (!c->check_arg || !c->check_res || !c->check_iw || !c->check_w || !c->margins
+  if (!c->check_arg || !c->check_res || !c->check_iw || !c->check_w || !c->margins || !c->input_margins
       || !c->arg || !c->res || !c->iw || !c->w) return VFDSL_NO_MEMORY;
   for (k=0; k<VFDSL_N_ARGS; ++k) c->arg[k] = c->data[k];
   for (k=VFDSL_N_ARGS; k<VFDSL_N_BUFFERS; ++k) c->res[k - VFDSL_N_ARGS] = c->data[k];
@@ -84,9 +99,9 @@ static int vfdsl_core_open(vfdsl_core* c) {
 static void vfdsl_core_close(vfdsl_core* c) {
   if (c->slot >= 0) VFDSL_STEP_RELEASE(c->slot);
   c->slot = -1;
-  free(c->arg); free(c->res); free(c->iw); free(c->w); free(c->margins);
+  free(c->arg); free(c->res); free(c->iw); free(c->w); free(c->margins); free(c->input_margins);
   free(c->check_arg); free(c->check_res); free(c->check_iw); free(c->check_w);
-  c->arg = 0; c->res = 0; c->iw = 0; c->w = 0; c->margins = 0;
+  c->arg = 0; c->res = 0; c->iw = 0; c->w = 0; c->margins = 0; c->input_margins = 0;
   c->check_arg = 0; c->check_res = 0; c->check_iw = 0; c->check_w = 0;
 }
 
@@ -121,6 +136,22 @@ static long vfdsl_first_failure(vfdsl_core* c, const double* p) {
   for (i=0; i<c->n_margins; ++i) {
     double m = c->margins[i];
     if (!isfinite(m) || !(c->strict[i] ? m > 0 : m >= 0)) return i;
+  }
+  return -1;
+}
+
+/* The index in u of the first number that is non-finite or fails a check of its input's type, or -1 (evaluates
+ * the inputs' column into input_margins: margin m is check m / nu of u[m % nu]). */
+static long vfdsl_first_input_failure(vfdsl_core* c, const double* u) {
+  long i, nu = c->size[VFDSL_U];
+  i = vfdsl_first_nonfinite(u, nu);
+  if (i >= 0 || c->n_input_margins == 0) return i;
+  c->check_arg[0] = u;
+  c->check_res[0] = c->input_margins;
+  if (VFDSL_INPUT_CHECKS(c->check_arg, c->check_res, c->check_iw, c->check_w, 0)) return 0;
+  for (i=0; i<c->n_input_margins; ++i) {
+    double m = c->input_margins[i];
+    if (!(isfinite(m) && m >= 0)) return i % nu;
   }
   return -1;
 }

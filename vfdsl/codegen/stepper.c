@@ -126,7 +126,7 @@ static int plain_inputs(Stepper* s, PyObject* inputs) {
     if (value == NULL) { PyErr_Clear(); return 0; }
     if (!plain_vector(value, s->sizes[k], s->core.data[U] + s->offsets[k], 0)) return 0;
   }
-  return 1;
+  return vfdsl_first_input_failure(&s->core, s->core.data[U]) < 0;
 }
 
 static void use_default_params(Stepper* s) {

@@ -22,6 +22,7 @@ import math
 import numbers
 from collections.abc import Mapping
 
+import casadi as ca
 import numpy as np
 from pydantic import BaseModel
 
@@ -139,6 +140,24 @@ def _describe(x) -> str:
     return f"a {type(x).__name__}"
 
 
+def input_checks(types: Mapping, offsets: Mapping[str, tuple[int, int]], n: int) -> ca.Function:
+    """u -> the column of the inputs' plausibility checks, compiled with the task as the params' column is: margin m is
+    check m // n of component m % n of u (check-major; 1 where an input has fewer checks), and holds iff it is
+    finite and >= 0 (:class:`vfdsl.inputs.base.InputCheck`). The Python path applies the same margins in NumPy
+    (:meth:`RuntimeValues.inputs`), which also says which check failed."""
+    u = ca.SX.sym("u", n)
+    depth = max((len(kind.checks) for kind in types.values()), default=0)
+    columns = []
+    for j in range(depth):
+        column = [ca.SX(1.0)] * n
+        for name, (offset, size) in offsets.items():
+            if j < len(types[name].checks):
+                margin = types[name].checks[j].margin(u[offset:offset + size])
+                column[offset:offset + size] = ca.vertsplit(margin)
+        columns += column
+    return ca.Function("input_checks", [u], [ca.vertcat(*columns) if columns else ca.SX(0, 1)], ["u"], ["margins"])
+
+
 class RuntimeValues:
     """The checks of one task's run-time values (its inputs, params, joints and period)."""
 
@@ -149,6 +168,7 @@ class RuntimeValues:
         self.input_offsets = input_offsets
         self.n_inputs = sum(size for _, size in input_offsets.values())
         self.input_types = {d.name: INPUT_TYPES[d.type] for d in task.inputs}
+        self.input_checks = input_checks(self.input_types, input_offsets, self.n_inputs)
         self.admissible = admissible
         self.layout = admissible.layout
         self.joint_names = joint_names

@@ -88,7 +88,7 @@ static int tick(@API@* c, const double* q, const double* inputs, double dt) {
   if (i >= 0) return refuse(c, VF_ERR_Q_NONFINITE, i, -1);
   i = vfdsl_q_outside(&c->core, q);
   if (i >= 0) return refuse(c, VF_ERR_Q_RANGE, i, -1);
-  i = vfdsl_first_nonfinite(inputs, NU);
+  i = vfdsl_first_input_failure(&c->core, inputs);
   if (i >= 0) return refuse(c, VF_ERR_INPUT, i, -1);
   switch (vfdsl_dt_check(&c->core, dt)) {
     case VFDSL_DT_NOT_POSITIVE: return refuse(c, VF_ERR_DT, -1, -1);

@@ -47,7 +47,7 @@ extern "C" {
 #define VF_ERR_NULL (-1)         /* a pointer argument is NULL */
 #define VF_ERR_Q_NONFINITE (-2)  /* q holds NaN or inf */
 #define VF_ERR_Q_RANGE (-3)      /* q is far outside its joint limits (a unit mistake, a faulty encoder) */
-#define VF_ERR_INPUT (-4)        /* inputs hold NaN or inf */
+#define VF_ERR_INPUT (-4)        /* inputs hold NaN or inf, or fail their type's checks */
 #define VF_ERR_DT (-5)           /* dt is NaN, inf or <= 0 */
 #define VF_ERR_PARAM_INDEX (-6)  /* no run-time param has this index */
 #define VF_ERR_PARAM (-7)        /* a param value is NaN or inf, or fails a check */
