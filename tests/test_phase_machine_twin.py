@@ -1,8 +1,9 @@
 """The phase machine in C (vfdsl/codegen/phase_machine.h, through tests/phase_machine_harness.c) takes the same
-decisions as vfdsl.runtime.phase_machine, to the last bit, on thousands of random tables and random sequences of
-compiled values (NaN among them), inputs (held, changing, NaN), dt (constant, jittered, 0, not finite) and
-statuses; and on every one of them the weights lie in [0, 1] and sum to 1, and a tick whose compiled values are
-all NaN fires no transition of a machine whose monitors are all comparisons."""
+decisions as vfdsl.runtime.phase_machine, to the last bit (built with the generated tick's flags, and at -O0), on
+thousands of random tables and random sequences of compiled values (NaN among them), inputs (held, changing,
+NaN), dt (constant, jittered, 0, not finite) and statuses; and on every one of them the weights lie in [0, 1] and
+sum to 1, and a tick whose compiled values are all NaN fires no transition of a machine whose monitors are all
+comparisons."""
 
 from __future__ import annotations
 
@@ -13,7 +14,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from vfdsl.codegen.build import CompilerUnavailable, find_compiler
+from vfdsl.codegen.build import FLAGS, CompilerUnavailable, find_compiler
 from vfdsl.runtime import phase_machine as pm
 from vfdsl.runtime.qp import StepStatus
 
@@ -24,15 +25,17 @@ CONSTANTS = (pm.FALSE, pm.TRUE, pm.UNKNOWN, pm.COMPARE, pm.ELAPSED, pm.UNCHANGED
 TABLES = 2000
 
 
-@pytest.fixture(scope="module")
-def harness(tmp_path_factory):
+@pytest.fixture(scope="module", params=["generated", "plain"])
+def harness(request, tmp_path_factory):
+    """The harness built with the generated tick's flags (its symbols visible), or with -O0."""
     try:
         command = find_compiler().command
     except CompilerUnavailable:
         pytest.skip("needs a C compiler")
+    flags = [f for f in FLAGS if f != "-fvisibility=hidden"] if request.param == "generated" else ["-O0"]
     so = tmp_path_factory.mktemp("phase_machine") / "harness.so"
-    subprocess.run([*command, "-O2", "-ffp-contract=off", "-std=c99", "-Wall", "-Werror", "-shared", "-fPIC",
-                    f"-I{CODEGEN}", str(HARNESS), "-o", str(so), "-lm"], check=True, capture_output=True, text=True)
+    subprocess.run([*command, *flags, "-std=c99", "-Wall", "-Wextra", "-Werror", "-shared", "-fPIC", f"-I{CODEGEN}",
+                    str(HARNESS), "-o", str(so), "-lm"], check=True, capture_output=True, text=True)
     return ctypes.CDLL(str(so))
 
 
