@@ -38,13 +38,15 @@ def _gains(kind) -> str:
 
 @pytest.fixture(scope="module")
 def tasks(tmp_path_factory) -> dict:
-    """Per input type, a task that declares one input of it and tracks it with the tool tip."""
+    """Per input type, a task that declares one input of it and tracks it with the tool tip (an input that
+    commands no motion, a button, is only declared)."""
     folder = tmp_path_factory.mktemp("inputs")
     out = {}
     for name, kind in INPUT_TYPES.items():
         path = folder / f"with_{name}.vf"
+        term = f"track(tip, h{_gains(kind)})" if kind.moves else "damping()"
         path.write_text(f'task with_{name}\nrobot shr = urdf "shr7"\nframe tip = shr.link("tool_tip")\n'
-                        f"input h : {name}\nminimize track(tip, h{_gains(kind)})\n")
+                        f"input h : {name}\nminimize {term}\n")
         out[name] = vfdsl.load(path)
     return out
 
@@ -64,7 +66,7 @@ def _ir(task, kind):
 def _gain_dimensions(task, kind):
     dims = [gain_dimension(kind.name, arg) for arg in ("gain", "angular_gain")]
     assert dims == [kind.gain_dimension(False), kind.gain_dimension(True)]
-    assert dims != [None, None]
+    assert (dims != [None, None]) == kind.moves
 
 
 def _units(task, kind):
@@ -113,7 +115,7 @@ def _viewer(task, kind):
     assert hand.kind is kind and hand.frame == "tip"
     pose = SimpleNamespace(position=np.zeros(3), rotation=np.eye(3), tool_axis=np.array([0.0, 0.0, 1.0]))
     value = hand.value(pose, [0.01, 0.0, 0.0], Rotation.from_rotvec([0.0, 0.0, 0.1]).as_matrix())
-    assert value.shape == (kind.size,) and np.any(value != 0)
+    assert value.shape == (kind.size,) and np.any(value != 0) == kind.moves     # the hand leaves a button at 0
     v, w = hand.commanded(value)
     assert v.shape == w.shape == (3,)
 
@@ -131,8 +133,10 @@ def test_every_tool_finds_every_input_type(tasks, name, tool):
 
 @pytest.mark.parametrize("name", NAMES)
 def test_an_input_is_linear_then_angular_parts(name):
+    """[linear; angular] of 3 numbers each, or a level alone (one number)."""
     kind = INPUT_TYPES[name]
-    assert kind.parts and kind.size == 3 * len(kind.parts)
+    assert kind.parts and kind.size == sum(len(p.axes) for p in kind.parts)
+    assert (kind.level is None) == kind.moves and (kind.level is None or kind.parts == (kind.level,))
     assert [kind.linear_range, kind.angular_range] == [
         slice(0, 3) if kind.linear else None,
         slice(kind.size - 3, kind.size) if kind.angular else None]
@@ -166,6 +170,27 @@ def test_the_commanded_motion_is_the_gains_times_the_parts(tasks, name):
         for v, w in (symbolic, hand.commanded(value)):
             np.testing.assert_allclose(v, v_numpy, rtol=1e-15)
             np.testing.assert_allclose(w, w_numpy, rtol=1e-15)
+
+
+def test_track_refuses_an_input_that_commands_no_motion(tmp_path):
+    path = tmp_path / "t.vf"
+    path.write_text('task t\nrobot shr = urdf "shr7"\nframe tip = shr.link("tool_tip")\ninput go : button\n'
+                    "minimize track(tip, go)\n")
+    with pytest.raises(VfError, match="track needs an input that commands a motion; 'go' is a button") as info:
+        vfdsl.load(path)
+    assert (info.value.code, info.value.line, info.value.column) == ("E503", 5, 10)
+
+
+def test_a_button_is_checked_between_released_and_pressed(tasks):
+    """0 <= x <= 1 (NaN and inf refused by the finite check first), the same margin compiled."""
+    kind = INPUT_TYPES["button"]
+    values = RuntimeValues(tasks["button"], {"h": (0, 1)}, _NoParams(), np.zeros(1), np.ones(1), ["j"])
+    for ok in (0.0, 0.5, 1.0):
+        assert values.inputs({"h": [ok]}).tolist() == [ok]
+    for bad in (-1e-9, 1.0 + 1e-9, 2.0, -np.inf):
+        with pytest.raises(VfError, match="input 'h'"):
+            values.inputs({"h": [bad]})
+    assert kind.columns == ("pressed_1",) and kind.unit_text == "1" and kind.self_test_scale == (0.0,)
 
 
 def test_described_names_the_input_types_with_a_part():

@@ -40,6 +40,7 @@ _SHOW_EPILOG = """\
 examples:
   vfdsl show tasks/paper_b_virtual_rcm.vf              the checked task, as YAML
   vfdsl show tasks/paper_a_follow_curve.vf --format json > a.json
+  vfdsl show tasks/procedures/needle_procedure.vf --statechart dot | dot -Tsvg > machine.svg
 
 Every number is in SI units (m, rad, s, N); every constraint keeps its source line (span) and, when it
 comes from a fixture, the use sites it was expanded through (via)."""
@@ -142,6 +143,9 @@ def _parser() -> argparse.ArgumentParser:
                                formatter_class=argparse.RawDescriptionHelpFormatter)
     show.add_argument("file", help="the .vf task file")
     show.add_argument("--format", choices=("yaml", "json"), default="yaml", help="output format (default: yaml)")
+    show.add_argument("--statechart", choices=("dot", "mermaid"),
+                      help="print the task's phase machine instead: states, initial and final marks, transitions "
+                           "labelled with their guards (Graphviz DOT or Mermaid)")
     show.set_defaults(run=_show)
 
     build = commands.add_parser(
@@ -186,7 +190,16 @@ def _parser() -> argparse.ArgumentParser:
 
 
 def _show(args: argparse.Namespace) -> int:
+    from vfdsl.ir import statechart
+
     task = vfdsl.load(args.file)
+    if args.statechart:
+        if not task.phases:
+            raise VfError(f"task '{task.name}' has no phases: there is no statechart to show",
+                          hint="a procedure is written with `phase NAME { ... }` and `transition A -> B when ...` "
+                               "(docs/language.md, \"Procedures\")")
+        sys.stdout.write(getattr(statechart, args.statechart)(task))
+        return 0
     data = task.model_dump(mode="json")
     if args.format == "json":
         json.dump(data, sys.stdout, indent=2)

@@ -60,6 +60,19 @@ CODES: dict[str, str] = {
     "E604": "a mesh file that cannot be used",
     "E605": "a fixture that uses itself",
     "E701": "a resource limit exceeded (vfdsl.limits)",
+    "E801": "a transition to or from an unknown phase",
+    "E802": "a procedure without exactly one initial phase (none, or two)",
+    "E803": "a transition out of a final phase",
+    "E804": "a transition from a phase to itself",
+    "E805": "a phase, monitor or capture name declared twice or taken by a declaration, or a second `blend`",
+    "E806": "a monitor's units do not fit: a threshold, `release` or `for` of another dimension, a `release` on "
+            "the wrong side",
+    "E807": "an unknown monitor or measure in a condition",
+    "E808": "monitors that name each other in a cycle",
+    "E809": "a capture of an unknown frame, input or param, or of a part it has not",
+    "E810": "a captured value used in a statement outside every phase",
+    "E811": "a condition that does not fit its measure (comparing a button, a force as a condition, a wrench's norm)",
+    "E812": "a task with phases: procedures are checked but not yet compiled",
 }
 """Every front-end error's code and its meaning (docs/language.md, "Error codes", lists them too). A code never
 changes meaning; a new class of mistake gets a new code."""

@@ -68,6 +68,12 @@ def build(task: ir.Task, *, backend: str = "auto",
           cache_dir: str | Path | None = None) -> tuple[Controller, BuiltLibrary | None]:
     """As :func:`compile`, also returning the generated library (None on the interpreted path)."""
     global _warned
+    if task.phases or task.monitors or task.transitions:
+        first = (task.phases or task.monitors or task.transitions)[0]
+        raise VfError(f"task '{task.name}' has a procedure (phases, monitors, transitions): procedures are checked "
+                      "but not yet compiled", first.span,
+                      hint="`vfdsl show` prints it, `vfdsl show --statechart dot` its machine; compile a task "
+                           "without phases", code="E812")
     if backend not in BACKENDS:
         raise VfError(f"unknown backend '{backend}'; use one of {', '.join(BACKENDS)}")
     robot = Robot.load(task.robots[0].urdf)

@@ -1,6 +1,7 @@
-"""What an input type is: one or two 3-vector parts, each a linear or an angular quantity.
+"""What an input type is: one or two 3-vector parts, each a linear or an angular quantity, or a level (one plain
+number: a button).
 
-An input u is [linear; angular] (a part it lacks is left out): a force f (N), a torque tau (N m), a wrench
+An input u is [linear; angular] (a part it lacks is left out), or [level]: a force f (N), a torque tau (N m), a wrench
 [f; tau] or a twist [v; w] (m/s, rad/s). ``minimize track`` turns it into the frame velocity it commands,
 
     v_d = gain u_linear,    w_d = angular_gain u_angular     (zero for a part the input lacks),
@@ -29,13 +30,15 @@ AXES = "xyz"
 
 @dataclass(frozen=True)
 class Part:
-    """One 3-vector of an input: its quantity's dimension and SI unit, the prefix of its components' trace
-    columns (``f`` -> fx_N, fy_N, fz_N) and the size of the export self-test's push on it (SI)."""
+    """One part of an input: its quantity's dimension and SI unit, the prefix of its components' trace
+    columns (``f`` -> fx_N, fy_N, fz_N), the size of the export self-test's push on it (SI) and its components'
+    names (x, y, z; one unnamed for a level)."""
 
     dimension: u.Dim
     unit: str
     column: str
     self_test: float
+    axes: tuple[str, ...] = tuple(AXES)
 
     @property
     def rate(self) -> bool:
@@ -44,7 +47,7 @@ class Part:
 
     def columns(self) -> tuple[str, ...]:
         suffix = self.unit.replace(" ", "").replace("/", "_")
-        return tuple(f"{self.column}{axis}_{suffix}" for axis in AXES)
+        return tuple(f"{self.column}{axis}_{suffix}" for axis in self.axes)
 
 
 @dataclass(frozen=True)
@@ -65,8 +68,9 @@ FINITE = InputCheck(
 
 @dataclass(frozen=True)
 class InputType:
-    """One input type: its name, its parts (``linear`` first, then ``angular``; None where it has none), the gain
-    a ``track`` term may leave out (None: the term must give it) and its plausibility checks."""
+    """One input type: its name, its parts (``linear`` first, then ``angular``; None where it has none; or a
+    ``level`` alone), the gain a ``track`` term may leave out (None: the term must give it) and its plausibility
+    checks."""
 
     name: str
     summary: str
@@ -74,14 +78,20 @@ class InputType:
     angular: Part | None
     default_gain: float | None = None
     checks: tuple[InputCheck, ...] = (FINITE,)
+    level: Part | None = None
 
     @property
     def parts(self) -> tuple[Part, ...]:
-        return tuple(p for p in (self.linear, self.angular) if p is not None)
+        return tuple(p for p in (self.linear, self.angular, self.level) if p is not None)
+
+    @property
+    def moves(self) -> bool:
+        """Whether ``track`` can turn it into a motion (it has a linear or an angular part)."""
+        return self.linear is not None or self.angular is not None
 
     @property
     def size(self) -> int:
-        return 3 * len(self.parts)
+        return sum(len(p.axes) for p in self.parts)
 
     @property
     def linear_range(self) -> slice | None:
@@ -90,7 +100,8 @@ class InputType:
 
     @property
     def angular_range(self) -> slice | None:
-        return slice(3 if self.linear else 0, self.size) if self.angular else None
+        start = 3 if self.linear else 0
+        return slice(start, start + 3) if self.angular else None
 
     def part_range(self, angular: bool) -> slice | None:
         return self.angular_range if angular else self.linear_range
@@ -109,7 +120,7 @@ class InputType:
 
     @property
     def self_test_scale(self) -> tuple[float, ...]:
-        return tuple(p.self_test for p in self.parts for _ in AXES)
+        return tuple(p.self_test for p in self.parts for _ in p.axes)
 
     def gain_dimension(self, angular: bool) -> u.Dim | None:
         """The dimension of ``angular_gain`` (``angular``) or ``gain``: the part's rate over its quantity (a

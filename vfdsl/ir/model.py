@@ -11,7 +11,7 @@ from __future__ import annotations
 from typing import Annotated, Literal, Union
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, model_serializer
 
 from vfdsl.errors import Span
 from vfdsl.inputs import INPUT_TYPES
@@ -142,7 +142,15 @@ class Derived(_Model):
     span: Span                       # where the expression is written (run-time errors point here)
 
 
-Arg = Annotated[Union[ParamRef, FrameRef, InputRef, Const, Derived], Field(discriminator="ref")]
+class CaptureRef(_Model):
+    """A value captured on entry to a phase (:class:`Capture`), read like a run-time param; before any phase that
+    captures it has run, it holds its value at the initial phase's entry."""
+
+    ref: Literal["capture"] = "capture"
+    name: str
+
+
+Arg = Annotated[Union[ParamRef, FrameRef, InputRef, Const, Derived, CaptureRef], Field(discriminator="ref")]
 Derived.model_rebuild()
 
 
@@ -219,6 +227,163 @@ class Objective(_Model):
     via: list[Span] = []
 
 
+# ------------------------------------------------------------------------------------------------ procedures
+
+class FrameMeasure(_Model):
+    """A frame's origin (``position``: a point, m) or its tool axis (``axis``: a unit direction), in the world."""
+
+    ref: Literal["frame_measure"] = "frame_measure"
+    frame: str
+    part: Literal["position", "axis"]
+
+
+class Capture(_Model):
+    """``capture NAME = SOURCE``: the source's value taken at the tick the phase is entered. ``kind``: point,
+    direction, an input type, or the captured param's type."""
+
+    name: str
+    kind: str
+    source: Annotated[Union[FrameMeasure, InputRef, ParamRef], Field(discriminator="ref")]
+    span: Span
+
+
+class Distance(_Model):
+    """|frame origin - geometry| (m): to a point, a line or a plane (signed: + on the plane's free side)."""
+
+    measure: Literal["distance"] = "distance"
+    frame: str
+    to: Arg
+
+
+class Angle(_Model):
+    """The angle between the frame's tool axis and a direction (rad, in [0, pi])."""
+
+    measure: Literal["angle"] = "angle"
+    frame: str
+    direction: Arg
+
+
+class Norm(_Model):
+    """|u| of an input, or of its linear or angular part (the part's unit)."""
+
+    measure: Literal["norm"] = "norm"
+    input: str
+    part: Literal["all", "linear", "angular"] = "all"
+
+
+class Elapsed(_Model):
+    """Seconds since the current phase was entered."""
+
+    measure: Literal["elapsed"] = "elapsed"
+
+
+class Unchanged(_Model):
+    """Seconds since the input's value last changed; as a condition: unchanged since the previous tick."""
+
+    measure: Literal["unchanged"] = "unchanged"
+    input: str
+
+
+class LeastViolation(_Model):
+    """The controller's status at the previous tick: true when it fell back to least violation."""
+
+    measure: Literal["least_violation"] = "least_violation"
+
+
+class Button(_Model):
+    """A button input: true when pressed (its value above 1/2)."""
+
+    measure: Literal["button"] = "button"
+    input: str
+
+
+Measure = Annotated[Union[Distance, Angle, Norm, Elapsed, Unchanged, LeastViolation, Button],
+                    Field(discriminator="measure")]
+
+
+class Compare(_Model):
+    """``measure op threshold``, SI; ``release`` (hysteresis): once on, it stays on until the measure passes
+    ``release`` (on the off side of ``threshold``); ``dimension``: the measure's (units.describe's word)."""
+
+    expr: Literal["compare"] = "compare"
+    measure: Measure
+    op: Literal["<", ">", "<=", ">="]
+    threshold: float
+    release: float | None = None
+    dimension: str
+    span: Span
+
+
+class Flag(_Model):
+    """A measure that is a condition itself: a button, least_violation, unchanged (since the previous tick)."""
+
+    expr: Literal["flag"] = "flag"
+    measure: Measure
+    span: Span
+
+
+class And(_Model):
+    expr: Literal["and"] = "and"
+    items: list["MonitorExpr"] = Field(min_length=2)
+
+
+class Or(_Model):
+    expr: Literal["or"] = "or"
+    items: list["MonitorExpr"] = Field(min_length=2)
+
+
+class Not(_Model):
+    expr: Literal["not"] = "not"
+    items: list["MonitorExpr"] = Field(min_length=1, max_length=1)
+
+
+class MonitorRef(_Model):
+    expr: Literal["monitor"] = "monitor"
+    name: str
+
+
+MonitorExpr = Annotated[Union[Compare, Flag, And, Or, Not, MonitorRef], Field(discriminator="expr")]
+for _node in (And, Or, Not):
+    _node.model_rebuild()
+
+
+class Monitor(_Model):
+    """``monitor NAME = EXPR [for HOLD]``: true once EXPR has held for ``hold`` seconds (0: at once);
+    ``text``: EXPR as written."""
+
+    name: str
+    expr: MonitorExpr
+    hold: float = 0.0
+    text: str
+    span: Span
+
+
+class Phase(_Model):
+    """A phase's own statements (the task's phase-less ones hold in every phase) and its captures."""
+
+    name: str
+    initial: bool = False
+    final: bool = False
+    constraints: list[Constraint] = []
+    objectives: list[Objective] = []
+    captures: list[Capture] = []
+    span: Span
+
+
+class Transition(_Model):
+    """``transition SOURCE -> TARGET when GUARD``: ``source`` None is ``*`` (every phase but a final one and the
+    target); ``blend`` (s) its own or the task's; ``order``: its place in the file (the first that holds fires);
+    ``text``: the guard as written."""
+
+    source: str | None
+    target: str
+    guard: MonitorExpr
+    blend: float = 0.0
+    order: int
+    text: str
+    span: Span
+
+
 class Scene(_Model):
     """Data kept outside the task's logic: where it starts and how fast it ticks."""
 
@@ -239,6 +404,19 @@ class Task(_Model):
     scene: Scene = Scene()
     imports: list[str] = []
     span: Span
+    phases: list[Phase] = []          # empty: a task without a procedure
+    monitors: list[Monitor] = []
+    transitions: list[Transition] = []
+    blend: float = 0.0                # s: the default blend time of a transition
+
+    @model_serializer(mode="wrap")
+    def _serialize(self, handler):
+        """A task without a procedure serializes as it did before procedures existed (same JSON, same hash)."""
+        data = handler(self)
+        for key in ("phases", "monitors", "transitions", "blend"):
+            if not getattr(self, key):
+                data.pop(key, None)
+        return data
 
     @property
     def start(self) -> np.ndarray | None:

@@ -187,9 +187,9 @@ class Declarations:
                  curve_degree: int | None = None) -> ir.Value:
         """A value without names (a param's value, a frame clause): a literal, or an expression of literals."""
         if kind in ex.KINDS and ex.is_expression(value):
-            return ex.Expressions(units, lambda ref: self._no_names(ref, kind), self._arg_kind, []) \
+            return ex.Expressions(units, lambda ref: self.no_names(ref, kind), self.arg_kind, []) \
                 .evaluate(value, kind).value
-        return LiteralReader(units, self._no_names).read(value, kind, curve_degree=curve_degree)
+        return LiteralReader(units, self.no_names).read(value, kind, curve_degree=curve_degree)
 
     def _input(self, stmt: ast.InputStmt) -> None:
         if stmt.type.text not in INPUT_TYPES:
@@ -301,7 +301,7 @@ class Declarations:
         return ir.MeshValue(file=str(path), unit=unit, sha256=mesh.sha256)
 
     def _mesh_unit(self, value: ast.Value, units: u.DefaultUnits) -> float:
-        unit = LiteralReader(units, self._no_names).scalar(value, u.LENGTH, "unit")
+        unit = LiteralReader(units, self.no_names).scalar(value, u.LENGTH, "unit")
         if not unit > 0:
             raise VfError("a mesh's unit must be a positive length", value.span, code="E402")
         return unit
@@ -315,7 +315,7 @@ class Declarations:
                 raise VfError(f"a {stmt.type.text} param takes no type arguments", stmt.type_args[0].span, code="E501")
             return None, False
         degree, runtime = None, False
-        reader = LiteralReader(self.units, self._no_names)
+        reader = LiteralReader(self.units, self.no_names)
         for kw in stmt.type_args:
             if kw.name.text == "degree":
                 degree = reader.integer(kw.value, "degree")
@@ -341,7 +341,7 @@ class Declarations:
         robot)."""
         if scene is None:
             return ir.Scene()
-        reader = LiteralReader(scene.units, self._no_names)
+        reader = LiteralReader(scene.units, self.no_names)
         period = start = None
         with self.errors.each() as timed:
             if scene.period is not None:
@@ -392,7 +392,7 @@ class Declarations:
                               code="E402")
         return q
 
-    def _no_names(self, ref: ast.NameRef, kind: str) -> ir.Value:
+    def no_names(self, ref: ast.NameRef, kind: str) -> ir.Value:
         raise VfError(f"a name ('{ref.name}') cannot stand here; write the value itself", ref.span, code="E206")
 
 

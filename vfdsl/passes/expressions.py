@@ -316,6 +316,8 @@ class Expressions:
     def _node(self, op: str, kind: str, operands: list[Typed], node: ast.Value, dim: u.Dim | None) -> Typed:
         """The Derived node of ``op``, folded to a Const when every operand is constant."""
         result = ir.Derived(op=op, kind=kind, operands=[t.arg for t in operands], span=node.span)
+        if any(reads_capture(t.arg) for t in operands):        # its value is known when the phase is entered
+            return Typed(kind, dim, result, node)
         constant = all(isinstance(t.arg, ir.Const) for t in operands)
         read = ParamReader([]).read if constant else self._defaults().read
         try:                                # a zero direction, or a value that overflows
@@ -348,6 +350,15 @@ def _times(a: u.Dim, b: u.Dim) -> u.Dim:
     return tuple(x + y for x, y in zip(a, b))
 
 
+def dimension_name(dim: u.Dim) -> str:
+    """A dimension's scalar kind ('length', 'force', ...), else its SI formula."""
+    return next((k for k, d in SCALAR_DIMENSIONS.items() if d == dim), u.si_formula(dim))
+
+
 def _const_scalar(dim: u.Dim, value: float) -> ir.Const:
-    name = next((k for k, d in SCALAR_DIMENSIONS.items() if d == dim), u.si_formula(dim))
-    return ir.Const(value=ir.ScalarValue(dimension=name, value=value))
+    return ir.Const(value=ir.ScalarValue(dimension=dimension_name(dim), value=value))
+
+
+def reads_capture(arg: ir.Arg) -> bool:
+    """Whether ``arg`` reads a value captured on entry to a phase (known only when the phase runs)."""
+    return isinstance(arg, ir.CaptureRef) or (isinstance(arg, ir.Derived) and any(map(reads_capture, arg.operands)))

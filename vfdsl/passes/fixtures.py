@@ -32,13 +32,15 @@ FORMAL_KINDS = tuple(k for k in ARG_KINDS if k not in ("gain", "angular_gain"))
 
 @dataclass(frozen=True)
 class Scope:
-    """Where a statement is read: its file's units, and (inside a fixture) the bound formals."""
+    """Where a statement is read: its file's units, (inside a fixture) the bound formals, and whether values
+    captured on entry to a phase may be read (in a phase, a monitor or a transition)."""
 
     units: DefaultUnits
     bindings: dict[str, ir.Arg] | None = None       # None at task level
     fixture: str | None = None
     via: tuple[ast.Span, ...] = field(default=())
     sources: dict[str, ast.Span] = field(default_factory=dict)   # formal -> where its value was written
+    captures: bool = False
 
     def source_span(self, value: ast.Value) -> ast.Span:
         """Where ``value`` was written: for a formal's name, the actual argument at the use (or the default)."""

@@ -18,7 +18,7 @@ from pathlib import Path
 from vfdsl import limits
 from vfdsl import units as u
 from vfdsl.errors import VfError, suggest
-from vfdsl.inputs import INPUT_TYPES
+from vfdsl.inputs import INPUT_TYPES, described
 from vfdsl.ir import model as ir
 from vfdsl.objectives import OBJECTIVES
 from vfdsl.passes import clause_ranges
@@ -27,6 +27,7 @@ from vfdsl.passes import fixtures as fx
 from vfdsl.passes.calls import bind_arguments
 from vfdsl.passes.declarations import Declarations
 from vfdsl.passes.diagnostics import Dependent
+from vfdsl.passes.procedure import Procedure
 from vfdsl.passes.shapes import LiteralReader, describe_kind
 from vfdsl.primitives import CONSTRAINTS
 from vfdsl.primitives.spec import (
@@ -60,6 +61,8 @@ class Resolver(Declarations):
         super().__init__(module, path, file_units(module))
         self.libraries = libraries
         self.task_scope = fx.Scope(units=self.units)
+        self.captures: dict[str, ir.Capture] = {}
+        self.rows = self.constraint_count = 0          # over the whole task, every phase's statements included
 
     # ----------------------------------------------------------------------------------- entry point
     def run(self, imports: list[str]) -> ir.Task:
@@ -71,22 +74,19 @@ class Resolver(Declarations):
         statements = self.module.statements
         scene = self.read()
         fixtures = fx.collect(self.libraries + [(self.module, self.units)], self.errors)
+        procedure = Procedure(self, statements)
+        self.captures = procedure.declare()
         body = [s for s in statements if isinstance(s, (ast.MinimizeStmt, ast.RequireStmt, ast.UseStmt))]
-        objectives, constraints = [], []
-        rows = 0
-        for stmt, scope in fx.expand(body, self.task_scope, fixtures, self.evaluate, self.errors):
-            with self.errors.each(scope.note):
-                if isinstance(stmt, ast.MinimizeStmt):
-                    objectives.append(self._objective(stmt, scope))
-                else:
-                    constraints.append(self._constraint(stmt, scope))
-                    rows += _row_estimate(constraints[-1])
-            if len(constraints) > limits.CONSTRAINTS:
-                raise scope.note(limits.exceeded("too many constraints", limits.CONSTRAINTS, stmt.span, code="E701"))
-            if rows > limits.ROWS:
-                raise scope.note(limits.exceeded(f"too many constraint rows (about {rows:,} so far)", limits.ROWS,
-                                                 stmt.span, hint="lower the resolution of the polytopes",
-                                                 code="E701"))
+
+        def read(statements: list, scope: fx.Scope) -> tuple[list[ir.Objective], list[ir.Constraint]]:
+            return self._statements(statements, scope, fixtures)
+        objectives, constraints = read(body, self.task_scope)
+        phases = procedure.read_phases(read)
+        monitors = procedure.read_monitors()
+        blend = 0.0
+        with self.errors.each():
+            blend = procedure.read_blend()
+        transitions = procedure.read_transitions(blend)
         robot_decl, robot = next(iter(self.robots.values()), (None, None))
         scene_ir = self.scene_ir(scene, robot)
         self.errors.checkpoint()
@@ -94,9 +94,29 @@ class Resolver(Declarations):
             name=self.module.name.text, file=str(self.path), span=self.module.span,
             robots=[robot_decl], frames=list(self.frames.values()), inputs=list(self.inputs.values()),
             params=list(self.params.values()), objectives=objectives, constraints=constraints,
-            scene=scene_ir, imports=imports)
+            scene=scene_ir, imports=imports, phases=phases, monitors=monitors, transitions=transitions, blend=blend)
         self.check_param_values(task, robot)
         return task
+
+    def _statements(self, body: list, scope: fx.Scope, fixtures: fx.Fixtures) \
+            -> tuple[list[ir.Objective], list[ir.Constraint]]:
+        """The objectives and constraints of ``body`` (fixtures expanded), counted against the task's limits."""
+        objectives, constraints = [], []
+        for stmt, inner in fx.expand(body, scope, fixtures, self.evaluate, self.errors):
+            with self.errors.each(inner.note):
+                if isinstance(stmt, ast.MinimizeStmt):
+                    objectives.append(self._objective(stmt, inner))
+                else:
+                    constraints.append(self._constraint(stmt, inner))
+                    self.rows += _row_estimate(constraints[-1])
+                    self.constraint_count += 1
+            if self.constraint_count > limits.CONSTRAINTS:
+                raise inner.note(limits.exceeded("too many constraints", limits.CONSTRAINTS, stmt.span, code="E701"))
+            if self.rows > limits.ROWS:
+                raise inner.note(limits.exceeded(f"too many constraint rows (about {self.rows:,} so far)",
+                                                 limits.ROWS, stmt.span, hint="lower the resolution of the polytopes",
+                                                 code="E701"))
+        return objectives, constraints
 
     # ------------------------------------------------------------------------------------- names
     def evaluate(self, value: ast.Value, kind: str, scope: fx.Scope, input_type: str | None = None) -> ir.Arg:
@@ -107,7 +127,7 @@ class Resolver(Declarations):
             raise VfError(f"expected the name of {describe_kind(kind)}", value.span,
                           hint=suggest("", self._names_of(kind, scope), f"{kind}s"), code="E203")
         if kind in ex.KINDS and ex.is_expression(value):
-            return ex.Expressions(scope.units, lambda ref: self._lookup(ref, "name", scope), self._arg_kind,
+            return ex.Expressions(scope.units, lambda ref: self.lookup(ref, "name", scope), self.arg_kind,
                                   list(self.params.values())).evaluate(value, kind)
         reader = self._scoped_reader(scope)
         if kind in ("gain", "angular_gain"):
@@ -129,14 +149,14 @@ class Resolver(Declarations):
         return [n for n, p in self.params.items() if p.type == kind] or list(self.params)
 
     def _resolve_name(self, ref: ast.NameRef, kind: str, scope: fx.Scope) -> ir.Arg:
-        arg = self._lookup(ref, kind, scope)
-        actual = self._arg_kind(arg)
+        arg = self.lookup(ref, kind, scope)
+        actual = self.arg_kind(arg)
         if not _compatible(actual, kind):
             raise VfError(f"expected {describe_kind(kind)}, but '{ref.name}' is {describe_kind(actual)}",
                           ref.span, code="E203")
         return arg
 
-    def _lookup(self, ref: ast.NameRef, kind: str, scope: fx.Scope) -> ir.Arg:
+    def lookup(self, ref: ast.NameRef, kind: str, scope: fx.Scope) -> ir.Arg:
         """The argument a name stands for in ``scope`` (``kind``: what is expected, for messages)."""
         if scope.bindings is not None:
             if ref.name not in scope.bindings:
@@ -150,6 +170,13 @@ class Resolver(Declarations):
             arg = ir.InputRef(name=ref.name)
         elif ref.name in self.params:
             arg = ir.ParamRef(name=ref.name)
+        elif ref.name in self.captures:
+            if not scope.captures:
+                raise VfError(f"'{ref.name}' is captured on entry to a phase; a statement outside every phase holds "
+                              "in every phase, before any capture", ref.span,
+                              hint=f"move the statement into the phase that needs it ({self.captures[ref.name].span} "
+                                   "captures it)", code="E810")
+            arg = ir.CaptureRef(name=ref.name)
         elif ref.name in self.robots:
             raise VfError(f"'{ref.name}' is a robot; expected {describe_kind(kind)}", ref.span, code="E203")
         elif ref.name in self.failed:
@@ -172,13 +199,15 @@ class Resolver(Declarations):
                           hint="write the value itself here (or pass a literal into the fixture)", code="E206")
         return arg.value
 
-    def _arg_kind(self, arg: ir.Arg) -> str:
+    def arg_kind(self, arg: ir.Arg) -> str:
         if isinstance(arg, ir.FrameRef):
             return "frame"
         if isinstance(arg, ir.InputRef):
             return "input"
         if isinstance(arg, ir.ParamRef):
             return self.params[arg.name].type
+        if isinstance(arg, ir.CaptureRef):
+            return self.captures[arg.name].kind
         if isinstance(arg, ir.Derived):
             return arg.kind
         value = arg.value
@@ -271,6 +300,10 @@ class Resolver(Declarations):
             raise VfError("track with `linear = false` and `angular = false` tracks nothing", call.span,
                           hint="leave one part tracked, or remove the term", code="E503")
         input_type = self.inputs[args["input"].name].type
+        if not INPUT_TYPES[input_type].moves:
+            raise VfError(f"track needs an input that commands a motion; '{args['input'].name}' is a {input_type}",
+                          call.span, hint=f"track reads {described(lambda t: t.moves)}; a {input_type} is read by "
+                                          "monitors", code="E503")
         default = INPUT_TYPES[input_type].default_gain
         for kind in ("gain", "angular_gain"):
             if gain_dimension(input_type, kind) is not None and kind not in args:

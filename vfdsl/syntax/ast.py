@@ -188,9 +188,91 @@ class FixtureDef(Node):
     body: list[BodyStatement]
 
 
+# ------------------------------------------------------------------------------------------- procedures
+
+class Member(Node):
+    """``NAME.FIELD`` in a measure's arguments: ``f.linear``."""
+
+    node: Literal["member"] = "member"
+    base: Name
+    field: Name
+
+
+class Measure(Node):
+    """What a condition reads: a call (``distance(tip, entry)``) or a name (``elapsed``, a button, a monitor)."""
+
+    name: Name
+    args: list[Annotated[Union[Quantity, Vector, Call, NameRef, BinOp, Neg, String, Bool, Member],
+                         Field(discriminator="node")]] | None = None     # None: a name, not a call
+
+
+class Comparison(Node):
+    cond: Literal["compare"] = "compare"
+    measure: Measure
+    op: Literal["<", ">", "<=", ">="]
+    threshold: Value
+    release: Value | None = None
+
+
+class Test(Node):
+    """A measure that is itself a condition."""
+
+    cond: Literal["test"] = "test"
+    measure: Measure
+
+
+class Logic(Node):
+    cond: Literal["and", "or", "not"]
+    items: list["Condition"]
+
+
+Condition = Annotated[Union[Comparison, Test, Logic], Field(discriminator="cond")]
+Logic.model_rebuild()
+
+
+class MonitorStmt(Node):
+    kind: Literal["monitor"] = "monitor"
+    name: Name
+    condition: Condition
+    text: str                        # the condition as written, spaces collapsed
+    hold: Value | None = None        # `for DURATION`
+
+
+class CaptureStmt(Node):
+    """``capture NAME = SOURCE[.FIELD]``."""
+
+    kind: Literal["capture"] = "capture"
+    name: Name
+    source: Name
+    field: Name | None = None
+
+
+class PhaseStmt(Node):
+    kind: Literal["phase"] = "phase"
+    name: Name
+    initial: Span | None = None
+    final: Span | None = None
+    body: list[Annotated[Union[MinimizeStmt, RequireStmt, UseStmt, CaptureStmt], Field(discriminator="kind")]]
+
+
+class TransitionStmt(Node):
+    kind: Literal["transition"] = "transition"
+    source: Name | None              # None: `*`, from any phase
+    source_span: Span
+    target: Name
+    guard: Condition
+    guard_text: str                  # the guard as written, spaces collapsed
+    blend: Value | None = None
+
+
+class BlendStmt(Node):
+    kind: Literal["blend"] = "blend"
+    value: Value
+
+
 Statement = Annotated[
     Union[UnitsStmt, ImportStmt, SceneStmt, RobotStmt, FrameStmt, InputStmt, ParamStmt, FixtureDef,
-          MinimizeStmt, RequireStmt, UseStmt],
+          MinimizeStmt, RequireStmt, UseStmt, MonitorStmt, PhaseStmt, TransitionStmt, BlendStmt],
     Field(discriminator="kind"),
 ]
 

@@ -30,11 +30,12 @@ from vfdsl import limits
 from vfdsl.syntax import ast
 
 KEYWORDS = ("task", "library", "units", "import", "scene", "robot", "frame", "input", "param",
-            "fixture", "minimize", "require", "use")
-STATEMENT_KEYWORDS = KEYWORDS[2:]
+            "fixture", "minimize", "require", "use", "monitor", "phase", "transition", "blend")
+STATEMENT_KEYWORDS = KEYWORDS[2:] + ("capture",)
 
+_COMMENT = re.compile(r"#[^\n]*")
 _FIRST_WORD = re.compile(r"(?:\s|#[^\n]*)*([A-Za-z_]\w*)?")
-_NESTED_RULES = ("vector", "call", "add", "sub", "mul", "neg")
+_NESTED_RULES = ("vector", "call", "add", "sub", "mul", "neg", "cond_or", "cond_and", "cond_not", "measure_call")
 _OPERATOR_WORDS = {"'+'", "'-'", "'*'"}
 _HINTS_FOR_CHARACTERS = {
     "\u00b5": "write micro as 'u': um, not \u00b5m",
@@ -44,6 +45,7 @@ _HINTS_FOR_CHARACTERS = {
 _TERMINAL_WORDS = {
     "NAME": "a name", "SIGNED_NUMBER": "a number", "STRING": 'a quoted string ("...")',
     "RESOLUTION": "a resolution such as 8 or 4x4", "UNIT_OP": "'*' or '/'", "$END": "end of file",
+    "COMPARE": "a comparison (<, >, <= or >=)",
 }
 
 
@@ -74,7 +76,7 @@ def parse_module(text: str, file: str) -> ast.Module:
         raise _syntax_error(exc, text, file, parser) from None
     _check_limits(tree, text, file)
     try:
-        return _ToAst(file).transform(tree)
+        return _ToAst(file, text).transform(tree)
     except VisitError as exc:
         if isinstance(exc.orig_exc, VfError):
             raise exc.orig_exc.with_source(text) from None
@@ -90,7 +92,8 @@ def _check_limits(tree: Tree, text: str, file: str) -> None:
             depth += 1
             if depth > limits.NESTING:
                 raise limits.exceeded("values nested too deeply", limits.NESTING, _pos_of_meta(node.meta, file),
-                                      hint="lists, calls and operators (+ - *) nest at most this deep", code="E701") \
+                                      hint="lists, calls, operators (+ - *) and conditions (and, or, not) nest at "
+                                           "most this deep", code="E701") \
                     .with_source(text)
         for child in node.children:
             if isinstance(child, Tree):
@@ -180,6 +183,21 @@ def _join_or(words: list[str]) -> str:
 
 # ------------------------------------------------------------------------------------------- transformer
 
+def _own_blends(statements: list) -> list:
+    """A `blend` statement that starts on the line where a transition's guard ends is that transition's own
+    blend (newlines are otherwise insignificant: the grammar reads both as statements)."""
+    out = []
+    for stmt in statements:
+        previous = out[-1] if out else None
+        if (isinstance(stmt, ast.BlendStmt) and isinstance(previous, ast.TransitionStmt) and previous.blend is None
+                and stmt.span.line == previous.guard.span.end_line):
+            out[-1] = previous.model_copy(update={"blend": stmt.value, "span": previous.span.model_copy(update={
+                "end_line": stmt.span.end_line, "end_column": stmt.span.end_column})})
+        else:
+            out.append(stmt)
+    return out
+
+
 def _span_of_token(tok: Token, file: str) -> ast.Span:
     return ast.Span(file=file, line=tok.line, column=tok.column, end_line=tok.end_line, end_column=tok.end_column)
 
@@ -199,9 +217,10 @@ def _string_value(tok: Token, file: str) -> str:
 class _ToAst(Transformer):
     """Lark tree -> pydantic AST. One method per grammar rule; positions come from Lark's meta."""
 
-    def __init__(self, file: str):
+    def __init__(self, file: str, text: str = ""):
         super().__init__()
         self.file = file
+        self.lines = text.split("\n")
 
     def _span(self, meta) -> ast.Span:
         return ast.Span(file=self.file, line=meta.line, column=meta.column, end_line=meta.end_line,
@@ -214,7 +233,7 @@ class _ToAst(Transformer):
     def start(self, meta, children):
         header_kind, name = children[0]
         return ast.Module(span=self._span(meta), file=self.file, header=header_kind, name=name,
-                          statements=children[1:])
+                          statements=_own_blends(children[1:]))
 
     def task_header(self, meta, children):
         return ("task", self._name(children[0]))
@@ -403,3 +422,91 @@ class _ToAst(Transformer):
 
     def false(self, meta, children):
         return ast.Bool(span=self._span(meta), value=False)
+
+    # procedures
+    def monitor_stmt(self, meta, children):
+        hold = children[2] if len(children) > 2 else None
+        return ast.MonitorStmt(span=self._span(meta), name=self._name(children[0]), condition=children[1],
+                               text=self._text(children[1].span), hold=hold)
+
+    def hold(self, meta, children):
+        return children[0]
+
+    def phase_stmt(self, meta, children):
+        name, *rest = children
+        marks = {}
+        for item in rest:
+            if isinstance(item, tuple):
+                if item[0] in marks:
+                    raise VfError(f"phase '{name}' is marked `{item[0]}` twice", item[1], code="E104")
+                marks[item[0]] = item[1]
+        body = [item for item in rest if not isinstance(item, tuple)]
+        return ast.PhaseStmt(span=self._span(meta), name=self._name(name), body=body, **marks)
+
+    def initial_mark(self, meta, children):
+        return ("initial", self._span(meta))
+
+    def final_mark(self, meta, children):
+        return ("final", self._span(meta))
+
+    def capture_stmt(self, meta, children):
+        field = self._name(children[2]) if len(children) > 2 else None
+        return ast.CaptureStmt(span=self._span(meta), name=self._name(children[0]), source=self._name(children[1]),
+                               field=field)
+
+    def transition_stmt(self, meta, children):
+        (source, source_span), target, guard = children
+        return ast.TransitionStmt(span=self._span(meta), source=source, source_span=source_span,
+                                  target=self._name(target), guard=guard, guard_text=self._text(guard.span))
+
+    def transition_source(self, meta, children):
+        return (self._name(children[0]), self._span(meta))
+
+    def any_phase(self, meta, children):
+        return (None, self._span(meta))
+
+    def blend_stmt(self, meta, children):
+        return ast.BlendStmt(span=self._span(meta), value=children[0])
+
+    def _text(self, span: ast.Span) -> str:
+        """The source text of ``span``, its whitespace collapsed to single spaces."""
+        lines = self.lines[span.line - 1:span.end_line]
+        lines[-1] = lines[-1][:span.end_column - 1]
+        lines[0] = lines[0][span.column - 1:]
+        return " ".join(" ".join(_COMMENT.sub("", line) for line in lines).split())
+
+    def _logic(self, meta, op, children):
+        items = []
+        for child in children:        # a chain of one operator is one node: a or b or c
+            items.extend(child.items if isinstance(child, ast.Logic) and child.cond == op != "not" else [child])
+        return ast.Logic(span=self._span(meta), cond=op, items=items)
+
+    def cond_or(self, meta, children):
+        return self._logic(meta, "or", children)
+
+    def cond_and(self, meta, children):
+        return self._logic(meta, "and", children)
+
+    def cond_not(self, meta, children):
+        return self._logic(meta, "not", children)
+
+    def cond_test(self, meta, children):
+        return ast.Test(span=self._span(meta), measure=children[0])
+
+    def comparison(self, meta, children):
+        measure, op, threshold, *release = children
+        return ast.Comparison(span=self._span(meta), measure=measure, op=str(op), threshold=threshold,
+                              release=release[0] if release else None)
+
+    def release(self, meta, children):
+        return children[0]
+
+    def measure_name(self, meta, children):
+        return ast.Measure(span=self._span(meta), name=self._name(children[0]))
+
+    def measure_call(self, meta, children):
+        return ast.Measure(span=self._span(meta), name=self._name(children[0]),
+                           args=[c for c in children[1:] if c is not None])
+
+    def member(self, meta, children):
+        return ast.Member(span=self._span(meta), base=self._name(children[0]), field=self._name(children[1]))

@@ -70,7 +70,7 @@ class HandModel:
                 out[self.kind.part_range(angular)] = motion / T
             elif part is not None and gain:                       # a force or torque: the spring's
                 out[self.kind.part_range(angular)] = motion / (gain * T)
-        if not self.linear and self.angular_gain:     # torque only: the spring on the shaft turns the tool
+        if self.angular and not self.linear and self.angular_gain:     # torque only: the spring on the shaft turns the tool
             out += np.cross(self.lever * pose.tool_axis, offset) / (self.angular_gain * T * self.lever ** 2)
         return out
 
