@@ -35,6 +35,7 @@ MESH_FILE_BYTES = 500 * MESH_TRIANGLES   # bytes of one mesh file, refused unpar
 
 # Work a command may be asked to do (`vfdsl simulate`, `vfdsl check`, `vfdsl view`): a mistaken option or scene value
 # must not fill the memory or run for days before anything is printed.
+PROCEDURE_DURATION = 3600.0       # s: the longest `for` and `blend` (an hour; a longer one is a unit slip)
 MIN_PERIOD = 1e-5                # s: the shortest control period (100 kHz)
 MAX_PERIOD = 1.0                 # s: the longest control period: a longer tick lets the speed bounds allow large jumps
 TRIAL_TICKS = 1_000_000          # control ticks of one trial (duration / period; 10,000 s at 10 ms)

@@ -19,6 +19,7 @@ after, but not in a cycle. Each monitor is checked on its own (:mod:`vfdsl.passe
 
 from __future__ import annotations
 
+from vfdsl import limits
 from vfdsl import units as u
 from vfdsl.errors import VfError, suggest
 from vfdsl.inputs import INPUT_TYPES
@@ -29,8 +30,6 @@ from vfdsl.passes.expressions import dimension_name
 from vfdsl.passes.shapes import LiteralReader
 from vfdsl.syntax import ast
 
-MAX_DURATION = 3600.0
-"""s: the longest `for` and `blend` (an hour; a longer one is a unit slip)."""
 STATUS = "least_violation"
 ELAPSED = "elapsed"
 RESERVED = (STATUS, ELAPSED)
@@ -54,11 +53,11 @@ class Conditions:
                           text=stmt.text, span=stmt.span)
 
     def duration(self, value: ast.Value, what: str, positive: bool) -> float:
-        """A `for` (``positive``) or a `blend` duration, s, in (0 or [0, MAX_DURATION]."""
+        """A `for` (``positive``) or a `blend` duration, s, in (0 or [0, limits.PROCEDURE_DURATION]."""
         seconds = self.threshold(value, u.TIME, what)
-        if seconds < 0 or (positive and seconds == 0) or seconds > MAX_DURATION:
+        if seconds < 0 or (positive and seconds == 0) or seconds > limits.PROCEDURE_DURATION:
             low = "above 0" if positive else "at least 0"
-            raise VfError(f"{what} duration must be {low} and at most {MAX_DURATION:g} s, got {seconds:g} s",
+            raise VfError(f"{what} duration must be {low} and at most {limits.PROCEDURE_DURATION:g} s, got {seconds:g} s",
                           value.span, code="E402")
         return seconds
 
