@@ -8,7 +8,8 @@ Analyses, one module each: the polytopes behind the rows (:mod:`.polytope`), the
 each constraint's error at the start (:mod:`.residuals`), the frames' kinematics (:mod:`.kinematics`),
 how fast a port close to the tracked point lets the tool move it sideways (:mod:`.lever`),
 the closed loop with the hands off (:mod:`.handsoff`), mesh fixtures (:mod:`.meshes`), configurations the fixture reaches under random
-input (:mod:`.sampling`), and declarations or constraints that do nothing or contradict (:mod:`.hygiene`).
+input (:mod:`.sampling`), declarations or constraints that do nothing or contradict (:mod:`.hygiene`), and a
+procedure's phase machine, monitors and transitions (:mod:`.procedure`).
 Findings and their rendering: :mod:`.report`; docs/check.md explains every code.
 """
 
@@ -16,7 +17,8 @@ from __future__ import annotations
 
 import time
 
-from vfdsl.check import feasibility, handsoff, hygiene, kinematics, lever, meshes, polytope, residuals, sampling, tolerance
+from vfdsl.check import (feasibility, handsoff, hygiene, kinematics, lever, meshes, polytope, procedure, residuals,
+                         sampling, tolerance)
 from vfdsl.check.linearized import Linearization
 from vfdsl.check.report import Finding, Report, Severity
 from vfdsl.ir import model as ir
@@ -51,10 +53,18 @@ def check(task: ir.Task, *, overshoot: float = DEFAULT_OVERSHOOT, samples: int =
         timings[stage] = timings.get(stage, 0.0) + time.perf_counter() - begin
         report.add(findings)
 
-    report.bounds = polytope.bounds_table(task)
-    run("polytope", polytope.analyse, task, overshoot)
-    run("tolerance", tolerance.analyse_values, task)
-    run("tolerance", tolerance.analyse_speeds, task)
+    statements = procedure.every_statement(task)
+    report.bounds = polytope.bounds_table(statements)
+    run("polytope", polytope.analyse, statements, overshoot)
+    run("tolerance", tolerance.analyse_values, statements)
+    run("tolerance", tolerance.analyse_speeds, statements)
+    if procedure.is_procedure(task):             # the compiled analyses do not know phases yet
+        run("hygiene", procedure.unused, task)
+        run("procedure", procedure.analyse, task)
+        report.add([procedure.not_compiled(task)])
+        report.figures["seconds"] = time.perf_counter() - started
+        report.findings = [_with_param_sources(finding, statements) for finding in report.findings]
+        return report
     run("hygiene", hygiene.unused, task)
     if task.start is None:
         report.add([Finding("no-start", Severity.WARNING,

@@ -53,6 +53,16 @@ CODES: dict[str, str] = {
     "mesh-inverted": "VF904",
     "mesh-extent": "VF905",
     "mesh-margin-linearization": "VF906",
+    "procedure-not-compiled": "VF950",
+    "phase-unreachable": "VF951",
+    "phase-dead-end": "VF952",
+    "guards-overlap": "VF953",
+    "monitor-never-true": "VF954",
+    "monitor-always-true": "VF955",
+    "entry-unfunnelled": "VF956",
+    "entry-always-violated": "VF957",
+    "every-phase-fixtures": "VF958",
+    "fixture-loosened": "VF959",
 }
 
 

@@ -1,0 +1,230 @@
+"""``vfdsl check`` of a procedure (phases, monitors, transitions): what the IR alone decides.
+
+- the phase machine's graph (:mod:`.statechart`) and the monitors' ranges (:mod:`.monitors`);
+- **entering a phase** (VF956, VF957): a hard fixture whose error is a monitor measure (``stays_at``,
+  ``within_distance``, ``within_sphere``: the distance from the frame's origin to their point; ``along``: to its
+  line; ``keeps_direction``: the angle of the tool axis to its direction) may be violated at the tick a
+  transition enters its phase. Its error there is bounded by the guard (the hull of the values the measure takes
+  where the guard holds, :func:`.monitors.bounds`) and by the source phase's hard fixtures on the same measure
+  (their stated size); it is 0 when the fixture's geometry is captured on entry from the same frame (a point of
+  its origin, a line through it, its tool axis). Past the fixture's size, the entry is violated by up to the
+  excess: with a blend the funnel brings it in over the blend (a note), without one the rows snap it in one tick
+  (a warning). A guard that keeps the measure beyond the size violates every entry (a warning);
+- **fixtures of every phase** (VF958, VF959): the statements outside the phases hold in every phase (one note lists
+  them); a phase that states the same primitive on the same frame and geometry with a looser tolerance cannot
+  loosen it (an error).
+
+The analyses that need a compiled controller (feasibility, residuals, hands off, kinematics, meshes, the random
+walk, redundancy) are not run on a procedure yet: one note (VF950) says so.
+"""
+
+from __future__ import annotations
+
+import math
+
+from vfdsl.check import hygiene, monitors, statechart
+from vfdsl.check.linearized import describe, where
+from vfdsl.check.monitors import arg_key, arrow, axis, measure_key, origin
+from vfdsl.check.report import Finding, Severity, quantity
+from vfdsl.compiler import derived
+from vfdsl.ir import model as ir
+from vfdsl.primitives import CONSTRAINTS
+
+COMPILED = ("feasibility at the start", "residuals", "kinematics", "ports' levers", "meshes", "hands off",
+            "the random walk", "redundancy and contradiction")
+
+
+def is_procedure(task: ir.Task) -> bool:
+    return bool(task.phases or task.monitors or task.transitions)
+
+
+def every_statement(task: ir.Task) -> ir.Task:
+    """The task with every phase's statements beside the phase-less ones: for the analyses of one statement at a
+    time (polytopes, tolerances, speeds, unused declarations)."""
+    return task.model_copy(update={
+        "constraints": [*task.constraints, *(c for p in task.phases for c in p.constraints)],
+        "objectives": [*task.objectives, *(o for p in task.phases for o in p.objectives)]})
+
+
+def analyse(task: ir.Task) -> list[Finding]:
+    return [*statechart.analyse(task), *monitors.analyse(task), *_entries(task), *_every_phase(task)]
+
+
+def not_compiled(task: ir.Task) -> Finding:
+    return Finding("procedure-not-compiled", Severity.NOTE,
+                   f"task '{task.name}' is a procedure: the analyses of its compiled controller ("
+                   + ", ".join(COMPILED) + ") are not run on procedures yet; its statements, monitors and phase "
+                   "machine were checked", task.span, None, "task", {"skipped": list(COMPILED)})
+
+
+def unused(task: ir.Task) -> list[Finding]:
+    """VF801 over every phase's statements, monitors and captures."""
+    used = set()
+    for m in [*task.monitors, *task.transitions]:
+        for c in _measures(m.expr if isinstance(m, ir.Monitor) else m.guard):
+            used |= _uses(c)
+    for c in (c for p in task.phases for c in p.captures):
+        used |= _uses(c.source)
+    return [f for f in hygiene.unused(every_statement(task)) if (f.data["kind"], f.data["name"]) not in used]
+
+
+def _measures(expr: ir.MonitorExpr):
+    if isinstance(expr, (ir.Compare, ir.Flag)):
+        yield expr.measure
+    for item in getattr(expr, "items", []):
+        yield from _measures(item)
+
+
+def _uses(value) -> set[tuple[str, str]]:
+    """(kind, name) of the frames, inputs and params a measure or capture source reads."""
+    out = set()
+    if getattr(value, "frame", None):
+        out.add(("frame", value.frame))
+    if getattr(value, "input", None):
+        out.add(("input", value.input))
+    if isinstance(value, ir.InputRef):
+        out.add(("input", value.name))
+    if isinstance(value, ir.ParamRef):
+        out.add(("param", value.name))
+    for arg in (getattr(value, "to", None), getattr(value, "direction", None)):
+        for leaf in (derived.leaves(arg) if arg is not None else ()):
+            out |= _uses(leaf)
+            if isinstance(leaf, ir.FrameRef):
+                out.add(("frame", leaf.name))
+    return out
+
+
+# --------------------------------------------------------------------------------------------- entering a phase
+def fixture_measure(c: ir.Constraint) -> tuple[ir.Measure, float] | None:
+    """(the monitor measure a hard constraint bounds, its stated size), or None for a constraint that bounds none."""
+    spec = CONSTRAINTS.get(c.primitive)
+    if spec is None or c.soft or c.frame is None:
+        return None
+    if spec.error_is_distance and spec.reference_point:
+        size = c.tolerance
+        if spec.stated_by is not None:
+            stated = c.args.get(spec.stated_by[1])
+            size = stated.value.value if isinstance(stated, ir.Const) else None
+        return (ir.Distance(frame=c.frame, to=c.args[spec.reference_point]), size) if size is not None else None
+    kinds = {a.kind: a.name for a in spec.args}
+    if spec.tolerance == "length" and list(kinds) == ["line"]:
+        return ir.Distance(frame=c.frame, to=c.args["line"]), c.tolerance
+    if spec.true_angle is not None and spec.kept_angle == 0.0 and "direction" in kinds:
+        return ir.Angle(frame=c.frame, direction=c.args[kinds["direction"]]), c.tolerance
+    return None
+
+
+def _captured_on_entry(task: ir.Task, phase: ir.Phase, m: ir.Measure) -> bool:
+    """The measure is 0 at the phase's entry: its geometry is captured then from the frame itself."""
+    captured = {c.name: c.source for c in phase.captures if isinstance(c.source, ir.FrameMeasure)}
+
+    def taken(arg, part: str, same) -> bool:
+        source = captured.get(arg.name) if isinstance(arg, ir.CaptureRef) else None
+        return source is not None and source.part == part and same(task, source.frame) == same(task, m.frame)
+
+    if isinstance(m, ir.Angle):
+        return taken(m.direction, "axis", axis)
+    to = m.to
+    points = to.operands[:1] if isinstance(to, ir.Derived) and to.op == "line" else \
+        to.operands if isinstance(to, ir.Derived) and to.op == "line2" else [to]
+    return any(taken(arg, "position", origin) for arg in points)
+
+
+def _entries(task: ir.Task) -> list[Finding]:
+    phases = {p.name: p for p in task.phases}
+    findings = []
+    for t in task.transitions:
+        target = phases[t.target]
+        for c in target.constraints:
+            fixture = fixture_measure(c)
+            if fixture is None or _captured_on_entry(task, target, fixture[0]):
+                continue
+            measure, size = fixture
+            guard = monitors.bounds(task, t.guard, measure)
+            if guard.empty:
+                continue                                    # never fires: VF954
+            entries = [(min(guard.hi, _held(task, phases[s], measure)), s) for s in statechart.sources(task, t)]
+            if not entries:
+                continue                                    # a `*` that leaves no phase
+            worst, source = max(entries)
+            findings += _entry(task, t, c, measure, size, guard.lo, worst, source)
+    return findings
+
+
+def _held(task: ir.Task, phase: ir.Phase, m: ir.Measure) -> float:
+    """The smallest stated size of the source phase's (and the task's) hard fixtures on the measure."""
+    key = measure_key(task, m)
+    sizes = [f[1] for c in [*task.constraints, *phase.constraints] if (f := fixture_measure(c)) is not None
+             and measure_key(task, f[0]) == key]
+    return min(sizes, default=math.inf)
+
+
+def _entry(task, t: ir.Transition, c: ir.Constraint, m: ir.Measure, size: float, least: float, worst: float,
+           source: str) -> list[Finding]:
+    kind = "angle" if isinstance(m, ir.Angle) else "length"
+    fixture = f"{describe(c)} within {quantity(size, kind)} at {where(c)}"
+    subject = f"transition {arrow(t)}"
+    data = {"constraint": describe(c), "where": where(c), "size": size, "least": least, "worst": worst,
+            "blend": t.blend, "source": source}
+    measured = monitors.describe(m)
+    if least > size:
+        how = (f"the funnel drags the tool {quantity(least - size, kind)} or more within {quantity(t.blend, 'time')}"
+               if t.blend else f"the rows pull the tool {quantity(least - size, kind)} or more at once")
+        return [Finding("entry-always-violated", Severity.WARNING,
+                        f"{arrow(t)} fires only where {measured} is at least {quantity(least, kind)}, so it always enters "
+                        f"'{t.target}' with {fixture} violated by at least {quantity(least - size, kind)}: {how}",
+                        t.span, "is the fixture's geometry the one meant (a capture of this phase, taken on "
+                        "entry?)", subject, data)]
+    if worst <= size:
+        return []
+    excess = "any amount" if math.isinf(worst) else f"up to {quantity(worst - size, kind)}"
+    bound = f"its guard lets {measured} reach {quantity(worst, kind)}" \
+        if worst < monitors.measure_range(task, m).hi else f"neither its guard nor '{source}' bounds {measured}"
+    if t.blend:
+        return [Finding("entry-unfunnelled", Severity.NOTE,
+                        f"{arrow(t)}: {bound}, so it can enter '{t.target}' with {fixture} violated by {excess}; "
+                        f"its blend's funnel brings it within {quantity(size, kind)} in "
+                        f"{quantity(t.blend, 'time')}", t.span, None, subject, data)]
+    return [Finding("entry-unfunnelled", Severity.WARNING,
+                    f"{arrow(t)}: {bound}, so it can enter '{t.target}' with {fixture} violated by {excess}, and "
+                    f"with no blend its rows snap it in one tick", t.span,
+                    "add a blend so the funnel reaches it (`blend 200 ms` after the transition or task-wide), or a "
+                    "guard within the fixture's size", subject, data)]
+
+
+# ------------------------------------------------------------------------------------------ fixtures of every phase
+def _every_phase(task: ir.Task) -> list[Finding]:
+    if not task.phases:
+        return []
+    findings = []
+    if task.constraints:
+        listed = "; ".join(f"{describe(c)} at {where(c)}" for c in task.constraints)
+        findings.append(Finding("every-phase-fixtures", Severity.NOTE,
+                                f"{len(task.constraints)} constraint{'s' * (len(task.constraints) != 1)} outside the "
+                                f"phases hold in every phase ({', '.join(p.name for p in task.phases)}): {listed}",
+                                task.constraints[0].span, None, "every phase",
+                                {"constraints": [where(c) for c in task.constraints]}))
+    for phase in task.phases:
+        for c in phase.constraints:
+            for wide in task.constraints:
+                if _same_fixture(c, wide) and c.tolerance > wide.tolerance:
+                    findings.append(Finding(
+                        "fixture-loosened", Severity.ERROR,
+                        f"phase '{phase.name}' states {describe(c)} within {_size(c)}, looser than the same "
+                        f"fixture at {where(wide)} (within {_size(wide)}), which holds in every phase: the looser "
+                        f"one loosens nothing", c.span,
+                        "state the looser tolerance outside the phases and the tighter ones in the phases that need "
+                        "them", f"{describe(c)} at {where(c)}",
+                        {"phase": phase.name, "tolerance": c.tolerance, "every_phase": wide.tolerance,
+                         "other": where(wide)}))
+    return findings
+
+
+def _same_fixture(c: ir.Constraint, wide: ir.Constraint) -> bool:
+    return (not wide.soft and c.primitive == wide.primitive and c.frame == wide.frame
+            and c.tolerance is not None and wide.tolerance is not None
+            and {k: arg_key(v) for k, v in c.args.items()} == {k: arg_key(v) for k, v in wide.args.items()})
+
+
+def _size(c: ir.Constraint) -> str:
+    return quantity(c.tolerance, CONSTRAINTS[c.primitive].tolerance or "")
