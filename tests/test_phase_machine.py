@@ -133,7 +133,7 @@ def test_of_transitions_holding_together_the_first_in_file_order_fires():
     table, state = machine([Monitor(COMPARE, raw=0), Monitor(COMPARE, raw=1)],
                            [Transition(0, 2, (1,)), Transition(-1, 1, (0,)), Transition(0, 2, (0,)),
                             Transition(1, 2, (0, 1, AND))])
-    assert run(table, state, [[1.0, -1.0, 0, 0], [1.0, 1.0, 0, 0]]) == [1, 1]     # `*` first: 1 -> 1 again
+    assert run(table, state, [[1.0, -1.0, 0, 0], [1.0, 1.0, 0, 0]]) == [1, 3]     # `*` -> 1 passed over in 1
     table, state = machine([Monitor(COMPARE, raw=0), Monitor(COMPARE, raw=1)],
                            [Transition(0, 2, (1,)), Transition(0, 1, (0,)), Transition(1, 2, (0, 1, AND)),
                             Transition(-1, 0, (1,))])
@@ -152,18 +152,26 @@ def test_a_self_transition_restarts_the_phase():
     """A transition into the current phase restarts its elapsed time and its blend (the funnel starts again); the
     weights stay on that phase."""
     table, state = machine([Monitor(COMPARE, raw=0), Monitor(ELAPSED, op=GE, threshold=0.005)],
-                           [Transition(-1, 0, (0,), blend=0.004)])
+                           [Transition(0, 0, (0,), blend=0.004)])
     fired = run(table, state, [-1.0] * 8 + [1.0] + [-1.0] * 3)
     assert fired == [-1] * 8 + [0, -1, -1, -1]
     assert state.elapsed == pytest.approx(0.003) and state.value[1] == FALSE
     assert state.weight == [1.0, 0.0, 0.0] and state.funnel == 0.0
-    table, state = machine([Monitor(COMPARE, raw=0)], [Transition(-1, 0, (0,), blend=0.004)])
+    table, state = machine([Monitor(COMPARE, raw=0)], [Transition(0, 0, (0,), blend=0.004)])
     funnels = []
     for raw in [1.0, -1.0, -1.0, 1.0, -1.0]:
         run(table, state, [raw])
         funnels.append(state.funnel)
         assert state.weight == [1.0, 0.0, 0.0]
     assert funnels == pytest.approx([0.75, 0.5, 0.25, 0.75, 0.5])
+
+
+def test_a_transition_from_any_phase_never_fires_in_its_target():
+    """``* -> B`` leaves every other non-final phase, and never restarts B itself (the language's meaning of ``*``):
+    with its guard TRUE from the first tick it fires once, then never again."""
+    table, state = machine([Monitor(COMPARE, raw=0)], [Transition(-1, 1, (0,), blend=0.004)])
+    assert run(table, state, [1.0] * 6) == [0, -1, -1, -1, -1, -1] and state.phase == 1
+    assert state.funnel == 0.0 and state.weight == [0.0, 1.0, 0.0]
 
 
 def test_the_funnel_reaches_zero_exactly_at_the_blend_time():

@@ -30,7 +30,7 @@ typedef struct {
   const double *threshold, *hold;         /* s */
   int n_watched;                          /* watched inputs: slices of u, and where their last values are kept */
   const int *watch_start, *watch_size, *watch_offset;
-  int n_transitions;                      /* in file order: source (-1: any), target, guard program, blend (s) */
+  int n_transitions;                      /* in file order: source (-1: any but target), target, guard program, blend (s) */
   const int *source, *target, *guard_start, *guard_size;
   const double* blend;
   const int* code;                        /* every postfix program: m >= 0 pushes monitor m, or AND, OR, NOT */
@@ -125,7 +125,7 @@ static int vfdsl_pm_advance(const vfdsl_pm_table* T, vfdsl_pm_state* S, const do
   S->fired = -1;
   if (!T->final[S->phase])
     for (k=0; k<T->n_transitions; ++k)
-      if ((T->source[k] < 0 || T->source[k] == S->phase)
+      if ((T->source[k] == S->phase || (T->source[k] < 0 && T->target[k] != S->phase))
           && vfdsl_pm_run(T->code + T->guard_start[k], T->guard_size[k], S->value) == VFDSL_PM_TRUE) {
         S->fired = k; S->phase = T->target[k]; S->elapsed = 0.0; S->blend = T->blend[k];
         for (i=0; i<T->n_phases; ++i) S->start[i] = S->weight[i];

@@ -35,7 +35,8 @@ at the k-th tick whatever the rounding.
    (``for``): a ``for 50 ms`` at dt 1 ms is TRUE from the 50th tick over the limit on; otherwise FALSE, or
    UNKNOWN when the condition is. Held timers and latches are the task's: a transition keeps them.
 4. At most one transition: out of a non-final phase, the first in table (file) order whose source is the
-   current phase or any (-1) and whose guard is TRUE. Two guards TRUE together: the first fires; the other is
+   current phase, or any (-1) with another phase as its target (``* -> B`` never fires in B), and whose guard
+   is TRUE. Two guards TRUE together: the first fires; the other is
    evaluated again next tick, from the new phase. A guard TRUE at the first tick fires at the first tick (the
    initial phase is entered and left in it; its blend starts from the initial phase's full weight).
 5. On a transition (also into the current phase: a self-transition restarts the phase): ``elapsed`` = 0, the
@@ -88,7 +89,7 @@ class Monitor:
 
 @dataclass(frozen=True)
 class Transition:
-    """``source`` (a phase, -1: any) -> ``target`` when the postfix ``guard`` over monitors is TRUE, blending over
+    """``source`` (a phase, -1: any other than ``target``) -> ``target`` when the postfix ``guard`` over monitors is TRUE, blending over
     ``blend`` s."""
 
     source: int
@@ -282,7 +283,8 @@ def advance(table: MachineTable, state: MachineState, raw, u, dt: float, last_st
     state.fired = -1
     if not table.final[state.phase]:
         for k, t in enumerate(table.transitions):
-            if (t.source < 0 or t.source == state.phase) and _run(t.guard, state.value) == TRUE:
+            if (t.source == state.phase or (t.source < 0 and t.target != state.phase)) \
+                    and _run(t.guard, state.value) == TRUE:
                 state.fired, state.phase, state.elapsed, state.blend = k, t.target, 0.0, t.blend
                 state.start[:] = state.weight
                 break
