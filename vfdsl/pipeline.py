@@ -5,6 +5,10 @@
 
 Without a C compiler the same step Function is evaluated by CasADi in the process (the interpreted
 path): same answers, slower; a single warning says so.
+
+A task with phases (a procedure) runs on the interpreted path only, its machine in Python
+(:mod:`vfdsl.runtime.procedure`): the generated C does not carry the phase machine yet, so the native backend refuses
+it (E812) and 'auto' takes the interpreted path.
 """
 
 from __future__ import annotations
@@ -21,11 +25,13 @@ from vfdsl.codegen.build import BuiltLibrary, CompilerUnavailable, build_library
 from vfdsl.codegen.daqp_sources import DaqpSourcesUnavailable
 from vfdsl.compiler.admissible import Admissible
 from vfdsl.compiler.assemble import AssembledProblem, assemble
+from vfdsl.compiler.phases import captures_function, monitor_values
 from vfdsl.errors import VfError
 from vfdsl.ir import model as ir
 from vfdsl.kinematics.robot import Robot
 from vfdsl.runtime.controller import Controller, row_unit
 from vfdsl.runtime.native import BufferedFunction, LockedRunner, StepperRunner
+from vfdsl.runtime.procedure import Procedure
 from vfdsl.runtime.values import INPUT_UNITS, JOINT_UNITS, PARAM_UNITS, RuntimeValues
 from vfdsl.runtime.qp import build_step_function
 
@@ -68,14 +74,13 @@ def build(task: ir.Task, *, backend: str = "auto",
           cache_dir: str | Path | None = None) -> tuple[Controller, BuiltLibrary | None]:
     """As :func:`compile`, also returning the generated library (None on the interpreted path)."""
     global _warned
-    if task.phases or task.monitors or task.transitions:
-        first = (task.phases or task.monitors or task.transitions)[0]
-        raise VfError(f"task '{task.name}' has a procedure (phases, monitors, transitions): procedures are checked "
-                      "but not yet compiled", first.span,
-                      hint="`vfdsl show` prints it, `vfdsl show --statechart dot` its machine; compile a task "
-                           "without phases", code="E812")
     if backend not in BACKENDS:
         raise VfError(f"unknown backend '{backend}'; use one of {', '.join(BACKENDS)}")
+    if task.phases and backend == "native":
+        raise VfError(f"task '{task.name}' has a procedure (phases): the native backend does not run procedures yet "
+                      "(the generated C does not carry the phase machine)", task.phases[0].span,
+                      hint="compile it with backend='interpreted' (or 'auto'): the same QP and phase machine, "
+                           "evaluated in Python", code="E812")
     robot = Robot.load(task.robots[0].urdf)
     problem = assemble(task, robot)
     admissible = Admissible(task, robot.reach)
@@ -88,7 +93,7 @@ def build(task: ir.Task, *, backend: str = "auto",
                                    feas_tol=FEASIBILITY_TOLERANCE, native=native,
                                    last_level_is_cost=problem.last_level_is_damping)
 
-    if backend != "interpreted":
+    if backend != "interpreted" and not task.phases:
         try:
             library = build_library(step(native=True), prefix, Path(cache_dir or default_cache_dir()),
                                     metadata(task, problem, values, digest), admissible.function,
@@ -103,7 +108,15 @@ def build(task: ir.Task, *, backend: str = "auto",
                               InterpretedFallback, stacklevel=2)
                 _warned = True
     runner = LockedRunner(BufferedFunction.interpreted(step(native=False)), values)
-    return Controller(task, problem, values, runner, FEASIBILITY_TOLERANCE), None
+    return Controller(task, problem, values, runner, FEASIBILITY_TOLERANCE, _procedure(task, problem)), None
+
+
+def _procedure(task: ir.Task, problem: AssembledProblem) -> Procedure | None:
+    """The run-time machine of a task with phases (None without)."""
+    if not task.phases:
+        return None
+    ctx = problem.context
+    return Procedure(task, ctx.layout, monitor_values(task, ctx), captures_function(task, ctx), ctx.input_offsets)
 
 
 def _native_runner(values: RuntimeValues, problem: AssembledProblem, library: BuiltLibrary, prefix: str):

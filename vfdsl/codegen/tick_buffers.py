@@ -1,6 +1,7 @@
 """The tick's buffers, declared once: what one evaluation of a task's step reads and writes.
 
-The step is ``step(q, u, p, dt, recover) -> (x, status, violation)`` (:func:`vfdsl.runtime.qp.build_step_function`):
+The step is ``step(q, u, p, dt, recover) -> (x, status, violation)`` (:func:`vfdsl.runtime.qp.build_step_function`;
+a procedure's takes ``activity`` after dt, :func:`arguments`):
 :data:`BUFFERS` lists its arguments, then its results, each with the task size that sets its length. Everything
 that names them is derived from here: the step Function's argument and result names (runtime.qp), the runners'
 arrays and :class:`Slot` (runtime.native), and the C appended to the generated header (:func:`c_declarations`:
@@ -20,8 +21,8 @@ import casadi as ca
 @dataclass(frozen=True)
 class Buffer:
     """One named buffer of the tick: ``size`` is ``"1"`` or a key of the task's sizes (:func:`lengths`); ``kind``
-    is ``"data"`` (an argument of the task's compiled QP data), ``"step"`` (an argument of the step alone) or
-    ``"result"``."""
+    is ``"data"`` (an argument of the task's compiled QP data), ``"phase"`` (an argument of a procedure's QP data
+    only, :data:`PHASE_BUFFERS`), ``"step"`` (an argument of the step alone) or ``"result"``."""
 
     name: str
     size: str
@@ -39,12 +40,32 @@ BUFFERS = (
     Buffer("status", "1", "result", "the StepStatus bits"),
     Buffer("violation", "rows", "result", "each general row's excess over its bounds"),
 )
+PHASE_BUFFERS = (
+    Buffer("activity", "activity", "phase", "per phase its weight in [0, 1], then per phase 1: its hard rows on"),
+)
+"""A procedure's buffers, taken after ``dt``. A task without phases has none: its step and its generated C are
+those of :data:`BUFFERS` alone, as before procedures (the generated C does not run a procedure yet: vfdsl.pipeline
+refuses to build one natively, so :class:`Slot` and the C declarations hold :data:`BUFFERS` only)."""
 ARGUMENTS = tuple(b.name for b in BUFFERS if b.kind != "result")
 RESULTS = tuple(b.name for b in BUFFERS if b.kind == "result")
 DATA_ARGUMENTS = tuple(b.name for b in BUFFERS if b.kind == "data")
 """The arguments of the task's QP data (``qp_data(q, u, p, dt)``), the first of the step's."""
+PHASE_ARGUMENTS = tuple(b.name for b in PHASE_BUFFERS)
+"""What a procedure's QP data and step take after ``dt``: ``qp_data(q, u, p, dt, activity)``."""
 _KINDS = ("data", "step", "result")
 assert [b.kind for b in BUFFERS] == sorted((b.kind for b in BUFFERS), key=_KINDS.index), "ordered by kind"
+assert all(b.kind == "phase" for b in PHASE_BUFFERS)
+
+
+def data_arguments(procedure: bool) -> tuple[str, ...]:
+    """The arguments of a task's QP data: :data:`DATA_ARGUMENTS`, then :data:`PHASE_ARGUMENTS` for a procedure."""
+    return DATA_ARGUMENTS + (PHASE_ARGUMENTS if procedure else ())
+
+
+def arguments(procedure: bool) -> tuple[str, ...]:
+    """The arguments of a task's step: its QP data's, then the step's own (``recover``)."""
+    return data_arguments(procedure) + ARGUMENTS[len(DATA_ARGUMENTS):]
+
 
 Slot = enum.IntEnum("Slot", [(b.name.upper(), k) for k, b in enumerate(BUFFERS)])
 """A buffer's index among all of them (C: ``VFDSL_<NAME>``): arguments from 0, results from ``len(ARGUMENTS)``."""

@@ -27,7 +27,10 @@ is the QP in CasADi conic's standard form over x = [dq; s] (s: one slack per sof
   Rate constraints (speeds) keep c = 1.
 
 Every row of A and every variable bound keeps a :class:`RowLabel` naming its primitive, frame, facet and
-source line (and the fixture ``use`` sites it came through).
+source line (and the fixture ``use`` sites it came through), and its phase in a procedure.
+
+A procedure's phases are all in this one QP, switched by the ``activity`` argument (:mod:`vfdsl.compiler.phases`):
+``qp_data(q, u, p, dt, activity)``.
 """
 
 from __future__ import annotations
@@ -40,6 +43,7 @@ import numpy as np
 from vfdsl.codegen import tick_buffers
 from vfdsl.compiler import registry
 from vfdsl.compiler.context import Context
+from vfdsl.compiler.phases import Gate, gated_statements
 from vfdsl.compiler.rows import Rows
 from vfdsl.errors import Span
 from vfdsl.ir import model as ir
@@ -60,13 +64,15 @@ class RowLabel:
     span: Span
     via: tuple[Span, ...] = ()
     soft: bool = False
+    phase: str | None = None         # a procedure's phase (None: held in every phase)
 
     def __str__(self) -> str:
         on = f"({self.frame})" if self.frame else ""
         kind = "soft " if self.soft else ""
         where = f"{self.span.file}:{self.span.line}"
         through = "".join(f" via {s.file}:{s.line}" for s in self.via)
-        return f"{kind}{self.primitive}{on} {self.facet} [{where}{through}]"
+        phase = f" in phase {self.phase}" if self.phase else ""
+        return f"{kind}{self.primitive}{on} {self.facet}{phase} [{where}{through}]"
 
 
 @dataclass
@@ -110,8 +116,8 @@ def _velocity_limits(task: ir.Task, ctx: Context, lbx: list, ubx: list, labels: 
                                       task.robots[0].span))
 
 
-def _label(c: ir.Constraint, facet: str) -> RowLabel:
-    return RowLabel(c.primitive, c.frame, facet, c.span, tuple(c.via), c.soft)
+def _label(c: ir.Constraint, facet: str, gate: Gate) -> RowLabel:
+    return RowLabel(c.primitive, c.frame, facet, c.span, tuple(c.via), c.soft, gate.phase)
 
 
 @dataclass
@@ -127,8 +133,10 @@ class _Level:
     terms: set[str]                  # the objective terms it holds ("track", "damping", ...; "soft")
 
 
-def _objective_levels(task: ir.Task, ctx: Context, soft: list[ir.Constraint], n: int) -> list[_Level]:
-    """Each priority level's cost over x = [dq; s] (n entries), levels in the order they are solved."""
+def _objective_levels(objectives: list[tuple[ir.Objective, Gate]], ctx: Context,
+                      soft: list[tuple[ir.Constraint, Gate]], n: int) -> list[_Level]:
+    """Each priority level's cost over x = [dq; s] (n entries), levels in the order they are solved; each weight
+    as its statement's gate scales it."""
     levels: dict[tuple[int, int], _Level] = {}
 
     def add(key, weight, E, f, name, term):
@@ -141,15 +149,17 @@ def _objective_levels(task: ir.Task, ctx: Context, soft: list[ir.Constraint], n:
         level.names.append(name)
         level.terms.add(term)
 
-    for objective in task.objectives:
+    for objective, gate in objectives:
         for term in registry.objective(objective.term).lower(objective, ctx):
             E = ca.horzcat(term.E, ca.SX.zeros(term.E.shape[0], n - ctx.nq))
             name = f"{objective.term}{_frame_of(objective)}{' ' + term.part if term.part else ''}"
-            add((objective.priority, term.after), objective.weight, E, term.f * ctx.dt, name, objective.term)
-    for index, c in enumerate(soft):
+            add((objective.priority, term.after), gate.scaled(objective.weight), E, term.f * ctx.dt, name,
+                objective.term)
+    for index, (c, gate) in enumerate(soft):
         E = ca.SX(1, n)
         E[ctx.nq + index] = 1
-        add((c.priority, 0), c.weight, E, ca.SX.zeros(1), f"soft {c.primitive}({c.frame or ''}) slack", "soft")
+        add((c.priority, 0), gate.scaled(c.weight), E, ca.SX.zeros(1), f"soft {c.primitive}({c.frame or ''}) slack",
+            "soft")
     return [levels[key] for key in sorted(levels)]
 
 
@@ -166,21 +176,24 @@ def assemble(task: ir.Task, robot: Robot) -> AssembledProblem:
     lbx, ubx = [-inf] * nq, [inf] * nq
     bound_labels: list[list[RowLabel]] = [[] for _ in range(nq)]
     rows_A, rows_lb, rows_ub, labels, groups = [], [], [], [], []
-    soft_rows: list[tuple[int, Rows, ir.Constraint, int]] = []
-    for number, c in enumerate(task.constraints):
+    soft_rows: list[tuple[int, Rows, ir.Constraint, int, Gate]] = []
+    constraints, objectives = gated_statements(task, ctx)
+    for number, (c, gate) in enumerate(constraints):
         rows = registry.constraint(c.primitive).lower(c, ctx)
         if c.soft:
-            soft_rows.append((len(soft_rows), rows, c, number))
+            soft_rows.append((len(soft_rows), rows, c, number, gate))
         elif rows.bounds:
             for i in range(nq):
-                lbx[i] = ca.fmax(lbx[i], rows.lb[i])
-                ubx[i] = ca.fmin(ubx[i], rows.ub[i])
-                bound_labels[i].append(_label(c, rows.facets[i]))
+                lb, ub = gate.bounds(rows.lb[i], rows.ub[i])
+                lbx[i] = ca.fmax(lbx[i], lb)
+                ubx[i] = ca.fmin(ubx[i], ub)
+                bound_labels[i].append(_label(c, rows.facets[i], gate))
         else:
+            lb, ub = gate.bounds(rows.lb, rows.ub)
             rows_A.append(rows.A)
-            rows_lb.append(rows.lb)
-            rows_ub.append(rows.ub)
-            labels += [_label(c, f) for f in rows.facets]
+            rows_lb.append(lb)
+            rows_ub.append(ub)
+            labels += [_label(c, f, gate) for f in rows.facets]
             groups += [number] * len(rows.facets)
 
     if not any(c.primitive == "joint_speed" and not c.soft for c in task.constraints):
@@ -190,7 +203,7 @@ def assemble(task: ir.Task, robot: Robot) -> AssembledProblem:
     n_slack = len(soft_rows)
     A_full = [ca.horzcat(A, ca.SX.zeros(A.shape[0], n_slack)) for A in rows_A]
     slack_labels = []
-    for index, rows, c, number in soft_rows:
+    for index, rows, c, number, gate in soft_rows:
         column = ca.DM.zeros(1, n_slack)
         column[index] = 1
         k = rows.A.shape[0]
@@ -199,22 +212,22 @@ def assemble(task: ir.Task, robot: Robot) -> AssembledProblem:
         A_full.append(ca.horzcat(rows.A, ca.repmat(column, k, 1)))
         rows_lb.append(restore * rows.lb)
         rows_ub.append(ca.DM.inf(k))
-        labels += [_label(c, f + " (lower)" if not one_sided else f) for f in rows.facets]
+        labels += [_label(c, f + " (lower)" if not one_sided else f, gate) for f in rows.facets]
         groups += [number] * k
         if not one_sided:
             A_full.append(ca.horzcat(rows.A, ca.repmat(-column, k, 1)))
             rows_lb.append(-ca.DM.inf(k))
             rows_ub.append(restore * rows.ub)
-            labels += [_label(c, f + " (upper)") for f in rows.facets]
+            labels += [_label(c, f + " (upper)", gate) for f in rows.facets]
             groups += [number] * k
-        slack_labels.append(_label(c, "slack"))
+        slack_labels.append(_label(c, "slack", gate))
     lbx += [ca.DM(0.0)] * n_slack
     ubx += [inf] * n_slack
 
     A = ca.vertcat(*A_full) if A_full else ca.SX(0, nq + n_slack)
     lba = ca.vertcat(*rows_lb) if rows_lb else ca.SX(0, 1)
     uba = ca.vertcat(*rows_ub) if rows_ub else ca.SX(0, 1)
-    levels = _objective_levels(task, ctx, [c for _, _, c, _ in soft_rows], nq + n_slack)
+    levels = _objective_levels(objectives, ctx, [(c, gate) for _, _, c, _, gate in soft_rows], nq + n_slack)
     floor = HESSIAN_FLOOR * ca.SX.eye(nq + n_slack)
     H = floor + sum((level.H for level in levels), ca.SX.zeros(nq + n_slack, nq + n_slack))
     g = sum((level.g for level in levels), ca.SX.zeros(nq + n_slack))
@@ -224,7 +237,8 @@ def assemble(task: ir.Task, robot: Robot) -> AssembledProblem:
         for j, level in enumerate(levels, start=1):
             outputs += [ca.vertcat(*level.R), ca.vertcat(*level.r)]
             names += [f"R{j}", f"r{j}"]
-    function = ca.Function("qp_data", [getattr(ctx, name) for name in tick_buffers.DATA_ARGUMENTS],
-                           [ca.densify(x) for x in outputs], list(tick_buffers.DATA_ARGUMENTS), names)
+    arguments = tick_buffers.data_arguments(bool(task.phases))
+    function = ca.Function("qp_data", [getattr(ctx, name) for name in arguments],
+                           [ca.densify(x) for x in outputs], list(arguments), names)
     return AssembledProblem(function, ctx, labels, groups, bound_labels, slack_labels,
                             [level.names for level in levels])

@@ -61,18 +61,24 @@ class ParamSlot:
 
 
 class ParamLayout:
-    """Where each run-time param lives in the flat vector p."""
+    """Where each run-time param lives in the flat vector p; a procedure's captured values (``captures``: their
+    slots, type and size, offsets ignored) follow the params, in :attr:`capture_slots`, each read like a param of
+    its type. Their defaults are 0: the procedure writes them at its first tick (their start values)."""
 
-    def __init__(self, params: list[ir.ParamDecl]):
+    def __init__(self, params: list[ir.ParamDecl], captures: tuple[ParamSlot, ...] = ()):
         self.slots: dict[str, ParamSlot] = {}
         offset = 0
         for decl in params:
             size = PARAM_SIZES[decl.type] or len(flatten(decl.value))
             self.slots[decl.name] = ParamSlot(decl.name, decl.type, offset, size)
             offset += size
+        self.capture_slots: dict[str, ParamSlot] = {}
+        for c in captures:
+            self.capture_slots[c.name] = ParamSlot(c.name, c.type, offset, c.size)
+            offset += c.size
         self.size = offset
         self.defaults = np.concatenate([np.array(flatten(d.value), dtype=float) for d in params]
-                                       or [np.zeros(0)])
+                                       + [np.zeros(offset - sum(s.size for s in self.slots.values()))])
 
 
 @dataclass(frozen=True)
@@ -136,17 +142,21 @@ class ParamReader:
     """The task's argument values in world coordinates, from the flat params p (SX symbols, or DM numbers
     to evaluate them at given values). Derived arguments are evaluated by :mod:`vfdsl.compiler.derived`."""
 
-    def __init__(self, params: list[ir.ParamDecl], p=None):
+    def __init__(self, params: list[ir.ParamDecl], p=None, captures: tuple[ParamSlot, ...] = ()):
         self.params = {decl.name: decl for decl in params}
-        self.layout = ParamLayout(params)
+        self.layout = ParamLayout(params, captures)
         self.p = ca.SX.sym("p", self.layout.size) if p is None else p
         self.c_sources: dict[str, Path] = {}     # C sources the tick calls into (mesh queries), by symbol
 
-    def _raw(self, arg: ir.ParamRef | ir.Const) -> tuple[object, ir.Value]:
-        """(flat symbols or numbers, IR value) of an argument, before placing it in the world."""
+    def _raw(self, arg: ir.ParamRef | ir.Const | ir.CaptureRef) -> tuple[object, ir.Value | None]:
+        """(flat symbols or numbers, IR value) of an argument, before placing it in the world (a capture: in the
+        world already, no IR value)."""
         if isinstance(arg, ir.Const):
             flat = flatten(arg.value)
             return (ca.DM(flat) if flat else None), arg.value
+        if isinstance(arg, ir.CaptureRef):
+            slot = self.layout.capture_slots[arg.name]
+            return self.p[slot.offset:slot.offset + slot.size], None
         decl = self.params[arg.name]
         slot = self.layout.slots[arg.name]
         return self.p[slot.offset:slot.offset + slot.size], decl.value
@@ -159,11 +169,19 @@ class ParamReader:
 
     def read(self, arg: ir.Arg):
         """A non-derived value argument, read as its own kind (lines and planes as (point, unit))."""
-        kind = self.params[arg.name].type if isinstance(arg, ir.ParamRef) else arg.value.kind
+        kind = self.kind(arg)
         if kind in ("line", "plane"):
             line = self.line(arg)
             return line.point, line.direction
         return getattr(self, kind if kind in ("point", "vector", "direction") else "scalar")(arg)
+
+    def kind(self, arg: ir.ParamRef | ir.Const | ir.CaptureRef | ir.Derived) -> str:
+        """The kind of value an argument holds (point, direction, line, ...; a param's or a capture's type)."""
+        if isinstance(arg, ir.ParamRef):
+            return self.params[arg.name].type
+        if isinstance(arg, ir.CaptureRef):
+            return self.layout.capture_slots[arg.name].type
+        return arg.kind if isinstance(arg, ir.Derived) else arg.value.kind
 
     def derived(self, arg: ir.Derived):
         return derived.evaluate(arg, self.read)
@@ -234,7 +252,7 @@ class Context(ParamReader):
     """Symbols and symbolic geometry for lowering one task."""
 
     def __init__(self, task: ir.Task, robot: Robot):
-        super().__init__(task.params)
+        super().__init__(task.params, captures=capture_slots(task))
         self.task = task
         self.robot = robot
         self.nq = robot.nq
@@ -246,6 +264,7 @@ class Context(ParamReader):
             offset += decl.size
         self.u = ca.SX.sym("u", offset)
         self.dt = ca.SX.sym("dt")
+        self.activity = ca.SX.sym("activity", 2 * len(task.phases))   # a procedure's (tick_buffers.PHASE_ARGUMENTS)
         self._frames: dict[str, FrameSymbols] = {}
         self._closest: dict[tuple[str, str], Closest] = {}
 
@@ -270,3 +289,17 @@ class Context(ParamReader):
         if key not in self._closest:
             self._closest[key] = curve.locate(x)
         return self._closest[key]
+
+
+def capture_slots(task: ir.Task) -> tuple[ParamSlot, ...]:
+    """Every phase's captures, in phase then capture order, as slots of their type and size (offsets: 0): a
+    frame's position or axis 3 numbers, an input its size, a param its slot's."""
+    params = ParamLayout(task.params).slots
+    slots = []
+    for phase in task.phases:
+        for c in phase.captures:
+            source = c.source
+            size = (3 if isinstance(source, ir.FrameMeasure) else
+                    task.input(source.name).size if isinstance(source, ir.InputRef) else params[source.name].size)
+            slots.append(ParamSlot(c.name, c.kind, 0, size))
+    return tuple(slots)

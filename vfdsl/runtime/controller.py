@@ -21,6 +21,7 @@ from vfdsl.ir import model as ir
 from vfdsl.primitives import CONSTRAINTS
 from vfdsl.runtime.levels import PriorityLevel, priority_levels
 from vfdsl.runtime.native import checked_step
+from vfdsl.runtime.procedure import PhaseEvent, Procedure
 from vfdsl.runtime.qp import StepStatus
 from vfdsl.runtime.tracking import Tracking, readout, tracked_terms
 from vfdsl.runtime.values import ASSUMED_PERIOD, RuntimeValues
@@ -78,7 +79,7 @@ class Controller:
     threads at once serialises the calls (a lock), never mixes them."""
 
     def __init__(self, task: ir.Task, problem: AssembledProblem, values: RuntimeValues, runner,
-                 feasibility_tolerance: float):
+                 feasibility_tolerance: float, procedure: Procedure | None = None):
         self.task = task
         self.assembled = problem
         self.nq = problem.nq
@@ -89,6 +90,7 @@ class Controller:
         self.default_dt = task.scene.period
         self._values = values
         self._runner = runner
+        self._procedure = procedure
         if runner.fast_step is not None:    # the generated path: step is the task's C method itself (the same checks,
             self.step = runner.fast_step    # plain values in C, the rest by checked_step; one Python call less a tick)
         self._tolerance = feasibility_tolerance
@@ -108,8 +110,40 @@ class Controller:
         Bad arguments (wrong type or shape, NaN or inf, unknown names, values out of their range) raise
         VfError before anything is evaluated. When the hard rows cannot all hold, dq solves the
         least-violation problem instead: ``status`` says so and :meth:`violations` names the rows. dq is
-        always finite and within the joint bounds."""
-        return checked_step(self._values, self._runner, q, inputs, params, dt)
+        always finite and within the joint bounds.
+
+        A procedure's tick first runs its machine on these q and inputs (:mod:`vfdsl.runtime.procedure`): monitors,
+        at most one transition (:attr:`phase`, :attr:`monitors`, :attr:`events`), captures, the phases' activity;
+        then it solves the QP of the phase it is in after the transition."""
+        if self._procedure is None:
+            return checked_step(self._values, self._runner, q, inputs, params, dt)
+        v = self._values
+        q, u, p, dt = v.q(q), v.inputs(inputs), v.params(params, self._runner.margins), v.dt(dt)
+        with self._procedure.lock:
+            p = self._procedure.tick(q, u, p, dt, int(self._runner.status[0]))
+            self._runner.activity[:] = self._procedure.activity
+            return self._runner.run(q, u, p, dt, 0.0)
+
+    @property
+    def phase(self) -> str | None:
+        """The procedure's phase after the last tick (its initial phase before the first); None without phases."""
+        return None if self._procedure is None else self._procedure.phase
+
+    @property
+    def monitors(self) -> dict[str, bool]:
+        """Each named monitor of the procedure: whether it held at the last tick ({} without phases)."""
+        return {} if self._procedure is None else self._procedure.monitors
+
+    @property
+    def events(self) -> tuple[PhaseEvent, ...]:
+        """The transitions of the last tick (at most one; () without phases)."""
+        return () if self._procedure is None else self._procedure.events
+
+    def reset(self) -> None:
+        """A procedure back to its initial phase, its captures retaken at the next tick (the solver's warm start
+        is kept); nothing to do for a task without phases."""
+        if self._procedure is not None:
+            self._procedure.reset()
 
     def param_vector(self, params=None) -> np.ndarray | None:
         """The flat run-time param vector the step is given for ``params`` (checked as :meth:`step` checks them),
@@ -117,11 +151,9 @@ class Controller:
         return self._values.params(params)
 
     def problem(self, q, inputs=None, params=None, dt=None) -> QuadraticProgram:
-        """The numeric QP of this tick (before the solver's safeguards), one label per row."""
-        v = self._values
-        p = v.params(params, self._runner.margins)
-        args = (v.q(q), v.inputs(inputs), self.assembled.context.layout.defaults if p is None else p, v.dt(dt))
-        outputs = [np.array(x) for x in self.assembled.function(*args)]
+        """The numeric QP of this tick (before the solver's safeguards), one label per row; a procedure's with the
+        captures and the phases' activity of its last tick (the machine does not advance)."""
+        outputs = [np.array(x) for x in self.assembled.function(*self._data(q, inputs, params, dt))]
         H, g, A, lba, uba, lbx, ubx = outputs[:7]
         n = H.shape[0]
         return QuadraticProgram(P=H, g=g.ravel(), A=np.vstack([np.eye(n), A]),
@@ -135,9 +167,7 @@ class Controller:
         achieved rate and, when less than 99 % of the command is achieved, what holds it back (rows at their
         bounds, joints at their speed or position limits, by label)."""
         self.step(q, inputs, params, dt)
-        v = self._values
-        p = v.params(params, self._runner.margins)
-        args = (v.q(q), v.inputs(inputs), self.assembled.context.layout.defaults if p is None else p, v.dt(dt))
+        args = self._data(q, inputs, params, dt)[:4]
         names, rows = self.tracked_parts
         return readout(names, rows(*args), np.array(self._runner.x), self.nq, float(args[3]),
                        self.problem(q, inputs, params, dt))
@@ -165,13 +195,16 @@ class Controller:
     def violations(self) -> list[Violation]:
         """What the last step leaves violated: hard rows (excess over their bound) and soft constraints
         (their slack: how far the fixture is off), each in its SI unit. Empty after a step that meets
-        every constraint."""
+        every constraint. A procedure's phase that weighs nothing has no violation (its hard rows are off, its
+        slacks free)."""
         rows = self.assembled.row_labels
         found = [Violation(label, float(a), unit) for label, a, unit
                  in zip(rows, self._runner.violation, self._units) if a > 0 and not label.soft]
         slacks = self._runner.x[self.nq:]
+        weighs = (lambda phase: True) if self._procedure is None else self._procedure.weighs
         found += [Violation(label, float(s), unit) for label, s, unit
-                  in zip(self.assembled.slack_labels, slacks, self._slack_units) if s > self._tolerance]
+                  in zip(self.assembled.slack_labels, slacks, self._slack_units)
+                  if s > self._tolerance and (label.phase is None or weighs(label.phase))]
         return found
 
     @property
@@ -185,6 +218,16 @@ class Controller:
         return list(self.assembled.row_labels)
 
     # ------------------------------------------------------------------------------- internals
+    def _data(self, q, inputs, params, dt) -> tuple:
+        """The checked arguments of the task's QP data (a procedure's: its full params and activity)."""
+        v = self._values
+        p = v.params(params, self._runner.margins)
+        if self._procedure is None:
+            return v.q(q), v.inputs(inputs), self.assembled.context.layout.defaults if p is None else p, v.dt(dt)
+        full = self._procedure.p.copy()
+        full[:v.layout.size] = v.layout.defaults if p is None else p
+        return v.q(q), v.inputs(inputs), full, v.dt(dt), self._procedure.activity.copy()
+
     def _prime(self) -> None:
         """Two evaluations at the start configuration, one with phase 2 forced (input ``recover``) and one through
         the priority levels: every DAQP workspace of the generated step is allocated now, so that no later step

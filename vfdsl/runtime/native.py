@@ -32,7 +32,7 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
-from vfdsl.codegen.tick_buffers import Slot, lengths
+from vfdsl.codegen.tick_buffers import ARGUMENTS, PHASE_ARGUMENTS, Slot, lengths
 from vfdsl.errors import VfError
 from vfdsl.runtime.values import RuntimeValues
 
@@ -124,7 +124,8 @@ def _bind(set_buffer, i: int, sparsity: ca.Sparsity, what: str) -> np.ndarray:
 
 
 class LockedRunner:
-    """A BufferedFunction behind a lock: callers from several threads are serialised."""
+    """A BufferedFunction behind a lock: callers from several threads are serialised. A procedure's step also reads
+    :attr:`activity`, which its caller writes before :meth:`run` (None for a task without phases)."""
 
     fast_step = None
 
@@ -135,12 +136,15 @@ class LockedRunner:
         self._function = function
         self._p_default = values.layout.defaults
         self._lock = threading.Lock()
-        self.x, self.status, self.violation = _results((*function.inputs, *function.outputs))
+        inputs = dict(zip(function.function.name_in(), function.inputs, strict=True))
+        self._arguments = tuple(inputs[name] for name in ARGUMENTS)
+        self.activity = inputs.get(PHASE_ARGUMENTS[0])
+        self.x, self.status, self.violation = function.outputs       # the step's RESULTS
 
     def run(self, q, u, p, dt: float, recover: float) -> np.ndarray:
         with self._lock:
             arguments = (q, u, self._p_default if p is None else p, dt, recover)
-            for buffer, value in zip(self._function.inputs, arguments, strict=True):
+            for buffer, value in zip(self._arguments, arguments, strict=True):
                 buffer[...] = value
             self._function.evaluate()
             return self.x[:self.nq].copy()

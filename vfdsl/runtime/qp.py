@@ -143,7 +143,9 @@ def build_step_function(qp_data: ca.Function, prefix: str, *,
     """
     levels = _check_qp_data(qp_data)
     n, m = qp_data.size1_out(0), qp_data.size1_out(2)
-    inputs = [ca.MX.sym(name, qp_data.sparsity_in(i)) for i, name in enumerate(tick_buffers.DATA_ARGUMENTS)]
+    procedure = qp_data.n_in() > len(tick_buffers.DATA_ARGUMENTS)
+    arguments = tick_buffers.data_arguments(procedure)
+    inputs = [ca.MX.sym(name, qp_data.sparsity_in(i)) for i, name in enumerate(arguments)]
     recover = ca.MX.sym("recover")
     expand = m * n <= STRAIGHT_LINE_ENTRIES
     if expand and qp_data.is_a("SXFunction"):   # with qp_data inside: its structural zeros prune the preparation
@@ -178,7 +180,7 @@ def build_step_function(qp_data: ca.Function, prefix: str, *,
     x, status, violation = _straight_line(f"{prefix}_finish", lambda *v: _finish(*v, m, feas_tol),
                                           [picked, A, lba, uba, lo, hi, clipped], expand)
     return PlannedFunction(ca.Function(prefix, [*inputs, recover], [x, status, violation],
-                                       list(tick_buffers.ARGUMENTS), list(tick_buffers.RESULTS)), plans)
+                                       list(tick_buffers.arguments(procedure)), list(tick_buffers.RESULTS)), plans)
 
 
 def _straight_line(name: str, build: Callable[..., list[ca.MX]], values: Sequence[ca.MX], expand: bool):
@@ -233,12 +235,14 @@ def _finish(picked, A, lba, uba, lo, hi, clipped, m: int, feas_tol: float) -> li
 
 def _check_qp_data(qp_data: ca.Function) -> int:
     """The number of priority levels: 1 for the 7 outputs of QP_DATA_OUTPUTS, k >= 2 for 7 + 2k outputs
-    (Rj, rj per level)."""
+    (Rj, rj per level); the arguments are the tick's data buffers (a procedure's with its activity)."""
     n_out = qp_data.n_out()
     levels = 1 if n_out == 7 else (n_out - 7) // 2
     arguments = tick_buffers.DATA_ARGUMENTS
-    if qp_data.n_in() != len(arguments) or n_out < 7 or (n_out != 7 and (levels < 2 or 7 + 2 * levels != n_out)):
-        raise ValueError(f"qp_data must map ({', '.join(arguments)}) to {QP_DATA_OUTPUTS} (+ Rj, rj per priority "
+    counts = (len(arguments), len(tick_buffers.data_arguments(procedure=True)))
+    if qp_data.n_in() not in counts or n_out < 7 or (n_out != 7 and (levels < 2 or 7 + 2 * levels != n_out)):
+        raise ValueError(f"qp_data must map ({', '.join(arguments)}) (a procedure's: then "
+                         f"{', '.join(tick_buffers.PHASE_ARGUMENTS)}) to {QP_DATA_OUTPUTS} (+ Rj, rj per priority "
                          f"level), got {qp_data.n_in()} inputs and {n_out} outputs")
     n, m = qp_data.size1_out(0), qp_data.size1_out(2)
     expected = [(n, n), (n, 1), (m, n), (m, 1), (m, 1), (n, 1), (n, 1)]

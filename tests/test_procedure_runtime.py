@@ -1,0 +1,292 @@
+"""A procedure compiled into one controller (issue 33, items 2 and 5), on the interpreted path: every phase's rows
+and terms in one QP switched by the phases' activity, captures as run-time param slots, the phase machine run
+before each solve; the example needle procedure driven by scripted hand forces and button presses."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import vfdsl
+from vfdsl.codegen import tick_buffers
+from vfdsl.compiler.phases import monitor_values
+from vfdsl.errors import VfError
+from vfdsl.runtime import phase_machine as pm
+from vfdsl.runtime.procedure import machine_table
+from vfdsl.runtime.qp import StepStatus
+
+REPO = Path(__file__).resolve().parent.parent
+EXAMPLE = REPO / "tasks" / "procedures" / "needle_procedure.vf"
+DT = 0.001
+TOL = 1e-9          # the compiled controller's feasibility tolerance (vfdsl.pipeline)
+
+
+@pytest.fixture(scope="module")
+def task():
+    return vfdsl.load(EXAMPLE)
+
+
+class Driver:
+    """Ticks a controller with a hand force (plus a small wobble, so that the stale-input watchdog stays quiet),
+    the button, and records each tick's tip position before the step, phase and events."""
+
+    def __init__(self, task):
+        self.ctrl = vfdsl.compile(task, backend="interpreted")
+        self.q = np.array(task.start, dtype=float)
+        self.k = 0
+        self.tip_before: list[np.ndarray] = []
+        self.phases: list[str] = []
+        self.events: list[tuple[int, object]] = []
+        self.axis = self.frame("needle").tool_axis
+        self.entry = np.array(task.param("entry").value.xyz)
+
+    def frame(self, name):
+        return self.ctrl.frames(self.q)[name]
+
+    def tick(self, hand=(0.0, 0.0, 0.0), go=0.0, dt=DT, wobble=True):
+        self.k += 1
+        k = self.k
+        extra = 1e-3 * np.array([np.sin(k), np.cos(1.3 * k), np.sin(0.7 * k)]) if wobble else np.zeros(3)
+        self.tip_before.append(self.frame("tip").position)
+        self.q = self.q + self.ctrl.step(self.q, {"hand": np.asarray(hand, float) + extra, "go": [go]}, dt=dt)
+        self.phases.append(self.ctrl.phase)
+        self.events += [(k, e) for e in self.ctrl.events]
+
+    def ticks(self, n, **kw):
+        for _ in range(n):
+            self.tick(**kw)
+
+    def capture(self, name):
+        ctx = self.ctrl.assembled.context
+        slot = ctx.layout.capture_slots[name]
+        return self.ctrl._procedure.p[slot.offset:slot.offset + slot.size].copy()
+
+
+@pytest.fixture(scope="module")
+def run(task):
+    """The example end to end: the button at tick 10 (the tip starts at the entry, aligned), `aligned` (held since
+    tick 1) at tick 100, a 6 N push along the needle from tick 150, a pull out at dt 10 ms."""
+    d = Driver(task)
+    d.ticks(9)
+    d.tick(go=1.0)
+    d.ticks(139)                                    # align, then insert from tick 100 on
+    d.ticks(60, hand=6.0 * d.axis)                   # ticks 150-209: over 5 N from tick 150
+    while d.ctrl.phase == "retract" and d.k < 400:
+        d.tick(hand=-20.0 * d.axis, dt=0.01)
+    return d
+
+
+def test_every_phase_in_order_each_transition_at_its_tick(run):
+    assert [(k, e.source, e.target) for k, e in run.events] == [
+        (10, "approach", "align"), (100, "align", "insert"), (199, "insert", "retract"),
+        (run.events[-1][0], "retract", "done")]
+    assert [e.guard for _, e in run.events] == ["near_entry and pressed", "aligned", "pushed or deep", "out"]
+    first = [run.phases.index(p) + 1 for p in ("align", "insert", "retract", "done")]
+    assert first == [k for k, _ in run.events]      # the phase holds from the transition tick on
+    assert run.events[0][1].time == pytest.approx(10 * DT)
+
+
+def test_the_force_monitor_retracts_at_the_fiftieth_tick_over_the_limit(run):
+    k, event = run.events[2]
+    assert k - 150 + 1 == 50 and event.target == "retract"
+    assert run.phases[k - 2] == "insert"           # one tick earlier (49 over the limit) it was still inserting
+
+
+def test_captures_are_the_tip_at_the_transition_tick(run):
+    assert np.array_equal(run.capture("stop"), run.tip_before[199 - 1])
+    assert np.array_equal(run.capture("start"), run.tip_before[100 - 1])
+    assert not np.array_equal(run.capture("stop"), run.tip_before[200 - 1])
+    assert np.allclose(run.capture("axis0"), run.axis, atol=1e-6)
+    # retract's `out` fired 10 mm from stop, along the line
+    k, _ = run.events[3]
+    assert np.linalg.norm(run.tip_before[k - 1] - run.capture("stop")) > 0.01
+
+
+def test_monitors_are_reported_by_name(run):
+    assert set(run.ctrl.monitors) == {m.name for m in run.ctrl.task.monitors}
+    assert run.ctrl.monitors["out"] is True and run.ctrl.monitors["stale"] is False
+    assert run.ctrl.phase == "done"
+
+
+def test_a_final_phase_is_never_left_and_reset_restarts(task):
+    d = Driver(task)
+    d.ticks(25, wobble=False)                       # a constant hand: stale after 20 ms unchanged
+    assert [(k, e.target) for k, e in d.events] == [(21, "hold")]
+    assert d.ctrl.monitors["stale"] and d.ctrl.phase == "hold" and d.ctrl.events == ()
+    held = d.capture("held")
+    assert np.array_equal(held, d.tip_before[20])
+    d.ctrl.reset()
+    assert d.ctrl.phase == "approach" and d.ctrl.events == ()
+    d.ticks(3)
+    assert d.ctrl.phase == "approach" and not d.ctrl.monitors["stale"]
+
+
+def test_an_inactive_hard_fixture_does_not_hold_the_tool_the_active_one_does(task):
+    d = Driver(task)
+    sideways = np.cross(d.axis, [1.0, 0.0, 0.0])
+    sideways = 20.0 * sideways / np.linalg.norm(sideways)
+    d.ticks(60, hand=sideways)                      # approach: align's stays_at(entry) within 0.5 mm is off
+    away = np.linalg.norm(d.frame("tip").position - d.entry)
+    assert away > 1e-3 and d.ctrl.phase == "approach"   # twice the tolerance of the fixture that is off
+    qp = d.ctrl.problem(d.q, {"hand": sideways, "go": [0]}, dt=DT)
+    rows = [k for k, label in enumerate(d.ctrl.row_labels) if label.phase is not None]
+    lb, ub = qp.lb[qp.P.shape[0]:], qp.ub[qp.P.shape[0]:]
+    assert np.all(np.isneginf(lb[rows]) & np.isposinf(ub[rows]))       # every phase's hard rows off in approach
+    assert d.ctrl.violations() == []
+
+    d = Driver(task)
+    d.tick(go=1.0)                                  # into align at the first tick
+    assert d.ctrl.phase == "align"
+    d.ticks(80, hand=sideways)
+    offset = np.abs(d.frame("tip").position - d.entry)              # stays_at's box: 0.5 mm per axis
+    assert offset.max() <= 0.5e-3 + 1e-8 and offset.max() > 0.4e-3   # pushed against it, held
+    on = [label.phase == "align" for label in d.ctrl.row_labels]
+    qp = d.ctrl.problem(d.q, {"hand": sideways, "go": [0]}, dt=DT)
+    n = qp.P.shape[0]
+    assert np.all(np.isfinite(qp.lb[n:][on]) | np.isfinite(qp.ub[n:][on]))
+    assert d.ctrl.status == 0
+
+
+def test_blend_weights_are_in_the_qp(task):
+    d = Driver(task)
+    d.ticks(9)
+    d.tick(go=1.0)
+    d.tick()
+    assert d.ctrl.phase == "align"
+    proc = d.ctrl._procedure
+    w = proc.activity[:6]
+    blend = task.blend
+    assert w[0] == pytest.approx(1 - 2 * DT / blend) and w[1] == pytest.approx(2 * DT / blend)
+    assert w.sum() == pytest.approx(1.0) and list(proc.activity[6:]) == [0, 1, 0, 0, 0, 0]
+    u = {"hand": [3.0, -1.0, 2.0], "go": [0]}
+    blended = d.ctrl.problem(d.q, u, dt=DT)
+    full = proc.activity.copy()
+    proc.activity[:6] = [1, 0, 0, 0, 0, 0]
+    unblended = d.ctrl.problem(d.q, u, dt=DT)
+    proc.activity[:] = full
+    R, R1 = blended.levels[0].R, unblended.levels[0].R
+    assert np.abs(R1[:3]).max() > 0
+    assert np.allclose(R[:3], np.sqrt(w[0]) * R1[:3], rtol=1e-12, atol=1e-15)     # approach's track, scaled
+    assert np.all(R[3:] == 0) and np.all(R1[3:] == 0)                               # insert's, retract's: off
+    assert blended.levels[0].terms == unblended.levels[0].terms
+
+
+def test_least_violation_counts_only_the_active_rows(tmp_path):
+    path = tmp_path / "hard.vf"
+    path.write_text("""\
+task hard
+units mm, deg
+robot shr = urdf "shr7"
+frame tip = shr.link("tool_tip")
+input f : force
+input go : button
+param far : point = [100, 100, 100]
+monitor pressed = go
+phase a initial { minimize track(tip, f, gain = 1 mm/s/N) }
+phase b final { require tip stays_at(far) within 1 mm }
+transition a -> b when pressed
+""")
+    ctrl = vfdsl.compile(vfdsl.load(path), backend="interpreted")
+    q = np.zeros(ctrl.nq)
+    ctrl.step(q, {"f": [1.0, 0, 0], "go": [0]}, dt=0.01)
+    assert ctrl.phase == "a" and ctrl.status == StepStatus.OPTIMAL and ctrl.violations() == []
+    ctrl.step(q, {"f": [1.0, 0, 0], "go": [1]}, dt=0.01)      # b's fixture, far away, on from this tick
+    assert ctrl.phase == "b" and ctrl.status & StepStatus.LEAST_VIOLATION
+    assert ctrl.violations() and {v.label.phase for v in ctrl.violations()} == {"b"}
+
+
+def test_the_machine_table_follows_dependencies_and_inline_leaves(tmp_path):
+    path = tmp_path / "t.vf"
+    path.write_text("""\
+task t
+units mm, deg
+robot shr = urdf "shr7"
+frame tip = shr.link("tool_tip")
+input f : force
+input go : button
+param entry : point = [10, 5, 285]
+monitor both = near and pressed for 30 ms
+monitor near = distance(tip, entry) < 1 mm
+monitor pressed = go
+monitor long = elapsed > 2 s
+monitor quiet = unchanged(f) > 40 ms
+monitor stuck = least_violation for 100 ms
+phase a initial { minimize track(tip, f, gain = 1 mm/s/N) }
+phase b { }
+phase c final { }
+transition a -> b when both
+transition b -> c when long or quiet or stuck or norm(f) >= 3 N
+""")
+    task = vfdsl.load(path)
+    ctrl = vfdsl.compile(task, backend="interpreted")
+    ctx = ctrl.assembled.context
+    table, named = machine_table(task, monitor_values(task, ctx), ctx.input_offsets)
+    monitors = table.monitors
+    assert monitors[named["both"]].kind == pm.LOGIC and monitors[named["both"]].hold == pytest.approx(0.03)
+    assert named["near"] < named["both"] and named["pressed"] < named["both"]
+    assert monitors[named["long"]] == pm.Monitor(pm.ELAPSED, op=pm.GT, threshold=2.0)
+    assert monitors[named["quiet"]] == pm.Monitor(pm.UNCHANGED, watch=0, op=pm.GT, threshold=0.04)
+    assert monitors[named["stuck"]].kind == pm.LEAST_VIOLATION
+    assert table.watched == ((0, 3),) and table.raw_size == 3     # near, pressed, the guard's norm(f) >= 3 N
+    guard = table.transitions[1].guard
+    inline = monitors[guard[-2]]
+    assert inline.kind == pm.COMPARE and inline.hold == 0 and guard[-1] == pm.OR
+    q = np.zeros(ctrl.nq)
+    ctrl.step(q, {"f": [0, 0, 4.0], "go": [1]}, dt=0.01)
+    raw = ctrl._procedure.raw
+    assert raw[inline.raw] == pytest.approx(1.0)                   # |f| - 3 N
+    assert raw[monitors[named["pressed"]].raw] == pytest.approx(0.5)
+    assert ctrl.monitors["pressed"] and not ctrl.monitors["both"]    # `for 30 ms`: not at the first 10 ms tick
+    ctrl.step(q, {"f": [0, 0, 4.0], "go": [1]}, dt=0.01)
+    ctrl.step(q, {"f": [0, 0, 4.0], "go": [1]}, dt=0.01)
+    assert ctrl.monitors["near"] is False and ctrl.phase == "a"    # q = 0 is far from the entry
+
+
+def test_a_task_without_phases_is_unchanged():
+    task = vfdsl.load(REPO / "tasks" / "paper_b_virtual_rcm.vf")
+    ctrl = vfdsl.compile(task, backend="interpreted")
+    assert (ctrl.phase, ctrl.monitors, ctrl.events) == (None, {}, ())
+    assert tuple(ctrl.assembled.function.name_in()) == tick_buffers.DATA_ARGUMENTS
+    assert ctrl.assembled.context.activity.numel() == 0
+    assert all(label.phase is None and " in phase " not in str(label) for label in ctrl.row_labels)
+    ctrl.reset()
+    assert ctrl.phase is None
+
+
+def test_the_native_backend_refuses_a_procedure_and_auto_runs_it_interpreted(task):
+    with pytest.raises(VfError, match="native backend does not run procedures yet") as info:
+        vfdsl.compile(task, backend="native")
+    assert (info.value.code, info.value.line) == ("E812", task.phases[0].span.line)
+    assert vfdsl.compile(task, backend="auto").backend == "interpreted"
+
+
+def test_a_soft_fixture_of_an_idle_phase_weighs_nothing_and_is_not_reported(tmp_path):
+    path = tmp_path / "soft.vf"
+    path.write_text("""\
+task soft
+units mm, deg
+robot shr = urdf "shr7"
+frame tip = shr.link("tool_tip")
+input f : force
+input go : button
+param far : point = [100, 100, 100]
+monitor pressed = go
+phase a initial { minimize track(tip, f, gain = 1 mm/s/N) }
+phase b final { require tip stays_at(far) within 1 mm soft weight 10 }
+transition a -> b when pressed
+""")
+    task = vfdsl.load(path)
+    ctrl = vfdsl.compile(task, backend="interpreted")
+    q = np.zeros(ctrl.nq)
+    ctrl.step(q, {"f": [1.0, 0, 0], "go": [0]}, dt=0.01)
+    assert ctrl.phase == "a"
+    slack = ctrl.assembled.nq                           # the one slack: b's stays_at, far from the tip
+    P = ctrl.problem(q, {"f": [1.0, 0, 0], "go": [0]}, dt=0.01).P
+    assert P[slack, slack] < 1e-8                       # only the Hessian's floor: b weighs 0
+    assert ctrl._runner.x[slack] > 1e-3 and ctrl.violations() == []
+    ctrl.step(q, {"f": [1.0, 0, 0], "go": [1]}, dt=0.01)
+    assert ctrl.phase == "b" and ctrl.events[0].target == "b"
+    assert [v.label.phase for v in ctrl.violations()] == ["b"]      # b weighs: far off, reported
+    assert ctrl.problem(q, {"f": [1.0, 0, 0], "go": [1]}, dt=0.01).P[slack, slack] > 1.0
