@@ -256,7 +256,7 @@ def test_a_task_without_phases_is_unchanged():
 
 
 def test_the_native_backend_refuses_a_procedure_and_auto_runs_it_interpreted(task):
-    with pytest.raises(VfError, match="native backend does not run procedures yet") as info:
+    with pytest.raises(VfError, match="does not run procedures yet") as info:
         vfdsl.compile(task, backend="native")
     assert (info.value.code, info.value.line) == ("E812", task.phases[0].span.line)
     assert vfdsl.compile(task, backend="auto").backend == "interpreted"

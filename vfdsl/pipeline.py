@@ -77,10 +77,11 @@ def build(task: ir.Task, *, backend: str = "auto",
     if backend not in BACKENDS:
         raise VfError(f"unknown backend '{backend}'; use one of {', '.join(BACKENDS)}")
     if task.phases and backend == "native":
-        raise VfError(f"task '{task.name}' has a procedure (phases): the native backend does not run procedures yet "
-                      "(the generated C does not carry the phase machine)", task.phases[0].span,
-                      hint="compile it with backend='interpreted' (or 'auto'): the same QP and phase machine, "
-                           "evaluated in Python", code="E812")
+        raise VfError(f"task '{task.name}' has a procedure (phases): the native backend (generated C, its export) "
+                      "does not run procedures yet: the generated C does not carry the phase machine",
+                      task.phases[0].span,
+                      hint="in Python, vfdsl.compile(task, backend='interpreted') (or 'auto') runs it: the same QP "
+                           "and phase machine, evaluated by CasADi", code="E812")
     robot = Robot.load(task.robots[0].urdf)
     problem = assemble(task, robot)
     admissible = Admissible(task, robot.reach)
