@@ -145,10 +145,9 @@ def test_show_prints_the_procedure_and_refuses_a_statechart_without_phases(tmp_p
     assert "has no phases" in capsys.readouterr().err
 
 
-def test_compiling_a_procedure_is_refused_with_its_code(example):
-    with pytest.raises(VfError, match="procedures are checked but not yet compiled") as info:
-        vfdsl.compile(example, backend="interpreted")
-    assert (info.value.code, info.value.line) == ("E812", example.phases[0].span.line)
+def test_a_procedure_compiles_and_starts_in_its_initial_phase(example):
+    ctrl = vfdsl.compile(example, backend="interpreted")
+    assert ctrl.phase == "approach" and ctrl.events == ()
 
 
 # ------------------------------------------------------------------------------------------- the checks
