@@ -12,7 +12,6 @@ import pytest
 import vfdsl
 from vfdsl.codegen import tick_buffers
 from vfdsl.compiler.phases import monitor_values
-from vfdsl.errors import VfError
 from vfdsl.runtime import phase_machine as pm
 from vfdsl.runtime.procedure import machine_table
 from vfdsl.runtime.qp import StepStatus
@@ -159,7 +158,7 @@ def test_blend_weights_are_in_the_qp(task):
     w = proc.activity[:6]
     blend = task.blend
     assert w[0] == pytest.approx(1 - 2 * DT / blend) and w[1] == pytest.approx(2 * DT / blend)
-    assert w.sum() == pytest.approx(1.0) and list(proc.activity[6:]) == [0, 1, 0, 0, 0, 0]
+    assert w.sum() == pytest.approx(1.0) and list(proc.activity[6:12]) == [0, 1, 0, 0, 0, 0]
     u = {"hand": [3.0, -1.0, 2.0], "go": [0]}
     blended = d.ctrl.problem(d.q, u, dt=DT)
     full = proc.activity.copy()
@@ -255,11 +254,8 @@ def test_a_task_without_phases_is_unchanged():
     assert ctrl.phase is None
 
 
-def test_the_native_backend_refuses_a_procedure_and_auto_runs_it_interpreted(task):
-    with pytest.raises(VfError, match="does not run procedures yet") as info:
-        vfdsl.compile(task, backend="native")
-    assert (info.value.code, info.value.line) == ("E812", task.phases[0].span.line)
-    assert vfdsl.compile(task, backend="auto").backend == "interpreted"
+def test_auto_runs_a_procedure_natively(task):
+    assert vfdsl.compile(task, backend="auto").backend == "native"     # tests/test_procedure_native.py
 
 
 def test_a_soft_fixture_of_an_idle_phase_weighs_nothing_and_is_not_reported(tmp_path):

@@ -6,9 +6,9 @@
 Without a C compiler the same step Function is evaluated by CasADi in the process (the interpreted
 path): same answers, slower; a single warning says so.
 
-A task with phases (a procedure) runs on the interpreted path only, its machine in Python
-(:mod:`vfdsl.runtime.procedure`): the generated C does not carry the phase machine yet, so the native backend refuses
-it (E812) and 'auto' takes the interpreted path.
+A task with phases (a procedure) carries its machine in the generated C (codegen/procedure_tick.h: monitors, captures,
+activity before each solve, run by the Python extension and the exported library); interpreted, or through CasADi's
+loader of the C library (no Python headers), the machine runs in Python (:mod:`vfdsl.runtime.procedure`).
 """
 
 from __future__ import annotations
@@ -21,7 +21,8 @@ from pathlib import Path
 import casadi as ca
 
 import vfdsl
-from vfdsl.codegen.build import BuiltLibrary, CompilerUnavailable, build_library, default_cache_dir, load_module
+from vfdsl.codegen.build import (BuiltLibrary, CompilerUnavailable, PhaseCode, build_library, default_cache_dir,
+                                 load_module)
 from vfdsl.codegen.daqp_sources import DaqpSourcesUnavailable
 from vfdsl.compiler.admissible import Admissible
 from vfdsl.compiler.assemble import AssembledProblem, assemble
@@ -30,8 +31,8 @@ from vfdsl.errors import VfError
 from vfdsl.ir import model as ir
 from vfdsl.kinematics.robot import Robot
 from vfdsl.runtime.controller import Controller, row_unit
-from vfdsl.runtime.native import BufferedFunction, LockedRunner, StepperRunner
-from vfdsl.runtime.procedure import Procedure
+from vfdsl.runtime.native import BufferedFunction, LockedRunner, NativeProcedure, StepperRunner
+from vfdsl.runtime.procedure import Procedure, machine_table
 from vfdsl.runtime.values import INPUT_UNITS, JOINT_UNITS, PARAM_UNITS, RuntimeValues
 from vfdsl.runtime.qp import build_step_function
 
@@ -76,12 +77,6 @@ def build(task: ir.Task, *, backend: str = "auto",
     global _warned
     if backend not in BACKENDS:
         raise VfError(f"unknown backend '{backend}'; use one of {', '.join(BACKENDS)}")
-    if task.phases and backend == "native":
-        raise VfError(f"task '{task.name}' has a procedure (phases): the native backend (generated C, its export) "
-                      "does not run procedures yet: the generated C does not carry the phase machine",
-                      task.phases[0].span,
-                      hint="in Python, vfdsl.compile(task, backend='interpreted') (or 'auto') runs it: the same QP "
-                           "and phase machine, evaluated by CasADi", code="E812")
     robot = Robot.load(task.robots[0].urdf)
     problem = assemble(task, robot)
     admissible = Admissible(task, robot.reach)
@@ -94,13 +89,16 @@ def build(task: ir.Task, *, backend: str = "auto",
                                    feas_tol=FEASIBILITY_TOLERANCE, native=native,
                                    last_level_is_cost=problem.last_level_is_damping)
 
-    if backend != "interpreted" and not task.phases:
+    if backend != "interpreted":
         try:
             library = build_library(step(native=True), prefix, Path(cache_dir or default_cache_dir()),
                                     metadata(task, problem, values, digest), admissible.function,
-                                    tuple(problem.context.c_sources.values()), values.input_checks)
-            return Controller(task, problem, values, _native_runner(values, problem, library, prefix),
-                              FEASIBILITY_TOLERANCE), library
+                                    tuple(problem.context.c_sources.values()), values.input_checks,
+                                    _phase_code(task, problem))
+            runner = _native_runner(values, problem, library, prefix)
+            procedure = (NativeProcedure(task, runner, _machine(task, problem)[2])
+                         if task.phases and isinstance(runner, StepperRunner) else _procedure(task, problem))
+            return Controller(task, problem, values, runner, FEASIBILITY_TOLERANCE, procedure), library
         except (CompilerUnavailable, DaqpSourcesUnavailable) as exc:
             if backend == "native":
                 raise
@@ -120,12 +118,39 @@ def _procedure(task: ir.Task, problem: AssembledProblem) -> Procedure | None:
     return Procedure(task, ctx.layout, monitor_values(task, ctx), captures_function(task, ctx), ctx.input_offsets)
 
 
+def _machine(task: ir.Task, problem: AssembledProblem):
+    """A procedure's compiled monitor values, its machine's table and each named monitor's index in it."""
+    ctx = problem.context
+    values = monitor_values(task, ctx)
+    return (values, *machine_table(task, values, ctx.input_offsets))
+
+
+REAL_ARRAYS = ("threshold", "hold", "blend")
+"""The members of the machine's C table (MachineTable.c_arrays) that are doubles; the others are ints."""
+
+
+def _phase_code(task: ir.Task, problem: AssembledProblem) -> PhaseCode | None:
+    """What a procedure's library holds beside its step (None without phases): its functions, its machine's table
+    and where each phase's captures go in p."""
+    if not task.phases:
+        return None
+    ctx = problem.context
+    values, table, _ = _machine(task, problem)
+    arrays = table.c_arrays()
+    slots = [(k, ctx.layout.capture_slots[c.name]) for k, phase in enumerate(task.phases) for c in phase.captures]
+    ints = {key: v for key, v in arrays.items() if key not in REAL_ARRAYS}
+    ints.update(initial=[table.initial], raw_size=[table.raw_size], u_size=[table.u_size],
+                capture_phase=[k for k, _ in slots], capture_offset=[s.offset for _, s in slots],
+                capture_size=[s.size for _, s in slots])
+    return PhaseCode(values.function, captures_function(task, ctx), ints, {key: arrays[key] for key in REAL_ARRAYS})
+
+
 def _native_runner(values: RuntimeValues, problem: AssembledProblem, library: BuiltLibrary, prefix: str):
     """The generated step through the task's Python extension, or, when it could not be built (no
     Python headers), through CasADi's loader of the C library (same answers, the checks in Python)."""
     if library.module_path is not None:
         return StepperRunner(load_module(library.module_path), values, problem.nq + problem.n_slack,
-                             len(problem.row_labels))
+                             len(problem.row_labels), problem.context.layout.defaults)
     return LockedRunner(BufferedFunction.native(library.so_path, prefix), values)
 
 

@@ -45,6 +45,9 @@ enum { VFDSL_OPENED = 0, VFDSL_NO_MEMORY = 1, VFDSL_NO_SLOT = 2 };
 typedef struct {
   double* data[VFDSL_N_BUFFERS];   /* set by the caller before vfdsl_core_open */
   long size[VFDSL_N_BUFFERS];
+#ifdef VFDSL_PROCEDURE
+  double* activity;                /* a procedure's phase buffer (VFDSL_ACTIVITY_LENGTH), set before vfdsl_core_open */
+#endif
   const double* q_lower;           /* nq admissible bounds each */
   const double* q_upper;
   double dt_min, dt_max;            /* the admissible dt, s */
@@ -90,7 +93,12 @@ static int vfdsl_core_open(vfdsl_core* c) {
   c->w = (casadi_real*) calloc(sz_w + 1, sizeof(casadi_real));
   if (!c->check_arg || !c->check_res || !c->check_iw || !c->check_w || !c->margins || !c->input_margins
       || !c->arg || !c->res || !c->iw || !c->w) return VFDSL_NO_MEMORY;
+#ifdef VFDSL_PROCEDURE                /* a procedure's step takes its phase buffer at VFDSL_ACTIVITY_ARG */
+  for (k=0; k<VFDSL_N_ARGS; ++k) c->arg[k < VFDSL_ACTIVITY_ARG ? k : k + 1] = c->data[k];
+  c->arg[VFDSL_ACTIVITY_ARG] = c->activity;
+#else
   for (k=0; k<VFDSL_N_ARGS; ++k) c->arg[k] = c->data[k];
+#endif
   for (k=VFDSL_N_ARGS; k<VFDSL_N_BUFFERS; ++k) c->res[k - VFDSL_N_ARGS] = c->data[k];
   c->slot = VFDSL_STEP_CHECKOUT();
   return c->slot < 0 ? VFDSL_NO_SLOT : VFDSL_OPENED;

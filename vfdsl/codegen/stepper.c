@@ -30,6 +30,9 @@
 #define NPY_NO_DEPRECATED_API NPY_1_7_API_VERSION
 #include <numpy/arrayobject.h>
 #include "checked_step.h"
+#ifdef VFDSL_PROCEDURE
+#include "procedure_tick.h"
+#endif
 
 #define VF_STR_(a) #a
 #define VF_STR(a) VF_STR_(a)
@@ -60,6 +63,10 @@ typedef struct {
   PyObject* q_range;            /* float64 array [lo_0..lo_n-1, hi_0..hi_n-1] of admissible q */
   double dt_default;            /* NAN when the task has no default period */
   PyObject* checked;            /* checked(stepper, q, inputs, params, dt) for what the fast path does not take; None */
+#ifdef VFDSL_PROCEDURE
+  vfdsl_procedure procedure;    /* the machine before each solve (procedure_tick.h) */
+  double activity[VFDSL_ACTIVITY_LENGTH];
+#endif
 } Stepper;
 
 /* ------------------------------------------------------------------------------ reading values */
@@ -221,6 +228,15 @@ static PyObject* solve(Stepper* s, double dt, double recover) {
   return dq;
 }
 
+/* One tick on the checked buffers (lock held): a procedure's machine first (procedure_tick.h), then the solve. */
+static PyObject* tick(Stepper* s, double dt) {
+#ifdef VFDSL_PROCEDURE
+  vfdsl_procedure_tick(&s->procedure, s->core.data[Q], s->core.data[U], s->core.data[P], dt,
+                       (int) s->core.data[VFDSL_STATUS][0], s->activity);
+#endif
+  return solve(s, dt, 0.0);
+}
+
 /* checked(s, *args, **kwargs) (the vectorcall args and kwnames of a call of step), or NotImplemented when checked is
  * None. */
 static PyObject* hand_over(Stepper* s, PyObject* const* args, Py_ssize_t nargs, PyObject* kwnames) {
@@ -260,20 +276,18 @@ static PyObject* Stepper_step(Stepper* s, PyObject* const* args, Py_ssize_t narg
     PyThread_release_lock(s->lock);
     return hand_over(s, args, nargs, kwnames);
   }
-  result = solve(s, dt_value, 0.0);
+  result = tick(s, dt_value);
   PyThread_release_lock(s->lock);
   return result;
 }
 
-/* run(q, u, p, dt, recover): checked float64 arrays (p None: the defaults) -> dq. */
-static PyObject* Stepper_run(Stepper* s, PyObject* args) {
-  PyObject *q, *u, *p, *result;
-  double dt, recover;
-  if (!ready(s)) return NULL;
-  if (!PyArg_ParseTuple(args, "O!O!Odd", &PyArray_Type, &q, &PyArray_Type, &u, &p, &dt, &recover)) return NULL;
+/* Copy checked float64 arrays in = {q, u, p} (p None: the defaults) into the buffers and take the lock: 0, or -1
+ * with an exception (the lock not taken). */
+static int load(Stepper* s, PyObject* const* in) {
+  PyObject *q = in[0], *u = in[1], *p = in[2];
   if (p != Py_None && !PyArray_Check(p)) {
     PyErr_SetString(PyExc_TypeError, "p must be an array or None");
-    return NULL;
+    return -1;
   }
   PyArrayObject* arrays[3] = {(PyArrayObject*) q, (PyArrayObject*) u, (PyArrayObject*) p};
   int slots[3] = {Q, U, P};
@@ -282,7 +296,7 @@ static PyObject* Stepper_run(Stepper* s, PyObject* args) {
     if (PyArray_TYPE(arrays[k]) != NPY_DOUBLE || !PyArray_IS_C_CONTIGUOUS(arrays[k])
         || PyArray_SIZE(arrays[k]) != s->core.size[slots[k]]) {
       PyErr_SetString(PyExc_ValueError, "run() takes contiguous float64 arrays of the task's sizes");
-      return NULL;
+      return -1;
     }
   }
   lock(s);
@@ -294,10 +308,64 @@ static PyObject* Stepper_run(Stepper* s, PyObject* args) {
     memcpy(s->core.data[P], PyArray_DATA(arrays[2]), s->core.size[P] * sizeof(double));
     s->p_is_default = 0;
   }
+  return 0;
+}
+
+/* run(q, u, p, dt, recover): checked float64 arrays (p None: the defaults) -> dq; a procedure's machine does not
+ * advance (the priming ticks). */
+static PyObject* Stepper_run(Stepper* s, PyObject* args) {
+  PyObject *in[3], *result;
+  double dt, recover;
+  if (!ready(s)) return NULL;
+  if (!PyArg_ParseTuple(args, "O!O!Odd", &PyArray_Type, &in[0], &PyArray_Type, &in[1], &in[2], &dt, &recover))
+    return NULL;
+  if (load(s, in) < 0) return NULL;
   result = solve(s, dt, recover);
   PyThread_release_lock(s->lock);
   return result;
 }
+
+#ifdef VFDSL_PROCEDURE
+/* tick(q, u, p, dt): the checked step's tick, the machine included (checked float64 arrays, p None: the
+ * defaults) -> dq. */
+static PyObject* Stepper_tick(Stepper* s, PyObject* args) {
+  PyObject *in[3], *result;
+  double dt;
+  if (!ready(s)) return NULL;
+  if (!PyArg_ParseTuple(args, "O!O!Od", &PyArray_Type, &in[0], &PyArray_Type, &in[1], &in[2], &dt)) return NULL;
+  if (load(s, in) < 0) return NULL;
+  result = tick(s, dt);
+  PyThread_release_lock(s->lock);
+  return result;
+}
+
+/* reset(): the procedure back to its initial phase, captures retaken at the next tick. */
+static PyObject* Stepper_reset(Stepper* s, PyObject* unused) {
+  if (!ready(s)) return NULL;
+  lock(s);
+  vfdsl_procedure_reset(&s->procedure, s->activity);
+  PyThread_release_lock(s->lock);
+  Py_RETURN_NONE;
+}
+
+/* machine() -> (phase, source, fired, time, activity, monitor values): the procedure after its last tick (a
+ * copy, taken under the lock). */
+static PyObject* Stepper_machine(Stepper* s, PyObject* unused) {
+  npy_intp na = VFDSL_ACTIVITY_LENGTH, nm = s->procedure.table.n_monitors, k;
+  PyObject *activity, *values, *result;
+  if (!ready(s)) return NULL;
+  activity = PyArray_SimpleNew(1, &na, NPY_DOUBLE);
+  values = PyArray_SimpleNew(1, &nm, NPY_INT);
+  if (!activity || !values) { Py_XDECREF(activity); Py_XDECREF(values); return NULL; }
+  lock(s);
+  memcpy(PyArray_DATA((PyArrayObject*) activity), s->activity, na * sizeof(double));
+  for (k=0; k<nm; ++k) ((int*) PyArray_DATA((PyArrayObject*) values))[k] = s->procedure.state.value[k];
+  result = Py_BuildValue("iiidNN", s->procedure.state.phase, s->procedure.source, s->procedure.state.fired,
+                         s->procedure.time, activity, values);
+  PyThread_release_lock(s->lock);
+  return result;
+}
+#endif
 
 /* margins(p): the column of checks of the params p (a contiguous float64 array), as a new array. */
 static PyObject* Stepper_margins(Stepper* s, PyObject* p) {
@@ -404,6 +472,10 @@ static int Stepper_init(Stepper* s, PyObject* args, PyObject* kwds) {
   s->core.strict = (const unsigned char*) PyArray_DATA((PyArrayObject*) s->strict);
   s->core.n_margins = PyArray_SIZE((PyArrayObject*) s->strict);
   s->lock = PyThread_allocate_lock();
+#ifdef VFDSL_PROCEDURE
+  s->core.activity = s->activity;
+  if (vfdsl_procedure_open(&s->procedure, s->activity) != VFDSL_OPENED) { PyErr_NoMemory(); return -1; }
+#endif
   opened = vfdsl_core_open(&s->core);
   if (opened == VFDSL_NO_MEMORY || !s->lock) { PyErr_NoMemory(); return -1; }
   if (opened == VFDSL_NO_SLOT) {
@@ -423,6 +495,9 @@ static int Stepper_init(Stepper* s, PyObject* args, PyObject* kwds) {
 
 static void Stepper_dealloc(Stepper* s) {
   vfdsl_core_close(&s->core);
+#ifdef VFDSL_PROCEDURE
+  vfdsl_procedure_close(&s->procedure);
+#endif
   if (s->lock) PyThread_free_lock(s->lock);
   free(s->offsets); free(s->sizes); free(s->param_offsets); free(s->param_sizes); free(s->param_points);
   if (s->arrays) {               /* the references below were taken only when init succeeded */
@@ -457,6 +532,14 @@ static PyMethodDef Stepper_methods[] = {
    "margins(p) -> the column of checks of the params p (contiguous float64), from the generated C"},
   {"run", (PyCFunction) Stepper_run, METH_VARARGS,
    "run(q, u, p, dt, recover) -> dq for checked float64 arrays (p None: the default params)"},
+#ifdef VFDSL_PROCEDURE
+  {"tick", (PyCFunction) Stepper_tick, METH_VARARGS,
+   "tick(q, u, p, dt) -> dq for checked float64 arrays (p None: the default params): the procedure's machine, "
+   "then the solve"},
+  {"reset", (PyCFunction) Stepper_reset, METH_NOARGS, "reset(): the procedure back to its initial phase"},
+  {"machine", (PyCFunction) Stepper_machine, METH_NOARGS,
+   "machine() -> (phase, source, fired, time, activity, monitor values) after the last tick"},
+#endif
   {NULL, NULL, 0, NULL}
 };
 

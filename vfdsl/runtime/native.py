@@ -34,6 +34,9 @@ import numpy as np
 
 from vfdsl.codegen.tick_buffers import ARGUMENTS, PHASE_ARGUMENTS, Slot, lengths
 from vfdsl.errors import VfError
+from vfdsl.ir import model as ir
+from vfdsl.runtime import phase_machine as pm
+from vfdsl.runtime.procedure import PhaseEvent
 from vfdsl.runtime.values import RuntimeValues
 
 
@@ -152,19 +155,22 @@ class LockedRunner:
 
 class StepperRunner:
     """The task's Python extension: a ``Stepper`` with its own memory slot of the generated code, whose fast
-    path checks params with the generated column of checks (``margins``)."""
+    path checks params with the generated column of checks (``margins``). A procedure's (``defaults``: its full
+    params' defaults, the captures' slots after the params) runs its machine in C before each solve of ``step`` and
+    of the checked path (``Stepper.tick``); :attr:`p` holds the full params of the last tick."""
 
     kind = "native"
 
-    def __init__(self, module, values: RuntimeValues, n: int, m: int):
+    def __init__(self, module, values: RuntimeValues, n: int, m: int, defaults: np.ndarray | None = None):
         layout = values.layout
-        arrays = tuple(np.zeros(k) for k in lengths(nq=values.nq, nu=values.n_inputs, np=layout.size, nx=n, rows=m))
+        defaults = layout.defaults if defaults is None else defaults
+        arrays = tuple(np.zeros(k) for k in lengths(nq=values.nq, nu=values.n_inputs, np=defaults.size, nx=n, rows=m))
         self.x, self.status, self.violation = _results(arrays)
         names = tuple(values.input_offsets)
         slots = [slot for slot in layout.slots.values() if slot.size]
         dt_default = values.default_period
         try:
-            self.stepper = module.Stepper(arrays, np.ascontiguousarray(layout.defaults, dtype=float), names,
+            self.stepper = module.Stepper(arrays, np.ascontiguousarray(defaults, dtype=float), names,
                                           tuple(values.input_offsets[k][0] for k in names),
                                           tuple(values.input_offsets[k][1] for k in names),
                                           np.concatenate([values.q_min, values.q_max]).astype(float),
@@ -175,13 +181,66 @@ class StepperRunner:
         except RuntimeError as e:
             raise VfError(f"cannot start another controller of this task: {e}",
                           hint="close (delete) controllers you no longer use") from None
+        self.p = arrays[Slot.P]
+        procedure = hasattr(self.stepper, "tick")
+
         def step(stepper, q, inputs=None, params=None, dt=None):    # (holds the values, not the stepper: no cycle)
-            return checked_step(values, stepper, q, inputs, params, dt)
+            if not procedure:
+                return checked_step(values, stepper, q, inputs, params, dt)
+            full = defaults.copy()
+            user = values.params(params, stepper.margins)
+            if user is not None:
+                full[:user.size] = user
+            return stepper.tick(values.q(q), values.inputs(inputs), full, values.dt(dt))
         step.__qualname__ = "Controller.step"       # (as Python's errors name a wrong call: the one the user made)
         self.stepper.checked = step
         self.fast_step = self.stepper.step
         self.run = self.stepper.run
         self.margins = self.stepper.margins
+
+
+class NativeProcedure:
+    """A procedure whose machine runs in the generated C (codegen/procedure_tick.h, inside the Stepper's ticks): what
+    :class:`~vfdsl.runtime.controller.Controller` reads of a :class:`~vfdsl.runtime.procedure.Procedure` (phase,
+    monitors, events, activity, full params, reset), read from the Stepper after its last tick. ``named``: each named
+    monitor's index among the machine's (:func:`vfdsl.runtime.procedure.machine_table`)."""
+
+    def __init__(self, task: ir.Task, runner: StepperRunner, named: dict[str, int]):
+        self.task = task
+        self._stepper = runner.stepper
+        self._named = named
+        self._transitions = sorted(task.transitions, key=lambda tr: tr.order)
+        self._index = {phase.name: k for k, phase in enumerate(task.phases)}
+        self.p = runner.p
+        self.lock = threading.Lock()
+
+    @property
+    def phase(self) -> str:
+        return self.task.phases[self._stepper.machine()[0]].name
+
+    @property
+    def monitors(self) -> dict[str, bool]:
+        values = self._stepper.machine()[5]
+        return {name: bool(values[k] == pm.TRUE) for name, k in self._named.items()}
+
+    @property
+    def events(self) -> tuple[PhaseEvent, ...]:
+        phase, source, fired, time, _, _ = self._stepper.machine()
+        if fired < 0:
+            return ()
+        phases = self.task.phases
+        return (PhaseEvent(phases[source].name, phases[phase].name, self._transitions[fired].text, time),)
+
+    @property
+    def activity(self) -> np.ndarray:
+        return self._stepper.machine()[4]
+
+    def weighs(self, phase: str) -> bool:
+        """Whether the phase's terms weigh anything after the last tick (its weight > 0)."""
+        return self.activity[self._index[phase]] > 0.0
+
+    def reset(self) -> None:
+        self._stepper.reset()
 
 
 def _results(buffers: tuple[np.ndarray, ...]) -> tuple[np.ndarray, ...]:
