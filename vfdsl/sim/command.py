@@ -19,6 +19,7 @@ from vfdsl.sim.cluster import connect
 from vfdsl.sim.metrics import metric_defs
 from vfdsl.sim.runner import default_workers, loaded, make_jobs, run
 from vfdsl.sim.scene_file import default_scene, load_settings, parse_setting
+from vfdsl.sim.scripted import late_events
 from vfdsl.sim.settings import GRID_NAMES, SHOWN_IN, check_setting, check_ticks
 
 DESCRIPTION = """\
@@ -158,6 +159,8 @@ def main(args: argparse.Namespace) -> int:
         simulated = sum(r.ticks for r in results) * settings.period if not grid else None
         print(_heading(task.name, settings, doc, len(jobs), seconds, simulated))
         print(report.table(doc, tolerances))
+        if "procedure" in doc:
+            print("\n" + report.phase_table(doc))
         if doc["fallback_ticks"]:
             print(f"\n{doc['fallback_ticks']} of {doc['ticks']} ticks needed the least-violation fallback")
     if args.json:
@@ -173,12 +176,14 @@ def main(args: argparse.Namespace) -> int:
 
 
 def _events_after_the_end(settings, grid: list[tuple[str, list]]) -> list[VfError]:
-    """A warning for each disturbance, step or ramp of the scene that starts at or after the end of the run (the
-    longest ``duration`` of the grid): it never happens (a run shortened with --duration, or a mistyped time)."""
+    """A warning for each disturbance, step, ramp, push or button press of the scene that starts at or after the end
+    of the run (the longest ``duration`` of the grid): it never happens (a run shortened with --duration, or a
+    mistyped time)."""
     end = max(dict(grid).get("duration", [settings.duration]))
     events = [(d.at, f"the {d.kind} disturbance at {d.at:g} s", d.where) for d in settings.disturbances]
     starts = [(m.at if m.kind == "step" else m.start, m) for m in settings.motions if m.kind in ("step", "ramp")]
     events += [(t, f"the {m.kind} motion of param '{m.param}' (from {t:g} s)", m.where) for t, m in starts]
+    events += late_events(settings, end)
     return [VfError(f"{what} starts after the run's {end:g} s: it does not happen in this run", where,
                     hint="lengthen the run (--duration, or duration in the scene) or move the event earlier")
             for t, what, where in events if t >= end - 1e-12]
@@ -227,7 +232,7 @@ def _write(name: str, write) -> None:
 def _heading(name: str, s, doc: dict, trials: int, seconds: float, simulated: float | None) -> str:
     hand = doc["hand"]
     if hand is None:
-        hand_text = "no hand (the task has no tracked input)"
+        hand_text = "no hand (the task has no tracked input)" if not s.pushes else "no hand: the scene's pushes"
     else:
         unit, factor = SHOWN_IN[hand["dimension"]]
         aim = hand["curve"] or hand["target"] or hand["direction"]
@@ -235,6 +240,13 @@ def _heading(name: str, s, doc: dict, trials: int, seconds: float, simulated: fl
         hand_text = (f"hand: {hand['kind']} {aim} with input '{hand['input']}', {hand['magnitude'] * factor:.3g} "
                      f"{unit}, tremor {hand['tremor'] * factor:.3g} {unit} RMS, drift {hand['drift'] * factor:.3g} "
                      f"{unit} RMS" + (f"\n  {hand['assumed']}" if hand.get("assumed") else ""))
+    if s.pushes or s.presses or s.sensors:
+        hand_text += "\nscripted: " + "; ".join(
+            [f"{len(s.pushes)} push(es)"] * bool(s.pushes)
+            + [f"{sum(p.input == name for p in s.presses)} press(es) of '{name}'"
+               for name in dict.fromkeys(p.input for p in s.presses)]
+            + [f"sensor noise on '{n.input}' {n.linear:.3g} RMS (SI)"
+               + (f", {n.angular:.3g} angular" if n.angular else "") for n in s.sensors])
     moved = doc.get("motion")
     if moved:
         hand_text += (f"\nachieved: the hand moved '{moved['frame']}' {moved['path_mm']:.3g} mm along its path (net "

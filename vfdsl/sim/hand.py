@@ -84,11 +84,11 @@ class Hand:
     def aim(self, q: np.ndarray) -> np.ndarray:
         s = self.settings
         if s.kind == "push":
-            return self.scene.direction(_as_arg(s.direction))
+            return self.scene.direction(direction_arg(s.direction))
         p_link, R_link = self.link_pose(q)
         p, R = p_link + R_link @ self.offset[:3, 3], R_link @ self.offset[:3, :3]
         if s.kind == "turn":
-            axis = self.scene.direction(_as_arg(s.direction))
+            axis = self.scene.direction(direction_arg(s.direction))
             tool = R @ np.asarray(self.frame.tool_axis)
             tilt = axis - (axis @ tool) * tool
             return unit(tilt) if np.linalg.norm(tilt) > 1e-9 else axis
@@ -112,7 +112,8 @@ class Hand:
         return toward / distance if distance > 0 else np.zeros(3)
 
 
-def _as_arg(direction) -> ir.Arg:
+def direction_arg(direction) -> ir.Arg:
+    """A scene's direction (3 numbers, or the name of a direction or vector param) as the IR argument it is."""
     if isinstance(direction, str):
         return ir.ParamRef(name=direction)
     return ir.Const(value=ir.DirectionValue(xyz=list(direction)))

@@ -5,7 +5,8 @@
 - a task with a cone (experiment B, Figs. 9 and 10): a point up the tool shaft tracing its circle around
   the cone axis beside the desired circle, and the error profiles (encoders and tracker);
 - any other task: the tracked frame's path in the world x-y plane, and the error profiles;
-- a grid (Fig. 7): the first metric's profile for each grid point, one panel each, on one scale.
+- a grid (Fig. 7): the first metric's profile for each grid point, one panel each, on one scale;
+- a procedure: its phases as coloured bands behind each profile (one trial's figure).
 """
 
 from __future__ import annotations
@@ -44,10 +45,20 @@ def _profiles(settings_metrics, series: dict) -> list[str]:
 def _trial_figure(task: ir.Task, settings: SimSettings, result: TrialResult):
     series = result.series
     names = _profiles(settings.metrics, series)
-    figure, axes = plt.subplots(1, 1 + len(names), figsize=(5.2 * (1 + len(names)), 4.4), squeeze=False)
+    panels = 1 + len(names) + (series.get("phase") is not None)
+    figure, axes = plt.subplots(1, panels, figsize=(5.2 * panels, 4.4), squeeze=False)
     axes = axes[0]
     _trajectory(axes[0], task, settings, series)
     t = series["t"]
+    for ax in axes[1:]:
+        _phase_bands(ax, series)
+    if series.get("phase") is not None:
+        ax = axes[-1]
+        ax.step(t, series["phase"], where="post", color="k", lw=1)
+        ax.set_yticks(range(len(series["phase_names"])), series["phase_names"])
+        ax.set_xlabel("time (s)")
+        ax.set_title("phase")
+        ax.grid(alpha=0.3)
     for ax, name in zip(axes[1:], names):
         unit_name = result.units[name]
         if f"tracker_{name}" in series["metrics"]:
@@ -64,6 +75,20 @@ def _trial_figure(task: ir.Task, settings: SimSettings, result: TrialResult):
                     f"latency {settings.latency * 1e3:g} ms")
     figure.tight_layout()
     return figure
+
+
+def _phase_bands(ax, series: dict) -> None:
+    """A procedure's phases as bands over time (one colour per phase, named once in the legend)."""
+    if series.get("phase") is None:
+        return
+    phase, names, t = series["phase"], series["phase_names"], series["t"]
+    changes = [0, *(np.flatnonzero(np.diff(phase)) + 1), len(phase)]
+    named = set()
+    for start, end in zip(changes, changes[1:]):
+        k = int(phase[start])
+        ax.axvspan(t[start], t[end - 1] + (t[1] - t[0] if len(t) > 1 else 0.0), color=f"C{k % 10}", alpha=0.12,
+                   lw=0, label=None if k in named else f"phase {names[k]}")
+        named.add(k)
 
 
 def _trajectory(ax, task: ir.Task, settings: SimSettings, series: dict) -> None:

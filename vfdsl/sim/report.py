@@ -65,6 +65,9 @@ def document(task_name: str, task_file: str, settings: SimSettings, results: lis
     else:
         doc["metrics"] = metrics_of(results)
     doc["motion"] = motion(results)
+    phases = procedure(results)
+    if phases is not None:
+        doc["procedure"] = phases
     doc["trials"] = trial_rows(results)
     return doc
 
@@ -84,6 +87,57 @@ def motion(results: list[TrialResult]) -> dict | None:
             "net_mm": 1e3 * sum(m["net"] for m in moved) / len(moved),
             "turn_deg": math.degrees(sum(m["turn"] for m in moved) / len(moved)),
             "commanded_fraction": {name: sum(f) / len(f) for name, f in fractions.items()}}
+
+
+def procedure(results: list[TrialResult]) -> dict | None:
+    """A procedure's run per phase, over every trial (:mod:`vfdsl.sim.phases`): its mean time, every visit (trial,
+    entry and exit tick and time), each metric pooled over its ticks; and every transition (trial, tick, time,
+    source, target, guard)."""
+    runs = [r for r in sorted(results, key=lambda r: (r.grid, r.trial)) if r.procedure is not None]
+    if not runs:
+        return None
+    phases = []
+    for k, first in enumerate(runs[0].procedure["phases"]):
+        parts = [r.procedure["phases"][k] for r in runs]
+        metrics = {}
+        for name in first["metrics"]:
+            total = Stats()
+            for part in parts:
+                total = total.merge(part["metrics"][name])
+            metrics[name] = {**total.summary(), "unit": runs[0].units[name]}
+        phases.append({"name": first["name"], "time_s": sum(p["time_s"] for p in parts) / len(parts),
+                       "visits": [{"trial": r.trial, **dict(r.grid), **v} for r, p in zip(runs, parts)
+                                  for v in p["visits"]],
+                       "metrics": metrics})
+    transitions = [{"trial": r.trial, **dict(r.grid), **e} for r in runs for e in r.procedure["transitions"]]
+    return {"phases": phases, "transitions": transitions}
+
+
+def phase_table(doc: dict) -> str:
+    """A procedure's report: per phase its mean time and its visits (entry and exit, tick and time), the
+    transitions with their guards, and each phase's metrics (mean and max over its ticks)."""
+    proc, grid = doc["procedure"], list(doc.get("grid", {}))
+    several = len({(v["trial"], *(v[g] for g in grid)) for p in proc["phases"] for v in p["visits"]}) > 1
+
+    def who(row: dict) -> str:
+        """'trial 1, period 0.01: ' when the run has several trials or grid points."""
+        return ", ".join([f"trial {row['trial']}"] + [f"{g} {row[g]:g}" for g in grid]) + ": " if several else ""
+
+    lines = [f"{'phase':<12} {'time (s)':>9}  visits: entered at tick (s) -> left at tick (s)"]
+    for p in proc["phases"]:
+        visits = ", ".join(f"{who(v)}{v['entry_tick']} ({v['entry_s']:.3f} s) -> "
+                           + ("end" if v["exit_tick"] is None else f"{v['exit_tick']} ({v['exit_s']:.3f} s)")
+                           for v in p["visits"]) or "not entered"
+        lines.append(f"{p['name']:<12} {p['time_s']:>9.3f}  {visits}")
+    lines += ["", "transitions: tick (s), from -> to, the guard that held"]
+    for e in proc["transitions"]:
+        lines.append(f"  {who(e)}{e['tick']} ({e['time_s']:.3f} s)  {e['source']} -> {e['target']}  when {e['guard']}")
+    lines += ["", f"{'phase':<12} {'metric':<34} {'unit':<6} {'mean':>10} {'max':>10}"]
+    for p in proc["phases"]:
+        for name, m in p["metrics"].items():
+            if m["samples"]:
+                lines.append(f"{p['name']:<12} {name:<34} {m['unit']:<6} {_num(m['mean'])} {_num(m['max'])}")
+    return "\n".join(lines)
 
 
 def trial_rows(results: list[TrialResult]) -> list[dict]:

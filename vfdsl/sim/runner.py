@@ -4,9 +4,11 @@ cluster.
 
 One tick at time t = k dt: apply the disturbances due; move the params of the scene's motions (their scene
 value plus the displacement at t, written in place into arrays allocated once); read the encoders (q); the
-hand's input (aimed at the moved geometry); dq = controller.step(q, input, params); command dq (it arrives
-after the latency); advance the robot to t + dt. The metrics are computed afterwards from the encoder
-readings, by Pinocchio's kinematics, each tick against the geometry in force at that tick.
+hand's input (aimed at the moved geometry), plus the scene's scripted pushes, button presses and sensor noise
+(:mod:`vfdsl.sim.scripted`); dq = controller.step(q, input, params); a procedure's phase, monitors and transitions
+(:mod:`vfdsl.sim.phases`); command dq (it arrives after the latency); advance the robot to t + dt.
+The metrics are computed afterwards from the encoder readings, by Pinocchio's kinematics, each tick against the
+geometry in force at that tick.
 
 Trial i of a run with seed K uses seed K + i (the same in every grid point, so that grid points differ
 only by their settings); a trial's seed fixes its hand and its tracker noise, so a run is repeatable.
@@ -38,7 +40,9 @@ from vfdsl.sim.cluster import connect
 from vfdsl.sim.geometry import Scene
 from vfdsl.sim.hand import Hand, generic_hand
 from vfdsl.sim.metrics import Stats, errors, frame_poses, metric_defs, prepare_meshes
+from vfdsl.sim.phases import PhaseRecord
 from vfdsl.sim.robot import SimRobot
+from vfdsl.sim.scripted import ScriptedInputs
 from vfdsl.sim.settings import SimSettings, hand_dimension, tracked_frame
 
 PROGRESS_EVERY = 500                 # ticks between progress updates of an in-process trial
@@ -79,6 +83,7 @@ class TrialResult:
     hand: dict | None = None                  # the hand that ran (the generic one when the scene has none)
     trace: dict | None = None                 # column -> one value per tick (vfdsl.sim.trace)
     motion: dict | None = None                # how far the hand's frame moved (achieved_motion)
+    procedure: dict | None = None             # a procedure's phases and transitions (PhaseRecord.summary)
 
 
 @dataclass
@@ -129,15 +134,17 @@ def simulate_with(job: Job, task: ir.Task, ctrl: vfdsl.Controller, robot: Robot,
     s = job.settings
     dt = s.period
     ticks = max(1, int(round(s.duration / dt)))
-    hand_rng, tracker_rng = (np.random.default_rng(x) for x in np.random.SeedSequence(job.seed).spawn(2))
+    hand_rng, tracker_rng, sensor_rng = (np.random.default_rng(x) for x in np.random.SeedSequence(job.seed).spawn(3))
     q0 = start_configuration(task, robot)
     scene = Scene(task)
     sim = SimRobot(robot, q0, s.latency, s.servo_lag, robot.resolution if s.resolution == "robot" else None)
     if s.resolution == "robot" and robot.resolution is None:
         raise VfError(f"resolution: robot, but robot '{robot.name}' declares no joint resolution",
                       hint="add resolution to its URDF sidecar (<stem>.yaml), or use resolution: off")
-    hand_settings = s.hand or generic_hand(task, ctrl, robot, q0, dt)
+    hand_settings = s.hand or (None if s.pushes else generic_hand(task, ctrl, robot, q0, dt))
     hand = Hand(hand_settings, task, robot, scene, dt, ticks, hand_rng) if hand_settings else None
+    script = ScriptedInputs(s, task, scene, dt, ticks, sensor_rng) if s.pushes or s.presses or s.sensors else None
+    phases = PhaseRecord(task, ticks) if task.phases else None
     inputs = {i.name: np.zeros(i.size) for i in task.inputs}
     events = sorted(s.disturbances, key=lambda d: d.at)
     segments = [(0, dict(scene.values))]
@@ -163,8 +170,14 @@ def simulate_with(job: Job, task: ir.Task, ctrl: vfdsl.Controller, robot: Robot,
             moving.update(k, scene, params)
         q = sim.read()
         qs[k] = q
+        if script is not None:
+            for value in inputs.values():
+                value[:] = 0.0
         if hand is not None:
-            inputs[hand_settings.input] = hand.input(k, q)
+            inputs[hand_settings.input][:] = hand.input(k, q)
+        if script is not None:
+            script.apply(k, inputs)
+        if hand is not None or script is not None:
             us[k] = np.concatenate([inputs[i.name] for i in task.inputs])
         try:
             dq = ctrl.step(q, inputs, params or None, dt)
@@ -174,6 +187,8 @@ def simulate_with(job: Job, task: ir.Task, ctrl: vfdsl.Controller, robot: Robot,
             fallback += 1
         if record is not None:
             record.tick(k, inputs, dq, params, scene, ctrl)
+        if phases is not None:
+            phases.tick(k, ctrl, dt)
         sim.command(t, dq)
         sim.advance(t, t + dt)
         if progress is not None and (k + 1) % PROGRESS_EVERY == 0:
@@ -181,7 +196,7 @@ def simulate_with(job: Job, task: ir.Task, ctrl: vfdsl.Controller, robot: Robot,
     if progress is not None:
         progress(SIMULATED * (ticks % PROGRESS_EVERY))
     result = _score(job, task, robot, qs, segments, tracker_rng, fallback, hand_settings, moving.tables, record,
-                    progress)
+                    progress, phases)
     if result.motion is not None:
         result.motion["commanded"] = commanded_fraction(ctrl, qs, us, dt)
     return result
@@ -298,7 +313,7 @@ class Moving:
 
 def _score(job: Job, task: ir.Task, robot: Robot, qs: np.ndarray, segments, rng, fallback: int,
            hand_settings, shifts: dict[str, np.ndarray], record: _Recorder | None = None,
-           progress=None) -> TrialResult:
+           progress=None, phases: PhaseRecord | None = None) -> TrialResult:
     s = job.settings
     poses = frame_poses(robot, task, qs)
     seen = tracker.measure(poses, task, s.noise, s.marker_distance, rng) if s.noise > 0 else None
@@ -327,6 +342,8 @@ def _score(job: Job, task: ir.Task, robot: Robot, qs: np.ndarray, segments, rng,
     trace = None
     if record is not None:
         trace = record.columns(qs, s.period)
+        if phases is not None:
+            trace.update(phases.columns())
         lengths = [end - start for (start, _), end in zip(segments, bounds[1:])]
         for name, parts in values.items():
             tracked = name.startswith("tracker_")
@@ -340,7 +357,9 @@ def _score(job: Job, task: ir.Task, robot: Robot, qs: np.ndarray, segments, rng,
     if job.keep_series:
         series = {"t": np.arange(len(qs)) * s.period, "metrics": series_values, "p": poses.p, "shifts": shifts,
                   "axis": {f.name: poses.axis(f) for f in task.frames}, "segments": segments,
-                  "tracker_p": seen.p if seen is not None else None}
+                  "tracker_p": seen.p if seen is not None else None,
+                  "phase": None if phases is None else phases.phase,
+                  "phase_names": None if phases is None else phases.names}
     hand = None
     if hand_settings is not None:
         hand = {**hand_settings.__dict__,
@@ -351,7 +370,9 @@ def _score(job: Job, task: ir.Task, robot: Robot, qs: np.ndarray, segments, rng,
         if name is not None:
             motion = achieved_motion(poses.p[name], poses.axis(task.frame(name)))
             motion["frame"] = name
-    return TrialResult(job.trial, job.seed, job.grid, len(qs), fallback, stats, units, series, hand, trace, motion)
+    procedure = None if phases is None else phases.summary(s.period, series_values)
+    return TrialResult(job.trial, job.seed, job.grid, len(qs), fallback, stats, units, series, hand, trace, motion,
+                       procedure)
 
 
 def achieved_motion(p: np.ndarray, axis: np.ndarray) -> dict:

@@ -31,6 +31,10 @@ the command line overrides the scalar ones. Every value is SI inside; bare numbe
     metrics:                   # names for the errors of the task's constraints, with the paper's figures
       pivot_error: {error_of: tip stays_at, paper: {encoders: [0.01, 0.01], tracker: [0.23, 0.11]}}
       tool_tilt: {tilt_of: tip, normal_of: plate}
+    pushes:                    # scripted forces and torques over time segments (vfdsl.sim.scripted)
+      - {input: hand, from: 3 s, to: 6 s, magnitude: 3 N, direction: [0, 0, -1]}
+    buttons: {go: {from: 2 s, to: 2.1 s}}    # button inputs' presses
+    sensors: {hand: {noise: 0.02 N}}          # an input's sensor noise (3-D RMS)
 
 Motions and disturbances are separate lists: a disturbance is an event (the world changes once, at ``at``);
 a motion is a law of time that moves one run-time param every tick (:class:`Motion`). A motion displaces
@@ -65,6 +69,7 @@ from vfdsl.passes.scene import (ValueReader, compose, node_span, read_mapping,  
                                 read_units)
 from vfdsl.primitives.spec import SCALAR_DIMENSIONS
 from vfdsl.runtime.values import ASSUMED_PERIOD
+from vfdsl.sim.scripted import read_buttons, read_pushes, read_sensors
 from vfdsl.sim.settings import (DISTURBANCE_KINDS, HAND_KINDS, MARKER_DISTANCES,
                                 MAX_TREMOR_FREQUENCY, MOTION_KINDS, MOVABLE, SCENE_LIMITS,
                                 GRID_NAMES, SCALARS, Disturbance, HandSettings, MetricSpec, Motion, SimSettings, check_motions,
@@ -73,7 +78,7 @@ from vfdsl.sim.settings import (DISTURBANCE_KINDS, HAND_KINDS, MARKER_DISTANCES,
 from vfdsl.syntax import ast
 
 TOP_KEYS = ("units", "duration", "period", "latency", "servo_lag", "resolution", "trials", "seed", "tracker",
-             "hand", "disturbances", "motions", "metrics")
+             "hand", "disturbances", "motions", "metrics", "pushes", "buttons", "sensors")
 MOTION_KEYS = {"sine": ("param", "kind", "amplitude", "frequency", "phase"),
                 "step": ("param", "kind", "at", "offset"),
                 "ramp": ("param", "kind", "start", "end", "offset")}
@@ -115,7 +120,10 @@ def load_settings(task: ir.Task, scene: str | Path | None) -> SimSettings:
         return base
     path = Path(scene)
     text = read_text(path, "simulation scene")
-    return _Reader(task, str(path)).settings(compose(text, path), base)
+    try:
+        return _Reader(task, str(path)).settings(compose(text, path), base)
+    except VfError as err:                      # a mistake in the scene file: E602 unless it has a code of its own
+        raise (err if err.code else err.with_code("E602")) from None
 
 
 def _si(node: ast.Value, dim: u.Dim, units: u.DefaultUnits) -> float:
@@ -143,6 +151,15 @@ class _Reader:
             if key not in keys:
                 raise VfError(f"unknown key '{key}' in {what}", self.pos(key_node), hint=suggest(key, keys, "keys"))
         return fields
+
+    def fields(self, node: yaml.MappingNode) -> dict[str, tuple[yaml.Node, yaml.Node]]:
+        return read_mapping(node, self.file)
+
+    def aim(self, node: yaml.Node, what: str) -> tuple[float, float, float] | str:
+        """A direction: 3 numbers, or the name of a direction or vector param."""
+        if isinstance(node, yaml.ScalarNode):
+            return self.param(node, ("direction", "vector"), what)
+        return self.direction(node, what)
 
     def text(self, node: yaml.Node, what: str) -> str:
         if not isinstance(node, yaml.ScalarNode) or not str(node.value).strip():
@@ -240,6 +257,10 @@ class _Reader:
                 raise VfError("metrics is a mapping from names to {error_of: ...} or {tilt_of: ...}", self.pos(node))
             values["metrics"] = tuple(self.metric(name, key, value)
                                       for name, (key, value) in read_mapping(node, self.file).items())
+        for key, read, name in (("pushes", read_pushes, "pushes"), ("buttons", read_buttons, "presses"),
+                                ("sensors", read_sensors, "sensors")):
+            if key in top:
+                values[name] = read(self, top[key][1])
         return dataclasses.replace(base, **values)
 
     # ---------------------------------------------------------------------------------------- hand
@@ -294,9 +315,7 @@ class _Reader:
                 self.plausible(out[key], u.TIME, fields[key][1], f"a hand's {key}")
         for key in ("direction", "axis"):
             if key in fields:
-                value = fields[key][1]
-                out["direction"] = (self.param(value, ("direction", "vector"), key) if isinstance(value, yaml.ScalarNode)
-                                    else self.direction(value, key))
+                out["direction"] = self.aim(fields[key][1], key)
         if "curve" in fields:
             out["curve"] = self.param(fields["curve"][1], ("curve",), "curve")
         if "target" in fields:

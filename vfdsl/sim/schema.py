@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import json
 
-from vfdsl.sim import scene_file
+from vfdsl.sim import scene_file, scripted
 from vfdsl.sim import settings as s
 
 QUANTITY = {"type": ["number", "string"], "description": "a number in the scene's units, or a number with its unit"}
@@ -41,6 +41,9 @@ _TOP = {
     "disturbances": (None, "one-off events at a time"),
     "motions": (None, "run-time params moved over time"),
     "metrics": (None, "names for the errors of the task's constraints, and tilt metrics"),
+    "pushes": (None, "scripted forces or torques on inputs, each over a time segment, added to the hand's"),
+    "buttons": (None, "button inputs' presses: per button a press {from, to}, a time (a 100 ms press) or a list"),
+    "sensors": (None, "inputs read with sensor noise: per input {noise, angular_noise}"),
 }
 _TRACKER = {"noise": (QUANTITY, "RMS 3-D noise of one marker (a length)"),
             "marker_distance": (QUANTITY, "second marker this far up the tool axis (default 100 mm)")}
@@ -76,6 +79,15 @@ _MOTION = {"param": (NAME, "a run-time param"), "kind": (None, ""),
            "at": (QUANTITY, "step: d(t) = offset from this time on"), "offset": (_SIZE, "step, ramp: the displacement"),
            "start": (QUANTITY, "ramp: offset reached linearly from start to end"),
            "end": (QUANTITY, "ramp: after start")}
+_PUSH = {"input": (NAME, "the task's input pushed"),
+         "kind": ({"enum": list(scripted.PUSH_KINDS)}, "push: a force (linear part, default); turn: a torque"),
+         "magnitude": (QUANTITY, "force (N), torque (N m), or speed for a twist input"),
+         "direction": ({"oneOf": [VECTOR, NAME]}, "a vector, or a direction or vector param"),
+         "from": (QUANTITY, "the push acts from this time (default 0)"),
+         "to": (QUANTITY, "until this time (default: the end of the run)")}
+_PRESS = {"from": (QUANTITY, "pressed from this time"), "to": (QUANTITY, "released at this time")}
+_SENSOR = {"noise": (QUANTITY, "3-D RMS white noise on the linear part (a force: N)"),
+           "angular_noise": (QUANTITY, "3-D RMS white noise on the angular part (a torque: N m)")}
 _METRIC = {"error_of": (NAME, "the constraint scored, \"frame primitive\" like \"tip stays_at\""),
            "tilt_of": (NAME, "a frame whose tool axis is measured from a pose param's z axis"),
            "normal_of": (NAME, "tilt_of: the pose param"),
@@ -119,6 +131,11 @@ def scene_schema() -> dict:
     top["disturbances"] |= {"type": "array", "items": _by_kind(_DISTURBANCE, DISTURBANCE_KEYS, DISTURBANCE_REQUIRED)}
     top["motions"] |= {"type": "array", "items": _by_kind(_MOTION, scene_file.MOTION_KEYS, motion_required)}
     top["metrics"] |= {"type": "object", "additionalProperties": metric}
+    top["pushes"] |= {"type": "array", "items": _object(_PUSH, scripted.PUSH_KEYS, ("input", "magnitude", "direction"))}
+    press = {"oneOf": [QUANTITY, _object(_PRESS, scripted.PRESS_KEYS, ("from", "to"))]}
+    top["buttons"] |= {"type": "object", "additionalProperties": {"oneOf": [press, {"type": "array", "items": press,
+                                                                                     "minItems": 1}]}}
+    top["sensors"] |= {"type": "object", "additionalProperties": _object(_SENSOR, scripted.SENSOR_KEYS)}
     return {"$schema": "https://json-schema.org/draft/2020-12/schema",
             "$id": "https://vfdsl.invalid/simulate.schema.json",
             "title": "vfdsl simulation scene (<task>.sim.yaml)",

@@ -130,6 +130,56 @@ def check_motions(motions: tuple[Motion, ...], period: float) -> None:
                           hint="lower the frequency, or shorten the period")
 
 
+PRESS_TIME = 0.1
+"""s: how long a button pressed at a time (a bare time in a scene's ``buttons:``) stays down, a quick press."""
+
+
+@dataclass(frozen=True)
+class Push:
+    """A scripted push: a constant force (``push``) or torque (``turn``) of ``magnitude`` along ``direction`` on one
+    input, from ``start`` (s) until ``end`` (s, None: the end of the run), added to the hand's."""
+
+    input: str
+    magnitude: float                            # N, N m (or m/s, rad/s for a twist)
+    direction: tuple[float, ...] | str          # a vector or a direction or vector param
+    kind: str = "push"                          # push: the linear part; turn: the angular part
+    start: float = 0.0
+    end: float | None = None
+    where: Span | None = None
+
+    def active(self, t: float) -> bool:
+        return in_segment(t, self.start, self.end)
+
+
+@dataclass(frozen=True)
+class Press:
+    """A button input held down (1) from ``start`` until ``end`` (s); released (0) otherwise."""
+
+    input: str
+    start: float
+    end: float
+    where: Span | None = None
+
+    def active(self, t: float) -> bool:
+        return in_segment(t, self.start, self.end)
+
+
+def in_segment(t: float, start: float, end: float | None) -> bool:
+    """Whether time t lies in [start, end) (end None: no end), to the ticks' rounding (1e-12 s)."""
+    return start - 1e-12 <= t and (end is None or t < end - 1e-12)
+
+
+@dataclass(frozen=True)
+class SensorNoise:
+    """White noise on an input as its sensor reads it: per tick and axis Gaussian, 3-D RMS ``linear`` on the
+    input's linear part and ``angular`` on its angular part (a live sensor's reading never repeats exactly)."""
+
+    input: str
+    linear: float = 0.0
+    angular: float = 0.0
+    where: Span | None = None
+
+
 @dataclass(frozen=True)
 class MetricSpec:
     """A named metric: the error of one constraint (``error_of: "tip stays_at"``), or the angle between a
@@ -158,6 +208,9 @@ class SimSettings:
     disturbances: tuple[Disturbance, ...] = ()
     motions: tuple[Motion, ...] = ()
     metrics: tuple[MetricSpec, ...] = ()
+    pushes: tuple[Push, ...] = ()               # scripted pushes over time segments
+    presses: tuple[Press, ...] = ()             # button presses
+    sensors: tuple[SensorNoise, ...] = ()       # inputs read with sensor noise
     scene: str | None = None                    # the file these came from
 
     def replace(self, **changes) -> "SimSettings":
@@ -171,7 +224,7 @@ class SimSettings:
     def summary(self) -> dict:
         """The settings as plain JSON data (SI units)."""
         data = dataclasses.asdict(self)
-        for d in data["disturbances"] + data["motions"]:
+        for d in data["disturbances"] + data["motions"] + data["pushes"] + data["presses"] + data["sensors"]:
             d.pop("where")
         for m in data["metrics"]:
             m.pop("where")
@@ -211,7 +264,8 @@ def check_setting(name: str, value, where: Span | None = None) -> None:
     elif name == "seed":
         if not (isinstance(value, int) and 0 <= value <= limits.SEED):
             raise VfError(f"seed must be a whole number from 0 to {limits.SEED:,}, got {value!r}", where)
-    elif name not in ("hand", "disturbances", "motions", "metrics", "scene", "marker_distance"):
+    elif name not in ("hand", "disturbances", "motions", "metrics", "scene", "marker_distance", "pushes", "presses",
+                      "sensors"):
         raise VfError(f"unknown setting '{name}'", where, hint=suggest(name, GRID_NAMES, "settings"))
 
 
@@ -229,8 +283,9 @@ GRID_NAMES = ("duration", "period", "latency", "servo_lag", "noise", "resolution
 
 
 def tracked_frame(task: ir.Task, input_name: str) -> str | None:
-    """The frame that ``minimize track(frame, input)`` moves with this input, if any."""
-    for o in task.objectives:
+    """The frame that ``minimize track(frame, input)`` moves with this input, if any (outside the phases first,
+    then in the phases of a procedure, in file order)."""
+    for o in task.objectives + [o for phase in task.phases for o in phase.objectives]:
         if o.term == "track" and o.args["input"].name == input_name:
             return o.args["frame"].name
     return None

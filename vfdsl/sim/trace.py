@@ -25,6 +25,9 @@ for m/s, ``rad_s`` for rad/s; a dimensionless number has no suffix)::
                                    the first tick of the trial and after a disturbance)
     tracker.<name>_<unit>          the same metric measured by the simulated tracker (when it has noise)
 
+A procedure's trace has, after ``violations``, ``phase`` (the phase the step solved, by name) and one
+``monitor.<name>`` column per named monitor (1 when it held at the tick, else 0): :mod:`vfdsl.sim.phases`.
+
 Metrics are in SI here (m, rad, m/s, rad/s; a share in % as a fraction), where the summary table shows mm,
 deg and %. An empty CSV cell is a missing value (NaN in Parquet). The Parquet file carries the same columns
 (float64, int64 and string) and, in its schema metadata, ``vfdsl.task`` and ``vfdsl.file``.
