@@ -41,7 +41,8 @@ BUFFERS = (
     Buffer("violation", "rows", "result", "each general row's excess over its bounds"),
 )
 PHASE_BUFFERS = (
-    Buffer("activity", "activity", "phase", "per phase its weight in [0, 1], then per phase 1: its hard rows on"),
+    Buffer("activity", "activity", "phase", "per phase its weight in [0, 1], then per phase 1: its hard rows on, "
+           "then per funnelled hard constraint of a phase its funnel width (its tolerance's unit, >= 0)"),
 )
 """A procedure's buffers, taken after ``dt``. A task without phases has none: its step and its generated C are
 those of :data:`BUFFERS` alone, as before procedures (the generated C does not run a procedure yet: vfdsl.pipeline

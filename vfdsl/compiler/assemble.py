@@ -30,7 +30,7 @@ Every row of A and every variable bound keeps a :class:`RowLabel` naming its pri
 source line (and the fixture ``use`` sites it came through), and its phase in a procedure.
 
 A procedure's phases are all in this one QP, switched by the ``activity`` argument (:mod:`vfdsl.compiler.phases`):
-``qp_data(q, u, p, dt, activity)``.
+``qp_data(q, u, p, dt, activity)``, which also carries the funnel widths of the phases' hard constraints.
 """
 
 from __future__ import annotations
@@ -43,7 +43,7 @@ import numpy as np
 from vfdsl.codegen import tick_buffers
 from vfdsl.compiler import registry
 from vfdsl.compiler.context import Context
-from vfdsl.compiler.phases import Gate, gated_statements
+from vfdsl.compiler.phases import Gate, gated_statements, lowered
 from vfdsl.compiler.rows import Rows
 from vfdsl.errors import Span
 from vfdsl.ir import model as ir
@@ -179,7 +179,7 @@ def assemble(task: ir.Task, robot: Robot) -> AssembledProblem:
     soft_rows: list[tuple[int, Rows, ir.Constraint, int, Gate]] = []
     constraints, objectives = gated_statements(task, ctx)
     for number, (c, gate) in enumerate(constraints):
-        rows = registry.constraint(c.primitive).lower(c, ctx)
+        rows = lowered(c, gate, ctx)
         if c.soft:
             soft_rows.append((len(soft_rows), rows, c, number, gate))
         elif rows.bounds:

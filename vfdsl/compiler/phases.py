@@ -8,10 +8,20 @@ an infinite bound as inactive, and the violation output and the least-violation 
 The task's phase-less statements are not gated: a task without phases compiles to the same graph as before
 procedures. Values, not structure: a transition changes no sparsity, so the solver's warm start survives it.
 
+**Funnel.** After the 2P entries, ``activity`` holds one width w_j >= 0 per funnelled constraint (a phase's hard
+constraint whose primitive has a tolerance, :func:`funnelled`, in phase order): its rows' bounds become
+(lb - w_j k_lb, ub + w_j k_ub), k = -d lb/d eps and d ub/d eps the rows' scale in the tolerance eps, read off the
+lowering with eps a symbol (1 for the facet rows of stays_at, along, keeps_direction, ...; 0 for a row the
+tolerance does not enter, such as on_plane's "not below"), so a width in the tolerance's unit widens the
+tolerance by exactly that: eps + w_j. Its entry error e_j, the width that makes its rows hold at dq = 0
+(max over rows with k > 0 of lb/k_lb and -ub/k_ub, and 0), is an output of ``captures`` (below); the run time
+sets w_j = e_j x the machine's funnel factor (:mod:`vfdsl.runtime.procedure`).
+
 **Captures** are run-time param slots after the params (:class:`vfdsl.compiler.context.ParamLayout`): a
 :class:`~vfdsl.ir.model.CaptureRef` reads its slot as a param of its type. ``captures(q, u, p)`` gives, per phase,
 its captures' values at this tick's state (a frame's origin or tool axis in the world, an input, a param), in slot
-order, which the run time writes into p when the phase is entered.
+order, which the run time writes into p when the phase is entered; then, per phase, its funnelled constraints'
+entry errors e_j at (q, u, p), which the run time reads with p holding the captures just taken.
 
 **Monitors.** ``monitor_values(q, u, p) -> raw`` gives each compiled comparison's signed margin (true when > 0):
 ``m < t`` and ``m <= t`` give t - m, ``m > t`` and ``m >= t`` give m - t (at equality both are false: 0 is not
@@ -23,11 +33,14 @@ the tool axis a and a direction d, atan2(|a x d|, a'd) in [0, pi]; ``norm`` of a
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import casadi as ca
+import numpy as np
 
+from vfdsl.compiler import registry
 from vfdsl.compiler.context import Context
+from vfdsl.compiler.rows import Rows
 from vfdsl.inputs import input_type
 from vfdsl.ir import model as ir
 
@@ -37,11 +50,13 @@ INF = ca.inf
 @dataclass(frozen=True)
 class Gate:
     """How a statement is switched: ``weight`` multiplies its objective weights (None: 1), ``on`` (> 1/2) keeps its
-    hard rows' bounds (None: always); ``phase``: its phase's name (None: every phase)."""
+    hard rows' bounds (None: always); ``phase``: its phase's name (None: every phase); ``width``: a funnelled
+    constraint's funnel width (None: not funnelled)."""
 
     weight: ca.SX | None = None
     on: ca.SX | None = None
     phase: str | None = None
+    width: ca.SX | None = None
 
     def scaled(self, weight):
         """An objective or slack weight as this gate scales it."""
@@ -58,28 +73,81 @@ class Gate:
 ALWAYS = Gate()
 
 
+def funnels(c: ir.Constraint) -> bool:
+    """Whether a phase's constraint gets a funnel width: hard, of a primitive with a tolerance."""
+    return not c.soft and c.tolerance is not None
+
+
+def funnelled(phase: ir.Phase) -> list[ir.Constraint]:
+    """The phase's constraints that get a funnel width, in statement order."""
+    return [c for c in phase.constraints if funnels(c)]
+
+
 def gated_statements(task: ir.Task, ctx: Context) -> tuple[list[tuple[ir.Constraint, Gate]],
                                                           list[tuple[ir.Objective, Gate]]]:
     """Every constraint and objective of the task with its gate: the phase-less ones first (ungated), then each
-    phase's, in phase order, gated by its activity entries."""
+    phase's, in phase order, gated by its activity entries (a funnelled constraint's gate with its width, the
+    widths appended to ``ctx.activity``)."""
     constraints = [(c, ALWAYS) for c in task.constraints]
     objectives = [(o, ALWAYS) for o in task.objectives]
     n = len(task.phases)
+    if n and ctx.activity.numel() == 2 * n:
+        widths = sum(len(funnelled(phase)) for phase in task.phases)
+        ctx.activity = ca.vertcat(ctx.activity, ca.SX.sym("funnel", widths))
+    j = 2 * n
     for k, phase in enumerate(task.phases):
         gate = Gate(ctx.activity[k], ctx.activity[n + k], phase.name)
-        constraints += [(c, gate) for c in phase.constraints]
+        for c in phase.constraints:
+            if funnels(c):
+                constraints.append((c, replace(gate, width=ctx.activity[j])))
+                j += 1
+            else:
+                constraints.append((c, gate))
         objectives += [(o, gate) for o in phase.objectives]
     return constraints, objectives
 
 
+def lowered(c: ir.Constraint, gate: Gate, ctx: Context) -> Rows:
+    """The constraint's rows; a funnelled one's with its bounds widened by its width: (lb - w k_lb, ub + w k_ub)."""
+    if gate.width is None:
+        return registry.constraint(c.primitive).lower(c, ctx)
+    rows, k_lb, k_ub = _scaled_rows(c, ctx)
+    return replace(rows, lb=rows.lb - gate.width * k_lb, ub=rows.ub + gate.width * k_ub)
+
+
+def _scaled_rows(c: ir.Constraint, ctx: Context) -> tuple[Rows, ca.DM, ca.DM]:
+    """The rows at the declared tolerance eps and their scales k_lb = -d lb/d eps, k_ub = d ub/d eps, from the
+    lowering with eps a symbol (the rows are affine in eps; a scale that depends on the state is an error)."""
+    eps = ca.SX.sym("eps")
+    rows = registry.constraint(c.primitive).lower(c.model_copy(update={"tolerance": eps}), ctx)
+    lb, ub = ca.SX(rows.lb), ca.SX(rows.ub)
+    k_lb, k_ub = (ca.evalf(ca.substitute(k, eps, c.tolerance))
+                  for k in (-ca.jacobian(lb, eps), ca.jacobian(ub, eps)))
+    return (replace(rows, lb=ca.substitute(lb, eps, c.tolerance), ub=ca.substitute(ub, eps, c.tolerance)),
+            k_lb, k_ub)
+
+
+def _entry_error(c: ir.Constraint, ctx: Context) -> ca.SX:
+    """e >= 0, how far beyond its declared tolerance the constraint is at this state, in the tolerance's unit: the
+    least width that makes its rows hold at dq = 0."""
+    rows, k_lb, k_ub = _scaled_rows(c, ctx)
+    k_lb, k_ub = np.array(k_lb).ravel(), np.array(k_ub).ravel()
+    excess = [rows.lb[i] / k_lb[i] for i in np.flatnonzero(k_lb > 0)]
+    excess += [-rows.ub[i] / k_ub[i] for i in np.flatnonzero(k_ub > 0)]
+    return ca.fmax(0, ca.mmax(ca.vertcat(*excess))) if excess else ca.SX(0)
+
+
 def captures_function(task: ir.Task, ctx: Context) -> ca.Function:
-    """``captures(q, u, p) -> (values of phase 1, ..., values of phase P)``: each phase's captures, in slot order."""
-    outputs = []
+    """``captures(q, u, p) -> (values of phase 1, ..., values of phase P, errors of phase 1, ..., of phase P)``:
+    each phase's captures, in slot order, then its funnelled constraints' entry errors (:func:`funnelled`)."""
+    outputs, errors = [], []
     for phase in task.phases:
         values = [_capture_value(c.source, ctx) for c in phase.captures]
         outputs.append(ca.vertcat(*values) if values else ca.SX(0, 1))
-    return ca.Function("captures", [ctx.q, ctx.u, ctx.p], outputs, ["q", "u", "p"],
-                       [phase.name for phase in task.phases])
+        entry = [_entry_error(c, ctx) for c in funnelled(phase)]
+        errors.append(ca.vertcat(*entry) if entry else ca.SX(0, 1))
+    return ca.Function("captures", [ctx.q, ctx.u, ctx.p], outputs + errors, ["q", "u", "p"],
+                       [phase.name for phase in task.phases] + [f"{phase.name} funnel" for phase in task.phases])
 
 
 def _capture_value(source, ctx: Context) -> ca.SX:

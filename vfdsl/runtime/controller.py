@@ -163,19 +163,26 @@ class Controller:
                                 levels=priority_levels(outputs, self.assembled.levels))
 
     def tracking(self, q, inputs=None, params=None, dt=None) -> list[Tracking]:
-        """Runs the tick (as :meth:`step`) and says, for every part of every `track` term, the commanded and the
-        achieved rate and, when less than 99 % of the command is achieved, what holds it back (rows at their
-        bounds, joints at their speed or position limits, by label)."""
+        """Runs the tick (as :meth:`step`) and says, for every part of every `track` term held in every phase and
+        of the procedure's phase after the tick, the commanded and the achieved rate and, when less than 99 % of
+        the command is achieved, what holds it back (rows at their bounds, joints at their speed or position
+        limits, by label)."""
         self.step(q, inputs, params, dt)
         args = self._data(q, inputs, params, dt)[:4]
-        names, rows = self.tracked_parts
+        names, phases, rows = self._tracked
+        shown = [phase is None or phase == self.phase for phase in phases]
         return readout(names, rows(*args), np.array(self._runner.x), self.nq, float(args[3]),
-                       self.problem(q, inputs, params, dt))
+                       self.problem(q, inputs, params, dt), shown)
+
+    @property
+    def tracked_parts(self):
+        """(names, Function (q, u, p, dt) -> E_1, f_1, E_2, f_2, ...) of every tracked part, every phase's included:
+        its rows (dq -> rate, divided by dt) and its commanded rate (:func:`vfdsl.runtime.tracking.tracked_terms`)."""
+        names, _, rows = self._tracked
+        return names, rows
 
     @cached_property
-    def tracked_parts(self):
-        """(names, Function (q, u, p, dt) -> E_1, f_1, E_2, f_2, ...) of every tracked part: its rows (dq -> rate,
-        divided by dt) and its commanded rate (:func:`vfdsl.runtime.tracking.tracked_terms`)."""
+    def _tracked(self):
         return tracked_terms(self.task, self.assembled)
 
     def frames(self, q) -> dict[str, FramePose]:

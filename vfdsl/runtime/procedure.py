@@ -13,12 +13,15 @@ them (monitors may name monitors later in the file: they are placed in dependenc
 1. at the first tick (and the first after :meth:`Procedure.reset`), every capture takes its start value;
 2. raw = monitor_values(q, u, p) with p = [params; captures], and the machine advances (its least-violation
    monitor reads the previous tick's status, 0 at the first);
-3. on a transition, the new phase's captures are taken from this tick's q, u;
-4. ``activity`` = the machine's weights, then 1 for the current phase's hard rows and 0 for every other's; the
+3. on a transition, the new phase's captures are taken from this tick's q, u, then its funnelled constraints'
+   entry errors e_j (beyond their declared tolerances) at this state, captures included; every other's e is 0;
+4. ``activity`` = the machine's weights, then 1 for the current phase's hard rows and 0 for every other's, then
+   the funnel widths e_j x the machine's funnel factor (1 - t/B over the blend, 0 after it and without one); the
    caller solves the QP with it in this same tick.
 
-Hard rows switch at the transition tick, weights blend. A hard fixture violated at entry still snaps: its funnel
-(the machine's ``funnel`` factor widening its tolerance) is the next step, marked in :meth:`Procedure.tick`.
+Hard rows switch at the transition tick, weights blend, and a hard fixture entered violated by e has the
+tolerance declared + e (1 - t/B) during the blend B: it is asked back at the rate e/B instead of at once. A
+non-finite e (a NaN from a degenerate capture) gives no funnel: the declared tolerance holds at once.
 """
 
 from __future__ import annotations
@@ -137,8 +140,14 @@ class Procedure:
         self._user = sum(slot.size for slot in layout.slots.values())
         self._defaults = layout.defaults[:self._user]
         self._slots = [[layout.capture_slots[c.name] for c in phase.captures] for phase in task.phases]
+        n = self.table.phases
+        sizes = [captures.numel_out(n + k) for k in range(n)]
+        self._funnels = [slice(sum(sizes[:k]), sum(sizes[:k + 1])) for k in range(n)]    # into entry_error
         self.p = layout.defaults.copy()
-        self.activity = np.zeros(2 * self.table.phases)
+        self.activity = np.zeros(2 * n + sum(sizes))
+        self.entry_error = np.zeros(sum(sizes))
+        """Per funnelled constraint, its error beyond its tolerance when its phase was last entered (0 for every
+        phase but the current one's), in its tolerance's unit."""
         self.raw = np.zeros(values.size)
         self.lock = threading.Lock()
         self.reset()
@@ -148,6 +157,7 @@ class Procedure:
         self.state = pm.MachineState.initial(self.table)
         self.events: tuple[PhaseEvent, ...] = ()
         self.time = 0.0
+        self.entry_error[:] = 0.0
         self._set_activity()
 
     @property
@@ -178,10 +188,9 @@ class Procedure:
         self.events = ()
         if fired >= 0:
             self._capture(self.state.phase, q, u)
+            self._measure_entry(self.state.phase, q, u)
             transition = self._transitions[fired]
             self.events = (PhaseEvent(source, self.phase, transition.text, self.time),)
-        # the funnel (next step): a hard fixture of the new phase violated at entry by e gets the tolerance
-        # max(declared, e * state.funnel), through a per-phase tolerance argument beside the activity.
         self._set_activity()
         return self.p
 
@@ -192,8 +201,17 @@ class Procedure:
             self.p[slot.offset:slot.offset + slot.size] = values[offset:offset + slot.size]
             offset += slot.size
 
+    def _measure_entry(self, phase: int, q, u) -> None:
+        """The entered phase's funnelled constraints' errors at this state (its captures taken); 0 elsewhere and
+        for an error that is not a finite number."""
+        n = self.table.phases
+        e = np.asarray(self._captures.call([q, u, self.p])[n + phase], dtype=float).ravel()
+        self.entry_error[:] = 0.0
+        self.entry_error[self._funnels[phase]] = np.where(np.isfinite(e) & (e > 0), e, 0.0)
+
     def _set_activity(self) -> None:
         n = self.table.phases
         self.activity[:n] = self.state.weight
-        self.activity[n:] = 0.0
+        self.activity[n:2 * n] = 0.0
         self.activity[n + self.state.phase] = 1.0
+        self.activity[2 * n:] = self.entry_error * self.state.funnel

@@ -40,24 +40,28 @@ class Tracking:
         return text + ("; held by " + "; ".join(self.limits) if self.limits else "")
 
 
-def tracked_terms(task, problem) -> tuple[list[str], ca.Function]:
-    """The names of the tracked parts and a Function (q, u, p, dt) -> (E_1, f_1, E_2, f_2, ...) of their rows
-    (dq -> rate, per tick divided by dt) and commanded rates."""
+def tracked_terms(task, problem) -> tuple[list[str], list[str | None], ca.Function]:
+    """The names of the tracked parts (a phase's: "... in phase NAME"), each one's phase (None: held in every
+    phase) and a Function (q, u, p, dt) -> (E_1, f_1, E_2, f_2, ...) of their rows (dq -> rate, per tick divided
+    by dt) and commanded rates."""
     ctx = problem.context
-    names, outputs = [], []
-    for objective in task.objectives:
+    names, phases, outputs = [], [], []
+    owned = [(o, None) for o in task.objectives] + [(o, ph.name) for ph in task.phases for o in ph.objectives]
+    for objective, phase in owned:
         if objective.term != "track":
             continue
         for term in importlib.import_module("vfdsl.objectives.track").lower(objective, ctx):
             frame = objective.args.get("frame")
-            names.append(f"track({getattr(frame, 'name', '')}){' ' + term.part if term.part else ''}")
+            where = f" in phase {phase}" if phase else ""
+            names.append(f"track({getattr(frame, 'name', '')}){' ' + term.part if term.part else ''}{where}")
+            phases.append(phase)
             outputs += [ca.densify(term.E), ca.densify(term.f)]
-    return names, ca.Function("tracked", [ctx.q, ctx.u, ctx.p, ctx.dt], outputs)
+    return names, phases, ca.Function("tracked", [ctx.q, ctx.u, ctx.p, ctx.dt], outputs)
 
 
-def readout(names, rows, x, nq, dt, qp) -> list[Tracking]:
+def readout(names, rows, x, nq, dt, qp, shown=None) -> list[Tracking]:
     """The readout of one tick from the tracked parts' rows (``rows``: E_1, f_1, ...), the answer x = [dq; s] and
-    the tick's QuadraticProgram (its rows and bounds name the limits)."""
+    the tick's QuadraticProgram (its rows and bounds name the limits); ``shown``: which parts to read (all: None)."""
     dq = np.asarray(x[:nq])
     n = qp.P.shape[0]
     Ax = qp.A @ np.asarray(x)
@@ -65,6 +69,8 @@ def readout(names, rows, x, nq, dt, qp) -> list[Tracking]:
     held = [qp.labels[i] for i in np.flatnonzero(at_bound) if i >= n or i < nq]    # not slack >= 0
     found = []
     for k, name in enumerate(names):
+        if shown is not None and not shown[k]:
+            continue
         E, f = np.array(rows[2 * k]), np.array(rows[2 * k + 1]).ravel()
         achieved = E @ dq / dt
         fraction = float(achieved @ f / (f @ f)) if f @ f > 0 else float("nan")
