@@ -1,6 +1,6 @@
 """The largest joint acceleration at a procedure's transitions, with the example's blend and without one.
 
-    python benchmarks/procedure_transitions.py          # about 20 s: the example twice, interpreted
+    python benchmarks/procedure_transitions.py          # about 6 s: the example four times, interpreted
 
 The example tasks/procedures/needle_procedure.vf (blend 200 ms), and the same task with every blend 0, are driven
 by the same script at dt = 1 ms (tests/test_procedure_runtime.py's, the pull out at 1 ms too): the button at tick
