@@ -6,6 +6,7 @@ the scene's new fields refused at their lines."""
 from __future__ import annotations
 
 import dataclasses
+import json
 import re
 from pathlib import Path
 
@@ -229,3 +230,18 @@ def test_pushes_and_presses_after_the_end_are_warned_of(tmp_path, settings):
     assert any("the press of 'go' at 2.3 s" in w for w in warnings)
     assert any("the push on 'hand' from 3 s" in w for w in warnings)
     assert not any("from 0 s" in w for w in warnings)
+
+
+def test_the_command_prints_and_writes_the_procedure(tmp_path, capsys):
+    """`vfdsl simulate` (its default backend) prints the per-phase table and writes the phases and transitions."""
+    from vfdsl.cli import main
+
+    out = tmp_path / "run.json"
+    assert main(["simulate", str(TASK), "--json", str(out)]) == 0
+    printed = capsys.readouterr().out
+    doc = json.loads(out.read_text())
+    assert [(e["source"], e["target"]) for e in doc["procedure"]["transitions"]] == [
+        ("approach", "align"), ("align", "insert"), ("insert", "retract"), ("retract", "done")]
+    assert [p["name"] for p in doc["procedure"]["phases"]] == [p.name for p in vfdsl.load(TASK).phases]
+    assert "transitions: tick (s), from -> to, the guard that held" in printed
+    assert re.search(r"^retract\s+\d+\.\d{3}\s+\d+ \(", printed, re.M)
