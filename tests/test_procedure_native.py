@@ -10,6 +10,7 @@ import pytest
 import vfdsl
 from vfdsl.runtime.native import NativeProcedure
 
+from test_procedure_funnel import TASK as FUNNEL_TASK, Entry
 from test_procedure_runtime import EXAMPLE, Driver
 
 DQ_TOL = 1e-9
@@ -34,7 +35,8 @@ class Both:
                 d.ctrl.step = lambda q, inputs, dt, _step=step: _step(q, inputs, dt=Float(dt))
             d.tick(**kw)
             d.ctrl.step = step
-            self.trace[name].append((d.q - q, d.ctrl.phase, d.ctrl.events, d.ctrl.monitors))
+            self.trace[name].append((d.q - q, d.ctrl.phase, d.ctrl.events, d.ctrl.monitors,
+                                     d.ctrl._procedure.activity.copy()))
 
     def ticks(self, n, **kw):
         for _ in range(n):
@@ -80,6 +82,28 @@ def test_same_phases_events_and_monitors_every_tick(both):
 def test_same_dq_every_tick(both):
     worst = max(np.max(np.abs(a[0] - b[0])) for a, b in zip(both.trace["interpreted"], both.trace["native"]))
     assert worst < DQ_TOL
+
+
+def test_same_activity_every_tick_funnel_widths_included(both):
+    interpreted, native = both.trace["interpreted"], both.trace["native"]
+    assert native[0][4].size > 2 * len(both.native.ctrl.task.phases)     # the example has funnelled constraints
+    assert max(np.max(np.abs(a[4] - b[4])) for a, b in zip(interpreted, native)) < 1e-12
+
+
+@pytest.mark.parametrize("blend_ms", [200, 0])
+def test_a_fixture_entered_violated_gets_the_same_funnel_in_c(tmp_path, blend_ms):
+    path = tmp_path / "funnel.vf"
+    path.write_text(FUNNEL_TASK.replace("BLEND", str(blend_ms)))
+    task = vfdsl.load(path)
+    runs = [Entry(vfdsl.compile(task, backend=backend), 0.5e-3 + 2e-3) for backend in ("interpreted", "native")]
+    for run in runs:
+        run.enter(260)
+    interpreted, native = runs
+    widths = np.array(native.widths)[:, 0]
+    assert widths.max() == (pytest.approx(2e-3 * (1 - 0.001 / 0.2), abs=1e-9) if blend_ms else 0.0)   # at entry
+    assert np.max(np.abs(widths - np.array(interpreted.widths)[:, 0])) < 1e-12
+    assert np.max(np.abs(np.array(native.distance) - interpreted.distance)) < 1e-9
+    assert native.status == interpreted.status
 
 
 def test_same_captures(both):

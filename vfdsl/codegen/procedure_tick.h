@@ -5,9 +5,13 @@
  *   1. at the first tick (and the first after vfdsl_procedure_reset), every phase's captures take their value;
  *   2. raw = <prefix>_monitor_values(q, u, p) with p = [params; captured values], and the machine advances
  *      (phase_machine.h; its least-violation monitor reads the previous tick's status, 0 at the first);
- *   3. on a transition, the new phase's captures are taken from this tick's q and u;
+ *   3. on a transition, the new phase's captures are taken from this tick's q and u, then its funnelled
+ *      constraints' entry errors e_j (<prefix>_captures' outputs after the phases' captures; a non-finite or
+ *      negative e is 0), every other phase's e 0;
  *   4. activity (the step's phase buffer) = the machine's weights, then 1 for the current phase's hard rows
- *      and 0 for every other's: the one place in C where it is computed.
+ *      and 0 for every other's, then the funnel widths e_j x the machine's funnel factor: the one place in C
+ *      where it is computed. The widths' count is the buffer's length (from the compiled step) less 2 per phase,
+ *      and each phase's is the length of its entry errors' output (from the compiled captures).
  *
  * Include it after the task's generated header (which defines VFDSL_PROCEDURE, the phase buffers' slots and
  * the machine's constant arrays vfdsl_pt_*) and checked_step.h. vfdsl_procedure_open allocates every array;
@@ -21,14 +25,17 @@
 #define VFDSL_MONITOR_VALUES_WORK VFDSL_CAT(VFDSL_PREFIX, _monitor_values_work)
 #define VFDSL_CAPTURES VFDSL_CAT(VFDSL_PREFIX, _captures)
 #define VFDSL_CAPTURES_WORK VFDSL_CAT(VFDSL_PREFIX, _captures_work)
+#define VFDSL_CAPTURES_SPARSITY_OUT VFDSL_CAT(VFDSL_PREFIX, _captures_sparsity_out)
 #define VFDSL_N_PHASES VFDSL_PT_FINAL
+#define VFDSL_N_WIDTHS (VFDSL_ACTIVITY_LENGTH - 2 * VFDSL_N_PHASES)
 
 typedef struct {
   vfdsl_pm_table table;            /* the generated header's constant arrays */
   vfdsl_pm_state state;
   double* raw;                     /* [VFDSL_PT_RAW_SIZE]: this tick's compiled monitor values */
   double* captured;                /* the captured values, kept between ticks (p's slots after the params) */
-  double* values;                  /* one phase's captures as the generated function gives them */
+  double* values;                  /* one phase's captures (or entry errors) as the generated function gives them */
+  double* entry_error;             /* [VFDSL_N_WIDTHS]: per funnelled constraint its error at its phase's entry */
   double time;                     /* s since the first tick: the sum of dt */
   int source;                      /* the phase before the last tick */
   const casadi_real** arg;         /* work arrays of monitor_values and captures (shared) */
@@ -59,6 +66,8 @@ static int vfdsl_procedure_open(vfdsl_procedure* r, double* activity) {
     long i, n = 0;
     for (i=0; i<VFDSL_PT_CAPTURE_SIZE; ++i) if (vfdsl_pt_capture_phase[i] == k) n += vfdsl_pt_capture_size[i];
     if (n > most) most = n;
+    n = VFDSL_CAPTURES_SPARSITY_OUT(VFDSL_N_PHASES + k)[0];      /* a dense column: its rows */
+    if (n > most) most = n;
   }
   VFDSL_MONITOR_VALUES_WORK(&sz_arg, &sz_res, &sz_iw, &sz_w);
   VFDSL_CAPTURES_WORK(&c_arg, &c_res, &c_iw, &c_w);
@@ -73,6 +82,7 @@ static int vfdsl_procedure_open(vfdsl_procedure* r, double* activity) {
   r->raw = (double*) calloc(vfdsl_pt_raw_size[0] + 1, sizeof(double));
   r->captured = (double*) calloc(n_captured + 1, sizeof(double));
   r->values = (double*) calloc(most + 1, sizeof(double));
+  r->entry_error = (double*) calloc(VFDSL_N_WIDTHS + 1, sizeof(double));
   r->state.latch = (int*) calloc(T->n_monitors + 1, sizeof(int));
   r->state.value = (int*) calloc(T->n_monitors + 1, sizeof(int));
   r->state.held = (double*) calloc(T->n_monitors + 1, sizeof(double));
@@ -80,7 +90,8 @@ static int vfdsl_procedure_open(vfdsl_procedure* r, double* activity) {
   r->state.unchanged = (double*) calloc(T->n_watched + 1, sizeof(double));
   r->state.start = (double*) calloc(T->n_phases + 1, sizeof(double));
   r->state.weight = (double*) calloc(T->n_phases + 1, sizeof(double));
-  if (!r->arg || !r->res || !r->iw || !r->w || !r->raw || !r->captured || !r->values || !r->state.latch
+  if (!r->arg || !r->res || !r->iw || !r->w || !r->raw || !r->captured || !r->values || !r->entry_error
+      || !r->state.latch
       || !r->state.value || !r->state.held || !r->state.last || !r->state.unchanged || !r->state.start
       || !r->state.weight) return VFDSL_NO_MEMORY;
   vfdsl_procedure_reset(r, activity);
@@ -89,40 +100,64 @@ static int vfdsl_procedure_open(vfdsl_procedure* r, double* activity) {
 
 static void vfdsl_procedure_close(vfdsl_procedure* r) {
   free(r->arg); free(r->res); free(r->iw); free(r->w); free(r->raw); free(r->captured); free(r->values);
+  free(r->entry_error);
   free(r->state.latch); free(r->state.value); free(r->state.held); free(r->state.last); free(r->state.unchanged);
   free(r->state.start); free(r->state.weight);
   memset(r, 0, sizeof(*r));
 }
 
 /* The step's phase buffer from the machine's state: per phase its weight, then per phase 1 where its hard rows
- * are on (the current phase's). */
+ * are on (the current phase's), then per funnelled constraint its width, its entry error x the funnel factor. */
 static void vfdsl_procedure_activity(const vfdsl_procedure* r, double* activity) {
   int k;
   for (k=0; k<VFDSL_N_PHASES; ++k) {
     activity[k] = r->state.weight[k];
     activity[VFDSL_N_PHASES + k] = k == r->state.phase ? 1.0 : 0.0;
   }
+  for (k=0; k<VFDSL_N_WIDTHS; ++k) activity[2 * VFDSL_N_PHASES + k] = r->entry_error[k] * r->state.funnel;
 }
 
 /* Back to the initial phase; its captures are retaken at the next tick. */
 static void vfdsl_procedure_reset(vfdsl_procedure* r, double* activity) {
+  int k;
   vfdsl_pm_init(&r->table, &r->state);
+  for (k=0; k<VFDSL_N_WIDTHS; ++k) r->entry_error[k] = 0.0;
   r->time = 0.0;
   r->source = r->state.phase;
   vfdsl_procedure_activity(r, activity);
+}
+
+/* Output `output` of <prefix>_captures at the arguments in r->arg (q, u, then p) into r->values. */
+static void vfdsl_procedure_captures(vfdsl_procedure* r, int output) {
+  int k;
+  for (k=0; k<2 * VFDSL_N_PHASES; ++k) r->res[k] = k == output ? r->values : 0;
+  VFDSL_CAPTURES(r->arg, r->res, r->iw, r->w, 0);
 }
 
 /* The phase's captures from the arguments in r->arg (q, u, then p), written into p's slots and kept. */
 static void vfdsl_procedure_capture(vfdsl_procedure* r, int phase, double* p) {
   int k, i, j = 0;
   long kept = 0;
-  for (k=0; k<VFDSL_N_PHASES; ++k) r->res[k] = k == phase ? r->values : 0;
-  VFDSL_CAPTURES(r->arg, r->res, r->iw, r->w, 0);
+  vfdsl_procedure_captures(r, phase);
   for (k=0; k<VFDSL_PT_CAPTURE_SIZE; ++k) {
     if (vfdsl_pt_capture_phase[k] == phase)
       for (i=0; i<vfdsl_pt_capture_size[k]; ++i, ++j)
         p[vfdsl_pt_capture_offset[k] + i] = r->captured[kept + i] = r->values[j];
     kept += vfdsl_pt_capture_size[k];
+  }
+}
+
+/* The entered phase's funnelled constraints' entry errors (its captures taken), 0 for every other phase's and
+ * where not a finite number > 0. */
+static void vfdsl_procedure_measure_entry(vfdsl_procedure* r, int phase) {
+  int k, i, j = 0;
+  vfdsl_procedure_captures(r, VFDSL_N_PHASES + phase);
+  for (k=0; k<VFDSL_N_PHASES; ++k) {
+    int n = (int) VFDSL_CAPTURES_SPARSITY_OUT(VFDSL_N_PHASES + k)[0];
+    for (i=0; i<n; ++i, ++j) {
+      double e = r->values[i];
+      r->entry_error[j] = k == phase && isfinite(e) && e > 0 ? e : 0.0;
+    }
   }
 }
 
@@ -142,7 +177,10 @@ static int vfdsl_procedure_tick(vfdsl_procedure* r, const double* q, const doubl
   r->source = r->state.phase;
   vfdsl_pm_advance(&r->table, &r->state, r->raw, u, dt, first ? 0 : last_status);
   r->time += dt;
-  if (r->state.fired >= 0) vfdsl_procedure_capture(r, r->state.phase, p);
+  if (r->state.fired >= 0) {
+    vfdsl_procedure_capture(r, r->state.phase, p);
+    vfdsl_procedure_measure_entry(r, r->state.phase);
+  }
   vfdsl_procedure_activity(r, activity);
   return r->state.fired;
 }
