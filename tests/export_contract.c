@@ -6,7 +6,8 @@
  *   leaks    three controllers made, stepped over every tick and freed, twice (run it under
  *            AddressSanitizer: a leak or a bad access fails the process); prints "ok"
  *   alloc    with malloc, calloc, realloc and free wrapped (-Wl,--wrap=...): one controller; prints the heap
- *            calls of _new, then of all ticks, set_param (accepted and refused), violations, error_message
+ *            calls of _new, then of all ticks, set_param (accepted and refused), violations, error_message,
+ *            a procedure's _phase, _transition, _monitor and _reset
  *   threads  two threads, each with its own controller, over every tick, against the same ticks run
  *            alone first: prints the number of ticks whose dq or status differ (0 expected)
  *   busy     one controller, two threads calling _step with the first tick until a call was refused: prints
@@ -112,6 +113,7 @@ static int alloc(void) {
   }
   F(_violations)(c, found, 16);
   F(_error_message)(VF_ERR_PARAM);
+  F(_phase)(c); F(_transition)(c); F(_monitor)(c, 0); F(_reset)(c);     /* a procedure's readers and reset */
   F(_step)(c, ticks[0], ticks[0] + nq, dt, dq);
   params = heap_calls;
   F(_free)(c);

@@ -154,6 +154,17 @@ def _native_runner(values: RuntimeValues, problem: AssembledProblem, library: Bu
     return LockedRunner(BufferedFunction.native(library.so_path, prefix), values)
 
 
+def _procedure_metadata(task: ir.Task, problem: AssembledProblem) -> dict:
+    """A procedure's names for the C API: its phases, its named monitors with their index among the machine's
+    monitors, its transitions in file order (source None: any)."""
+    phases = [p.name for p in task.phases]
+    named = _machine(task, problem)[2]
+    return {"phases": phases, "monitors": [{"name": name, "index": k} for name, k in named.items()],
+            "transitions": [{"source": None if tr.source is None else phases.index(tr.source),
+                             "target": phases.index(tr.target), "guard": tr.text}
+                            for tr in sorted(task.transitions, key=lambda tr: tr.order)]}
+
+
 def metadata(task: ir.Task, problem: AssembledProblem, values: RuntimeValues, digest: str) -> dict:
     """What a caller of the generated library needs to know: layouts and units, the admissible run-time values
     (q's range, dt's range, the meaning of each check of the params), rows and where they come from."""
@@ -161,7 +172,8 @@ def metadata(task: ir.Task, problem: AssembledProblem, values: RuntimeValues, di
     admissible = values.admissible
     types = {d.name: d.type for d in task.inputs}
     runtime = [s.name for s in ctx.layout.slots.values() if s.size]     # the run-time params, in param_layout's order
-    return {
+    procedure = {} if not task.phases else {"procedure": _procedure_metadata(task, problem)}
+    return {**procedure,
         "task": task.name,
         "file": task.file,
         "vfdsl_version": vfdsl.__version__,

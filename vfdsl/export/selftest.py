@@ -88,8 +88,9 @@ def build(directory: Path, *targets: str, jobs: int = 2, **variables: str) -> No
                       hint="install a C compiler (cc) or set CC" if missing else None)
 
 
-def replay(directory: Path, lines: list[str], dt: float, params: Path | None = None) -> list[tuple[int, object]]:
-    """Run ``directory/replay`` on ``lines``: per line (status, dq) or (error code, message)."""
+def replay(directory: Path, lines: list[str], dt: float, params: Path | None = None) -> list[tuple]:
+    """Run ``directory/replay`` on ``lines``: per line (status, dq) or (error code, message); a procedure's
+    (status, dq, phase) for a tick it ran."""
     argv = [str(Path(directory) / "replay"), "--dt", repr(dt)] + (["--params", str(params)] if params else [])
     result = subprocess.run(argv, input="\n".join(lines) + "\n", capture_output=True, text=True)
     if result.returncode != 0:
@@ -100,7 +101,9 @@ def replay(directory: Path, lines: list[str], dt: float, params: Path | None = N
         if words[0] == "error":
             answers.append((int(words[1]), " ".join(words[2:])))
         else:
-            answers.append((int(words[0]), np.array([float(x) for x in words[1:]])))
+            numbers, bar, phase = out.partition(" | ")
+            words = numbers.split()
+            answers.append((int(words[0]), np.array([float(x) for x in words[1:]]), *([phase] if bar else [])))
     return answers
 
 
@@ -126,7 +129,7 @@ def self_test(ctrl, exported: Export, count: int) -> float:
         build(copy, "replay")
         answers = replay(copy, [t.line() for t in ticks], ticks[0].dt)
     worst = 0.0
-    for k, (tick, (status, dq)) in enumerate(zip(ticks, answers, strict=True)):
+    for k, (tick, (status, dq, *_)) in enumerate(zip(ticks, answers, strict=True)):
         if status != tick.status:
             raise VfError(f"self-test: tick {k}: the C library answered {status} ({dq if status < 0 else 'status'}), "
                           f"Python's step() status {tick.status}")

@@ -79,6 +79,16 @@ def task_tables(meta: dict) -> str:
             _array("unsigned char", "strict", [str(int(s)) for s in meta["param_checks"]["strict"]]),
             _array("char* const", "check_meanings", [c_string(m) for m in meta["param_checks"]["meaning"]]),
             _array("int", "check_params", [str(k) for k in meta["param_checks"]["param"]])]
+    procedure = meta.get("procedure", {"phases": [], "monitors": [], "transitions": []})
+    transitions = procedure["transitions"]
+    out += [f"#define NPHASES {len(procedure['phases'])}\n", f"#define NMONITORS {len(procedure['monitors'])}\n",
+            f"#define NTRANSITIONS {len(transitions)}\n",
+            _array("char* const", "phase_names", [c_string(n) for n in procedure["phases"]]),
+            _array("char* const", "monitor_names", [c_string(m["name"]) for m in procedure["monitors"]]),
+            _array("int", "monitor_index", [str(m["index"]) for m in procedure["monitors"]]),
+            _array("char* const", "transition_guards", [c_string(t["guard"]) for t in transitions]),
+            _array("int", "transition_sources", [str(-1 if t["source"] is None else t["source"]) for t in transitions]),
+            _array("int", "transition_targets", [str(t["target"]) for t in transitions])]
     out.append("\nstruct row { const char* label; const char* primitive; const char* file; int line; "
                "const char* unit; int soft; };\n")
     for name, table in (("rows", rows), ("slacks", slacks)):

@@ -4,6 +4,7 @@
         vf_<task>.h  vf_<task>.hpp  vf_<task>.c     the API (templates/api.*) and the task's tables (tables.py)
         generated/<prefix>.c  .h                    the generated tick, as build.py writes it
         generated/checked_step.h                    the checks and the evaluation (vfdsl/codegen, shared with Python)
+        generated/procedure_tick.h  phase_machine.h a procedure's machine (vfdsl/codegen, shared with Python)
         generated/vfmesh_*.c                        the proximity query of each mesh the task uses (vfdsl/mesh)
         generated/lexls.c  lexls.h                  the exact solve of priority levels (vfdsl/codegen/lexls.c)
         daqp/LICENSE  daqp/include/daqp/  daqp/src/ DAQP's C sources (vfdsl/codegen/daqp_sources.py)
@@ -26,7 +27,7 @@ from dataclasses import dataclass
 from pathlib import Path, PurePath
 
 import vfdsl
-from vfdsl.codegen.build import CHECKED_STEP, LEXLS_HEADER, LEXLS_SOURCE, BuiltLibrary
+from vfdsl.codegen.build import CHECKED_STEP, LEXLS_HEADER, LEXLS_SOURCE, PROCEDURE_TICK, BuiltLibrary
 from vfdsl.errors import VfError
 from vfdsl.export.tables import comment_text, task_tables
 from vfdsl.ir import model as ir
@@ -114,6 +115,7 @@ def write_export(library: BuiltLibrary, daqp_root: Path, directory: Path) -> Exp
         "generated/checked_step.h": CHECKED_STEP.read_bytes(),
         "generated/lexls.c": LEXLS_SOURCE.read_bytes(), "generated/lexls.h": LEXLS_HEADER.read_bytes(),
         **{f"generated/{name}": (library.c_path.parent / name).read_bytes() for name in extra},
+        **({f"generated/{path.name}": path.read_bytes() for path in PROCEDURE_TICK} if "procedure" in meta else {}),
         "daqp/LICENSE": (daqp_root / "LICENSE").read_bytes(),
         **{f"daqp/include/daqp/{p.name}": p.read_bytes() for p in daqp_headers},
         **{f"daqp/src/{p.name}": p.read_bytes() for p in daqp_sources},

@@ -4,11 +4,15 @@
  * code as Python's Controller.step) over buffers inside the controller, plus a busy flag: every call on a
  * controller (the readers _violations, _error_index and _error_check included) sets it for its duration,
  * and a call that finds it set returns VF_ERR_BUSY without touching anything (an atomic exchange, not a
- * lock: no call ever waits).
+ * lock: no call ever waits). A procedure's controller also holds its machine (procedure_tick.h, the same code as
+ * Python's native Controller), run before each tick's solve.
  */
 #include "@TICK@.h"
 #define VFDSL_PREFIX @TICK@
 #include "checked_step.h"
+#ifdef VFDSL_PROCEDURE
+#include "procedure_tick.h"
+#endif
 #include "@API@.h"
 
 #if defined(__GNUC__) || defined(__clang__)
@@ -30,6 +34,10 @@ struct @API@ {
   double candidate[NP + 1];                                       /* params being checked */
   int busy;
   int error_index, error_check;
+#ifdef VFDSL_PROCEDURE
+  vfdsl_procedure procedure;                                      /* the phase machine, captures, activity */
+  double activity[VFDSL_ACTIVITY_LENGTH + 1];                     /* the step's phase buffer */
+#endif
 };
 #undef VF_BUFFER
 
@@ -63,10 +71,19 @@ VF_EXPORT @API@* @API@_new(void) {
   c->core.n_margins = NCHECKS;
   c->error_index = c->error_check = -1;
   memcpy(c->p, p_default, sizeof(double) * NP);
+#ifdef VFDSL_PROCEDURE
+  c->core.activity = c->activity;
+#endif
   if (vfdsl_core_open(&c->core) != VFDSL_OPENED) {
     @API@_free(c);
     return 0;
   }
+#ifdef VFDSL_PROCEDURE
+  if (vfdsl_procedure_open(&c->procedure, c->activity) != VFDSL_OPENED) {
+    @API@_free(c);
+    return 0;
+  }
+#endif
   /* Priming, as Python's Controller: every solver's workspace is allocated now (recovery forced once). */
   memcpy(c->q, start, sizeof(double) * NQ);
   if (vfdsl_core_eval(&c->core, dt, 1.0) || vfdsl_core_eval(&c->core, dt, 0.0)) {
@@ -79,6 +96,9 @@ VF_EXPORT @API@* @API@_new(void) {
 VF_EXPORT void @API@_free(@API@* c) {
   if (!c) return;
   vfdsl_core_close(&c->core);
+#ifdef VFDSL_PROCEDURE
+  vfdsl_procedure_close(&c->procedure);
+#endif
   free(c);
 }
 
@@ -96,6 +116,9 @@ static int tick(@API@* c, const double* q, const double* inputs, double dt) {
   }
   memcpy(c->q, q, sizeof(double) * NQ);
   memcpy(c->u, inputs, sizeof(double) * NU);
+#ifdef VFDSL_PROCEDURE
+  vfdsl_procedure_tick(&c->procedure, c->q, c->u, c->p, dt, (int) c->status[0], c->activity);
+#endif
   if (vfdsl_core_eval(&c->core, dt, 0.0)) return refuse(c, VF_ERR_SOLVER, -1, -1);
   c->error_index = c->error_check = -1;
   return (int) c->status[0];
@@ -240,4 +263,46 @@ VF_EXPORT const double* @API@_param_default(int k) {
   return k >= 0 && k < NPARAMS ? p_default + param_offsets[k] : 0;
 }
 VF_EXPORT int @API@_num_rows(void) { return NROWS; }
+
+/* What the procedure holds after the last tick (-1 without phases): its phase (what 0), the transition fired
+ * (what 1, -1: none), named monitor i (what 2: 1 when it held, else 0). */
+static int machine(const @API@* c, int what, int i) {
+  int value = -1;
+  if (!c) return VF_ERR_NULL;
+  if (!enter(c)) return VF_ERR_BUSY;
+#ifdef VFDSL_PROCEDURE
+  if (what == 0) value = c->procedure.state.phase;
+  else if (what == 1) value = c->procedure.state.fired;
+  else if (i >= 0 && i < NMONITORS) value = c->procedure.state.value[monitor_index[i]] == VFDSL_PM_TRUE;
+#else
+  (void) what; (void) i;
+#endif
+  leave(c);
+  return value;
+}
+
+VF_EXPORT int @API@_phase(const @API@* c) { return machine(c, 0, 0); }
+VF_EXPORT int @API@_transition(const @API@* c) { return machine(c, 1, 0); }
+VF_EXPORT int @API@_monitor(const @API@* c, int i) { return machine(c, 2, i); }
+
+VF_EXPORT int @API@_reset(@API@* c) {
+  if (!c) return VF_ERR_NULL;
+  if (!enter(c)) return VF_ERR_BUSY;
+#ifdef VFDSL_PROCEDURE
+  vfdsl_procedure_reset(&c->procedure, c->activity);
+#endif
+  leave(c);
+  return 0;
+}
+
+VF_EXPORT int @API@_num_phases(void) { return NPHASES; }
+VF_EXPORT const char* @API@_phase_name(int i) { return i >= 0 && i < NPHASES ? phase_names[i] : ""; }
+VF_EXPORT int @API@_num_monitors(void) { return NMONITORS; }
+VF_EXPORT const char* @API@_monitor_name(int i) { return i >= 0 && i < NMONITORS ? monitor_names[i] : ""; }
+VF_EXPORT int @API@_num_transitions(void) { return NTRANSITIONS; }
+VF_EXPORT const char* @API@_transition_guard(int k) {
+  return k >= 0 && k < NTRANSITIONS ? transition_guards[k] : "";
+}
+VF_EXPORT int @API@_transition_source(int k) { return k >= 0 && k < NTRANSITIONS ? transition_sources[k] : -1; }
+VF_EXPORT int @API@_transition_target(int k) { return k >= 0 && k < NTRANSITIONS ? transition_targets[k] : -1; }
 VF_EXPORT const char* @API@_row_label(int i) { return i >= 0 && i < NROWS ? rows[i].label : ""; }

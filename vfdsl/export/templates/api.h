@@ -134,6 +134,25 @@ const double* @API@_param_default(int k);   /* @API@_param_size(k) numbers */
 int @API@_num_rows(void);
 const char* @API@_row_label(int i);
 
+/* A procedure (a task with phases; without, these give 0 phases and -1): its machine runs in _step before the
+ * solve (the same code as Python's native Controller). After a tick, _phase is the phase's index (its name:
+ * _phase_name), _transition the index of the transition fired in it or -1 (its guard as written:
+ * _transition_guard; _transition_source, -1 for '*', and _transition_target are phase indices), _monitor(ctrl,
+ * i) 1 when named monitor i (_monitor_name) held, else 0. A negative VF_ERR_* for a NULL or busy controller.
+ * _reset: back to the initial phase, its captures retaken at the next tick (the solver's warm start is kept). */
+int @API@_phase(const @API@* ctrl);
+int @API@_transition(const @API@* ctrl);
+int @API@_monitor(const @API@* ctrl, int i);
+int @API@_reset(@API@* ctrl);
+int @API@_num_phases(void);
+const char* @API@_phase_name(int i);
+int @API@_num_monitors(void);
+const char* @API@_monitor_name(int i);
+int @API@_num_transitions(void);
+const char* @API@_transition_guard(int k);
+int @API@_transition_source(int k);
+int @API@_transition_target(int k);
+
 #ifdef __cplusplus
 }
 #endif

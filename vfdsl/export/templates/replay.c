@@ -7,8 +7,8 @@
  * (@MACRO@_PARAM_LENGTH numbers more), as Controller.step(q, inputs, params) takes them: they are set
  * before the line's tick and kept for the next lines (a re-registered pivot in a recording). FILE holds
  * the params for the start (@MACRO@_PARAM_LENGTH numbers); without it they keep their defaults. dt
- * defaults to the scene's period. One line out per tick: the status, then dq with 17 significant digits;
- * for a refused tick "error CODE MESSAGE" (refused params: the check's meaning too; the tick is not run).
+ * defaults to the scene's period. One line out per tick: the status, then dq with 17 significant digits (and for
+ * a procedure " | " and the phase after the tick); for a refused tick "error CODE MESSAGE" (refused params: the check's meaning too; the tick is not run).
  * The controller is one for the whole run, as in a control loop.
  * Exit status: 0, or 2 for a usage or reading error: a line with another count of numbers or longer than
  * LINE_MAX_CHARS - 1 characters, a NUL byte, an unreadable FILE.
@@ -144,6 +144,7 @@ int main(int argc, char** argv) {
     }
     printf("%d", code);
     for (i=0; i<NQ; ++i) printf(" %.17g", dq[i]);
+    if (@API@_num_phases() > 0) printf(" | %s", @API@_phase_name(@API@_phase(ctrl)));
     printf("\n");
   }
   @API@_free(ctrl);
