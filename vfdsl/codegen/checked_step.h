@@ -67,32 +67,35 @@ typedef struct {
   int slot;                        /* memory slot of the generated code, -1 when none */
 } vfdsl_core;
 
+/* Work arrays arg, res, iw, w shared by two generated functions, a and b their sizes as their _work functions give
+ * them ({sz_arg, sz_res, sz_iw, sz_w}): 1, or 0 when one could not be allocated. */
+static int vfdsl_work_open(const casadi_int* a, const casadi_int* b, const casadi_real*** arg, casadi_real*** res,
+                           casadi_int** iw, casadi_real** w) {
+  casadi_int n[4];
+  int k;
+  for (k=0; k<4; ++k) n[k] = a[k] > b[k] ? a[k] : b[k];
+  *arg = (const casadi_real**) calloc(n[0] + 1, sizeof(casadi_real*));
+  *res = (casadi_real**) calloc(n[1] + 1, sizeof(casadi_real*));
+  *iw = (casadi_int*) calloc(n[2] + 1, sizeof(casadi_int));
+  *w = (casadi_real*) calloc(n[3] + 1, sizeof(casadi_real));
+  return *arg && *res && *iw && *w;
+}
+
 /* Allocate the work arrays and check out a memory slot: VFDSL_OPENED, VFDSL_NO_MEMORY or VFDSL_NO_SLOT
  * (all VFDSL_MAX_SLOTS controllers of the task exist). Call vfdsl_core_close in every case. */
 static int vfdsl_core_open(vfdsl_core* c) {
-  casadi_int sz_arg, sz_res, sz_iw, sz_w, in_arg, in_res, in_iw, in_w;
-  int k;
+  casadi_int checks[4], inputs[4], step[4];
+  int k, worked;
   c->slot = -1;
   c->n_input_margins = (long) VFDSL_INPUT_CHECKS_SPARSITY(0)[0];    /* a dense column: its number of rows */
-  VFDSL_ADMISSIBLE_WORK(&sz_arg, &sz_res, &sz_iw, &sz_w);
-  VFDSL_INPUT_CHECKS_WORK(&in_arg, &in_res, &in_iw, &in_w);     /* both checks share the work arrays */
-  if (in_arg > sz_arg) sz_arg = in_arg;
-  if (in_res > sz_res) sz_res = in_res;
-  if (in_iw > sz_iw) sz_iw = in_iw;
-  if (in_w > sz_w) sz_w = in_w;
-  c->check_arg = (const casadi_real**) calloc(sz_arg + 1, sizeof(casadi_real*));
-  c->check_res = (casadi_real**) calloc(sz_res + 1, sizeof(casadi_real*));
-  c->check_iw = (casadi_int*) calloc(sz_iw + 1, sizeof(casadi_int));
-  c->check_w = (casadi_real*) calloc(sz_w + 1, sizeof(casadi_real));
+  VFDSL_ADMISSIBLE_WORK(&checks[0], &checks[1], &checks[2], &checks[3]);
+  VFDSL_INPUT_CHECKS_WORK(&inputs[0], &inputs[1], &inputs[2], &inputs[3]);     /* both checks share the work arrays */
+  VFDSL_STEP_WORK(&step[0], &step[1], &step[2], &step[3]);
+  worked = vfdsl_work_open(checks, inputs, &c->check_arg, &c->check_res, &c->check_iw, &c->check_w);
+  worked = vfdsl_work_open(step, step, &c->arg, &c->res, &c->iw, &c->w) && worked;
   c->margins = (double*) calloc(c->n_margins + 1, sizeof(double));
   c->input_margins = (double*) calloc(c->n_input_margins + 1, sizeof(double));
-  VFDSL_STEP_WORK(&sz_arg, &sz_res, &sz_iw, &sz_w);
-  c->arg = (const casadi_real**) calloc(sz_arg + 1, sizeof(casadi_real*));
-  c->res = (casadi_real**) calloc(sz_res + 1, sizeof(casadi_real*));
-  c->iw = (casadi_int*) calloc(sz_iw + 1, sizeof(casadi_int));
-  c->w = (casadi_real*) calloc(sz_w + 1, sizeof(casadi_real));
-  if (!c->check_arg || !c->check_res || !c->check_iw || !c->check_w || !c->margins || !c->input_margins
-      || !c->arg || !c->res || !c->iw || !c->w) return VFDSL_NO_MEMORY;
+  if (!worked || !c->margins || !c->input_margins) return VFDSL_NO_MEMORY;
 #ifdef VFDSL_PROCEDURE                /* a procedure's step takes its phase buffer at VFDSL_ACTIVITY_ARG */
   for (k=0; k<VFDSL_N_ARGS; ++k) c->arg[k < VFDSL_ACTIVITY_ARG ? k : k + 1] = c->data[k];
   c->arg[VFDSL_ACTIVITY_ARG] = c->activity;

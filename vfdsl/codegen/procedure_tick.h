@@ -49,7 +49,7 @@ static void vfdsl_procedure_reset(vfdsl_procedure* r, double* activity);
 /* Allocate the procedure's arrays and set it to its initial phase (activity: the step's phase buffer, written):
  * 0, or VFDSL_NO_MEMORY. Call vfdsl_procedure_close in every case. */
 static int vfdsl_procedure_open(vfdsl_procedure* r, double* activity) {
-  casadi_int sz_arg, sz_res, sz_iw, sz_w, c_arg, c_res, c_iw, c_w;
+  casadi_int values[4], captures[4];
   vfdsl_pm_table* T = &r->table;
   long n_captured = 0, most = 0;
   int k;
@@ -69,16 +69,9 @@ static int vfdsl_procedure_open(vfdsl_procedure* r, double* activity) {
     n = VFDSL_CAPTURES_SPARSITY_OUT(VFDSL_N_PHASES + k)[0];      /* a dense column: its rows */
     if (n > most) most = n;
   }
-  VFDSL_MONITOR_VALUES_WORK(&sz_arg, &sz_res, &sz_iw, &sz_w);
-  VFDSL_CAPTURES_WORK(&c_arg, &c_res, &c_iw, &c_w);
-  if (c_arg > sz_arg) sz_arg = c_arg;
-  if (c_res > sz_res) sz_res = c_res;
-  if (c_iw > sz_iw) sz_iw = c_iw;
-  if (c_w > sz_w) sz_w = c_w;
-  r->arg = (const casadi_real**) calloc(sz_arg + 1, sizeof(casadi_real*));
-  r->res = (casadi_real**) calloc(sz_res + 1, sizeof(casadi_real*));
-  r->iw = (casadi_int*) calloc(sz_iw + 1, sizeof(casadi_int));
-  r->w = (casadi_real*) calloc(sz_w + 1, sizeof(casadi_real));
+  VFDSL_MONITOR_VALUES_WORK(&values[0], &values[1], &values[2], &values[3]);
+  VFDSL_CAPTURES_WORK(&captures[0], &captures[1], &captures[2], &captures[3]);
+  if (!vfdsl_work_open(values, captures, &r->arg, &r->res, &r->iw, &r->w)) return VFDSL_NO_MEMORY;
   r->raw = (double*) calloc(vfdsl_pt_raw_size[0] + 1, sizeof(double));
   r->captured = (double*) calloc(n_captured + 1, sizeof(double));
   r->values = (double*) calloc(most + 1, sizeof(double));
@@ -90,8 +83,7 @@ static int vfdsl_procedure_open(vfdsl_procedure* r, double* activity) {
   r->state.unchanged = (double*) calloc(T->n_watched + 1, sizeof(double));
   r->state.start = (double*) calloc(T->n_phases + 1, sizeof(double));
   r->state.weight = (double*) calloc(T->n_phases + 1, sizeof(double));
-  if (!r->arg || !r->res || !r->iw || !r->w || !r->raw || !r->captured || !r->values || !r->entry_error
-      || !r->state.latch
+  if (!r->raw || !r->captured || !r->values || !r->entry_error || !r->state.latch
       || !r->state.value || !r->state.held || !r->state.last || !r->state.unchanged || !r->state.start
       || !r->state.weight) return VFDSL_NO_MEMORY;
   vfdsl_procedure_reset(r, activity);
