@@ -158,3 +158,20 @@ def test_controllers_of_one_procedure_have_their_own_machine(task):
     for _ in range(21):
         a.step(q, {"hand": [0.0, 0.0, 0.0], "go": [0.0]}, dt=0.001)
     assert a.phase == "hold" and b.phase == "approach" and b.events == ()
+
+
+def test_params_on_the_checked_path_are_checked_and_used(task):
+    ctrl, same = vfdsl.compile(task, backend="native"), vfdsl.compile(task, backend="interpreted")
+    q = np.array(task.start, dtype=float)
+    still = {"hand": [0.0, 0.0, 0.0], "go": [0.0]}
+    entry = np.array(task.param("entry").value.xyz) + [0.0, 0.0, 5e-3]     # the tip starts at the entry
+    moved = [Float(x) for x in entry]                   # not plain: the Python checks take it, then Stepper.tick
+    for _ in range(3):
+        dq = ctrl.step(q, still, {"entry": moved}, 0.001)
+        assert np.max(np.abs(dq - same.step(q, still, {"entry": entry}, 0.001))) < DQ_TOL
+    assert ctrl.monitors == same.monitors and not ctrl.monitors["near_entry"]     # the moved entry was used
+    ctrl.step(q, still, None, 0.001)
+    assert ctrl.monitors["near_entry"]
+    with pytest.raises(vfdsl.VfError, match="entry"):
+        ctrl.step(q, still, {"entry": [Float(0.0), 0.0, 1e3]}, 0.001)   # 1 km: a unit slip the checks refuse
+    assert ctrl.problem(q, still, {"entry": entry}).P.shape == same.problem(q, still, {"entry": entry}).P.shape

@@ -184,19 +184,24 @@ class StepperRunner:
         self.p = arrays[Slot.P]
         procedure = hasattr(self.stepper, "tick")
 
+        def full(p):
+            """The params ``p`` (the caller's) with the captures' slots after them, for the C."""
+            out = defaults.copy()
+            out[:p.size] = p
+            return out
+
         def step(stepper, q, inputs=None, params=None, dt=None):    # (holds the values, not the stepper: no cycle)
             if not procedure:
                 return checked_step(values, stepper, q, inputs, params, dt)
-            full = defaults.copy()
-            user = values.params(params, stepper.margins)
-            if user is not None:
-                full[:user.size] = user
-            return stepper.tick(values.q(q), values.inputs(inputs), full, values.dt(dt))
+            p = values.params(params, lambda p: stepper.margins(full(p)))
+            return stepper.tick(values.q(q), values.inputs(inputs), None if p is None else full(p),
+                                values.dt(dt))
         step.__qualname__ = "Controller.step"       # (as Python's errors name a wrong call: the one the user made)
         self.stepper.checked = step
         self.fast_step = self.stepper.step
         self.run = self.stepper.run
-        self.margins = self.stepper.margins
+        margins = self.stepper.margins
+        self.margins = (lambda p: margins(full(p))) if procedure else margins
 
 
 class NativeProcedure:
