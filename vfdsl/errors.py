@@ -72,7 +72,6 @@ CODES: dict[str, str] = {
     "E809": "a capture of an unknown frame, input or param, or of a part it has not",
     "E810": "a captured value used in a statement outside every phase",
     "E811": "a condition that does not fit its measure (comparing a button, a force as a condition, a wrench's norm)",
-    "E812": "a task with phases on the native backend: the generated C does not run procedures yet",
 }
 """Every front-end error's code and its meaning (docs/language.md, "Error codes", lists them too). A code never
 changes meaning; a new class of mistake gets a new code."""

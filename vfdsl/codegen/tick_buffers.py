@@ -45,8 +45,8 @@ PHASE_BUFFERS = (
            "then per funnelled hard constraint of a phase its funnel width (its tolerance's unit, >= 0)"),
 )
 """A procedure's buffers, taken after ``dt``. A task without phases has none: its step and its generated C are
-those of :data:`BUFFERS` alone, as before procedures (the generated C does not run a procedure yet: vfdsl.pipeline
-refuses to build one natively, so :class:`Slot` and the C declarations hold :data:`BUFFERS` only)."""
+those of :data:`BUFFERS` alone, as before procedures; a procedure's header adds ``VFDSL_PROCEDURE``,
+``VFDSL_ACTIVITY_ARG`` and ``VFDSL_ACTIVITY_LENGTH`` (codegen/build.py), read by checked_step.h and procedure_tick.h."""
 ARGUMENTS = tuple(b.name for b in BUFFERS if b.kind != "result")
 RESULTS = tuple(b.name for b in BUFFERS if b.kind == "result")
 DATA_ARGUMENTS = tuple(b.name for b in BUFFERS if b.kind == "data")

@@ -49,7 +49,7 @@ at the k-th tick whatever the rounding.
    the weights are one-hot once s = 1 (at once without a blend); they sum to 1 up to rounding, and an
    interrupted blend moves no weight by more than a regular step of dt/B. The funnel factor is 1 - s: 0 from the
    tick whose step ends at B on; a hard fixture of the phase violated by e at entry gets the tolerance
-   max(declared, e * funnel).
+   declared + e * funnel (vfdsl.compiler.phases).
 """
 
 from __future__ import annotations
