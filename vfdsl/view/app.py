@@ -11,8 +11,9 @@ Scene nodes (names are stable; tests and scripts read them)::
     /trace                 the tool's path, coloured by its error (replay mode)
 
 The viewer is assembled from its rooms: the scene (:mod:`vfdsl.view.scene`), the panel (:mod:`~vfdsl.view.panel`),
-the params' gizmos (:mod:`~vfdsl.view.gizmos`), the live loop with the hand (:mod:`~vfdsl.view.live`) and the
-replay player (:mod:`~vfdsl.view.player`); each works on the viewer's one state, under its lock.
+the params' gizmos (:mod:`~vfdsl.view.gizmos`), the live loop with the hand (:mod:`~vfdsl.view.live`), the
+replay player (:mod:`~vfdsl.view.player`) and a procedure's phase and buttons (:mod:`~vfdsl.view.procedure`);
+each works on the viewer's one state, under its lock.
 """
 
 from __future__ import annotations
@@ -33,11 +34,12 @@ from vfdsl.view.live import LiveLoop, control_period, hand_model
 from vfdsl.view.options import free_port
 from vfdsl.view.panel import Panel
 from vfdsl.view.player import ReplayPlayer
+from vfdsl.view.procedure import ProcedurePanel
 from vfdsl.view.robot import RobotDrawing
 from vfdsl.view.scene import SceneDrawing
 
 
-class Viewer(SceneDrawing, Panel, ParamGizmos, LiveLoop, ReplayPlayer):
+class Viewer(SceneDrawing, Panel, ParamGizmos, LiveLoop, ReplayPlayer, ProcedurePanel):
     """One viser server showing one task. ``replay``: a :class:`vfdsl.view.replay.Trace` to play instead of
     running the controller live. The address is checked before the server starts (:func:`free_port`): a busy
     port or a wrong host is a VfError, not a server that never starts and a call that never returns."""
@@ -65,6 +67,9 @@ class Viewer(SceneDrawing, Panel, ParamGizmos, LiveLoop, ReplayPlayer):
         self.status = StepStatus(0)
         self.violations: list = []
         self.readout = ""
+        self.phase, self.monitors, self.transition = None, {}, None      # a procedure's (vfdsl.view.procedure)
+        self._press_left: dict[str, int] = {}
+        self._hold_boxes: dict = {}
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
         with contextlib.redirect_stdout(io.StringIO()):          # viser prints a banner; the command prints the URL
@@ -103,6 +108,7 @@ class Viewer(SceneDrawing, Panel, ParamGizmos, LiveLoop, ReplayPlayer):
             self._draw_fixtures(force=True)
             self._place_param_gizmos()
             self._reset_param_fields()
+            self.reset_procedure()
             if self.hand is not None:
                 self.push(np.zeros(3))
 
@@ -125,7 +131,9 @@ class Viewer(SceneDrawing, Panel, ParamGizmos, LiveLoop, ReplayPlayer):
                     "hand_wxyz": None if self.hand is None else np.asarray(self.hand_node.wxyz).tolist(),
                     "status": int(self.status), "violations": [str(v) for v in self.violations],
                     "violated_fixtures": sorted(self._key(k) for k in self._violated),
-                    "message": self.message, "readout": self.readout}
+                    "message": self.message, "readout": self.readout,
+                    "phase": self.phase, "monitors": dict(self.monitors), "transition": self.transition,
+                    "pressed": sorted(n for n, left in self._press_left.items() if left > 0)}
 
     # ------------------------------------------------------------------------------------ building
     def _build(self) -> None:

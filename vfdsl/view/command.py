@@ -107,7 +107,8 @@ def _check_with_task(opts: options.Options, task, trace) -> int:
     from vfdsl.sim.settings import check_ticks
     from vfdsl.view.live import control_period, hand_model
     if opts.push is not None and hand_model(task) is None:
-        raise VfError(f"--push: task '{task.name}' has no input, so no hand to hold",
+        what = "no input but buttons" if task.inputs else "no input"
+        raise VfError(f"--push: task '{task.name}' has {what}, so no hand to hold",
                       hint="leave --push out: the task runs hands off")
     if opts.seconds is None or opts.seconds == 0:
         return 0
@@ -168,7 +169,7 @@ for (const el of document.querySelectorAll('[class*="Notification"]')) {
 def _control(viewer) -> None:
     """JSON commands, one per line on stdin (tests and scripts): {"cmd": "state"} prints a state line;
     {"cmd": "push", "offset": [x, y, z]} (m) holds the hand there; {"cmd": "param", "name": n, "value": v}
-    sets a run-time param; {"cmd": "reset"}."""
+    sets a run-time param; {"cmd": "press", "name": b} presses a button input (100 ms); {"cmd": "reset"}."""
     for line in sys.stdin:
         try:
             command = json.loads(line)
@@ -177,6 +178,8 @@ def _control(viewer) -> None:
                 viewer.push(command["offset"])
             elif what == "param":
                 viewer.set_param(command["name"], command["value"])
+            elif what == "press":
+                viewer.press(command["name"])
             elif what == "reset":
                 viewer.reset()
             reply = viewer.state()

@@ -28,6 +28,7 @@ from vfdsl.view.scene import DRAW_RATE, matrix, wxyz
 REACH_TIME = 0.5            # s: the hand's spring brings the tool to a still hand in about this time
 LEVER = 0.05                # m: where a torque-only hand holds the tool, up its axis
 HAND_SCALE = 0.025          # m: size of the hand's transform controls
+RIPPLE = 1e-6               # the hand's reading of a procedure alternates by +-RIPPLE (SI: N, Nm, m/s, rad/s)
 
 
 @dataclass
@@ -85,11 +86,15 @@ def control_period(task: ir.Task) -> float:
     return float(task.scene.period or ASSUMED_PERIOD)
 
 
-def hand_model(task: ir.Task) -> HandModel | None:
-    if not task.inputs:
+def hand_model(task: ir.Task, phase: str | None = None) -> HandModel | None:
+    """The hand on the task's first input that has a motion part (a button is never the hand's): the frame and
+    gains of the first ``track`` term reading it, among the task's terms held in every phase, then those of
+    ``phase`` (or, without one, of each phase in order)."""
+    decl = next((d for d in task.inputs if INPUT_TYPES[d.type].linear or INPUT_TYPES[d.type].angular), None)
+    if decl is None:
         return None
-    decl = task.inputs[0]
-    for o in task.objectives:
+    phases = [p for p in task.phases if phase is None or p.name == phase]
+    for o in list(task.objectives) + [o for p in phases for o in p.objectives]:
         if o.term == "track" and getattr(o.args.get("input"), "name", None) == decl.name:
             gain = o.args.get("gain")
             angular = o.args.get("angular_gain")
@@ -97,7 +102,7 @@ def hand_model(task: ir.Task) -> HandModel | None:
             return HandModel(decl, o.args["frame"].name,
                              float(gain.value.value) if isinstance(gain, ir.Const) else default,
                              float(angular.value.value) if isinstance(angular, ir.Const) else default)
-    return HandModel(decl, task.frames[0].name, 1e-3, 0.1) if task.frames else None
+    return HandModel(decl, task.frames[0].name, 1e-3, 0.1) if task.frames and phase is None else None
 
 
 class LiveLoop:
@@ -133,13 +138,17 @@ class LiveLoop:
         return {d.name: np.zeros(d.size) for d in self.task.inputs}
 
     def _static_step(self) -> None:
-        """One step with the hands off at the current state, not applied: which rows are violated here."""
+        """One step with the hands off at the current state, not applied: which rows are violated here. A
+        procedure's machine, which the step advanced, is put back to its initial phase."""
         try:
             self.ctrl.step(self.q, self._zero_inputs(), params=self.overrides or None, dt=self.period)
         except VfError as err:
             self._show_error(str(err))
             return
+        finally:
+            self.ctrl.reset()
         self._read_status()
+        self._read_procedure()
 
     def _loop(self) -> None:
         next_tick = time.perf_counter()
@@ -167,7 +176,8 @@ class LiveLoop:
             if hand is not None:
                 before = self.frames[hand.frame]
                 u = hand.value(before, self.hand_node.position, matrix(self.hand_node.wxyz))
-                inputs[hand.input.name] = u
+                inputs[hand.input.name] = u + (RIPPLE * (-1) ** self.ticks if self.task.phases else 0.0)
+            self._press_buttons(inputs)
             try:
                 dq = self.ctrl.step(self.q, inputs, params=self.overrides or None, dt=self.period)
             except VfError as err:
@@ -178,6 +188,10 @@ class LiveLoop:
             self.time += self.period
             self.frames = self.ctrl.frames(self.q)
             self._read_status()
+            self._read_procedure()
+            if self.ctrl.events:
+                self.hand = hand_model(self.task, self.phase) or hand
+                self._write_status()
             if hand is not None:
                 after = self.frames[hand.frame]
                 v_cmd, w_cmd = hand.commanded(u)

@@ -29,6 +29,7 @@ class Panel:
                          f"period {self.period * 1e3:g} ms · {self.ctrl.backend}")
         self.status_md = gui.add_markdown("")
         self.error_md = gui.add_markdown("")
+        self._build_procedure_gui()
         if self.replay is None and self.hand is not None:
             with gui.add_folder("Hand"):
                 gui.add_markdown(f"Drag the hand: its offset from `{self.hand.frame}` is input "
@@ -106,6 +107,7 @@ class Panel:
             lines.append("violated: " + "; ".join(str(v) for v in self.violations[:4])
                          + (f" (+{len(self.violations) - 4})" if len(self.violations) > 4 else ""))
         self.status_md.content = "  \n".join(lines)
+        self._write_procedure()
 
     def _show_error(self, text: str) -> None:
         self.message = text

@@ -70,6 +70,7 @@ class ReplayPlayer:
             if trace.status is not None and np.isfinite(trace.status[i]):
                 parts.append(f"status {int(trace.status[i])}")
             self.readout = " · ".join(parts)
+            self._replay_procedure(i)
             self._draw_state()
             self._draw_fixtures(force=moved)
 

@@ -15,7 +15,9 @@ Accepted format: a CSV file with a header row, one row per tick (extra columns a
 - params (optional): a run-time param's value at each tick, as the columns starting ``param.<name>.`` in
   the order of its flat value (point x y z; direction x y z; line point then direction; plane point then
   normal; pose x y z roll pitch yaw; a run-time curve's points one after the other; a scalar), SI, or mm /
-  deg by a ``_mm`` / ``_deg`` suffix; used when there are exactly as many as the param has numbers.
+  deg by a ``_mm`` / ``_deg`` suffix; used when there are exactly as many as the param has numbers;
+- a procedure's (optional): ``phase`` (the phase's name at the tick) and ``monitor.<name>`` (1 when the monitor
+  held, else 0), as ``vfdsl simulate`` writes them.
 
 Empty cells are missing values (and so is an error or status that is not finite); rows without a time or
 with a missing joint are dropped. The file is a regular file of UTF-8 text of at most
@@ -51,6 +53,8 @@ class Trace:
     trial: str | None = None
     columns: tuple[str, ...] = ()
     params: dict[str, np.ndarray] = field(default_factory=dict)   # name -> N x size (SI)
+    phase: np.ndarray | None = None  # N phase names (str; "" where the cell is empty)
+    monitors: dict[str, np.ndarray] = field(default_factory=dict)  # name -> N values (1 held, 0 not, NaN missing)
 
     def index_at(self, t: float) -> int:
         """The row at or just before time t."""
@@ -164,7 +168,13 @@ def _parse(path: Path, reader, joint_names: list[str], period: float | None, tri
             read_params[name] = len(columns)
             columns += [(k, _SCALE.get(header[k].rsplit("_", 1)[-1].lower(), 1.0) if "_" in header[k] else 1.0)
                         for k in found]
-    values, trials = array("d"), {}
+    monitors = {}
+    for k, c in enumerate(header):
+        if c.startswith("monitor.") and len(c) > len("monitor."):
+            monitors[c[len("monitor."):]] = len(columns)
+            columns.append((k, 1.0))
+    phase_col = lower.index("phase") if "phase" in lower else None
+    values, trials, phases, names = array("d"), {}, array("l"), {}
     for r in reader:
         if trial_col is not None:
             if len(r) <= trial_col:
@@ -176,6 +186,8 @@ def _parse(path: Path, reader, joint_names: list[str], period: float | None, tri
             if r[trial_col] != trial:
                 continue
         values.extend(_number(r[k]) * f if len(r) > k else math.nan for k, f in columns)
+        if phase_col is not None:
+            phases.append(names.setdefault(r[phase_col].strip() if len(r) > phase_col else "", len(names)))
     if not values and not trials:
         raise VfError(f"{path}: no rows (a trace is a CSV file with a header row and one row per tick)")
     if not values:
@@ -199,7 +211,16 @@ def _parse(path: Path, reader, joint_names: list[str], period: float | None, tri
     return Trace(t=t[keep], q=q[keep], error=None if error is None else _finite_or_nan(error[keep]),
                  error_name=error_name, status=None if status is None else _finite_or_nan(status[keep]),
                  trial=trial, columns=tuple(header),
-                 params={name: data[keep, k:k + params[name]] for name, k in read_params.items()})
+                 params={name: data[keep, k:k + params[name]] for name, k in read_params.items()},
+                 phase=_phases(phases, names, keep), monitors={name: data[keep, k] for name, k in monitors.items()})
+
+
+def _phases(codes: array, names: dict[str, int], keep: np.ndarray) -> np.ndarray | None:
+    """The phase column's names at the kept rows; None without a column or with every cell empty."""
+    if not codes or set(names) <= {""}:
+        return None
+    table = np.array(sorted(names, key=names.get), dtype=object)
+    return table[np.array(codes, dtype=np.int64)[keep]]
 
 
 def _finite_or_nan(x: np.ndarray) -> np.ndarray:
