@@ -266,3 +266,31 @@ def test_the_page_shows_the_phase_and_its_press_button_moves_the_procedure(chrom
             assert state["pressed"] == ["go"] or state["phase"] != "approach"
     finally:
         viewer.stop()
+
+
+def test_a_trace_written_by_simulate_replays_its_phases(needle, tmp_path):
+    """The example's scene without its sensor noise, 0.1 s: the frozen force sensor's watchdog ends the approach
+    in `hold`; the trace `vfdsl simulate` writes replays with the phase of each row and the transition."""
+    import dataclasses
+    from vfdsl.kinematics.robot import Robot
+    from vfdsl.sim import trace as sim_trace
+    from vfdsl.sim.runner import make_jobs, simulate_with
+    from vfdsl.sim.scene_file import load_settings
+    task, ctrl = needle
+    ctrl.reset()
+    settings = dataclasses.replace(load_settings(task, NEEDLE.with_suffix(".sim.yaml")), sensors=(), duration=0.1)
+    result = simulate_with(make_jobs(str(NEEDLE), settings, keep_trace=True)[0], task, ctrl,
+                           Robot.load(task.robots[0].urdf, NEEDLE.parent), None)
+    (event,) = result.procedure["transitions"]
+    assert (event["source"], event["target"]) == ("approach", "hold")
+    sim_trace.write(tmp_path / "run.csv", [result], task.name, str(NEEDLE))
+    trace = replay.read(tmp_path / "run.csv", ctrl.assembled.context.robot.joint_names, trial="0")
+    assert list(trace.phase) == list(result.trace["phase"]) and set(trace.monitors) == {m.name for m in task.monitors}
+    ctrl.reset()
+    with opened(task, ctrl, replay=trace) as v:
+        v.show_time(event["time_s"] - 0.0005)
+        assert v.state()["phase"] == "approach" and not v.state()["monitors"]["stale"]
+        v.show_time(event["time_s"])
+        state = v.state()
+        assert state["phase"] == "hold" and state["monitors"]["stale"]
+        assert state["transition"] == ("approach", "hold", None, pytest.approx(event["time_s"]))
