@@ -21,9 +21,10 @@ from pathlib import Path
 import casadi as ca
 
 import vfdsl
-from vfdsl.codegen.build import (BuiltLibrary, CompilerUnavailable, PhaseCode, build_library, default_cache_dir,
+from vfdsl.codegen.build import (BuiltLibrary, CompilerUnavailable, build_library, default_cache_dir,
                                  load_module)
 from vfdsl.codegen.daqp_sources import DaqpSourcesUnavailable
+from vfdsl.codegen.procedure_code import PhaseCode
 from vfdsl.compiler.admissible import Admissible
 from vfdsl.compiler.assemble import AssembledProblem, assemble
 from vfdsl.compiler.phases import captures_function, monitor_values

@@ -56,7 +56,9 @@ import casadi as ca
 from vfdsl.codegen.daqp_sources import announce, daqp_sources, daqp_version, source_files
 from vfdsl.codegen.patch import LEXLS_HEADER, LEXLS_SOURCE, MAX_SLOTS, patch_generated_c
 from vfdsl.codegen.solve_plan import plans_of
-from vfdsl.codegen.tick_buffers import ARGUMENTS, PHASE_BUFFERS, RESULTS, c_call, c_declarations
+from vfdsl.codegen import procedure_code
+from vfdsl.codegen.procedure_code import PROCEDURE_TICK, PhaseCode
+from vfdsl.codegen.tick_buffers import c_call, c_declarations
 from vfdsl.errors import VfError
 
 FLAGS = ("-O3", "-march=native", "-ffp-contract=off", "-fPIC", "-pthread", "-fvisibility=hidden", "-fno-math-errno",
@@ -66,8 +68,6 @@ FLAGS = ("-O3", "-march=native", "-ffp-contract=off", "-fPIC", "-pthread", "-fvi
 STEPPER = Path(__file__).parent / "stepper.c"
 CHECKED_STEP = Path(__file__).parent / "checked_step.h"
 """The checks and the evaluation of a tick in plain C: included by stepper.c and by `vfdsl export`'s library."""
-PROCEDURE_TICK = (Path(__file__).parent / "procedure_tick.h", Path(__file__).parent / "phase_machine.h")
-"""A procedure's tick in plain C (its machine, captures, activity), included with checked_step.h."""
 
 _LEXLS_KEY = hashlib.sha256(LEXLS_SOURCE.read_bytes() + LEXLS_HEADER.read_bytes()).hexdigest()
 """lexls.c is compiled into a static library per number of variables (:func:`lexls_library`), not into each task's C:
@@ -116,21 +116,6 @@ class BuiltLibrary:
 
 
 @dataclass(frozen=True)
-class PhaseCode:
-    """What a procedure's library holds beside its step: ``monitor_values(q, u, p) -> raw`` and ``captures(q, u, p)
-    -> per phase its values`` (:mod:`vfdsl.compiler.phases`), exported as ``<prefix>_monitor_values`` and
-    ``<prefix>_captures``, and the machine's table (``MachineTable.c_arrays()``, with ``initial``, ``raw_size`` and
-    ``u_size`` as one-number arrays) with the captures' layout (per capture in phase order its ``capture_phase``,
-    ``capture_offset`` in p and ``capture_size``), written into the header as constant arrays: ``arrays`` of ints,
-    ``reals`` of doubles."""
-
-    monitor_values: ca.Function
-    captures: ca.Function
-    arrays: dict[str, list[int]]
-    reals: dict[str, list[float]]
-
-
-@dataclass(frozen=True)
 class Compiler:
     command: tuple[str, ...]
     version: str
@@ -146,7 +131,8 @@ def build_library(fn: ca.Function, prefix: str, cache_dir: Path, metadata: dict,
     :func:`vfdsl.runtime.values.input_checks`; None: none beyond finiteness) as ``<prefix>_input_checks``; built
     if needed. ``extra_sources``: C files defining the external functions ``fn`` calls (mesh queries), compiled
     and linked in with the same flags (their text is part of the digest). ``phases``: a procedure's step (which takes
-    :data:`~vfdsl.codegen.tick_buffers.PHASE_BUFFERS` after dt) with its machine and functions (:class:`PhaseCode`)."""
+    :data:`~vfdsl.codegen.tick_buffers.PHASE_BUFFERS` after dt) with its machine and functions
+    (:class:`~vfdsl.codegen.procedure_code.PhaseCode`)."""
     if not _IDENTIFIER.fullmatch(prefix):
         raise ValueError(f"prefix {prefix!r} is not a C identifier")
     cache_dir = Path(cache_dir)
@@ -235,17 +221,15 @@ def _generate(fn: ca.Function, prefix: str, work: Path, checks: ca.Function,
     """Write ``<prefix>.c``/``.h`` into ``work`` (the step exported as ``prefix``, the checks as
     ``<prefix>_admissible`` and ``<prefix>_input_checks``): CasADi's C patched for ``fn``'s solve plans, its header
     with vfdsl's contract and the C declarations of the tick's buffers (:mod:`vfdsl.codegen.tick_buffers`); a
-    procedure's also its functions and machine (:func:`_phase_declarations`)."""
-    extra = () if phases is None else ((phases.monitor_values, f"{prefix}_monitor_values"),
-                                       (phases.captures, f"{prefix}_captures"))
+    procedure's also its functions and machine (:func:`vfdsl.codegen.procedure_code.header`)."""
+    extra = () if phases is None else procedure_code.functions(phases, prefix)
     source, header = casadi_c(fn, prefix, work, checks, input_checks, extra)
     source = patch_generated_c(source, prefix, plans_of(fn))
     contract = HEADER_CONTRACT.replace("@PREFIX@", prefix).replace("@SLOTS@", str(MAX_SLOTS))
     if phases is None:
         header += contract.replace("@CALL@", c_call()) + c_declarations(fn)
     else:
-        header += contract.replace("@CALL@", _phase_call()) + c_declarations(_phase_less(fn))
-        header += _phase_declarations(fn, phases)
+        header += procedure_code.header(fn, phases, contract)
     (work / f"{prefix}.c").write_text(source)
     (work / f"{prefix}.h").write_text(header)
     return source, header
@@ -266,38 +250,6 @@ def casadi_c(fn: ca.Function, prefix: str, work: Path, checks: ca.Function,
         generator.add(_renamed(function, name))
     generator.generate(str(work) + os.sep)
     return (work / f"{prefix}.c").read_text(), (work / f"{prefix}.h").read_text()
-
-
-def _phase_less(fn: ca.Function) -> ca.Function:
-    """A stand-in of the procedure's step ``fn`` with its buffers but the phase's (for their sizes only): the
-    declarations of :data:`~vfdsl.codegen.tick_buffers.BUFFERS` are those of every step."""
-    args = [ca.SX.sym(name, fn.numel_in(fn.index_in(name))) for name in ARGUMENTS]
-    results = [ca.SX(fn.numel_out(fn.index_out(name)), 1) for name in RESULTS]
-    return ca.Function(fn.name(), args, results, list(ARGUMENTS), list(RESULTS))
-
-
-def _phase_call() -> str:
-    """A procedure's call: :func:`~vfdsl.codegen.tick_buffers.c_call`'s, with the phase's buffers in place."""
-    return c_call() + ", and " + ", ".join(f"arg[VFDSL_{b.name.upper()}_ARG] = {b.name}" for b in PHASE_BUFFERS)
-
-
-def _phase_declarations(fn: ca.Function, phases: PhaseCode) -> str:
-    """A procedure's part of the header: per phase buffer its index among the step's arguments (the later
-    arguments move one on) and its length in ``fn``, and the machine's arrays as ``static const`` C arrays named
-    ``vfdsl_pt_<key>`` with their lengths ``VFDSL_PT_<KEY>`` (each array has one more, unused, entry: never empty),
-    for codegen/procedure_tick.h."""
-    lines = ["\n#ifndef VFDSL_PROCEDURE\n#define VFDSL_PROCEDURE 1",
-             "/* A procedure's step: its phase buffers' argument index and length, its machine (procedure_tick.h). */"]
-    for b in PHASE_BUFFERS:
-        index = fn.index_in(b.name)
-        lines += [f"#define VFDSL_{b.name.upper()}_ARG {index}",
-                  f"#define VFDSL_{b.name.upper()}_LENGTH {fn.numel_in(index)}"]
-    for key, values in {**phases.arrays, **phases.reals}.items():
-        real = key in phases.reals
-        text = ", ".join(repr(float(v)) if real else str(int(v)) for v in [*values, 0])
-        lines += [f"#define VFDSL_PT_{key.upper()} {len(values)}",
-                  f"static const {'double' if real else 'int'} vfdsl_pt_{key}[] = {{{text}}};"]
-    return "\n".join(lines) + "\n#endif\n"
 
 
 def _no_input_checks(fn: ca.Function) -> ca.Function:

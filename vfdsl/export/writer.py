@@ -27,7 +27,8 @@ from dataclasses import dataclass
 from pathlib import Path, PurePath
 
 import vfdsl
-from vfdsl.codegen.build import CHECKED_STEP, LEXLS_HEADER, LEXLS_SOURCE, PROCEDURE_TICK, BuiltLibrary
+from vfdsl.codegen.build import CHECKED_STEP, LEXLS_HEADER, LEXLS_SOURCE, BuiltLibrary
+from vfdsl.codegen.procedure_code import PROCEDURE_TICK
 from vfdsl.errors import VfError
 from vfdsl.export.tables import comment_text, task_tables
 from vfdsl.ir import model as ir
