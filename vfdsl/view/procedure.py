@@ -16,6 +16,7 @@ from __future__ import annotations
 import numpy as np
 
 from vfdsl.errors import VfError
+from vfdsl.inputs import INPUT_TYPES
 from vfdsl.sim.settings import PRESS_TIME
 from vfdsl.view.live import hand_model
 
@@ -25,8 +26,8 @@ class ProcedurePanel:
 
     @property
     def buttons(self) -> list[str]:
-        """The task's button inputs, in declaration order."""
-        return [d.name for d in self.task.inputs if d.type == "button"]
+        """The task's button inputs (those without a motion part), in declaration order."""
+        return [d.name for d in self.task.inputs if not INPUT_TYPES[d.type].moves]
 
     def press(self, name: str, seconds: float = PRESS_TIME) -> None:
         """Press button input ``name`` for ``seconds`` from the next tick on (a running press is lengthened,
