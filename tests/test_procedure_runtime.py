@@ -172,10 +172,8 @@ def test_blend_weights_are_in_the_qp(task):
     assert blended.levels[0].terms == unblended.levels[0].terms
 
 
-def test_least_violation_counts_only_the_active_rows(tmp_path):
-    path = tmp_path / "hard.vf"
-    path.write_text("""\
-task hard
+FAR_PHASE = """\
+task {name}
 units mm, deg
 robot shr = urdf "shr7"
 frame tip = shr.link("tool_tip")
@@ -183,10 +181,22 @@ input f : force
 input go : button
 param far : point = [100, 100, 100]
 monitor pressed = go
-phase a initial { minimize track(tip, f, gain = 1 mm/s/N) }
-phase b final { require tip stays_at(far) within 1 mm }
+phase a initial {{ minimize track(tip, f, gain = 1 mm/s/N) }}
+phase b final {{ require tip stays_at(far) within 1 mm{clause} }}
 transition a -> b when pressed
-""")
+"""
+"""Phase a tracks the force; pressing go enters phase b, whose fixture holds the tip at [100, 100, 100] mm."""
+
+
+def far_phase_task(tmp_path, name: str, clause: str):
+    """The task FAR_PHASE named ``name``, with ``clause`` after b's tolerance, written in ``tmp_path``."""
+    path = tmp_path / f"{name}.vf"
+    path.write_text(FAR_PHASE.format(name=name, clause=clause))
+    return path
+
+
+def test_least_violation_counts_only_the_active_rows(tmp_path):
+    path = far_phase_task(tmp_path, "hard", "")
     ctrl = vfdsl.compile(vfdsl.load(path), backend="interpreted")
     q = np.zeros(ctrl.nq)
     ctrl.step(q, {"f": [1.0, 0, 0], "go": [0]}, dt=0.01)
@@ -259,20 +269,7 @@ def test_auto_runs_a_procedure_natively(task):
 
 
 def test_a_soft_fixture_of_an_idle_phase_weighs_nothing_and_is_not_reported(tmp_path):
-    path = tmp_path / "soft.vf"
-    path.write_text("""\
-task soft
-units mm, deg
-robot shr = urdf "shr7"
-frame tip = shr.link("tool_tip")
-input f : force
-input go : button
-param far : point = [100, 100, 100]
-monitor pressed = go
-phase a initial { minimize track(tip, f, gain = 1 mm/s/N) }
-phase b final { require tip stays_at(far) within 1 mm soft weight 10 }
-transition a -> b when pressed
-""")
+    path = far_phase_task(tmp_path, "soft", " soft weight 10")
     task = vfdsl.load(path)
     ctrl = vfdsl.compile(task, backend="interpreted")
     q = np.zeros(ctrl.nq)
