@@ -9,6 +9,8 @@ vfdsl/codegen/lexls.c in the generated tick), against independent solutions:
 - the certificate is sound: over random working sets (any rows, any sides), an answer is certified only where it
   is the optimum certified from DAQP's working set (itself checked against the reference);
 - the C and the Python take the same decisions and give the same answers (tests/lexls_harness.c, compiled here);
+- rows of weight 0 (zero with a zero target: a procedure's idle phases' terms), which both leave out, change no
+  decision and no bit of either's answer;
 - a guess one row off (a row the answer needs left out) is often repaired by the generated tick's hints;
 - the generated tick does not depend on its history: after a tick at another state (its working set a wrong
   guess), it answers as a fresh controller and as the interpreted path.
@@ -315,6 +317,52 @@ def test_c_and_python_decide_and_answer_alike(harness):
             else:
                 differ += 1
     assert same >= 600 and differ == 0, (same, differ)
+
+
+def with_idle_rows(rng, problem):
+    """``problem`` with rows that are zero with a zero target (terms of weight 0, a procedure's idle phases') put
+    among each level's rows, and a level of them alone at a random place among the levels."""
+    H, f, A, lower, upper, break_points = problem
+    n = H.shape[0]
+    ends = [b - n for b in break_points]
+    parts = [(A[a:b], lower[n + a:n + b]) for a, b in zip(ends[:-1], ends[1:])]
+    padded = []
+    for R, r in parts:
+        at = np.sort(rng.integers(0, len(r) + 1, int(rng.integers(1, 4))))
+        padded.append((np.insert(R, at, 0.0, axis=0), np.insert(r, at, 0.0)))
+    padded.insert(int(rng.integers(0, len(padded) + 1)), (np.zeros((2, n)), np.zeros(2)))
+    hard = ends[0]
+    targets = np.concatenate([r for _, r in padded])
+    A = np.vstack([A[:hard], *(R for R, _ in padded)])
+    lower, upper = np.r_[lower[:n + hard], targets], np.r_[upper[:n + hard], targets]
+    breaks = [int(b) for b in np.cumsum([n + hard, *(len(r) for _, r in padded)])]
+    return H, f, A, lower, upper, breaks
+
+
+def test_rows_of_weight_zero_change_no_decision_and_no_bit(harness):
+    """A level's zero rows with a zero target, and a level of them alone, are left out by both the Python and the
+    C (lexls.split, vfdsl_lex_rows): the same certificate and the same x to the bit as without them."""
+    rng = np.random.default_rng(11)
+    certified = 0
+    for _ in range(120):
+        problem = random_problem(rng)
+        padded = with_idle_rows(rng, problem)
+        x_daqp = daqp_answer(problem)
+        for s in guesses(rng, problem, x_daqp, 2):
+            H_, f_, A_hard, lo, up, levels = lexls.split(*problem)
+            x_py, ok_py = lexls.solve_over(H_, f_, A_hard, lo, up, levels, s)
+            H_, f_, A_hard, lo, up, levels = lexls.split(*padded)
+            x_pad, ok_pad = lexls.solve_over(H_, f_, A_hard, lo, up, levels, s)
+            assert ok_py == ok_pad
+            x_c, solves = c_solve(harness, problem, s.copy())
+            x_c_pad, solves_pad = c_solve(harness, padded, s.copy())
+            assert solves == solves_pad
+            if ok_py:
+                certified += 1
+                assert np.array_equal(x_py, x_pad)
+            if solves:
+                assert np.array_equal(x_c, x_c_pad)
+    assert certified >= 40, certified
 
 
 def test_a_guess_one_row_off_is_repaired(harness):

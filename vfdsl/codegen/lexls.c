@@ -48,8 +48,9 @@ vfdsl_lex* vfdsl_lex_alloc(int n, int K, int P) {
   size_t R = (size_t) K + P + n;      /* most rows gathered at once (a step, or the fixed rows and every level) */
   size_t S = (size_t) P + 2;          /* most steps: W's, then one per level (a level has a row at least) */
   size_t head = (sizeof(vfdsl_lex) + sizeof(double) - 1) / sizeof(double) * sizeof(double);
-  size_t doubles = 6 * K1 + 3 * R * N + 4 * R + 3 * N * N + 3 * N + 2 * N * K1 + (N + 1) + (N * N + 1);
-  size_t ints = 3 * K1 + 2 * R + 3 * S + 2 * (S + 1);
+  size_t doubles = 6 * K1 + 3 * R * N + 4 * R + 3 * N * N + 3 * N + 2 * N * K1 + (N + 1) + (N * N + 1)
+                   + (P + 1) * (N + 1);
+  size_t ints = 3 * K1 + 2 * R + 3 * S + 2 * (S + 1) + 2 * S;
   char* block;
   double* d;
   int* i;
@@ -73,6 +74,7 @@ vfdsl_lex* vfdsl_lex_alloc(int n, int K, int P) {
   L->N = lex_doubles(&d, N * K1); L->NP = lex_doubles(&d, N * K1);
   L->lam = lex_doubles(&d, K1); L->sol = lex_doubles(&d, K1); L->w = lex_doubles(&d, K1);
   L->res = lex_doubles(&d, N + 1); L->fR = lex_doubles(&d, N * N + 1);
+  L->LR = lex_doubles(&d, (P + 1) * N); L->lt = lex_doubles(&d, P + 1);
   L->rows = (const double**) d;
   i = (int*) (L->rows + S);
   L->guess = lex_ints(&i, K1); L->piv = lex_ints(&i, R); L->cols = lex_ints(&i, K1);
@@ -80,6 +82,7 @@ vfdsl_lex* vfdsl_lex_alloc(int n, int K, int P) {
   L->off = lex_ints(&i, S); L->r = lex_ints(&i, S); L->p = lex_ints(&i, S);
   L->fpiv_at = lex_ints(&i, S + 1); L->fR_at = lex_ints(&i, S + 1);
   L->fpiv = lex_ints(&i, R); L->side = lex_ints(&i, K1);
+  L->level_at = lex_ints(&i, S); L->level_rows = lex_ints(&i, S);
   return L;
 }
 
@@ -328,9 +331,10 @@ static int lex_nnls_within(vfdsl_lex* L, const double* N, int k, int a, const do
 }
 
 
-/* The hard rows' lengths and unit bounds into L (every tick). */
+/* The hard rows' lengths and unit bounds, and the levels' rows but those zero with a zero target, into L (every
+   tick). */
 void vfdsl_lex_rows(vfdsl_lex* L, const vfdsl_lex_prob* P) {
-  int i, n = LEX_N(P);
+  int i, j, c, n = LEX_N(P), at = 0;
   L->A = P->A;
   for (i=0;i<P->K;++i) {
     double norm = sqrt(lex_dot(P->A + i*n, P->A + i*n, n)), scale = norm > 0 ? 1 / norm : 1;
@@ -338,6 +342,24 @@ void vfdsl_lex_rows(vfdsl_lex* L, const vfdsl_lex_prob* P) {
     L->lo[i] = P->blower[P->ms + i]*scale;
     L->up[i] = P->bupper[P->ms + i]*scale;
   }
+  L->levels = 0;
+  for (j=0;j<P->nh - 1;++j) {
+    const double *R = P->A + (P->break_points[j] - P->ms)*n, *r = P->blower + P->break_points[j];
+    int rows = P->break_points[j + 1] - P->break_points[j], kept = 0;
+    for (i=0;i<rows;++i) {
+      int zero = r[i] == 0;
+      for (c=0; zero && c<n; ++c) zero = R[i*n + c] == 0;
+      if (zero) continue;
+      memcpy(L->LR + (at + kept)*n, R + i*n, sizeof(double) * n);
+      L->lt[at + kept++] = r[i];
+    }
+    if (kept) {
+      L->level_at[L->levels] = at;
+      L->level_rows[L->levels++] = kept;
+      at += kept;
+    }
+  }
+  L->level_at[L->levels] = at;        /* (the rows above the last cost) */
 }
 
 /* Hard row i, of unit length, into out. */
@@ -420,8 +442,8 @@ static int lex_independent(vfdsl_lex* L, const double* S, int q, int n) {
  * thr), and W's rows need no multipliers. */
 static int lex_dims_dual(vfdsl_lex* L, const vfdsl_lex_prob* P, const int* s, int fixed, int j, const double* g,
                          double thr) {
-  int n = LEX_N(P), after = L->off[j] + L->r[j], levels = P->break_points[j] - P->break_points[0], i;
-  const double *Z = L->Z + after*n, *above = P->A + (P->break_points[0] - P->ms)*n;   /* the levels' rows */
+  int n = LEX_N(P), after = L->off[j] + L->r[j], levels = L->level_at[j], i;
+  const double *Z = L->Z + after*n, *above = L->LR;   /* the rows of the levels above j */
   double norm2 = 0;
   if (fixed + levels != after) return 0;     /* (then rank < after, or a search) */
   if (fixed) {                  /* the fixed rows, then the levels' (else those, where they are) */
@@ -445,12 +467,12 @@ static int lex_certified(vfdsl_lex* L, const vfdsl_lex_prob* P, const int* s, co
     fixed += s[i] == LEX_FIXED;
   }
   if (a == 0) return 1;         /* the chain of null spaces is the primal one: optimal in it by construction */
-  for (j=0;j<=P->nh - 1;++j) {    /* levels 1..nh-1, then the last cost (j = nh - 1) */
+  for (j=0;j<=L->levels;++j) {     /* the levels (vfdsl_lex_rows), then the last cost (j = L->levels) */
     double scale, thr;
-    if (j < P->nh - 1) {
-      const double *R = P->A + (P->break_points[j] - P->ms)*n, *r = P->blower + P->break_points[j];
+    if (j < L->levels) {
+      const double *R = L->LR + L->level_at[j]*n, *r = L->lt + L->level_at[j];
       double rn = 0, Rn = 0;
-      int rows = P->break_points[j + 1] - P->break_points[j];
+      int rows = L->level_rows[j];
       for (i=0;i<n;++i) g[i] = 0;
       for (i=0;i<rows;++i) {
         double e = lex_dot(R + i*n, x, n) - r[i];
@@ -477,9 +499,8 @@ static int lex_certified(vfdsl_lex* L, const vfdsl_lex_prob* P, const int* s, co
       chained = 0;
     }
     for (; chained<j; ++chained) {  /* ... and of the levels above */
-      const double* R = P->A + (P->break_points[chained] - P->ms)*n;
-      int rows = P->break_points[chained + 1] - P->break_points[chained];
-      if (lex_step(L, R, rows, 0, 0, &U, &k, &ident, -1) < 0) return 0;
+      if (lex_step(L, L->LR + L->level_at[chained]*n, L->level_rows[chained], 0, 0, &U, &k, &ident, -1) < 0)
+        return 0;
     }
     if (k == 0) return 1;        /* nothing left free: every level below is met */
     a = 0;
@@ -518,7 +539,7 @@ int vfdsl_lex_repair(vfdsl_lex* L, int* s) {
 
 /* The levels' optimum over the working set s into x; 1 when certified (vfdsl.runtime.lexls.solve_over). */
 int vfdsl_lex_solve(vfdsl_lex* L, const vfdsl_lex_prob* P, const int* s, double* x) {
-  int n = LEX_N(P), i, j, l, p = 0, k = n, ident = 1, record = P->nh <= L->max_steps;
+  int n = LEX_N(P), i, j, l, p = 0, k = n, ident = 1, record = L->levels + 1 <= L->max_steps;
   double *Z = L->Z;
   L->hint = -1;
   L->steps = 0;
@@ -533,10 +554,9 @@ int vfdsl_lex_solve(vfdsl_lex* L, const vfdsl_lex_prob* P, const int* s, double*
   for (i=0;i<n;++i) Z[i + i*n] = 1;
   if (lex_step(L, L->M, p, L->t, x, &Z, &k, &ident, record ? 0 : -1) < 0) return 0;
   for (i=0;i<p;++i) if (fabs(lex_dot(L->M + i*n, x, n) - L->t[i]) > LEX_PRIMAL_TOL) return 0;
-  for (j=0;j<P->nh - 1;++j) {
-    const double* R = P->A + (P->break_points[j] - P->ms)*n;
-    if (lex_step(L, R, P->break_points[j + 1] - P->break_points[j], P->blower + P->break_points[j], x, &Z, &k,
-                 &ident, record ? j + 1 : -1) < 0)
+  for (j=0;j<L->levels;++j) {
+    if (lex_step(L, L->LR + L->level_at[j]*n, L->level_rows[j], L->lt + L->level_at[j], x, &Z, &k, &ident,
+                 record ? j + 1 : -1) < 0)
       return 0;
   }
   if (k) {       /* y = -(Z'HZ)^-1 Z'(Hx + f) */

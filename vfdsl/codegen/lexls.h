@@ -5,7 +5,9 @@
  * nonnegative least squares, on the dense data of DAQP's problem (daqp_persistent.c):
  *
  *   hard rows   DAQP's general rows [0, K), bounds blower/bupper[ms + i] (unit length here, scaled per tick)
- *   level j     DAQP's rows [b_j - ms, b_{j+1} - ms), targets blower (= bupper), b the break points
+ *   level j     DAQP's rows [b_j - ms, b_{j+1} - ms), targets blower (= bupper), b the break points; a row that
+ *               is zero with a zero target (a term of weight 0) is left out, and a level left empty (lexls.py's
+ *               split does the same)
  *   last cost   1/2 x'Hx + f'x
  *
  * vfdsl_lex_solve(lex, prob, s, x) computes the levels' optimum with the working set s (LEX_UPPER, LEX_LOWER,
@@ -32,6 +34,9 @@ typedef struct vfdsl_lex {
   int *guess, *piv, *cols;
   const double* A;        /* the hard rows (K x n, row-major: DAQP's), set by vfdsl_lex_rows */
   double *inv, *lo, *up;  /* 1 / each hard row's length, and its bounds over that length (the unit row's) */
+  int levels;             /* the levels with a row that is not zero or has a target that is not (vfdsl_lex_rows): */
+  int *level_at, *level_rows;   /* their rows at LR + level_at[j] n (row-major), targets at lt + level_at[j] */
+  double *LR, *lt;
   double *M, *t;          /* gathered rows (row-major) and targets */
   double *B, *T, *tau, *tau2, *c;
   double *Z, *U, *x, *g, *y, *K2;

@@ -253,13 +253,21 @@ def _independent(S) -> bool:
 def split(H, f, A, lower, upper, break_points):
     """(H, f, unit hard rows, their bounds, levels) of DAQP's hierarchical problem: x's n simple bounds (infinite
     here: the box is among the rows), then the rows A with bounds lower/upper[n:], split at the break points (the
-    first ends the hard rows; level j's rows have lower = upper = r_j)."""
+    first ends the hard rows; level j's rows have lower = upper = r_j). A level's zero rows with a zero target
+    (terms of weight 0: a procedure's idle phases') are left out, and the levels left empty: they add 0 to every
+    sum and factor, and leave no minimizer (:func:`level_rows`)."""
     n = H.shape[0]
     A = A.reshape(-1, n)
     ends = [b - n for b in break_points]
     A_hard, lo, up = unit_rows(A[:ends[0]], lower[n:n + ends[0]], upper[n:n + ends[0]])
-    levels = [(A[a:b], lower[n + a:n + b]) for a, b in zip(ends[:-1], ends[1:])]
-    return H, f, A_hard, lo, up, levels
+    levels = [level_rows(A[a:b], lower[n + a:n + b]) for a, b in zip(ends[:-1], ends[1:])]
+    return H, f, A_hard, lo, up, [(R, r) for R, r in levels if r.size]
+
+
+def level_rows(R: np.ndarray, r: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """A level's rows R and targets r without the rows that are zero with a zero target."""
+    kept = np.any(R != 0, axis=1) | (r != 0)
+    return R[kept], r[kept]
 
 
 def polish(H, f, A, lower, upper, break_points, x) -> tuple[np.ndarray, bool]:
