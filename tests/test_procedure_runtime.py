@@ -58,9 +58,7 @@ class Driver:
             self.tick(**kw)
 
     def capture(self, name):
-        ctx = self.ctrl.assembled.context
-        slot = ctx.layout.capture_slots[name]
-        return self.ctrl._procedure.p[slot.offset:slot.offset + slot.size].copy()
+        return self.ctrl.captures[name]
 
 
 @pytest.fixture(scope="module")
@@ -101,6 +99,16 @@ def test_captures_are_the_tip_at_the_transition_tick(run):
     # retract's `out` fired 10 mm from stop, along the line
     k, _ = run.events[3]
     assert np.linalg.norm(run.tip_before[k - 1] - run.capture("stop")) > 0.01
+
+
+def test_captures_are_public_by_name_in_si(run, task):
+    captures = run.ctrl.captures
+    assert list(captures) == ["start", "axis0", "stop", "rest", "held"]
+    assert np.isclose(np.linalg.norm(captures["axis0"]), 1.0) and captures["start"].shape == (3,)
+    captures["start"][:] = 0.0                                        # a copy: the procedure's own is untouched
+    assert np.linalg.norm(run.ctrl.captures["start"]) > 0.01
+    plain = vfdsl.compile(vfdsl.load(REPO / "tasks" / "needle_insertion.vf"), backend="interpreted")
+    assert plain.captures == {}
 
 
 def test_monitors_are_reported_by_name(run):

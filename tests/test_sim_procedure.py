@@ -48,8 +48,7 @@ class Run:
         return self.ctrl.frames(self.q[k])[name]
 
     def capture(self, name: str) -> np.ndarray:
-        slot = self.ctrl.assembled.context.layout.capture_slots[name]
-        return self.ctrl._procedure.p[slot.offset:slot.offset + slot.size].copy()
+        return self.ctrl.captures[name]
 
     def event(self, target: str) -> dict:
         return next(e for e in self.events if e["target"] == target)

@@ -27,6 +27,7 @@ from vfdsl.codegen.daqp_sources import DaqpSourcesUnavailable
 from vfdsl.codegen.procedure_code import PhaseCode
 from vfdsl.compiler.admissible import Admissible
 from vfdsl.compiler.assemble import AssembledProblem, assemble
+from vfdsl.compiler.cases import case_index, phase_cases
 from vfdsl.compiler.phases import captures_function, monitor_values
 from vfdsl.errors import VfError
 from vfdsl.ir import model as ir
@@ -35,7 +36,7 @@ from vfdsl.runtime.controller import Controller, row_unit
 from vfdsl.runtime.native import BufferedFunction, LockedRunner, NativeProcedure, StepperRunner
 from vfdsl.runtime.procedure import Procedure, machine_table
 from vfdsl.runtime.values import INPUT_UNITS, JOINT_UNITS, PARAM_UNITS, RuntimeValues
-from vfdsl.runtime.qp import build_step_function
+from vfdsl.runtime.qp import build_procedure_step, build_step_function
 
 # Phase 1's answer meets every row and bound within this much (m or rad; LEVEL_ACCEPTANCE times it on a task with
 # priority levels, vfdsl.runtime.qp): far below any tolerance a task can express.
@@ -86,9 +87,15 @@ def build(task: ir.Task, *, backend: str = "auto",
     digest = ir_digest(task)
     prefix = symbol_prefix(task, digest)
     def step(native: bool) -> ca.Function:
-        return build_step_function(problem.function, prefix, row_groups=problem.row_groups,
-                                   feas_tol=FEASIBILITY_TOLERANCE, native=native,
-                                   last_level_is_cost=problem.last_level_is_damping)
+        options = dict(row_groups=problem.row_groups, feas_tol=FEASIBILITY_TOLERANCE, native=native,
+                       last_level_is_cost=problem.last_level_is_damping)
+        if task.phases:     # one step per phase, steady or blending, chosen each tick (vfdsl.compiler.cases)
+            cases = phase_cases(problem, task)
+            options.pop("last_level_is_cost")
+            return build_procedure_step([(c.function, c.rows, c.last_level_is_damping) for c in cases],
+                                        lambda activity: case_index(activity, len(task.phases)),
+                                        len(problem.row_labels), prefix, **options)
+        return build_step_function(problem.function, prefix, **options)
 
     if backend != "interpreted":
         try:

@@ -109,6 +109,13 @@ static void vfdsl_procedure_activity(const vfdsl_procedure* r, double* activity)
   for (k=0; k<VFDSL_N_WIDTHS; ++k) activity[2 * VFDSL_N_PHASES + k] = r->entry_error[k] * r->state.funnel;
 }
 
+/* The activity of phase k's case with nothing blended or funnelled: weight 1 and hard rows on for k alone. */
+static void vfdsl_procedure_case(double* activity, int k) {
+  int j;
+  for (j=0; j<VFDSL_ACTIVITY_LENGTH; ++j) activity[j] = 0.0;
+  activity[k] = activity[VFDSL_N_PHASES + k] = 1.0;
+}
+
 /* Back to the initial phase; its captures are retaken at the next tick. */
 static void vfdsl_procedure_reset(vfdsl_procedure* r, double* activity) {
   int k;
@@ -117,6 +124,22 @@ static void vfdsl_procedure_reset(vfdsl_procedure* r, double* activity) {
   r->time = 0.0;
   r->source = r->state.phase;
   vfdsl_procedure_activity(r, activity);
+}
+
+/* The priming of a procedure's step (vfdsl.runtime.native.LockedRunner.prime, in its order): each case of the step
+ * (vfdsl.compiler.cases: each phase steady, then phase 0 at half weight, a blend) evaluated with the least-violation
+ * phase forced, then without, on the core's q, u and p, so that every case's solvers have their workspace before
+ * the first tick; then the machine back to its initial phase. 0, or the generated step's return code. */
+static int vfdsl_procedure_prime(vfdsl_procedure* r, vfdsl_core* c, double dt, double* activity) {
+  int k, flag = 0;
+  for (k=0; k<=VFDSL_N_PHASES && !flag; ++k) {
+    vfdsl_procedure_case(activity, k < VFDSL_N_PHASES ? k : 0);
+    if (k == VFDSL_N_PHASES) activity[0] = 0.5;
+    flag = vfdsl_core_eval(c, dt, 1.0);
+    if (!flag) flag = vfdsl_core_eval(c, dt, 0.0);
+  }
+  vfdsl_procedure_reset(r, activity);
+  return flag;
 }
 
 /* Output `output` of <prefix>_captures at the arguments in r->arg (q, u, then p) into r->values. */

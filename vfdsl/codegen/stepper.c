@@ -325,6 +325,32 @@ static PyObject* Stepper_run(Stepper* s, PyObject* args) {
   return result;
 }
 
+/* prime(q, u, dt): the priming of vfdsl.runtime.controller.Controller._prime on checked float64 arrays (the default
+ * params): the step with the least-violation phase forced, then without; a procedure's in each case of its step
+ * (procedure_tick.h). */
+static PyObject* Stepper_prime(Stepper* s, PyObject* args) {
+  PyObject* in[3] = {0, 0, Py_None};
+  double dt;
+  int flag;
+  if (!ready(s)) return NULL;
+  if (!PyArg_ParseTuple(args, "O!O!d", &PyArray_Type, &in[0], &PyArray_Type, &in[1], &dt)) return NULL;
+  if (load(s, in) < 0) return NULL;
+  Py_BEGIN_ALLOW_THREADS
+#ifdef VFDSL_PROCEDURE
+  flag = vfdsl_procedure_prime(&s->procedure, &s->core, dt, s->activity);
+#else
+  flag = vfdsl_core_eval(&s->core, dt, 1.0);
+  if (!flag) flag = vfdsl_core_eval(&s->core, dt, 0.0);
+#endif
+  Py_END_ALLOW_THREADS
+  PyThread_release_lock(s->lock);
+  if (flag) {
+    PyErr_Format(PyExc_RuntimeError, "generated step " VF_STR(VFDSL_PREFIX) " failed with code %d", flag);
+    return NULL;
+  }
+  Py_RETURN_NONE;
+}
+
 #ifdef VFDSL_PROCEDURE
 /* tick(q, u, p, dt): the checked step's tick, the machine included (checked float64 arrays, p None: the
  * defaults) -> dq. */
@@ -532,6 +558,9 @@ static PyMethodDef Stepper_methods[] = {
    "margins(p) -> the column of checks of the params p (contiguous float64), from the generated C"},
   {"run", (PyCFunction) Stepper_run, METH_VARARGS,
    "run(q, u, p, dt, recover) -> dq for checked float64 arrays (p None: the default params)"},
+  {"prime", (PyCFunction) Stepper_prime, METH_VARARGS,
+   "prime(q, u, dt): every solver's workspace allocated (the step with and without recovery; a procedure's in "
+   "each case of its step), on checked float64 arrays and the default params"},
 #ifdef VFDSL_PROCEDURE
   {"tick", (PyCFunction) Stepper_tick, METH_VARARGS,
    "tick(q, u, p, dt) -> dq for checked float64 arrays (p None: the default params): the procedure's machine, "

@@ -30,7 +30,8 @@ Every row of A and every variable bound keeps a :class:`RowLabel` naming its pri
 source line (and the fixture ``use`` sites it came through), and its phase in a procedure.
 
 A procedure's phases are all in this one QP, switched by the ``activity`` argument (:mod:`vfdsl.compiler.phases`):
-``qp_data(q, u, p, dt, activity)``, which also carries the funnel widths of the phases' hard constraints.
+``qp_data(q, u, p, dt, activity)``, which also carries the funnel widths of the phases' hard constraints; the
+step solves each phase's part of it (:mod:`vfdsl.compiler.cases`).
 """
 
 from __future__ import annotations

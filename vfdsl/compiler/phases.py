@@ -6,7 +6,8 @@ rows on. Phase k's statements are gated (:class:`Gate`): an objective term's wei
 constraint's slack weight too; a hard row's bounds become (lb, ub) where h_k > 1/2, else (-inf, +inf) (DAQP treats
 an infinite bound as inactive, and the violation output and the least-violation phase count such a row as met).
 The task's phase-less statements are not gated: a task without phases compiles to the same graph as before
-procedures. Values, not structure: a transition changes no sparsity, so the solver's warm start survives it.
+procedures. Values, not structure: a transition changes no sparsity. (The step solves, per phase, only the rows
+that phase can hold: :mod:`vfdsl.compiler.cases`.)
 
 **Funnel.** After the 2P entries, ``activity`` holds one width w_j >= 0 per funnelled constraint (a phase's hard
 constraint whose primitive has a tolerance, :func:`funnelled`, in phase order): its rows' bounds become

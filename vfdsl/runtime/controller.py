@@ -139,6 +139,17 @@ class Controller:
         """The transitions of the last tick (at most one; () without phases)."""
         return () if self._procedure is None else self._procedure.events
 
+    @property
+    def captures(self) -> dict[str, np.ndarray]:
+        """Each captured value of the procedure as it holds it after the last tick, in SI (a point in m, a
+        direction a unit vector, an input in its SI unit; every capture holds its start value after the first tick
+        until its phase is entered); {} without phases."""
+        if self._procedure is None:
+            return {}
+        p = self._procedure.p
+        return {name: p[slot.offset:slot.offset + slot.size].copy()
+                for name, slot in self.assembled.context.layout.capture_slots.items()}
+
     def reset(self) -> None:
         """A procedure back to its initial phase, its captures retaken at the next tick (the solver's warm start
         is kept); nothing to do for a task without phases."""
@@ -237,12 +248,13 @@ class Controller:
 
     def _prime(self) -> None:
         """Two evaluations at the start configuration, one with phase 2 forced (input ``recover``) and one through
-        the priority levels: every DAQP workspace of the generated step is allocated now, so that no later step
-        allocates memory."""
+        the priority levels; a procedure's in each case of its step (each phase steady, then a blend:
+        vfdsl.compiler.cases), then its machine back to the initial phase: every DAQP workspace of the generated
+        step is allocated now, so that no later step allocates memory. The C (Stepper.prime, an export's _new)
+        primes in the same order, so that every path starts its ticks from the same warm starts."""
         start = self.task.start if self.task.start is not None else np.zeros(self.nq)
         u = np.zeros(sum(self.input_sizes.values()))
-        for recover in (1.0, 0.0):
-            self._runner.run(np.asarray(start, dtype=float), u, None, self.default_dt or ASSUMED_PERIOD, recover)
+        self._runner.prime(np.asarray(start, dtype=float), u, self.default_dt or ASSUMED_PERIOD, len(self.task.phases))
 
     @cached_property
     def _frames_function(self) -> ca.Function:

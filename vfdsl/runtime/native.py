@@ -144,6 +144,24 @@ class LockedRunner:
         self.activity = inputs.get(PHASE_ARGUMENTS[0])
         self.x, self.status, self.violation = function.outputs       # the step's RESULTS
 
+    def prime(self, q, u, dt: float, n_phases: int) -> None:
+        """The step with and without recovery (Controller._prime); a procedure's in each of its cases
+        (vfdsl.compiler.cases: each phase steady, then phase 0 at half weight, a blend; codegen/procedure_tick.h's
+        vfdsl_procedure_prime, in the same order), the activity then back to the phase buffer's initial value."""
+        if not n_phases:
+            for recover in (1.0, 0.0):
+                self.run(q, u, None, dt, recover)
+            return
+        initial = self.activity.copy()
+        for k in range(n_phases + 1):
+            self.activity[:] = 0.0
+            self.activity[k % n_phases] = self.activity[n_phases + k % n_phases] = 1.0
+            if k == n_phases:
+                self.activity[0] = 0.5
+            for recover in (1.0, 0.0):
+                self.run(q, u, None, dt, recover)
+        self.activity[:] = initial
+
     def run(self, q, u, p, dt: float, recover: float) -> np.ndarray:
         with self._lock:
             arguments = (q, u, self._p_default if p is None else p, dt, recover)
@@ -202,6 +220,10 @@ class StepperRunner:
         self.run = self.stepper.run
         margins = self.stepper.margins
         self.margins = (lambda p: margins(full(p))) if procedure else margins
+
+    def prime(self, q, u, dt: float, n_phases: int) -> None:
+        """Controller._prime in the C (Stepper.prime, which knows the procedure's phases)."""
+        self.stepper.prime(q, u, dt)
 
 
 class NativeProcedure:

@@ -46,7 +46,9 @@ at the k-th tick whatever the rounding.
 6. Outputs for the QP, at the end of this tick's step: with t = ``elapsed`` + dt and s = t / B (1 when B = 0 or
    t reaches B), each phase's activity w_p = w0_p + s (n_p - w0_p), w0 the weights at the transition and n the
    new phase's indicator (clamped to [0, 1]): old phases ramp to 0 and the new one to 1, linear in time, and
-   the weights are one-hot once s = 1 (at once without a blend); they sum to 1 up to rounding, and an
+   the weights are exactly one-hot once s = 1 (at once without a blend; w0 + (1 - w0) and w0 + (0 - w0) round to
+   1 and 0 exactly: the tick's step then solves the phase's steady case, vfdsl.compiler.cases); they sum to 1 up to
+   rounding, and an
    interrupted blend moves no weight by more than a regular step of dt/B. The funnel factor is 1 - s: 0 from the
    tick whose step ends at B on; a hard fixture of the phase violated by e at entry gets the tolerance
    declared + e * funnel (vfdsl.compiler.phases).

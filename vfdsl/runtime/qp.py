@@ -86,7 +86,7 @@ import casadi as ca
 import numpy as np
 
 from vfdsl.codegen import tick_buffers
-from vfdsl.codegen.solve_plan import PlannedFunction, SolvePlan
+from vfdsl.codegen.solve_plan import PlannedFunction, SolvePlan, record
 from vfdsl.runtime.daqp_solve import daqp_rows, daqp_solver
 
 QP_DATA_OUTPUTS = ("H", "g", "A", "lba", "uba", "lbx", "ubx")
@@ -126,7 +126,7 @@ def build_step_function(qp_data: ca.Function, prefix: str, *,
                         feas_tol: float = 1e-6,
                         penalty: float = 1.0,
                         tie_break: float = 1e-3, native: bool = False,
-                        last_level_is_cost: bool = False) -> PlannedFunction:
+                        last_level_is_cost: bool = False, scope: str = "") -> PlannedFunction:
     """``prefix(q, u, p, dt, recover) -> (x[n], status, violation[m])`` solving ``qp_data``'s QP, with the solve
     plan of each of its DAQP conics (for the build).
 
@@ -139,7 +139,8 @@ def build_step_function(qp_data: ca.Function, prefix: str, *,
     code generation (its DAQP solves are CasADi conics, which vfdsl.codegen.build compiles against DAQP's own
     sources); else CasADi evaluates it, DAQP solving through the ``daqp`` package. ``last_level_is_cost``: the last
     priority level (damping alone, positive definite on dq) is DAQP's own cost rather than a soft level (2.5 times
-    faster on experiment B, measured with the daqp package: 7.3 against 18 us).
+    faster on experiment B, measured with the daqp package: 7.3 against 18 us). ``scope`` starts the name of each
+    of its solvers (unique in a step made of several, :func:`build_procedure_step`).
     """
     levels = _check_qp_data(qp_data)
     n, m = qp_data.size1_out(0), qp_data.size1_out(2)
@@ -162,11 +163,11 @@ def build_step_function(qp_data: ca.Function, prefix: str, *,
         sizes = [qp_data.size1_out(7 + 2 * j) for j in range(levels - last_level_is_cost)]
         x1 = None
         for k, (tol, rho) in enumerate(LEVEL_ATTEMPTS):
-            solve = daqp_solver(n, m, tol, f"phase1_try{k}", native, plans, sizes, rho,
+            solve = daqp_solver(n, m, tol, f"{scope}phase1_try{k}", native, plans, sizes, rho,
                                 partial=k == len(LEVEL_ATTEMPTS) - 1, exact=True)
             x1 = solve(*args) if x1 is None else _retried(x1, recover, solve, args)
     else:
-        x1 = daqp_solver(n, m, feas_tol * 1e-3, "phase1_warm", native, plans, warm_start=True)(*args)
+        x1 = daqp_solver(n, m, feas_tol * 1e-3, f"{scope}phase1_warm", native, plans, warm_start=True)(*args)
 
     if m == 0:
         picked = ca.vertcat(x1, int(StepStatus.OPTIMAL))
@@ -175,12 +176,41 @@ def build_step_function(qp_data: ca.Function, prefix: str, *,
         ok1 = _straight_line(f"{prefix}_accept", lambda x, A, *box: [_acceptable(x, A @ x, *box, accept_tol)],
                              [x1, A, lba, uba, lo, hi], expand)
         switch = _phase2_switch([H, g, A, lba, uba, lo, hi, x1], _incidence(m, row_groups),
-                                feas_tol, penalty, tie_break, native, plans)
+                                feas_tol, penalty, tie_break, native, plans, scope)
         picked = switch(ca.logic_and(ok1, recover == 0), H, g, A, lba, uba, lo, hi, x1)
     x, status, violation = _straight_line(f"{prefix}_finish", lambda *v: _finish(*v, m, feas_tol),
                                           [picked, A, lba, uba, lo, hi, clipped], expand)
     return PlannedFunction(ca.Function(prefix, [*inputs, recover], [x, status, violation],
                                        list(tick_buffers.arguments(procedure)), list(tick_buffers.RESULTS)), plans)
+
+
+def build_procedure_step(cases: Sequence[tuple[ca.Function, Sequence[int], bool]], choose: Callable[[ca.MX], ca.MX],
+                         m: int, prefix: str, *, row_groups: Sequence[Hashable] | None = None,
+                         **options) -> PlannedFunction:
+    """A procedure's step, ``prefix(q, u, p, dt, activity, recover) -> (x, status, violation[m])``, made of one step
+    per case (:func:`build_step_function` of each case's QP data, row indices and last_level_is_cost,
+    :mod:`vfdsl.compiler.cases`), of which ``choose(activity)`` picks one each tick: a switch, so only that case is
+    evaluated and solved, each case's solvers keeping their own workspace and warm start (a case's first tick is its
+    priming's, see Controller._prime). The violation of a row the case leaves out is 0 (its bounds are infinite
+    there)."""
+    steps, plans = [], {}
+    for k, (qp_data, rows, last_level_is_cost) in enumerate(cases):
+        groups = None if row_groups is None else [row_groups[i] for i in rows]
+        step = build_step_function(qp_data, f"{prefix}_case{k}", row_groups=groups, scope=f"case{k}_",
+                                   last_level_is_cost=last_level_is_cost, **options)
+        for name, plan in step.plans.items():
+            record(plans, name, plan)
+        symbols = step.mx_in()
+        x, status, violation = step(*symbols)
+        full = ca.MX.zeros(m) if m else ca.MX(0, 1)
+        if rows:
+            full[list(rows)] = violation
+        steps.append(ca.Function(f"{prefix}_case{k}_rows", symbols, [x, status, full], step.name_in(),
+                                 step.name_out()))
+    inputs = steps[0].mx_in()
+    case = choose(inputs[steps[0].index_in(tick_buffers.PHASE_ARGUMENTS[0])])
+    chosen = ca.Function.conditional(f"{prefix}_cases", steps, steps[-1])(case, *inputs)
+    return PlannedFunction(ca.Function(prefix, inputs, chosen, steps[0].name_in(), steps[0].name_out()), plans)
 
 
 def _straight_line(name: str, build: Callable[..., list[ca.MX]], values: Sequence[ca.MX], expand: bool):
@@ -355,7 +385,7 @@ def _incidence(m: int, row_groups: Sequence[Hashable] | None) -> ca.DM:
     return ca.sparsify(ca.DM(E))
 
 
-def _phase2_switch(values: list[ca.MX], E: ca.DM, tol, rho, mu, native, plans) -> ca.Function:
+def _phase2_switch(values: list[ca.MX], E: ca.DM, tol, rho, mu, native, plans, scope: str) -> ca.Function:
     """switch(ok, H, g, A, lba, uba, lo, hi, x1) -> [x1; 0] when ok (phase 1's answer), else phase 2's [x; status].
 
     The branches are Functions of values already computed: a short-circuit ``if_else`` on
@@ -366,7 +396,7 @@ def _phase2_switch(values: list[ca.MX], E: ca.DM, tol, rho, mu, native, plans) -
     H, g, A, lba, uba, lo, hi, x1 = args
     keep = ca.Function("keep", args, [ca.vertcat(x1, int(StepStatus.OPTIMAL))])
     recover = ca.Function("recover", args,
-                          [_least_violation(H, g, A, lba, uba, lo, hi, E, tol, rho, mu, native, plans)])
+                          [_least_violation(H, g, A, lba, uba, lo, hi, E, tol, rho, mu, native, plans, scope)])
     return ca.Function.if_else("phase2_if_needed", keep, recover)
 
 
@@ -376,7 +406,7 @@ def _phase2_switch(values: list[ca.MX], E: ca.DM, tol, rho, mu, native, plans) -
 _GROSS_FAILURE = 1e-6
 
 
-def _least_violation(H, g, A, lba, uba, lo, hi, E: ca.DM, tol, rho, mu, native, plans) -> ca.MX:
+def _least_violation(H, g, A, lba, uba, lo, hi, E: ca.DM, tol, rho, mu, native, plans, scope: str) -> ca.MX:
     """Phase 2 (A then B), returning [x; status]."""
     n, m, G = H.size1(), A.size1(), E.size2()
     H_a = ca.diagcat(mu * ca.DM.eye(n), ca.DM.eye(G))
@@ -387,7 +417,7 @@ def _least_violation(H, g, A, lba, uba, lo, hi, E: ca.DM, tol, rho, mu, native, 
     lba_a = ca.vertcat(lba, -inf_m, ca.fmin(lba, at_rest))
     uba_a = ca.vertcat(inf_m, uba, ca.fmax(uba, at_rest))
     lbz, ubz = ca.vertcat(lo, ca.DM.zeros(G)), ca.vertcat(hi, inf_G)
-    z = daqp_solver(n + G, 3 * m, tol * 1e-3, "phase2a", native, plans)(H_a, g_a,
+    z = daqp_solver(n + G, 3 * m, tol * 1e-3, f"{scope}phase2a", native, plans)(H_a, g_a,
                                                                         *daqp_rows(A_a, lba_a, uba_a, lbz, ubz))
     x_a = _clip(z[:n], lo, hi)      # used only when (A) is acceptable, i.e. z is finite
     Ax_a = A @ x_a
@@ -396,7 +426,7 @@ def _least_violation(H, g, A, lba, uba, lo, hi, E: ca.DM, tol, rho, mu, native, 
     lba_b, uba_b = ca.if_else(violated, -inf, lba), ca.if_else(violated, inf, uba)
     pin_lo, pin_hi = ca.if_else(violated, Ax_a, -inf), ca.if_else(violated, Ax_a, inf)
     row_scale, cost_scale = _unit_rows(A), _unit_diagonal(H)   # (the held rows weigh the same against any objective)
-    x_b = daqp_solver(n, m, tol * 1e-3, "phase2b", native, plans, [m])(
+    x_b = daqp_solver(n, m, tol * 1e-3, f"{scope}phase2b", native, plans, [m])(
         cost_scale * H, cost_scale * g, *daqp_rows(A, lba_b, uba_b, lo, hi, row_scale * A, row_scale * pin_lo,
                                                    row_scale * pin_hi))
 

@@ -84,9 +84,14 @@ VF_EXPORT @API@* @API@_new(void) {
     return 0;
   }
 #endif
-  /* Priming, as Python's Controller: every solver's workspace is allocated now (recovery forced once). */
+  /* Priming, as Python's Controller: every solver's workspace is allocated now (recovery forced once; a
+     procedure's, in each case of its step: procedure_tick.h). */
   memcpy(c->q, start, sizeof(double) * NQ);
+#ifdef VFDSL_PROCEDURE
+  if (vfdsl_procedure_prime(&c->procedure, &c->core, dt, c->activity)) {
+#else
   if (vfdsl_core_eval(&c->core, dt, 1.0) || vfdsl_core_eval(&c->core, dt, 0.0)) {
+#endif
     @API@_free(c);
     return 0;
   }
