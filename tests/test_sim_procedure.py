@@ -161,6 +161,26 @@ def test_the_report_gives_each_phase(run, settings):
     assert f"{ticks[2]} ({ticks[2] * DT:.3f} s)  insert -> retract  when pushed or deep" in text
 
 
+def test_each_phase_fixture_is_measured_in_its_phase_against_what_it_captured(run, settings):
+    k_insert, k_retract = run.event("insert")["tick"], run.event("retract")["tick"]
+    along = run.trace["metric.insert_needle_along_error_m"]
+    assert np.all(np.isnan(along[:k_insert])) and np.all(np.isnan(along[k_retract:]))
+    assert np.all(np.isfinite(along[k_insert:k_retract]))
+    assert along[k_insert] < 1e-12                       # the line through the tip along its axis, taken this tick
+    stop, axis = run.capture("stop"), run.capture("axis0")         # an independent measure: |(I - a a')(x - stop)|
+    retract = run.trace["metric.retract_needle_along_error_m"]
+    for j in range(k_retract, run.event("done")["tick"], 97):
+        d = run.frame("needle", j).position - stop
+        assert retract[j] == pytest.approx(np.linalg.norm(d - (d @ axis) * axis), abs=1e-12)
+    doc = report.document(run.task.name, str(TASK), settings, [run.result], None)
+    phases = {p["name"]: p for p in doc["procedure"]["phases"]}
+    assert "insert_needle_along_error_mm" in phases["insert"]["metrics"]
+    assert not any(name.startswith(("retract_", "align_")) for name in phases["insert"]["metrics"])
+    assert doc["metrics"]["insert_needle_along_error_mm"]["samples"] == k_retract - k_insert
+    assert doc["metrics"]["hold_tip_stays_at_error_mm"]["samples"] == 0      # never entered: shown as -
+    assert re.search(r"hold_tip_stays_at_error_mm\s+mm(\s+-){4}\s+0.1", report.table(doc, {"hold_tip_stays_at_error_mm": 0.1}))
+
+
 def test_a_frozen_force_sensor_ends_in_hold_after_20_ms(settings):
     frozen = Run(dataclasses.replace(settings, sensors=(), duration=0.3))
     force = frozen.column("input.hand.")

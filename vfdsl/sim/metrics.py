@@ -52,6 +52,7 @@ from vfdsl.kinematics.robot import Robot
 from vfdsl.mesh.clearance import mesh_clearance
 from vfdsl.mesh.load import read_mesh
 from vfdsl.primitives import CONSTRAINTS
+from vfdsl.sim import captured
 from vfdsl.sim.geometry import Curve, Scene, pose_matrix
 from vfdsl.sim.robot import LinkPose, frame_offset
 from vfdsl.sim.settings import MetricSpec, constraint_of
@@ -111,33 +112,39 @@ class MetricDef:
     joint_kind: str | None = None            # joint metrics: "prismatic" or "revolute"
     tolerance: float | None = None           # display units
     pose_based: bool = True                  # measurable by the tracker
+    phase: str | None = None                 # a procedure's phase whose fixture it measures (only in that phase)
 
 
 def metric_defs(task: ir.Task, robot: Robot, specs: tuple[MetricSpec, ...]) -> list[MetricDef]:
-    """The metrics of a task: every constraint's error (named by the scene where it says so), then the
-    scene's tilt metrics."""
+    """The metrics of a task: every constraint's error (named by the scene where it says so), a procedure's
+    phases' too (named after their phase: ``insert_needle_along_error_mm``; of the task of
+    :func:`vfdsl.sim.captured.as_params`, a fixture reading a capture it leaves one has none), then the scene's
+    tilt metrics."""
     named = {id(constraint_of(task, s.error_of)): s for s in specs if s.error_of}
     defs: list[MetricDef] = []
-    for c in task.constraints:
+    stated = [(None, c) for c in task.constraints]
+    stated += [(p.name, c) for p in task.phases for c in p.constraints if captured.readable(c)]
+    for phase, c in stated:
         spec = named.get(id(c))
         primitive = CONSTRAINTS[c.primitive]
+        prefix = f"{phase}_" if phase else ""
         if not primitive.subject:            # a joint primitive: one metric per joint kind
             dims = (primitive.metric, _REVOLUTE[primitive.metric])
             for kind, dim in zip(("prismatic", "revolute"), dims):
                 if any(_joint_kind(t) == kind for t in robot.joint_types):
                     unit, _ = DISPLAY[dim]
-                    defs.append(MetricDef(f"{c.primitive}_{_SUFFIX[unit]}", unit, dim, c, joint_kind=kind,
-                                          pose_based=False))
+                    defs.append(MetricDef(f"{prefix}{c.primitive}_{_SUFFIX[unit]}", unit, dim, c, joint_kind=kind,
+                                          pose_based=False, phase=phase))
             continue
         dim = primitive.metric
         unit, factor = DISPLAY[dim]
-        base = spec.name if spec else f"{c.frame}_{c.primitive}_error"
+        base = spec.name if spec else f"{prefix}{c.frame}_{c.primitive}_error"
         tolerance = c.tolerance * factor if c.tolerance is not None else None
-        defs.append(MetricDef(f"{base}_{_SUFFIX[unit]}", unit, dim, c, spec, tolerance=tolerance))
+        defs.append(MetricDef(f"{base}_{_SUFFIX[unit]}", unit, dim, c, spec, tolerance=tolerance, phase=phase))
         if primitive.reads_mesh:
-            base = spec.name if spec else f"{c.frame}_{c.primitive}"
-            defs.append(MetricDef(f"{base}_contact_pct", "%", "contact", c, spec))
-            defs.append(MetricDef(f"{base}_clearance_mm", "mm", "clearance", c, spec))
+            base = spec.name if spec else f"{prefix}{c.frame}_{c.primitive}"
+            defs.append(MetricDef(f"{base}_contact_pct", "%", "contact", c, spec, phase=phase))
+            defs.append(MetricDef(f"{base}_clearance_mm", "mm", "clearance", c, spec, phase=phase))
     for s in specs:
         if s.tilt_of:
             defs.append(MetricDef(f"{s.name}_deg", "deg", "angle", spec=s))

@@ -132,11 +132,12 @@ def phase_table(doc: dict) -> str:
     lines += ["", "transitions: tick (s), from -> to, the guard that held"]
     for e in proc["transitions"]:
         lines.append(f"  {who(e)}{e['tick']} ({e['time_s']:.3f} s)  {e['source']} -> {e['target']}  when {e['guard']}")
-    lines += ["", f"{'phase':<12} {'metric':<34} {'unit':<6} {'mean':>10} {'max':>10}"]
+    width = _name_width(name for p in proc["phases"] for name in p["metrics"])
+    lines += ["", f"{'phase':<12} {'metric':<{width}} {'unit':<6} {'mean':>10} {'max':>10}"]
     for p in proc["phases"]:
         for name, m in p["metrics"].items():
             if m["samples"]:
-                lines.append(f"{p['name']:<12} {name:<34} {m['unit']:<6} {_num(m['mean'])} {_num(m['max'])}")
+                lines.append(f"{p['name']:<12} {name:<{width}} {m['unit']:<6} {_num(m['mean'])} {_num(m['max'])}")
     return "\n".join(lines)
 
 
@@ -182,7 +183,8 @@ def table(doc: dict, tolerances: dict[str, float]) -> str:
     its tolerance, and the paper's figure beside it."""
     blocks = doc["groups"] if "groups" in doc else [{"settings": {}, "metrics": doc["metrics"]}]
     lines = []
-    header = (f"{'metric':<34} {'unit':<6} {'mean':>10} {'std':>10} {'min':>10} {'max':>10} {'tolerance':>10}  "
+    width = _name_width(name for block in blocks for name in block["metrics"])
+    header = (f"{'metric':<{width}} {'unit':<6} {'mean':>10} {'std':>10} {'min':>10} {'max':>10} {'tolerance':>10}  "
               "paper (mean ± std)")
     for block in blocks:
         if block["settings"]:
@@ -192,9 +194,15 @@ def table(doc: dict, tolerances: dict[str, float]) -> str:
         for name, m in block["metrics"].items():
             paper = f"{m['paper']['mean']:g} ± {m['paper']['std']:g}" if "paper" in m else ""
             tol = tolerances.get(name.removeprefix("tracker_"))
-            lines.append(f"{name:<34} {m['unit']:<6} {_num(m['mean'])} {_num(m['std'])} {_num(m['min'])} {_num(m['max'])} "
+            shown = [m[k] if m.get("samples", 1) else math.nan for k in ("mean", "std", "min", "max")]   # (a phase
+            lines.append(f"{name:<{width}} {m['unit']:<6} {' '.join(_num(x) for x in shown)} "   # never entered: -)
                          f"{_num(tol) if tol is not None else ' ' * 10}  {paper}")
     return "\n".join(lines)
+
+
+def _name_width(names) -> int:
+    """The metric column's width: 34, or the longest name's."""
+    return max([34, *(len(name) for name in names)])
 
 
 def _num(x: float) -> str:

@@ -39,6 +39,7 @@ from vfdsl.sim import tracker
 from vfdsl.sim.cluster import connect
 from vfdsl.sim.geometry import Scene
 from vfdsl.sim.hand import Hand, generic_hand
+from vfdsl.sim import captured
 from vfdsl.sim.metrics import Stats, errors, frame_poses, metric_defs, prepare_meshes
 from vfdsl.sim.phases import PhaseRecord
 from vfdsl.sim.robot import SimRobot
@@ -315,6 +316,8 @@ def _score(job: Job, task: ir.Task, robot: Robot, qs: np.ndarray, segments, rng,
            hand_settings, shifts: dict[str, np.ndarray], record: _Recorder | None = None,
            progress=None, phases: PhaseRecord | None = None) -> TrialResult:
     s = job.settings
+    if phases is not None:              # the phases' fixtures measured against the values they captured
+        task, segments = captured.as_params(task), phases.segments(segments)
     poses = frame_poses(robot, task, qs)
     seen = tracker.measure(poses, task, s.noise, s.marker_distance, rng) if s.noise > 0 else None
     defs = metric_defs(task, robot, s.metrics)
@@ -338,19 +341,22 @@ def _score(job: Job, task: ir.Task, robot: Robot, qs: np.ndarray, segments, rng,
                 name = f"tracker_{d.name}"
                 values.setdefault(name, []).append(errors(d, task, robot, scene, seen_view, qs[part], s.period))
                 units[name] = d.unit
-    series_values = {name: np.concatenate(v) for name, v in values.items()}
+    owners = {d.name: d.phase for d in defs} | {f"tracker_{d.name}": d.phase for d in defs}
+    lengths = [end - start for (start, _), end in zip(segments, bounds[1:])]
+    series_values = {name: tr.per_tick(v, lengths) for name, v in values.items()}
+    if phases is not None:              # a phase's fixture: NaN where another phase is current
+        series_values = {name: phases.mask(owners[name], v) for name, v in series_values.items()}
     trace = None
     if record is not None:
         trace = record.columns(qs, s.period)
         if phases is not None:
             trace.update(phases.columns())
-        lengths = [end - start for (start, _), end in zip(segments, bounds[1:])]
-        for name, parts in values.items():
+        for name, v in series_values.items():
             tracked = name.startswith("tracker_")
             column = tr.metric_column("tracker" if tracked else "metric", name.removeprefix("tracker_") if tracked
                                       else name, units[name])
-            trace[column] = tr.per_tick(parts, lengths) * tr.metric_factor(units[name])
-    stats = {name: Stats().add(v) for name, v in series_values.items()}
+            trace[column] = v * tr.metric_factor(units[name])
+    stats = {name: Stats().add(v[~np.isnan(v)] if owners[name] else v) for name, v in series_values.items()}
     if progress is not None and not meshes:
         progress((1 - SIMULATED) * len(qs))
     series = None
@@ -370,7 +376,7 @@ def _score(job: Job, task: ir.Task, robot: Robot, qs: np.ndarray, segments, rng,
         if name is not None:
             motion = achieved_motion(poses.p[name], poses.axis(task.frame(name)))
             motion["frame"] = name
-    procedure = None if phases is None else phases.summary(s.period, series_values)
+    procedure = None if phases is None else phases.summary(s.period, series_values, owners)
     return TrialResult(job.trial, job.seed, job.grid, len(qs), fallback, stats, units, series, hand, trace, motion,
                        procedure)
 
