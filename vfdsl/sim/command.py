@@ -14,7 +14,8 @@ import vfdsl
 from vfdsl.errors import VfError
 from vfdsl.files import check_writable
 from vfdsl import limits
-from vfdsl.sim import captured, report, trace
+from vfdsl.ir import captures
+from vfdsl.sim import report, trace
 from vfdsl.sim.cluster import connect
 from vfdsl.sim.metrics import metric_defs
 from vfdsl.sim.runner import default_workers, loaded, make_jobs, run
@@ -153,7 +154,7 @@ def main(args: argparse.Namespace) -> int:
             client.close()
     seconds = time.perf_counter() - start
     doc = report.document(task.name, str(args.file), settings, results, grid)
-    tolerances = {d.name: d.tolerance for d in metric_defs(captured.as_params(task), ctx.robot, settings.metrics)
+    tolerances = {d.name: d.tolerance for d in metric_defs(captures.as_params(task), ctx.robot, settings.metrics)
                   if d.tolerance is not None}
     if not args.quiet:
         simulated = sum(r.ticks for r in results) * settings.period if not grid else None

@@ -47,12 +47,12 @@ from typing import Callable
 
 import numpy as np
 
+from vfdsl.ir import captures
 from vfdsl.ir import model as ir
 from vfdsl.kinematics.robot import Robot
 from vfdsl.mesh.clearance import mesh_clearance
 from vfdsl.mesh.load import read_mesh
 from vfdsl.primitives import CONSTRAINTS
-from vfdsl.sim import captured
 from vfdsl.sim.geometry import Curve, Scene, pose_matrix
 from vfdsl.sim.robot import LinkPose, frame_offset
 from vfdsl.sim.settings import MetricSpec, constraint_of
@@ -118,12 +118,12 @@ class MetricDef:
 def metric_defs(task: ir.Task, robot: Robot, specs: tuple[MetricSpec, ...]) -> list[MetricDef]:
     """The metrics of a task: every constraint's error (named by the scene where it says so), a procedure's
     phases' too (named after their phase: ``insert_needle_along_error_mm``; of the task of
-    :func:`vfdsl.sim.captured.as_params`, a fixture reading a capture it leaves one has none), then the scene's
+    :func:`vfdsl.ir.captures.as_params`, a fixture reading a capture it leaves one has none), then the scene's
     tilt metrics."""
     named = {id(constraint_of(task, s.error_of)): s for s in specs if s.error_of}
     defs: list[MetricDef] = []
     stated = [(None, c) for c in task.constraints]
-    stated += [(p.name, c) for p in task.phases for c in p.constraints if captured.readable(c)]
+    stated += [(p.name, c) for p in task.phases for c in p.constraints if captures.readable(c)]
     for phase, c in stated:
         spec = named.get(id(c))
         primitive = CONSTRAINTS[c.primitive]

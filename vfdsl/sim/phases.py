@@ -3,7 +3,7 @@
 Each tick the simulator records the phase the controller solved (``Controller.phase`` after the step: a
 transition's new phase from its own tick on), every named monitor (``Controller.monitors``), the transitions
 (``Controller.events``) and, at the first tick and at each transition, the captured values
-(``Controller.captures``: the metrics of the phases' fixtures read them, :mod:`vfdsl.sim.captured`). From these,
+(``Controller.captures``: the metrics of the phases' fixtures read them, :mod:`vfdsl.ir.captures`). From these,
 per phase: its visits (entry tick, and exit tick: the tick of the transition out, the first tick of the next phase;
 none for the phase the run ends in), its time (ticks x period), and each metric of the run pooled over the phase's
 ticks: those of the fixtures held in every phase, and its own fixtures' (measured only while it is current). Times
@@ -14,8 +14,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from vfdsl.ir import captures
 from vfdsl.ir import model as ir
-from vfdsl.sim import captured
 from vfdsl.sim.metrics import Stats
 
 
@@ -42,11 +42,11 @@ class PhaseRecord:
             self.events.append({"tick": k, "time_s": k * period, "source": e.source, "target": e.target,
                                 "guard": e.guard})
         if k == 0 or ctrl.events:
-            self.captures.append((k, captured.values(self.task, ctrl.captures)))
+            self.captures.append((k, captures.values(self.task, ctrl.captures)))
 
     def segments(self, scene_segments: list[tuple[int, dict]]) -> list[tuple[int, dict]]:
         """The run's scored segments (tick, params' values from it) cut also where the captured values change,
-        each snapshot with the capture params' values (:func:`vfdsl.sim.captured.as_params`)."""
+        each snapshot with the capture params' values (:func:`vfdsl.ir.captures.as_params`)."""
         ticks = sorted({k for k, _ in scene_segments} | {k for k, _ in self.captures})
         out = []
         for k in ticks:

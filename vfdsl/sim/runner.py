@@ -31,6 +31,7 @@ import numpy as np
 import vfdsl
 from vfdsl.compiler.context import flatten
 from vfdsl.errors import VfError
+from vfdsl.ir import captures
 from vfdsl.ir import model as ir
 from vfdsl.kinematics.robot import Robot
 from vfdsl.runtime.qp import StepStatus
@@ -39,7 +40,6 @@ from vfdsl.sim import tracker
 from vfdsl.sim.cluster import connect
 from vfdsl.sim.geometry import Scene
 from vfdsl.sim.hand import Hand, generic_hand
-from vfdsl.sim import captured
 from vfdsl.sim.metrics import Stats, errors, frame_poses, metric_defs, prepare_meshes
 from vfdsl.sim.phases import PhaseRecord
 from vfdsl.sim.robot import SimRobot
@@ -317,7 +317,7 @@ def _score(job: Job, task: ir.Task, robot: Robot, qs: np.ndarray, segments, rng,
            progress=None, phases: PhaseRecord | None = None) -> TrialResult:
     s = job.settings
     if phases is not None:              # the phases' fixtures measured against the values they captured
-        task, segments = captured.as_params(task), phases.segments(segments)
+        task, segments = captures.as_params(task), phases.segments(segments)
     poses = frame_poses(robot, task, qs)
     seen = tracker.measure(poses, task, s.noise, s.marker_distance, rng) if s.noise > 0 else None
     defs = metric_defs(task, robot, s.metrics)
