@@ -11,6 +11,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 import vfdsl
@@ -47,8 +48,14 @@ def variant(tmp_path):
     return make
 
 
+def quick(task: ir.Task):
+    """``vfdsl check`` of a variant, its compiled analyses run interpreted and without the random walk (these tests
+    are about what the IR decides; the example's full check is test_the_example_passes_...)."""
+    return vfdsl.check(task, samples=0, backend="interpreted")
+
+
 def found(task: ir.Task, code: str):
-    return [f for f in vfdsl.check(task).findings if f.code == code]
+    return [f for f in quick(task).findings if f.code == code]
 
 
 def at(findings) -> list[tuple[str, int]]:
@@ -57,7 +64,8 @@ def at(findings) -> list[tuple[str, int]]:
 
 # ------------------------------------------------------------------------------------------------ the example
 def test_the_example_is_sound_and_its_findings_are_the_procedures():
-    report = vfdsl.check(vfdsl.load(EXAMPLE))
+    report_task = vfdsl.load(EXAMPLE)
+    report = vfdsl.check(report_task)
     assert report.exit_status() == 0 and report.count(Severity.ERROR) == 0
     by_code = {}
     for f in report.findings:
@@ -78,7 +86,11 @@ def test_the_example_is_sound_and_its_findings_are_the_procedures():
     assert not any(f.data["where"].endswith(tuple(captured)) for f in by_code["VF956"])
     [every] = by_code["VF958"]
     assert "joint_limits()" in every.message and "joint_speed()" in every.message
-    assert by_code["VF950"][0].severity == Severity.NOTE
+    # the compiled controller's analyses ran on each phase alone, their findings saying where they hold
+    assert "VF950" not in by_code and set(report.figures["phases"]) == {p.name for p in report_task.phases}
+    sampled = {tuple(f.data["phases"]) for f in by_code["VF700"]}
+    assert ("insert",) in sampled and ("done", "hold") in sampled
+    assert all(f.message.startswith(f"in phase{'s' if len(f.data['phases']) > 1 else ''} ") for f in by_code["VF700"])
     # warnings, each justified: the library's 4x4 stays_at polytope (VF102); `done` holds the point it captures
     # on entry, so entering it violates nothing
     assert {f.code for f in report.findings if f.severity == Severity.WARNING} <= {"VF102"}
@@ -89,7 +101,7 @@ def test_a_final_phase_holding_an_earlier_capture_is_entered_violated(variant):
     `stop`: every entry is at least 9.9 mm off, and the funnel would drive the needle back in (VF957)."""
     task, text = variant("    capture rest = tip.position          # where the retraction ended: held there\n", "",
                          "stays_at(rest) within 0.1 mm", "stays_at(stop) within 0.1 mm")
-    [found] = [f for f in vfdsl.check(task).findings if f.code == "VF957"]
+    [found] = [f for f in quick(task).findings if f.code == "VF957"]
     assert found.span.line == line(text, "transition retract -> done") and "at least 9.9 mm" in found.message
 
 
@@ -99,7 +111,7 @@ def test_unreachable_phase(variant):
     [f] = found(task, "VF951")
     assert (f.severity, f.span.line) == (Severity.ERROR, line(text, "phase insert {"))
     assert "no transition leads to it" in f.message
-    assert vfdsl.check(task).exit_status() == 1
+    assert quick(task).exit_status() == 1
 
 
 def test_a_transition_that_never_fires_leaves_its_targets_unreachable(variant):
@@ -189,7 +201,7 @@ def test_a_monitor_that_can_never_become_true(variant, old, new, what):
     task, text = variant(old, new)
     [f] = found(task, "VF954")
     assert (f.severity, f.span.line) == (Severity.ERROR, line(text, new)) and what in f.message
-    assert vfdsl.check(task).exit_status() == 1
+    assert quick(task).exit_status() == 1
 
 
 def test_a_monitor_whose_thresholds_exclude_each_other(variant):
@@ -233,7 +245,7 @@ def test_an_unfunnelled_transition(variant):
     [f] = entries
     assert (f.severity, f.span.line) == (Severity.WARNING, line(text, "transition approach -> align"))
     assert "violated by up to 1 mm" in f.message and "no blend" in f.message and "add a blend" in f.suggestion
-    assert vfdsl.check(task).exit_status(strict=True) == 1
+    assert quick(task).exit_status(strict=True) == 1
 
 
 def test_a_guard_within_the_fixture_needs_no_funnel(variant):
@@ -275,7 +287,8 @@ def vfdsl_cli(*args: str) -> subprocess.CompletedProcess:
 def test_cli_prints_the_procedure_findings_and_exits_0():
     proc = vfdsl_cli("check", str(EXAMPLE))
     assert proc.returncode == 0, proc.stdout + proc.stderr
-    for code in ("note VF953 guards-overlap", "note VF956 entry-unfunnelled", "note VF950 procedure-not-compiled"):
+    for code in ("note VF953 guards-overlap", "note VF956 entry-unfunnelled", "note VF700 sampled-summary: in phase "
+                 "insert: 200 states"):
         assert code in proc.stdout
     assert proc.stdout.rstrip().splitlines()[-1].startswith("needle_procedure: sound")
 
@@ -283,7 +296,7 @@ def test_cli_prints_the_procedure_findings_and_exits_0():
 def test_cli_json_carries_the_findings_and_an_error_exits_1(variant, tmp_path):
     _, text = variant("transition align -> insert when aligned", "transition align -> retract when aligned",
                       "blend 200 ms\n", "")
-    proc = vfdsl_cli("check", str(tmp_path / "procedures" / "needle_procedure.vf"), "--json")
+    proc = vfdsl_cli("check", str(tmp_path / "procedures" / "needle_procedure.vf"), "--json", "--samples", "0")
     data = json.loads(proc.stdout)
     assert proc.returncode == 1 and data["exit_status"] == 1 and not data["sound"]
     codes = {(f["code"], f["severity"], f["location"]["line"]) for f in data["findings"] if f["location"]}
@@ -292,12 +305,58 @@ def test_cli_json_carries_the_findings_and_an_error_exits_1(variant, tmp_path):
     json.dumps(data, allow_nan=False)
 
 
-def test_monitors_without_phases_are_checked_and_the_compiled_analyses_said_skipped(tmp_path):
+def test_monitors_without_phases_are_checked_and_the_task_analysed_as_one_moment(tmp_path):
     path = tmp_path / "t.vf"
     path.write_text('task t\nunits mm, deg\nrobot shr = urdf "shr7"\nframe tip = shr.link("tool_tip")\n'
                     "param entry : point = [10, 5, 285]\nmonitor never = distance(tip, entry) <= -1 mm\n"
                     "require tip stays_at(entry) within 1 mm\n")
-    report = vfdsl.check(vfdsl.load(path))
-    assert [(f.code, f.span.line) for f in report.findings if f.code >= "VF950"] == [("VF954", 6), ("VF950", 1)]
-    [skipped] = [f for f in report.to_json()["findings"] if f["code"] == "VF950"]
-    assert "feasibility at the start" in skipped["data"]["skipped"] and skipped["severity"] == "note"
+    report = quick(vfdsl.load(path))
+    assert [(f.code, f.span.line) for f in report.findings if f.code >= "VF950"] == [("VF954", 6)]
+    assert "no-start" in {f.name for f in report.findings}         # no scene: the compiled analyses need a start
+
+
+SCALAR_CAPTURE = """\
+task t
+units mm, deg
+robot shr = urdf "shr7"
+frame tip = shr.link("tool_tip")
+input f : force
+input go : button
+param entry : point = [10, 5, 285]
+param r : length = 2 mm
+monitor pressed = go
+phase a initial { minimize track(tip, f, gain = 1 mm/s/N) }
+phase b final {
+    capture r0 = r
+    require tip within_distance(entry, r0)
+}
+transition a -> b when pressed
+"""
+
+
+def test_a_phase_reading_a_captured_scalar_is_not_analysed_alone_the_others_are(tmp_path):
+    path = tmp_path / "t.vf"
+    path.write_text(SCALAR_CAPTURE)
+    (tmp_path / "t.yaml").write_text("start: [0, 0, 0, 0, 0, 0, 0]\nperiod: 1 ms\n")
+    report = quick(vfdsl.load(path))
+    [skipped] = [f for f in report.findings if f.code == "VF950"]
+    assert skipped.span.line == line(SCALAR_CAPTURE, "phase b final") and skipped.data["phase"] == "b"
+    assert "'b' reads a captured input or scalar" in skipped.message
+    assert set(report.figures["phases"]) == {"a", "b"} and "start_margin" in report.figures["phases"]["a"]
+    assert report.figures["phases"]["b"] == {} and not any(
+        "b" in f.data.get("phases", ()) for f in report.findings if f.code != "VF950")
+
+
+def test_a_button_input_is_left_released_by_the_random_walk(tmp_path):
+    """The sampled analysis pushes every motion input at random and leaves a button (which moves nothing) at 0."""
+    from vfdsl.check.sampling import random_inputs
+    path = tmp_path / "t.vf"
+    path.write_text('task t\nunits mm, deg\nrobot shr = urdf "shr7"\nframe tip = shr.link("tool_tip")\n'
+                    "input f : force\ninput go : button\nminimize track(tip, f, gain = 1 mm/s/N)\n")
+    (tmp_path / "t.yaml").write_text("start: [0, 0, 0, 0, 0, 0, 0]\nperiod: 1 ms\n")
+    task = vfdsl.load(path)
+    inputs = random_inputs(task, 60, 0)
+    assert all(i["go"].shape == (1,) and i["go"][0] == 0.0 for i in inputs)
+    assert max(np.linalg.norm(i["f"]) for i in inputs) > 0
+    report = vfdsl.check(task)
+    assert report.count(Severity.ERROR) == 0 and any(f.code == "VF700" for f in report.findings)

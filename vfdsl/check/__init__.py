@@ -36,7 +36,6 @@ def check(task: ir.Task, *, overshoot: float = DEFAULT_OVERSHOOT, samples: int =
     :func:`vfdsl.compile`)."""
     from vfdsl.errors import VfError
     from vfdsl import limits
-    from vfdsl.pipeline import compile as compile_task
 
     if not (isinstance(samples, int) and 0 <= samples <= limits.CHECK_SAMPLES):
         raise VfError(f"samples must be a whole number from 0 to {limits.CHECK_SAMPLES:,}, got {samples!r}")
@@ -58,53 +57,71 @@ def check(task: ir.Task, *, overshoot: float = DEFAULT_OVERSHOOT, samples: int =
     run("polytope", polytope.analyse, statements, overshoot)
     run("tolerance", tolerance.analyse_values, statements)
     run("tolerance", tolerance.analyse_speeds, statements)
-    if procedure.is_procedure(task):             # the compiled analyses do not know phases yet
+    if procedure.is_procedure(task):
         run("hygiene", procedure.unused, task)
         run("procedure", procedure.analyse, task)
-        report.add([procedure.not_compiled(task)])
-        report.figures["seconds"] = time.perf_counter() - started
-        report.findings = [_with_param_sources(finding, statements) for finding in report.findings]
-        return report
-    run("hygiene", hygiene.unused, task)
+    else:
+        run("hygiene", hygiene.unused, task)
     if task.start is None:
         report.add([Finding("no-start", Severity.WARNING,
                             "the scene gives no start configuration: feasibility, residuals, kinematics, "
                             "hands-off and sampled checks are skipped", task.span,
                             "add `start:` to the task's scene file", "task")])
-        report.figures["seconds"] = time.perf_counter() - started
-        return report
-    if task.scene.period is None:
-        report.add([Finding("no-period", Severity.WARNING,
-                            "the scene gives no control period: the checks assume 10 ms", task.span,
-                            "add `period:` to the task's scene file", "task")])
+    else:
+        if task.scene.period is None:
+            report.add([Finding("no-period", Severity.WARNING,
+                                "the scene gives no control period: the checks assume 10 ms", task.span,
+                                "add `period:` to the task's scene file", "task")])
+        analysed = {"": task} if not task.phases else procedure.phase_tasks(task, backend)
+        found: dict[str, list[Finding]] = {}
+        for phase, one in analysed.items():
+            figures = report.figures if not phase else report.figures.setdefault("phases", {}).setdefault(phase, {})
+            found[phase] = ([procedure.not_compiled(task, phase)] if one is None
+                            else _compiled(one, samples, seed, backend, figures, timings))
+        report.add(found[""] if not task.phases else procedure.per_phase(found, report.findings))
+    report.figures["seconds"] = time.perf_counter() - started
+    report.findings = [_with_param_sources(finding, statements) for finding in report.findings]
+    return report
+
+
+def _compiled(task: ir.Task, samples: int, seed: int, backend: str, figures: dict, timings: dict) -> list[Finding]:
+    """The analyses of a task's compiled controller (of one moment: a procedure's are run per phase), at its start;
+    ``figures`` and ``timings`` get their numbers."""
+    from vfdsl.pipeline import compile as compile_task
+
+    findings: list[Finding] = []
+
+    def run(stage: str, analysis, *args):
+        begin = time.perf_counter()
+        findings.extend(analysis(*args))
+        timings[stage] = timings.get(stage, 0.0) + time.perf_counter() - begin
+
     begin = time.perf_counter()
     controller = compile_task(task, backend=backend)
     linear = Linearization(task, controller.assembled.context)
     robot = linear.robot
     rows = linear.rows(task.start)
     _check_magnitudes(rows)
-    timings["compile"] = time.perf_counter() - begin
+    timings["compile"] = timings.get("compile", 0.0) + time.perf_counter() - begin
     run("tolerance", tolerance.analyse_at_start, rows, robot.resolution, robot.nq, linear.period)
-    run("feasibility", feasibility.analyse, rows, robot.nq, report.figures)
+    run("feasibility", feasibility.analyse, rows, robot.nq, figures)
     run("residuals", residuals.analyse, task, linear, rows, task.start)
-    run("residuals", residuals.soft_at_start, task, linear, rows, task.start, robot.nq, report.figures)
+    run("residuals", residuals.soft_at_start, task, linear, rows, task.start, robot.nq, figures)
     walked = None
     if samples > 0:                            # the states the fixture reaches: for sampling and redundancy
         begin = time.perf_counter()
         walked = sampling.walk(controller, task, linear, samples, seed)
-        timings["sampling"] = time.perf_counter() - begin
+        timings["sampling"] = timings.get("sampling", 0.0) + time.perf_counter() - begin
     reached = list(walked[0][sampling.HOLD::sampling.HOLD]) if walked else []
     run("hygiene", hygiene.redundant, rows, robot.nq, reached, linear.rows)
     run("hygiene", hygiene.contradictory, rows, robot.nq)
-    run("kinematics", kinematics.analyse, robot, task, task.start, report.figures)
-    run("lever", lever.analyse, task, linear, rows, task.start, report.figures)
-    run("meshes", meshes.analyse, task, robot, task.start, linear.period, report.figures)
-    run("handsoff", handsoff.analyse, controller, task, linear, report.figures)
+    run("kinematics", kinematics.analyse, robot, task, task.start, figures)
+    run("lever", lever.analyse, task, linear, rows, task.start, figures)
+    run("meshes", meshes.analyse, task, robot, task.start, linear.period, figures)
+    run("handsoff", handsoff.analyse, controller, task, linear, figures)
     if walked is not None:
-        run("sampling", sampling.analyse, controller, task, linear, samples, seed, report.figures, walked)
-    report.figures["seconds"] = time.perf_counter() - started
-    report.findings = [_with_param_sources(finding, task) for finding in report.findings]
-    return report
+        run("sampling", sampling.analyse, controller, task, linear, samples, seed, figures, walked)
+    return findings
 
 
 def _with_param_sources(finding: Finding, task: ir.Task) -> Finding:

@@ -21,6 +21,7 @@ import numpy as np
 
 from vfdsl.compiler import registry
 from vfdsl.compiler.context import Context
+from vfdsl.errors import VfError
 from vfdsl.ir import model as ir
 from vfdsl.runtime.values import ASSUMED_PERIOD
 
@@ -116,8 +117,17 @@ def _is_selection(A) -> bool:
 
 
 def value_of(arg: ir.Arg, task: ir.Task) -> ir.Value:
-    """The value of a constant argument, or the default (or scene) value of a param."""
-    return arg.value if isinstance(arg, ir.Const) else task.param(arg.name).value
+    """The value of a constant argument, or the default (or scene) value of a param; of a capture of a param, that
+    param's (the value it holds from the first tick until its phase is entered)."""
+    if isinstance(arg, ir.Const):
+        return arg.value
+    if isinstance(arg, ir.CaptureRef):
+        source = next(c.source for p in task.phases for c in p.captures if c.name == arg.name)
+        if not isinstance(source, ir.ParamRef):
+            raise VfError(f"capture '{arg.name}' is not a param's value: no value before the controller runs",
+                          next(c.span for p in task.phases for c in p.captures if c.name == arg.name))
+        return task.param(source.name).value
+    return task.param(arg.name).value
 
 
 def describe(c: ir.Constraint) -> str:

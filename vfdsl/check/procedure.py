@@ -15,18 +15,23 @@
   loosen it (an error).
 
 The analyses that need a compiled controller (feasibility, residuals, hands off, kinematics, meshes, the random
-walk, redundancy) are not run on a procedure yet: one note (VF950) says so.
+walk, redundancy) run on each phase alone (:func:`phase_tasks`: the statements outside the phases and the phase's
+own, its captures read as params holding their values at the start configuration, as if the phase were entered
+there), each finding saying in which phases it holds (:func:`per_phase`). A phase that reads a captured input or
+scalar is not analysed so: one note (VF950) says so.
 """
 
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 from vfdsl.check import hygiene, monitors, statechart
 from vfdsl.check.linearized import describe, where
 from vfdsl.check.monitors import arg_key, arrow, axis, measure_key, origin
 from vfdsl.check.report import Finding, Severity, quantity
 from vfdsl.compiler import derived
+from vfdsl.ir import captures
 from vfdsl.ir import model as ir
 from vfdsl.primitives import CONSTRAINTS
 
@@ -50,11 +55,51 @@ def analyse(task: ir.Task) -> list[Finding]:
     return [*statechart.analyse(task), *monitors.analyse(task), *_entries(task), *_every_phase(task)]
 
 
-def not_compiled(task: ir.Task) -> Finding:
+def phase_tasks(task: ir.Task, backend: str) -> dict[str, ir.Task | None]:
+    """Each phase alone (:func:`vfdsl.ir.captures.phase_task`), its captures at their values after the first tick
+    from the start configuration with every input 0 (each capture's start value); None for a phase that cannot be
+    analysed alone."""
+    import numpy as np
+
+    from vfdsl.pipeline import compile as compile_task
+
+    ctrl = compile_task(task, backend="interpreted" if backend == "auto" else backend)
+    ctrl.step(task.start, {name: np.zeros(n) for name, n in ctrl.input_sizes.items()})
+    given = captures.values(task, ctrl.captures)
+    return {phase.name: captures.phase_task(task, phase.name, given) for phase in task.phases}
+
+
+def not_compiled(task: ir.Task, phase: str) -> Finding:
     return Finding("procedure-not-compiled", Severity.NOTE,
-                   f"task '{task.name}' is a procedure: the analyses of its compiled controller ("
-                   + ", ".join(COMPILED) + ") are not run on procedures yet; its statements, monitors and phase "
-                   "machine were checked", task.span, None, "task", {"skipped": list(COMPILED)})
+                   f"phase '{phase}' reads a captured input or scalar: the analyses of its compiled controller ("
+                   + ", ".join(COMPILED) + ") are not run on it; its statements, monitors and transitions were "
+                   "checked", next(p.span for p in task.phases if p.name == phase), None, "task",
+                   {"skipped": list(COMPILED), "phase": phase})
+
+
+def per_phase(found: dict[str, list[Finding]], known: list[Finding]) -> list[Finding]:
+    """The findings of the phases' analyses, one per distinct finding, each saying where it holds ("in phase
+    insert", "in phases a, b", "in every phase"; ``data["phases"]``); those already in ``known`` (of the task's
+    statements) left out."""
+    def key(f: Finding):
+        return f.name, f.severity, f.span, f.message, f.subject
+
+    seen = {key(f) for f in known}
+    where: dict = {}
+    first: dict = {}
+    for phase, findings in found.items():
+        for f in findings:
+            if key(f) not in seen:
+                where.setdefault(key(f), []).append(phase)
+                first.setdefault(key(f), f)
+    out = []
+    for k, phases in where.items():
+        f = first[k]
+        label = ("in every phase" if len(phases) == len(found) and len(found) > 1
+                 else f"in phase{'s' if len(phases) > 1 else ''} {', '.join(phases)}")
+        message = f.message if f.name == "procedure-not-compiled" else f"{label}: {f.message}"
+        out.append(replace(f, message=message, data={**f.data, "phases": phases}))
+    return out
 
 
 def unused(task: ir.Task) -> list[Finding]:

@@ -52,19 +52,22 @@ def input_scales(task: ir.Task) -> dict[str, np.ndarray]:
 
 
 def random_inputs(task: ir.Task, ticks: int, seed: int) -> list[dict[str, np.ndarray]]:
-    """Piecewise-constant random inputs (a new direction and size every HOLD ticks), in 3-vector parts."""
+    """Piecewise-constant random inputs (a new direction and size every HOLD ticks) in each motion part (a force,
+    a torque: 3 numbers); an input that moves nothing (a button) left at 0."""
     rng = np.random.default_rng(seed)
     scales = input_scales(task)
+    kinds = {d.name: INPUT_TYPES[d.type] for d in task.inputs}
     out = []
     for t in range(ticks):
         if t % HOLD == 0:
             current = {}
             for name, scale in scales.items():
-                parts = []
-                for k in range(0, len(scale), 3):
-                    direction = rng.normal(size=3)
-                    parts.append(direction / np.linalg.norm(direction) * rng.uniform(0, 1) * scale[k:k + 3])
-                current[name] = np.concatenate(parts)
+                value = np.zeros(len(scale))
+                for part in (kinds[name].linear_range, kinds[name].angular_range):
+                    if part:
+                        direction = rng.normal(size=3)
+                        value[part] = direction / np.linalg.norm(direction) * rng.uniform(0, 1) * scale[part]
+                current[name] = value
         out.append(current)
     return out
 
