@@ -66,6 +66,8 @@ FLAGS = ("-O3", "-march=native", "-ffp-contract=off", "-fPIC", "-pthread", "-fvi
          "-DGCC_HASCLASSVISIBILITY")
 """Speed flags. Never ``-ffast-math``: the step's NaN/inf checks must survive optimisation."""
 STEPPER = Path(__file__).parent / "stepper.c"
+STEPPER_PARTS = (STEPPER, STEPPER.with_name("stepper_values.h"), STEPPER.with_name("stepper_procedure.h"))
+"""The Python extension's source: stepper.c and the parts it includes."""
 CHECKED_STEP = Path(__file__).parent / "checked_step.h"
 """The checks and the evaluation of a tick in plain C: included by stepper.c and by `vfdsl export`'s library."""
 
@@ -289,7 +291,7 @@ def _python_build_key() -> dict | None:
     if python_headers() is None:
         return None
     import numpy
-    return {"stepper": STEPPER.read_text(), "checked_step": CHECKED_STEP.read_text(),
+    return {"stepper": [path.read_text() for path in STEPPER_PARTS], "checked_step": CHECKED_STEP.read_text(),
             "procedure_tick": [path.read_text() for path in PROCEDURE_TICK], "soabi": sysconfig.get_config_var("SOABI"),
             "numpy": numpy.__version__}
 
