@@ -1,6 +1,6 @@
 """Text -> :class:`~vfdsl.syntax.ast.Module`: the Lark parser over ``grammar/vf.lark`` and the tree transformer.
 
-Lark's errors become :class:`~vfdsl.errors.VfError` with the position, what was expected in words, and a
+Lark's errors become :class:`~vfdsl.errors.VfError` (:mod:`.syntax_errors`) with the position, what was expected in words, and a
 "did you mean" when a keyword is misspelt. A file that does not start like a ``.vf`` file (``task NAME`` or
 ``library NAME``, or a near miss of those words) is refused without printing any of its text, since it may
 be any file on the machine. Before the tree is transformed, nesting of values, number length and name
@@ -17,36 +17,16 @@ from importlib import resources
 from pathlib import Path
 
 from lark import Lark, Token, Transformer, Tree, v_args
-from lark.exceptions import (
-    UnexpectedCharacters,
-    UnexpectedEOF,
-    UnexpectedInput,
-    UnexpectedToken,
-    VisitError,
-)
+from lark.exceptions import UnexpectedInput, VisitError
 
 from vfdsl.errors import Span, VfError
 from vfdsl import limits
 from vfdsl.syntax import ast
-
-KEYWORDS = ("task", "library", "units", "import", "scene", "robot", "frame", "input", "param",
-            "fixture", "minimize", "require", "use", "monitor", "phase", "transition", "blend")
-STATEMENT_KEYWORDS = KEYWORDS[2:] + ("capture",)
+from vfdsl.syntax.syntax_errors import syntax_error
 
 _COMMENT = re.compile(r"#[^\n]*")
 _FIRST_WORD = re.compile(r"(?:\s|#[^\n]*)*([A-Za-z_]\w*)?")
 _NESTED_RULES = ("vector", "call", "add", "sub", "mul", "neg", "cond_or", "cond_and", "cond_not", "measure_call")
-_OPERATOR_WORDS = {"'+'", "'-'", "'*'"}
-_HINTS_FOR_CHARACTERS = {
-    "\u00b5": "write micro as 'u': um, not \u00b5m",
-    "\u03bc": "write micro as 'u': um, not \u03bcm",
-}
-
-_TERMINAL_WORDS = {
-    "NAME": "a name", "SIGNED_NUMBER": "a number", "STRING": 'a quoted string ("...")',
-    "RESOLUTION": "a resolution such as 8 or 4x4", "UNIT_OP": "'*' or '/'", "$END": "end of file",
-    "COMPARE": "a comparison (<, >, <= or >=)",
-}
 
 
 def grammar_path() -> Path:
@@ -73,7 +53,7 @@ def parse_module(text: str, file: str) -> ast.Module:
     try:
         tree = parser.parse(text)
     except UnexpectedInput as exc:
-        raise _syntax_error(exc, text, file, parser) from None
+        raise syntax_error(exc, text, file, parser) from None
     _check_limits(tree, text, file)
     try:
         return _ToAst(file, text).transform(tree)
@@ -108,77 +88,6 @@ def _check_limits(tree: Tree, text: str, file: str) -> None:
 
 def _pos_of_meta(meta, file: str) -> Span:
     return Span(file=file, line=meta.line, column=meta.column, end_line=meta.end_line, end_column=meta.end_column)
-
-
-# ------------------------------------------------------------------------------------------------ errors
-
-def _describe(terminal: str, parser: Lark) -> str:
-    if terminal in _TERMINAL_WORDS:
-        return _TERMINAL_WORDS[terminal]
-    try:
-        pattern = parser.get_terminal(terminal).pattern
-    except KeyError:
-        return terminal.lower()
-    return f"'{pattern.value}'" if pattern.type == "str" else terminal.lower()
-
-
-def _syntax_error(exc: UnexpectedInput, text: str, file: str, parser: Lark) -> VfError:
-    line, column = max(exc.line, 1), max(exc.column, 1)
-    expected = sorted(getattr(exc, "expected", None) or getattr(exc, "allowed", None) or [])
-    words = sorted({_describe(t, parser) for t in expected})
-    statement_words = [f"'{k}'" for k in STATEMENT_KEYWORDS]
-    if sum(w in statement_words for w in words) >= 5:
-        words = ["a statement (require, minimize, param, ...)"] + [w for w in words if w not in statement_words]
-    if len(words) > 1 and set(words) - _OPERATOR_WORDS:
-        words = [w for w in words if w not in _OPERATOR_WORDS]   # an operator may follow any value
-    width = 1
-    hint = None
-    if isinstance(exc, UnexpectedToken) and exc.token.type == "$END" or isinstance(exc, UnexpectedEOF):
-        message = "unexpected end of file"
-        lines = text.rstrip().splitlines() or [""]
-        line, column = len(lines), len(lines[-1]) + 1
-    elif isinstance(exc, UnexpectedToken):
-        found = str(exc.token)
-        width = max(1, len(found))
-        message = f"unexpected {_found_word(exc.token)}"
-        candidates = [_describe(t, parser).strip("'") for t in expected]
-        if any(k in STATEMENT_KEYWORDS for k in candidates):
-            candidates += STATEMENT_KEYWORDS
-        close = difflib.get_close_matches(found, candidates, n=1, cutoff=0.6)
-        previous = (exc.token_history or [None])[-1]
-        swallowed = (difflib.get_close_matches(str(previous), STATEMENT_KEYWORDS, n=1, cutoff=0.75)
-                     if previous is not None and previous.type == "NAME" else [])
-        if close:
-            hint = f"did you mean '{close[0]}'?"
-        elif swallowed:
-            hint = (f"'{previous}' (line {previous.line}) was read as a unit; did you mean the statement "
-                    f"'{swallowed[0]}'?")
-    elif isinstance(exc, UnexpectedCharacters):
-        char = text[exc.pos_in_stream] if 0 <= exc.pos_in_stream < len(text) else "?"
-        message = f"unexpected character {char!r}"
-        hint = _HINTS_FOR_CHARACTERS.get(char)
-    else:  # pragma: no cover - lark has no other UnexpectedInput kinds
-        message = "syntax error"
-    if words:
-        message += "; expected " + _join_or(words)
-    pos = Span(file=file, line=line, column=column, end_line=line, end_column=column + width)
-    return VfError(message, pos, hint, source_text=text, code="E101")
-
-
-def _found_word(token: Token) -> str:
-    if token.type == "NAME":
-        return f"name '{token}'"
-    if token.type == "SIGNED_NUMBER":
-        return f"number {token}"
-    if token.type == "STRING":
-        return f"string {token}"
-    return f"'{token}'"
-
-
-def _join_or(words: list[str]) -> str:
-    if len(words) > 8:
-        words = words[:8] + ["..."]
-    return words[0] if len(words) == 1 else ", ".join(words[:-1]) + " or " + words[-1]
 
 
 # ------------------------------------------------------------------------------------------- transformer
