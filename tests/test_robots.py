@@ -1,4 +1,5 @@
-"""The shipped robots: Panda against its published DH table, Steady-Hand conventions, metadata, loading."""
+"""The shipped robots: Panda and the PSM against their published DH tables (the PSM's mechanical remote center),
+Steady-Hand conventions, metadata, loading."""
 
 from __future__ import annotations
 
@@ -170,7 +171,89 @@ def test_shr_jacobian_keeps_rcm_still(shr):
         np.testing.assert_allclose(J[:3, 6], -shr.frame_pose(q, "tool_tip")[1][:, 2], atol=1e-14)
 
 
-@pytest.mark.parametrize("name", ["shr7", "panda7"])
+# --- psm6 -----------------------------------------------------------------------------------------------
+# The dVRK's classic PSM with a large needle driver, modified DH (alpha, a, theta0, d0) per joint, then the control
+# point: the published table, written out here again (not read from the URDF) for an independent product.
+PSM_DH = [(np.pi / 2, 0.0, np.pi / 2, 0.0), (-np.pi / 2, 0.0, -np.pi / 2, 0.0), (np.pi / 2, 0.0, 0.0, -0.4318),
+          (0.0, 0.0, 0.0, 0.4162), (-np.pi / 2, 0.0, -np.pi / 2, 0.0), (-np.pi / 2, 0.0091, -np.pi / 2, 0.0)]
+PSM_PRISMATIC = 2
+PSM_TIP = np.array([[0, -1, 0, 0], [0, 0, 1, 0.0102], [-1, 0, 0, 0], [0, 0, 0, 1.0]])
+
+
+def psm_dh(q) -> tuple[np.ndarray, np.ndarray]:
+    """World poses of the roll link (the shaft) and of tool_tip, by the DH product."""
+    T, roll = np.eye(4), None
+    for i, ((alpha, a, theta0, d0), qi) in enumerate(zip(PSM_DH, q)):
+        theta, d = (theta0, d0 + qi) if i == PSM_PRISMATIC else (theta0 + qi, d0)
+        T = T @ rot_x(alpha) @ trans(x=a) @ rot_z(theta) @ trans(z=d)
+        roll = T if i == 3 else roll
+    return roll, T @ PSM_TIP
+
+
+@pytest.fixture(scope="module")
+def psm() -> Robot:
+    return Robot.load("psm6")
+
+
+def test_psm_urdf_matches_the_published_dh_product(psm):
+    assert psm.joint_names == ["outer_yaw", "outer_pitch", "outer_insertion", "outer_roll", "outer_wrist_pitch",
+                               "outer_wrist_yaw"]
+    for q in within_limits(psm, 100, seed=21):
+        roll, tip = psm_dh(q)
+        for name, T in (("tool_roll", roll), ("tool_tip", tip)):
+            p, R = psm.frame_pose(q, name)
+            np.testing.assert_allclose(p, T[:3, 3], atol=1e-14)
+            np.testing.assert_allclose(R, T[:3, :3], atol=1e-14)
+
+
+def test_psm_shaft_passes_through_the_rcm_which_never_moves(psm):
+    """The mechanical remote center: the shaft's line (tool_roll's z) passes through the root link `rcm` at every
+    configuration, and the shaft point at the RCM moves only along the shaft (the Jacobian at that point)."""
+    for q in within_limits(psm, 100, seed=22):
+        p, R = psm.frame_pose(q, "tool_roll")
+        axis = R[:, 2]
+        np.testing.assert_allclose(-p - (-p @ axis) * axis, 0, atol=1e-15)       # the RCM (origin) on the line
+        depth = -p @ axis                            # the RCM's coordinate along the shaft from the roll frame
+        assert depth == pytest.approx(-(q[2] - 0.4318 + 0.4162), abs=1e-15)
+        offset = np.eye(4)
+        offset[2, 3] = depth
+        v = psm.frame_jacobian(q, "tool_roll", offset)[:3]
+        lateral = v - np.outer(axis, axis) @ v
+        np.testing.assert_allclose(lateral, 0, atol=1e-14)
+
+
+def test_psm_tip_below_the_rcm_along_the_jaws_at_zero(psm):
+    for d in (0.0, 0.1, 0.24):
+        p, R = psm.frame_pose(np.array([0, 0, d, 0, 0, 0.0]), "tool_tip")
+        np.testing.assert_allclose(p, [0, 0, -(d + 0.0037)], atol=1e-15)
+        np.testing.assert_allclose(R[:, 2], [0, 0, -1], atol=1e-15)
+    assert psm.tool_axis == {"tool_tip": "z", "tool_roll": "z"} and psm.resolution is None
+    np.testing.assert_allclose(psm.lower, [-1.5, -0.9, 0.0, -4.538, -1.396, -1.396])
+    np.testing.assert_allclose(psm.velocity_limit, [1.0, 1.0, 0.2, 8.0, 8.0, 8.0])
+
+
+def test_a_task_on_the_psm_tracks_the_hand_through_its_remote_center(tmp_path):
+    """A hands-on task on psm6 compiles and runs: the tip follows a force, the shaft still through the RCM."""
+    import vfdsl
+    (tmp_path / "psm.vf").write_text('task psm\nunits mm, deg\nrobot psm = urdf "psm6"\n'
+                                     'frame tip = psm.link("tool_tip")\ninput f : force\n'
+                                     'minimize track(tip, f, gain = 2 mm/s/N)\nminimize damping() weight 1e-6\n'
+                                     'require joint_limits()\nrequire joint_speed()\n')
+    (tmp_path / "psm.yaml").write_text("start: [0, 0, 100 mm, 0, 0, 0]\nperiod: 1 ms\n")
+    task = vfdsl.load(tmp_path / "psm.vf")
+    ctrl = vfdsl.compile(task, backend="interpreted")
+    robot = Robot.load("psm6")
+    q = np.array(task.start)
+    start = robot.frame_pose(q, "tool_tip")[0]
+    for _ in range(200):
+        q = q + ctrl.step(q, {"f": [3.0, 0.0, 0.0]})
+    moved = robot.frame_pose(q, "tool_tip")[0] - start
+    assert moved[0] == pytest.approx(200 * 1e-3 * 2e-3 * 3.0, rel=0.05) and abs(moved[1]) < 1e-5
+    p, R = robot.frame_pose(q, "tool_roll")
+    np.testing.assert_allclose(-p - (-p @ R[:, 2]) * R[:, 2], 0, atol=1e-15)
+
+
+@pytest.mark.parametrize("name", ["shr7", "panda7", "psm6"])
 def test_pinocchio_dynamics_are_well_posed(name):
     robot = Robot.load(name)
     data = robot.model.createData()
@@ -182,7 +265,7 @@ def test_pinocchio_dynamics_are_well_posed(name):
 # --- loading and sidecars -------------------------------------------------------------------------------
 
 def test_shipped_names_and_paths(tmp_path):
-    assert shipped_robots() == ["panda7", "shr7"]
+    assert shipped_robots() == ["panda7", "psm6", "shr7"]
     for spec, base in [("shr7", None), ("shr7.urdf", None), (str(ROBOTS_DIR / "shr7.urdf"), None),
                        ("shr7.urdf", tmp_path)]:
         robot = Robot.load(spec, base_dir=base)

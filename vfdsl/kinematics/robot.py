@@ -126,7 +126,7 @@ class Robot:
 
     @classmethod
     def load(cls, name_or_path: str | Path, base_dir: Path | None = None) -> "Robot":
-        """A shipped robot ("shr7", "panda7", with or without ".urdf") or a URDF path (relative to base_dir).
+        """A shipped robot ("shr7", "panda7", "psm6", with or without ".urdf") or a URDF path (relative to base_dir).
 
         An existing file wins over a shipped robot of the same name.
         """
