@@ -100,7 +100,7 @@ def _lever(task, kind):
 
 def _runtime_checks(task, kind):
     values = RuntimeValues(task, {"h": (0, kind.size)}, _NoParams(), np.zeros(1), np.ones(1), ["j"])
-    assert values.inputs({"h": np.arange(kind.size, dtype=float)}).shape == (kind.size,)
+    assert values.inputs({"h": 0.5 * np.arange(kind.size, dtype=float)}).shape == (kind.size,)
     bad = np.zeros(kind.size)
     bad[-1] = np.nan
     with pytest.raises(VfError, match=rf"input 'h' contains NaN or inf \(index {kind.size - 1}\)"):
@@ -113,8 +113,9 @@ class _NoParams:
 
 def _viewer(task, kind):
     hand = hand_model(task)
-    if not kind.moves:      # an input without a motion part (a button) is pressed in the panel, never the hand's
-        assert hand is None and ProcedurePanel.buttons.fget(SimpleNamespace(task=task)) == [task.inputs[0].name]
+    if not kind.moves:      # an input without a motion part is never the hand's; a button is pressed in the panel
+        buttons = ProcedurePanel.buttons.fget(SimpleNamespace(task=task))
+        assert hand is None and buttons == ([task.inputs[0].name] if kind.switch else [])
         return
     assert hand.kind is kind and hand.frame == "tip"
     pose = SimpleNamespace(position=np.zeros(3), rotation=np.eye(3), tool_axis=np.array([0.0, 0.0, 1.0]))
@@ -137,10 +138,11 @@ def test_every_tool_finds_every_input_type(tasks, name, tool):
 
 @pytest.mark.parametrize("name", NAMES)
 def test_an_input_is_linear_then_angular_parts(name):
-    """[linear; angular] of 3 numbers each, or a level alone (one number)."""
+    """[linear; angular] of 3 numbers each, or a level alone (one number), or set-point parts alone."""
     kind = INPUT_TYPES[name]
     assert kind.parts and kind.size == sum(len(p.axes) for p in kind.parts)
-    assert (kind.level is None) == kind.moves and (kind.level is None or kind.parts == (kind.level,))
+    assert [kind.moves, kind.switch, bool(kind.setpoint)].count(True) == 1
+    assert (kind.level is None or kind.parts == (kind.level,)) and (not kind.setpoint or kind.parts == kind.setpoint)
     assert [kind.linear_range, kind.angular_range] == [
         slice(0, 3) if kind.linear else None,
         slice(kind.size - 3, kind.size) if kind.angular else None]
@@ -200,3 +202,33 @@ def test_a_button_is_checked_between_released_and_pressed(tasks):
 def test_described_names_the_input_types_with_a_part():
     assert described(lambda t: t.angular) == "a torque, wrench or twist input"
     assert described(lambda t: t.linear) == "a force, wrench or twist input"
+
+
+def test_a_pose_is_a_position_then_a_rotation_vector_checked_for_unit_slips(tasks):
+    """Finite, the position within 10 m of the master's base on each axis, the rotation vector within pi: a master
+    position in millimetres or a rotation in degrees is refused with what it probably is."""
+    kind = INPUT_TYPES["pose"]
+    assert kind.columns == ("px_m", "py_m", "pz_m", "rx_rad", "ry_rad", "rz_rad") and not kind.moves
+    assert kind.unit_text == "m (0-2), rad (3-5)" and not kind.switch
+    values = RuntimeValues(tasks["pose"], {"h": (0, 6)}, _NoParams(), np.zeros(1), np.ones(1), ["j"])
+    for ok in ([0.1, -0.2, 0.3, 0.0, 0.5, -3.0], [10.0, -10.0, 0.0, np.pi, -np.pi, 0.0]):
+        assert values.inputs({"h": ok}).tolist() == ok
+    for bad, message in (([0.0, 150.0, 0.0, 0, 0, 0], "position is 150 m on axis y, beyond 10 m .millimetres given"),
+                         ([0.0, 0.0, 0.0, 0, 0, 90.0], "component 2 of its rotation vector is 90 rad, beyond pi "
+                                                         ".degrees given"),
+                         ([0.0, 0.0, np.nan, 0, 0, 0], "contains NaN or inf .index 2.")):
+        with pytest.raises(VfError, match=message):
+            values.inputs({"h": bad})
+
+
+def test_a_pose_is_neither_tracked_nor_a_condition(tmp_path):
+    head = 'task t\nrobot shr = urdf "shr7"\nframe tip = shr.link("tool_tip")\ninput master : pose\n'
+    path = tmp_path / "t.vf"
+    path.write_text(head + "minimize track(tip, master)\n")
+    with pytest.raises(VfError, match="'master' is a pose") as info:
+        vfdsl.load(path)
+    assert info.value.code == "E503" and "set-point" in info.value.hint
+    path.write_text(head + "monitor held = master\nphase a initial final { minimize damping() }\n")
+    with pytest.raises(VfError, match="input 'master' is a pose, not a condition") as info:
+        vfdsl.load(path)
+    assert info.value.code == "E811" and "only a button" in info.value.hint

@@ -1,10 +1,10 @@
 """The input types a task may declare (``input NAME : TYPE``), one module each; adding one is its module and one
 line below. Every tool reads what an input means from here (:class:`~vfdsl.inputs.base.InputType`)."""
 
-from vfdsl.inputs import button, force, torque, twist, wrench
+from vfdsl.inputs import button, force, pose, torque, twist, wrench
 from vfdsl.inputs.base import InputType
 
-INPUT_TYPES: dict[str, InputType] = {m.INPUT.name: m.INPUT for m in (force, torque, wrench, twist, button)}
+INPUT_TYPES: dict[str, InputType] = {m.INPUT.name: m.INPUT for m in (force, torque, wrench, twist, button, pose)}
 
 
 def input_type(name: str) -> InputType:

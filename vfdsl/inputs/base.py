@@ -1,5 +1,5 @@
 """What an input type is: one or two 3-vector parts, each a linear or an angular quantity, or a level (one plain
-number: a button).
+number: a button), or set-point parts (a master's pose: a position and a rotation vector, which no ``track`` reads).
 
 An input u is [linear; angular] (a part it lacks is left out), or [level]: a force f (N), a torque tau (N m), a wrench
 [f; tau] or a twist [v; w] (m/s, rad/s). ``minimize track`` turns it into the frame velocity it commands,
@@ -69,8 +69,8 @@ FINITE = InputCheck(
 @dataclass(frozen=True)
 class InputType:
     """One input type: its name, its parts (``linear`` first, then ``angular``; None where it has none; or a
-    ``level`` alone), the gain a ``track`` term may leave out (None: the term must give it) and its plausibility
-    checks."""
+    ``level`` alone; or ``setpoint`` parts alone), the gain a ``track`` term may leave out (None: the term must give
+    it) and its plausibility checks."""
 
     name: str
     summary: str
@@ -79,15 +79,21 @@ class InputType:
     default_gain: float | None = None
     checks: tuple[InputCheck, ...] = (FINITE,)
     level: Part | None = None
+    setpoint: tuple[Part, ...] = ()
 
     @property
     def parts(self) -> tuple[Part, ...]:
-        return tuple(p for p in (self.linear, self.angular, self.level) if p is not None)
+        return tuple(p for p in (self.linear, self.angular, self.level, *self.setpoint) if p is not None)
 
     @property
     def moves(self) -> bool:
         """Whether ``track`` can turn it into a motion (it has a linear or an angular part)."""
         return self.linear is not None or self.angular is not None
+
+    @property
+    def switch(self) -> bool:
+        """Whether it is a button: one number (its level), read by monitors as pressed above 1/2."""
+        return self.level is not None
 
     @property
     def size(self) -> int:

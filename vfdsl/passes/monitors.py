@@ -150,14 +150,15 @@ class Conditions:
                 return ir.LeastViolation()
             if name in self.resolver.inputs:
                 kind = self.resolver.inputs[name].type
-                if INPUT_TYPES[kind].moves:
+                if not INPUT_TYPES[kind].switch:
                     raise VfError(f"input '{name}' is a {kind}, not a condition", measure.span,
-                                  hint=f"compare its size: norm({name}) > ...", code="E811")
+                                  hint=f"compare its size: norm({name}) > ..." if INPUT_TYPES[kind].moves
+                                  else "only a button input is a condition by itself", code="E811")
                 return ir.Button(input=name)
             if name in self.resolver.failed:
                 raise Dependent
             known = sorted(self.monitors | set(RESERVED) |
-                           {n for n, d in self.resolver.inputs.items() if not INPUT_TYPES[d.type].moves})
+                           {n for n, d in self.resolver.inputs.items() if INPUT_TYPES[d.type].switch})
             raise VfError(f"unknown monitor or measure '{name}'", measure.span,
                           hint=suggest(name, known, "monitors, measures and buttons"), code="E807")
         if name not in _MEASURES:

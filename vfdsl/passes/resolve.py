@@ -301,9 +301,10 @@ class Resolver(Declarations):
                           hint="leave one part tracked, or remove the term", code="E503")
         input_type = self.inputs[args["input"].name].type
         if not INPUT_TYPES[input_type].moves:
+            reader = "monitors" if INPUT_TYPES[input_type].switch else "no term yet (a set-point, not a rate)"
             raise VfError(f"track needs an input that commands a motion; '{args['input'].name}' is a {input_type}",
                           call.span, hint=f"track reads {described(lambda t: t.moves)}; a {input_type} is read by "
-                                          "monitors", code="E503")
+                                          f"{reader}", code="E503")
         default = INPUT_TYPES[input_type].default_gain
         for kind in ("gain", "angular_gain"):
             if gain_dimension(input_type, kind) is not None and kind not in args:

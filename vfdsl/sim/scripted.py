@@ -82,7 +82,7 @@ def read_buttons(reader, node: yaml.Node) -> tuple[Press, ...]:
     out: list[Press] = []
     for key, (key_node, value) in reader.fields(node).items():
         name = _input(reader, key_node, "buttons")
-        if INPUT_TYPES[reader.task.input(name).type].moves:       # a button: no motion part, a level
+        if not INPUT_TYPES[reader.task.input(name).type].switch:     # a button: one number, its level
             raise VfError(f"input '{name}' is a {reader.task.input(name).type}, not a button", reader.pos(key_node),
                           hint="script a force or torque with pushes:", code="E602")
         items = value.value if isinstance(value, yaml.SequenceNode) else [value]

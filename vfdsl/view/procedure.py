@@ -27,7 +27,7 @@ class ProcedurePanel:
     @property
     def buttons(self) -> list[str]:
         """The task's button inputs (those without a motion part), in declaration order."""
-        return [d.name for d in self.task.inputs if not INPUT_TYPES[d.type].moves]
+        return [d.name for d in self.task.inputs if INPUT_TYPES[d.type].switch]
 
     def press(self, name: str, seconds: float = PRESS_TIME) -> None:
         """Press button input ``name`` for ``seconds`` from the next tick on (a running press is lengthened,
