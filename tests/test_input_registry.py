@@ -204,18 +204,17 @@ def test_described_names_the_input_types_with_a_part():
     assert described(lambda t: t.linear) == "a force, wrench or twist input"
 
 
-def test_a_pose_is_a_position_then_a_rotation_vector_checked_for_unit_slips(tasks):
-    """Finite, the position within 10 m of the master's base on each axis, the rotation vector within pi: a master
-    position in millimetres or a rotation in degrees is refused with what it probably is."""
+def test_a_pose_is_a_position_then_roll_pitch_yaw_checked_for_unit_slips(tasks):
+    """Finite, the position within 10 m of the master's base on each axis, each angle within pi: a master position
+    in millimetres or a rotation in degrees is refused with what it probably is."""
     kind = INPUT_TYPES["pose"]
-    assert kind.columns == ("px_m", "py_m", "pz_m", "rx_rad", "ry_rad", "rz_rad") and not kind.moves
+    assert kind.columns == ("px_m", "py_m", "pz_m", "roll_rad", "pitch_rad", "yaw_rad") and not kind.moves
     assert kind.unit_text == "m (0-2), rad (3-5)" and not kind.switch
     values = RuntimeValues(tasks["pose"], {"h": (0, 6)}, _NoParams(), np.zeros(1), np.ones(1), ["j"])
     for ok in ([0.1, -0.2, 0.3, 0.0, 0.5, -3.0], [10.0, -10.0, 0.0, np.pi, -np.pi, 0.0]):
         assert values.inputs({"h": ok}).tolist() == ok
     for bad, message in (([0.0, 150.0, 0.0, 0, 0, 0], "position is 150 m on axis y, beyond 10 m .millimetres given"),
-                         ([0.0, 0.0, 0.0, 0, 0, 90.0], "component 2 of its rotation vector is 90 rad, beyond pi "
-                                                         ".degrees given"),
+                         ([0.0, 0.0, 0.0, 0, 0, 90.0], "its yaw is 90 rad, beyond pi .degrees given"),
                          ([0.0, 0.0, np.nan, 0, 0, 0], "contains NaN or inf .index 2.")):
         with pytest.raises(VfError, match=message):
             values.inputs({"h": bad})
