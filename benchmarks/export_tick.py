@@ -41,9 +41,11 @@ def c_tick(directory: Path, api: str, flags: str, states: str, dt: float, ticks:
     subprocess.run(["cc", "-O2", "-include", str(directory / f"{api}.h"), f"-DAPI={api}", str(PROGRAM),
                     str(directory / f"lib{api}.a"), "-lm", "-pthread", "-o", str(exe)], check=True)
     out = subprocess.run([str(exe), str(ticks), repr(dt)], input=states, capture_output=True, text=True, check=True)
-    median, p99, worst, count, optimal = out.stdout.split()
-    return {"median_us": float(median), "p99_us": float(p99), "max_us": float(worst), "ticks": int(count),
-            "optimal_fraction": int(optimal) / int(count)}
+    fields = out.stdout.split()
+    wall, cpu = ([float(x) for x in fields[k:k + 4]] for k in (0, 4))
+    names = ("median_us", "p99_us", "p999_us", "max_us")
+    return {**dict(zip(names, wall)), "cpu": dict(zip(names, cpu)), "ticks": int(fields[8]),
+            "optimal_fraction": int(fields[9]) / int(fields[8])}
 
 
 def main(argv=None) -> int:
