@@ -103,7 +103,7 @@ CASES = [
     Case("unknown-kwarg", edit("gain = 1", "gian = 1"), 7, 24,
          "track(...) has no argument 'gian'", hint="did you mean 'gain'?"),
     Case("unknown-input-type", edit("input f : force", "input f : forse"), 5, 11,
-         "unknown input type 'forse'", hint="did you mean 'force'?"),
+         "unknown input type 'forse'", hint="did you mean 'force' or 'pose'?"),
     Case("unknown-param-type", edit("param p : point", "param p : pointt"), 6, 11,
          "unknown param type 'pointt'", hint="did you mean 'point'?"),
     Case("wrong-kind-of-name", BASE + "require tip stays_at(f)\n", 9, 22,
