@@ -197,7 +197,7 @@ def record(ctrl, q0, inputs_of, dt: float, count: int,
         inputs = inputs_of(k, q)
         qs.append(q.copy())
         dicts.append({name: np.asarray(v, dtype=float) for name, v in inputs.items()})
-        us.append(np.concatenate([np.ravel(inputs[name]) for name in ctrl.input_sizes]))
+        us.append(np.concatenate([np.ravel(inputs[name]) for name in ctrl.input_sizes] or [np.zeros(0)]))
         q = q + ctrl.step(q, inputs, params, dt)
         statuses[int(ctrl.status)] = statuses.get(int(ctrl.status), 0) + 1
     return np.array(qs), np.array(us), dicts, statuses
