@@ -291,3 +291,34 @@ def test_a_soft_fixture_of_an_idle_phase_weighs_nothing_and_is_not_reported(tmp_
     assert ctrl.phase == "b" and ctrl.events[0].target == "b"
     assert [v.label.phase for v in ctrl.violations()] == ["b"]      # b weighs: far off, reported
     assert ctrl.problem(q, {"f": [1.0, 0, 0], "go": [1]}, dt=0.01).P[slack, slack] > 1.0
+
+
+
+def test_a_frame_pose_is_captured_as_origin_then_roll_pitch_yaw(tmp_path):
+    """`capture s0 = tip.pose` holds the tip's pose at the tick its phase is entered: the origin, then the roll,
+    pitch, yaw whose rotation is the tip's (Pinocchio, 1e-12), on both paths alike."""
+    from vfdsl.compiler.geometry import rotation
+    from vfdsl.kinematics import Robot
+    path = tmp_path / "pose_capture.vf"
+    path.write_text('task pose_capture\nunits mm, deg\nrobot psm = urdf "psm6"\nframe tip = psm.link("tool_tip")\n'
+                    "input f : force\ninput go : button\nmonitor pressed = go\n"
+                    "phase free initial { minimize track(tip, f, gain = 2 mm/s/N) }\n"
+                    "phase held final {\n    capture s0 = tip.pose\n    minimize damping()\n}\n"
+                    "transition free -> held when pressed\n")
+    (tmp_path / "pose_capture.yaml").write_text("start: [0.2, -0.1, 100 mm, 0.3, 0.2, -0.4]\nperiod: 1 ms\n")
+    task = vfdsl.load(path)
+    robot = Robot.load("psm6")
+    captured = {}
+    for backend in ("interpreted", "native"):
+        ctrl = vfdsl.compile(task, backend=backend)
+        q = np.array(task.start, dtype=float)
+        for k in range(30):
+            if k == 20:
+                entered = q.copy()          # the transition's tick: its captures are taken from this q
+            q = q + ctrl.step(q, {"f": [1.0, 2.0, 0.0], "go": [1.0 if k == 20 else 0.0]}, dt=DT)
+        assert ctrl.phase == "held"
+        captured[backend] = s0 = ctrl.captures["s0"]
+        p, R = robot.frame_pose(entered, "tool_tip")
+        np.testing.assert_allclose(s0[:3], p, rtol=0, atol=1e-12)
+        np.testing.assert_allclose(rotation(s0[3:]), R, rtol=0, atol=1e-12)
+    assert np.abs(captured["interpreted"] - captured["native"]).max() < 1e-12

@@ -293,13 +293,13 @@ class Context(ParamReader):
 
 def capture_slots(task: ir.Task) -> tuple[ParamSlot, ...]:
     """Every phase's captures, in phase then capture order, as slots of their type and size (offsets: 0): a
-    frame's position or axis 3 numbers, an input its size, a param its slot's."""
+    frame's position or axis 3 numbers, its pose 6, an input its size, a param its slot's."""
     params = ParamLayout(task.params).slots
     slots = []
     for phase in task.phases:
         for c in phase.captures:
             source = c.source
-            size = (3 if isinstance(source, ir.FrameMeasure) else
+            size = ((6 if source.part == "pose" else 3) if isinstance(source, ir.FrameMeasure) else
                     task.input(source.name).size if isinstance(source, ir.InputRef) else params[source.name].size)
             slots.append(ParamSlot(c.name, c.kind, 0, size))
     return tuple(slots)

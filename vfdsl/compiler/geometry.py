@@ -94,12 +94,22 @@ def rotation(rpy) -> np.ndarray:
     return np.array(ca.DM(rpy_matrix(ca.DM(list(rpy)))))
 
 
-def rpy_of(R: np.ndarray) -> list[float]:
-    """The fixed-axis rpy of a rotation matrix (inverse of :func:`rpy_matrix`; at pitch +-90 deg, yaw = 0)."""
-    pitch = math.atan2(-R[2, 0], math.hypot(R[0, 0], R[1, 0]))
-    if math.hypot(R[0, 0], R[1, 0]) < 1e-8:          # at pitch +-90 deg (errors ~1e-8 rad either side)
-        return [math.atan2(-R[1, 2], R[1, 1]), pitch, 0.0]
-    return [math.atan2(R[2, 1], R[2, 2]), pitch, math.atan2(R[1, 0], R[0, 0])]
+GIMBAL = 1e-8
+"""cos(pitch) below which :func:`rpy_of` reads a rotation as gimbal-locked (pitch +-90 deg: yaw 0, the roll carrying
+the rest; errors ~1e-8 rad either side of it)."""
+
+
+def rpy_of(R):
+    """The fixed-axis rpy of a rotation matrix (inverse of :func:`rpy_matrix`: R = Rz(yaw) Ry(pitch) Rx(roll), pitch in
+    [-90, 90] deg; at pitch +-90 deg, yaw = 0): a CasADi column of a symbolic R (a frame's pose captured in the
+    tick), a list of floats of a numeric one."""
+    symbolic = isinstance(R, (ca.SX, ca.MX))
+    M = R if symbolic else ca.DM(np.asarray(R, dtype=float))
+    cos_pitch = ca.hypot(M[0, 0], M[1, 0])
+    locked = cos_pitch < GIMBAL
+    rpy = ca.vertcat(ca.if_else(locked, ca.atan2(-M[1, 2], M[1, 1]), ca.atan2(M[2, 1], M[2, 2])),
+                     ca.atan2(-M[2, 0], cos_pitch), ca.if_else(locked, 0, ca.atan2(M[1, 0], M[0, 0])))
+    return rpy if symbolic else [float(x) for x in np.array(rpy).ravel()]
 
 
 def compose(offset_a, rpy_a, offset_b, rpy_b) -> tuple[list[float], list[float]]:

@@ -20,9 +20,10 @@ sets w_j = e_j x the machine's funnel factor (:mod:`vfdsl.runtime.procedure`).
 
 **Captures** are run-time param slots after the params (:class:`vfdsl.compiler.context.ParamLayout`): a
 :class:`~vfdsl.ir.model.CaptureRef` reads its slot as a param of its type. ``captures(q, u, p)`` gives, per phase,
-its captures' values at this tick's state (a frame's origin or tool axis in the world, an input, a param), in slot
-order, which the run time writes into p when the phase is entered; then, per phase, its funnelled constraints'
-entry errors e_j at (q, u, p), which the run time reads with p holding the captures just taken.
+its captures' values at this tick's state (a frame's origin, tool axis or pose [origin; roll, pitch, yaw] in the
+world, an input, a param), in slot order, which the run time writes into p when the phase is entered; then, per
+phase, its funnelled constraints' entry errors e_j at (q, u, p), which the run time reads with p holding the
+captures just taken.
 
 **Monitors.** ``monitor_values(q, u, p) -> raw`` gives each compiled comparison's signed margin (true when > 0):
 ``m < t`` and ``m <= t`` give t - m, ``m > t`` and ``m >= t`` give m - t (at equality both are false: 0 is not
@@ -41,6 +42,7 @@ import numpy as np
 
 from vfdsl.compiler import registry
 from vfdsl.compiler.context import Context
+from vfdsl.compiler.geometry import rpy_of
 from vfdsl.compiler.rows import Rows
 from vfdsl.inputs import input_type
 from vfdsl.ir import model as ir
@@ -154,7 +156,8 @@ def captures_function(task: ir.Task, ctx: Context) -> ca.Function:
 def _capture_value(source, ctx: Context) -> ca.SX:
     if isinstance(source, ir.FrameMeasure):
         frame = ctx.frame(source.frame)
-        return frame.p if source.part == "position" else frame.axis
+        return {"position": lambda: frame.p, "axis": lambda: frame.axis,
+                "pose": lambda: ca.vertcat(frame.p, rpy_of(frame.R))}[source.part]()
     if isinstance(source, ir.InputRef):
         return ctx.input(source)
     slot = ctx.layout.slots[source.name]

@@ -2,10 +2,10 @@
 one phase.
 
 A phase's fixture may read values captured on entry (``along(line(start, axis0))``). A tool that measures or
-analyses it without running the phase machine reads each capture of a point, a direction or a vector as a param
-of that kind (:func:`as_params`) holding the value it has at that time: ``Controller.captures`` at a tick
+analyses it without running the phase machine reads each capture of a point, a direction, a vector or a pose as a
+param of that kind (:func:`as_params`) holding the value it has at that time: ``Controller.captures`` at a tick
 (:func:`values`), the simulator taking a new value at every transition; ``check`` the start configuration's. A
-capture of another kind (an input's or a scalar param's value) stays a capture, and a statement that reads one is
+capture of another kind (a force's or a scalar param's value) stays a capture, and a statement that reads one is
 not measurable this way (:func:`readable`). :func:`phase_task` is one phase alone as a task without phases.
 """
 
@@ -15,8 +15,14 @@ import numpy as np
 
 from vfdsl.ir import model as ir
 
-VALUES = {"point": ir.PointValue, "direction": ir.DirectionValue, "vector": ir.VectorValue}
+VALUES = {"point": ir.PointValue, "direction": ir.DirectionValue, "vector": ir.VectorValue, "pose": ir.PoseValue}
 """The kinds of capture a metric reads, and the value class of each."""
+
+
+def _value(kind: str, numbers) -> ir.Value:
+    """The IR value of a capture of ``kind`` from its flat numbers (a pose: [translation; roll, pitch, yaw])."""
+    flat = [float(x) for x in numbers]
+    return ir.PoseValue(translation=flat[:3], rpy=flat[3:6]) if kind == "pose" else VALUES[kind](xyz=flat)
 
 
 def _kinds(task: ir.Task) -> dict[str, str]:
@@ -57,7 +63,8 @@ def as_params(task: ir.Task, given: dict[str, ir.Value] | None = None) -> ir.Tas
         return task
     given = given or {}
     spans = {c.name: c.span for p in task.phases for c in p.captures}
-    params = [ir.ParamDecl(name=name, type=kind, value=given.get(name, VALUES[kind](xyz=[0.0, 0.0, 1.0])),
+    placeholder = {"pose": [0.0] * 6}
+    params = [ir.ParamDecl(name=name, type=kind, value=given.get(name, _value(kind, placeholder.get(kind, [0, 0, 1]))),
                            span=spans[name]) for name, kind in kinds.items()]
     phases = [ir.Phase.model_validate(_as_refs(p.model_dump(), set(kinds))) for p in task.phases]
     return task.model_copy(update={"params": [*task.params, *params], "phases": phases})
@@ -79,5 +86,4 @@ def phase_task(task: ir.Task, phase: str, given: dict[str, ir.Value]) -> ir.Task
 def values(task: ir.Task, captured: dict[str, np.ndarray]) -> dict[str, ir.Value]:
     """The values of :func:`as_params`' capture params, from ``Controller.captures`` (SI)."""
     kinds = _kinds(task)
-    return {name: VALUES[kinds[name]](xyz=[float(x) for x in value]) for name, value in captured.items()
-            if kinds.get(name) in VALUES}
+    return {name: _value(kinds[name], value) for name, value in captured.items() if kinds.get(name) in VALUES}

@@ -230,11 +230,12 @@ class Objective(_Model):
 # ------------------------------------------------------------------------------------------------ procedures
 
 class FrameMeasure(_Model):
-    """A frame's origin (``position``: a point, m) or its tool axis (``axis``: a unit direction), in the world."""
+    """A frame's origin (``position``: a point, m), its tool axis (``axis``: a unit direction) or its pose (``pose``:
+    [origin; roll, pitch, yaw], a pose param's layout), in the world."""
 
     ref: Literal["frame_measure"] = "frame_measure"
     frame: str
-    part: Literal["position", "axis"]
+    part: Literal["position", "axis", "pose"]
 
 
 class Capture(_Model):

@@ -20,7 +20,7 @@ from vfdsl.passes.diagnostics import Dependent
 from vfdsl.passes.monitors import RESERVED, Conditions
 from vfdsl.syntax import ast
 
-_FRAME_PARTS = {"position": "point", "axis": "direction"}
+_FRAME_PARTS = {"position": "point", "axis": "direction", "pose": "pose"}
 
 # statements(body, scope) -> (objectives, constraints) of those statements, fixtures expanded
 Statements = Callable[[list, fx.Scope], tuple[list[ir.Objective], list[ir.Constraint]]]
@@ -77,14 +77,15 @@ class Procedure:
         self.names[name.text] = name.span
 
     def _capture(self, stmt: ast.CaptureStmt) -> ir.Capture:
-        """``capture NAME = FRAME.position | FRAME.axis | INPUT | PARAM``."""
+        """``capture NAME = FRAME.position | FRAME.axis | FRAME.pose | INPUT | PARAM``."""
         r = self.resolver
         source, part = stmt.source.text, stmt.field
         if source in r.frames:
             if part is None or part.text not in _FRAME_PARTS:
                 where = part.span if part is not None else stmt.source.span
-                raise VfError(f"a capture of frame '{source}' reads its position or its axis", where,
-                              hint=f"capture {stmt.name.text} = {source}.position (or {source}.axis)", code="E809")
+                raise VfError(f"a capture of frame '{source}' reads its position, its axis or its pose", where,
+                              hint=f"capture {stmt.name.text} = {source}.position (or {source}.axis, {source}.pose)",
+                              code="E809")
             return ir.Capture(name=stmt.name.text, kind=_FRAME_PARTS[part.text], span=stmt.span,
                               source=ir.FrameMeasure(frame=source, part=part.text))
         if source in r.failed:
