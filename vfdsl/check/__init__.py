@@ -44,13 +44,7 @@ def check(task: ir.Task, *, overshoot: float = DEFAULT_OVERSHOOT, samples: int =
     started = time.perf_counter()
     report = Report(task.name, task.file)
     timings = report.figures.setdefault("timings", {})
-
-    def run(stage: str, analysis, *args):
-        """One analysis, its findings added to the report and its time to figures.timings."""
-        begin = time.perf_counter()
-        findings = analysis(*args)
-        timings[stage] = timings.get(stage, 0.0) + time.perf_counter() - begin
-        report.add(findings)
+    run = _runner(report.findings, timings)
 
     statements = procedure.every_statement(task)
     report.bounds = polytope.bounds_table(statements)
@@ -84,18 +78,23 @@ def check(task: ir.Task, *, overshoot: float = DEFAULT_OVERSHOOT, samples: int =
     return report
 
 
+def _runner(findings: list[Finding], timings: dict):
+    """run(stage, analysis, *args): one analysis, its findings appended to ``findings`` and its time added to
+    ``timings[stage]``."""
+    def run(stage: str, analysis, *args) -> None:
+        begin = time.perf_counter()
+        findings.extend(analysis(*args))
+        timings[stage] = timings.get(stage, 0.0) + time.perf_counter() - begin
+    return run
+
+
 def _compiled(task: ir.Task, samples: int, seed: int, backend: str, figures: dict, timings: dict) -> list[Finding]:
     """The analyses of a task's compiled controller (of one moment: a procedure's are run per phase), at its start;
     ``figures`` and ``timings`` get their numbers."""
     from vfdsl.pipeline import compile as compile_task
 
     findings: list[Finding] = []
-
-    def run(stage: str, analysis, *args):
-        begin = time.perf_counter()
-        findings.extend(analysis(*args))
-        timings[stage] = timings.get(stage, 0.0) + time.perf_counter() - begin
-
+    run = _runner(findings, timings)
     begin = time.perf_counter()
     controller = compile_task(task, backend=backend)
     linear = Linearization(task, controller.assembled.context)

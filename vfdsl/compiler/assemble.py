@@ -169,6 +169,16 @@ def _frame_of(objective: ir.Objective) -> str:
     return f"({frame.name})" if isinstance(frame, ir.FrameRef) else "()"
 
 
+QP_OUTPUTS = ("H", "g", "A", "lba", "uba", "lbx", "ubx")
+"""qp_data's first outputs; the priority levels' (R_j, r_j) pairs follow (:func:`output_names`)."""
+
+
+def output_names(levels: int) -> list[str]:
+    """qp_data's output names with ``levels`` priority levels (one level, or none: no R_j, r_j)."""
+    pairs = range(1, levels + 1) if levels > 1 else ()
+    return [*QP_OUTPUTS, *(f"{part}{j}" for j in pairs for part in ("R", "r"))]
+
+
 def assemble(task: ir.Task, robot: Robot) -> AssembledProblem:
     ctx = Context(task, robot)
     nq = ctx.nq
@@ -233,11 +243,10 @@ def assemble(task: ir.Task, robot: Robot) -> AssembledProblem:
     H = floor + sum((level.H for level in levels), ca.SX.zeros(nq + n_slack, nq + n_slack))
     g = sum((level.g for level in levels), ca.SX.zeros(nq + n_slack))
     outputs = [H, g, A, lba, uba, ca.vertcat(*lbx), ca.vertcat(*ubx)]
-    names = ["H", "g", "A", "lba", "uba", "lbx", "ubx"]
     if len(levels) > 1:
-        for j, level in enumerate(levels, start=1):
+        for level in levels:
             outputs += [ca.vertcat(*level.R), ca.vertcat(*level.r)]
-            names += [f"R{j}", f"r{j}"]
+    names = output_names(len(levels))
     arguments = tick_buffers.data_arguments(bool(task.phases))
     function = ca.Function("qp_data", [getattr(ctx, name) for name in arguments],
                            [ca.densify(x) for x in outputs], list(arguments), names)

@@ -27,10 +27,10 @@ from dataclasses import dataclass
 
 import casadi as ca
 
-from vfdsl.compiler.assemble import AssembledProblem
+from vfdsl.compiler.assemble import QP_OUTPUTS, AssembledProblem, output_names
 from vfdsl.ir import model as ir
 
-LEVELS_FROM = 7
+LEVELS_FROM = len(QP_OUTPUTS)
 """qp_data's outputs from this index on are the priority levels' (R_j, r_j) pairs (:mod:`vfdsl.compiler.assemble`)."""
 
 
@@ -82,7 +82,7 @@ def phase_cases(problem: AssembledProblem, task: ir.Task) -> list[PhaseCase]:
         at_rest = [ca.substitute(v, activity, one_hot) for v in outputs]
         kept, last = _levels_left(_rows_of(at_rest, fn, rows), problem.last_level_is_damping)
         cases.append(PhaseCase(phase, True, ca.Function(f"qp_data_{phase}", symbols, kept, fn.name_in(),
-                                                        _output_names(len(kept))), rows, last))
+                                                        output_names((len(kept) - LEVELS_FROM) // 2)), rows, last))
     return cases + [PhaseCase(None, False, fn, tuple(range(len(problem.row_labels))), problem.last_level_is_damping)]
 
 
@@ -110,8 +110,3 @@ def _levels_left(outputs: list[ca.SX], last_is_damping: bool) -> tuple[list[ca.S
     return (outputs[:LEVELS_FROM] + [v for R, r, _ in levels for v in (R, r)],
             last_is_damping and levels[-1][2])
 
-
-def _output_names(count: int) -> list[str]:
-    """qp_data's output names for ``count`` outputs (assemble's)."""
-    names = ["H", "g", "A", "lba", "uba", "lbx", "ubx"]
-    return names + [f"{part}{j}" for j in range(1, (count - LEVELS_FROM) // 2 + 1) for part in ("R", "r")]
