@@ -450,6 +450,10 @@ def _default(value) -> str:
         return "true" if value.value else "false"
     if isinstance(value, ir.ScalarValue):
         return f"{value.value:g}"
+    if isinstance(value, ir.ChoiceValue):
+        return value.value
+    if isinstance(value, ir.PoseValue) and not any(value.translation + value.rpy):
+        return "identity"
     raise AssertionError(f"no doc form for default {value!r}")
 
 

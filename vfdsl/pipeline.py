@@ -29,6 +29,7 @@ from vfdsl.compiler.admissible import Admissible
 from vfdsl.compiler.assemble import AssembledProblem, assemble
 from vfdsl.compiler.cases import case_index, phase_cases
 from vfdsl.compiler.phases import captures_function, monitor_values
+from vfdsl.objectives.haptics import readout_function
 from vfdsl.errors import VfError
 from vfdsl.ir import model as ir
 from vfdsl.kinematics.robot import Robot
@@ -37,6 +38,7 @@ from vfdsl.runtime.native import BufferedFunction, LockedRunner, NativeProcedure
 from vfdsl.runtime.procedure import Procedure, machine_table
 from vfdsl.runtime.values import INPUT_UNITS, JOINT_UNITS, PARAM_UNITS, RuntimeValues
 from vfdsl.runtime.qp import build_procedure_step, build_step_function
+from vfdsl.runtime.teleoperation import Teleoperation
 
 # Phase 1's answer meets every row and bound within this much (m or rad; LEVEL_ACCEPTANCE times it on a task with
 # priority levels, vfdsl.runtime.qp): far below any tolerance a task can express.
@@ -106,7 +108,8 @@ def build(task: ir.Task, *, backend: str = "auto",
             runner = _native_runner(values, problem, library, prefix)
             procedure = (NativeProcedure(task, runner, _machine(task, problem)[2])
                          if task.phases and isinstance(runner, StepperRunner) else _procedure(task, problem))
-            return Controller(task, problem, values, runner, FEASIBILITY_TOLERANCE, procedure), library
+            return Controller(task, problem, values, runner, FEASIBILITY_TOLERANCE, procedure,
+                              _teleoperation(task, problem)), library
         except (CompilerUnavailable, DaqpSourcesUnavailable) as exc:
             if backend == "native":
                 raise
@@ -115,7 +118,8 @@ def build(task: ir.Task, *, backend: str = "auto",
                               InterpretedFallback, stacklevel=2)
                 _warned = True
     runner = LockedRunner(BufferedFunction.interpreted(step(native=False)), values)
-    return Controller(task, problem, values, runner, FEASIBILITY_TOLERANCE, _procedure(task, problem)), None
+    return Controller(task, problem, values, runner, FEASIBILITY_TOLERANCE, _procedure(task, problem),
+                      _teleoperation(task, problem)), None
 
 
 def _procedure(task: ir.Task, problem: AssembledProblem) -> Procedure | None:
@@ -124,6 +128,12 @@ def _procedure(task: ir.Task, problem: AssembledProblem) -> Procedure | None:
         return None
     ctx = problem.context
     return Procedure(task, ctx.layout, monitor_values(task, ctx), captures_function(task, ctx), ctx.input_offsets)
+
+
+def _teleoperation(task: ir.Task, problem: AssembledProblem) -> Teleoperation | None:
+    """The teleoperation readout of a task with a `teleop` term (None without)."""
+    function = readout_function(task, problem)
+    return None if function is None else Teleoperation(BufferedFunction.interpreted(function), problem.row_labels)
 
 
 def _machine(task: ir.Task, problem: AssembledProblem):

@@ -25,6 +25,9 @@ TORQUE: Dim = (1, 0, 0, 1)
 SPEED: Dim = (1, 0, -1, 0)
 ANGULAR_SPEED: Dim = (0, 1, -1, 0)
 FREQUENCY: Dim = (0, 0, -1, 0)
+STIFFNESS: Dim = (-1, 0, 0, 1)           # N/m: a haptic spring
+FORCE_DAMPING: Dim = (-1, 0, 1, 1)       # N s/m: a haptic damper
+FORCE_RATE: Dim = (0, 0, -1, 1)          # N/s: how fast a haptic force may change
 
 # name -> (dimension, factor to SI)
 UNITS: dict[str, tuple[Dim, float]] = {
@@ -38,10 +41,12 @@ _BASE_NAMES = ("length", "angle", "time", "force")
 _DIM_WORDS = {
     DIMENSIONLESS: "a plain number", LENGTH: "a length", ANGLE: "an angle", TIME: "a time",
     FORCE: "a force", TORQUE: "a torque", SPEED: "a speed", ANGULAR_SPEED: "an angular speed",
-    FREQUENCY: "a frequency",
+    FREQUENCY: "a frequency", STIFFNESS: "a stiffness", FORCE_DAMPING: "a damping coefficient",
+    FORCE_RATE: "a force rate",
 }
 _EXAMPLE_UNIT = {LENGTH: "mm", ANGLE: "deg", TIME: "s", FORCE: "N", TORQUE: "Nmm", SPEED: "mm/s",
-                 ANGULAR_SPEED: "deg/s", FREQUENCY: "Hz", DIMENSIONLESS: ""}
+                 ANGULAR_SPEED: "deg/s", FREQUENCY: "Hz", DIMENSIONLESS: "",
+                 STIFFNESS: "N/mm", FORCE_DAMPING: "N*s/m", FORCE_RATE: "N/s"}
 
 
 def describe(dim: Dim) -> str:

@@ -217,6 +217,11 @@ class ParamReader:
         line = self.line(arg)
         return Plane(line.point, line.direction)
 
+    def pose(self, arg) -> tuple[ca.SX, ca.SX]:
+        """(R, t) of a pose argument (a pose param or a captured pose: world <- local, [t; roll, pitch, yaw])."""
+        flat, _ = self._raw(arg)
+        return rpy_matrix(flat[3:6]), flat[0:3]
+
     def scalar(self, arg) -> ca.SX:
         flat, _ = self._raw(arg)
         return flat[0]

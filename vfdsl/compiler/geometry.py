@@ -112,6 +112,16 @@ def rpy_of(R):
     return rpy if symbolic else [float(x) for x in np.array(rpy).ravel()]
 
 
+def rotation_vector(R):
+    """The rotation vector theta * axis of a rotation matrix (CasADi): theta = atan2(|s|, (trace R - 1) / 2) with
+    s = vee(R - R') / 2 = sin(theta) axis, scaled by theta / sin(theta) (1 below sin theta = 1e-12). Exact up to
+    about 179.9 deg; at 180 deg s vanishes and the axis is lost (the vector is then 0)."""
+    s = 0.5 * ca.vertcat(R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1])
+    sin_theta = ca.norm_2(s)
+    theta = ca.atan2(sin_theta, 0.5 * (R[0, 0] + R[1, 1] + R[2, 2] - 1))
+    return s * ca.if_else(sin_theta > 1e-12, theta / ca.fmax(sin_theta, 1e-12), 1)
+
+
 def compose(offset_a, rpy_a, offset_b, rpy_b) -> tuple[list[float], list[float]]:
     """Pose b given in frame a, in a's parent: (t_a + R_a t_b, rpy(R_a R_b)); an offset that overflows comes
     out inf (the caller refuses it)."""

@@ -97,9 +97,16 @@ class FlagValue(_Model):
     value: bool
 
 
+class ChoiceValue(_Model):
+    """One of the words an argument of kind ``choice`` allows (e.g. teleop's rotation = relative)."""
+
+    kind: Literal["choice"] = "choice"
+    value: str
+
+
 Value = Annotated[
     Union[PointValue, VectorValue, DirectionValue, LineValue, PlaneValue, PoseValue, CurveValue, MeshValue,
-          ScalarValue, FlagValue],
+          ScalarValue, FlagValue, ChoiceValue],
     Field(discriminator="kind"),
 ]
 

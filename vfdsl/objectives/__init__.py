@@ -2,10 +2,10 @@
 (registered with the compiler here)."""
 
 from vfdsl.compiler import registry
-from vfdsl.objectives import centering, damping, direction_change, distance, track
+from vfdsl.objectives import centering, damping, direction_change, distance, teleop, track
 from vfdsl.primitives.spec import ObjectiveSpec
 
-_MODULES = (track, distance, direction_change, damping, centering)
+_MODULES = (track, teleop, distance, direction_change, damping, centering)
 
 OBJECTIVES: dict[str, ObjectiveSpec] = {m.SPEC.name: m.SPEC for m in _MODULES}
 

@@ -27,7 +27,7 @@ from vfdsl.units import DefaultUnits
 from vfdsl.primitives.spec import ARG_KINDS, REQUIRED, ArgSpec
 from vfdsl.syntax import ast
 
-FORMAL_KINDS = tuple(k for k in ARG_KINDS if k not in ("gain", "angular_gain"))
+FORMAL_KINDS = tuple(k for k in ARG_KINDS if k not in ("gain", "angular_gain", "choice"))
 
 
 @dataclass(frozen=True)

@@ -226,7 +226,8 @@ class Resolver(Declarations):
                 with self.errors.each(scope.note) as check:
                     if spec.kind in ("gain", "angular_gain") and input_failed:
                         raise Dependent
-                    args[spec.name] = self.evaluate(given[spec.name], spec.kind, scope, input_type)
+                    args[spec.name] = (_choice(given[spec.name], spec, what) if spec.kind == "choice" else
+                                       self.evaluate(given[spec.name], spec.kind, scope, input_type))
                     if isinstance(args[spec.name], ir.InputRef):
                         input_type = self.inputs[args[spec.name].name].type
                     if spec.range is not None:
@@ -276,6 +277,8 @@ class Resolver(Declarations):
             args = self._bind(stmt.call, spec.args, scope, f"{name.text}(...)")
             if name.text == "track":
                 self._check_track(stmt.call, args)
+            elif name.text == "teleop":
+                self._check_teleop(stmt.call, args)
         with self.errors.each(scope.note) as weighed:
             weight = self._weight(clauses.weight, scope, 1.0)
         with self.errors.each(scope.note) as levelled:
@@ -314,6 +317,14 @@ class Resolver(Declarations):
                     example = "gain = 2 mm/s/N" if kind == "gain" else "angular_gain = 5 deg/s/Nm"
                     raise VfError(f"track with a {input_type} input needs {kind}", call.span,
                                   hint=f"e.g. {example}", code="E503")
+
+    def _check_teleop(self, call: ast.Call, args: dict[str, ir.Arg]) -> None:
+        """The master is a pose input."""
+        input_type = self.inputs[args["master"].name].type
+        if input_type != "pose":
+            raise VfError(f"teleop follows a master's pose; '{args['master'].name}' is a {input_type}", call.span,
+                          hint=f"declare the master as `input {args['master'].name} : pose`; a {input_type} is read "
+                               f"by track", code="E503")
 
     def _constraint(self, stmt: ast.RequireStmt, scope: fx.Scope) -> ir.Constraint:
         name = stmt.call.name
@@ -446,3 +457,13 @@ def _span(clause) -> ast.Span:
 def resolve(module: ast.Module, path: Path, libraries: list[tuple[ast.Module, u.DefaultUnits]],
             imports: list[str]) -> ir.Task:
     return Resolver(module, path, libraries).run(imports)
+
+
+def _choice(value: ast.Value, spec: ArgSpec, what: str) -> ir.Const:
+    """A ``choice`` argument: one of the words its spec allows, written as a bare name (rotation = relative)."""
+    if not isinstance(value, ast.NameRef) or value.name not in spec.choices:
+        written = f"'{value.name}'" if isinstance(value, ast.NameRef) else "a value"
+        raise VfError(f"{what} argument '{spec.name}' is one of {', '.join(spec.choices)}; got {written}", value.span,
+                      hint=suggest(value.name if isinstance(value, ast.NameRef) else "", spec.choices, "choices"),
+                      code="E401")
+    return ir.Const(value=ir.ChoiceValue(value=value.name))

@@ -33,10 +33,11 @@ GEOMETRIC_KINDS = ("point", "vector", "direction", "line", "plane", "pose", "cur
 SCALAR_DIMENSIONS: dict[str, u.Dim] = {
     "length": u.LENGTH, "angle": u.ANGLE, "speed": u.SPEED, "angular_speed": u.ANGULAR_SPEED,
     "number": u.DIMENSIONLESS, "time": u.TIME, "force": u.FORCE,
+    "stiffness": u.STIFFNESS, "force_damping": u.FORCE_DAMPING, "force_rate": u.FORCE_RATE,
 }
 VALUE_KINDS = GEOMETRIC_KINDS + tuple(SCALAR_DIMENSIONS) + ("flag",)
 NAME_KINDS = ("frame", "input")
-ARG_KINDS = VALUE_KINDS + NAME_KINDS + ("gain", "angular_gain")
+ARG_KINDS = VALUE_KINDS + NAME_KINDS + ("gain", "angular_gain", "choice")
 
 REQUIRED = object()
 
@@ -94,6 +95,7 @@ class ArgSpec:
     doc: str
     default: object = REQUIRED       # an ir.Value, or REQUIRED; "subject" means the constraint's own frame
     range: Range | None = None       # allowed values of a scalar argument (SI); None: any finite value
+    choices: tuple[str, ...] = ()    # the words a ``choice`` argument may be (its default: an ir.ChoiceValue)
 
     @property
     def required(self) -> bool:
@@ -179,6 +181,11 @@ def gain_dimension(input_type: str, kind: str) -> u.Dim | None:
     """Dimension of a ``gain`` (linear part) or ``angular_gain`` for an input of ``input_type``;
     None when that input has no such part (a force has no angular gain)."""
     return INPUT_TYPES[input_type].gain_dimension(angular=kind == "angular_gain")
+
+
+def choice(args: dict[str, ir.Arg], name: str) -> str:
+    """The word a ``choice`` argument holds (its default when not given)."""
+    return args[name].value.value
 
 
 def flag(args: dict[str, ir.Arg], name: str) -> bool:

@@ -23,6 +23,7 @@ from vfdsl.runtime.levels import PriorityLevel, priority_levels
 from vfdsl.runtime.native import checked_step
 from vfdsl.runtime.procedure import PhaseEvent, Procedure
 from vfdsl.runtime.qp import StepStatus
+from vfdsl.runtime.teleoperation import Teleoperation, TeleopOutput
 from vfdsl.runtime.tracking import Tracking, readout, tracked_terms
 from vfdsl.runtime.values import ASSUMED_PERIOD, RuntimeValues
 
@@ -79,7 +80,8 @@ class Controller:
     threads at once serialises the calls (a lock), never mixes them."""
 
     def __init__(self, task: ir.Task, problem: AssembledProblem, values: RuntimeValues, runner,
-                 feasibility_tolerance: float, procedure: Procedure | None = None):
+                 feasibility_tolerance: float, procedure: Procedure | None = None,
+                 teleoperation: Teleoperation | None = None):
         self.task = task
         self.assembled = problem
         self.nq = problem.nq
@@ -91,8 +93,11 @@ class Controller:
         self._values = values
         self._runner = runner
         self._procedure = procedure
-        if runner.fast_step is not None:    # the generated path: step is the task's C method itself (the same checks,
-            self.step = runner.fast_step    # plain values in C, the rest by checked_step; one Python call less a tick)
+        self._teleoperation = teleoperation
+        self._teleop: TeleopOutput | None = None
+        self._solve = runner.fast_step or self._solve
+        if runner.fast_step is not None and teleoperation is None:  # the generated path: step is the task's C method
+            self.step = runner.fast_step    # itself (the same checks, plain values in C, the rest by checked_step)
         self._tolerance = feasibility_tolerance
         self._labels = self._all_labels()
         self._units = [row_unit(label.primitive) for label in problem.row_labels]
@@ -114,7 +119,17 @@ class Controller:
 
         A procedure's tick first runs its machine on these q and inputs (:mod:`vfdsl.runtime.procedure`): monitors,
         at most one transition (:attr:`phase`, :attr:`monitors`, :attr:`events`), captures, the phases' activity;
-        then it solves the QP of the phase it is in after the transition."""
+        then it solves the QP of the phase it is in after the transition.
+
+        A task with a `teleop` term also reads out the haptic force, the set-point, following or not and the
+        constraints that acted (:attr:`teleop`)."""
+        dq = self._solve(q, inputs, params, dt)
+        if self._teleoperation is not None:
+            self._teleop = self._teleoperation.update(self._data(q, inputs, params, dt), self._runner.x)
+        return dq
+
+    def _solve(self, q, inputs=None, params=None, dt=None) -> np.ndarray:
+        """The tick without the teleoperation readout (the generated path replaces it by the C method)."""
         if self._procedure is None:
             return checked_step(self._values, self._runner, q, inputs, params, dt)
         v = self._values
@@ -123,6 +138,12 @@ class Controller:
             p = self._procedure.tick(q, u, p, dt, int(self._runner.status[0]))
             self._runner.activity[:] = self._procedure.activity
             return self._runner.run(q, u, p, dt, 0.0)
+
+    @property
+    def teleop(self) -> TeleopOutput | None:
+        """The teleoperation readout of the last tick (:class:`~vfdsl.runtime.teleoperation.TeleopOutput`: haptic
+        force, set-point, following, acting constraints); None before the first tick or without a teleop term."""
+        return self._teleop
 
     @property
     def phase(self) -> str | None:
@@ -152,9 +173,12 @@ class Controller:
 
     def reset(self) -> None:
         """A procedure back to its initial phase, its captures retaken at the next tick (the solver's warm start
-        is kept); nothing to do for a task without phases."""
+        is kept), the teleoperation readout to its first tick; nothing to do for a task without either."""
         if self._procedure is not None:
             self._procedure.reset()
+        if self._teleoperation is not None:
+            self._teleoperation.reset()
+            self._teleop = None
 
     def param_vector(self, params=None) -> np.ndarray | None:
         """The flat run-time param vector the step is given for ``params`` (checked as :meth:`step` checks them),

@@ -1,0 +1,112 @@
+"""What a teleoperated tick gives back beside dq (DESIGN, "Procedures and teleoperation"): the haptic force on the
+master, the slave's Cartesian set-point, whether the master is followed, and which constraint rows acted.
+
+One Function ``teleop_readout(q, u, p, dt[, activity], x, state) -> (force, setpoint, goal, following, acting, next_state)``
+after the tick's solve x = [dq; slack]. For each `teleop` term (objectives/teleop.py), with its frame's twist
+Jacobian J (6 x n), the rates it commands c = [v_c; w_c], its tau and its phase weight w (1 outside phases):
+
+    acting rows      i with a_i x within ACTING of lba_i or uba_i, or beyond (a least-violation tick)
+    their normals    n_i = (J J' + LAMBDA I)^-1 J a_i        the twist whose pull-back onto the joints is the row's
+                                                             dq part (exact for a square regular J)
+    M                sum over the acting rows of n_i n_i' / |n_i|^2
+    removed twist    r = c - J dq / dt                        what the fixtures took from the command this tick,
+                                                             predicted through J dq (not the lagging measured pose)
+    withheld         d_s = tau [M (M + EPS I)^-1 r]_linear    (m) the part of the goal's gap the acting rows hold back,
+                                                             along their normals only
+    on the master    d_m = R_c' d_s / scale                   (m) the master's motion those rows stopped
+    target           F* = w sat(-(k d_m + b (d_m - d_prev) / dt), F_max)     (no damping at the first tick)
+    force            F = F_prev + clip(F* - F_prev, rate dt)  (N, in the master's base frame)
+
+so free motion (no acting row) feels nothing, whatever the tracking lag, and a wall feels k times the master's
+depth past it, along its normal. The ramp at engage is the phase weight (the procedure's blend); the rate limit
+smooths whatever is left. ``state`` = [d_prev (3), F_prev (3), warm (1)] per term, zeros before the first tick.
+
+The set-point is the first teleop frame's pose after dq, [p; roll, pitch, yaw] (exact kinematics at q + dq): what a
+robot driven by pose is sent; the goal is that term's g (where the scaled master puts the frame: its ghost). ``following`` is the largest phase weight of the teleop terms (1: following; 0:
+clutched or disabled).
+"""
+
+from __future__ import annotations
+
+import casadi as ca
+
+from vfdsl.codegen import tick_buffers
+from vfdsl.compiler.assemble import AssembledProblem
+from vfdsl.compiler.geometry import rpy_of
+from vfdsl.compiler.phases import gated_statements
+from vfdsl.ir import model as ir
+from vfdsl.objectives import teleop
+
+ACTING = 1e-9
+"""A row acts when its value at x is within this of a bound (m, rad per tick: the solver's answers sit at 1e-12)."""
+LAMBDA = 1e-10
+"""Regularization of J J' when mapping a row onto the frame's twists (J J' is ~1e-2..1 on the built-in robots)."""
+EPS = 1e-6
+"""Regularization of the projection onto the acting normals: directions M weighs below EPS (nearly parallel rows) are
+let go smoothly instead of amplified."""
+STATE = 7
+"""State numbers per teleop term: the previous master depth (3), the previous force (3), warm (1)."""
+READOUT = ("force", "setpoint", "goal", "following", "acting", "next_state")
+
+
+def teleop_terms(task: ir.Task) -> list[ir.Objective]:
+    """Every `teleop` term of the task, outside phases then phase by phase (the readout's state order)."""
+    return [o for o in task.objectives + [o for phase in task.phases for o in phase.objectives] if o.term == "teleop"]
+
+
+def readout_function(task: ir.Task, problem: AssembledProblem) -> ca.Function | None:
+    """The task's ``teleop_readout`` (module docstring), or None without a teleop term."""
+    ctx = problem.context
+    _, objectives = gated_statements(task, ctx)
+    terms = [(o, gate) for o, gate in objectives if o.term == "teleop"]
+    if not terms:
+        return None
+    nq, n = problem.nq, problem.nq + problem.n_slack
+    arguments = [getattr(ctx, name) for name in tick_buffers.data_arguments(bool(task.phases))]
+    x = ca.SX.sym("x", n)
+    state = ca.SX.sym("state", STATE * len(terms))
+    A, lba, uba = ca.SX.sym("A", *problem.function.size_out(2)), ca.SX.sym("lba", *problem.function.size_out(3)), \
+        ca.SX.sym("uba", *problem.function.size_out(4))
+    Ax = A @ x
+    acting = ca.logic_or(Ax - lba <= ACTING, uba - Ax <= ACTING)
+    A_q = A[:, :nq]
+    dq, dt = x[:nq], ctx.dt
+    force, new_state, weights = ca.SX.zeros(3), [], []
+    for k, (o, gate) in enumerate(terms):
+        frame = ctx.frame(o.args["frame"].name)
+        J = ca.vertcat(frame.Jv, frame.Jw)
+        v_c, w_c, tau = teleop.commanded(o, ctx)
+        normals = ca.solve(J @ J.T + LAMBDA * ca.SX.eye(6), J @ A_q.T)            # 6 x m
+        lengths = ca.sum1(normals ** 2)
+        M = (normals * ca.repmat(ca.if_else(acting.T, 1 / ca.fmax(lengths, 1e-300), 0), 6, 1)) @ normals.T
+        removed = ca.vertcat(v_c, w_c) - J @ dq / dt
+        withheld = tau * (M @ ca.solve(M + EPS * ca.SX.eye(6), removed))[:3]
+        R_c, _ = ctx.pose(o.args["camera"])
+        depth = R_c.T @ withheld / ctx.scalar(o.args["scale"])
+        previous, F_prev, warm = state[STATE * k:STATE * k + 3], state[STATE * k + 3:STATE * k + 6], \
+            state[STATE * k + 6]
+        rate = (depth - previous) / dt
+        spring = -(ctx.scalar(o.args["stiffness"]) * depth + warm * ctx.scalar(o.args["damping"]) * rate)
+        weight = 1 if gate.weight is None else gate.weight
+        target = weight * _saturated(spring, ctx.scalar(o.args["saturation"]))
+        F = F_prev + _saturated(target - F_prev, ctx.scalar(o.args["rate_limit"]) * dt)
+        force += F
+        new_state += [depth, F, ca.DM(1)]
+        weights.append(weight)
+    g, _ = teleop.goal(terms[0][0], ctx)
+    frame = ctx.frame(terms[0][0].args["frame"].name)
+    pose = ca.Function("pose", [ctx.q, *arguments[1:]], [ca.vertcat(frame.p, rpy_of(frame.R))])
+    setpoint = pose(ctx.q + dq, *arguments[1:])
+    inner = ca.Function("readout", [*arguments, x, state, A, lba, uba],
+                        [force, setpoint, g, ca.mmax(ca.vertcat(*weights)), acting, ca.vertcat(*new_state)])
+    names = tick_buffers.data_arguments(bool(task.phases))
+    symbols = [ca.MX.sym(name, *a.shape) for name, a in zip(names, arguments)]
+    mx_x, mx_state = ca.MX.sym("x", n), ca.MX.sym("state", state.numel())
+    data = problem.function(*symbols)
+    outputs = inner(*symbols, mx_x, mx_state, data[2], data[3], data[4])
+    return ca.Function("teleop_readout", [*symbols, mx_x, mx_state], outputs, [*names, "x", "state"], list(READOUT))
+
+
+def _saturated(v, limit):
+    """v scaled down to norm ``limit`` when longer."""
+    return v * ca.fmin(1, limit / ca.fmax(ca.norm_2(v), 1e-300))

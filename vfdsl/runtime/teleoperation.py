@@ -1,0 +1,60 @@
+"""The teleoperation readout of each tick, held by the Controller of a task with a `teleop` term: the haptic force,
+the slave's set-point, following or not, the constraints that acted (vfdsl.objectives.haptics: the math), and the
+readout's state between ticks (the previous depth and force of each term)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from vfdsl.compiler.assemble import RowLabel
+from vfdsl.objectives.haptics import READOUT
+
+
+@dataclass(frozen=True)
+class TeleopOutput:
+    """One tick's teleoperation readout (SI).
+
+    - ``force``: the haptic force for the master (N, in the master's base frame): what the fixtures stopped of its
+      command, k x its depth past them along their normals, saturated, rate-limited and ramped in at engage;
+    - ``setpoint``: the teleop frame's pose after this tick's dq, [p (m); roll, pitch, yaw (rad)], for a robot driven
+      by pose;
+    - ``goal``: where the scaled master puts the frame's origin (m): s0 + scale R_c (m - m0), the master's ghost;
+    - ``following``: whether the master drives the slave (False while clutched, or before engage);
+    - ``acting``: the constraints with rows at their bounds this tick, each named once, in row order."""
+
+    force: np.ndarray
+    setpoint: np.ndarray
+    goal: np.ndarray
+    following: bool
+    acting: tuple[str, ...]
+
+
+class Teleoperation:
+    """The readout function (a BufferedFunction: generated C or interpreted) and its state."""
+
+    def __init__(self, function, labels: list[RowLabel]):
+        self._function = function
+        self._names = [_fixture(label) for label in labels]
+        self._state = np.zeros(function.function.numel_in(function.function.index_in("state")))
+
+    def update(self, data: tuple, x: np.ndarray) -> TeleopOutput:
+        """The readout after a tick solved to ``x`` from the QP data arguments ``data``; advances the state."""
+        out = dict(zip(READOUT, self._function(*data, x, self._state)))
+        self._state = np.array(out["next_state"], dtype=float).ravel()
+        acting = np.array(out["acting"]).ravel() > 0.5
+        names = tuple(dict.fromkeys(name for name, on in zip(self._names, acting) if on))
+        return TeleopOutput(*(np.array(out[key], dtype=float).ravel() for key in ("force", "setpoint", "goal")),
+                            bool(float(np.array(out["following"]).ravel()[0]) > 0.5), names)
+
+    def reset(self) -> None:
+        """Back to the first tick's state (no previous depth or force)."""
+        self._state[:] = 0.0
+
+
+def _fixture(label: RowLabel) -> str:
+    """A row's constraint, without its facet: 'above(tip) [task.vf:13]'."""
+    on = f"({label.frame})" if label.frame else ""
+    phase = f" in phase {label.phase}" if label.phase else ""
+    return f"{'soft ' if label.soft else ''}{label.primitive}{on}{phase} [{label.span.file}:{label.span.line}]"
