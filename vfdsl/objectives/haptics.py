@@ -14,12 +14,15 @@ Jacobian J (6 x n), the rates it commands c = [v_c; w_c], its tau and its phase 
     withheld         d_s = tau [M (M + EPS I)^-1 r]_linear    (m) the part of the goal's gap the acting rows hold back,
                                                              along their normals only
     on the master    d_m = R_c' d_s / scale                   (m) the master's motion those rows stopped
-    target           F* = w sat(-(k d_m + b (d_m - d_prev) / dt), F_max)     (no damping at the first tick)
+    engaged          t_e = t_e + dt while w > 1/2, else 0     (s) how long the master has been followed
+    target           F* = min(1, t_e / ramp) sat(-(k d_m + b (d_m - d_prev) / dt), F_max)   (no damping at the
+                                                             first tick)
     force            F = F_prev + clip(F* - F_prev, rate dt)  (N, in the master's base frame)
 
 so free motion (no acting row) feels nothing, whatever the tracking lag, and a wall feels k times the master's
-depth past it, along its normal. The ramp at engage is the phase weight (the procedure's blend); the rate limit
-smooths whatever is left. ``state`` = [d_prev (3), F_prev (3), warm (1)] per term, zeros before the first tick.
+depth past it, along its normal. The force ramps in over ``ramp`` after engage (and to 0 while clutched); the rate
+limit smooths whatever is left. ``state`` = [d_prev (3), F_prev (3), warm (1), t_e (1)] per term, zeros before the
+first tick.
 
 The set-point is the first teleop frame's pose after dq, [p; roll, pitch, yaw] (exact kinematics at q + dq): what a
 robot driven by pose is sent; the goal is that term's g (where the scaled master puts the frame: its ghost). ``following`` is the largest phase weight of the teleop terms (1: following; 0:
@@ -44,8 +47,8 @@ LAMBDA = 1e-10
 EPS = 1e-6
 """Regularization of the projection onto the acting normals: directions M weighs below EPS (nearly parallel rows) are
 let go smoothly instead of amplified."""
-STATE = 7
-"""State numbers per teleop term: the previous master depth (3), the previous force (3), warm (1)."""
+STATE = 8
+"""State numbers per teleop term: the previous master depth (3), the previous force (3), warm (1), engaged time (1)."""
 READOUT = ("force", "setpoint", "goal", "following", "acting", "next_state")
 
 
@@ -83,15 +86,16 @@ def readout_function(task: ir.Task, problem: AssembledProblem) -> ca.Function | 
         withheld = tau * (M @ ca.solve(M + EPS * ca.SX.eye(6), removed))[:3]
         R_c, _ = ctx.pose(o.args["camera"])
         depth = R_c.T @ withheld / ctx.scalar(o.args["scale"])
-        previous, F_prev, warm = state[STATE * k:STATE * k + 3], state[STATE * k + 3:STATE * k + 6], \
-            state[STATE * k + 6]
+        own = state[STATE * k:STATE * (k + 1)]
+        previous, F_prev, warm, engaged = own[0:3], own[3:6], own[6], own[7]
         rate = (depth - previous) / dt
         spring = -(ctx.scalar(o.args["stiffness"]) * depth + warm * ctx.scalar(o.args["damping"]) * rate)
         weight = 1 if gate.weight is None else gate.weight
-        target = weight * _saturated(spring, ctx.scalar(o.args["saturation"]))
+        engaged = ca.if_else(weight > 0.5, engaged + dt, 0)
+        target = ca.fmin(1, engaged / ctx.scalar(o.args["ramp"])) * _saturated(spring, ctx.scalar(o.args["saturation"]))
         F = F_prev + _saturated(target - F_prev, ctx.scalar(o.args["rate_limit"]) * dt)
         force += F
-        new_state += [depth, F, ca.DM(1)]
+        new_state += [depth, F, ca.DM(1), engaged]
         weights.append(weight)
     g, _ = teleop.goal(terms[0][0], ctx)
     frame = ctx.frame(terms[0][0].args["frame"].name)

@@ -15,7 +15,7 @@ with the frame at (p, R), tau = max(time_constant, dt) (never more than the whol
 or on clutch release), R_c the camera's rotation (a pose param, world <- master base: a moving camera). A scale
 given as a captured param changes only across a clutch. log(R) is the rotation vector (geometry.rotation_vector).
 
-The haptic arguments (stiffness, damping, saturation, rate_limit) shape the force the master feels:
+The haptic arguments (stiffness, damping, saturation, rate_limit, ramp) shape the force the master feels:
 :mod:`vfdsl.objectives.haptics`.
 """
 
@@ -53,7 +53,9 @@ SPEC = ObjectiveSpec(
           ArgSpec("saturation", "force", "the largest haptic force",
                   default=ir.ScalarValue(dimension="force", value=3.0), range=POSITIVE),
           ArgSpec("rate_limit", "force_rate", "how fast the haptic force may change",
-                  default=ir.ScalarValue(dimension="force_rate", value=500.0), range=POSITIVE)),
+                  default=ir.ScalarValue(dimension="force_rate", value=500.0), range=POSITIVE),
+          ArgSpec("ramp", "time", "how long the haptic force takes to ramp in after engage",
+                  default=ir.ScalarValue(dimension="time", value=0.1), range=POSITIVE)),
     source="dVRK teleoperation (mtsTeleOperationPSM), Li, Kapoor & Taylor 2005 for the fixture",
 )
 

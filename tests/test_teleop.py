@@ -1,0 +1,176 @@
+"""Teleoperation (the `teleop` term and its haptic readout, vfdsl/objectives/teleop.py, haptics.py): a master's pose
+moves the slave as it moves since engage, scaled; the clutch holds the slave and re-anchors; the force fed back is
+what the fixtures stopped of the master's command, k x its depth past them along their normals.
+
+Each figure is computed here from the controller's own readout and kinematics, on both paths."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import vfdsl
+from vfdsl.errors import VfError
+
+WALL = """task teleop_wall
+units mm, deg
+robot psm = urdf "psm6"
+frame tip = psm.link("tool_tip")
+input master : pose
+input clutch : button
+param floor : plane = plane(point = [0, 0, -120], normal = [0, 0, 1])
+param camera : pose = pose(translation = [0, 0, 0], rpy = [0, 0, 30])
+monitor pressed = clutch
+monitor released = not clutch
+minimize damping() weight 1e-6
+require tip above(floor)
+phase following initial {
+    capture s0 = tip.pose
+    capture m0 = master
+    minimize teleop(tip, master, anchor = s0, master_anchor = m0, scale = 0.5, camera = camera,
+                    stiffness = 0.2 N/mm, damping = 1 N*s/m, saturation = 3 N, rate_limit = 200 N/s, ramp = 100 ms)
+}
+phase clutched {
+}
+transition following -> clutched when pressed
+transition clutched -> following when released
+"""
+START = "start: [0, 0, 100 mm, 0, 0, 0]\nperiod: 1 ms\n"          # tip at (0, 0, -103.7) mm: 16.3 mm above the floor
+SCALE, STIFFNESS, SATURATION, TAU = 0.5, 200.0, 3.0, 0.01
+CAMERA = np.array([[np.cos(np.pi / 6), -np.sin(np.pi / 6), 0], [np.sin(np.pi / 6), np.cos(np.pi / 6), 0], [0, 0, 1]])
+
+
+@pytest.fixture(scope="module", params=["interpreted", "native"])
+def wall(request, tmp_path_factory):
+    folder = tmp_path_factory.mktemp("teleop")
+    (folder / "wall.vf").write_text(WALL)
+    (folder / "wall.yaml").write_text(START)
+    task = vfdsl.load(folder / "wall.vf")
+    return task, vfdsl.compile(task, backend=request.param)
+
+
+def drive(ctrl, task, masters, clutch=None):
+    """Runs the master poses (ticks x 6) through a fresh start; returns per tick the readout and the tip."""
+    ctrl.reset()
+    q = np.array(task.start, dtype=float)
+    out = []
+    for k, m in enumerate(masters):
+        dq = ctrl.step(q, {"master": m, "clutch": [0.0 if clutch is None else clutch[k]]})
+        q = q + dq
+        out.append((ctrl.teleop, ctrl.frames(q)["tip"].position, ctrl.phase))
+    return out
+
+
+def master_path(*legs, ticks_per_leg=500, hold=300):
+    """Master positions moving linearly through the given points (m), each leg in ticks_per_leg ticks, then held."""
+    points = [np.zeros(3), *map(np.asarray, legs)]
+    rows = [a + (b - a) * (k + 1) / ticks_per_leg for a, b in zip(points, points[1:]) for k in range(ticks_per_leg)]
+    rows += [points[-1]] * hold
+    return np.hstack([np.array(rows), np.zeros((len(rows), 3))])
+
+
+def test_free_motion_feels_nothing(wall):
+    """Above the floor, moving 20 mm/s in every direction (tracking lags v tau behind): no force at all."""
+    task, ctrl = wall
+    run = drive(ctrl, task, master_path([0.01, 0.01, -0.01], [-0.01, 0.005, 0.0], [0.0, 0.0, 0.01]))
+    forces = np.array([r.force for r, _, _ in run])
+    assert np.abs(forces).max() < 0.05
+    assert not any(r.acting for r, _, _ in run)
+    lag = max(np.linalg.norm(r.goal - tip) for r, tip, _ in run)
+    assert lag > 1e-5                      # the slave lagged behind its goal: the force ignores the lag
+
+
+@pytest.mark.parametrize("depth", [0.005, 0.010])
+def test_a_wall_feels_k_times_the_masters_depth_along_its_normal(wall, depth):
+    """The master pushed `depth` past where the scaled command meets the floor: F = k depth along the floor's normal
+    (in the master's base frame: through the camera), within 5 %, until the saturation."""
+    task, ctrl = wall
+    reach = 0.0163 / SCALE                                  # master motion that brings the slave to the floor
+    down = CAMERA.T @ np.array([0.0, 0.0, -(reach + depth)])  # the world's -z, in the master's base frame
+    run = drive(ctrl, task, master_path(down, ticks_per_leg=800, hold=700))
+    force = run[-1][0].force
+    expected = min(STIFFNESS * depth, SATURATION)
+    normal = CAMERA.T @ np.array([0.0, 0.0, 1.0])           # the wall pushes the master back up
+    assert abs(force @ normal - expected) <= 0.05 * expected
+    assert np.linalg.norm(force - (force @ normal) * normal) <= 1e-3 * expected
+    assert run[-1][0].acting == (f"above(tip) [{task.span.file}:12]",) or run[-1][0].acting[0].startswith("above(tip)")
+    assert run[-1][1][2] == pytest.approx(-0.120, abs=1e-6)   # the slave on the floor
+
+
+def test_sliding_along_the_wall_feels_only_the_depth(wall):
+    """Pressed 5 mm into the floor and moved along it: the force stays k x 5 mm, normal, while the slave slides."""
+    task, ctrl = wall
+    reach = 0.0163 / SCALE + 0.005
+    down = CAMERA.T @ np.array([0.0, 0.0, -reach])
+    along = down + CAMERA.T @ np.array([0.02, 0.01, 0.0])
+    run = drive(ctrl, task, master_path(down, along, ticks_per_leg=800, hold=300))
+    sliding = [r.force for r, _, _ in run[1000:1600]]
+    normal = CAMERA.T @ np.array([0.0, 0.0, 1.0])
+    assert all(abs(f @ normal - STIFFNESS * 0.005) <= 0.05 * STIFFNESS * 0.005 for f in sliding)
+    assert max(np.linalg.norm(f - (f @ normal) * normal) for f in sliding) <= 0.02 * STIFFNESS * 0.005
+
+
+def test_clutch_holds_the_slave_and_reengages_without_a_step(wall):
+    """Move, clutch and bring the master back, release, move again: the slave moves only while following, and no
+    tick moves its set-point more than the scaled master moved that tick (no step at either edge)."""
+    task, ctrl = wall
+    a = master_path([0.01, 0.0, -0.005], [0.0, 0.0, 0.0], [0.01, 0.0, -0.005], ticks_per_leg=400, hold=200)
+    clutch = np.zeros(len(a))
+    clutch[400:800] = 1.0                                   # clutched while the master goes back to its start
+    run = drive(ctrl, task, a, clutch)
+    phases = [phase for _, _, phase in run]
+    assert phases[399] == "following" and set(phases[400:800]) == {"clutched"} and phases[800] == "following"
+    tips = np.array([tip for _, tip, _ in run])
+    assert np.abs(np.diff(tips[400:800], axis=0)).max() < 1e-9        # held while clutched
+    setpoints = np.array([r.setpoint[:3] for r, _, _ in run])
+    step = np.linalg.norm(np.diff(setpoints, axis=0), axis=1)
+    master_step = SCALE * np.linalg.norm(np.diff(a[:, :3], axis=0), axis=1).max()
+    assert step.max() <= master_step * (1 + 1e-9)
+    assert not run[500][0].following and run[900][0].following
+    # re-anchored at engage (tick 800): the slave where it was held, the master where it was then
+    assert np.allclose(tips[-1], tips[799] + SCALE * CAMERA @ (a[-1, :3] - a[800, :3]), atol=1e-9)
+
+
+def test_tracking_error_in_free_motion_is_speed_times_tau(wall):
+    """docs/language.md: where no fixture acts, the slave trails its goal by v tau (v its speed) once the motion is
+    steady, the discrete lag of dp = (g - p) dt / tau: v (tau - dt) after the tick's motion."""
+    task, ctrl = wall
+    run = drive(ctrl, task, master_path([0.02, 0.0, 0.0], ticks_per_leg=1000, hold=0))
+    speed = SCALE * 0.02 / 1.0                               # m/s
+    lag = np.linalg.norm(run[900][0].goal - run[900][1])
+    assert lag == pytest.approx(speed * (TAU - 0.001), rel=0.01)         # after this tick's dq: v (tau - dt)
+
+
+def test_the_force_ramps_in_after_engage(wall):
+    """Engaged while the master already points past the floor: the force grows over the 100 ms ramp (and the rate
+    limit), not at once."""
+    task, ctrl = wall
+    reach = 0.0163 / SCALE + 0.005
+    a = master_path(CAMERA.T @ np.array([0.0, 0.0, -reach]), ticks_per_leg=800, hold=400)
+    clutch = np.zeros(len(a))
+    clutch[900:1000] = 1.0
+    run = drive(ctrl, task, a, clutch)
+    forces = np.array([np.linalg.norm(r.force) for r, _, _ in run])
+    assert forces[999] < 1e-9                                # clutched: nothing
+    assert np.abs(np.diff(forces)).max() <= 200.0 * 0.001 + 1e-12
+    # re-engaged with new anchors: the floor no longer stops the (new) command, so the force stays 0
+    assert forces[-1] < 1e-9
+
+
+def test_a_teleop_term_needs_a_pose_master(tmp_path):
+    (tmp_path / "t.vf").write_text(WALL.replace("input master : pose", "input master : force")
+                                   .replace("master_anchor = m0", "master_anchor = camera"))
+    (tmp_path / "t.yaml").write_text(START)
+    with pytest.raises(VfError, match="teleop follows a master's pose; 'master' is a force"):
+        vfdsl.load(tmp_path / "t.vf")
+
+
+@pytest.mark.parametrize("written, message", [("rotation = sideways, stiffness = 1 N/mm", "one of relative, absolute"),
+                                              ("stiffness = 2 N", "expected a stiffness"),
+                                              ("stiffness = -1 N/mm", "stiffness")])
+def test_bad_teleop_arguments_are_refused_at_their_place(tmp_path, written, message):
+    (tmp_path / "t.vf").write_text(WALL.replace("stiffness = 0.2 N/mm", written))
+    (tmp_path / "t.yaml").write_text(START)
+    with pytest.raises(VfError, match=message) as info:
+        vfdsl.load(tmp_path / "t.vf")
+    assert info.value.pos is not None and info.value.pos.line == 17
