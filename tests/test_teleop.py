@@ -6,6 +6,9 @@ Each figure is computed here from the controller's own readout and kinematics, o
 
 from __future__ import annotations
 
+import json
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -174,3 +177,44 @@ def test_bad_teleop_arguments_are_refused_at_their_place(tmp_path, written, mess
     with pytest.raises(VfError, match=message) as info:
         vfdsl.load(tmp_path / "t.vf")
     assert info.value.pos is not None and info.value.pos.line == 17
+
+
+TELEOP_TASKS = Path(__file__).resolve().parent.parent / "tasks" / "teleop"
+
+
+@pytest.mark.parametrize("name", ["teleop_keep_out", "teleop_guide_line"])
+def test_the_examples_simulate_with_an_operator(tmp_path, name):
+    """Each example's scene: the master is followed 5 s of 6 (1 s clutched), fixtures act, free motion feels under
+    0.05 N, and the slave holds while clutched (by the trace)."""
+    from vfdsl.cli import main
+    out, trace = tmp_path / "run.json", tmp_path / "run.csv"
+    assert main(["simulate", str(TELEOP_TASKS / f"{name}.vf"), "--json", str(out), "--trace", str(trace),
+                 "--quiet"]) == 0
+    row = json.loads(out.read_text())["teleop"][0]
+    assert row["following_s"] == pytest.approx(5.0, abs=2e-3)
+    assert row["acting_s"] > 0.5
+    assert row["force_free_max_N"] < 0.05
+    assert 0.5 < row["force_acting_max_N"] <= 4.0 + 1e-9
+    assert row["command_error_max_m"] < 2e-4
+    import csv
+    rows = list(csv.DictReader(trace.open()))
+    clutched = [r for r in rows if r["following"] == "0"]
+    joints = [k for k in rows[0] if k.startswith("dq_")]
+    assert len(clutched) == 1000 and all(abs(float(r[j])) < 1e-12 for r in clutched[1:] for j in joints)
+    assert all(float(r["haptic_x_N"]) ** 2 + float(r["haptic_z_N"]) ** 2 < 1e-18 for r in clutched[100:])
+
+
+@pytest.mark.parametrize("operator, message", [
+    ("{input: clutch, path: [{at: 0 s, position: [0, 0, 0]}]}", "the operator moves a master's pose; 'clutch' is a "
+                                                                "button"),
+    ("{input: master, path: [{at: 1 s, position: [0, 0, 0]}, {at: 0.5 s, position: [0, 0, 1]}]}", "must increase"),
+    ("{input: master, path: [{at: 0 s, position: [0, 0, 5000]}]}", "beyond"),
+    ("{input: master}", "needs 'path'"),
+])
+def test_a_bad_operator_is_refused_at_its_line(tmp_path, capsys, operator, message):
+    from vfdsl.cli import main
+    scene = tmp_path / "s.sim.yaml"
+    scene.write_text(f"units: mm, deg\nduration: 0.1 s\noperator: {operator}\n")
+    assert main(["simulate", str(TELEOP_TASKS / "teleop_guide_line.vf"), "--scene", str(scene)]) == 2
+    err = capsys.readouterr().err
+    assert message in err and "s.sim.yaml:3" in err and "Traceback" not in err

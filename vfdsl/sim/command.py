@@ -15,6 +15,7 @@ from vfdsl.errors import VfError
 from vfdsl.files import check_writable
 from vfdsl import limits
 from vfdsl.ir import captures
+from vfdsl.sim.operator import teleop_table
 from vfdsl.sim import report, trace
 from vfdsl.sim.cluster import connect
 from vfdsl.sim.metrics import metric_defs
@@ -162,6 +163,9 @@ def main(args: argparse.Namespace) -> int:
         print(report.table(doc, tolerances))
         if "procedure" in doc:
             print("\n" + report.phase_table(doc))
+        if "teleop" in doc:
+            print("\nteleoperation (error to the scaled command and force in free motion: followed, no fixture "
+                  "acting)\n" + teleop_table(doc))
         if doc["fallback_ticks"]:
             print(f"\n{doc['fallback_ticks']} of {doc['ticks']} ticks needed the least-violation fallback")
     if args.json:

@@ -68,6 +68,9 @@ def document(task_name: str, task_file: str, settings: SimSettings, results: lis
     phases = procedure(results)
     if phases is not None:
         doc["procedure"] = phases
+    teleoperated = [{"trial": r.trial, **dict(r.grid), **r.teleop} for r in results if r.teleop is not None]
+    if teleoperated:
+        doc["teleop"] = teleoperated
     doc["trials"] = trial_rows(results)
     return doc
 

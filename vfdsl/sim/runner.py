@@ -41,6 +41,7 @@ from vfdsl.sim.cluster import connect
 from vfdsl.sim.geometry import Scene
 from vfdsl.sim.hand import Hand, generic_hand
 from vfdsl.sim.metrics import Stats, errors, frame_poses, metric_defs, prepare_meshes
+from vfdsl.sim.operator import TeleopRecord, is_teleoperated
 from vfdsl.sim.phases import PhaseRecord
 from vfdsl.sim.robot import SimRobot
 from vfdsl.sim.scripted import ScriptedInputs
@@ -85,6 +86,7 @@ class TrialResult:
     trace: dict | None = None                 # column -> one value per tick (vfdsl.sim.trace)
     motion: dict | None = None                # how far the hand's frame moved (achieved_motion)
     procedure: dict | None = None             # a procedure's phases and transitions (PhaseRecord.summary)
+    teleop: dict | None = None                # a teleoperated run's figures (TeleopRecord.summary)
 
 
 @dataclass
@@ -142,10 +144,12 @@ def simulate_with(job: Job, task: ir.Task, ctrl: vfdsl.Controller, robot: Robot,
     if s.resolution == "robot" and robot.resolution is None:
         raise VfError(f"resolution: robot, but robot '{robot.name}' declares no joint resolution",
                       hint="add resolution to its URDF sidecar (<stem>.yaml), or use resolution: off")
-    hand_settings = s.hand or (None if s.pushes else generic_hand(task, ctrl, robot, q0, dt))
+    hand_settings = s.hand or (None if s.pushes or s.operator else generic_hand(task, ctrl, robot, q0, dt))
     hand = Hand(hand_settings, task, robot, scene, dt, ticks, hand_rng) if hand_settings else None
-    script = ScriptedInputs(s, task, scene, dt, ticks, sensor_rng) if s.pushes or s.presses or s.sensors else None
+    scripted = s.pushes or s.presses or s.sensors or s.operator
+    script = ScriptedInputs(s, task, scene, dt, ticks, sensor_rng) if scripted else None
     phases = PhaseRecord(task, ticks) if task.phases else None
+    teleop = TeleopRecord(ticks) if is_teleoperated(task) else None
     inputs = {i.name: np.zeros(i.size) for i in task.inputs}
     events = sorted(s.disturbances, key=lambda d: d.at)
     segments = [(0, dict(scene.values))]
@@ -190,6 +194,8 @@ def simulate_with(job: Job, task: ir.Task, ctrl: vfdsl.Controller, robot: Robot,
             record.tick(k, inputs, dq, params, scene, ctrl)
         if phases is not None:
             phases.tick(k, ctrl, dt)
+        if teleop is not None:
+            teleop.tick(k, ctrl)
         sim.command(t, dq)
         sim.advance(t, t + dt)
         if progress is not None and (k + 1) % PROGRESS_EVERY == 0:
@@ -197,7 +203,7 @@ def simulate_with(job: Job, task: ir.Task, ctrl: vfdsl.Controller, robot: Robot,
     if progress is not None:
         progress(SIMULATED * (ticks % PROGRESS_EVERY))
     result = _score(job, task, robot, qs, segments, tracker_rng, fallback, hand_settings, moving.tables, record,
-                    progress, phases)
+                    progress, phases, teleop)
     if result.motion is not None:
         result.motion["commanded"] = commanded_fraction(ctrl, qs, us, dt)
     return result
@@ -314,7 +320,7 @@ class Moving:
 
 def _score(job: Job, task: ir.Task, robot: Robot, qs: np.ndarray, segments, rng, fallback: int,
            hand_settings, shifts: dict[str, np.ndarray], record: _Recorder | None = None,
-           progress=None, phases: PhaseRecord | None = None) -> TrialResult:
+           progress=None, phases: PhaseRecord | None = None, teleop: TeleopRecord | None = None) -> TrialResult:
     s = job.settings
     if phases is not None:              # the phases' fixtures measured against the values they captured
         task, segments = captures.as_params(task), phases.segments(segments)
@@ -351,6 +357,8 @@ def _score(job: Job, task: ir.Task, robot: Robot, qs: np.ndarray, segments, rng,
         trace = record.columns(qs, s.period)
         if phases is not None:
             trace.update(phases.columns())
+        if teleop is not None:
+            trace.update(teleop.columns())
         for name, v in series_values.items():
             tracked = name.startswith("tracker_")
             column = tr.metric_column("tracker" if tracked else "metric", name.removeprefix("tracker_") if tracked
@@ -378,7 +386,7 @@ def _score(job: Job, task: ir.Task, robot: Robot, qs: np.ndarray, segments, rng,
             motion["frame"] = name
     procedure = None if phases is None else phases.summary(s.period, series_values, owners)
     return TrialResult(job.trial, job.seed, job.grid, len(qs), fallback, stats, units, series, hand, trace, motion,
-                       procedure)
+                       procedure, None if teleop is None else teleop.summary(s.period))
 
 
 def achieved_motion(p: np.ndarray, axis: np.ndarray) -> dict:

@@ -35,6 +35,9 @@ the command line overrides the scalar ones. Every value is SI inside; bare numbe
       - {input: hand, from: 3 s, to: 6 s, magnitude: 3 N, direction: [0, 0, -1]}
     buttons: {go: {from: 2 s, to: 2.1 s}}    # button inputs' presses
     sensors: {hand: {noise: 0.02 N}}          # an input's sensor noise (3-D RMS)
+    operator:                  # a teleoperation master's pose over time (vfdsl.sim.operator)
+      input: master
+      path: [{at: 0 s, position: [0, 0, 0]}, {at: 2 s, position: [10, 0, -30], rpy: [0, 0, 20]}]
 
 Motions and disturbances are separate lists: a disturbance is an event (the world changes once, at ``at``);
 a motion is a law of time that moves one run-time param every tick (:class:`Motion`). A motion displaces
@@ -69,6 +72,7 @@ from vfdsl.passes.scene import (ValueReader, compose, node_span, read_mapping,  
                                 read_units)
 from vfdsl.primitives.spec import SCALAR_DIMENSIONS
 from vfdsl.runtime.values import ASSUMED_PERIOD
+from vfdsl.sim.operator import read_operator
 from vfdsl.sim.scripted import read_buttons, read_pushes, read_sensors
 from vfdsl.sim.settings import (DISTURBANCE_KINDS, HAND_KINDS, MARKER_DISTANCES,
                                 MAX_TREMOR_FREQUENCY, MOTION_KINDS, MOVABLE, SCENE_LIMITS,
@@ -78,7 +82,8 @@ from vfdsl.sim.settings import (DISTURBANCE_KINDS, HAND_KINDS, MARKER_DISTANCES,
 from vfdsl.syntax import ast
 
 TOP_KEYS = ("units", "duration", "period", "latency", "servo_lag", "resolution", "trials", "seed", "tracker",
-             "hand", "disturbances", "motions", "metrics", "pushes", "buttons", "sensors")
+             "hand", "disturbances", "motions", "metrics", "pushes", "buttons", "sensors",
+             "operator")
 MOTION_KEYS = {"sine": ("param", "kind", "amplitude", "frequency", "phase"),
                 "step": ("param", "kind", "at", "offset"),
                 "ramp": ("param", "kind", "start", "end", "offset")}
@@ -258,7 +263,7 @@ class _Reader:
             values["metrics"] = tuple(self.metric(name, key, value)
                                       for name, (key, value) in read_mapping(node, self.file).items())
         for key, read, name in (("pushes", read_pushes, "pushes"), ("buttons", read_buttons, "presses"),
-                                ("sensors", read_sensors, "sensors")):
+                                ("sensors", read_sensors, "sensors"), ("operator", read_operator, "operator")):
             if key in top:
                 values[name] = read(self, top[key][1])
         return dataclasses.replace(base, **values)

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import json
 
-from vfdsl.sim import scene_file, scripted
+from vfdsl.sim import operator, scene_file, scripted
 from vfdsl.sim import settings as s
 
 QUANTITY = {"type": ["number", "string"], "description": "a number in the scene's units, or a number with its unit"}
@@ -44,7 +44,12 @@ _TOP = {
     "pushes": (None, "scripted forces or torques on inputs, each over a time segment, added to the hand's"),
     "buttons": (None, "button inputs' presses: per button a press {from, to}, a time (a 100 ms press) or a list"),
     "sensors": (None, "inputs read with sensor noise: per input {noise, angular_noise}"),
+    "operator": (None, "a teleoperation master's pose over time: {input, path}, linear between waypoints"),
 }
+_OPERATOR = {"input": (NAME, "the task's pose input the operator moves"),
+             "path": (None, "waypoints {at, position, rpy}, times increasing")}
+_WAYPOINT = {"at": (QUANTITY, "the waypoint's time"), "position": (VECTOR, "the master's position (lengths)"),
+             "rpy": (VECTOR, "roll, pitch, yaw (angles; default 0)")}
 _TRACKER = {"noise": (QUANTITY, "RMS 3-D noise of one marker (a length)"),
             "marker_distance": (QUANTITY, "second marker this far up the tool axis (default 100 mm)")}
 _HAND = {
@@ -136,6 +141,9 @@ def scene_schema() -> dict:
     top["buttons"] |= {"type": "object", "additionalProperties": {"oneOf": [press, {"type": "array", "items": press,
                                                                                      "minItems": 1}]}}
     top["sensors"] |= {"type": "object", "additionalProperties": _object(_SENSOR, scripted.SENSOR_KEYS)}
+    top["operator"] |= _object(_OPERATOR, operator.OPERATOR_KEYS, operator.OPERATOR_KEYS)
+    top["operator"]["properties"]["path"] |= {"type": "array", "minItems": 1, "items": _object(
+        _WAYPOINT, operator.WAYPOINT_KEYS, ("at", "position"))}
     return {"$schema": "https://json-schema.org/draft/2020-12/schema",
             "$id": "https://vfdsl.invalid/simulate.schema.json",
             "title": "vfdsl simulation scene (<task>.sim.yaml)",

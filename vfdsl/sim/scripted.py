@@ -1,4 +1,5 @@
-"""Scripted inputs of a simulation scene: pushes over time segments, button presses and sensor noise.
+"""Scripted inputs of a simulation scene: pushes over time segments, button presses, sensor noise and a teleoperation
+master's path (vfdsl.sim.operator).
 
 A procedure is driven by what the user does over time (docs/simulate.md, "Procedures")::
 
@@ -188,6 +189,7 @@ class ScriptedInputs:
             aim = scene.direction(direction_arg(push.direction))
             self.pushes.append((push, parts.part_range(angular=push.kind == "turn"), push.magnitude * aim))
         self.presses = settings.presses
+        self.operator = settings.operator
         self.noise: dict[str, np.ndarray] = {}
         for sensor in settings.sensors:
             parts = INPUT_TYPES[task.input(sensor.input).type]
@@ -200,11 +202,14 @@ class ScriptedInputs:
     @property
     def inputs(self) -> set[str]:
         """The inputs the script writes (a scene with any has no generic hand)."""
-        return {p.input for p, _, _ in self.pushes} | {p.input for p in self.presses} | set(self.noise)
+        return ({p.input for p, _, _ in self.pushes} | {p.input for p in self.presses} | set(self.noise)
+                | ({self.operator.input} if self.operator else set()))
 
     def apply(self, k: int, inputs: dict[str, np.ndarray]) -> None:
         """Tick k: the active pushes and presses, and the noise, into ``inputs`` (on top of the hand's value)."""
         t = k * self.period
+        if self.operator is not None:
+            inputs[self.operator.input][:] = self.operator.pose(t)
         for push, part, vector in self.pushes:
             if push.active(t):
                 inputs[push.input][part] += vector

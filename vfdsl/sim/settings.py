@@ -12,6 +12,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from vfdsl.sim.operator import OperatorPath
 from vfdsl import limits
 from vfdsl import units as u
 from vfdsl.errors import Span, VfError, suggest
@@ -211,6 +212,7 @@ class SimSettings:
     pushes: tuple[Push, ...] = ()               # scripted pushes over time segments
     presses: tuple[Press, ...] = ()             # button presses
     sensors: tuple[SensorNoise, ...] = ()       # inputs read with sensor noise
+    operator: OperatorPath | None = None        # a master's pose over time (vfdsl.sim.operator)
     scene: str | None = None                    # the file these came from
 
     def replace(self, **changes) -> "SimSettings":
@@ -224,7 +226,8 @@ class SimSettings:
     def summary(self) -> dict:
         """The settings as plain JSON data (SI units)."""
         data = dataclasses.asdict(self)
-        for d in data["disturbances"] + data["motions"] + data["pushes"] + data["presses"] + data["sensors"]:
+        for d in data["disturbances"] + data["motions"] + data["pushes"] + data["presses"] + data["sensors"] + \
+                ((data["operator"],) if data["operator"] else ()):
             d.pop("where")
         for m in data["metrics"]:
             m.pop("where")
@@ -265,7 +268,7 @@ def check_setting(name: str, value, where: Span | None = None) -> None:
         if not (isinstance(value, int) and 0 <= value <= limits.SEED):
             raise VfError(f"seed must be a whole number from 0 to {limits.SEED:,}, got {value!r}", where)
     elif name not in ("hand", "disturbances", "motions", "metrics", "scene", "marker_distance", "pushes", "presses",
-                      "sensors"):
+                      "sensors", "operator"):
         raise VfError(f"unknown setting '{name}'", where, hint=suggest(name, GRID_NAMES, "settings"))
 
 
