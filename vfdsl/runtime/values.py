@@ -78,9 +78,9 @@ def real_vector(value, size: int, what: str, finite: bool = True) -> np.ndarray:
         arr = np.array([_as_float(item, f"{what}'s item {i}", too_large=f"{what} holds a number too large for a float")
                         for i, item in enumerate(value)], dtype=float)
     else:
-        raise VfError(f"{what} must have {size} numbers (a list or array), got {_describe(value)}")
+        raise VfError(f"{what} must have {_count(size)} (a list or array), got {_describe(value)}")
     if arr.size != size:
-        raise VfError(f"{what} must have {size} numbers, got {arr.size}")
+        raise VfError(f"{what} must have {_count(size)}, got {arr.size}")
     bad = np.flatnonzero(~np.isfinite(arr)) if finite else ()
     if len(bad):
         raise VfError(f"{what} contains NaN or inf (index {int(bad[0])}): {show_vector(arr)}")
@@ -318,3 +318,8 @@ def _ir_kind(kind: str) -> str:
 
 def _article(kind: str) -> str:
     return ("an " if kind[:1] in "aeiou" else "a ") + kind
+
+
+def _count(size: int) -> str:
+    """'1 number', '3 numbers'."""
+    return f"{size} number" + ("s" if size != 1 else "")
