@@ -12,6 +12,7 @@ threads, one controller from two threads.
 
 from __future__ import annotations
 
+import ctypes
 import dataclasses
 import filecmp
 import json
@@ -648,3 +649,23 @@ def test_self_test_count_has_a_limit(tmp_path, capsys):
     with pytest.raises(VfError, match="1 to 100,000 ticks"):
         check_count(MAX_TICKS + 1)
     assert check_count(MAX_TICKS) == MAX_TICKS
+
+
+def test_a_task_without_teleop_has_no_readout(exports):
+    """_is_teleoperated 0, _teleop VF_ERR_NO_TELEOP (-11), _row_acting 0: the teleoperation calls exist in every
+    export and say there is nothing to read."""
+    exported = exports(CONTRACT_TASKS[0])
+    lib = ctypes.CDLL(str(exported.directory / f"lib{exported.result.api}.so"))
+    api = exported.result.api
+    getattr(lib, f"{api}_new").restype = ctypes.c_void_p
+    for name in ("teleop", "row_acting"):
+        getattr(lib, f"{api}_{name}").argtypes = [ctypes.c_void_p, ctypes.c_void_p if name == "teleop" else ctypes.c_int]
+    ctrl = getattr(lib, f"{api}_new")()
+    buffer = (ctypes.c_double * 16)()
+    try:
+        assert getattr(lib, f"{api}_is_teleoperated")() == 0
+        assert getattr(lib, f"{api}_teleop")(ctrl, buffer) == -11
+        assert getattr(lib, f"{api}_row_acting")(ctrl, 0) == 0
+    finally:
+        getattr(lib, f"{api}_free").argtypes = [ctypes.c_void_p]
+        getattr(lib, f"{api}_free")(ctrl)

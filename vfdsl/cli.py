@@ -118,8 +118,9 @@ def _export(args: argparse.Namespace) -> int:
     if args.self_test:
         controller, _ = pipeline.build(task, backend="native", cache_dir=args.cache)
         worst = self_test(controller, written, args.self_test)
+        what = "|dq| and haptic readout" if controller.teleop is not None else "|dq|"
         print(f"  self-test  built with make; {args.self_test} closed-loop ticks replayed: statuses equal, "
-              f"largest |dq| difference from Controller.step() {worst:.3g}")
+              f"largest {what} difference from Controller.step() {worst:.3g}")
     return 0
 
 

@@ -29,7 +29,7 @@ from vfdsl.compiler.admissible import Admissible
 from vfdsl.compiler.assemble import AssembledProblem, assemble
 from vfdsl.compiler.cases import case_index, phase_cases
 from vfdsl.compiler.phases import captures_function, monitor_values
-from vfdsl.objectives.haptics import readout_function
+from vfdsl.objectives.haptics import readout_function, teleop_terms
 from vfdsl.errors import VfError
 from vfdsl.ir import model as ir
 from vfdsl.kinematics.robot import Robot
@@ -99,17 +99,19 @@ def build(task: ir.Task, *, backend: str = "auto",
                                         len(problem.row_labels), prefix, **options)
         return build_step_function(problem.function, prefix, **options)
 
+    readout = readout_function(task, problem)
     if backend != "interpreted":
         try:
             library = build_library(step(native=True), prefix, Path(cache_dir or default_cache_dir()),
                                     metadata(task, problem, values, digest), admissible.function,
                                     tuple(problem.context.c_sources.values()), values.input_checks,
-                                    _phase_code(task, problem))
+                                    _phase_code(task, problem), readout)
             runner = _native_runner(values, problem, library, prefix)
             procedure = (NativeProcedure(task, runner, _machine(task, problem)[2])
                          if task.phases and isinstance(runner, StepperRunner) else _procedure(task, problem))
-            return Controller(task, problem, values, runner, FEASIBILITY_TOLERANCE, procedure,
-                              _teleoperation(task, problem)), library
+            teleoperation = None if readout is None else Teleoperation(
+                BufferedFunction.native(library.so_path, f"{prefix}_teleop_readout"), problem.row_labels)
+            return Controller(task, problem, values, runner, FEASIBILITY_TOLERANCE, procedure, teleoperation), library
         except (CompilerUnavailable, DaqpSourcesUnavailable) as exc:
             if backend == "native":
                 raise
@@ -118,8 +120,10 @@ def build(task: ir.Task, *, backend: str = "auto",
                               InterpretedFallback, stacklevel=2)
                 _warned = True
     runner = LockedRunner(BufferedFunction.interpreted(step(native=False)), values)
+    teleoperation = None if readout is None else Teleoperation(BufferedFunction.interpreted(readout),
+                                                               problem.row_labels)
     return Controller(task, problem, values, runner, FEASIBILITY_TOLERANCE, _procedure(task, problem),
-                      _teleoperation(task, problem)), None
+                      teleoperation), None
 
 
 def _procedure(task: ir.Task, problem: AssembledProblem) -> Procedure | None:
@@ -128,12 +132,6 @@ def _procedure(task: ir.Task, problem: AssembledProblem) -> Procedure | None:
         return None
     ctx = problem.context
     return Procedure(task, ctx.layout, monitor_values(task, ctx), captures_function(task, ctx), ctx.input_offsets)
-
-
-def _teleoperation(task: ir.Task, problem: AssembledProblem) -> Teleoperation | None:
-    """The teleoperation readout of a task with a `teleop` term (None without)."""
-    function = readout_function(task, problem)
-    return None if function is None else Teleoperation(BufferedFunction.interpreted(function), problem.row_labels)
 
 
 def _machine(task: ir.Task, problem: AssembledProblem):
@@ -191,7 +189,9 @@ def metadata(task: ir.Task, problem: AssembledProblem, values: RuntimeValues, di
     types = {d.name: d.type for d in task.inputs}
     runtime = [s.name for s in ctx.layout.slots.values() if s.size]     # the run-time params, in param_layout's order
     procedure = {} if not task.phases else {"procedure": _procedure_metadata(task, problem)}
-    return {**procedure,
+    teleop = {} if not teleop_terms(task) else {"teleop": {"terms": len(teleop_terms(task)),
+                                                           "frame": teleop_terms(task)[0].args["frame"].name}}
+    return {**procedure, **teleop,
         "task": task.name,
         "file": task.file,
         "vfdsl_version": vfdsl.__version__,

@@ -69,6 +69,7 @@ STEPPER = Path(__file__).parent / "stepper.c"
 STEPPER_PARTS = (STEPPER, STEPPER.with_name("stepper_values.h"), STEPPER.with_name("stepper_procedure.h"))
 """The Python extension's source: stepper.c and the parts it includes."""
 CHECKED_STEP = Path(__file__).parent / "checked_step.h"
+TELEOP_READOUT = Path(__file__).parent / "teleop_readout.h"
 """The checks and the evaluation of a tick in plain C: included by stepper.c and by `vfdsl export`'s library."""
 
 _LEXLS_KEY = hashlib.sha256(LEXLS_SOURCE.read_bytes() + LEXLS_HEADER.read_bytes()).hexdigest()
@@ -126,7 +127,8 @@ class Compiler:
 
 def build_library(fn: ca.Function, prefix: str, cache_dir: Path, metadata: dict,
                   checks: ca.Function, extra_sources: tuple[Path, ...] = (),
-                  input_checks: ca.Function | None = None, phases: PhaseCode | None = None) -> BuiltLibrary:
+                  input_checks: ca.Function | None = None, phases: PhaseCode | None = None,
+                  teleop: ca.Function | None = None) -> BuiltLibrary:
     """The cached library of the step ``fn`` (arguments q, u, p, dt, recover), exported as C symbol ``prefix``,
     with ``checks`` (p -> the column of checks of the params, :mod:`vfdsl.compiler.admissible`) exported as
     ``<prefix>_admissible`` and ``input_checks`` (u -> the column of the inputs' checks,
@@ -134,7 +136,8 @@ def build_library(fn: ca.Function, prefix: str, cache_dir: Path, metadata: dict,
     if needed. ``extra_sources``: C files defining the external functions ``fn`` calls (mesh queries), compiled
     and linked in with the same flags (their text is part of the digest). ``phases``: a procedure's step (which takes
     :data:`~vfdsl.codegen.tick_buffers.PHASE_BUFFERS` after dt) with its machine and functions
-    (:class:`~vfdsl.codegen.procedure_code.PhaseCode`)."""
+    (:class:`~vfdsl.codegen.procedure_code.PhaseCode`). ``teleop``: a teleoperated task's readout
+    (:mod:`vfdsl.objectives.haptics`), exported as ``<prefix>_teleop_readout`` (codegen/teleop_readout.h calls it)."""
     if not _IDENTIFIER.fullmatch(prefix):
         raise ValueError(f"prefix {prefix!r} is not a C identifier")
     cache_dir = Path(cache_dir)
@@ -153,7 +156,8 @@ def build_library(fn: ca.Function, prefix: str, cache_dir: Path, metadata: dict,
         with work_dir as tmp:
             work = Path(tmp)
             source, header = _generate(fn, prefix, work, checks,
-                                       input_checks if input_checks is not None else _no_input_checks(fn), phases)
+                                       input_checks if input_checks is not None else _no_input_checks(fn), phases,
+                                       teleop)
             extra = tuple(Path(x) for x in extra_sources)
             digest = _digest(source + "".join(x.read_text() for x in extra), header, compiler, metadata)
             entry = cache_dir / f"{prefix}-{digest[:16]}"
@@ -219,12 +223,15 @@ def _tail(text: str, lines: int = 25) -> str:
 
 
 def _generate(fn: ca.Function, prefix: str, work: Path, checks: ca.Function,
-              input_checks: ca.Function, phases: PhaseCode | None = None) -> tuple[str, str]:
+              input_checks: ca.Function, phases: PhaseCode | None = None,
+              teleop: ca.Function | None = None) -> tuple[str, str]:
     """Write ``<prefix>.c``/``.h`` into ``work`` (the step exported as ``prefix``, the checks as
     ``<prefix>_admissible`` and ``<prefix>_input_checks``): CasADi's C patched for ``fn``'s solve plans, its header
     with vfdsl's contract and the C declarations of the tick's buffers (:mod:`vfdsl.codegen.tick_buffers`); a
     procedure's also its functions and machine (:func:`vfdsl.codegen.procedure_code.header`)."""
     extra = () if phases is None else procedure_code.functions(phases, prefix)
+    if teleop is not None:
+        extra += ((teleop, f"{prefix}_teleop_readout"),)
     source, header = casadi_c(fn, prefix, work, checks, input_checks, extra)
     source = patch_generated_c(source, prefix, plans_of(fn))
     contract = HEADER_CONTRACT.replace("@PREFIX@", prefix).replace("@SLOTS@", str(MAX_SLOTS))
@@ -232,9 +239,18 @@ def _generate(fn: ca.Function, prefix: str, work: Path, checks: ca.Function,
         header += contract.replace("@CALL@", c_call()) + c_declarations(fn)
     else:
         header += procedure_code.header(fn, phases, contract)
+    if teleop is not None:
+        header += teleop_declarations(teleop)
     (work / f"{prefix}.c").write_text(source)
     (work / f"{prefix}.h").write_text(header)
     return source, header
+
+
+def teleop_declarations(teleop: ca.Function) -> str:
+    """The generated header's sizes of a teleoperated task's readout (codegen/teleop_readout.h)."""
+    state, acting = teleop.numel_in(teleop.index_in("state")), teleop.numel_out(teleop.index_out("acting"))
+    return (f"\n#ifndef VFDSL_TELEOP\n#define VFDSL_TELEOP 1\n#define VFDSL_TELEOP_STATE {state}\n"
+            f"#define VFDSL_TELEOP_ROWS {acting}\n#endif\n")
 
 
 def casadi_c(fn: ca.Function, prefix: str, work: Path, checks: ca.Function,

@@ -12,7 +12,9 @@
   :class:`~vfdsl.codegen.solve_plan.SolvePlan` (warm or cold start, DAQP's priority levels, their exact solve by
   ``lexls.c``, whose header ``lexls.h`` is prepended to ``daqp_persistent.c`` and whose memory is a pointer added to
   CasADi's DAQP data struct); a conic without a plan is refused.
-- Every solver's memory pool answers with the running call's slot (``memory_slots.c``).
+- Every solver's memory pool answers with the running call's slot (``memory_slots.c``); an external function without
+  memory (a mesh query) answers 0, so that a function calling it runs outside the step too (a teleoperated task's
+  readout).
 
 The replaced definitions are matched exactly; a CasADi whose generated C differs is refused with an error, never
 half-patched. tests/golden/ holds CasADi's C and its patched form for each CasADi version the patterns were made on.
@@ -121,7 +123,8 @@ def _with_memory_slots(source: str, prefix: str) -> str:
     source = source.replace(_MAX_THREADS, f"#define CASADI_MAX_NUM_THREADS {MAX_SLOTS}\n"
                             "#define VFDSL_MAX_SLOTS CASADI_MAX_NUM_THREADS\n"
                             "static int vfdsl_current_slot(void);\n")
-    source = _POOL_CHECKOUT.sub(r"int \1_checkout(void) {\n  return vfdsl_current_slot();\n}\n", source)
+    source = _POOL_CHECKOUT.sub(lambda m: f"int {m.group(1)}_checkout(void) {{\n  return "
+                                          f"{'vfdsl_current_slot()' if m.group(1) in pools else '0'};\n}}\n", source)
     source = _POOL_RELEASE.sub(r"void \1_release(int mem) {\n}\n", source)
     slots = (MEMORY_SLOTS.replace("@PREFIX@", prefix)
              .replace("@INIT_SLOT@", "\n".join(f"  {pool}_init_mem(s);" for pool in pools))

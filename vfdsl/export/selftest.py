@@ -31,7 +31,7 @@ MAX_TICKS = 100_000
 @dataclass(frozen=True)
 class Tick:
     """One recorded tick: the arguments (q, inputs flat in declaration order, dt, the params' numbers when the
-    tick sets them) and Python's answer."""
+    tick sets them) and Python's answer (a teleoperated task's with its readout, as replay prints it)."""
 
     q: np.ndarray
     u: np.ndarray
@@ -39,6 +39,7 @@ class Tick:
     status: int
     dq: np.ndarray
     p: np.ndarray | None = None
+    readout: np.ndarray | None = None
 
     def line(self) -> str:
         """replay's line: q, the inputs, then the params when the tick carries them."""
@@ -68,9 +69,15 @@ def record(ctrl, count: int, dt: float | None = None,
         dq = ctrl.step(q, inputs, given, dt)
         u = np.concatenate([inputs[name] for name in ctrl.input_sizes]) if inputs else np.zeros(0)
         p = ctrl.param_vector(given) if callable(params) else None
-        ticks.append(Tick(q.copy(), u, dt, int(ctrl.status), dq.copy(), p))
+        ticks.append(Tick(q.copy(), u, dt, int(ctrl.status), dq.copy(), p, readout_numbers(ctrl.teleop)))
         q = q + dq
     return ticks
+
+
+def readout_numbers(out) -> np.ndarray | None:
+    """A teleoperation readout (Controller.teleop) as replay prints it: force, set-point, goal, following (None
+    without one)."""
+    return None if out is None else np.concatenate([out.force, out.setpoint, out.goal, [float(out.following)]])
 
 
 def build(directory: Path, *targets: str, jobs: int = 2, **variables: str) -> None:
@@ -90,7 +97,8 @@ def build(directory: Path, *targets: str, jobs: int = 2, **variables: str) -> No
 
 def replay(directory: Path, lines: list[str], dt: float, params: Path | None = None) -> list[tuple]:
     """Run ``directory/replay`` on ``lines``: per line (status, dq) or (error code, message); a procedure's
-    (status, dq, phase) for a tick it ran."""
+    (status, dq, phase) for a tick it ran; a teleoperated task's with its readout last (force, set-point, goal,
+    following: 13 numbers)."""
     argv = [str(Path(directory) / "replay"), "--dt", repr(dt)] + (["--params", str(params)] if params else [])
     result = subprocess.run(argv, input="\n".join(lines) + "\n", capture_output=True, text=True)
     if result.returncode != 0:
@@ -101,9 +109,11 @@ def replay(directory: Path, lines: list[str], dt: float, params: Path | None = N
         if words[0] == "error":
             answers.append((int(words[1]), " ".join(words[2:])))
         else:
+            out, hashed, readout = out.partition(" # ")
             numbers, bar, phase = out.partition(" | ")
             words = numbers.split()
-            answers.append((int(words[0]), np.array([float(x) for x in words[1:]]), *([phase] if bar else [])))
+            answers.append((int(words[0]), np.array([float(x) for x in words[1:]]), *([phase] if bar else []),
+                            *([np.array([float(x) for x in readout.split()])] if hashed else [])))
     return answers
 
 
@@ -129,9 +139,11 @@ def self_test(ctrl, exported: Export, count: int) -> float:
         build(copy, "replay")
         answers = replay(copy, [t.line() for t in ticks], ticks[0].dt)
     worst = 0.0
-    for k, (tick, (status, dq, *_)) in enumerate(zip(ticks, answers, strict=True)):
+    for k, (tick, (status, dq, *rest)) in enumerate(zip(ticks, answers, strict=True)):
         if status != tick.status:
             raise VfError(f"self-test: tick {k}: the C library answered {status} ({dq if status < 0 else 'status'}), "
                           f"Python's step() status {tick.status}")
         worst = max(worst, float(np.max(np.abs(dq - tick.dq), initial=0.0)))
+        if tick.readout is not None:     # the haptic readout too (N and m: compared as dq is)
+            worst = max(worst, float(np.max(np.abs(rest[-1] - tick.readout))))
     return worst

@@ -5,6 +5,7 @@
         generated/<prefix>.c  .h                    the generated tick, as build.py writes it
         generated/checked_step.h                    the checks and the evaluation (vfdsl/codegen, shared with Python)
         generated/procedure_tick.h  phase_machine.h a procedure's machine (vfdsl/codegen, shared with Python)
+        generated/teleop_readout.h                  a teleoperated task's haptic readout (vfdsl/codegen)
         generated/vfmesh_*.c                        the proximity query of each mesh the task uses (vfdsl/mesh)
         generated/lexls.c  lexls.h                  the exact solve of priority levels (vfdsl/codegen/lexls.c)
         daqp/LICENSE  daqp/include/daqp/  daqp/src/ DAQP's C sources (vfdsl/codegen/daqp_sources.py)
@@ -27,7 +28,7 @@ from dataclasses import dataclass
 from pathlib import Path, PurePath
 
 import vfdsl
-from vfdsl.codegen.build import CHECKED_STEP, LEXLS_HEADER, LEXLS_SOURCE, BuiltLibrary
+from vfdsl.codegen.build import CHECKED_STEP, LEXLS_HEADER, LEXLS_SOURCE, TELEOP_READOUT, BuiltLibrary
 from vfdsl.codegen.procedure_code import PROCEDURE_TICK
 from vfdsl.errors import VfError
 from vfdsl.export.tables import comment_text, task_tables
@@ -117,6 +118,7 @@ def write_export(library: BuiltLibrary, daqp_root: Path, directory: Path) -> Exp
         "generated/lexls.c": LEXLS_SOURCE.read_bytes(), "generated/lexls.h": LEXLS_HEADER.read_bytes(),
         **{f"generated/{name}": (library.c_path.parent / name).read_bytes() for name in extra},
         **({f"generated/{path.name}": path.read_bytes() for path in PROCEDURE_TICK} if "procedure" in meta else {}),
+        **({"generated/teleop_readout.h": TELEOP_READOUT.read_bytes()} if "teleop" in meta else {}),
         "daqp/LICENSE": (daqp_root / "LICENSE").read_bytes(),
         **{f"daqp/include/daqp/{p.name}": p.read_bytes() for p in daqp_headers},
         **{f"daqp/src/{p.name}": p.read_bytes() for p in daqp_sources},

@@ -68,8 +68,7 @@ def readout_function(task: ir.Task, problem: AssembledProblem) -> ca.Function | 
     arguments = [getattr(ctx, name) for name in tick_buffers.data_arguments(bool(task.phases))]
     x = ca.SX.sym("x", n)
     state = ca.SX.sym("state", STATE * len(terms))
-    A, lba, uba = ca.SX.sym("A", *problem.function.size_out(2)), ca.SX.sym("lba", *problem.function.size_out(3)), \
-        ca.SX.sym("uba", *problem.function.size_out(4))
+    _, _, A, lba, uba, *_ = problem.function(*arguments)       # the rows, as the step builds them
     Ax = A @ x
     acting = ca.logic_or(Ax - lba <= ACTING, uba - Ax <= ACTING)
     A_q = A[:, :nq]
@@ -99,16 +98,10 @@ def readout_function(task: ir.Task, problem: AssembledProblem) -> ca.Function | 
         weights.append(weight)
     g, _ = teleop.goal(terms[0][0], ctx)
     frame = ctx.frame(terms[0][0].args["frame"].name)
-    pose = ca.Function("pose", [ctx.q, *arguments[1:]], [ca.vertcat(frame.p, rpy_of(frame.R))])
-    setpoint = pose(ctx.q + dq, *arguments[1:])
-    inner = ca.Function("readout", [*arguments, x, state, A, lba, uba],
-                        [force, setpoint, g, ca.mmax(ca.vertcat(*weights)), acting, ca.vertcat(*new_state)])
-    names = tick_buffers.data_arguments(bool(task.phases))
-    symbols = [ca.MX.sym(name, *a.shape) for name, a in zip(names, arguments)]
-    mx_x, mx_state = ca.MX.sym("x", n), ca.MX.sym("state", state.numel())
-    data = problem.function(*symbols)
-    outputs = inner(*symbols, mx_x, mx_state, data[2], data[3], data[4])
-    return ca.Function("teleop_readout", [*symbols, mx_x, mx_state], outputs, [*names, "x", "state"], list(READOUT))
+    setpoint = ca.Function("pose", [ctx.q], [ca.vertcat(frame.p, rpy_of(frame.R))])(ctx.q + dq)
+    return ca.Function("teleop_readout", [*arguments, x, state],
+                       [force, setpoint, g, ca.mmax(ca.vertcat(*weights)), acting, ca.vertcat(*new_state)],
+                       [*tick_buffers.data_arguments(bool(task.phases)), "x", "state"], list(READOUT))
 
 
 def _saturated(v, limit):

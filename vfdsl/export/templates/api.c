@@ -5,13 +5,17 @@
  * controller (the readers _violations, _error_index and _error_check included) sets it for its duration,
  * and a call that finds it set returns VF_ERR_BUSY without touching anything (an atomic exchange, not a
  * lock: no call ever waits). A procedure's controller also holds its machine (procedure_tick.h, the same code as
- * Python's native Controller), run before each tick's solve.
+ * Python's native Controller), run before each tick's solve; a teleoperated task's its readout (teleop_readout.h),
+ * evaluated after each tick's solve.
  */
 #include "@TICK@.h"
 #define VFDSL_PREFIX @TICK@
 #include "checked_step.h"
 #ifdef VFDSL_PROCEDURE
 #include "procedure_tick.h"
+#endif
+#ifdef VFDSL_TELEOP
+#include "teleop_readout.h"
 #endif
 #include "@API@.h"
 
@@ -37,6 +41,9 @@ struct @API@ {
 #ifdef VFDSL_PROCEDURE
   vfdsl_procedure procedure;                                      /* the phase machine, captures, activity */
   double activity[VFDSL_ACTIVITY_LENGTH + 1];                     /* the step's phase buffer */
+#endif
+#ifdef VFDSL_TELEOP
+  vfdsl_teleop teleop;                                            /* the haptic readout and its state */
 #endif
 };
 #undef VF_BUFFER
@@ -84,6 +91,12 @@ VF_EXPORT @API@* @API@_new(void) {
     return 0;
   }
 #endif
+#ifdef VFDSL_TELEOP
+  if (vfdsl_teleop_open(&c->teleop) != VFDSL_OPENED) {
+    @API@_free(c);
+    return 0;
+  }
+#endif
   /* Priming, as Python's Controller: every solver's workspace is allocated now (recovery forced once; a
      procedure's, in each case of its step: procedure_tick.h). */
   memcpy(c->q, start, sizeof(double) * NQ);
@@ -103,6 +116,9 @@ VF_EXPORT void @API@_free(@API@* c) {
   vfdsl_core_close(&c->core);
 #ifdef VFDSL_PROCEDURE
   vfdsl_procedure_close(&c->procedure);
+#endif
+#ifdef VFDSL_TELEOP
+  vfdsl_teleop_close(&c->teleop);
 #endif
   free(c);
 }
@@ -125,6 +141,13 @@ static int tick(@API@* c, const double* q, const double* inputs, double dt) {
   vfdsl_procedure_tick(&c->procedure, c->q, c->u, c->p, dt, (int) c->status[0], c->activity);
 #endif
   if (vfdsl_core_eval(&c->core, dt, 0.0)) return refuse(c, VF_ERR_SOLVER, -1, -1);
+#ifdef VFDSL_TELEOP
+#ifdef VFDSL_PROCEDURE
+  if (vfdsl_teleop_eval(&c->teleop, &c->core, c->activity)) return refuse(c, VF_ERR_SOLVER, -1, -1);
+#else
+  if (vfdsl_teleop_eval(&c->teleop, &c->core, 0)) return refuse(c, VF_ERR_SOLVER, -1, -1);
+#endif
+#endif
   c->error_index = c->error_check = -1;
   return (int) c->status[0];
 }
@@ -242,6 +265,7 @@ VF_EXPORT const char* @API@_error_message(int code) {
     case VF_ERR_PARAM: return "a param value is NaN or inf, or fails a check (see _error_check, _check_meaning)";
     case VF_ERR_BUSY: return "another thread is inside a call on this controller: nothing was done";
     case VF_ERR_SOLVER: return "the generated step failed";
+    case VF_ERR_NO_TELEOP: return "the task has no teleop term: there is no haptic readout";
     default: return code >= 0 ? "no error (status bits)" : "unknown error code";
   }
 }
@@ -296,8 +320,47 @@ VF_EXPORT int @API@_reset(@API@* c) {
 #ifdef VFDSL_PROCEDURE
   vfdsl_procedure_reset(&c->procedure, c->activity);
 #endif
+#ifdef VFDSL_TELEOP
+  vfdsl_teleop_reset(&c->teleop);
+#endif
   leave(c);
   return 0;
+}
+
+VF_EXPORT int @API@_teleop(const @API@* c, @API@_teleop_readout* out) {
+  if (!c || !out) return VF_ERR_NULL;
+#ifdef VFDSL_TELEOP
+  if (!enter(c)) return VF_ERR_BUSY;
+  memcpy(out->force, c->teleop.force, sizeof out->force);
+  memcpy(out->setpoint, c->teleop.setpoint, sizeof out->setpoint);
+  memcpy(out->goal, c->teleop.goal, sizeof out->goal);
+  out->following = c->teleop.following[0] > 0.5;
+  leave(c);
+  return 0;
+#else
+  return VF_ERR_NO_TELEOP;
+#endif
+}
+
+VF_EXPORT int @API@_row_acting(const @API@* c, int i) {
+  int value = 0;
+  if (!c) return VF_ERR_NULL;
+#ifdef VFDSL_TELEOP
+  if (!enter(c)) return VF_ERR_BUSY;
+  value = i >= 0 && i < NROWS && c->teleop.acting[i] > 0.5;
+  leave(c);
+#else
+  (void) i;
+#endif
+  return value;
+}
+
+VF_EXPORT int @API@_is_teleoperated(void) {
+#ifdef VFDSL_TELEOP
+  return 1;
+#else
+  return 0;
+#endif
 }
 
 VF_EXPORT int @API@_num_phases(void) { return NPHASES; }

@@ -54,6 +54,7 @@ extern "C" {
 #define VF_ERR_BUSY (-8)         /* another thread is inside a call on this controller */
 #define VF_ERR_SOLVER (-9)       /* the generated step failed (should not happen; report it) */
 #define VF_ERR_DT_PERIOD (-10)   /* dt is far from the task's period (a unit slip): outside [_min_period, _max_period] */
+#define VF_ERR_NO_TELEOP (-11)   /* _teleop on a task without a teleop term */
 #endif
 
 /* The task's sizes, for arrays: double q[@MACRO@_NUM_JOINTS], inputs[@MACRO@_INPUT_LENGTH]. */
@@ -152,6 +153,24 @@ int @API@_num_transitions(void);
 const char* @API@_transition_guard(int k);
 int @API@_transition_source(int k);
 int @API@_transition_target(int k);
+
+/* Teleoperation (a task with a `teleop` term, docs/language.md "Teleoperation"; _is_teleoperated says so): after
+ * each tick, _teleop writes the haptic force for the master (N, in the master's base frame: what the fixtures
+ * stopped of its command, stiffness x depth along their normals, saturated, rate-limited, ramped in at engage),
+ * the teleop frame's set-point (its pose after dq: m, then roll, pitch, yaw in rad, for a robot driven by pose),
+ * the goal (where the scaled master puts the frame, m) and following (1 while the master drives the slave):
+ * 0, VF_ERR_NULL, VF_ERR_BUSY, or VF_ERR_NO_TELEOP without a teleop term. _row_acting(ctrl, i): 1 when row i
+ * (_row_label) was at its bound in the last tick, else 0 (always 0 without a teleop term). _reset also restarts
+ * the readout (no previous depth or force). The same readout as Python's Controller.teleop, from the same code. */
+typedef struct {
+  double force[3];
+  double setpoint[6];
+  double goal[3];
+  int following;
+} @API@_teleop_readout;
+int @API@_teleop(const @API@* ctrl, @API@_teleop_readout* out);
+int @API@_row_acting(const @API@* ctrl, int i);
+int @API@_is_teleoperated(void);
 
 #ifdef __cplusplus
 }

@@ -8,7 +8,8 @@
  * before the line's tick and kept for the next lines (a re-registered pivot in a recording). FILE holds
  * the params for the start (@MACRO@_PARAM_LENGTH numbers); without it they keep their defaults. dt
  * defaults to the scene's period. One line out per tick: the status, then dq with 17 significant digits (and for
- * a procedure " | " and the phase after the tick); for a refused tick "error CODE MESSAGE" (refused params: the check's meaning too; the tick is not run).
+ * a procedure " | " and the phase after the tick; for a teleoperated task " # ", the haptic force, the set-point,
+ * the goal and following, as @API@_teleop gives them); for a refused tick "error CODE MESSAGE" (refused params: the check's meaning too; the tick is not run).
  * The controller is one for the whole run, as in a control loop.
  * Exit status: 0, or 2 for a usage or reading error: a line with another count of numbers or longer than
  * LINE_MAX_CHARS - 1 characters, a NUL byte, an unreadable FILE.
@@ -145,6 +146,15 @@ int main(int argc, char** argv) {
     printf("%d", code);
     for (i=0; i<NQ; ++i) printf(" %.17g", dq[i]);
     if (@API@_num_phases() > 0) printf(" | %s", @API@_phase_name(@API@_phase(ctrl)));
+    if (@API@_is_teleoperated()) {
+      @API@_teleop_readout t;
+      @API@_teleop(ctrl, &t);
+      printf(" #");
+      for (i=0; i<3; ++i) printf(" %.17g", t.force[i]);
+      for (i=0; i<6; ++i) printf(" %.17g", t.setpoint[i]);
+      for (i=0; i<3; ++i) printf(" %.17g", t.goal[i]);
+      printf(" %d", t.following);
+    }
     printf("\n");
   }
   @API@_free(ctrl);

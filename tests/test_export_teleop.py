@@ -1,0 +1,115 @@
+"""`vfdsl export` of a teleoperated task (issue 34): the exported library evaluates the haptic readout after each
+tick (codegen/teleop_readout.h over the generated <prefix>_teleop_readout, the function Python's native Controller
+evaluates), and ./replay gives Controller.step()'s dq, phase and readout (force, set-point, goal, following) to
+1e-12, tick by tick, through contact with the mesh, a clutch and a re-engage; no heap call after _new."""
+
+from __future__ import annotations
+
+import ctypes
+import shutil
+import subprocess
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import vfdsl
+from vfdsl.export import export
+from vfdsl.export.selftest import readout_numbers, replay
+
+from test_export import CLEAN_ENV, _contract, _run_contract
+
+pytestmark = pytest.mark.skipif(shutil.which("make") is None or shutil.which("cc") is None,
+                                reason="needs make and a C compiler")
+TASK = Path(__file__).resolve().parent.parent / "tasks" / "teleop" / "teleop_keep_out.vf"
+DT = 0.001
+
+
+@pytest.fixture(scope="module")
+def exported(tmp_path_factory):
+    task = vfdsl.load(TASK)
+    directory = tmp_path_factory.mktemp("teleop")
+    result = export(task, directory)
+    subprocess.run(["make", "-s", "-j2"], cwd=directory, env=CLEAN_ENV, check=True, capture_output=True)
+    return task, result
+
+
+@pytest.fixture(scope="module")
+def recorded(exported):
+    """The master down onto the bone (contact from ~0.9 s), clutched and brought back, re-engaged and moved aside:
+    (replay line, status, dq, phase, readout) per tick of the native controller."""
+    task = exported[0]
+    ctrl = vfdsl.compile(task, backend="native")
+    q = np.array(task.start, dtype=float)
+    ticks = []
+    for k in range(2200):
+        t = k * DT
+        down = min(t / 1.0, 1.0) * np.array([0.004, 0.002, -0.03]) * (1.0 if t < 1.4 else max(0.0, 1 - (t - 1.4) / 0.3))
+        aside = max(0.0, t - 1.8) / 0.4 * np.array([-0.01, 0.005, 0.0])
+        master = np.concatenate([down + aside, [0.0, 0.0, 0.3 * max(0.0, t - 1.8)]])
+        clutch = 1.0 if 1.35 <= t < 1.75 else 0.0
+        dq = ctrl.step(q, {"master": master, "clutch": [clutch]}, dt=DT)
+        line = " ".join(f"{x:.17g}" for x in (*q, *master, clutch))
+        ticks.append((line, int(ctrl.status), dq.copy(), ctrl.phase, readout_numbers(ctrl.teleop)))
+        q = q + dq
+    forces = np.array([np.linalg.norm(t[4][:3]) for t in ticks])
+    assert forces.max() > 0.5 and {t[3] for t in ticks} == {"following", "clutched"}    # the run met the bone
+    return ticks
+
+
+def test_replay_gives_the_native_controllers_dq_and_haptic_readout(exported, recorded):
+    _, result = exported
+    answers = replay(result.directory, [t[0] for t in recorded], DT)
+    assert [a[0] for a in answers] == [t[1] for t in recorded]
+    assert [a[2] for a in answers] == [t[3] for t in recorded]
+    assert max(float(np.max(np.abs(a[1] - t[2]))) for a, t in zip(answers, recorded)) <= 1e-12
+    assert max(float(np.max(np.abs(a[3] - t[4]))) for a, t in zip(answers, recorded)) <= 1e-12
+
+
+def test_no_heap_call_after_new_with_the_readout(exported, recorded, tmp_path):
+    _, result = exported
+    wrap = "-Wl," + ",".join(f"--wrap={f}" for f in ("malloc", "calloc", "realloc", "free"))
+    exe = _contract(type("Exported", (), {"directory": result.directory, "result": result}), tmp_path,
+                    ["-DCOUNT_HEAP", wrap])
+    ticks = [type("Line", (), {"line": lambda self, s=t[0]: s, "dt": DT})() for t in recorded[:1500]]
+    at_new, ticked, later = map(int, _run_contract(exe, "alloc", ticks).split())
+    assert at_new > 0 and ticked == 0 and later == 0
+
+
+class Readout(ctypes.Structure):
+    _fields_ = [("force", ctypes.c_double * 3), ("setpoint", ctypes.c_double * 6), ("goal", ctypes.c_double * 3),
+                ("following", ctypes.c_int)]
+
+
+def test_the_api_gives_the_readout_and_the_acting_rows(exported, recorded):
+    task, result = exported
+    lib = ctypes.CDLL(str(result.directory / f"lib{result.api}.so"))
+
+    def call(name, restype=ctypes.c_int, *argtypes):
+        function = getattr(lib, f"{result.api}_{name}")
+        function.restype, function.argtypes = restype, list(argtypes) or None
+        return function
+
+    assert call("is_teleoperated")() == 1
+    new, free = call("new", ctypes.c_void_p), call("free", None, ctypes.c_void_p)
+    step = call("step", ctypes.c_int, ctypes.c_void_p, ctypes.POINTER(ctypes.c_double),
+                ctypes.POINTER(ctypes.c_double), ctypes.c_double, ctypes.POINTER(ctypes.c_double))
+    teleop = call("teleop", ctypes.c_int, ctypes.c_void_p, ctypes.POINTER(Readout))
+    acting = call("row_acting", ctypes.c_int, ctypes.c_void_p, ctypes.c_int)
+    rows = call("num_rows")()
+    ctrl = new()
+    try:
+        out = Readout()
+        contact = max(range(len(recorded)), key=lambda k: np.linalg.norm(recorded[k][4][:3]))
+        dq = (ctypes.c_double * 6)()
+        for k in range(contact + 1):
+            numbers = [float(x) for x in recorded[k][0].split()]
+            q, u = (ctypes.c_double * 6)(*numbers[:6]), (ctypes.c_double * 7)(*numbers[6:])
+            assert step(ctrl, q, u, DT, dq) >= 0
+        assert teleop(ctrl, ctypes.byref(out)) == 0
+        assert np.allclose(list(out.force), recorded[contact][4][:3], atol=1e-12) and out.following == 1
+        assert any(acting(ctrl, i) for i in range(rows)) and acting(ctrl, rows) == 0 and acting(ctrl, -1) == 0
+        assert teleop(None, ctypes.byref(out)) < 0 and teleop(ctrl, None) < 0
+        assert call("reset", ctypes.c_int, ctypes.c_void_p)(ctrl) == 0
+    finally:
+        free(ctrl)
