@@ -218,3 +218,41 @@ def test_a_bad_operator_is_refused_at_its_line(tmp_path, capsys, operator, messa
     assert main(["simulate", str(TELEOP_TASKS / "teleop_guide_line.vf"), "--scene", str(scene)]) == 2
     err = capsys.readouterr().err
     assert message in err and "s.sim.yaml:3" in err and "Traceback" not in err
+
+
+@pytest.mark.parametrize("master_damping, severity", [(None, "note"), ("0.5 N*s/m", "warning"), ("2 N*s/m", None)])
+def test_check_states_the_passivity_bound(tmp_path, master_damping, severity):
+    """VF970: K T / 2 + B = 200 N/m x 1 ms / 2 + 1 N s/m = 1.1 N s/m of master damping needed."""
+    extra = "" if master_damping is None else f", master_damping = {master_damping}"
+    (tmp_path / "t.vf").write_text(WALL.replace("ramp = 100 ms)", f"ramp = 100 ms{extra})"))
+    (tmp_path / "t.yaml").write_text(START)
+    report = vfdsl.check(vfdsl.load(tmp_path / "t.vf"), samples=0)
+    found = [f for f in report.findings if f.code == "VF970"]
+    if severity is None:
+        assert not found
+        return
+    assert {f.severity.value for f in found} == {severity} and found[0].span.line == 16
+    assert found[0].data["needed"] == pytest.approx(200.0 * 0.001 / 2 + 1.0)
+
+
+def test_check_finds_where_the_scaled_master_outreaches_the_fixture(tmp_path):
+    """VF971: the master reaches 40 mm, scaled 0.5: 20 mm down from the start, but the floor is 16.3 mm below: the
+    tool stops 3.7 mm short, straight down, and the master feels 0.2 N/mm x 3.7 mm / 0.5."""
+    (tmp_path / "t.vf").write_text(WALL.replace("ramp = 100 ms)", "ramp = 100 ms, master_reach = 40 mm)"))
+    (tmp_path / "t.yaml").write_text(START)
+    report = vfdsl.check(vfdsl.load(tmp_path / "t.vf"), samples=0)
+    found = [f for f in report.findings if f.code == "VF971"]
+    assert len(found) == 1 and found[0].severity.value == "warning"
+    assert found[0].data["shortfall"] == pytest.approx(0.0037, abs=2e-5)
+    assert np.allclose(found[0].data["direction"], [0, 0, -1])
+    assert found[0].data["force"] == pytest.approx(min(STIFFNESS * 0.0037 / SCALE, SATURATION), rel=0.02)
+
+
+@pytest.mark.parametrize("name", ["teleop_keep_out", "teleop_guide_line"])
+def test_the_examples_are_sound_and_explain_their_warnings(name):
+    path = TELEOP_TASKS / f"{name}.vf"
+    report = vfdsl.check(vfdsl.load(path), samples=20)
+    assert report.exit_status() == 0, report.render_text()
+    for finding in report.findings:
+        if finding.severity.value == "warning":
+            assert finding.code in path.read_text(), f"{name} does not say why {finding.code} stands"

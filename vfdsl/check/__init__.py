@@ -8,8 +8,9 @@ Analyses, one module each: the polytopes behind the rows (:mod:`.polytope`), the
 each constraint's error at the start (:mod:`.residuals`), the frames' kinematics (:mod:`.kinematics`),
 how fast a port close to the tracked point lets the tool move it sideways (:mod:`.lever`),
 the closed loop with the hands off (:mod:`.handsoff`), mesh fixtures (:mod:`.meshes`), configurations the fixture reaches under random
-input (:mod:`.sampling`), declarations or constraints that do nothing or contradict (:mod:`.hygiene`), and a
-procedure's phase machine, monitors and transitions (:mod:`.procedure`).
+input (:mod:`.sampling`), declarations or constraints that do nothing or contradict (:mod:`.hygiene`), a
+procedure's phase machine, monitors and transitions (:mod:`.procedure`), and teleoperation's haptic passivity and
+workspace (:mod:`.teleop`).
 Findings and their rendering: :mod:`.report`; docs/check.md explains every code.
 """
 
@@ -18,7 +19,7 @@ from __future__ import annotations
 import time
 
 from vfdsl.check import (feasibility, handsoff, hygiene, kinematics, lever, meshes, polytope, procedure, residuals,
-                         sampling, tolerance)
+                         sampling, teleop, tolerance)
 from vfdsl.check.linearized import Linearization
 from vfdsl.check.report import Finding, Report, Severity
 from vfdsl.ir import model as ir
@@ -118,6 +119,8 @@ def _compiled(task: ir.Task, samples: int, seed: int, backend: str, figures: dic
     run("lever", lever.analyse, task, linear, rows, task.start, figures)
     run("meshes", meshes.analyse, task, robot, task.start, linear.period, figures)
     run("handsoff", handsoff.analyse, controller, task, linear, figures)
+    run("teleop", teleop.passivity, task, linear.period)
+    run("teleop", teleop.workspace, controller, task, linear.period, figures)
     if walked is not None:
         run("sampling", sampling.analyse, controller, task, linear, samples, seed, figures, walked)
     return findings

@@ -63,6 +63,8 @@ CODES: dict[str, str] = {
     "entry-always-violated": "VF957",
     "every-phase-fixtures": "VF958",
     "fixture-loosened": "VF959",
+    "haptic-passivity": "VF970",
+    "teleop-workspace": "VF971",
 }
 
 

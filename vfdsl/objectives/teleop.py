@@ -55,7 +55,13 @@ SPEC = ObjectiveSpec(
           ArgSpec("rate_limit", "force_rate", "how fast the haptic force may change",
                   default=ir.ScalarValue(dimension="force_rate", value=500.0), range=POSITIVE),
           ArgSpec("ramp", "time", "how long the haptic force takes to ramp in after engage",
-                  default=ir.ScalarValue(dimension="time", value=0.1), range=POSITIVE)),
+                  default=ir.ScalarValue(dimension="time", value=0.1), range=POSITIVE),
+          ArgSpec("master_damping", "force_damping", "the master's own physical damping, for vfdsl check's "
+                  "passivity bound (0: not known)", default=ir.ScalarValue(dimension="force_damping", value=0.0),
+                  range=NONNEGATIVE),
+          ArgSpec("master_reach", "length", "how far the master moves from its engage pose, for vfdsl check's "
+                  "workspace check (0: not known)", default=ir.ScalarValue(dimension="length", value=0.0),
+                  range=NONNEGATIVE)),
     source="dVRK teleoperation (mtsTeleOperationPSM), Li, Kapoor & Taylor 2005 for the fixture",
 )
 
