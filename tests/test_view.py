@@ -764,3 +764,30 @@ def test_viewer_in_headless_chromium_draws_the_channel_and_the_shaft_s_capsule(c
         assert float(pixels[:, : int(0.6 * pixels.shape[1]), :3].std()) > 0.02, "nothing drawn in the 3-D view"
     finally:
         viewer.stop()
+
+
+def test_a_teleoperated_task_shows_the_master_s_ghost_and_the_haptic_arrow():
+    """The hand's controls are the master: dragged 30 mm down (after engage), the ghost sits at the scaled command
+    (15 mm down, past the bone), the tool stops at the bone's margin, and the arrow points out of the bone with
+    FORCE_LENGTH per newton of the haptic force."""
+    from vfdsl.view.app import Viewer
+    from vfdsl.view.teleop import FORCE_LENGTH
+    task = vfdsl.load(TASKS_DIR / "teleop" / "teleop_keep_out.vf")
+    viewer = Viewer(task, vfdsl.compile(task, backend="interpreted"), port=free_port())
+    try:
+        start = viewer.frames["tip"].position.copy()
+        for _ in range(5):
+            viewer.tick()                                 # engaged: the master's anchor is where the controls start
+        viewer.push([0.004, 0.0, -0.03])
+        for _ in range(400):
+            viewer.tick()
+        out = viewer.ctrl.teleop
+        assert np.allclose(out.goal, start + 0.5 * np.array([0.004, 0.0, -0.03]), atol=2e-6)
+        assert np.allclose(viewer.nodes["/teleop/ghost"].position, out.goal)
+        tip = viewer.frames["tip"].position
+        segment = np.asarray(viewer.nodes["/teleop/force"].points, dtype=float).reshape(2, 3)
+        assert np.allclose(segment, [tip, tip + FORCE_LENGTH * out.force], atol=1e-6)
+        assert out.force[2] > 0.5                          # pushed back up, out of the bone
+        assert "haptic" in viewer.state()["readout"] and "outside_mesh" in viewer.state()["readout"]
+    finally:
+        viewer.close()

@@ -9,10 +9,12 @@ Scene nodes (names are stable; tests and scripts read them)::
     /hand                  the user's hand: transform controls (live mode)
     /params/<param>        a gizmo per editable point, line, plane or pose param (live mode)
     /trace                 the tool's path, coloured by its error (replay mode)
+    /teleop/ghost          a teleoperated task's goal (the scaled master's command), /teleop/force its haptic force
 
 The viewer is assembled from its rooms: the scene (:mod:`vfdsl.view.scene`), the panel (:mod:`~vfdsl.view.panel`),
 the params' gizmos (:mod:`~vfdsl.view.gizmos`), the live loop with the hand (:mod:`~vfdsl.view.live`), the
-replay player (:mod:`~vfdsl.view.player`) and a procedure's phase and buttons (:mod:`~vfdsl.view.procedure`);
+replay player (:mod:`~vfdsl.view.player`), a procedure's phase and buttons (:mod:`~vfdsl.view.procedure`) and a
+teleoperated task's master, ghost and haptic arrow (:mod:`~vfdsl.view.teleop`);
 each works on the viewer's one state, under its lock.
 """
 
@@ -37,9 +39,10 @@ from vfdsl.view.player import ReplayPlayer
 from vfdsl.view.procedure import ProcedurePanel
 from vfdsl.view.robot import RobotDrawing
 from vfdsl.view.scene import SceneDrawing
+from vfdsl.view.teleop import TeleopView
 
 
-class Viewer(SceneDrawing, Panel, ParamGizmos, LiveLoop, ReplayPlayer, ProcedurePanel):
+class Viewer(SceneDrawing, Panel, ParamGizmos, LiveLoop, ReplayPlayer, ProcedurePanel, TeleopView):
     """One viser server showing one task. ``replay``: a :class:`vfdsl.view.replay.Trace` to play instead of
     running the controller live. The address is checked before the server starts (:func:`free_port`): a busy
     port or a wrong host is a VfError, not a server that never starts and a call that never returns."""
@@ -150,6 +153,7 @@ class Viewer(SceneDrawing, Panel, ParamGizmos, LiveLoop, ReplayPlayer, Procedure
         self._camera()
 
     def _draw_state(self) -> None:
-        """The robot and frames at the current q, and the status line."""
+        """The robot and frames at the current q, a teleoperated task's ghost and force, and the status line."""
         self._draw_robot()
+        self._draw_teleop()
         self._write_status()

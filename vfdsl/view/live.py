@@ -24,6 +24,7 @@ from vfdsl.ir import model as ir
 from vfdsl.objectives.track import commanded_motion
 from vfdsl.runtime.values import ASSUMED_PERIOD
 from vfdsl.view.scene import DRAW_RATE, matrix, wxyz
+from vfdsl.view.teleop import MasterModel, master_model, teleop_line
 
 REACH_TIME = 0.5            # s: the hand's spring brings the tool to a still hand in about this time
 LEVER = 0.05                # m: where a torque-only hand holds the tool, up its axis
@@ -86,10 +87,14 @@ def control_period(task: ir.Task) -> float:
     return float(task.scene.period or ASSUMED_PERIOD)
 
 
-def hand_model(task: ir.Task, phase: str | None = None) -> HandModel | None:
+def hand_model(task: ir.Task, phase: str | None = None) -> HandModel | MasterModel | None:
     """The hand on the task's first input that has a motion part (a button is never the hand's): the frame and
     gains of the first ``track`` term reading it, among the task's terms held in every phase, then those of
-    ``phase`` (or, without one, of each phase in order)."""
+    ``phase`` (or, without one, of each phase in order). A teleoperated task's hand is its master
+    (:class:`vfdsl.view.teleop.MasterModel`)."""
+    master = master_model(task)
+    if master is not None:
+        return master
     decl = next((d for d in task.inputs if INPUT_TYPES[d.type].linear or INPUT_TYPES[d.type].angular), None)
     if decl is None:
         return None
@@ -192,7 +197,9 @@ class LiveLoop:
             if self.ctrl.events:
                 self.hand = hand_model(self.task, self.phase) or hand
                 self._write_status()
-            if hand is not None:
+            if self.ctrl.teleop is not None:
+                self.readout = teleop_line(self.ctrl.teleop)
+            elif hand is not None:
                 after = self.frames[hand.frame]
                 v_cmd, w_cmd = hand.commanded(u)
                 v = (after.position - before.position) / self.period

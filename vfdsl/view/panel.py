@@ -32,7 +32,10 @@ class Panel:
         self._build_procedure_gui()
         if self.replay is None and self.hand is not None:
             with gui.add_folder("Hand"):
-                gui.add_markdown(f"Drag the hand: its offset from `{self.hand.frame}` is input "
+                gui.add_markdown(f"Drag the master: its motion from where it starts is input `{self.hand.input.name}` "
+                                 f"(pose); the blue ghost is where it puts `{self.hand.frame}`, the orange arrow "
+                                 f"the haptic force." if self.hand.input.type == "pose" else
+                                 f"Drag the hand: its offset from `{self.hand.frame}` is input "
                                  f"`{self.hand.input.name}` ({self.hand.input.type}).")
                 self.run_box = gui.add_checkbox("Run controller", initial_value=True)
                 release = gui.add_button("Release hand")
