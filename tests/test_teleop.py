@@ -256,3 +256,86 @@ def test_the_examples_are_sound_and_explain_their_warnings(name):
     for finding in report.findings:
         if finding.severity.value == "warning":
             assert finding.code in path.read_text(), f"{name} does not say why {finding.code} stands"
+
+
+ROTATING = WALL.replace("param camera : pose = pose(translation = [0, 0, 0], rpy = [0, 0, 30])",
+                        "param camera : pose = pose(translation = [0, 0, 0], rpy = [0, 0, 30])\n"
+                        "param gain : number = 0.5")
+
+
+def _rotated(rotation: str, tmp_path):
+    text = ROTATING.replace("scale = 0.5, camera = camera,", f"scale = k, camera = camera, rotation = {rotation},")
+    text = text.replace("    capture m0 = master\n", "    capture m0 = master\n    capture k = gain\n")
+    (tmp_path / "r.vf").write_text(text)
+    (tmp_path / "r.yaml").write_text(START)
+    task = vfdsl.load(tmp_path / "r.vf")
+    return task, vfdsl.compile(task, backend="interpreted")
+
+
+def _turned(ctrl, task, rpy, ticks=400, ramp=200):
+    """The master turned to rpy, ramped in over ``ramp`` ticks (0: at once), held until ``ticks``."""
+    q = np.array(task.start, dtype=float)
+    master = np.zeros(6)
+    for k in range(ticks):
+        master[3:] = np.asarray(rpy) * (min(1.0, k / ramp) if ramp else 1.0)
+        q = q + ctrl.step(q, {"master": master, "clutch": [0.0]})
+    return q, ctrl.frames(q)["tip"]
+
+
+def _rot(rpy):
+    from vfdsl.compiler.geometry import rotation
+    return rotation(rpy)
+
+
+@pytest.mark.parametrize("rotation", ["relative", "absolute", "locked"])
+def test_each_rotation_mode_turns_the_tool_as_documented(tmp_path, rotation):
+    """The master turned by rpy (0.1, -0.05, 0.2) rad since engage: relative gives R_c R_m R_m0' R_c' R_s0 (R_m0 = I),
+    absolute R_c R_m (the master held, from the first tick, at an orientation that puts the tool 0.2 rad from its
+    start), locked R_s0, each reached to 1e-6."""
+    from vfdsl.compiler.geometry import rpy_of
+    task, ctrl = _rotated(rotation, tmp_path)
+    start = ctrl.frames(np.array(task.start))["tip"].rotation
+    rpy = np.array([0.1, -0.05, 0.2])
+    if rotation == "absolute":
+        rpy = np.array(rpy_of(CAMERA.T @ start @ _rot([0.1, -0.05, 0.2])))
+    _, tip = _turned(ctrl, task, rpy, ticks=1000 if rotation == "absolute" else 400,
+                     ramp=0 if rotation == "absolute" else 200)
+    R_m = _rot(rpy)
+    expected = {"relative": CAMERA @ R_m @ CAMERA.T @ start, "absolute": CAMERA @ R_m, "locked": start}[rotation]
+    assert np.linalg.norm(tip.rotation - expected) < 1e-6
+
+
+def test_a_captured_scale_changes_only_across_a_clutch(tmp_path):
+    """scale = k, k captured from the run-time param `gain` on engage: changing gain while following changes
+    nothing; after a clutch and a release the new gain scales the master's motion."""
+    task, ctrl = _rotated("relative", tmp_path)
+    q = np.array(task.start, dtype=float)
+    start = ctrl.frames(q)["tip"].position
+
+    def run(master_from, master_to, ticks, params, clutch=0.0):
+        nonlocal q
+        for k in range(ticks):
+            m = np.concatenate([master_from + (master_to - master_from) * min(1.0, (k + 1) / (ticks // 2)), np.zeros(3)])
+            q = q + ctrl.step(q, {"master": m, "clutch": [clutch]}, params=params)
+        return ctrl.frames(q)["tip"].position
+
+    a = np.array([0.004, 0.0, 0.0])
+    run(np.zeros(3), np.zeros(3), 2, None)                     # engaged with gain 0.5
+    first = run(np.zeros(3), a, 400, {"gain": 0.25})           # gain changed after engage: the captured 0.5 holds
+    assert np.allclose(first - start, 0.5 * CAMERA @ a, atol=1e-6)
+    run(a, a, 10, {"gain": 0.25}, clutch=1.0)                  # clutch, release: k = 0.25 from now on
+    run(a, a, 2, {"gain": 0.25})
+    second = run(a, 2 * a, 400, {"gain": 0.25})
+    assert np.allclose(second - first, 0.25 * CAMERA @ a, atol=1e-6)
+
+
+def test_a_moving_camera_turns_the_masters_motion(tmp_path):
+    """The camera (a run-time pose param) turned to yaw 90 deg: the master's +x moves the tool along the world's +y."""
+    task, ctrl = _rotated("relative", tmp_path)
+    q = np.array(task.start, dtype=float)
+    start = ctrl.frames(q)["tip"].position
+    camera = {"camera": {"translation": [0, 0, 0], "rpy": [0, 0, np.pi / 2]}}
+    for k in range(400):
+        m = np.array([0.004 * min(1.0, k / 200), 0, 0, 0, 0, 0])
+        q = q + ctrl.step(q, {"master": m, "clutch": [0.0]}, params=camera)
+    assert np.allclose(ctrl.frames(q)["tip"].position - start, [0.0, 0.5 * 0.004, 0.0], atol=1e-6)
