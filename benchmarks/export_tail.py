@@ -4,11 +4,12 @@ thread's CPU time (issue 35: "each task's p99.9 in C").
     python benchmarks/export_tail.py                  # 50,000 timed ticks per task
     python benchmarks/export_tail.py --ticks 10000 --only paper_b_virtual_rcm keep_out
 
-Each task under tasks/ (and tasks/procedures/) is exported (`vfdsl export`) and built with make and
+Each task under tasks/ (and tasks/procedures/, tasks/teleop/) is exported (`vfdsl export`) and built with make and
 CFLAGS="-O3 -march=native" (the flags of vfdsl's own build); a closed-loop trajectory of 4,000 ticks is recorded
 with Controller.step() from the task's start under a generic hand (hand()): each motion input pushed at its
 export self-test size (a firm hand: 3 N, 0.02 N m, 10 mm/s, 0.05 rad/s) in a direction that turns slowly, with a
-fast wobble; a button left released, a pose at the master's base. benchmarks/export_tick.c calls <api>_step on
+fast wobble; a button left released; a master (a pose) moved in 30 mm circles that dip 20 mm and turn 0.2 rad
+(tasks/teleop/: through contact with the bone, along and off the line). benchmarks/export_tick.c calls <api>_step on
 those states in turn (1,000 warm-up ticks, then the timed ticks): the wall time (CLOCK_MONOTONIC) and the thread's
 CPU time (CLOCK_THREAD_CPUTIME_ID) around each call, with no Python in that process. The CPU time is what the
 tick costs (plus the two wall-clock reads it brackets, ~0.3 us); the wall time adds what the shared machine took
@@ -41,7 +42,7 @@ RECORDED = 4_000
 
 def example_tasks() -> list[Path]:
     """The example tasks with a scene that gives their start."""
-    return sorted(p for p in [*TASKS.glob("*.vf"), *TASKS.glob("procedures/*.vf")]
+    return sorted(p for p in [*TASKS.glob("*.vf"), *TASKS.glob("procedures/*.vf"), *TASKS.glob("teleop/*.vf")]
                   if vfdsl.load(p).start is not None)
 
 
@@ -58,6 +59,9 @@ def hand(task):
                     phase = 0.7 * n + part.start
                     value[part] = size * np.array([np.sin(0.003 * k + phase), np.cos(0.002 * k + phase),
                                                    0.5 * np.sin(0.7 * k)])
+            if decl.type == "pose":             # a master: 30 mm circles, dipping 20 mm, turning 0.2 rad
+                value[:] = [0.03 * np.sin(0.003 * k), 0.03 * (np.cos(0.003 * k) - 1), -0.01 * (1 - np.cos(0.002 * k)),
+                            0.0, 0.0, 0.2 * np.sin(0.001 * k)]
             out[decl.name] = value
         return out
     return inputs

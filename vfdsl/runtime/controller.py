@@ -124,8 +124,8 @@ class Controller:
         A task with a `teleop` term also reads out the haptic force, the set-point, following or not and the
         constraints that acted (:attr:`teleop`)."""
         dq = self._solve(q, inputs, params, dt)
-        if self._teleoperation is not None:
-            self._teleop = self._teleoperation.update(self._data(q, inputs, params, dt), self._runner.x)
+        if self._teleoperation is not None:        # on the arguments the tick just used, as its buffers hold them
+            self._teleop = self._teleoperation.update(self._runner.data(), self._runner.x)
         return dq
 
     def _solve(self, q, inputs=None, params=None, dt=None) -> np.ndarray:

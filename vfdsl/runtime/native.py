@@ -32,7 +32,7 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
-from vfdsl.codegen.tick_buffers import ARGUMENTS, PHASE_ARGUMENTS, Slot, lengths
+from vfdsl.codegen.tick_buffers import ARGUMENTS, DATA_ARGUMENTS, PHASE_ARGUMENTS, Slot, lengths
 from vfdsl.errors import VfError
 from vfdsl.ir import model as ir
 from vfdsl.runtime import phase_machine as pm
@@ -162,6 +162,11 @@ class LockedRunner:
                 self.run(q, u, None, dt, recover)
         self.activity[:] = initial
 
+    def data(self) -> tuple[np.ndarray, ...]:
+        """The QP data arguments of the last evaluation (q, u, p, dt, and a procedure's activity), as its buffers
+        hold them (overwritten by the next)."""
+        return self._arguments[:len(DATA_ARGUMENTS)] + (() if self.activity is None else (self.activity,))
+
     def run(self, q, u, p, dt: float, recover: float) -> np.ndarray:
         with self._lock:
             arguments = (q, u, self._p_default if p is None else p, dt, recover)
@@ -201,6 +206,8 @@ class StepperRunner:
                           hint="close (delete) controllers you no longer use") from None
         self.p = arrays[Slot.P]
         procedure = hasattr(self.stepper, "tick")
+        self._data = tuple(arrays[slot] for slot in (Slot.Q, Slot.U, Slot.P, Slot.DT))
+        self._procedure = procedure
 
         def full(p):
             """The params ``p`` (the caller's) with the captures' slots after them, for the C."""
@@ -220,6 +227,11 @@ class StepperRunner:
         self.run = self.stepper.run
         margins = self.stepper.margins
         self.margins = (lambda p: margins(full(p))) if procedure else margins
+
+    def data(self) -> tuple[np.ndarray, ...]:
+        """The QP data arguments of the last tick (q, u, p, dt, and a procedure's activity), as the Stepper's
+        buffers hold them (overwritten by the next)."""
+        return self._data + ((self.stepper.machine()[4],) if self._procedure else ())
 
     def prime(self, q, u, dt: float, n_phases: int) -> None:
         """Controller._prime in the C (Stepper.prime, which knows the procedure's phases)."""

@@ -36,21 +36,25 @@ class Teleoperation:
 
     def __init__(self, function, labels: list[RowLabel]):
         self._function = function
-        self._names = [_fixture(label) for label in labels]
-        self._state = np.zeros(function.function.numel_in(function.function.index_in("state")))
+        self._names = np.array([_fixture(label) for label in labels], dtype=object)
+        *self._arguments, self._x, self._state = function.inputs
+        self._outputs = dict(zip(READOUT, function.outputs))
 
     def update(self, data: tuple, x: np.ndarray) -> TeleopOutput:
         """The readout after a tick solved to ``x`` from the QP data arguments ``data``; advances the state."""
-        out = dict(zip(READOUT, self._function(*data, x, self._state)))
-        self._state = np.array(out["next_state"], dtype=float).ravel()
-        acting = np.array(out["acting"]).ravel() > 0.5
-        names = tuple(dict.fromkeys(name for name, on in zip(self._names, acting) if on))
-        return TeleopOutput(*(np.array(out[key], dtype=float).ravel() for key in ("force", "setpoint", "goal")),
-                            bool(float(np.array(out["following"]).ravel()[0]) > 0.5), names)
+        for buffer, value in zip(self._arguments, data, strict=True):
+            buffer[...] = value
+        self._x[...] = x
+        self._function.evaluate()
+        out = self._outputs
+        self._state[...] = out["next_state"]
+        names = tuple(dict.fromkeys(self._names[out["acting"] > 0.5]))
+        return TeleopOutput(out["force"].copy(), out["setpoint"].copy(), out["goal"].copy(),
+                            bool(out["following"][0] > 0.5), names)
 
     def reset(self) -> None:
         """Back to the first tick's state (no previous depth or force)."""
-        self._state[:] = 0.0
+        self._state[...] = 0.0
 
 
 def _fixture(label: RowLabel) -> str:
