@@ -108,6 +108,12 @@ class TeleopRecord:
                 "following": self.following.astype(int), "fixture_acting": self.acting.astype(int),
                 "command_error_m": self.error}
 
+    def series(self) -> dict:
+        """For the plot: the haptic force's magnitude (N), the error to the command (m; NaN where the master is not
+        followed: there is no command), fixtures acting."""
+        return {"force": np.linalg.norm(self.force, axis=1), "error": np.where(self.following, self.error, np.nan),
+                "acting": self.following & self.acting}
+
     def summary(self, period: float) -> dict:
         """Tracking error where the master is followed and no fixture acts (mean, max, m), haptic force there and
         where fixtures act (max, N), and the time followed and the time fixtures acted while followed (s)."""

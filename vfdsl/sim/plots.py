@@ -6,7 +6,9 @@
   the cone axis beside the desired circle, and the error profiles (encoders and tracker);
 - any other task: the tracked frame's path in the world x-y plane, and the error profiles;
 - a grid (Fig. 7): the first metric's profile for each grid point, one panel each, on one scale;
-- a procedure: its phases as coloured bands behind each profile (one trial's figure).
+- a procedure: its phases as coloured bands behind each profile (one trial's figure);
+- a teleoperated task: the haptic force and the tool's error to the scaled command over time, with the ticks where
+  a fixture acted shaded.
 """
 
 from __future__ import annotations
@@ -45,13 +47,16 @@ def _profiles(settings_metrics, series: dict) -> list[str]:
 def _trial_figure(task: ir.Task, settings: SimSettings, result: TrialResult):
     series = result.series
     names = _profiles(settings.metrics, series)
-    panels = 1 + len(names) + (series.get("phase") is not None)
+    teleop = series.get("teleop")
+    panels = 1 + len(names) + (series.get("phase") is not None) + (teleop is not None)
     figure, axes = plt.subplots(1, panels, figsize=(5.2 * panels, 4.4), squeeze=False)
     axes = axes[0]
     _trajectory(axes[0], task, settings, series)
     t = series["t"]
     for ax in axes[1:]:
         _phase_bands(ax, series)
+    if teleop is not None:
+        _teleop_panel(axes[-1 - (series.get("phase") is not None)], t, teleop)
     if series.get("phase") is not None:
         ax = axes[-1]
         ax.step(t, series["phase"], where="post", color="k", lw=1)
@@ -75,6 +80,24 @@ def _trial_figure(task: ir.Task, settings: SimSettings, result: TrialResult):
                     f"latency {settings.latency * 1e3:g} ms")
     figure.tight_layout()
     return figure
+
+
+def _teleop_panel(ax, t: np.ndarray, teleop: dict) -> None:
+    """The haptic force (left axis) and the error to the scaled command (right axis); fixtures acting shaded."""
+    acting = teleop["acting"]
+    if acting.any():
+        ax.fill_between(t, 0, 1, where=acting, step="post", color="C3", alpha=0.12, lw=0,
+                        transform=ax.get_xaxis_transform(), label="a fixture acts")
+    ax.plot(t, teleop["force"], lw=0.9, color="C1", label="haptic force")
+    ax.set_xlabel("time (s)")
+    ax.set_ylabel("haptic force (N)")
+    ax.grid(alpha=0.3)
+    right = ax.twinx()
+    right.plot(t, teleop["error"] * MM, lw=0.7, color="C0", label="error to the command")
+    right.set_ylabel("error to the scaled command (mm)")
+    lines = ax.get_legend_handles_labels()[0] + right.get_legend_handles_labels()[0]
+    ax.legend(lines, [line.get_label() for line in lines], loc="upper right", fontsize=8)
+    ax.set_title("teleoperation")
 
 
 def _phase_bands(ax, series: dict) -> None:

@@ -373,7 +373,8 @@ def _score(job: Job, task: ir.Task, robot: Robot, qs: np.ndarray, segments, rng,
                   "axis": {f.name: poses.axis(f) for f in task.frames}, "segments": segments,
                   "tracker_p": seen.p if seen is not None else None,
                   "phase": None if phases is None else phases.phase,
-                  "phase_names": None if phases is None else phases.names}
+                  "phase_names": None if phases is None else phases.names,
+                  "teleop": None if teleop is None else teleop.series()}
     hand = None
     if hand_settings is not None:
         hand = {**hand_settings.__dict__,
