@@ -189,7 +189,8 @@ def test_the_examples_simulate_with_an_operator(tmp_path, name):
     from vfdsl.cli import main
     out, trace = tmp_path / "run.json", tmp_path / "run.csv"
     assert main(["simulate", str(TELEOP_TASKS / f"{name}.vf"), "--json", str(out), "--trace", str(trace),
-                 "--quiet"]) == 0
+                 "--plot", str(tmp_path / "run.png"), "--quiet"]) == 0
+    assert (tmp_path / "run.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     row = json.loads(out.read_text())["teleop"][0]
     assert row["following_s"] == pytest.approx(5.0, abs=2e-3)
     assert row["acting_s"] > 0.5
@@ -339,3 +340,24 @@ def test_a_moving_camera_turns_the_masters_motion(tmp_path):
         m = np.array([0.004 * min(1.0, k / 200), 0, 0, 0, 0, 0])
         q = q + ctrl.step(q, {"master": m, "clutch": [0.0]}, params=camera)
     assert np.allclose(ctrl.frames(q)["tip"].position - start, [0.0, 0.5 * 0.004, 0.0], atol=1e-6)
+
+
+@pytest.mark.parametrize("change, argument", [
+    (("    capture m0 = master\n", ""), "master_anchor"),                                      # captured nowhere now
+    (("phase clutched {\n", "phase clutched {\n    capture m1 = master\n"), None),             # (m1 unused: fine)
+    (("master_anchor = m0", "master_anchor = camera"), "master_anchor"),                     # a fixed param
+    (("capture s0 = tip.pose", "capture s0 = master"), "anchor"),                            # another source
+])
+def test_check_warns_when_an_anchor_is_not_retaken_at_engage(tmp_path, change, argument):
+    text = WALL.replace(*change)
+    if argument == "master_anchor" and "capture m0" not in text and "master_anchor = m0" in text:
+        text = text.replace("phase clutched {\n", "phase clutched {\n    capture m0 = master\n")
+    (tmp_path / "t.vf").write_text(text)
+    (tmp_path / "t.yaml").write_text(START)
+    report = vfdsl.check(vfdsl.load(tmp_path / "t.vf"), samples=0)
+    found = [f for f in report.findings if f.code == "VF972"]
+    if argument is None:
+        assert not found
+    else:
+        line = text.splitlines().index(next(t for t in text.splitlines() if "minimize teleop" in t)) + 1
+        assert [f.data["argument"] for f in found] == [argument] and found[0].span.line == line

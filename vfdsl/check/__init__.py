@@ -55,6 +55,7 @@ def check(task: ir.Task, *, overshoot: float = DEFAULT_OVERSHOOT, samples: int =
     if procedure.is_procedure(task):
         run("hygiene", procedure.unused, task)
         run("procedure", procedure.analyse, task)
+        run("teleop", teleop.anchors, task)
     else:
         run("hygiene", hygiene.unused, task)
     if task.start is None:

@@ -65,6 +65,7 @@ CODES: dict[str, str] = {
     "fixture-loosened": "VF959",
     "haptic-passivity": "VF970",
     "teleop-workspace": "VF971",
+    "teleop-anchor-kept": "VF972",
 }
 
 

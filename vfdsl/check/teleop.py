@@ -5,6 +5,10 @@ master command the tool where the fixture (or the robot) will not let it go?
   past the acting rows, K the stiffness, B the damping), on a master of physical damping b, is passive iff
   b > K T / 2 + B (Colgate & Schenkel, 1997: the sampled virtual wall; docs/check.md derives it). Without
   ``master_damping`` the finding is a note stating the b the master needs; with it, a warning when b falls short.
+- **Anchors** (VF972). A teleop term in a phase re-anchors on each entry only if that phase captures both anchors:
+  ``anchor`` the pose of the term's own frame and ``master_anchor`` its own master. An anchor captured elsewhere
+  (another phase, another frame or input) or a fixed param keeps an old pose across a clutch: at re-engage the
+  goal jumps by the master's motion while clutched (a warning, at the term, naming the anchor).
 - **Workspace** (VF971). With ``master_reach`` R, the scaled master commands the frame anywhere in the ball of radius
   scale R around its engage pose. From the start, the compiled controller is driven with the master held at R along
   each of WORKSPACE_DIRECTIONS directions (through the camera) for WORKSPACE_SECONDS; where the frame stays short
@@ -61,6 +65,33 @@ def passivity(task: ir.Task, period: float) -> list[Finding]:
                 f"{needed:.3g} N s/m (K {K:g} N/m, T {period * 1e3:g} ms, B {B:g} N s/m): the wall may chatter",
                 o.span, f"lower the stiffness below {2 * max(b - B, 0.0) / period:.3g} N/m, the damping, or the period",
                 where, data))
+    return findings
+
+
+def anchors(task: ir.Task) -> list[Finding]:
+    """VF972 (module docstring) for every teleop term inside a phase."""
+    findings = []
+    for phase in task.phases:
+        taken = {c.name: c.source for c in phase.captures}
+        for o in phase.objectives:
+            if o.term != "teleop":
+                continue
+            wanted = {"anchor": ir.FrameMeasure(frame=o.args["frame"].name, part="pose"),
+                      "master_anchor": ir.InputRef(name=o.args["master"].name)}
+            for arg, source in wanted.items():
+                given = o.args[arg]
+                if isinstance(given, ir.CaptureRef) and taken.get(given.name) == source:
+                    continue
+                what = (f"captured in another phase or of another {'frame' if arg == 'anchor' else 'input'}"
+                        if isinstance(given, ir.CaptureRef) else "not captured")
+                expected = (f"capture NAME = {o.args['frame'].name}.pose" if arg == "anchor"
+                            else f"capture NAME = {o.args['master'].name}")
+                findings.append(Finding(
+                    "teleop-anchor-kept", Severity.WARNING,
+                    f"teleop's {arg} in phase '{phase.name}' is {what}: it is not retaken when '{phase.name}' is "
+                    "entered, so at each re-engage the goal jumps by the master's motion in between", o.span,
+                    f"capture it in phase '{phase.name}': `{expected}`", f"teleop({o.args['frame'].name})",
+                    {"phase": phase.name, "argument": arg}))
     return findings
 
 
