@@ -234,6 +234,24 @@ def _contract(exported: Exported, workdir: Path, flags: list[str], library_flags
     return exe
 
 
+def built_export(task, directory: Path):
+    """``task`` exported into ``directory`` and built with make (the export's own Makefile, a clean environment)."""
+    result = export(task, directory)
+    subprocess.run(["make", "-s", "-j2"], cwd=directory, env=CLEAN_ENV, check=True, capture_output=True)
+    return result
+
+
+def heap_calls(result, lines: list[str], dt: float, workdir: Path) -> tuple[int, int, int]:
+    """export_contract.c's count of heap calls (at _new, in the ticks of ``lines``, after them) on ``result``."""
+    wrap = "-Wl," + ",".join(f"--wrap={f}" for f in ("malloc", "calloc", "realloc", "free"))
+    exe = _contract(type("Exported", (), {"directory": result.directory, "result": result}), workdir,
+                    ["-DCOUNT_HEAP", wrap])
+    assert len(lines) < 4096                        # export_contract.c's MAX_TICKS
+    ticks = [type("Line", (), {"line": lambda self, text=text: text, "dt": dt})() for text in lines]
+    at_new, ticked, later = map(int, _run_contract(exe, "alloc", ticks).split())
+    return at_new, ticked, later
+
+
 def _run_contract(exe: Path, mode: str, ticks, env=None) -> str:
     text = "\n".join(t.line() for t in ticks) + "\n"
     result = subprocess.run([str(exe), mode, repr(ticks[0].dt)], input=text, capture_output=True, text=True,

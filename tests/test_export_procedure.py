@@ -6,16 +6,14 @@ from __future__ import annotations
 
 import ctypes
 import shutil
-import subprocess
 
 import numpy as np
 import pytest
 
 import vfdsl
-from vfdsl.export import export
 from vfdsl.export.selftest import replay
 
-from test_export import CLEAN_ENV, _contract, _run_contract
+from test_export import _contract, _run_contract, built_export, heap_calls
 from test_procedure_runtime import EXAMPLE, Driver
 
 pytestmark = pytest.mark.skipif(shutil.which("make") is None or shutil.which("cc") is None,
@@ -51,10 +49,7 @@ class Recorder(Driver):
 @pytest.fixture(scope="module")
 def exported(tmp_path_factory):
     task = vfdsl.load(EXAMPLE)
-    directory = tmp_path_factory.mktemp("procedure")
-    result = export(task, directory)
-    subprocess.run(["make", "-s", "-j2"], cwd=directory, env=CLEAN_ENV, check=True, capture_output=True)
-    return task, result
+    return task, built_export(task, tmp_path_factory.mktemp("procedure"))
 
 
 @pytest.fixture(scope="module")
@@ -125,13 +120,7 @@ class _Line:
 
 
 def test_no_heap_call_after_new_across_transitions(exported, recorded, tmp_path):
-    _, result = exported
-    wrap = "-Wl," + ",".join(f"--wrap={f}" for f in ("malloc", "calloc", "realloc", "free"))
-    exe = _contract(type("Exported", (), {"directory": result.directory, "result": result}), tmp_path,
-                    ["-DCOUNT_HEAP", wrap])
-    ticks = [_Line(t[0]) for t in recorded.ticks]
-    assert len(ticks) < 4096                        # export_contract.c's MAX_TICKS
-    at_new, ticked, later = map(int, _run_contract(exe, "alloc", ticks).split())
+    at_new, ticked, later = heap_calls(exported[1], [t[0] for t in recorded.ticks], DT, tmp_path)
     assert at_new > 0 and ticked == 0 and later == 0
 
 

@@ -7,17 +7,15 @@ from __future__ import annotations
 
 import ctypes
 import shutil
-import subprocess
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 import vfdsl
-from vfdsl.export import export
 from vfdsl.export.selftest import readout_numbers, replay
 
-from test_export import CLEAN_ENV, _contract, _run_contract
+from test_export import built_export, heap_calls
 
 pytestmark = pytest.mark.skipif(shutil.which("make") is None or shutil.which("cc") is None,
                                 reason="needs make and a C compiler")
@@ -28,10 +26,7 @@ DT = 0.001
 @pytest.fixture(scope="module")
 def exported(tmp_path_factory):
     task = vfdsl.load(TASK)
-    directory = tmp_path_factory.mktemp("teleop")
-    result = export(task, directory)
-    subprocess.run(["make", "-s", "-j2"], cwd=directory, env=CLEAN_ENV, check=True, capture_output=True)
-    return task, result
+    return task, built_export(task, tmp_path_factory.mktemp("teleop"))
 
 
 @pytest.fixture(scope="module")
@@ -67,12 +62,7 @@ def test_replay_gives_the_native_controllers_dq_and_haptic_readout(exported, rec
 
 
 def test_no_heap_call_after_new_with_the_readout(exported, recorded, tmp_path):
-    _, result = exported
-    wrap = "-Wl," + ",".join(f"--wrap={f}" for f in ("malloc", "calloc", "realloc", "free"))
-    exe = _contract(type("Exported", (), {"directory": result.directory, "result": result}), tmp_path,
-                    ["-DCOUNT_HEAP", wrap])
-    ticks = [type("Line", (), {"line": lambda self, s=t[0]: s, "dt": DT})() for t in recorded[:1500]]
-    at_new, ticked, later = map(int, _run_contract(exe, "alloc", ticks).split())
+    at_new, ticked, later = heap_calls(exported[1], [t[0] for t in recorded[:1500]], DT, tmp_path)
     assert at_new > 0 and ticked == 0 and later == 0
 
 
