@@ -91,10 +91,15 @@ def test_a_wall_feels_k_times_the_masters_depth_along_its_normal(wall, depth):
     reach = 0.0163 / SCALE                                  # master motion that brings the slave to the floor
     down = CAMERA.T @ np.array([0.0, 0.0, -(reach + depth)])  # the world's -z, in the master's base frame
     run = drive(ctrl, task, master_path(down, ticks_per_leg=800, hold=700))
-    force = run[-1][0].force
+    out, tip, _ = run[-1]
+    force = out.force
     expected = min(STIFFNESS * depth, SATURATION)
     normal = CAMERA.T @ np.array([0.0, 0.0, 1.0])           # the wall pushes the master back up
     assert abs(force @ normal - expected) <= 0.05 * expected
+    # k x the master's depth past the floor (the engage tick took the master 1/800 of the way already), to the
+    # projection's regularization (haptics.EPS = 1e-6: a factor 1 / (1 + EPS) along one normal)
+    exact = (tip[2] - out.goal[2]) / SCALE
+    assert force @ normal == pytest.approx(min(STIFFNESS * exact, SATURATION), rel=2e-6)
     assert np.linalg.norm(force - (force @ normal) * normal) <= 1e-3 * expected
     assert run[-1][0].acting == (f"above(tip) [{task.span.file}:12]",) or run[-1][0].acting[0].startswith("above(tip)")
     assert run[-1][1][2] == pytest.approx(-0.120, abs=1e-6)   # the slave on the floor
@@ -227,7 +232,7 @@ def test_check_states_the_passivity_bound(tmp_path, master_damping, severity):
     extra = "" if master_damping is None else f", master_damping = {master_damping}"
     (tmp_path / "t.vf").write_text(WALL.replace("ramp = 100 ms)", f"ramp = 100 ms{extra})"))
     (tmp_path / "t.yaml").write_text(START)
-    report = vfdsl.check(vfdsl.load(tmp_path / "t.vf"), samples=0)
+    report = vfdsl.check(vfdsl.load(tmp_path / "t.vf"), samples=0, backend="interpreted")
     found = [f for f in report.findings if f.code == "VF970"]
     if severity is None:
         assert not found
@@ -241,7 +246,7 @@ def test_check_finds_where_the_scaled_master_outreaches_the_fixture(tmp_path):
     tool stops 3.7 mm short, straight down, and the master feels 0.2 N/mm x 3.7 mm / 0.5."""
     (tmp_path / "t.vf").write_text(WALL.replace("ramp = 100 ms)", "ramp = 100 ms, master_reach = 40 mm)"))
     (tmp_path / "t.yaml").write_text(START)
-    report = vfdsl.check(vfdsl.load(tmp_path / "t.vf"), samples=0)
+    report = vfdsl.check(vfdsl.load(tmp_path / "t.vf"), samples=0, backend="interpreted")
     found = [f for f in report.findings if f.code == "VF971"]
     assert len(found) == 1 and found[0].severity.value == "warning"
     assert found[0].data["shortfall"] == pytest.approx(0.0037, abs=2e-5)
@@ -252,7 +257,7 @@ def test_check_finds_where_the_scaled_master_outreaches_the_fixture(tmp_path):
 @pytest.mark.parametrize("name", ["teleop_keep_out", "teleop_guide_line"])
 def test_the_examples_are_sound_and_explain_their_warnings(name):
     path = TELEOP_TASKS / f"{name}.vf"
-    report = vfdsl.check(vfdsl.load(path), samples=20)
+    report = vfdsl.check(vfdsl.load(path), samples=20, backend="interpreted")
     assert report.exit_status() == 0, report.render_text()
     for finding in report.findings:
         if finding.severity.value == "warning":
@@ -354,7 +359,7 @@ def test_check_warns_when_an_anchor_is_not_retaken_at_engage(tmp_path, change, a
         text = text.replace("phase clutched {\n", "phase clutched {\n    capture m0 = master\n")
     (tmp_path / "t.vf").write_text(text)
     (tmp_path / "t.yaml").write_text(START)
-    report = vfdsl.check(vfdsl.load(tmp_path / "t.vf"), samples=0)
+    report = vfdsl.check(vfdsl.load(tmp_path / "t.vf"), samples=0, backend="interpreted")
     found = [f for f in report.findings if f.code == "VF972"]
     if argument is None:
         assert not found
