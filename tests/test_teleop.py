@@ -210,6 +210,16 @@ def test_the_examples_simulate_with_an_operator(tmp_path, name):
     assert all(float(r["haptic_x_N"]) ** 2 + float(r["haptic_z_N"]) ** 2 < 1e-18 for r in clutched[100:])
 
 
+def test_a_scene_without_an_operator_says_the_master_rests(tmp_path, capsys):
+    from vfdsl.cli import main
+    scene = tmp_path / "s.sim.yaml"
+    scene.write_text("units: mm, deg\nduration: 0.05 s\n")
+    assert main(["simulate", str(TELEOP_TASKS / "teleop_guide_line.vf"), "--scene", str(scene)]) == 0
+    out = capsys.readouterr().out
+    assert "no operator (the scene has no operator:): the master rests where it starts" in out
+    assert "followed (s)" in out
+
+
 @pytest.mark.parametrize("operator, message", [
     ("{input: clutch, path: [{at: 0 s, position: [0, 0, 0]}]}", "the operator moves a master's pose; 'clutch' is a "
                                                                 "button"),

@@ -237,7 +237,13 @@ def _write(name: str, write) -> None:
 def _heading(name: str, s, doc: dict, trials: int, seconds: float, simulated: float | None) -> str:
     hand = doc["hand"]
     if hand is None:
-        hand_text = "no hand (the task has no tracked input)" if not s.pushes else "no hand: the scene's pushes"
+        if s.operator is not None:
+            hand_text = (f"an operator moves master '{s.operator.input}' through {len(s.operator.times)} waypoint(s) "
+                         f"over {s.operator.times[-1]:g} s")
+        elif doc.get("teleop"):
+            hand_text = "no operator (the scene has no operator:): the master rests where it starts"
+        else:
+            hand_text = "no hand (the task has no tracked input)" if not s.pushes else "no hand: the scene's pushes"
     else:
         unit, factor = SHOWN_IN[hand["dimension"]]
         aim = hand["curve"] or hand["target"] or hand["direction"]
