@@ -90,7 +90,7 @@ def reference(H, f, A, lower, upper, break_points):
 
 def daqp_answer(problem):
     H, f, A, lower, upper, break_points = problem
-    x, flag = solve_daqp(H, f, A, lower, upper, 1e-10, break_points, 1e-6)
+    x, flag, *_ = solve_daqp(H, f, A, lower, upper, 1e-10, break_points, 1e-6)
     return x if flag in (1, 2) else None
 
 

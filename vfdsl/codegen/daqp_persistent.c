@@ -143,6 +143,7 @@ static int vfdsl_daqp_solve(struct casadi_daqp_data* d, int warm, const vfdsl_le
   struct casadi_qp_data* d_qp = d->qp;
   DAQPSettings* settings = (DAQPSettings*) (&p->settings);
   settings->eq_reduction = DAQP_EQ_REDUCTION_OFF;   /* the same LDP every tick: no reduced copy */
+  settings->iter_limit = @ITER_LIMIT@;               /* a bounded solve (vfdsl.codegen.solve_plan.ITER_LIMIT) */
   vfdsl_daqp_cold_sense(p_qp, d_qp, d->daqp.sense);
   d->daqp.n = p_qp->nx;
   d->daqp.m = p_qp->nx + p_qp->na;

@@ -28,6 +28,7 @@ from pathlib import Path
 
 import casadi as ca
 
+from vfdsl.codegen import solve_plan
 from vfdsl.codegen.solve_plan import SolvePlan
 from vfdsl.errors import VfError
 
@@ -86,7 +87,8 @@ def _with_persistent_daqp(source: str, plans: Mapping[str, SolvePlan]) -> str:
         raise VfError(f"CasADi {ca.__version__} generates DAQP data this vfdsl does not know", hint=_REQUIRED)
     source = source.replace(_DAQP_DATA_END, _DAQP_DATA_END.replace("};", "  struct vfdsl_lex* lex;    /* vfdsl: lexls.c's memory */\n};"))
     source = _DAQP_FREE_MEM.sub("", source)
-    return _DAQP_SOLVE.sub(lambda _: PERSISTENT_DAQP, source)
+    persistent = PERSISTENT_DAQP.replace("@ITER_LIMIT@", str(solve_plan.ITER_LIMIT))   # read now: tests lower it
+    return _DAQP_SOLVE.sub(lambda _: persistent, source)
 
 
 def _conic_call(match: re.Match, plans: Mapping[str, SolvePlan]) -> str:

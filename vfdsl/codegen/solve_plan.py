@@ -12,6 +12,11 @@ from types import MappingProxyType
 
 import casadi as ca
 
+ITER_LIMIT = 500
+"""DAQP iterations one solve may take, on both paths (docs/runtime.md, "A bounded tick"; DAQP's default is 10,000):
+2.8 x the most any example's solve took (176, benchmarks/daqp_iterations.py). Reaching it fails the solve (with
+priority levels: stops at a point of the hard rows), and the tick goes on to its next safe answer."""
+
 
 @dataclass(frozen=True)
 class SolvePlan:

@@ -14,6 +14,7 @@ from collections.abc import Callable, Sequence
 import casadi as ca
 import numpy as np
 
+from vfdsl.codegen import solve_plan
 from vfdsl.codegen.solve_plan import SolvePlan, record
 from vfdsl.runtime import lexls
 
@@ -120,7 +121,7 @@ class _DaqpNode(ca.Callback):
         H, g, A, lba, uba, lbx, ubx = (np.array(a, dtype=float) for a in arg)
         g = g.ravel()
         lower, upper = np.concatenate((lbx.ravel(), lba.ravel())), np.concatenate((ubx.ravel(), uba.ravel()))
-        x, flag = solve_daqp(H, g, A, lower, upper, self.primal_tol, self.break_points, self.rho)
+        x, flag, *_ = solve_daqp(H, g, A, lower, upper, self.primal_tol, self.break_points, self.rho)
         if flag not in self.success:
             return [np.full(self.n, np.nan)]
         if self.exact:      # the levels solved exactly over the rows DAQP's answer holds, when certified
@@ -138,9 +139,10 @@ DAQP_PARTIAL = 3
 
 
 def solve_daqp(H, g, A, lower, upper, primal_tol, break_points=(), rho_soft=0.0):
-    """(x, exit flag) of DAQP on min 1/2 x'Hx + g'x, lower <= [x; A x] <= upper (the first n entries simple
-    bounds), rows with lower = upper equalities; with ``break_points``, DAQP's priority levels, the rows past the
-    first break point soft with weight ``rho_soft`` in the problem's own scale."""
+    """(x, exit flag, iterations, seconds: DAQP's own solve time) of DAQP on min 1/2 x'Hx + g'x, lower <= [x; A x] <= upper (the first n entries
+    simple bounds), rows with lower = upper equalities; with ``break_points``, DAQP's priority levels, the rows past
+    the first break point soft with weight ``rho_soft`` in the problem's own scale. At most ITER_LIMIT iterations
+    (codegen.solve_plan: the generated C's limit too); reaching it is a failed solve (exit flag -4)."""
     import daqp
     n = H.shape[0]
     sense = np.where(lower == upper, 5, 0).astype(np.intc)      # DAQP_ACTIVE + DAQP_IMMUTABLE
@@ -149,10 +151,10 @@ def solve_daqp(H, g, A, lower, upper, primal_tol, break_points=(), rho_soft=0.0)
                 np.ascontiguousarray(upper), np.ascontiguousarray(lower), sense,
                 np.asarray(break_points, dtype=np.intc) if len(break_points) else None)
     if setup < 0:       # (e.g. a non-finite H or rows)
-        return np.full(n, np.nan), setup
-    model.settings = {"primal_tol": primal_tol, "eq_reduction": -1}
+        return np.full(n, np.nan), setup, 0, 0.0
+    model.settings = {"primal_tol": primal_tol, "eq_reduction": -1, "iter_limit": solve_plan.ITER_LIMIT}
     if len(break_points):
         rho = np.r_[np.zeros(break_points[0]), np.full(len(lower) - break_points[0], rho_soft)]
         model.soft_weights(rho_l=rho, rho_u=rho)
-    x, _, flag = model.solve()[:3]
-    return np.array(x), int(flag)
+    x, _, flag, info = model.solve()
+    return np.array(x), int(flag), int(info["iterations"]), float(info["solve_time"])
