@@ -68,7 +68,7 @@ def test_no_heap_call_after_new_with_the_readout(exported, recorded, tmp_path):
 
 class Readout(ctypes.Structure):
     _fields_ = [("force", ctypes.c_double * 3), ("setpoint", ctypes.c_double * 6), ("goal", ctypes.c_double * 3),
-                ("following", ctypes.c_int)]
+                ("depth", ctypes.c_double * 3), ("following", ctypes.c_int)]
 
 
 def test_the_api_gives_the_readout_and_the_acting_rows(exported, recorded):

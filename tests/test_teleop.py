@@ -376,3 +376,58 @@ def test_check_warns_when_an_anchor_is_not_retaken_at_engage(tmp_path, change, a
     else:
         line = text.splitlines().index(next(t for t in text.splitlines() if "minimize teleop" in t)) + 1
         assert [f.data["argument"] for f in found] == [argument] and found[0].span.line == line
+
+
+def test_the_readout_equals_an_independent_computation(wall):
+    """Every tick of a run into the floor, along it and back out: the readout's depth and force equal a NumPy
+    computation from the tick's own QP (Controller.problem), Pinocchio's Jacobian, SciPy's rotation vector and the
+    previous tick's readout: the rows within 1e-9 of a bound act; their normals (J J' + 1e-10 I)^-1 J a_i; the
+    removed rate r = [v_c; w_c] - J dq / dt, v_c = (g - p) / tau, w_c = rotvec(R_g R') / tau; the master's depth
+    d = R_c' tau [M (M + 1e-6 I)^-1 r]_linear / scale; the force F_prev + clip(ramp sat(-(k d + b (d - d_prev) / dt))
+    - F_prev, rate dt)."""
+    from scipy.spatial.transform import Rotation
+    from vfdsl.kinematics.robot import Robot
+    task, ctrl = wall
+    robot = Robot.load("psm6")
+    reach = 0.0163 / SCALE
+    down = CAMERA.T @ np.array([0.0, 0.0, -(reach + 0.006)])
+    masters = master_path(down, down + CAMERA.T @ np.array([0.01, 0.005, 0.0]), np.zeros(3), ticks_per_leg=300,
+                          hold=50)
+    ctrl.reset()
+    q = np.array(task.start, dtype=float)
+    dt, damping, ramp, rate = 0.001, 1.0, 0.1, 200.0
+    previous, F_prev, engaged, checked = np.zeros(3), np.zeros(3), 0.0, 0
+    for k, m in enumerate(masters):
+        inputs = {"master": m, "clutch": [0.0]}
+        dq = ctrl.step(q, inputs)
+        out = ctrl.teleop
+        qp = ctrl.problem(q, inputs)                 # this tick's QP (its captures, its activity)
+        n = qp.A.shape[1]
+        assert n == ctrl.nq
+        A, lb, ub = qp.A[n:], qp.lb[n:], qp.ub[n:]
+        Ax = A @ dq
+        acting = (Ax - lb <= 1e-9) | (ub - Ax <= 1e-9)
+        J = robot.frame_jacobian(q, "tool_tip")
+        p, R = robot.frame_pose(q, "tool_tip")
+        s0, m0 = ctrl.captures["s0"], ctrl.captures["m0"]
+        goal = s0[:3] + SCALE * CAMERA @ (m[:3] - m0[:3])
+        R_s0 = Rotation.from_euler("xyz", s0[3:]).as_matrix()
+        R_m, R_m0 = (Rotation.from_euler("xyz", v).as_matrix() for v in (m[3:], m0[3:]))
+        R_goal = CAMERA @ R_m @ R_m0.T @ CAMERA.T @ R_s0
+        command = np.concatenate([(goal - p) / TAU, Rotation.from_matrix(R_goal @ R.T).as_rotvec() / TAU])
+        removed = command - J @ dq / dt
+        normals = np.linalg.solve(J @ J.T + 1e-10 * np.eye(6), J @ A[acting].T)
+        M = sum((np.outer(c, c) / (c @ c) for c in normals.T), np.zeros((6, 6)))
+        depth = CAMERA.T @ (TAU * (M @ np.linalg.solve(M + 1e-6 * np.eye(6), removed))[:3]) / SCALE
+        engaged += dt
+        spring = -(STIFFNESS * depth + (damping * (depth - previous) / dt if k else 0.0))
+        target = min(1.0, engaged / ramp) * spring * min(1.0, SATURATION / max(np.linalg.norm(spring), 1e-300))
+        step = target - F_prev
+        force = F_prev + step * min(1.0, rate * dt / max(np.linalg.norm(step), 1e-300))
+        assert np.allclose(out.goal, goal, atol=1e-12)
+        assert np.allclose(out.depth, depth, rtol=1e-6, atol=1e-10), k
+        assert np.allclose(out.force, force, rtol=1e-6, atol=1e-9), k
+        checked += bool(acting.any())
+        previous, F_prev = out.depth, out.force
+        q = q + dq
+    assert checked > 200                              # the floor acted on most of the run's ticks

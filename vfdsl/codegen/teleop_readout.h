@@ -1,5 +1,5 @@
 /* vfdsl: a teleoperated task's readout after each tick in plain C (the library `vfdsl export` writes): the haptic
- * force, the set-point, the goal, following or not and the rows that acted, from the generated
+ * force, the set-point, the goal, the master's depth, following or not and the rows that acted, from the generated
  * <prefix>_teleop_readout (vfdsl/objectives/haptics.py: the math; Python evaluates the same function from the task's
  * library), with its state kept between ticks.
  *
@@ -17,7 +17,7 @@
 typedef struct {
   double state[VFDSL_TELEOP_STATE + 1];    /* per teleop term: previous depth (3), force (3), warm, engaged time */
   double next[VFDSL_TELEOP_STATE + 1];
-  double force[3], setpoint[6], goal[3], following[1];
+  double force[3], setpoint[6], goal[3], depth[3], following[1];
   double acting[VFDSL_TELEOP_ROWS + 1];    /* per constraint row: 1 when it acted */
   const casadi_real** arg;
   casadi_real** res;
@@ -59,9 +59,10 @@ static int vfdsl_teleop_eval(vfdsl_teleop* t, const vfdsl_core* c, const double*
   t->res[0] = t->force;
   t->res[1] = t->setpoint;
   t->res[2] = t->goal;
-  t->res[3] = t->following;
-  t->res[4] = t->acting;
-  t->res[5] = t->next;
+  t->res[3] = t->depth;
+  t->res[4] = t->following;
+  t->res[5] = t->acting;
+  t->res[6] = t->next;
   code = VFDSL_READOUT(t->arg, t->res, t->iw, t->w, t->slot);
   if (!code) memcpy(t->state, t->next, sizeof(double) * VFDSL_TELEOP_STATE);
   return code;

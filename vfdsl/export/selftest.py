@@ -75,9 +75,10 @@ def record(ctrl, count: int, dt: float | None = None,
 
 
 def readout_numbers(out) -> np.ndarray | None:
-    """A teleoperation readout (Controller.teleop) as replay prints it: force, set-point, goal, following (None
-    without one)."""
-    return None if out is None else np.concatenate([out.force, out.setpoint, out.goal, [float(out.following)]])
+    """A teleoperation readout (Controller.teleop) as replay prints it: force, set-point, goal, depth, following
+    (None without one)."""
+    return None if out is None else np.concatenate([out.force, out.setpoint, out.goal, out.depth,
+                                                    [float(out.following)]])
 
 
 def build(directory: Path, *targets: str, jobs: int = 2, **variables: str) -> None:
@@ -98,7 +99,7 @@ def build(directory: Path, *targets: str, jobs: int = 2, **variables: str) -> No
 def replay(directory: Path, lines: list[str], dt: float, params: Path | None = None) -> list[tuple]:
     """Run ``directory/replay`` on ``lines``: per line (status, dq) or (error code, message); a procedure's
     (status, dq, phase) for a tick it ran; a teleoperated task's with its readout last (force, set-point, goal,
-    following: 13 numbers)."""
+    depth, following: 16 numbers)."""
     argv = [str(Path(directory) / "replay"), "--dt", repr(dt)] + (["--params", str(params)] if params else [])
     result = subprocess.run(argv, input="\n".join(lines) + "\n", capture_output=True, text=True)
     if result.returncode != 0:

@@ -1,7 +1,7 @@
 """What a teleoperated tick gives back beside dq (DESIGN, "Procedures and teleoperation"): the haptic force on the
 master, the slave's Cartesian set-point, whether the master is followed, and which constraint rows acted.
 
-One Function ``teleop_readout(q, u, p, dt[, activity], x, state) -> (force, setpoint, goal, following, acting, next_state)``
+One Function ``teleop_readout(q, u, p, dt[, activity], x, state) -> (force, setpoint, goal, depth, following, acting, next_state)``
 after the tick's solve x = [dq; slack]. For each `teleop` term (objectives/teleop.py), with its frame's twist
 Jacobian J (6 x n), the rates it commands c = [v_c; w_c], its tau and its phase weight w (1 outside phases):
 
@@ -25,7 +25,8 @@ limit smooths whatever is left. ``state`` = [d_prev (3), F_prev (3), warm (1), t
 first tick.
 
 The set-point is the first teleop frame's pose after dq, [p; roll, pitch, yaw] (exact kinematics at q + dq): what a
-robot driven by pose is sent; the goal is that term's g (where the scaled master puts the frame: its ghost). ``following`` is the largest phase weight of the teleop terms (1: following; 0:
+robot driven by pose is sent; the goal is that term's g (where the scaled master puts the frame: its ghost), the
+depth its d_m (how far the master is past the acting rows, in its base frame). ``following`` is the largest phase weight of the teleop terms (1: following; 0:
 clutched or disabled).
 """
 
@@ -49,7 +50,7 @@ EPS = 1e-6
 let go smoothly instead of amplified."""
 STATE = 8
 """State numbers per teleop term: the previous master depth (3), the previous force (3), warm (1), engaged time (1)."""
-READOUT = ("force", "setpoint", "goal", "following", "acting", "next_state")
+READOUT = ("force", "setpoint", "goal", "depth", "following", "acting", "next_state")
 
 
 def teleop_terms(task: ir.Task) -> list[ir.Objective]:
@@ -100,7 +101,8 @@ def readout_function(task: ir.Task, problem: AssembledProblem) -> ca.Function | 
     frame = ctx.frame(terms[0][0].args["frame"].name)
     setpoint = ca.Function("pose", [ctx.q], [ca.vertcat(frame.p, rpy_of(frame.R))])(ctx.q + dq)
     return ca.Function("teleop_readout", [*arguments, x, state],
-                       [force, setpoint, g, ca.mmax(ca.vertcat(*weights)), acting, ca.vertcat(*new_state)],
+                       [force, setpoint, g, new_state[0], ca.mmax(ca.vertcat(*weights)), acting,
+                        ca.vertcat(*new_state)],
                        [*tick_buffers.data_arguments(bool(task.phases)), "x", "state"], list(READOUT))
 
 

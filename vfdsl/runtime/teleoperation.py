@@ -21,12 +21,15 @@ class TeleopOutput:
     - ``setpoint``: the teleop frame's pose after this tick's dq, [p (m); roll, pitch, yaw (rad)], for a robot driven
       by pose;
     - ``goal``: where the scaled master puts the frame's origin (m): s0 + scale R_c (m - m0), the master's ghost;
+    - ``depth``: how far the master is past the rows that acted (m, in its base frame; the force is -stiffness x
+      depth before its damping, saturation, ramp and rate limit);
     - ``following``: whether the master drives the slave (False while clutched, or before engage);
     - ``acting``: the constraints with rows at their bounds this tick, each named once, in row order."""
 
     force: np.ndarray
     setpoint: np.ndarray
     goal: np.ndarray
+    depth: np.ndarray
     following: bool
     acting: tuple[str, ...]
 
@@ -49,7 +52,7 @@ class Teleoperation:
         out = self._outputs
         self._state[...] = out["next_state"]
         names = tuple(dict.fromkeys(self._names[out["acting"] > 0.5]))
-        return TeleopOutput(out["force"].copy(), out["setpoint"].copy(), out["goal"].copy(),
+        return TeleopOutput(out["force"].copy(), out["setpoint"].copy(), out["goal"].copy(), out["depth"].copy(),
                             bool(out["following"][0] > 0.5), names)
 
     def reset(self) -> None:

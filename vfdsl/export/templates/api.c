@@ -334,6 +334,7 @@ VF_EXPORT int @API@_teleop(const @API@* c, @API@_teleop_readout* out) {
   memcpy(out->force, c->teleop.force, sizeof out->force);
   memcpy(out->setpoint, c->teleop.setpoint, sizeof out->setpoint);
   memcpy(out->goal, c->teleop.goal, sizeof out->goal);
+  memcpy(out->depth, c->teleop.depth, sizeof out->depth);
   out->following = c->teleop.following[0] > 0.5;
   leave(c);
   return 0;

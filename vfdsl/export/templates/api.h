@@ -158,7 +158,8 @@ int @API@_transition_target(int k);
  * each tick, _teleop writes the haptic force for the master (N, in the master's base frame: what the fixtures
  * stopped of its command, stiffness x depth along their normals, saturated, rate-limited, ramped in at engage),
  * the teleop frame's set-point (its pose after dq: m, then roll, pitch, yaw in rad, for a robot driven by pose),
- * the goal (where the scaled master puts the frame, m) and following (1 while the master drives the slave):
+ * the goal (where the scaled master puts the frame, m), the master's depth past the rows that acted (m, its
+ * base frame) and following (1 while the master drives the slave):
  * 0, VF_ERR_NULL, VF_ERR_BUSY, or VF_ERR_NO_TELEOP without a teleop term. _row_acting(ctrl, i): 1 when row i
  * (_row_label) was at its bound in the last tick, else 0 (always 0 without a teleop term). _reset also restarts
  * the readout (no previous depth or force). The same readout as Python's Controller.teleop, from the same code. */
@@ -166,6 +167,7 @@ typedef struct {
   double force[3];
   double setpoint[6];
   double goal[3];
+  double depth[3];     /* how far the master is past the rows that acted (m, its base frame) */
   int following;
 } @API@_teleop_readout;
 int @API@_teleop(const @API@* ctrl, @API@_teleop_readout* out);

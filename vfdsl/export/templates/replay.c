@@ -9,7 +9,7 @@
  * the params for the start (@MACRO@_PARAM_LENGTH numbers); without it they keep their defaults. dt
  * defaults to the scene's period. One line out per tick: the status, then dq with 17 significant digits (and for
  * a procedure " | " and the phase after the tick; for a teleoperated task " # ", the haptic force, the set-point,
- * the goal and following, as @API@_teleop gives them); for a refused tick "error CODE MESSAGE" (refused params: the check's meaning too; the tick is not run).
+ * the goal, the depth and following, as @API@_teleop gives them); for a refused tick "error CODE MESSAGE" (refused params: the check's meaning too; the tick is not run).
  * The controller is one for the whole run, as in a control loop.
  * Exit status: 0, or 2 for a usage or reading error: a line with another count of numbers or longer than
  * LINE_MAX_CHARS - 1 characters, a NUL byte, an unreadable FILE.
@@ -153,6 +153,7 @@ int main(int argc, char** argv) {
       for (i=0; i<3; ++i) printf(" %.17g", t.force[i]);
       for (i=0; i<6; ++i) printf(" %.17g", t.setpoint[i]);
       for (i=0; i<3; ++i) printf(" %.17g", t.goal[i]);
+      for (i=0; i<3; ++i) printf(" %.17g", t.depth[i]);
       printf(" %d", t.following);
     }
     printf("\n");
