@@ -15,6 +15,7 @@ from vfdsl.errors import VfError
 from vfdsl.files import check_writable
 from vfdsl import limits
 from vfdsl.ir import captures
+from vfdsl.sim.mcap_trace import write_mcap
 from vfdsl.sim.operator import teleop_table
 from vfdsl.sim import report, trace
 from vfdsl.sim.cluster import connect
@@ -77,7 +78,7 @@ def add_parser(commands) -> None:
     p.add_argument("--json", metavar="OUT.json", help="write every metric, the settings and the seeds")
     p.add_argument("--csv", metavar="OUT.csv", help="write one row per trial (settings, seed, metrics)")
     p.add_argument("--plot", metavar="OUT.png", help="write a plot of the first trial (PNG)")
-    p.add_argument("--trace", metavar="OUT.csv|OUT.parquet",
+    p.add_argument("--trace", metavar="OUT.csv|OUT.parquet|OUT.mcap",
                    help="write every tick of every trial: time, q, dq, inputs, params, status, violations, metrics "
                         "(SI units; columns in docs/simulate.md)")
     p.add_argument("--quiet", action="store_true", help="no progress bar and no table")
@@ -173,7 +174,10 @@ def main(args: argparse.Namespace) -> int:
     if args.csv:
         _write(args.csv, lambda path: path.write_text(report.to_csv(doc)))
     if args.trace:
-        _write(args.trace, lambda path: trace.write(path, results, task.name, str(args.file)))
+        if Path(args.trace).suffix.lower() == ".mcap":
+            _write(args.trace, lambda path: write_mcap(path, results, task))
+        else:
+            _write(args.trace, lambda path: trace.write(path, results, task.name, str(args.file)))
     if args.plot:
         from vfdsl.sim.plots import plot_run
         _write(args.plot, lambda path: plot_run(task, settings, results, grid, str(path)))

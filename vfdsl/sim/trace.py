@@ -1,4 +1,5 @@
-"""The per-tick trace of a run: one row per tick per trial, every value in SI units, as CSV or Parquet.
+"""The per-tick trace of a run: one row per tick per trial, every value in SI units, as CSV or Parquet (or as an
+MCAP file of ROS 2 messages: :mod:`vfdsl.sim.mcap_trace`).
 
 Columns, in this order (``<unit>`` is the SI unit as a suffix: ``m``, ``rad``, ``s``, ``N``, ``Nm``, ``m_s``
 for m/s, ``rad_s`` for rad/s; a dimensionless number has no suffix)::
@@ -46,7 +47,7 @@ from vfdsl.errors import VfError
 from vfdsl.inputs import INPUT_TYPES
 from vfdsl.ir import model as ir
 
-FORMATS = (".csv", ".parquet")
+FORMATS = (".csv", ".parquet", ".mcap")
 _SI_SUFFIX = {"mm": "m", "deg": "rad", "mm/s": "m_s", "deg/s": "rad_s", "%": ""}
 _DISPLAY_SUFFIX = {"mm": "mm", "deg": "deg", "mm/s": "mm_s", "deg/s": "deg_s", "%": "pct"}
 _SCALAR_UNITS = {"length": "_m", "angle": "_rad", "speed": "_m_s", "angular_speed": "_rad_s", "number": "",
@@ -137,7 +138,7 @@ def check_path(name: str) -> str:
     """The trace format of an output path, from its suffix; Parquet needs pyarrow."""
     suffix = Path(name).suffix.lower()
     if suffix not in FORMATS:
-        raise VfError(f"--trace {name}: write a .csv or a .parquet file")
+        raise VfError(f"--trace {name}: write a .csv, a .parquet or an .mcap file")
     if suffix == ".parquet":
         try:
             import pyarrow  # noqa: F401

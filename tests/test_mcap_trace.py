@@ -1,0 +1,112 @@
+"""`vfdsl simulate --trace run.mcap` (issue 36, item 3): the trace as standard ROS 2 messages in an MCAP file, which
+both `mcap` and `rosbags` read back with every documented topic, the joints and inputs equal to the CSV trace's to
+float precision."""
+
+from __future__ import annotations
+
+import csv
+from collections import Counter
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from vfdsl.cli import main
+
+from conftest import TASKS_DIR
+
+TELEOP = TASKS_DIR / "teleop" / "teleop_keep_out.vf"
+
+
+def _run(tmp_path, task: Path, suffix: str, *extra: str) -> Path:
+    out = tmp_path / f"run{suffix}"
+    assert main(["simulate", str(task), "--duration", "0.3 s", "--trace", str(out), "--quiet", *extra]) == 0
+    return out
+
+
+@pytest.fixture(scope="module")
+def paper_b(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("mcap")
+    task = TASKS_DIR / "paper_b_virtual_rcm.vf"
+    return _run(folder, task, ".mcap", "--trials", "1"), _run(folder, task, ".csv", "--trials", "1")
+
+
+def _messages(path: Path) -> dict[str, list]:
+    from rosbags.highlevel import AnyReader
+    found: dict[str, list] = {}
+    with AnyReader([path]) as reader:
+        for connection, stamp, raw in reader.messages():
+            found.setdefault(connection.topic, []).append((stamp, reader.deserialize(raw, connection.msgtype),
+                                                           connection.msgtype))
+    return found
+
+
+def test_rosbags_reads_the_joints_and_inputs_of_the_csv_trace(paper_b):
+    mcap_path, csv_path = paper_b
+    rows = list(csv.DictReader(csv_path.open()))
+    found = _messages(mcap_path)
+    joints = [c[len("q."):].rsplit("_", 1)[0] for c in rows[0] if c.startswith("q.")]
+    states = found["/joint_states"]
+    assert len(states) == len(rows) and states[0][2] == "sensor_msgs/msg/JointState"
+    for row, (stamp, msg, _) in zip(rows, states):
+        assert list(msg.name) == joints
+        assert np.allclose(msg.position, [float(row[c]) for c in row if c.startswith("q.")], rtol=0, atol=1e-15)
+        assert stamp == round(float(row["t_s"]) * 1e9)
+    period = float(rows[1]["t_s"]) - float(rows[0]["t_s"])
+    dq = [float(rows[3][c]) for c in rows[3] if c.startswith("dq.")]
+    assert np.allclose(states[3][1].velocity, np.array(dq) / period, rtol=1e-12)
+    wrench = [m for _, m, _ in found["/vfdsl/input/tau"]]          # paper B's input: a torque
+    torque = [[float(row[f"input.tau.{a}"]) for a in ("tx_Nm", "ty_Nm", "tz_Nm")] for row in rows]
+    assert np.allclose([[w.wrench.torque.x, w.wrench.torque.y, w.wrench.torque.z] for w in wrench], torque,
+                       rtol=0, atol=1e-15)
+    assert [m.data for _, m, _ in found["/vfdsl/status"]] == [int(row["status"]) for row in rows]
+
+
+def test_mcap_lists_every_documented_topic_with_its_schema(paper_b):
+    from mcap.reader import make_reader
+    with paper_b[0].open("rb") as f:
+        summary = make_reader(f).get_summary()
+    topics = {c.topic: summary.schemas[c.schema_id].name for c in summary.channels.values()}
+    assert {"/joint_states": "sensor_msgs/msg/JointState", "/tf": "tf2_msgs/msg/TFMessage",
+            "/vfdsl/input/tau": "geometry_msgs/msg/WrenchStamped", "/vfdsl/status": "std_msgs/msg/Int32",
+            "/vfdsl/violations": "std_msgs/msg/String"}.items() <= topics.items()
+    assert any(t.startswith("/vfdsl/metric/") for t in topics)
+    assert all(summary.schemas[c.schema_id].encoding == "ros2msg" and c.message_encoding == "cdr"
+               for c in summary.channels.values())
+    counts = Counter(summary.statistics.channel_message_counts.values())
+    assert set(counts) == {30}                        # one message per tick (0.3 s at 10 ms) on every topic
+
+
+def test_tf_carries_each_task_frame_as_pinocchio_places_it(paper_b):
+    from scipy.spatial.transform import Rotation
+    import vfdsl
+    from vfdsl.compiler.geometry import homogeneous
+    from vfdsl.kinematics.robot import Robot
+    task = vfdsl.load(TASKS_DIR / "paper_b_virtual_rcm.vf")
+    robot = Robot.load(task.robots[0].urdf)
+    found = _messages(paper_b[0])
+    q = found["/joint_states"][20][1].position
+    tf = found["/tf"][20][1]
+    for frame, transform in zip(task.frames, tf.transforms):
+        p, R = robot.frame_pose(q, frame.link, homogeneous(frame.offset, frame.rpy))
+        t, r = transform.transform.translation, transform.transform.rotation
+        assert transform.child_frame_id == frame.name and transform.header.frame_id == "world"
+        assert np.allclose([t.x, t.y, t.z], p, atol=1e-15)
+        assert np.allclose(Rotation.from_quat([r.x, r.y, r.z, r.w]).as_matrix(), R, atol=1e-12)
+
+
+def test_a_teleoperated_run_writes_the_master_the_clutch_the_haptic_force_and_the_phase(tmp_path):
+    found = _messages(_run(tmp_path, TELEOP, ".mcap"))
+    types = {topic: messages[0][2] for topic, messages in found.items()}
+    assert types["/vfdsl/input/master"] == "geometry_msgs/msg/PoseStamped"
+    assert types["/vfdsl/input/clutch"] == "std_msgs/msg/Bool"
+    assert types["/vfdsl/haptic"] == "geometry_msgs/msg/WrenchStamped"
+    assert {m.data for _, m, _ in found["/vfdsl/phase"]} == {"following"}
+    master = found["/vfdsl/input/master"][-1][1].pose.position
+    assert master.z < -1e-3                                  # the operator's path moves the master down
+
+
+def test_several_trials_go_under_their_own_namespace(tmp_path):
+    found = _messages(_run(tmp_path, TASKS_DIR / "paper_b_virtual_rcm.vf", ".mcap", "--trials", "2"))
+    assert {"/trial_0/joint_states", "/trial_1/joint_states"} <= set(found)
+    assert "/joint_states" not in found
