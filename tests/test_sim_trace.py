@@ -116,7 +116,7 @@ def test_grid_trace_carries_the_grid_settings(tmp_path):
     assert np.allclose(t["t_s"][t["period_s"] == 0.02], np.arange(5) * 0.02)
 
 
-@pytest.mark.parametrize("name, message", [("t.txt", "write a .csv or a .parquet file"),
+@pytest.mark.parametrize("name, message", [("t.txt", "write a .csv, a .parquet or an .mcap file"),
                                            ("missing/t.csv", "no directory")])
 def test_bad_trace_path_is_refused_before_the_run(tmp_path, capsys, name, message):
     assert main(["simulate", VESSEL, "--quiet", "--duration", "0.1s", "--trace", str(tmp_path / name)]) == 2
