@@ -43,9 +43,15 @@ def test_the_schema_is_a_valid_json_schema():
 
 @pytest.mark.parametrize("task, text", _examples())
 def test_every_example_validates_and_loads(tmp_path, task, text):
-    assert not list(_validator().iter_errors(yaml.safe_load(text)))
+    doc = yaml.safe_load(text)
+    assert not list(_validator().iter_errors(doc))
     scene = tmp_path / "x.sim.yaml"
     scene.write_text(text)
+    if "recording" in doc:                  # its bag, written where the example says (the task's input and joints)
+        from test_recording import _joints, write_bag
+        bag = tmp_path / doc["recording"]["bag"]
+        bag.parent.mkdir(parents=True, exist_ok=True)
+        write_bag(bag, joints=_joints()[0], topic="/ft_sensor/wrench")
     load_settings(vfdsl.load(TASKS_DIR.parent / task), scene)
 
 

@@ -16,6 +16,7 @@ from vfdsl.files import check_writable
 from vfdsl import limits
 from vfdsl.ir import captures
 from vfdsl.sim.mcap_trace import write_mcap
+from vfdsl.sim.recording import recording_text
 from vfdsl.sim.operator import teleop_table
 from vfdsl.sim import report, trace
 from vfdsl.sim.cluster import connect
@@ -240,7 +241,9 @@ def _write(name: str, write) -> None:
 
 def _heading(name: str, s, doc: dict, trials: int, seconds: float, simulated: float | None) -> str:
     hand = doc["hand"]
-    if hand is None:
+    if hand is None and s.recording is not None and s.recording.inputs:
+        hand_text = "recorded inputs: " + recording_text(s.recording, s.period)
+    elif hand is None:
         if s.operator is not None:
             hand_text = (f"an operator moves master '{s.operator.input}' through {len(s.operator.times)} waypoint(s) "
                          f"over {s.operator.times[-1]:g} s")

@@ -138,15 +138,16 @@ def simulate_with(job: Job, task: ir.Task, ctrl: vfdsl.Controller, robot: Robot,
     dt = s.period
     ticks = max(1, int(round(s.duration / dt)))
     hand_rng, tracker_rng, sensor_rng = (np.random.default_rng(x) for x in np.random.SeedSequence(job.seed).spawn(3))
-    q0 = start_configuration(task, robot)
+    q0 = start_configuration(task, robot) if s.recording is None or s.recording.start is None else s.recording.start
     scene = Scene(task)
     sim = SimRobot(robot, q0, s.latency, s.servo_lag, robot.resolution if s.resolution == "robot" else None)
     if s.resolution == "robot" and robot.resolution is None:
         raise VfError(f"resolution: robot, but robot '{robot.name}' declares no joint resolution",
                       hint="add resolution to its URDF sidecar (<stem>.yaml), or use resolution: off")
-    hand_settings = s.hand or (None if s.pushes or s.operator else generic_hand(task, ctrl, robot, q0, dt))
+    hand_settings = s.hand or (None if s.pushes or s.operator or (s.recording and s.recording.inputs)
+                               else generic_hand(task, ctrl, robot, q0, dt))
     hand = Hand(hand_settings, task, robot, scene, dt, ticks, hand_rng) if hand_settings else None
-    scripted = s.pushes or s.presses or s.sensors or s.operator
+    scripted = s.pushes or s.presses or s.sensors or s.operator or (s.recording and s.recording.inputs)
     script = ScriptedInputs(s, task, scene, dt, ticks, sensor_rng) if scripted else None
     phases = PhaseRecord(task, ticks) if task.phases else None
     teleop = TeleopRecord(ticks) if is_teleoperated(task) else None

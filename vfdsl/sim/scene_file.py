@@ -38,6 +38,10 @@ the command line overrides the scalar ones. Every value is SI inside; bare numbe
     operator:                  # a teleoperation master's pose over time (vfdsl.sim.operator)
       input: master
       path: [{at: 0 s, position: [0, 0, 0]}, {at: 2 s, position: [10, 0, -30], rpy: [0, 0, 20]}]
+    recording:                 # a lab's bag: inputs from topics, the start from joint states (vfdsl.sim.recording)
+      bag: runs/lab.mcap
+      inputs: {tau: /ft_sensor/wrench}
+      start: /joint_states
 
 Motions and disturbances are separate lists: a disturbance is an event (the world changes once, at ``at``);
 a motion is a law of time that moves one run-time param every tick (:class:`Motion`). A motion displaces
@@ -73,6 +77,7 @@ from vfdsl.passes.scene import (ValueReader, compose, node_span, read_mapping,  
 from vfdsl.primitives.spec import SCALAR_DIMENSIONS
 from vfdsl.runtime.values import ASSUMED_PERIOD
 from vfdsl.sim.operator import read_operator
+from vfdsl.sim.recording import read_recording
 from vfdsl.sim.scripted import read_buttons, read_pushes, read_sensors
 from vfdsl.sim.settings import (DISTURBANCE_KINDS, HAND_KINDS, MARKER_DISTANCES,
                                 MAX_TREMOR_FREQUENCY, MOTION_KINDS, MOVABLE, SCENE_LIMITS,
@@ -83,7 +88,7 @@ from vfdsl.syntax import ast
 
 TOP_KEYS = ("units", "duration", "period", "latency", "servo_lag", "resolution", "trials", "seed", "tracker",
              "hand", "disturbances", "motions", "metrics", "pushes", "buttons", "sensors",
-             "operator")
+             "operator", "recording")
 MOTION_KEYS = {"sine": ("param", "kind", "amplitude", "frequency", "phase"),
                 "step": ("param", "kind", "at", "offset"),
                 "ramp": ("param", "kind", "start", "end", "offset")}
@@ -263,7 +268,8 @@ class _Reader:
             values["metrics"] = tuple(self.metric(name, key, value)
                                       for name, (key, value) in read_mapping(node, self.file).items())
         for key, read, name in (("pushes", read_pushes, "pushes"), ("buttons", read_buttons, "presses"),
-                                ("sensors", read_sensors, "sensors"), ("operator", read_operator, "operator")):
+                                ("sensors", read_sensors, "sensors"), ("operator", read_operator, "operator"),
+                                ("recording", read_recording, "recording")):
             if key in top:
                 values[name] = read(self, top[key][1])
         return dataclasses.replace(base, **values)

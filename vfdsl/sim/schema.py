@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import json
 
-from vfdsl.sim import operator, scene_file, scripted
+from vfdsl.sim import operator, recording, scene_file, scripted
 from vfdsl.sim import settings as s
 
 QUANTITY = {"type": ["number", "string"], "description": "a number in the scene's units, or a number with its unit"}
@@ -45,7 +45,11 @@ _TOP = {
     "buttons": (None, "button inputs' presses: per button a press {from, to}, a time (a 100 ms press) or a list"),
     "sensors": (None, "inputs read with sensor noise: per input {noise, angular_noise}"),
     "operator": (None, "a teleoperation master's pose over time: {input, path}, linear between waypoints"),
+    "recording": (None, "a lab's bag (MCAP, sqlite3, ROS 1): {bag, inputs: {input: topic}, start: topic}"),
 }
+_RECORDING = {"bag": (NAME, "the bag, relative to the scene file"),
+              "inputs": ({"type": "object", "additionalProperties": NAME}, "task input: topic"),
+              "start": (NAME, "a sensor_msgs/msg/JointState topic: the robot starts at its first message")}
 _OPERATOR = {"input": (NAME, "the task's pose input the operator moves"),
              "path": (None, "waypoints {at, position, rpy}, times increasing")}
 _WAYPOINT = {"at": (QUANTITY, "the waypoint's time"), "position": (VECTOR, "the master's position (lengths)"),
@@ -142,6 +146,7 @@ def scene_schema() -> dict:
                                                                                      "minItems": 1}]}}
     top["sensors"] |= {"type": "object", "additionalProperties": _object(_SENSOR, scripted.SENSOR_KEYS)}
     top["operator"] |= _object(_OPERATOR, operator.OPERATOR_KEYS, operator.OPERATOR_KEYS)
+    top["recording"] |= _object(_RECORDING, recording.RECORDING_KEYS, ("bag",))
     top["operator"]["properties"]["path"] |= {"type": "array", "minItems": 1, "items": _object(
         _WAYPOINT, operator.WAYPOINT_KEYS, ("at", "position"))}
     return {"$schema": "https://json-schema.org/draft/2020-12/schema",

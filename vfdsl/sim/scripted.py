@@ -190,6 +190,7 @@ class ScriptedInputs:
             self.pushes.append((push, parts.part_range(angular=push.kind == "turn"), push.magnitude * aim))
         self.presses = settings.presses
         self.operator = settings.operator
+        self.recorded = () if settings.recording is None else settings.recording.inputs
         self.noise: dict[str, np.ndarray] = {}
         for sensor in settings.sensors:
             parts = INPUT_TYPES[task.input(sensor.input).type]
@@ -203,13 +204,15 @@ class ScriptedInputs:
     def inputs(self) -> set[str]:
         """The inputs the script writes (a scene with any has no generic hand)."""
         return ({p.input for p, _, _ in self.pushes} | {p.input for p in self.presses} | set(self.noise)
-                | ({self.operator.input} if self.operator else set()))
+                | ({self.operator.input} if self.operator else set()) | {r.input for r in self.recorded})
 
     def apply(self, k: int, inputs: dict[str, np.ndarray]) -> None:
         """Tick k: the active pushes and presses, and the noise, into ``inputs`` (on top of the hand's value)."""
         t = k * self.period
         if self.operator is not None:
             inputs[self.operator.input][:] = self.operator.pose(t)
+        for recorded in self.recorded:
+            inputs[recorded.input][:] = recorded.at(t)
         for push, part, vector in self.pushes:
             if push.active(t):
                 inputs[push.input][part] += vector

@@ -12,6 +12,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from vfdsl.sim.recording import Recording
 from vfdsl.sim.operator import OperatorPath
 from vfdsl import limits
 from vfdsl import units as u
@@ -213,6 +214,7 @@ class SimSettings:
     presses: tuple[Press, ...] = ()             # button presses
     sensors: tuple[SensorNoise, ...] = ()       # inputs read with sensor noise
     operator: OperatorPath | None = None        # a master's pose over time (vfdsl.sim.operator)
+    recording: Recording | None = None          # a lab's bag driving the inputs and the start (vfdsl.sim.recording)
     scene: str | None = None                    # the file these came from
 
     def replace(self, **changes) -> "SimSettings":
@@ -225,7 +227,8 @@ class SimSettings:
 
     def summary(self) -> dict:
         """The settings as plain JSON data (SI units)."""
-        data = dataclasses.asdict(self)
+        data = dataclasses.asdict(dataclasses.replace(self, recording=None))
+        data["recording"] = None if self.recording is None else self.recording.summary
         for d in data["disturbances"] + data["motions"] + data["pushes"] + data["presses"] + data["sensors"] + \
                 ((data["operator"],) if data["operator"] else ()):
             d.pop("where")
@@ -268,7 +271,7 @@ def check_setting(name: str, value, where: Span | None = None) -> None:
         if not (isinstance(value, int) and 0 <= value <= limits.SEED):
             raise VfError(f"seed must be a whole number from 0 to {limits.SEED:,}, got {value!r}", where)
     elif name not in ("hand", "disturbances", "motions", "metrics", "scene", "marker_distance", "pushes", "presses",
-                      "sensors", "operator"):
+                      "sensors", "operator", "recording"):
         raise VfError(f"unknown setting '{name}'", where, hint=suggest(name, GRID_NAMES, "settings"))
 
 

@@ -1,0 +1,214 @@
+"""A lab's recording driving a simulation (a scene's ``recording:``): a ROS 2 bag (MCAP or sqlite3), an MCAP file or a
+ROS 1 bag, read without ROS by ``rosbags``.
+
+    recording:
+      bag: runs/lab_session.mcap     # relative to the scene file: an .mcap or .db3 file, a rosbag2 folder, a ROS 1 .bag
+      inputs:                        # task input: topic
+        tau: /ft_sensor/wrench       # geometry_msgs/msg/WrenchStamped (a force takes its force, a torque its torque)
+      start: /joint_states           # optional: the robot starts at the first sensor_msgs/msg/JointState, by joint name
+
+Each mapped topic's messages are read once, when the scene is read, each stamped by its header (or, with a zero
+header stamp, by when it was recorded); time 0 is the earliest stamp of the mapped topics. At tick k (t = k x the
+task's period) an input is the latest message stamped at or before t, as a controller reads the newest sample of a
+sensor (a zero-order hold; before the first message, zero); after the last message it holds that one. The inputs are
+in SI as ROS's messages are (N, N m, m/s, rad/s, m and a quaternion for a pose).
+
+Refused, each with the bag, the topic and the message's index: a topic the bag lacks (its topics listed), a message
+type the input cannot take, stamps that go back in time, a JointState naming a joint the robot lacks or missing one
+it has.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+from vfdsl.errors import Span, VfError, suggest
+from vfdsl.inputs import INPUT_TYPES
+
+RECORDING_KEYS = ("bag", "inputs", "start")
+MESSAGE_TYPES = {"force": "geometry_msgs/msg/WrenchStamped", "torque": "geometry_msgs/msg/WrenchStamped",
+                 "wrench": "geometry_msgs/msg/WrenchStamped", "twist": "geometry_msgs/msg/TwistStamped",
+                 "pose": "geometry_msgs/msg/PoseStamped"}
+"""The message an input of each type is read from (ROS 1 names are the same without ``msg/``)."""
+
+
+@dataclass(frozen=True)
+class RecordedInput:
+    """One input's recorded values: the stamps (s, from the recording's time 0) and the values (rows, SI)."""
+
+    input: str
+    topic: str
+    times: np.ndarray
+    values: np.ndarray
+
+    def at(self, t: float) -> np.ndarray:
+        """The latest value stamped at or before t (zero before the first)."""
+        k = int(np.searchsorted(self.times, t + 1e-12, side="right")) - 1
+        return self.values[k] if k >= 0 else np.zeros(self.values.shape[1])
+
+    def jitter(self) -> tuple[float, float, float]:
+        """(median period, std of the periods, largest |period - median|) of the stamps, s."""
+        steps = np.diff(self.times)
+        if steps.size == 0:
+            return 0.0, 0.0, 0.0
+        median = float(np.median(steps))
+        return median, float(np.std(steps)), float(np.max(np.abs(steps - median)))
+
+
+@dataclass(frozen=True)
+class Recording:
+    bag: str
+    inputs: tuple[RecordedInput, ...]
+    start: np.ndarray | None = None
+    where: Span | None = None
+    summary: dict = field(default_factory=dict)
+
+
+def read_recording(reader, node: yaml.Node) -> Recording:
+    """The scene's ``recording:`` (``reader``: the scene reader), its bag read now."""
+    fields = reader.mapping(node, RECORDING_KEYS, "the recording")
+    if "bag" not in fields:
+        raise VfError("the recording needs 'bag'", reader.pos(node), hint="recording: {bag: run.mcap, inputs: {...}}",
+                      code="E602")
+    bag = Path(reader.text(fields["bag"][1], "bag"))
+    if not bag.is_absolute():
+        bag = Path(reader.file).resolve().parent / bag
+    if not bag.exists():
+        raise VfError(f"no bag at {bag}", reader.pos(fields["bag"][1]), code="E602")
+    mapping = {}
+    if "inputs" in fields:
+        inputs_node = fields["inputs"][1]
+        if not isinstance(inputs_node, yaml.MappingNode):
+            raise VfError("the recording's inputs map task inputs to topics, like tau: /ft_sensor/wrench",
+                          reader.pos(inputs_node), code="E602")
+        names = [i.name for i in reader.task.inputs]
+        for key, (key_node, value) in reader.fields(inputs_node).items():
+            if key not in names:
+                raise VfError(f"the recording maps '{key}', which task '{reader.task.name}' does not declare",
+                              reader.pos(key_node), hint=suggest(key, names, "inputs"), code="E602")
+            kind = reader.task.input(key).type
+            if kind not in MESSAGE_TYPES:
+                raise VfError(f"input '{key}' is a {kind}: no recorded message type maps to it",
+                              reader.pos(key_node), hint="map force, torque, wrench, twist or pose inputs",
+                              code="E602")
+            mapping[key] = (reader.text(value, "a topic"), reader.pos(value))
+    start = (reader.text(fields["start"][1], "a topic"), reader.pos(fields["start"][1])) if "start" in fields else None
+    if not mapping and start is None:
+        raise VfError("the recording maps no input and no start", reader.pos(node), code="E602")
+    return load(bag, reader.task, mapping, start, reader.pos(node))
+
+
+def load(bag: Path, task, mapping: dict[str, tuple[str, Span]], start: tuple[str, Span] | None,
+         where: Span | None) -> Recording:
+    """Read every mapped topic of ``bag`` (module docstring); VfError at the scene's line of the mapping."""
+    from rosbags.highlevel import AnyReader
+    from vfdsl.kinematics.robot import Robot
+    try:
+        reader = AnyReader([bag])
+        reader.open()
+    except Exception as exc:          # rosbags' own errors: not a bag, an unknown storage, a damaged file
+        raise VfError(f"cannot read the bag {bag}: {exc}", where, code="E602") from None
+    try:
+        topics = {c.topic: c for c in reader.connections}
+        read = {}
+        wanted = {name: topic for name, (topic, _) in mapping.items()}
+        if start is not None:
+            wanted["(start)"] = start[0]
+        for name, topic in wanted.items():
+            span = mapping[name][1] if name in mapping else start[1]
+            if topic not in topics:
+                raise VfError(f"bag {bag.name} has no topic {topic}", span,
+                              hint=suggest(topic, topics, "topics"), code="E602")
+            expected = "sensor_msgs/msg/JointState" if name == "(start)" else MESSAGE_TYPES[task.input(name).type]
+            got = topics[topic].msgtype
+            if got.replace("/msg/", "/") != expected.replace("/msg/", "/"):
+                raise VfError(f"bag {bag.name}, topic {topic}: {got} messages, but "
+                              f"{'the start' if name == '(start)' else f'input {name!r}'} reads {expected}", span,
+                              code="E602")
+            read[name] = (span, [(stamp, reader.deserialize(raw, connection.msgtype)) for connection, stamp, raw
+                                 in reader.messages(connections=[topics[topic]])])
+    finally:
+        reader.close()
+    stamped = {name: (span, _stamps(bag.name, wanted[name], span, messages), messages)
+               for name, (span, messages) in read.items()}
+    origin = min(float(times[0]) for _, times, _ in stamped.values() if len(times))
+    inputs = []
+    for name, (span, times, messages) in stamped.items():
+        if name == "(start)":
+            continue
+        kind = INPUT_TYPES[task.input(name).type]
+        values = np.array([_value(task.input(name).type, kind, m) for _, m in messages]).reshape(len(messages), -1)
+        inputs.append(RecordedInput(name, wanted[name], times - origin, values))
+    q0 = None
+    if start is not None:
+        span, _, messages = stamped["(start)"]
+        if not messages:
+            raise VfError(f"bag {bag.name}, topic {start[0]}: no message", span, code="E602")
+        robot = Robot.load(task.robots[0].urdf)
+        q0 = _joints(bag.name, start[0], span, messages[0][1], robot.joint_names)
+    summary = {"bag": str(bag), "inputs": {r.input: r.topic for r in inputs}, "start": None if start is None else
+               start[0]}
+    return Recording(str(bag), tuple(inputs), q0, where, summary)
+
+
+def _stamps(bag: str, topic: str, span: Span, messages: list) -> np.ndarray:
+    """Each message's stamp (s): its header's, or when it was recorded where the header's is zero; increasing."""
+    times = []
+    for _, (recorded, message) in enumerate(messages):
+        stamp = getattr(getattr(message, "header", None), "stamp", None)
+        header = 0.0 if stamp is None else stamp.sec + 1e-9 * stamp.nanosec
+        times.append(header if header > 0 else recorded * 1e-9)
+    times = np.array(times, dtype=float)
+    back = np.flatnonzero(np.diff(times) < 0)
+    if back.size:
+        k = int(back[0]) + 1
+        raise VfError(f"bag {bag}, topic {topic}: message {k} is stamped {times[k]:.6f} s, before message {k - 1} "
+                      f"({times[k - 1]:.6f} s): the stamps go back in time", span,
+                      hint="record with the sensor's own stamps, or fix the driver's clock", code="E602")
+    return times
+
+
+def _value(type_name: str, kind, message) -> np.ndarray:
+    """An input's value from its message (SI)."""
+    if type_name == "pose":
+        from scipy.spatial.transform import Rotation
+        p, o = message.pose.position, message.pose.orientation
+        return np.r_[[p.x, p.y, p.z], Rotation.from_quat([o.x, o.y, o.z, o.w]).as_euler("xyz")]
+    if type_name == "twist":
+        v, w = message.twist.linear, message.twist.angular
+        return np.array([v.x, v.y, v.z, w.x, w.y, w.z])
+    f, t = message.wrench.force, message.wrench.torque
+    parts = {"force": [f.x, f.y, f.z], "torque": [t.x, t.y, t.z], "wrench": [f.x, f.y, f.z, t.x, t.y, t.z]}
+    return np.array(parts[type_name], dtype=float)
+
+
+def _joints(bag: str, topic: str, span: Span, message, joints) -> np.ndarray:
+    """The robot's joints from a JointState, by name."""
+    names = list(message.name)
+    unknown = [n for n in names if n not in joints]
+    if unknown:
+        raise VfError(f"bag {bag}, topic {topic}, message 0 names joint '{unknown[0]}', which the robot lacks", span,
+                      hint=suggest(unknown[0], joints, "joints"), code="E602")
+    missing = [j for j in joints if j not in names]
+    if missing:
+        raise VfError(f"bag {bag}, topic {topic}, message 0 has no position of joint '{missing[0]}'", span,
+                      code="E602")
+    return np.array([message.position[names.index(j)] for j in joints], dtype=float)
+
+
+def recording_text(recording: Recording, period: float) -> str:
+    """What the heading of a run says of its recording: each input's topic, messages, rate and jitter."""
+    parts = []
+    for r in recording.inputs:
+        median, std, worst = r.jitter()
+        rate = f"{1 / median:.4g} Hz" if median > 0 else "one message"
+        parts.append(f"'{r.input}' <- {r.topic} ({len(r.times)} messages over {r.times[-1] - r.times[0]:.3g} s, "
+                     f"{rate}, period jitter {std * 1e3:.3g} ms RMS, {worst * 1e3:.3g} ms at most)")
+    text = "; ".join(parts) + f"; each tick ({period * 1e3:g} ms) reads the latest message"
+    if recording.start is not None:
+        text += f"; the start from {recording.summary['start']}"
+    return f"{Path(recording.bag).name}: {text}"
