@@ -118,6 +118,10 @@ def test_the_heading_reports_the_recording_and_its_jitter(tmp_path, capsys):
      "names joint 'shoulder', which the robot lacks"),
     ({"recording": "  bag: elsewhere\n  inputs: {tau: /ft/wrench}\n"}, "no bag at"),
     ({"recording": "  bag: lab\n  inputs: {force: /ft/wrench}\n"}, "maps 'force', which task"),
+    ({"recording": "  bag: lab\n  mode: open\n  inputs: {tau: /ft/wrench}\n"}, "the open mode replays recorded joints"),
+    ({"recording": "  bag: lab\n  mode: sideways\n  inputs: {tau: /ft/wrench}\n"}, "unknown recording mode 'sideways'"),
+    ({"recording": "  bag: lab\n  joints: /joint_states\n  inputs: {tau: /ft/wrench}\n"},
+     "recorded joints are replayed in the open mode only"),
 ])
 def test_a_bad_bag_is_refused_with_the_bag_the_topic_and_the_index(tmp_path, capsys, change, message):
     write_bag(tmp_path / "lab", **change.get("bag", {}))
@@ -126,3 +130,57 @@ def test_a_bad_bag_is_refused_with_the_bag_the_topic_and_the_index(tmp_path, cap
     assert main(["simulate", str(PAPER_B), "--scene", str(scene)]) == 2
     err = capsys.readouterr().err
     assert message in err and "run.sim.yaml:" in err and "Traceback" not in err
+
+
+def test_the_open_mode_replays_the_recorded_joints_and_records_what_the_fixture_would_command(tmp_path):
+    """A closed loop of paper B recorded as a bag (its joints at each 10 ms tick, the torque at 1 kHz), replayed open
+    loop: the trace's q is the recorded joints, and its dq what Controller.step commands there with the recorded
+    torque (a controller of the same task, stepped on the same states), to 1e-15."""
+    from rosbags.rosbag2 import StoragePlugin, Writer
+    from rosbags.typesys import Stores, get_typestore
+    from vfdsl.kinematics.robot import Robot
+    stamps, torques = write_bag(tmp_path / "torque", seconds=0.6)
+    task = vfdsl.load(PAPER_B)
+    robot = Robot.load(task.robots[0].urdf)
+    ctrl = vfdsl.compile(task)
+    q = np.array(task.start, dtype=float)
+    joints = []
+    for k in range(50):                                    # a run of the robot, recorded at its 10 ms ticks
+        t = k * 0.01
+        tau = torques[np.searchsorted(stamps, t + 1e-12, side="right") - 1]
+        joints.append(q.copy())
+        q = q + 1.3 * ctrl.step(q, {"tau": tau})          # a real robot: not exactly what was commanded
+    store = get_typestore(Stores.ROS2_HUMBLE)
+    T = store.types
+    # one bag: the torque messages again, and the joints at the ticks (stamped like the torque's first message)
+    with Writer(tmp_path / "lab", version=9, storage_plugin=StoragePlugin.MCAP) as writer:
+        from rosbags.highlevel import AnyReader
+        with AnyReader([tmp_path / "torque"]) as reader:
+            wrench = writer.add_connection("/ft/wrench", "geometry_msgs/msg/WrenchStamped", typestore=store)
+            for n, (connection, stamp, raw) in enumerate(reader.messages()):
+                if n == 0:
+                    stamp0 = reader.deserialize(raw, connection.msgtype).header.stamp     # the recording's time 0
+                writer.write(wrench, stamp, raw)
+        states = writer.add_connection("/joint_states", "sensor_msgs/msg/JointState", typestore=store)
+        for k, position in enumerate(joints):           # joint state k stamped 2 us before tick k (tick 0: at 0)
+            ns = stamp0.sec * 1_000_000_000 + stamp0.nanosec + k * 10_000_000 - 2_000 * (k > 0)
+            sec, nanosec = divmod(ns, 1_000_000_000)
+            t = ns * 1e-9
+            msg = T["sensor_msgs/msg/JointState"](header=T["std_msgs/msg/Header"](
+                stamp=T["builtin_interfaces/msg/Time"](sec=sec, nanosec=nanosec), frame_id=""),
+                name=list(robot.joint_names), position=position, velocity=np.zeros(0), effort=np.zeros(0))
+            writer.write(states, int(t * 1e9), store.serialize_cdr(msg, "sensor_msgs/msg/JointState"))
+    scene = _scene(tmp_path, "duration: 0.45 s\nrecording:\n  bag: lab\n  mode: open\n  inputs: {tau: /ft/wrench}\n"
+                             "  joints: /joint_states\n")
+    scene.write_text(scene.read_text().replace("duration: 0.8 s\n", ""))
+    out = tmp_path / "trace.csv"
+    assert main(["simulate", str(PAPER_B), "--scene", str(scene), "--trace", str(out), "--quiet"]) == 0
+    rows = list(csv.DictReader(out.open()))
+    assert len(rows) == 45
+    check = vfdsl.compile(task)
+    for k, row in enumerate(rows):
+        q_row = np.array([float(row[c]) for c in row if c.startswith("q.")])
+        tau = np.array([float(row[f"input.tau.{a}_Nm"]) for a in ("tx", "ty", "tz")])
+        assert np.array_equal(q_row, joints[k])
+        dq = check.step(q_row, {"tau": tau})
+        assert np.allclose([float(row[c]) for c in row if c.startswith("dq.")], dq, rtol=0, atol=1e-15)

@@ -241,7 +241,7 @@ def _write(name: str, write) -> None:
 
 def _heading(name: str, s, doc: dict, trials: int, seconds: float, simulated: float | None) -> str:
     hand = doc["hand"]
-    if hand is None and s.recording is not None and s.recording.inputs:
+    if hand is None and s.recording is not None and (s.recording.inputs or s.recording.joints is not None):
         hand_text = "recorded inputs: " + recording_text(s.recording, s.period)
     elif hand is None:
         if s.operator is not None:

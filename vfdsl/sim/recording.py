@@ -6,12 +6,16 @@ ROS 1 bag, read without ROS by ``rosbags``.
       inputs:                        # task input: topic
         tau: /ft_sensor/wrench       # geometry_msgs/msg/WrenchStamped (a force takes its force, a torque its torque)
       start: /joint_states           # optional: the robot starts at the first sensor_msgs/msg/JointState, by joint name
+      mode: closed                   # closed (default): the recorded inputs drive the simulated robot from the start;
+      joints: /joint_states          # open: the recorded joints, and what the fixture would have commanded at each
 
 Each mapped topic's messages are read once, when the scene is read, each stamped by its header (or, with a zero
 header stamp, by when it was recorded); time 0 is the earliest stamp of the mapped topics. At tick k (t = k x the
 task's period) an input is the latest message stamped at or before t, as a controller reads the newest sample of a
 sensor (a zero-order hold; before the first message, zero); after the last message it holds that one. The inputs are
-in SI as ROS's messages are (N, N m, m/s, rad/s, m and a quaternion for a pose).
+in SI as ROS's messages are (N, N m, m/s, rad/s, m and a quaternion for a pose). In the open mode the robot is where
+the recorded joints say at each tick (the same hold), the controller is stepped there with the recorded inputs, and
+its dq is recorded, not applied: what the fixture would have commanded, and the rows it would have found violated.
 
 Refused, each with the bag, the topic and the message's index: a topic the bag lacks (its topics listed), a message
 type the input cannot take, stamps that go back in time, a JointState naming a joint the robot lacks or missing one
@@ -29,7 +33,8 @@ import yaml
 from vfdsl.errors import Span, VfError, suggest
 from vfdsl.inputs import INPUT_TYPES
 
-RECORDING_KEYS = ("bag", "inputs", "start")
+RECORDING_KEYS = ("bag", "mode", "inputs", "start", "joints")
+MODES = ("closed", "open")
 MESSAGE_TYPES = {"force": "geometry_msgs/msg/WrenchStamped", "torque": "geometry_msgs/msg/WrenchStamped",
                  "wrench": "geometry_msgs/msg/WrenchStamped", "twist": "geometry_msgs/msg/TwistStamped",
                  "pose": "geometry_msgs/msg/PoseStamped"}
@@ -66,6 +71,8 @@ class Recording:
     start: np.ndarray | None = None
     where: Span | None = None
     summary: dict = field(default_factory=dict)
+    mode: str = "closed"
+    joints: RecordedInput | None = None      # the open mode's recorded joints (the robot's joint order)
 
 
 def read_recording(reader, node: yaml.Node) -> Recording:
@@ -97,13 +104,27 @@ def read_recording(reader, node: yaml.Node) -> Recording:
                               code="E602")
             mapping[key] = (reader.text(value, "a topic"), reader.pos(value))
     start = (reader.text(fields["start"][1], "a topic"), reader.pos(fields["start"][1])) if "start" in fields else None
-    if not mapping and start is None:
+    mode = reader.text(fields["mode"][1], "mode") if "mode" in fields else "closed"
+    if mode not in MODES:
+        raise VfError(f"unknown recording mode '{mode}'", reader.pos(fields["mode"][1]),
+                      hint="closed: the recorded inputs drive the simulated robot; open: the recorded joints, and what "
+                           "the fixture would have commanded there", code="E602")
+    joints = (reader.text(fields["joints"][1], "a topic"), reader.pos(fields["joints"][1])) if "joints" in fields \
+        else None
+    if mode == "open" and start is not None:
+        raise VfError("the open mode starts where the recorded joints do: drop `start`", reader.pos(fields["start"][0]),
+                      code="E602")
+    if (mode == "open") != (joints is not None):
+        raise VfError("the open mode replays recorded joints: give `joints: TOPIC` (a JointState topic)" if joints is None
+                      else "recorded joints are replayed in the open mode only: add `mode: open`",
+                      reader.pos(node), code="E602")
+    if not mapping and start is None and joints is None:
         raise VfError("the recording maps no input and no start", reader.pos(node), code="E602")
-    return load(bag, reader.task, mapping, start, reader.pos(node))
+    return load(bag, reader.task, mapping, start or joints, reader.pos(node), mode, joints)
 
 
 def load(bag: Path, task, mapping: dict[str, tuple[str, Span]], start: tuple[str, Span] | None,
-         where: Span | None) -> Recording:
+         where: Span | None, mode: str = "closed", joints: tuple[str, Span] | None = None) -> Recording:
     """Read every mapped topic of ``bag`` (module docstring); VfError at the scene's line of the mapping."""
     from rosbags.highlevel import AnyReader
     from vfdsl.kinematics.robot import Robot
@@ -143,16 +164,20 @@ def load(bag: Path, task, mapping: dict[str, tuple[str, Span]], start: tuple[str
         kind = INPUT_TYPES[task.input(name).type]
         values = np.array([_value(task.input(name).type, kind, m) for _, m in messages]).reshape(len(messages), -1)
         inputs.append(RecordedInput(name, wanted[name], times - origin, values))
-    q0 = None
+    q0, replayed = None, None
     if start is not None:
-        span, _, messages = stamped["(start)"]
+        span, times, messages = stamped["(start)"]
         if not messages:
             raise VfError(f"bag {bag.name}, topic {start[0]}: no message", span, code="E602")
         robot = Robot.load(task.robots[0].urdf)
         q0 = _joints(bag.name, start[0], span, messages[0][1], robot.joint_names)
-    summary = {"bag": str(bag), "inputs": {r.input: r.topic for r in inputs}, "start": None if start is None else
-               start[0]}
-    return Recording(str(bag), tuple(inputs), q0, where, summary)
+        if joints is not None:
+            q = np.array([_joints(bag.name, start[0], span, m, robot.joint_names, k) for k, (_, m) in
+                          enumerate(messages)])
+            replayed = RecordedInput("(joints)", joints[0], times - origin, q)
+    summary = {"bag": str(bag), "mode": mode, "inputs": {r.input: r.topic for r in inputs},
+               "start": None if start is None else start[0]}
+    return Recording(str(bag), tuple(inputs), q0, where, summary, mode, replayed)
 
 
 def _stamps(bag: str, topic: str, span: Span, messages: list) -> np.ndarray:
@@ -186,17 +211,17 @@ def _value(type_name: str, kind, message) -> np.ndarray:
     return np.array(parts[type_name], dtype=float)
 
 
-def _joints(bag: str, topic: str, span: Span, message, joints) -> np.ndarray:
-    """The robot's joints from a JointState, by name."""
+def _joints(bag: str, topic: str, span: Span, message, joints, index: int = 0) -> np.ndarray:
+    """The robot's joints from a JointState (message ``index`` of its topic), by name."""
     names = list(message.name)
     unknown = [n for n in names if n not in joints]
     if unknown:
-        raise VfError(f"bag {bag}, topic {topic}, message 0 names joint '{unknown[0]}', which the robot lacks", span,
-                      hint=suggest(unknown[0], joints, "joints"), code="E602")
+        raise VfError(f"bag {bag}, topic {topic}, message {index} names joint '{unknown[0]}', which the robot lacks",
+                      span, hint=suggest(unknown[0], joints, "joints"), code="E602")
     missing = [j for j in joints if j not in names]
-    if missing:
-        raise VfError(f"bag {bag}, topic {topic}, message 0 has no position of joint '{missing[0]}'", span,
-                      code="E602")
+    if missing or len(message.position) != len(names):
+        raise VfError(f"bag {bag}, topic {topic}, message {index} has no position of joint "
+                      f"'{missing[0] if missing else names[len(message.position)]}'", span, code="E602")
     return np.array([message.position[names.index(j)] for j in joints], dtype=float)
 
 
@@ -209,6 +234,9 @@ def recording_text(recording: Recording, period: float) -> str:
         parts.append(f"'{r.input}' <- {r.topic} ({len(r.times)} messages over {r.times[-1] - r.times[0]:.3g} s, "
                      f"{rate}, period jitter {std * 1e3:.3g} ms RMS, {worst * 1e3:.3g} ms at most)")
     text = "; ".join(parts) + f"; each tick ({period * 1e3:g} ms) reads the latest message"
-    if recording.start is not None:
+    if recording.joints is not None:
+        text += (f"; open loop: the joints from {recording.joints.topic} ({len(recording.joints.times)} messages), the "
+                 "controller's dq recorded, not applied")
+    elif recording.start is not None:
         text += f"; the start from {recording.summary['start']}"
     return f"{Path(recording.bag).name}: {text}"

@@ -151,6 +151,7 @@ def simulate_with(job: Job, task: ir.Task, ctrl: vfdsl.Controller, robot: Robot,
     script = ScriptedInputs(s, task, scene, dt, ticks, sensor_rng) if scripted else None
     phases = PhaseRecord(task, ticks) if task.phases else None
     teleop = TeleopRecord(ticks) if is_teleoperated(task) else None
+    replayed = s.recording.joints if s.recording is not None else None     # the open mode: the recorded joints
     inputs = {i.name: np.zeros(i.size) for i in task.inputs}
     events = sorted(s.disturbances, key=lambda d: d.at)
     segments = [(0, dict(scene.values))]
@@ -174,7 +175,7 @@ def simulate_with(job: Job, task: ir.Task, ctrl: vfdsl.Controller, robot: Robot,
             segments.append((k, dict(scene.values)))
         if moving.tables:
             moving.update(k, scene, params)
-        q = sim.read()
+        q = sim.read() if replayed is None else replayed.at(max(t, replayed.times[0]))
         qs[k] = q
         if script is not None:
             for value in inputs.values():
@@ -197,8 +198,9 @@ def simulate_with(job: Job, task: ir.Task, ctrl: vfdsl.Controller, robot: Robot,
             phases.tick(k, ctrl, dt)
         if teleop is not None:
             teleop.tick(k, ctrl)
-        sim.command(t, dq)
-        sim.advance(t, t + dt)
+        if replayed is None:
+            sim.command(t, dq)
+            sim.advance(t, t + dt)
         if progress is not None and (k + 1) % PROGRESS_EVERY == 0:
             progress(SIMULATED * PROGRESS_EVERY)
     if progress is not None:

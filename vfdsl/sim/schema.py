@@ -49,7 +49,10 @@ _TOP = {
 }
 _RECORDING = {"bag": (NAME, "the bag, relative to the scene file"),
               "inputs": ({"type": "object", "additionalProperties": NAME}, "task input: topic"),
-              "start": (NAME, "a sensor_msgs/msg/JointState topic: the robot starts at its first message")}
+              "start": (NAME, "a sensor_msgs/msg/JointState topic: the robot starts at its first message"),
+              "mode": ({"enum": ["closed", "open"]}, "closed (default): the recorded inputs drive the simulated "
+                       "robot; open: the recorded joints, the fixture's dq recorded, not applied"),
+              "joints": (NAME, "the open mode's sensor_msgs/msg/JointState topic")}
 _OPERATOR = {"input": (NAME, "the task's pose input the operator moves"),
              "path": (None, "waypoints {at, position, rpy}, times increasing")}
 _WAYPOINT = {"at": (QUANTITY, "the waypoint's time"), "position": (VECTOR, "the master's position (lengths)"),
