@@ -110,3 +110,36 @@ def test_several_trials_go_under_their_own_namespace(tmp_path):
     found = _messages(_run(tmp_path, TASKS_DIR / "paper_b_virtual_rcm.vf", ".mcap", "--trials", "2"))
     assert {"/trial_0/joint_states", "/trial_1/joint_states"} <= set(found)
     assert "/joint_states" not in found
+
+
+def test_view_replays_an_mcap_trace_as_it_replays_the_csv(paper_b):
+    """vfdsl view --replay run.mcap reads the same times, joints, status and error as from the run's CSV trace."""
+    import vfdsl
+    from vfdsl.kinematics.robot import Robot
+    from vfdsl.view import replay
+    task = vfdsl.load(TASKS_DIR / "paper_b_virtual_rcm.vf")
+    joints = Robot.load(task.robots[0].urdf).joint_names
+    from_mcap = replay.read(paper_b[0], joints, task.scene.period)
+    from_csv = replay.read(paper_b[1], joints, task.scene.period)
+    assert np.allclose(from_mcap.t, from_csv.t, atol=1e-9)
+    assert np.array_equal(from_mcap.q, from_csv.q)
+    assert np.array_equal(from_mcap.status, from_csv.status)
+    assert from_mcap.error_name == from_csv.error_name
+    assert np.allclose(from_mcap.error, from_csv.error, equal_nan=True, rtol=0, atol=0)
+
+
+def test_view_replays_one_trial_of_several_and_refuses_what_is_not_a_trace(tmp_path):
+    import vfdsl
+    from vfdsl.errors import VfError
+    from vfdsl.kinematics.robot import Robot
+    from vfdsl.view import replay
+    task = vfdsl.load(TASKS_DIR / "paper_b_virtual_rcm.vf")
+    joints = Robot.load(task.robots[0].urdf).joint_names
+    run = _run(tmp_path, TASKS_DIR / "paper_b_virtual_rcm.vf", ".mcap", "--trials", "2")
+    assert replay.read(run, joints, trial="1").trial == "1"
+    with pytest.raises(VfError, match="no trial 7"):
+        replay.read(run, joints, trial="7")
+    junk = tmp_path / "junk.mcap"
+    junk.write_bytes(b"not an mcap file at all")
+    with pytest.raises(VfError, match="not a readable MCAP trace"):
+        replay.read(junk, joints)

@@ -22,6 +22,7 @@ examples:
   vfdsl view tasks/paper_b_virtual_rcm.vf                      open the viewer (Ctrl-C stops it)
   vfdsl view tasks/paper_a_follow_curve.vf --port 8090 --no-browser
   vfdsl view tasks/paper_a_follow_curve.vf --replay run.csv    play a per-tick trace with a time slider
+  vfdsl view tasks/paper_a_follow_curve.vf --replay run.mcap   the same from an MCAP trace (simulate --trace run.mcap)
   vfdsl view tasks/paper_b_virtual_rcm.vf --screenshot b.png   a picture (headless Chromium), then exit
 
 The scene is in metres, to scale: the robot at the scene's start configuration, each task frame with its
@@ -43,7 +44,8 @@ def add_parser(commands) -> None:
     view.add_argument("--port", type=int, default=0,
                       help="port to listen on, 0 to 65535 (default 0: a free port)")
     view.add_argument("--no-browser", action="store_true", help="do not open a browser")
-    view.add_argument("--replay", metavar="FILE", help="play a per-tick trace (CSV; see docs/view.md)")
+    view.add_argument("--replay", metavar="FILE", help="play a per-tick trace (CSV, or the MCAP of vfdsl simulate "
+                      "--trace run.mcap; see docs/view.md)")
     view.add_argument("--trial", help="with --replay: the trial to play (default: the first)")
     view.add_argument("--screenshot", metavar="PNG", help="save a picture of the page (headless Chromium) and exit")
     view.add_argument("--size", help=f"--screenshot: picture size in pixels, at most {limits.PICTURE_SIDE} a side "

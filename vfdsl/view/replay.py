@@ -1,4 +1,5 @@
-"""Reading a per-tick trace (CSV) for ``vfdsl view TASK --replay FILE``.
+"""Reading a per-tick trace (CSV, or the MCAP of ``vfdsl simulate --trace run.mcap``: :func:`read_mcap`) for
+``vfdsl view TASK --replay FILE``.
 
 Accepted format: a CSV file with a header row, one row per tick (extra columns are ignored):
 
@@ -28,6 +29,7 @@ from __future__ import annotations
 
 import csv
 import math
+import os
 import re
 from array import array
 from dataclasses import dataclass, field
@@ -112,6 +114,8 @@ def read(path: str | Path, joint_names: list[str], period: float | None = None, 
     the run-time params to read (name -> number of values). The file is read row by row, keeping only the
     numbers of the columns used."""
     path = Path(path)
+    if path.suffix.lower() == ".mcap":
+        return read_mcap(path, joint_names, trial)
     if path.suffix.lower() == ".parquet":
         raise VfError(f"{path}: a trace to replay is a CSV file, not Parquet",
                       hint="write the run's trace as CSV: vfdsl simulate TASK --trace run.csv")
@@ -127,6 +131,61 @@ def read(path: str | Path, joint_names: list[str], period: float | None = None, 
                       hint="a trace is a CSV file with a header row and one row per tick") from None
     except OSError as err:
         raise VfError(f"cannot read the trace {path}: {err.strerror or err}") from None
+
+
+def read_mcap(path: Path, joint_names: list[str], trial: str | None = None) -> Trace:
+    """An MCAP trace as ``vfdsl simulate --trace run.mcap`` writes it (vfdsl.sim.mcap_trace): the joints from
+    /joint_states (by name), the status, the first metric whose name holds ``error``, a procedure's phase; a run of
+    several trials keeps trial ``trial`` (its /trial_<k> topics; default the first). Messages are matched by stamp."""
+    from rosbags.highlevel import AnyReader
+    os.close(open_file(path, "trace", limit=limits.TRACE_BYTES))        # a regular file within the size limit
+    try:
+        reader = AnyReader([path])
+        reader.open()
+    except Exception as exc:                     # rosbags' errors: not an MCAP file, a damaged one
+        raise VfError(f"{path}: not a readable MCAP trace ({exc})",
+                      hint="write one with vfdsl simulate TASK --trace run.mcap") from None
+    try:
+        topics = {c.topic: c for c in reader.connections}
+        prefixes = sorted({t[:-len("/joint_states")] for t in topics if t.endswith("/joint_states")})
+        if not prefixes:
+            raise VfError(f"{path}: no /joint_states topic: not a trace vfdsl simulate wrote",
+                          hint="its topics: " + ", ".join(sorted(topics)))
+        prefix = prefixes[0] if trial is None else f"/trial_{trial}"
+        if prefix not in prefixes:
+            raise VfError(f"{path}: no trial {trial}", hint="its trials: " + ", ".join(p[len('/trial_'):] for p in prefixes))
+
+        def read(topic):
+            connection = topics.get(prefix + topic)
+            if connection is None:
+                return {}
+            return {stamp: reader.deserialize(raw, connection.msgtype)
+                    for _, stamp, raw in reader.messages(connections=[connection])}
+        states = read("/joint_states")
+        stamps = np.array(sorted(states))
+        first = states[stamps[0]]
+        missing = [j for j in joint_names if j not in list(first.name)]
+        if missing:
+            raise VfError(f"{path}: its joint states have no joint '{missing[0]}' of the task's robot")
+        order = [list(first.name).index(j) for j in joint_names]
+        q = np.array([np.asarray(states[s].position, dtype=float)[order] for s in stamps])
+        status = read("/vfdsl/status")
+        metrics = sorted(t[len(prefix) + len("/vfdsl/metric/"):] for t in topics
+                         if t.startswith(prefix + "/vfdsl/metric/") and "error" in t)
+        error = read(f"/vfdsl/metric/{metrics[0]}") if metrics else {}
+        phase = read("/vfdsl/phase")
+    finally:
+        reader.close()
+
+    def column(messages, value, missing):
+        return np.array([value(messages[s]) if s in messages else missing for s in stamps])
+    return Trace(t=(stamps - stamps[0]) * 1e-9, q=q,
+                 error=column(error, lambda m: m.data, math.nan) if error else None,
+                 error_name=f"metric.{metrics[0]}" if metrics else None,
+                 status=column(status, lambda m: float(m.data), math.nan) if status else None,
+                 trial=None if trial is None and len(prefixes) == 1 else prefix[len("/trial_"):],
+                 columns=tuple(sorted(topics)),
+                 phase=column(phase, lambda m: m.data, "") if phase else None)
 
 
 def _parse(path: Path, reader, joint_names: list[str], period: float | None, trial: str | None,
