@@ -143,3 +143,17 @@ def test_view_replays_one_trial_of_several_and_refuses_what_is_not_a_trace(tmp_p
     junk.write_bytes(b"not an mcap file at all")
     with pytest.raises(VfError, match="not a readable MCAP trace"):
         replay.read(junk, joints)
+
+
+def test_the_params_a_motion_moves_are_written_each_tick(tmp_path):
+    """breathing_vessel's vessel curve breathes (a motion): /vfdsl/param/vessel carries its points at each tick, equal
+    to the CSV trace's param columns."""
+    task = TASKS_DIR / "breathing_vessel.vf"
+    found = _messages(_run(tmp_path, task, ".mcap", "--trials", "1"))
+    rows = list(csv.DictReader(_run(tmp_path, task, ".csv", "--trials", "1").open()))
+    columns = [c for c in rows[0] if c.startswith("param.vessel.")]
+    messages = found["/vfdsl/param/vessel"]
+    assert messages[0][2] == "std_msgs/msg/Float64MultiArray" and len(messages) == len(rows)
+    values = np.array([m.data for _, m, _ in messages])
+    assert np.array_equal(values, [[float(row[c]) for c in columns] for row in rows])
+    assert np.ptp(values, axis=0).max() > 1e-5                 # it moved

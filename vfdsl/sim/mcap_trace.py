@@ -14,6 +14,8 @@ Topics (one message per tick on each, stamped with the tick's time t = k * perio
     /vfdsl/violations              std_msgs/msg/String: what the step left violated (empty when nothing)
     /vfdsl/metric/<name>           std_msgs/msg/Float64: each metric in SI (the trace's metric.<name> columns),
                                    skipped at ticks where it has no value
+    /vfdsl/param/<param>           std_msgs/msg/Float64MultiArray: each run-time param as the controller had it, its
+                                   flat value in SI (the trace's param.<param>. columns, in their order)
     /vfdsl/phase                   std_msgs/msg/String: a procedure's phase
     /vfdsl/haptic                  geometry_msgs/msg/WrenchStamped: a teleoperated run's haptic force (master base)
 
@@ -104,6 +106,9 @@ def _trial(ch: _Channels, trace: dict, task: ir.Task, robot: Robot, offsets: dic
     inputs = {i.name: np.column_stack([trace[f"input.{i.name}.{part}"] for part in INPUT_TYPES[i.type].columns])
               for i in task.inputs if f"input.{i.name}.{INPUT_TYPES[i.type].columns[0]}" in trace}
     metrics = {c[len("metric."):]: np.asarray(trace[c], dtype=float) for c in trace if c.startswith("metric.")}
+    params = {d.name: np.column_stack([trace[c] for c in tr.param_columns(d)]) for d in tr.runtime_params(task)
+              if tr.param_columns(d)[0] in trace}
+    layout = T["std_msgs/msg/MultiArrayLayout"](dim=[], data_offset=0)
     haptic = (np.column_stack([trace[f"haptic_{a}_N"] for a in "xyz"]) if "haptic_x_N" in trace else None)
     for k, t in enumerate(times):
         ns = int(round(t * 1e9))
@@ -128,6 +133,9 @@ def _trial(ch: _Channels, trace: dict, task: ir.Task, robot: Robot, offsets: dic
             if np.isfinite(values[k]):
                 ch.write(f"{prefix}/vfdsl/metric/{name}", "std_msgs/msg/Float64",
                          T["std_msgs/msg/Float64"](data=float(values[k])), ns)
+        for name, values in params.items():
+            ch.write(f"{prefix}/vfdsl/param/{name}", "std_msgs/msg/Float64MultiArray",
+                     T["std_msgs/msg/Float64MultiArray"](layout=layout, data=values[k].astype(float)), ns)
         if "phase" in trace:
             ch.write(f"{prefix}/vfdsl/phase", "std_msgs/msg/String", T["std_msgs/msg/String"](data=str(trace["phase"][k])),
                      ns)
