@@ -189,8 +189,8 @@ def metadata(task: ir.Task, problem: AssembledProblem, values: RuntimeValues, di
     types = {d.name: d.type for d in task.inputs}
     runtime = [s.name for s in ctx.layout.slots.values() if s.size]     # the run-time params, in param_layout's order
     procedure = {} if not task.phases else {"procedure": _procedure_metadata(task, problem)}
-    teleop = {} if not teleop_terms(task) else {"teleop": {"terms": len(teleop_terms(task)),
-                                                           "frame": teleop_terms(task)[0].args["frame"].name}}
+    terms = teleop_terms(task)
+    teleop = {} if not terms else {"teleop": {"terms": len(terms), "frame": terms[0].args["frame"].name}}
     return {**procedure, **teleop,
         "task": task.name,
         "file": task.file,

@@ -27,6 +27,7 @@ from vfdsl.check.report import Finding, Severity
 from vfdsl.compiler.geometry import rotation
 from vfdsl.ir import model as ir
 from vfdsl.objectives.haptics import teleop_terms
+from vfdsl.sim.geometry import Scene
 
 WORKSPACE_SECONDS = 1.0
 SHORTFALL = 1e-3                 # m: a goal this far out of the frame's reach is stopped by something
@@ -35,12 +36,8 @@ WORKSPACE_DIRECTIONS = [np.array(d, dtype=float) / np.linalg.norm(d)
 
 
 def _value(task: ir.Task, arg: ir.Arg) -> float | None:
-    """A scalar argument's value (a literal, or a param's default); None for anything run-time only."""
-    if isinstance(arg, ir.Const) and isinstance(arg.value, ir.ScalarValue):
-        return arg.value.value
-    if isinstance(arg, ir.ParamRef) and isinstance(task.param(arg.name).value, ir.ScalarValue):
-        return task.param(arg.name).value.value
-    return None
+    """A scalar argument's value (a literal, or a param's default: the scene's reading); None for a capture."""
+    return None if isinstance(arg, ir.CaptureRef) else Scene(task).value(arg).value
 
 
 def passivity(task: ir.Task, period: float) -> list[Finding]:
@@ -102,9 +99,7 @@ def workspace(controller, task: ir.Task, period: float, figures: dict) -> list[F
         reach, scale = _value(task, o.args["master_reach"]), _value(task, o.args["scale"])
         if not reach or scale is None:
             continue
-        camera = o.args["camera"]
-        value = camera.value if isinstance(camera, ir.Const) else task.param(camera.name).value
-        R_c = rotation(value.rpy)
+        R_c = rotation(Scene(task).value(o.args["camera"]).rpy)
         worst = (0.0, None, 0.0)
         ticks = max(1, math.ceil(WORKSPACE_SECONDS / period))
         for d in WORKSPACE_DIRECTIONS:

@@ -68,12 +68,16 @@ class RowLabel:
     phase: str | None = None         # a procedure's phase (None: held in every phase)
 
     def __str__(self) -> str:
+        return self.text(facet=True)
+
+    def text(self, facet: bool = True) -> str:
+        """``soft stays_at(tip) facet 3/6 in phase p [file:line via ...]``; without ``facet``, the constraint alone."""
         on = f"({self.frame})" if self.frame else ""
         kind = "soft " if self.soft else ""
         where = f"{self.span.file}:{self.span.line}"
         through = "".join(f" via {s.file}:{s.line}" for s in self.via)
         phase = f" in phase {self.phase}" if self.phase else ""
-        return f"{kind}{self.primitive}{on} {self.facet}{phase} [{where}{through}]"
+        return f"{kind}{self.primitive}{on}{' ' + self.facet if facet else ''}{phase} [{where}{through}]"
 
 
 @dataclass

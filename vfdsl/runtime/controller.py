@@ -10,6 +10,7 @@ anything is evaluated: an unknown name, a wrong length, NaN or inf raises :class
 
 from __future__ import annotations
 
+import threading
 from dataclasses import dataclass, field
 from functools import cached_property
 
@@ -95,6 +96,7 @@ class Controller:
         self._procedure = procedure
         self._teleoperation = teleoperation
         self._teleop: TeleopOutput | None = None
+        self._teleop_lock = threading.Lock()
         self._solve = runner.fast_step or self._solve
         if runner.fast_step is not None and teleoperation is None:  # the generated path: step is the task's C method
             self.step = runner.fast_step    # itself (the same checks, plain values in C, the rest by checked_step)
@@ -123,10 +125,12 @@ class Controller:
 
         A task with a `teleop` term also reads out the haptic force, the set-point, following or not and the
         constraints that acted (:attr:`teleop`)."""
-        dq = self._solve(q, inputs, params, dt)
-        if self._teleoperation is not None:        # on the arguments the tick just used, as its buffers hold them
-            self._teleop = self._teleoperation.update(self._runner.data(), self._runner.x)
-        return dq
+        if self._teleoperation is None:
+            return self._solve(q, inputs, params, dt)
+        with self._teleop_lock:     # the solve and its readout as one call: a second thread's tick waits between them
+            dq = self._solve(q, inputs, params, dt)
+            self._teleop = self._teleoperation.update(self._runner.data(), self._runner.x)   # this tick's buffers
+            return dq
 
     def _solve(self, q, inputs=None, params=None, dt=None) -> np.ndarray:
         """The tick without the teleoperation readout (the generated path replaces it by the C method)."""

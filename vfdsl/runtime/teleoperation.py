@@ -39,7 +39,7 @@ class Teleoperation:
 
     def __init__(self, function, labels: list[RowLabel]):
         self._function = function
-        self._names = np.array([_fixture(label) for label in labels], dtype=object)
+        self._names = np.array([label.text(facet=False) for label in labels], dtype=object)
         *self._arguments, self._x, self._state = function.inputs
         self._outputs = dict(zip(READOUT, function.outputs))
 
@@ -59,9 +59,3 @@ class Teleoperation:
         """Back to the first tick's state (no previous depth or force)."""
         self._state[...] = 0.0
 
-
-def _fixture(label: RowLabel) -> str:
-    """A row's constraint, without its facet: 'above(tip) [task.vf:13]'."""
-    on = f"({label.frame})" if label.frame else ""
-    phase = f" in phase {label.phase}" if label.phase else ""
-    return f"{'soft ' if label.soft else ''}{label.primitive}{on}{phase} [{label.span.file}:{label.span.line}]"
