@@ -16,6 +16,7 @@ from conftest import TASKS_DIR
 
 import vfdsl
 from vfdsl.check import check, polytope
+from vfdsl.compiler.polytope import directions, geometry
 from vfdsl.check.report import CODES, Severity
 from vfdsl.compiler.geometry import sphere_directions
 from vfdsl.runtime.qp import StepStatus
@@ -97,30 +98,30 @@ def _brute_force_circumradius(U: np.ndarray) -> float:
 
 @pytest.mark.parametrize("resolution", [(3, 3), (4, 4), (5, 5), (6, 6), (8, 8), (4, 8), (8, 4), (3, 7)])
 def test_sphere_circumradius_matches_vertex_enumeration(resolution):
-    g = polytope.geometry("sphere", resolution)
+    g = geometry("sphere", resolution)
     assert g.bounded
     assert g.unique == len(sphere_directions(*resolution))
     assert g.circumradius == pytest.approx(_brute_force_circumradius(sphere_directions(*resolution)), rel=1e-9)
 
 
 def test_paper_4x4_is_a_cube():
-    g = polytope.geometry("sphere", (4, 4))
+    g = geometry("sphere", (4, 4))
     assert (g.listed, g.unique) == (16, 6)
     assert g.circumradius == pytest.approx(math.sqrt(3))
 
 
 @pytest.mark.parametrize("n", [3, 4, 5, 8, 13])
 def test_polygon_circumradius_is_one_over_cos_pi_over_n(n):
-    assert polytope.geometry("polygon", (n,)).circumradius == pytest.approx(1 / math.cos(math.pi / n))
+    assert geometry("polygon", (n,)).circumradius == pytest.approx(1 / math.cos(math.pi / n))
 
 
 @pytest.mark.parametrize("shape, resolution", [("sphere", (2, 2)), ("sphere", (2, 6)), ("sphere", (6, 2)),
                                                ("polygon", (2,)), ("polygon", (1,))])
 def test_flat_or_two_sided_polytopes_are_unbounded(shape, resolution):
-    g = polytope.geometry(shape, resolution)
+    g = geometry(shape, resolution)
     assert not g.bounded and g.circumradius == math.inf
     # independent: some direction w has u . w <= 0 for every facet, so t w is admitted for every t
-    U = polytope.directions(shape, resolution)
+    U = directions(shape, resolution)
     rng = np.random.default_rng(0)
     W = rng.normal(size=(20000, U.shape[1]))
     W = np.vstack([W, np.eye(U.shape[1]), -np.eye(U.shape[1])])
@@ -134,9 +135,9 @@ def test_smallest_resolution_meets_the_overshoot_and_nothing_smaller_does(oversh
     for n in range(3, polytope.SEARCH_LIMIT + 1):
         for m in range(3, polytope.SEARCH_LIMIT + 1):
             if len(sphere_directions(n, m)) < best.unique:
-                assert polytope.geometry("sphere", (n, m)).overshoot > overshoot
+                assert geometry("sphere", (n, m)).overshoot > overshoot
     polygon = polytope.smallest_resolution("polygon", overshoot)
-    assert polygon.overshoot <= overshoot < polytope.geometry("polygon", (polygon.resolution[0] - 1,)).overshoot
+    assert polygon.overshoot <= overshoot < geometry("polygon", (polygon.resolution[0] - 1,)).overshoot
 
 
 def test_circumradius_is_reached_by_the_compiled_rows(tmp_path):
@@ -154,7 +155,7 @@ def test_circumradius_is_reached_by_the_compiled_rows(tmp_path):
         dq = np.linalg.lstsq(J, v - (p - [0, 0, 0.29]), rcond=None)[0]
         A = qp.A[rows, :ctrl.nq]
         assert np.all(A @ dq >= qp.lb[rows] - 1e-12)               # admitted by every facet
-        assert np.linalg.norm(v) == pytest.approx(polytope.geometry("sphere", (4, 4)).circumradius * eps)
+        assert np.linalg.norm(v) == pytest.approx(geometry("sphere", (4, 4)).circumradius * eps)
 
 
 def test_unbounded_polytope_is_an_error(tmp_path):
@@ -186,7 +187,7 @@ def test_bounds_table_in_task_units(tmp_path):
     report = check(probe(tmp_path, text), backend="interpreted")
     [bound] = report.bounds
     assert (bound.resolution, bound.facets) == ("8x8", 26)
-    assert bound.worst == pytest.approx(0.0345 * polytope.geometry("sphere", (8, 8)).circumradius)
+    assert bound.worst == pytest.approx(0.0345 * geometry("sphere", (8, 8)).circumradius)
     assert "34.5 mm" in report.render_text() and "39.98 mm" in report.render_text()
 
 

@@ -119,7 +119,7 @@ def test_view_draws_the_mesh_in_its_registration():
     """`vfdsl view` draws a mesh fixture as the mesh in the world (moved by its pose param) and the clearance
     capsule around the tool (tests/test_view.py checks the tool's shapes)."""
     from vfdsl.sim.geometry import Scene
-    from vfdsl.view import shapes
+    from vfdsl.sim import shapes
     from vfdsl.mesh.load import read_mesh
 
     task = vfdsl.load(Path(__file__).resolve().parent.parent / "tasks" / "bone_nerve.vf")

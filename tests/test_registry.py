@@ -14,7 +14,7 @@ import pytest
 from vfdsl.primitives import CONSTRAINTS
 from vfdsl.primitives.spec import ConstraintSpec
 from vfdsl.sim import metrics
-from vfdsl.view import shapes
+from vfdsl.sim import shapes
 
 JOINT_METRICS = ("length", "speed")      # a joint primitive's metric on prismatic joints (revolute: angular)
 
@@ -32,7 +32,7 @@ def missing(name: str, spec: ConstraintSpec) -> list[str]:
     if spec.metric not in (JOINT_METRICS if not spec.subject else metrics.DISPLAY):
         gaps.append(f"simulate: metric {spec.metric!r} is not a dimension simulate displays")
     if (name in shapes.DRAWINGS) == (name in shapes.NO_GEOMETRY):
-        gaps.append("view: neither a drawing in vfdsl.view.shapes.DRAWINGS nor in NO_GEOMETRY")
+        gaps.append("view: neither a drawing in vfdsl.sim.shapes.DRAWINGS nor in NO_GEOMETRY")
     if spec.tolerance is None and spec.row_unit is None:
         gaps.append("run time: no row_unit for rows without a tolerance")
     arg_names = {a.name for a in spec.args}

@@ -29,7 +29,8 @@ import pytest
 import vfdsl
 from vfdsl.errors import VfError
 from vfdsl.sim.geometry import Scene
-from vfdsl.view import replay, shapes
+from vfdsl.sim import shapes
+from vfdsl.view import replay
 from vfdsl.view.browser import Browser, find_chromium
 from vfdsl.view.command import STATE_PREFIX
 from vfdsl.view.options import free_port

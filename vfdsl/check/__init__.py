@@ -159,7 +159,7 @@ def _check_magnitudes(rows) -> None:
     constraint's line."""
     import numpy as np
 
-    from vfdsl.check.linearized import describe
+    from vfdsl.ir.constraints import describe
     from vfdsl.errors import VfError
     from vfdsl import limits
 

@@ -9,7 +9,8 @@ dropped when the rest stays infeasible; what remains conflicts, and removing any
 
 from __future__ import annotations
 
-from vfdsl.check.linearized import ConstraintRows, describe, subject, where
+from vfdsl.check.linearized import ConstraintRows
+from vfdsl.ir.constraints import describe, subject, where
 from vfdsl.check.lp import LinearSystem
 from vfdsl.check.report import Finding, Severity
 

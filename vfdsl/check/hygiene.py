@@ -23,7 +23,8 @@ import itertools
 
 import numpy as np
 
-from vfdsl.check.linearized import ConstraintRows, describe, subject, where
+from vfdsl.check.linearized import ConstraintRows
+from vfdsl.ir.constraints import describe, subject, where
 from vfdsl.check.lp import FEASIBLE, LinearSystem
 from vfdsl.check.report import Finding, Severity
 from vfdsl.compiler import derived

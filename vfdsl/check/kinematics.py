@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from vfdsl.check.polytope import stated_size
+from vfdsl.primitives.bounds import stated_size
 from vfdsl.check.report import Finding, Severity
 from vfdsl.compiler.geometry import homogeneous
 from vfdsl.ir import model as ir

@@ -37,7 +37,8 @@ import numpy as np
 from scipy.optimize import linprog
 
 from vfdsl.check.kinematics import frame_jacobian, frame_pose
-from vfdsl.check.linearized import ConstraintRows, Linearization, describe, subject, value_of, where
+from vfdsl.check.linearized import ConstraintRows, Linearization
+from vfdsl.ir.constraints import describe, subject, value_of, where
 from vfdsl.check.report import Finding, Severity, quantity
 from vfdsl.check.sampling import SAMPLE_SPEED
 from vfdsl.inputs import INPUT_TYPES

@@ -26,7 +26,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from vfdsl.check.kinematics import frame_jacobian, frame_pose
-from vfdsl.check.polytope import constraint_geometry
+from vfdsl.primitives.bounds import constraint_geometry
 from vfdsl.check.report import Finding, Severity
 from vfdsl.compiler.context import ParamLayout, ParamReader
 from vfdsl.compiler.mesh_rows import K

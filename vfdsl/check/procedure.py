@@ -27,7 +27,7 @@ import math
 from dataclasses import replace
 
 from vfdsl.check import hygiene, monitors, statechart
-from vfdsl.check.linearized import describe, where
+from vfdsl.ir.constraints import describe, where
 from vfdsl.check.monitors import arg_key, arrow, axis, measure_key, origin
 from vfdsl.check.report import Finding, Severity, quantity
 from vfdsl.compiler import derived

@@ -23,8 +23,9 @@ import math
 import casadi as ca
 import numpy as np
 
-from vfdsl.check.linearized import ConstraintRows, Linearization, subject, where
-from vfdsl.check.polytope import stated_size
+from vfdsl.check.linearized import ConstraintRows, Linearization
+from vfdsl.ir.constraints import subject, where
+from vfdsl.primitives.bounds import stated_size
 from vfdsl.check.report import Finding, Severity, quantity
 from vfdsl.compiler.context import Context
 from vfdsl.ir import model as ir

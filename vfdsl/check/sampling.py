@@ -18,7 +18,8 @@ import numpy as np
 from vfdsl.check import feasibility
 from vfdsl.check.handsoff import run
 from vfdsl.check.kinematics import NEAR_SINGULAR, worst_conditioning
-from vfdsl.check.linearized import Linearization, describe, value_of, where
+from vfdsl.check.linearized import Linearization
+from vfdsl.ir.constraints import describe, value_of, where
 from vfdsl.check.lp import FEASIBLE
 from vfdsl.check.report import Finding, Severity
 from vfdsl.inputs import INPUT_TYPES

@@ -21,7 +21,8 @@ import math
 
 import numpy as np
 
-from vfdsl.check.linearized import ConstraintRows, subject, value_of, where
+from vfdsl.check.linearized import ConstraintRows
+from vfdsl.ir.constraints import subject, value_of, where
 from vfdsl.check.lp import LinearSystem
 from vfdsl.check.report import Finding, Severity, quantity
 from vfdsl.ir import model as ir

@@ -13,7 +13,7 @@ from scipy.spatial.transform import Rotation
 
 from vfdsl.errors import VfError
 from vfdsl.ir import model as ir
-from vfdsl.view import shapes as sh
+from vfdsl.sim import shapes as sh
 from vfdsl.view.robot import rotation_to_z
 from vfdsl.view.scene import matrix, wxyz
 

@@ -11,7 +11,7 @@ from scipy.spatial.transform import Rotation
 
 from vfdsl.ir import model as ir
 from vfdsl.primitives import CONSTRAINTS
-from vfdsl.view import shapes as sh
+from vfdsl.sim import shapes as sh
 
 DRAW_RATE = 25.0            # Hz: scene updates while running or playing
 TOOL_MOVE = 1e-4            # m: the shapes drawn at the tool are redrawn once it has moved this far

@@ -1,10 +1,11 @@
-"""What the viewer draws for each constraint, as plain meshes, polylines and points in world coordinates (m).
+"""What the viewer and the MCAP trace's markers draw for each constraint, as plain meshes, polylines and points in
+world coordinates (m).
 
-Everything here is numpy and trimesh, apart from the viewer, so it is tested without a browser. The
+Everything here is numpy and trimesh, apart from any viewer, so it is tested without a browser. The
 geometry of a constraint is read from the task's params by :class:`vfdsl.sim.geometry.Scene` (params
 expressed in a pose, derived arguments), the same reading the simulator scores against; the tolerance of a
 polytope constraint is drawn as its real polytope (the facets of :mod:`vfdsl.compiler.geometry`, vertices
-from :func:`vfdsl.check.polytope`'s half-space intersection) and its guaranteed bound (the polytope's
+from :mod:`vfdsl.compiler.polytope`'s half-space intersection) and its guaranteed bound (the polytope's
 circumradius, what ``vfdsl check`` reports) as a wire sphere or tube.
 
 Shape roles (the viewer's colours): ``reference`` the fixture's own geometry (point, line, curve, plane,
@@ -24,12 +25,13 @@ import numpy as np
 import trimesh
 from scipy.spatial import HalfspaceIntersection
 
-from vfdsl.check.linearized import describe, where
-from vfdsl.check.polytope import constraint_geometry, directions
 from vfdsl.compiler.geometry import polygon_angles
+from vfdsl.compiler.polytope import directions
 from vfdsl.ir import model as ir
+from vfdsl.ir.constraints import describe, where
 from vfdsl.mesh.load import read_mesh
 from vfdsl.primitives import CONSTRAINTS
+from vfdsl.primitives.bounds import constraint_geometry, stated_size
 from vfdsl.sim.geometry import Curve, Scene, unit
 
 PLANE_SIZE = 0.06           # m: side of the square drawn for a plane (around the frame's closest point)
@@ -92,7 +94,6 @@ def build(task: ir.Task, scene: Scene, frames: dict, magnify: float = 1.0) -> li
 
 def tolerance_text(c: ir.Constraint, task: ir.Task) -> str:
     """``eps 1 um, 4x4 polytope (6 facets), guaranteed 1.73 um`` (lengths in um or mm, angles in deg)."""
-    from vfdsl.check.polytope import stated_size
     stated = stated_size(c, task)
     if stated is None:
         return ""
