@@ -73,8 +73,9 @@ def test_mcap_lists_every_documented_topic_with_its_schema(paper_b):
     assert any(t.startswith("/vfdsl/metric/") for t in topics)
     assert all(summary.schemas[c.schema_id].encoding == "ros2msg" and c.message_encoding == "cdr"
                for c in summary.channels.values())
-    counts = Counter(summary.statistics.channel_message_counts.values())
-    assert set(counts) == {30}                        # one message per tick (0.3 s at 10 ms) on every topic
+    counts = {summary.channels[k].topic: n for k, n in summary.statistics.channel_message_counts.items()}
+    assert topics["/vfdsl/fixtures"] == "visualization_msgs/msg/MarkerArray" and counts.pop("/vfdsl/fixtures") >= 1
+    assert set(counts.values()) == {30}               # one message per tick (0.3 s at 10 ms) on every other topic
 
 
 def test_tf_carries_each_task_frame_as_pinocchio_places_it(paper_b):
@@ -157,3 +158,95 @@ def test_the_params_a_motion_moves_are_written_each_tick(tmp_path):
     values = np.array([m.data for _, m, _ in messages])
     assert np.array_equal(values, [[float(row[c]) for c in columns] for row in rows])
     assert np.ptp(values, axis=0).max() > 1e-5                 # it moved
+
+
+def _marker_states(messages) -> list[tuple[int, dict]]:
+    """The markers shown after each /vfdsl/fixtures message: (stamp, {(ns, id): marker}), ADD replacing and DELETE
+    removing a marker of the same namespace and id, as Foxglove and RViz apply them."""
+    shown, states = {}, []
+    for stamp, array, msgtype in messages:
+        assert msgtype == "visualization_msgs/msg/MarkerArray"
+        for m in array.markers:
+            assert m.header.frame_id == "world" and m.lifetime.sec == 0 and m.lifetime.nanosec == 0
+            assert (m.pose.orientation.w, m.pose.orientation.x, m.pose.orientation.y, m.pose.orientation.z) == (1, 0, 0, 0)
+            if m.action == m.DELETE:
+                shown.pop((m.ns, m.id))
+            else:
+                shown[(m.ns, m.id)] = m
+        states.append((stamp, dict(shown)))
+    return states
+
+
+def _points(marker) -> np.ndarray:
+    return np.array([[p.x, p.y, p.z] for p in marker.points]).reshape(-1, 3)
+
+
+def test_the_markers_draw_the_mesh_where_the_task_puts_it_and_the_tool_where_tf_puts_it(tmp_path):
+    """sinus_channel: the channel (inside_mesh, a wire frame) is the STL's own edges in metres, written once; the
+    tool's shaft segment is the TF's tip and shaft origins, within MARKER_MOVE at every tick the markers are drawn
+    (MARKER_RATE) and exactly where it was written; each fixture with geometry has its label."""
+    import trimesh
+    from vfdsl.sim.markers import MARKER_MOVE, MARKER_RATE
+    found = _messages(_run(tmp_path, TASKS_DIR / "sinus_channel.vf", ".mcap", "--trials", "1", "--duration", "1 s"))
+    states = _marker_states(found["/vfdsl/fixtures"])
+    first = states[0][1]
+    by_name = {ns: m for (ns, _), m in first.items()}
+    assert {ns.split("/")[0] for ns in by_name} == {"c0_inside_mesh_tip"}   # speeds and joint bounds draw nothing
+    assert set(by_name) == {f"c0_inside_mesh_tip/{name}" for name in ("mesh", "shaft", "capsule", "clearance", "label")}
+    stl = trimesh.load(TASKS_DIR / "anatomy" / "channel.stl")
+
+    def edges(pairs):
+        return {tuple(sorted((tuple(np.round(a, 9)), tuple(np.round(b, 9))))) for a, b in pairs}
+
+    wire = by_name["c0_inside_mesh_tip/mesh"]
+    assert wire.type == wire.LINE_LIST
+    assert edges(_points(wire).reshape(-1, 2, 3)) == edges(stl.vertices[stl.edges_unique] * 1e-3)
+    writes = sum(any(x.ns == wire.ns for x in array.markers) for _, array, _ in found["/vfdsl/fixtures"])
+    assert writes == 1                                             # the channel does not move: written once
+    label = by_name["c0_inside_mesh_tip/label"]
+    assert label.type == label.TEXT_VIEW_FACING and label.text.startswith("inside_mesh(tip) sinus_channel.vf:")
+    tf = {stamp: {t.child_frame_id: [t.transform.translation.x, t.transform.translation.y, t.transform.translation.z]
+                  for t in msg.transforms} for stamp, msg, _ in found["/tf"]}
+    stamps = sorted(tf)
+    every = round(1 / (MARKER_RATE * 0.01))                        # sinus_channel's period: 10 ms
+    drawn = stamps[::every] + stamps[-1:]
+    assert len(drawn) == 10 + 1                                    # 0, 0.1, ... 0.9 s and the last tick
+    written = {stamp for stamp, array, _ in found["/vfdsl/fixtures"]
+               for m in array.markers if m.ns == "c0_inside_mesh_tip/shaft"}
+    assert len(written) > 3                                        # the tool moved: its segment was written again
+    k = 0
+    for stamp in drawn:
+        while k + 1 < len(states) and states[k + 1][0] <= stamp:
+            k += 1
+        segment = next(_points(m) for m in states[k][1].values() if m.ns == "c0_inside_mesh_tip/shaft")
+        ends = np.array([tf[stamp]["tip"], tf[stamp]["shaft"]])
+        gap = np.abs(segment - ends).max()
+        assert gap <= MARKER_MOVE, (stamp, gap)
+        if stamp in written:
+            assert gap < 1e-12
+
+
+def test_the_markers_follow_a_param_a_motion_moves(tmp_path):
+    """breathing_vessel: the vessel's knots (a SPHERE_LIST) are the points /vfdsl/param/vessel carries, exactly at
+    every marker write, and the written ones move with it."""
+    found = _messages(_run(tmp_path, TASKS_DIR / "breathing_vessel.vf", ".mcap", "--trials", "1", "--duration", "1 s"))
+    params = {stamp: np.asarray(msg.data).reshape(-1, 3) for stamp, msg, _ in found["/vfdsl/param/vessel"]}
+    knots = [(stamp, _points(m)) for stamp, array, _ in found["/vfdsl/fixtures"] for m in array.markers
+             if m.ns == "c0_follows_tip/points" and m.type == m.SPHERE_LIST]
+    assert len(knots) >= 5
+    for stamp, points in knots:
+        assert np.allclose(points, params[stamp], rtol=0, atol=1e-15)
+    assert np.ptp([p for _, p in knots], axis=0).max() > 1e-5
+
+
+def test_paper_b_draws_its_pivot_at_the_pivot_param(paper_b):
+    """The pivot's 4x4 polytope (a cube, eps = 1 um from the pivot along each axis) and its guaranteed ball (radius
+    sqrt 3 um, the cube's circumradius) are centred on the pivot param, as /vfdsl/param/pivot gives it."""
+    found = _messages(paper_b[0])
+    pivot = np.asarray(found["/vfdsl/param/pivot"][0][1].data)
+    shown = {m.ns: m for m in _marker_states(found["/vfdsl/fixtures"])[0][1].values()}
+    cube, bound = _points(shown["c0_stays_at_tip/polytope"]), _points(shown["c0_stays_at_tip/bound"])
+    assert shown["c0_stays_at_tip/polytope"].type == shown["c0_stays_at_tip/polytope"].TRIANGLE_LIST
+    assert len(cube) == 12 * 3                                      # 12 triangles
+    assert np.allclose(np.abs(cube - pivot), 1e-6, rtol=0, atol=1e-15)
+    assert np.allclose(np.linalg.norm(bound - pivot, axis=1), np.sqrt(3) * 1e-6, rtol=1e-9)

@@ -291,7 +291,7 @@ def test_a_runtime_curve_point_dragged_moves_the_curve_the_controller_follows():
 
 def test_hard_and_soft_fixtures_look_different(tmp_path):
     from vfdsl.view.app import Viewer
-    from vfdsl.view.scene import COLORS
+    from vfdsl.sim.shapes import COLORS
     text = (TASKS_DIR / "keep_out.vf").read_text().replace("require tip outside_sphere(artery, margin)",
                                                            "require tip outside_sphere(artery, margin) soft weight 10")
     (tmp_path / "soft.vf").write_text(text.replace('import "library/fixtures.vf"',

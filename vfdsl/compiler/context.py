@@ -52,6 +52,24 @@ def flatten(value: ir.Value) -> list[float]:
     return []
 
 
+def unflatten(old, flat):
+    """A param value of the same kind as ``old`` (an IR value) from the numbers of its flat run-time value."""
+    v = [float(x) for x in flat]
+    if isinstance(old, (ir.PointValue, ir.VectorValue, ir.DirectionValue)):
+        return type(old)(xyz=v)
+    if isinstance(old, ir.LineValue):
+        return ir.LineValue(point=v[:3], direction=v[3:])
+    if isinstance(old, ir.PlaneValue):
+        return ir.PlaneValue(point=v[:3], normal=v[3:])
+    if isinstance(old, ir.PoseValue):
+        return ir.PoseValue(translation=v[:3], rpy=v[3:])
+    if isinstance(old, ir.CurveValue):
+        return ir.CurveValue(degree=old.degree, points=[v[i:i + 3] for i in range(0, len(v), 3)], runtime=True)
+    if isinstance(old, ir.ScalarValue):
+        return ir.ScalarValue(dimension=old.dimension, value=v[0])
+    return old
+
+
 @dataclass(frozen=True)
 class ParamSlot:
     name: str

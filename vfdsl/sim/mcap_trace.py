@@ -3,7 +3,7 @@ PlotJuggler or RViz beside the rest of a lab's data. No ROS installation: the me
 (CDR) by ``rosbags``' type store (ROS 2 Humble's standard messages), the file written by ``mcap`` with each
 message definition as its schema (encoding ``ros2msg``), so that ``mcap`` and ``rosbags`` read it back.
 
-Topics (one message per tick on each, stamped with the tick's time t = k * period from 0, in ns):
+Topics (one message per tick on each but the markers, stamped with the tick's time t = k * period from 0, in ns):
 
     /joint_states                  sensor_msgs/msg/JointState: q (position) and dq / period (velocity), by joint name
     /tf                            tf2_msgs/msg/TFMessage: every task frame's pose, world -> <frame> (Pinocchio)
@@ -18,6 +18,8 @@ Topics (one message per tick on each, stamped with the tick's time t = k * perio
                                    flat value in SI (the trace's param.<param>. columns, in their order)
     /vfdsl/phase                   std_msgs/msg/String: a procedure's phase
     /vfdsl/haptic                  geometry_msgs/msg/WrenchStamped: a teleoperated run's haptic force (master base)
+    /vfdsl/fixtures                visualization_msgs/msg/MarkerArray: the fixtures' geometry, as ``vfdsl view`` draws
+                                   it (:mod:`vfdsl.sim.markers`), at up to 10 Hz and only the markers that changed
 
 Frames: ``world`` for the inputs, the TF parent and the haptic force. A run of several trials (or a grid) puts each
 trial's topics under ``/trial_<k>`` (k its index among the traced trials, in the trace's order).
@@ -29,11 +31,14 @@ from pathlib import Path
 
 import numpy as np
 
+from vfdsl.compiler.context import unflatten
 from vfdsl.compiler.geometry import homogeneous
 from vfdsl.inputs import INPUT_TYPES
 from vfdsl.ir import model as ir
 from vfdsl.kinematics.robot import Robot
 from vfdsl.sim import trace as tr
+from vfdsl.sim.geometry import Scene
+from vfdsl.sim.markers import MARKER_RATE, FixtureMarkers, frame_poses
 
 WORLD = "world"
 
@@ -110,14 +115,16 @@ def _trial(ch: _Channels, trace: dict, task: ir.Task, robot: Robot, offsets: dic
               if tr.param_columns(d)[0] in trace}
     layout = T["std_msgs/msg/MultiArrayLayout"](dim=[], data_offset=0)
     haptic = (np.column_stack([trace[f"haptic_{a}_N"] for a in "xyz"]) if "haptic_x_N" in trace else None)
+    markers, scene = FixtureMarkers(task, T), Scene(task)
+    every, drawn = max(1, int(round(1.0 / (MARKER_RATE * period)))), 0
     for k, t in enumerate(times):
         ns = int(round(t * 1e9))
         ch.write(f"{prefix}/joint_states", "sensor_msgs/msg/JointState", T["sensor_msgs/msg/JointState"](
             header=ch.header(ns, ""), name=list(robot.joint_names), position=q[k].astype(float),
             velocity=(dq[k] / period).astype(float), effort=np.zeros(0)), ns)
-        transforms = []
+        transforms, poses = [], {}
         for name, (link, offset) in offsets.items():
-            p, R = robot.frame_pose(q[k], link, offset)
+            p, R = poses[name] = robot.frame_pose(q[k], link, offset)
             transforms.append(T["geometry_msgs/msg/TransformStamped"](
                 header=ch.header(ns), child_frame_id=name,
                 transform=T["geometry_msgs/msg/Transform"](translation=ch.vector(p), rotation=ch.quaternion(R))))
@@ -142,6 +149,14 @@ def _trial(ch: _Channels, trace: dict, task: ir.Task, robot: Robot, offsets: dic
         if haptic is not None:
             ch.write(f"{prefix}/vfdsl/haptic", "geometry_msgs/msg/WrenchStamped", ch.wrench(ns, haptic[k], np.zeros(3)),
                      ns)
+        if k % every == 0 or k == len(times) - 1:
+            moved = [name for name, values in params.items() if k == 0 or not np.array_equal(values[k], values[drawn])]
+            for name in moved:
+                scene.set_value(name, unflatten(scene.values[name], params[name][k]))
+            changed, drawn = markers.update(ch.header(ns), scene, frame_poses(task, poses), bool(moved)), k
+            if changed:
+                ch.write(f"{prefix}/vfdsl/fixtures", "visualization_msgs/msg/MarkerArray",
+                         T["visualization_msgs/msg/MarkerArray"](markers=changed), ns)
 
 
 def _input(ch: _Channels, topic: str, kind, value: np.ndarray, ns: int) -> None:

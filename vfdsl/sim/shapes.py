@@ -39,6 +39,14 @@ LINE_LENGTH = 0.08          # m: length of a line drawn either side of the frame
 AXIS_LENGTH = 0.05          # m: length of a direction's arrow and a cone's side
 REFERENCE_RADIUS = 0.0006   # m: radius of the marker of a point, and of a line's or curve's polyline
 SIDES = 24                  # facets of a round tube or cone that is not a polytope
+COLORS = {                  # RGB of each role, for a hard (False) and a soft (True) constraint
+    False: {"reference": (30, 100, 220), "tolerance": (70, 160, 245), "bound": (20, 50, 150),
+            "forbidden": (225, 60, 45), "allowed": (60, 180, 90), "normal": (20, 150, 60)},
+    True: {"reference": (235, 140, 20), "tolerance": (250, 185, 80), "bound": (190, 100, 10),
+           "forbidden": (235, 110, 60), "allowed": (200, 190, 70), "normal": (200, 130, 20)},
+}
+OPACITY = {"tolerance": 0.45, "forbidden": 0.35, "allowed": 0.15, "reference": None, "bound": None, "normal": None}
+"""Opacity of a filled mesh of each role (None: opaque); a soft constraint's is 0.6 times this."""
 NO_GEOMETRY = {name for name, spec in CONSTRAINTS.items() if not spec.subject or spec.rate}
 """Primitives with nothing to draw: joint bounds and speed limits."""
 
@@ -81,15 +89,28 @@ def fixture_key(index: int, c: ir.Constraint) -> str:
 def build(task: ir.Task, scene: Scene, frames: dict, magnify: float = 1.0) -> list[Fixture]:
     """One :class:`Fixture` per constraint of ``task``: its shapes for the params in ``scene`` and the frame
     poses ``frames`` (name -> FramePose). ``magnify`` scales tolerances (1 = to scale)."""
-    fixtures = []
-    for k, c in enumerate(task.constraints):
-        fixture = Fixture(k, fixture_key(k, c), describe(c), where(c), c.soft, tolerance_text(c, task))
-        frame = frames.get(c.frame) if c.frame else None
-        if c.primitive not in NO_GEOMETRY and frame is not None:
-            fixture.shapes = DRAWINGS[c.primitive](c, scene, frame, magnify) + tool_shapes(c, scene, frames)
-            fixture.anchor = _anchor(fixture.shapes, frame.position)
-        fixtures.append(fixture)
-    return fixtures
+    return [build_one(k, task, scene, frames, magnify) for k in range(len(task.constraints))]
+
+
+def build_one(k: int, task: ir.Task, scene: Scene, frames: dict, magnify: float = 1.0) -> Fixture:
+    """The :class:`Fixture` of constraint ``k`` of ``task`` (:func:`build`)."""
+    c = task.constraints[k]
+    fixture = Fixture(k, fixture_key(k, c), describe(c), where(c), c.soft, tolerance_text(c, task))
+    frame = frames.get(c.frame) if c.frame else None
+    if c.primitive not in NO_GEOMETRY and frame is not None:
+        fixture.shapes = DRAWINGS[c.primitive](c, scene, frame, magnify) + tool_shapes(c, scene, frames)
+        fixture.anchor = _anchor(fixture.shapes, frame.position)
+    return fixture
+
+
+def depends_on(c: ir.Constraint, frames: dict) -> np.ndarray:
+    """The frame positions a constraint's shapes are drawn at, besides its params: its frame's when it is drawn
+    around the frame (a plane's square), its frame's and shaft's when it draws the tool (a mesh fixture)."""
+    spec = CONSTRAINTS[c.primitive]
+    names = [c.frame] if spec.drawn_around_frame else []
+    if spec.reads_mesh:
+        names = [c.frame, c.args["shaft"].name]
+    return np.array([frames[n].position for n in names if n in frames]).reshape(-1, 3)
 
 
 def tolerance_text(c: ir.Constraint, task: ir.Task) -> str:

@@ -10,8 +10,7 @@ import threading
 
 import numpy as np
 
-from vfdsl.compiler.context import flatten
-from vfdsl.view.replay import unflatten
+from vfdsl.compiler.context import flatten, unflatten
 from vfdsl.view.scene import DRAW_RATE
 
 

@@ -16,13 +16,6 @@ from vfdsl.sim import shapes as sh
 DRAW_RATE = 25.0            # Hz: scene updates while running or playing
 TOOL_MOVE = 1e-4            # m: the shapes drawn at the tool are redrawn once it has moved this far
 
-COLORS = {
-    False: {"reference": (30, 100, 220), "tolerance": (70, 160, 245), "bound": (20, 50, 150),
-            "forbidden": (225, 60, 45), "allowed": (60, 180, 90), "normal": (20, 150, 60)},
-    True: {"reference": (235, 140, 20), "tolerance": (250, 185, 80), "bound": (190, 100, 10),
-           "forbidden": (235, 110, 60), "allowed": (200, 190, 70), "normal": (200, 130, 20)},
-}
-OPACITY = {"tolerance": 0.45, "forbidden": 0.35, "allowed": 0.15, "reference": None, "bound": None, "normal": None}
 VIOLATED = (230, 0, 40)
 
 
@@ -156,12 +149,12 @@ class SceneDrawing:
         scene = self.server.scene
         base = f"/fixtures/{f.key}"
         violated = f.index in self._violated
-        palette = COLORS[f.soft]
+        palette = sh.COLORS[f.soft]
         for s in shapes:
             color = VIOLATED if violated and s.role != "bound" else palette[s.role]
             name = f"{base}/{s.name}"
             if s.kind == "mesh":
-                opacity = OPACITY[s.role] if not s.wireframe else None
+                opacity = sh.OPACITY[s.role] if not s.wireframe else None
                 if f.soft and opacity is not None:
                     opacity *= 0.6
                 node = scene.add_mesh_simple(name, s.vertices.astype(np.float32), s.faces.astype(np.uint32),
