@@ -184,3 +184,93 @@ def test_the_open_mode_replays_the_recorded_joints_and_records_what_the_fixture_
         assert np.array_equal(q_row, joints[k])
         dq = check.step(q_row, {"tau": tau})
         assert np.allclose([float(row[c]) for c in row if c.startswith("dq.")], dq, rtol=0, atol=1e-15)
+
+
+TELEOP_LINE = TASKS_DIR / "teleop" / "teleop_guide_line.vf"
+REFERENCE_STEP = np.array([0.2, 0.1, 0.02, 0.0, 0.0, 0.0])     # yaw, pitch (rad), insertion (m): tip +x, -y, -z
+
+
+def _write_joint_bag(path: Path, names, start, *, rate=1000.0, seconds=1.0, jitter=0.05, seed=1,
+                     topic="/joint_states", drop_at=None):
+    """A rosbag2 (MCAP) of sensor_msgs/JointState at ``rate`` with jitter: the joints go smoothly from ``start`` to
+    ``start + REFERENCE_STEP`` over ``seconds``. ``drop_at``: that message lacks its last joint. Returns the stamps
+    (s, from the first) and the joints at each."""
+    from rosbags.rosbag2 import StoragePlugin, Writer
+    from rosbags.typesys import Stores, get_typestore
+    store = get_typestore(Stores.ROS2_HUMBLE)
+    T = store.types
+    rng = np.random.default_rng(seed)
+    n = int(rate * seconds)
+    stamps = 50.0 + np.cumsum(np.full(n, 1 / rate) * (1 + jitter * rng.uniform(-1, 1, n)))
+    s = np.clip((stamps - stamps[0]) / seconds, 0, 1)
+    joints = np.asarray(start) + (3 * s ** 2 - 2 * s ** 3)[:, None] * REFERENCE_STEP
+    with Writer(path, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
+        states = writer.add_connection(topic, "sensor_msgs/msg/JointState", typestore=store)
+        for k, (t, q) in enumerate(zip(stamps, joints)):
+            sec, nanosec = divmod(int(round(t * 1e9)), 1_000_000_000)
+            keep = len(names) - 1 if k == drop_at else len(names)
+            msg = T["sensor_msgs/msg/JointState"](header=T["std_msgs/msg/Header"](
+                stamp=T["builtin_interfaces/msg/Time"](sec=sec, nanosec=nanosec), frame_id=""),
+                name=list(names)[:keep], position=q[:keep], velocity=np.zeros(0), effort=np.zeros(0))
+            writer.write(states, int(round(t * 1e9)), store.serialize_cdr(msg, "sensor_msgs/msg/JointState"))
+    return stamps - stamps[0], joints
+
+
+def test_recorded_joints_are_a_reference_for_a_pose_input(tmp_path):
+    """teleop_guide_line driven by a recorded motion of its own robot (1 kHz, 5 % jitter): the master input at each
+    tick is the tip's pose at the latest recorded joints (Pinocchio), and the slave follows it as a master's: scaled
+    0.4 along the planned line, held within the line's 0.5 mm octagon across it where the recorded motion left it."""
+    from scipy.spatial.transform import Rotation
+    from vfdsl.compiler.geometry import homogeneous
+    from vfdsl.kinematics.robot import Robot
+    task = vfdsl.load(TELEOP_LINE)
+    robot = Robot.load(task.robots[0].urdf)
+    frame = task.frame("tip")
+    stamps, joints = _write_joint_bag(tmp_path / "lab", robot.joint_names, task.start)
+    scene = tmp_path / "run.sim.yaml"
+    scene.write_text("units: mm, deg\nduration: 1.6 s\nperiod: 1 ms\ntrials: 1\nrecording:\n  bag: lab\n"
+                     "  inputs:\n    master: {topic: /joint_states, frame: tip}\n  start: /joint_states\n")
+    out = tmp_path / "trace.csv"
+    assert main(["simulate", str(TELEOP_LINE), "--scene", str(scene), "--trace", str(out), "--quiet"]) == 0
+    rows = list(csv.DictReader(out.open()))
+    assert len(rows) == 1600
+    columns = [f"input.master.{c}" for c in ("px_m", "py_m", "pz_m", "roll_rad", "pitch_rad", "yaw_rad")]
+    offset = homogeneous(frame.offset, frame.rpy)
+    for row in rows[::7]:
+        k = np.searchsorted(stamps, float(row["t_s"]) + 1e-12, side="right") - 1
+        p, R = robot.frame_pose(joints[k], frame.link, offset)
+        master = np.array([float(row[c]) for c in columns])
+        assert np.allclose(master[:3], p, rtol=0, atol=1e-15)
+        assert np.allclose(Rotation.from_euler("xyz", master[3:]).as_matrix(), R, rtol=0, atol=1e-12)
+    q0 = np.array([float(rows[0][c]) for c in rows[0] if c.startswith("q.")])
+    assert np.array_equal(q0, joints[0])
+    line = np.array([1.0, 0.0, -1.0]) / np.sqrt(2)
+    p_start, _ = robot.frame_pose(joints[0], frame.link, offset)
+    p_master, _ = robot.frame_pose(joints[-1], frame.link, offset)
+    q_end = np.array([float(rows[-1][c]) for c in rows[-1] if c.startswith("q.")])
+    p_tip, _ = robot.frame_pose(q_end, frame.link, offset)
+    moved, asked = p_tip - p_start, 0.4 * (p_master - p_start)
+    assert np.linalg.norm(asked - (asked @ line) * line) > 2e-3             # the recording leaves the line by 2 mm+
+    assert abs(moved @ line - asked @ line) < 1e-5                          # along it: the scaled recording
+    across = np.linalg.norm(moved - (moved @ line) * line)                  # across it: the fixture holds the tip,
+    assert across <= 0.5e-3 / np.cos(np.pi / 8) + 1e-9                       # within its octagon (resolution 8)
+
+
+@pytest.mark.parametrize("mapping, message", [
+    ("master: {topic: /joint_states, frame: tool}", "task 'teleop_guide_line' has no frame 'tool'"),
+    ("master: {topic: /joint_states}", "give both `topic` (a JointState topic) and `frame`"),
+    ("clutch: {topic: /joint_states, frame: tip}", "input 'clutch' is a button"),
+    ("master: /joint_states", "sensor_msgs/msg/JointState messages, but input 'master' reads "
+                              "geometry_msgs/msg/PoseStamped"),
+    ("master: {topic: /joint_states, frame: tip}", "message 40 has no position of joint 'outer_wrist_yaw'"),
+])
+def test_a_bad_reference_is_refused_at_its_line(tmp_path, capsys, mapping, message):
+    from vfdsl.kinematics.robot import Robot
+    task = vfdsl.load(TELEOP_LINE)
+    _write_joint_bag(tmp_path / "lab", Robot.load(task.robots[0].urdf).joint_names, task.start, seconds=0.1,
+                     drop_at=40)
+    scene = tmp_path / "run.sim.yaml"
+    scene.write_text(f"units: mm, deg\nduration: 0.1 s\nrecording:\n  bag: lab\n  inputs:\n    {mapping}\n")
+    assert main(["simulate", str(TELEOP_LINE), "--scene", str(scene)]) == 2
+    err = capsys.readouterr().err
+    assert message in err and "run.sim.yaml:" in err and "Traceback" not in err

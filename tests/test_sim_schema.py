@@ -48,10 +48,15 @@ def test_every_example_validates_and_loads(tmp_path, task, text):
     scene = tmp_path / "x.sim.yaml"
     scene.write_text(text)
     if "recording" in doc:                  # its bag, written where the example says (the task's input and joints)
-        from test_recording import _joints, write_bag
+        from test_recording import _joints, _write_joint_bag, write_bag
         bag = tmp_path / doc["recording"]["bag"]
         bag.parent.mkdir(parents=True, exist_ok=True)
-        write_bag(bag, joints=_joints()[0], topic="/ft_sensor/wrench")
+        if any(isinstance(source, dict) for source in doc["recording"].get("inputs", {}).values()):
+            from vfdsl.kinematics.robot import Robot
+            loaded = vfdsl.load(TASKS_DIR.parent / task)
+            _write_joint_bag(bag, Robot.load(loaded.robots[0].urdf).joint_names, loaded.start, seconds=0.1)
+        else:
+            write_bag(bag, joints=_joints()[0], topic="/ft_sensor/wrench")
     load_settings(vfdsl.load(TASKS_DIR.parent / task), scene)
 
 

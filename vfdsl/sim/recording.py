@@ -5,6 +5,7 @@ ROS 1 bag, read without ROS by ``rosbags``.
       bag: runs/lab_session.mcap     # relative to the scene file: an .mcap or .db3 file, a rosbag2 folder, a ROS 1 .bag
       inputs:                        # task input: topic
         tau: /ft_sensor/wrench       # geometry_msgs/msg/WrenchStamped (a force takes its force, a torque its torque)
+        master: {topic: /joint_states, frame: tip}   # a reference: the recorded joints -> task frame tip's pose
       start: /joint_states           # optional: the robot starts at the first sensor_msgs/msg/JointState, by joint name
       mode: closed                   # closed (default): the recorded inputs drive the simulated robot from the start;
       joints: /joint_states          # open: the recorded joints, and what the fixture would have commanded at each
@@ -13,7 +14,10 @@ Each mapped topic's messages are read once, when the scene is read, each stamped
 header stamp, by when it was recorded); time 0 is the earliest stamp of the mapped topics. At tick k (t = k x the
 task's period) an input is the latest message stamped at or before t, as a controller reads the newest sample of a
 sensor (a zero-order hold; before the first message, zero); after the last message it holds that one. The inputs are
-in SI as ROS's messages are (N, N m, m/s, rad/s, m and a quaternion for a pose). In the open mode the robot is where
+in SI as ROS's messages are (N, N m, m/s, rad/s, m and a quaternion for a pose). A pose input mapped to a
+JointState topic with ``frame:`` is a reference trajectory: at each message, the pose of that task frame at the
+recorded joints (Pinocchio's forward kinematics of the task's robot), so that a recorded motion drives a ``teleop``
+term (a new fixture replayed on a motion recorded without it). In the open mode the robot is where
 the recorded joints say at each tick (the same hold), the controller is stepped there with the recorded inputs, and
 its dq is recorded, not applied: what the fixture would have commanded, and the rows it would have found violated.
 
@@ -49,6 +53,7 @@ class RecordedInput:
     topic: str
     times: np.ndarray
     values: np.ndarray
+    frame: str | None = None         # a reference: the pose of this task frame at the recorded joints
 
     def at(self, t: float) -> np.ndarray:
         """The latest value stamped at or before t (zero before the first)."""
@@ -102,7 +107,7 @@ def read_recording(reader, node: yaml.Node) -> Recording:
                 raise VfError(f"input '{key}' is a {kind}: no recorded message type maps to it",
                               reader.pos(key_node), hint="map force, torque, wrench, twist or pose inputs",
                               code="E602")
-            mapping[key] = (reader.text(value, "a topic"), reader.pos(value))
+            mapping[key] = _input_source(reader, key, kind, value)
     start = (reader.text(fields["start"][1], "a topic"), reader.pos(fields["start"][1])) if "start" in fields else None
     mode = reader.text(fields["mode"][1], "mode") if "mode" in fields else "closed"
     if mode not in MODES:
@@ -123,11 +128,32 @@ def read_recording(reader, node: yaml.Node) -> Recording:
     return load(bag, reader.task, mapping, start or joints, reader.pos(node), mode, joints)
 
 
-def load(bag: Path, task, mapping: dict[str, tuple[str, Span]], start: tuple[str, Span] | None,
+def _input_source(reader, key: str, kind: str, node: yaml.Node) -> tuple[str, Span, str | None]:
+    """(topic, its place, the task frame of a reference or None) of one input's mapping: ``TOPIC``, or
+    ``{topic: TOPIC, frame: FRAME}`` for a pose input read from recorded joints."""
+    if not isinstance(node, yaml.MappingNode):
+        return reader.text(node, "a topic"), reader.pos(node), None
+    fields = reader.mapping(node, ("topic", "frame"), f"input '{key}''s recording")
+    if "topic" not in fields or "frame" not in fields:
+        raise VfError(f"input '{key}' reads a reference from recorded joints: give both `topic` (a JointState topic) "
+                      "and `frame` (the task frame whose pose it is)", reader.pos(node), code="E602")
+    if kind != "pose":
+        raise VfError(f"input '{key}' is a {kind}: recorded joints give a frame's pose, so only a pose input reads "
+                      "them (`frame:`)", reader.pos(fields["frame"][0]), code="E602")
+    frame = reader.text(fields["frame"][1], "a frame")
+    frames = [f.name for f in reader.task.frames]
+    if frame not in frames:
+        raise VfError(f"task '{reader.task.name}' has no frame '{frame}'", reader.pos(fields["frame"][1]),
+                      hint=suggest(frame, frames, "frames"), code="E602")
+    return reader.text(fields["topic"][1], "a topic"), reader.pos(fields["topic"][1]), frame
+
+
+def load(bag: Path, task, mapping: dict[str, tuple[str, Span, str | None]], start: tuple[str, Span] | None,
          where: Span | None, mode: str = "closed", joints: tuple[str, Span] | None = None) -> Recording:
     """Read every mapped topic of ``bag`` (module docstring); VfError at the scene's line of the mapping."""
     from rosbags.highlevel import AnyReader
     from vfdsl.kinematics.robot import Robot
+    robot = Robot.load(task.robots[0].urdf)
     try:
         reader = AnyReader([bag])
         reader.open()
@@ -136,7 +162,7 @@ def load(bag: Path, task, mapping: dict[str, tuple[str, Span]], start: tuple[str
     try:
         topics = {c.topic: c for c in reader.connections}
         read = {}
-        wanted = {name: topic for name, (topic, _) in mapping.items()}
+        wanted = {name: topic for name, (topic, _, _) in mapping.items()}
         if start is not None:
             wanted["(start)"] = start[0]
         for name, topic in wanted.items():
@@ -144,7 +170,8 @@ def load(bag: Path, task, mapping: dict[str, tuple[str, Span]], start: tuple[str
             if topic not in topics:
                 raise VfError(f"bag {bag.name} has no topic {topic}", span,
                               hint=suggest(topic, topics, "topics"), code="E602")
-            expected = "sensor_msgs/msg/JointState" if name == "(start)" else MESSAGE_TYPES[task.input(name).type]
+            joints_read = name == "(start)" or mapping[name][2] is not None
+            expected = "sensor_msgs/msg/JointState" if joints_read else MESSAGE_TYPES[task.input(name).type]
             got = topics[topic].msgtype
             if got.replace("/msg/", "/") != expected.replace("/msg/", "/"):
                 raise VfError(f"bag {bag.name}, topic {topic}: {got} messages, but "
@@ -161,15 +188,19 @@ def load(bag: Path, task, mapping: dict[str, tuple[str, Span]], start: tuple[str
     for name, (span, times, messages) in stamped.items():
         if name == "(start)":
             continue
-        kind = INPUT_TYPES[task.input(name).type]
-        values = np.array([_value(task.input(name).type, kind, m) for _, m in messages]).reshape(len(messages), -1)
-        inputs.append(RecordedInput(name, wanted[name], times - origin, values))
+        frame = mapping[name][2]
+        if frame is None:
+            kind = INPUT_TYPES[task.input(name).type]
+            values = np.array([_value(task.input(name).type, kind, m) for _, m in messages]).reshape(len(messages), -1)
+        else:
+            values = _frame_poses(robot, task.frame(frame), [_joints(bag.name, wanted[name], span, m, robot.joint_names,
+                                                                     k) for k, (_, m) in enumerate(messages)])
+        inputs.append(RecordedInput(name, wanted[name], times - origin, values, frame))
     q0, replayed = None, None
     if start is not None:
         span, times, messages = stamped["(start)"]
         if not messages:
             raise VfError(f"bag {bag.name}, topic {start[0]}: no message", span, code="E602")
-        robot = Robot.load(task.robots[0].urdf)
         q0 = _joints(bag.name, start[0], span, messages[0][1], robot.joint_names)
         if joints is not None:
             q = np.array([_joints(bag.name, start[0], span, m, robot.joint_names, k) for k, (_, m) in
@@ -178,6 +209,15 @@ def load(bag: Path, task, mapping: dict[str, tuple[str, Span]], start: tuple[str
     summary = {"bag": str(bag), "mode": mode, "inputs": {r.input: r.topic for r in inputs},
                "start": None if start is None else start[0]}
     return Recording(str(bag), tuple(inputs), q0, where, summary, mode, replayed)
+
+
+def _frame_poses(robot, frame, joints: list[np.ndarray]) -> np.ndarray:
+    """The pose (x, y, z, roll, pitch, yaw) of task frame ``frame`` at each recorded joint vector."""
+    from scipy.spatial.transform import Rotation
+    from vfdsl.compiler.geometry import homogeneous
+    offset = homogeneous(frame.offset, frame.rpy)
+    poses = [robot.frame_pose(q, frame.link, offset) for q in joints]
+    return np.array([np.r_[p, Rotation.from_matrix(R).as_euler("xyz")] for p, R in poses]).reshape(len(joints), 6)
 
 
 def _stamps(bag: str, topic: str, span: Span, messages: list) -> np.ndarray:
@@ -231,7 +271,8 @@ def recording_text(recording: Recording, period: float) -> str:
     for r in recording.inputs:
         median, std, worst = r.jitter()
         rate = f"{1 / median:.4g} Hz" if median > 0 else "one message"
-        parts.append(f"'{r.input}' <- {r.topic} ({len(r.times)} messages over {r.times[-1] - r.times[0]:.3g} s, "
+        source = r.topic if r.frame is None else f"{r.topic} ({r.frame}'s pose at the recorded joints)"
+        parts.append(f"'{r.input}' <- {source} ({len(r.times)} messages over {r.times[-1] - r.times[0]:.3g} s, "
                      f"{rate}, period jitter {std * 1e3:.3g} ms RMS, {worst * 1e3:.3g} ms at most)")
     text = "; ".join(parts) + f"; each tick ({period * 1e3:g} ms) reads the latest message"
     if recording.joints is not None:

@@ -48,7 +48,11 @@ _TOP = {
     "recording": (None, "a lab's bag (MCAP, sqlite3, ROS 1): {bag, inputs: {input: topic}, start: topic}"),
 }
 _RECORDING = {"bag": (NAME, "the bag, relative to the scene file"),
-              "inputs": ({"type": "object", "additionalProperties": NAME}, "task input: topic"),
+              "inputs": ({"type": "object", "additionalProperties": {"oneOf": [NAME, {
+                  "type": "object", "required": ["topic", "frame"], "additionalProperties": False,
+                  "properties": {"topic": NAME, "frame": NAME},
+                  "description": "a pose input's reference: the task frame's pose at a JointState topic's joints"}]}},
+                         "task input: topic, or {topic: JointState topic, frame: task frame} for a pose input"),
               "start": (NAME, "a sensor_msgs/msg/JointState topic: the robot starts at its first message"),
               "mode": ({"enum": ["closed", "open"]}, "closed (default): the recorded inputs drive the simulated "
                        "robot; open: the recorded joints, the fixture's dq recorded, not applied"),
