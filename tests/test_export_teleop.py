@@ -103,3 +103,40 @@ def test_the_api_gives_the_readout_and_the_acting_rows(exported, recorded):
         assert call("reset", ctypes.c_int, ctypes.c_void_p)(ctrl) == 0
     finally:
         free(ctrl)
+
+
+def test_replay_trace_turns_the_exported_replay_into_an_mcap_trace(exported, recorded, tmp_path, capsys):
+    """`vfdsl replay-trace`: the ticks fed to ./replay and its answers become an MCAP trace whose joints, master,
+    haptic force, phase and status are the replay's own (the native controller's to 1e-12), with the fixtures'
+    markers; a refused tick (a NaN joint) keeps its error as its status; a cut answer file is refused at its line."""
+    import subprocess
+    from rosbags.highlevel import AnyReader
+    from vfdsl.cli import main
+    _, result = exported
+    lines = [t[0] for t in recorded[:1500]] + ["nan" + recorded[0][0][recorded[0][0].index(" "):]]
+    ticks, replayed, out = tmp_path / "ticks.txt", tmp_path / "replayed.txt", tmp_path / "run.mcap"
+    ticks.write_text("\n".join(lines) + "\n")
+    with ticks.open() as stdin, replayed.open("w") as stdout:
+        subprocess.run([str(result.directory / "replay"), "--dt", repr(DT)], stdin=stdin, stdout=stdout, check=True)
+    assert main(["replay-trace", str(TASK), str(ticks), str(replayed), "-o", str(out), "--dt", repr(DT)]) == 0
+    found = {}
+    with AnyReader([out]) as reader:
+        for connection, stamp, raw in reader.messages():
+            found.setdefault(connection.topic, []).append((stamp, reader.deserialize(raw, connection.msgtype)))
+    assert {"/joint_states", "/tf", "/vfdsl/input/master", "/vfdsl/input/clutch", "/vfdsl/status", "/vfdsl/phase",
+            "/vfdsl/haptic", "/vfdsl/fixtures"} <= set(found)
+    states = found["/joint_states"]
+    assert len(states) == len(lines) and [s for s, _ in states] == [round(k * DT * 1e9) for k in range(len(lines))]
+    for k, tick in enumerate(recorded[:1500]):
+        numbers = np.array([float(x) for x in tick[0].split()])
+        assert np.array_equal(states[k][1].position, numbers[:len(states[k][1].position)])
+        assert np.allclose(states[k][1].velocity * DT, tick[2], rtol=0, atol=1e-12)
+        force = found["/vfdsl/haptic"][k][1].wrench.force
+        assert np.allclose([force.x, force.y, force.z], tick[4][:3], rtol=0, atol=1e-12)
+        assert found["/vfdsl/phase"][k][1].data == tick[3] and found["/vfdsl/status"][k][1].data == tick[1]
+    assert found["/vfdsl/status"][-1][1].data < 0 and found["/vfdsl/violations"][-1][1].data.startswith("error ")
+    replayed.write_text("\n".join(replayed.read_text().splitlines()[:20] + ["0 1 2"] +
+                                  replayed.read_text().splitlines()[21:]) + "\n")
+    assert main(["replay-trace", str(TASK), str(ticks), str(replayed), "-o", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "replayed.txt:21:1" in err and "a tick's answer reads `STATUS` and" in err and "Traceback" not in err

@@ -185,6 +185,8 @@ def _parser() -> argparse.ArgumentParser:
     check_command.register(commands)
     from vfdsl.sim.command import add_parser as add_simulate
     add_simulate(commands)
+    from vfdsl.sim.exported_replay import add_parser as add_replay_trace
+    add_replay_trace(commands)
     from vfdsl.view.command import add_parser as add_view
     add_view(commands)
     return parser

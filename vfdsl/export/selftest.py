@@ -104,18 +104,22 @@ def replay(directory: Path, lines: list[str], dt: float, params: Path | None = N
     result = subprocess.run(argv, input="\n".join(lines) + "\n", capture_output=True, text=True)
     if result.returncode != 0:
         raise VfError(f"replay failed with status {result.returncode}: {result.stderr.strip()}")
-    answers = []
-    for out in result.stdout.splitlines():
-        words = out.split()
-        if words[0] == "error":
-            answers.append((int(words[1]), " ".join(words[2:])))
-        else:
-            out, hashed, readout = out.partition(" # ")
-            numbers, bar, phase = out.partition(" | ")
-            words = numbers.split()
-            answers.append((int(words[0]), np.array([float(x) for x in words[1:]]), *([phase] if bar else []),
-                            *([np.array([float(x) for x in readout.split()])] if hashed else [])))
-    return answers
+    return [parse_answer(out) for out in result.stdout.splitlines()]
+
+
+def parse_answer(line: str) -> tuple:
+    """One line of the replay's output: (error code, message) for a refused tick, else (status, dq) with a
+    procedure's phase and a teleoperated task's readout after them; ValueError when it is neither."""
+    words = line.split()
+    if not words:
+        raise ValueError("an empty line")
+    if words[0] == "error":
+        return int(words[1]), " ".join(words[2:])
+    line, hashed, readout = line.partition(" # ")
+    numbers, bar, phase = line.partition(" | ")
+    words = numbers.split()
+    return (int(words[0]), np.array([float(x) for x in words[1:]]), *([phase] if bar else []),
+            *([np.array([float(x) for x in readout.split()])] if hashed else []))
 
 
 def check_count(count: int) -> int:

@@ -6,7 +6,8 @@ message definition as its schema (encoding ``ros2msg``), so that ``mcap`` and ``
 Topics (one message per tick on each but the markers, stamped with the tick's time t = k * period from 0, in ns):
 
     /joint_states                  sensor_msgs/msg/JointState: q (position) and dq / period (velocity), by joint name
-    /tf                            tf2_msgs/msg/TFMessage: every task frame's pose, world -> <frame> (Pinocchio)
+    /tf                            tf2_msgs/msg/TFMessage: every task frame's pose, world -> <frame> (Pinocchio); none
+                                   at a tick whose joints are not finite (a refused tick of an exported replay)
     /vfdsl/input/<input>           a force, torque or wrench: geometry_msgs/msg/WrenchStamped; a twist:
                                    geometry_msgs/msg/TwistStamped; a pose: geometry_msgs/msg/PoseStamped; a button:
                                    std_msgs/msg/Bool
@@ -122,13 +123,14 @@ def _trial(ch: _Channels, trace: dict, task: ir.Task, robot: Robot, offsets: dic
         ch.write(f"{prefix}/joint_states", "sensor_msgs/msg/JointState", T["sensor_msgs/msg/JointState"](
             header=ch.header(ns, ""), name=list(robot.joint_names), position=q[k].astype(float),
             velocity=(dq[k] / period).astype(float), effort=np.zeros(0)), ns)
-        transforms, poses = [], {}
-        for name, (link, offset) in offsets.items():
+        transforms, poses, placed = [], {}, bool(np.all(np.isfinite(q[k])))
+        for name, (link, offset) in (offsets.items() if placed else ()):    # a refused tick's NaN joints: no TF
             p, R = poses[name] = robot.frame_pose(q[k], link, offset)
             transforms.append(T["geometry_msgs/msg/TransformStamped"](
                 header=ch.header(ns), child_frame_id=name,
                 transform=T["geometry_msgs/msg/Transform"](translation=ch.vector(p), rotation=ch.quaternion(R))))
-        ch.write(f"{prefix}/tf", "tf2_msgs/msg/TFMessage", T["tf2_msgs/msg/TFMessage"](transforms=transforms), ns)
+        if placed:
+            ch.write(f"{prefix}/tf", "tf2_msgs/msg/TFMessage", T["tf2_msgs/msg/TFMessage"](transforms=transforms), ns)
         for decl in task.inputs:
             if decl.name in inputs:
                 _input(ch, f"{prefix}/vfdsl/input/{decl.name}", INPUT_TYPES[decl.type], inputs[decl.name][k], ns)
@@ -149,7 +151,7 @@ def _trial(ch: _Channels, trace: dict, task: ir.Task, robot: Robot, offsets: dic
         if haptic is not None:
             ch.write(f"{prefix}/vfdsl/haptic", "geometry_msgs/msg/WrenchStamped", ch.wrench(ns, haptic[k], np.zeros(3)),
                      ns)
-        if k % every == 0 or k == len(times) - 1:
+        if placed and (k % every == 0 or k == len(times) - 1):
             moved = [name for name, values in params.items() if k == 0 or not np.array_equal(values[k], values[drawn])]
             for name in moved:
                 scene.set_value(name, unflatten(scene.values[name], params[name][k]))

@@ -25,7 +25,6 @@ import yaml
 
 from vfdsl import units as u
 from vfdsl.errors import Span, VfError, suggest
-from vfdsl.ir import model as ir
 
 OPERATOR_KEYS = ("input", "path")
 WAYPOINT_KEYS = ("at", "position", "rpy")
@@ -145,8 +144,3 @@ def teleop_table(doc: dict) -> str:
                      f"{mm(row['command_error_mean_m']) + ' / ' + mm(row['command_error_max_m']):>31} "
                      f"{newton(row['force_free_max_N']):>14} {newton(row['force_acting_max_N']):>16}")
     return "\n".join(lines)
-
-
-def is_teleoperated(task: ir.Task) -> bool:
-    """Whether the task has a `teleop` term (outside phases or in one)."""
-    return any(o.term == "teleop" for o in task.objectives + [o for p in task.phases for o in p.objectives])

@@ -41,7 +41,8 @@ from vfdsl.sim.cluster import connect
 from vfdsl.sim.geometry import Scene
 from vfdsl.sim.hand import Hand, generic_hand
 from vfdsl.sim.metrics import Stats, errors, frame_poses, metric_defs, prepare_meshes
-from vfdsl.sim.operator import TeleopRecord, is_teleoperated
+from vfdsl.objectives.haptics import teleop_terms
+from vfdsl.sim.operator import TeleopRecord
 from vfdsl.sim.phases import PhaseRecord
 from vfdsl.sim.robot import SimRobot
 from vfdsl.sim.scripted import ScriptedInputs
@@ -150,7 +151,7 @@ def simulate_with(job: Job, task: ir.Task, ctrl: vfdsl.Controller, robot: Robot,
     scripted = s.pushes or s.presses or s.sensors or s.operator or (s.recording and s.recording.inputs)
     script = ScriptedInputs(s, task, scene, dt, ticks, sensor_rng) if scripted else None
     phases = PhaseRecord(task, ticks) if task.phases else None
-    teleop = TeleopRecord(ticks) if is_teleoperated(task) else None
+    teleop = TeleopRecord(ticks) if teleop_terms(task) else None
     replayed = s.recording.joints if s.recording is not None else None     # the open mode: the recorded joints
     inputs = {i.name: np.zeros(i.size) for i in task.inputs}
     events = sorted(s.disturbances, key=lambda d: d.at)
