@@ -258,7 +258,10 @@ def test_recorded_joints_are_a_reference_for_a_pose_input(tmp_path):
 
 @pytest.mark.parametrize("mapping, message", [
     ("master: {topic: /joint_states, frame: tool}", "task 'teleop_guide_line' has no frame 'tool'"),
-    ("master: {topic: /joint_states}", "give both `topic` (a JointState topic) and `frame`"),
+    ("master: {topic: /joint_states}", "sensor_msgs/msg/JointState messages, but input 'master' reads "
+                                       "geometry_msgs/msg/PoseStamped"),
+    ("master: {topic: /joint_states, frame: tip, unit: mm}", "a reference from recorded joints is the frame's pose in "
+                                                             "the world, in SI: drop `unit`"),
     ("clutch: {topic: /joint_states, frame: tip}", "input 'clutch' is a button"),
     ("master: /joint_states", "sensor_msgs/msg/JointState messages, but input 'master' reads "
                               "geometry_msgs/msg/PoseStamped"),
@@ -272,5 +275,44 @@ def test_a_bad_reference_is_refused_at_its_line(tmp_path, capsys, mapping, messa
     scene = tmp_path / "run.sim.yaml"
     scene.write_text(f"units: mm, deg\nduration: 0.1 s\nrecording:\n  bag: lab\n  inputs:\n    {mapping}\n")
     assert main(["simulate", str(TELEOP_LINE), "--scene", str(scene)]) == 2
+    err = capsys.readouterr().err
+    assert message in err and "run.sim.yaml:" in err and "Traceback" not in err
+
+
+def test_a_sensor_on_the_tool_in_its_own_units_is_turned_into_the_world(tmp_path):
+    """Paper B's torque recorded in N mm, in the tool's frame (a sensor on the tool): at each tick the input is the
+    latest message x 1e-3, turned by the tip's rotation at that tick's joints (Pinocchio), to 1e-15 N m."""
+    from vfdsl.compiler.geometry import homogeneous
+    from vfdsl.kinematics.robot import Robot
+    stamps, torques = write_bag(tmp_path / "lab")               # the numbers, now read as N mm
+    scene = _scene(tmp_path, "recording:\n  bag: lab\n  inputs:\n    tau: {topic: /ft/wrench, unit: Nmm, in: tip}\n")
+    out = tmp_path / "trace.csv"
+    assert main(["simulate", str(PAPER_B), "--scene", str(scene), "--trace", str(out), "--quiet"]) == 0
+    task = vfdsl.load(PAPER_B)
+    robot, tip = Robot.load(task.robots[0].urdf), task.frame("tip")
+    rows = list(csv.DictReader(out.open()))
+    turned = 0.0
+    for row in rows:
+        k = np.searchsorted(stamps, float(row["t_s"]) + 1e-12, side="right") - 1
+        q = np.array([float(row[c]) for c in row if c.startswith("q.")])
+        R = robot.frame_pose(q, tip.link, homogeneous(tip.offset, tip.rpy))[1]
+        got = np.array([float(row[f"input.tau.{a}_Nm"]) for a in ("tx", "ty", "tz")])
+        assert np.allclose(got, R @ (torques[k] * 1e-3), rtol=0, atol=1e-15)
+        turned = max(turned, float(np.abs(got - torques[k] * 1e-3).max()))
+    assert turned > 1e-6                                          # the tool turned: the frame mattered
+
+
+@pytest.mark.parametrize("mapping, message", [
+    ("tau: {topic: /ft/wrench, unit: mm}", "unit 'mm' is a length; input 'tau' needs a torque here"),
+    ("tau: {topic: /ft/wrench, unit: [Nm, Nm]}", "input 'tau' is a torque: give 1 unit (a torque), not 2"),
+    ("tau: {topic: /ft/wrench, unit: furlong}", "furlong"),
+    ("tau: {topic: /ft/wrench, in: tool}", "task 'paper_b_virtual_rcm' has no frame 'tool'"),
+    ("tau: {topic: /ft/wrench, frame: tip}", "input 'tau' is a torque: recorded joints give a frame's pose"),
+    ("tau: {unit: Nm}", "input 'tau''s recording needs `topic`"),
+])
+def test_a_bad_conversion_is_refused_at_its_line(tmp_path, capsys, mapping, message):
+    write_bag(tmp_path / "lab")
+    scene = _scene(tmp_path, f"recording:\n  bag: lab\n  inputs:\n    {mapping}\n")
+    assert main(["simulate", str(PAPER_B), "--scene", str(scene)]) == 2
     err = capsys.readouterr().err
     assert message in err and "run.sim.yaml:" in err and "Traceback" not in err

@@ -6,6 +6,7 @@ ROS 1 bag, read without ROS by ``rosbags``.
       inputs:                        # task input: topic
         tau: /ft_sensor/wrench       # geometry_msgs/msg/WrenchStamped (a force takes its force, a torque its torque)
         master: {topic: /joint_states, frame: tip}   # a reference: the recorded joints -> task frame tip's pose
+        f: {topic: /ft/wrench, unit: N, in: ft}      # conversions: the message's units, the frame it is expressed in
       start: /joint_states           # optional: the robot starts at the first sensor_msgs/msg/JointState, by joint name
       mode: closed                   # closed (default): the recorded inputs drive the simulated robot from the start;
       joints: /joint_states          # open: the recorded joints, and what the fixture would have commanded at each
@@ -17,7 +18,11 @@ sensor (a zero-order hold; before the first message, zero); after the last messa
 in SI as ROS's messages are (N, N m, m/s, rad/s, m and a quaternion for a pose). A pose input mapped to a
 JointState topic with ``frame:`` is a reference trajectory: at each message, the pose of that task frame at the
 recorded joints (Pinocchio's forward kinematics of the task's robot), so that a recorded motion drives a ``teleop``
-term (a new fixture replayed on a motion recorded without it). In the open mode the robot is where
+term (a new fixture replayed on a motion recorded without it). Conversions, stated per input: ``unit:`` the units the
+message is in, one per part (a force's, a wrench's force and torque, a twist's speed and angular speed, a pose's
+position), each checked against its part's dimension; ``in:`` the task frame a force, torque, wrench or twist is
+expressed in (a sensor on the tool), turned into the world at each tick by that frame's rotation at the tick's joints
+(the simulated robot's, or the recorded ones in the open mode). In the open mode the robot is where
 the recorded joints say at each tick (the same hold), the controller is stepped there with the recorded inputs, and
 its dq is recorded, not applied: what the fixture would have commanded, and the rows it would have found violated.
 
@@ -34,6 +39,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
+from vfdsl import units as u
 from vfdsl.errors import Span, VfError, suggest
 from vfdsl.inputs import INPUT_TYPES
 
@@ -54,6 +60,7 @@ class RecordedInput:
     times: np.ndarray
     values: np.ndarray
     frame: str | None = None         # a reference: the pose of this task frame at the recorded joints
+    expressed_in: str | None = None  # the task frame the vectors are in (turned into the world each tick)
 
     def at(self, t: float) -> np.ndarray:
         """The latest value stamped at or before t (zero before the first)."""
@@ -67,6 +74,18 @@ class RecordedInput:
             return 0.0, 0.0, 0.0
         median = float(np.median(steps))
         return median, float(np.std(steps)), float(np.max(np.abs(steps - median)))
+
+
+@dataclass(frozen=True)
+class Source:
+    """Where one input is read from: its topic, the scene's place of the mapping, a reference's task frame, the
+    task frame its vectors are expressed in, and the factor to SI of each part."""
+
+    topic: str
+    span: Span
+    frame: str | None = None
+    expressed_in: str | None = None
+    factors: tuple[float, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -128,27 +147,62 @@ def read_recording(reader, node: yaml.Node) -> Recording:
     return load(bag, reader.task, mapping, start or joints, reader.pos(node), mode, joints)
 
 
-def _input_source(reader, key: str, kind: str, node: yaml.Node) -> tuple[str, Span, str | None]:
-    """(topic, its place, the task frame of a reference or None) of one input's mapping: ``TOPIC``, or
+def _input_source(reader, key: str, kind: str, node: yaml.Node) -> Source:
+    """One input's mapping: ``TOPIC``, or ``{topic: TOPIC, unit: ..., in: FRAME}`` with conversions, or
     ``{topic: TOPIC, frame: FRAME}`` for a pose input read from recorded joints."""
     if not isinstance(node, yaml.MappingNode):
-        return reader.text(node, "a topic"), reader.pos(node), None
-    fields = reader.mapping(node, ("topic", "frame"), f"input '{key}''s recording")
-    if "topic" not in fields or "frame" not in fields:
-        raise VfError(f"input '{key}' reads a reference from recorded joints: give both `topic` (a JointState topic) "
-                      "and `frame` (the task frame whose pose it is)", reader.pos(node), code="E602")
-    if kind != "pose":
-        raise VfError(f"input '{key}' is a {kind}: recorded joints give a frame's pose, so only a pose input reads "
-                      "them (`frame:`)", reader.pos(fields["frame"][0]), code="E602")
-    frame = reader.text(fields["frame"][1], "a frame")
+        return Source(reader.text(node, "a topic"), reader.pos(node))
+    fields = reader.mapping(node, ("topic", "frame", "unit", "in"), f"input '{key}''s recording")
+    if "topic" not in fields:
+        raise VfError(f"input '{key}''s recording needs `topic`", reader.pos(node), code="E602")
+    topic, span = reader.text(fields["topic"][1], "a topic"), reader.pos(fields["topic"][1])
+    if "frame" in fields:
+        if kind != "pose":
+            raise VfError(f"input '{key}' is a {kind}: recorded joints give a frame's pose, so only a pose input reads "
+                          "them (`frame:`)", reader.pos(fields["frame"][0]), code="E602")
+        extra = [k for k in ("unit", "in") if k in fields]
+        if extra:
+            raise VfError(f"a reference from recorded joints is the frame's pose in the world, in SI: drop `{extra[0]}`",
+                          reader.pos(fields[extra[0]][0]), code="E602")
+        return Source(topic, span, frame=_task_frame(reader, fields["frame"][1]))
+    expressed_in = None
+    if "in" in fields:
+        if kind not in ("force", "torque", "wrench", "twist"):
+            raise VfError(f"input '{key}' is a {kind}: `in:` turns a force, torque, wrench or twist into the world",
+                          reader.pos(fields["in"][0]), code="E602")
+        name = reader.text(fields["in"][1], "a frame")
+        expressed_in = None if name == "world" else _task_frame(reader, fields["in"][1])
+    parts = INPUT_TYPES[kind].parts[:1] if kind == "pose" else INPUT_TYPES[kind].parts
+    factors = tuple(1.0 for _ in parts)
+    if "unit" in fields:
+        unit_node = fields["unit"][1]
+        names = ([reader.text(x, "a unit") for x in unit_node.value] if isinstance(unit_node, yaml.SequenceNode)
+                 else [reader.text(unit_node, "a unit")])
+        if len(names) != len(parts):
+            raise VfError(f"input '{key}' is a {kind}: give {len(parts)} unit{'s' * (len(parts) > 1)} ("
+                          + ", ".join(u.describe(p.dimension) for p in parts) + f"), not {len(names)}",
+                          reader.pos(unit_node), code="E602")
+        converted = []
+        for name, part in zip(names, parts):
+            dim, factor = u.parse_unit(name, reader.pos(unit_node))
+            if dim != part.dimension:
+                raise VfError(f"unit '{name}' is {u.describe(dim)}; input '{key}' needs {u.describe(part.dimension)} "
+                              f"here", reader.pos(unit_node), hint=f"e.g. {u.example(part.dimension)}", code="E602")
+            converted.append(factor)
+        factors = tuple(converted)
+    return Source(topic, span, expressed_in=expressed_in, factors=factors)
+
+
+def _task_frame(reader, node: yaml.Node) -> str:
+    frame = reader.text(node, "a frame")
     frames = [f.name for f in reader.task.frames]
     if frame not in frames:
-        raise VfError(f"task '{reader.task.name}' has no frame '{frame}'", reader.pos(fields["frame"][1]),
+        raise VfError(f"task '{reader.task.name}' has no frame '{frame}'", reader.pos(node),
                       hint=suggest(frame, frames, "frames"), code="E602")
-    return reader.text(fields["topic"][1], "a topic"), reader.pos(fields["topic"][1]), frame
+    return frame
 
 
-def load(bag: Path, task, mapping: dict[str, tuple[str, Span, str | None]], start: tuple[str, Span] | None,
+def load(bag: Path, task, mapping: dict[str, Source], start: tuple[str, Span] | None,
          where: Span | None, mode: str = "closed", joints: tuple[str, Span] | None = None) -> Recording:
     """Read every mapped topic of ``bag`` (module docstring); VfError at the scene's line of the mapping."""
     from rosbags.highlevel import AnyReader
@@ -162,15 +216,15 @@ def load(bag: Path, task, mapping: dict[str, tuple[str, Span, str | None]], star
     try:
         topics = {c.topic: c for c in reader.connections}
         read = {}
-        wanted = {name: topic for name, (topic, _, _) in mapping.items()}
+        wanted = {name: source.topic for name, source in mapping.items()}
         if start is not None:
             wanted["(start)"] = start[0]
         for name, topic in wanted.items():
-            span = mapping[name][1] if name in mapping else start[1]
+            span = mapping[name].span if name in mapping else start[1]
             if topic not in topics:
                 raise VfError(f"bag {bag.name} has no topic {topic}", span,
                               hint=suggest(topic, topics, "topics"), code="E602")
-            joints_read = name == "(start)" or mapping[name][2] is not None
+            joints_read = name == "(start)" or mapping[name].frame is not None
             expected = "sensor_msgs/msg/JointState" if joints_read else MESSAGE_TYPES[task.input(name).type]
             got = topics[topic].msgtype
             if got.replace("/msg/", "/") != expected.replace("/msg/", "/"):
@@ -188,14 +242,16 @@ def load(bag: Path, task, mapping: dict[str, tuple[str, Span, str | None]], star
     for name, (span, times, messages) in stamped.items():
         if name == "(start)":
             continue
-        frame = mapping[name][2]
-        if frame is None:
+        source = mapping[name]
+        if source.frame is None:
             kind = INPUT_TYPES[task.input(name).type]
             values = np.array([_value(task.input(name).type, kind, m) for _, m in messages]).reshape(len(messages), -1)
+            for k, factor in enumerate(source.factors):           # each part's units to SI
+                values[:, 3 * k:3 * k + 3] *= factor
         else:
-            values = _frame_poses(robot, task.frame(frame), [_joints(bag.name, wanted[name], span, m, robot.joint_names,
-                                                                     k) for k, (_, m) in enumerate(messages)])
-        inputs.append(RecordedInput(name, wanted[name], times - origin, values, frame))
+            values = _frame_poses(robot, task.frame(source.frame), [
+                _joints(bag.name, wanted[name], span, m, robot.joint_names, k) for k, (_, m) in enumerate(messages)])
+        inputs.append(RecordedInput(name, wanted[name], times - origin, values, source.frame, source.expressed_in))
     q0, replayed = None, None
     if start is not None:
         span, times, messages = stamped["(start)"]
@@ -272,6 +328,7 @@ def recording_text(recording: Recording, period: float) -> str:
         median, std, worst = r.jitter()
         rate = f"{1 / median:.4g} Hz" if median > 0 else "one message"
         source = r.topic if r.frame is None else f"{r.topic} ({r.frame}'s pose at the recorded joints)"
+        source += "" if r.expressed_in is None else f" (in {r.expressed_in}, turned into the world each tick)"
         parts.append(f"'{r.input}' <- {source} ({len(r.times)} messages over {r.times[-1] - r.times[0]:.3g} s, "
                      f"{rate}, period jitter {std * 1e3:.3g} ms RMS, {worst * 1e3:.3g} ms at most)")
     text = "; ".join(parts) + f"; each tick ({period * 1e3:g} ms) reads the latest message"

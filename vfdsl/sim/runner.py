@@ -149,7 +149,7 @@ def simulate_with(job: Job, task: ir.Task, ctrl: vfdsl.Controller, robot: Robot,
                                else generic_hand(task, ctrl, robot, q0, dt))
     hand = Hand(hand_settings, task, robot, scene, dt, ticks, hand_rng) if hand_settings else None
     scripted = s.pushes or s.presses or s.sensors or s.operator or (s.recording and s.recording.inputs)
-    script = ScriptedInputs(s, task, scene, dt, ticks, sensor_rng) if scripted else None
+    script = ScriptedInputs(s, task, scene, dt, ticks, sensor_rng, robot) if scripted else None
     phases = PhaseRecord(task, ticks) if task.phases else None
     teleop = TeleopRecord(ticks) if teleop_terms(task) else None
     replayed = s.recording.joints if s.recording is not None else None     # the open mode: the recorded joints
@@ -184,7 +184,7 @@ def simulate_with(job: Job, task: ir.Task, ctrl: vfdsl.Controller, robot: Robot,
         if hand is not None:
             inputs[hand_settings.input][:] = hand.input(k, q)
         if script is not None:
-            script.apply(k, inputs)
+            script.apply(k, inputs, q)
         if hand is not None or script is not None:
             us[k] = np.concatenate([inputs[i.name] for i in task.inputs])
         try:

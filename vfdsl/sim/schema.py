@@ -49,10 +49,15 @@ _TOP = {
 }
 _RECORDING = {"bag": (NAME, "the bag, relative to the scene file"),
               "inputs": ({"type": "object", "additionalProperties": {"oneOf": [NAME, {
-                  "type": "object", "required": ["topic", "frame"], "additionalProperties": False,
-                  "properties": {"topic": NAME, "frame": NAME},
-                  "description": "a pose input's reference: the task frame's pose at a JointState topic's joints"}]}},
-                         "task input: topic, or {topic: JointState topic, frame: task frame} for a pose input"),
+                  "type": "object", "required": ["topic"], "additionalProperties": False,
+                  "properties": {"topic": NAME,
+                                 "unit": {"oneOf": [NAME, {"type": "array", "items": NAME}],
+                                          "description": "the message's unit of each part, like N or [N, Nmm]"},
+                                 "in": {**NAME, "description": "the task frame the vectors are expressed in, or world"},
+                                 "frame": {**NAME, "description": "a pose input's reference: this task frame's pose at "
+                                                                  "a JointState topic's joints"}}}]}},
+                         "task input: topic, or {topic, unit, in} with conversions, or {topic: a JointState topic, "
+                         "frame: task frame} for a pose input"),
               "start": (NAME, "a sensor_msgs/msg/JointState topic: the robot starts at its first message"),
               "mode": ({"enum": ["closed", "open"]}, "closed (default): the recorded inputs drive the simulated "
                        "robot; open: the recorded joints, the fixture's dq recorded, not applied"),

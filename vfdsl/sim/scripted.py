@@ -25,6 +25,7 @@ import numpy as np
 import yaml
 
 from vfdsl import units as u
+from vfdsl.compiler.geometry import homogeneous
 from vfdsl.errors import VfError, suggest
 from vfdsl.inputs import INPUT_TYPES, described
 from vfdsl.ir import model as ir
@@ -181,8 +182,9 @@ class ScriptedInputs:
     in place. The noise is drawn once per trial (ticks x input size) from the trial's own generator."""
 
     def __init__(self, settings: SimSettings, task: ir.Task, scene: Scene, period: float, ticks: int,
-                 rng: np.random.Generator):
+                 rng: np.random.Generator, robot=None):
         self.period = period
+        self.robot = robot
         self.pushes = []
         for push in settings.pushes:
             parts = INPUT_TYPES[task.input(push.input).type]
@@ -191,6 +193,8 @@ class ScriptedInputs:
         self.presses = settings.presses
         self.operator = settings.operator
         self.recorded = () if settings.recording is None else settings.recording.inputs
+        self.sensor_frames = {r.expressed_in: (task.frame(r.expressed_in).link, homogeneous(
+            task.frame(r.expressed_in).offset, task.frame(r.expressed_in).rpy)) for r in self.recorded if r.expressed_in}
         self.noise: dict[str, np.ndarray] = {}
         for sensor in settings.sensors:
             parts = INPUT_TYPES[task.input(sensor.input).type]
@@ -206,13 +210,18 @@ class ScriptedInputs:
         return ({p.input for p, _, _ in self.pushes} | {p.input for p in self.presses} | set(self.noise)
                 | ({self.operator.input} if self.operator else set()) | {r.input for r in self.recorded})
 
-    def apply(self, k: int, inputs: dict[str, np.ndarray]) -> None:
-        """Tick k: the active pushes and presses, and the noise, into ``inputs`` (on top of the hand's value)."""
+    def apply(self, k: int, inputs: dict[str, np.ndarray], q=None) -> None:
+        """Tick k at joints q: the active pushes and presses, the recorded inputs (a sensor's vectors turned from its
+        frame into the world), and the noise, into ``inputs`` (on top of the hand's value)."""
         t = k * self.period
         if self.operator is not None:
             inputs[self.operator.input][:] = self.operator.pose(t)
         for recorded in self.recorded:
-            inputs[recorded.input][:] = recorded.at(t)
+            value = recorded.at(t)
+            if recorded.expressed_in is not None:
+                R = self.robot.frame_pose(q, *self.sensor_frames[recorded.expressed_in])[1]
+                value = (value.reshape(-1, 3) @ R.T).ravel()
+            inputs[recorded.input][:] = value
         for push, part, vector in self.pushes:
             if push.active(t):
                 inputs[push.input][part] += vector
