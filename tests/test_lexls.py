@@ -418,3 +418,58 @@ def test_the_generated_tick_does_not_depend_on_its_history(name):
             fresh = vfdsl.compile(task, backend="native")
             assert np.max(np.abs(fresh.step(q, u) - x)) <= 1e-12
     assert optimal >= 20
+
+
+def degenerate_problem(rng):
+    """A problem whose optimum is a degenerate vertex: three hard rows at their upper bounds there, and a fourth
+    nearly dependent on them (a combination of them moved by 1e-7 to 1e-5: paper A's tip and shaft at the same corner
+    of their octagons), at its bound there too; a level pulls x across all four."""
+    n = int(rng.integers(4, 8))
+    x0 = rng.uniform(-0.3, 0.3, n)
+    C = rng.normal(size=(3, n))
+    C /= np.linalg.norm(C, axis=1)[:, None]
+    near = rng.uniform(0.2, 1, 3) @ C + 10 ** rng.uniform(-7, -5) * rng.normal(size=n)
+    rows = np.vstack([C, near / np.linalg.norm(near), rng.normal(size=(int(rng.integers(0, 4)), n))])
+    up = rows @ x0
+    up[4:] += rng.exponential(0.5, len(up) - 4)               # the other rows slack at x0
+    hard = np.vstack([rows, np.eye(n)])
+    lo, up = np.r_[np.full(len(rows), -np.inf), -np.ones(n)], np.r_[up, np.ones(n)]
+    R = np.eye(n)
+    r = x0 + C.T @ rng.uniform(0.1, 1, 3)                      # beyond the three rows' bounds
+    M = rng.normal(size=(n, n))
+    H = M @ M.T / n + 1e-3 * np.eye(n)
+    A = np.vstack([hard, R])
+    lower, upper = np.r_[np.full(n, -np.inf), lo, r], np.r_[np.full(n, np.inf), up, r]
+    return H, rng.normal(size=n), A, lower, upper, [n + len(hard), n + len(hard) + n]
+
+
+def test_a_degenerate_vertex_is_certified_alike_by_the_c_and_the_python(harness):
+    """Where the working set's rows nearly depend on each other (a pivot in (RANK_TOL, COND_TOL]), the solve tries it
+    without one of them: both languages certify the same answer (1e-12), the rows all hold within 1e-9, and it is not
+    worse than the independent reference's."""
+    rng = np.random.default_rng(8)
+    certified = degenerate = 0
+    for _ in range(60):
+        problem = degenerate_problem(rng)
+        H_, f_, A_hard, lo, up, levels = lexls.split(*problem)
+        x_daqp = daqp_answer(problem)
+        if x_daqp is None:
+            continue
+        s = lexls.working_set(A_hard, lo, up, x_daqp)
+        try:
+            lexls._solve_over(H_, f_, A_hard, lo, up, levels, s)
+        except lexls._IllConditioned:
+            degenerate += 1                   # W's rows nearly dependent: refused as they are
+        x_py, ok_py = lexls.solve_over(H_, f_, A_hard, lo, up, levels, s)
+        x_c, solves = c_solve(harness, problem, s.copy())
+        assert ok_py == (solves == 1)
+        if not ok_py:
+            continue
+        certified += 1
+        assert np.max(np.abs(x_py - x_c)) <= 1e-12 * (1 + np.max(np.abs(x_py)))
+        Ax = A_hard @ x_py
+        assert np.all(Ax <= up + 1e-9) and np.all(Ax >= lo - 1e-9)
+        x_ref = reference(*problem)
+        if x_ref is not None:
+            assert not_worse(problem, x_py, x_ref), (x_py, x_ref)
+    assert degenerate >= 45 and certified >= degenerate, (degenerate, certified)

@@ -5,7 +5,6 @@ float precision."""
 from __future__ import annotations
 
 import csv
-from collections import Counter
 from pathlib import Path
 
 import numpy as np

@@ -50,7 +50,7 @@ vfdsl_lex* vfdsl_lex_alloc(int n, int K, int P) {
   size_t head = (sizeof(vfdsl_lex) + sizeof(double) - 1) / sizeof(double) * sizeof(double);
   size_t doubles = 6 * K1 + 3 * R * N + 4 * R + 3 * N * N + 3 * N + 2 * N * K1 + (N + 1) + (N * N + 1)
                    + (P + 1) * (N + 1);
-  size_t ints = 3 * K1 + 2 * R + 3 * S + 2 * (S + 1) + 2 * S;
+  size_t ints = 5 * K1 + 2 * R + 3 * S + 2 * (S + 1) + 2 * S;
   char* block;
   double* d;
   int* i;
@@ -78,6 +78,7 @@ vfdsl_lex* vfdsl_lex_alloc(int n, int K, int P) {
   L->rows = (const double**) d;
   i = (int*) (L->rows + S);
   L->guess = lex_ints(&i, K1); L->piv = lex_ints(&i, R); L->cols = lex_ints(&i, K1);
+  L->drop = lex_ints(&i, K1); L->trial = lex_ints(&i, K1);
   L->max_steps = (int) S;
   L->off = lex_ints(&i, S); L->r = lex_ints(&i, S); L->p = lex_ints(&i, S);
   L->fpiv_at = lex_ints(&i, S + 1); L->fR_at = lex_ints(&i, S + 1);
@@ -95,7 +96,7 @@ static double lex_dot(const double* a, const double* b, int n) {
 
 /* Householder QR of the k x p column-major matrix B (in place: R above the diagonal, reflectors below, tau),
  * with column pivoting when piv is given (piv[i]: the column of B's original i-th column's place). Returns the
- * rank (pivots > RANK_TOL); *ill is set when a counted pivot is <= COND_TOL. Without pivoting, all min(k, p)
+ * rank (pivots > RANK_TOL); *ill is set to 1 + the position of the first counted pivot <= COND_TOL. Without pivoting, all min(k, p)
  * columns are reduced and the rank is not decided (returns min(k, p)). */
 static int lex_qr(double* B, int k, int p, double* tau, int* piv, int* ill) {
   int j, c, i, best, t = k < p ? k : p;
@@ -120,7 +121,7 @@ static int lex_qr(double* B, int k, int p, double* tau, int* piv, int* ill) {
     if (piv) {
       double d = sqrt(norm2);
       if (!(d > LEX_RANK_TOL)) return j;
-      if (d <= LEX_COND_TOL) *ill = 1;
+      if (d <= LEX_COND_TOL && !*ill) *ill = j + 1;
     }
     alpha = col[j];
     beta = norm2 > 0 ? -copysign(sqrt(norm2), alpha) : 0;
@@ -208,7 +209,7 @@ static int lex_step(vfdsl_lex* L, const double* M, int p, const double* t, doubl
     if (*ident) memcpy(B, M, sizeof(double) * n * p);     /* Z = I: (M Z)' is M' (row-major M, column-major B) */
     else for (i=0;i<p;++i) for (l=0;l<kk;++l) B[l + i*kk] = lex_dot(M + i*n, Z + l*n, n);   /* (M Z)' */
     r = lex_qr(B, kk, p, L->tau, L->piv, &ill);
-    if (ill) return -1;
+    if (ill) { L->ill_at = ill - 1; return -1; }
   }
   if (rec >= 0) {
     L->steps = rec + 1;
@@ -537,11 +538,13 @@ int vfdsl_lex_repair(vfdsl_lex* L, int* s) {
   return 1;
 }
 
-/* The levels' optimum over the working set s into x; 1 when certified (vfdsl.runtime.lexls.solve_over). */
-int vfdsl_lex_solve(vfdsl_lex* L, const vfdsl_lex_prob* P, const int* s, double* x) {
+/* The levels' optimum over the working set s into x; 1 when certified (lexls.py's _solve_over). W's rows nearly
+ * dependent: L->ill_at >= 0 after it, L->piv their pivot order. */
+static int lex_solve_over(vfdsl_lex* L, const vfdsl_lex_prob* P, const int* s, double* x) {
   int n = LEX_N(P), i, j, l, p = 0, k = n, ident = 1, record = L->levels + 1 <= L->max_steps;
   double *Z = L->Z;
   L->hint = -1;
+  L->ill_at = -1;
   L->steps = 0;
   for (i=0;i<P->K;++i) if (s[i] != LEX_FREE) {
     L->side[p] = s[i];
@@ -553,6 +556,7 @@ int vfdsl_lex_solve(vfdsl_lex* L, const vfdsl_lex_prob* P, const int* s, double*
   memset(Z, 0, sizeof(double) * n * n);
   for (i=0;i<n;++i) Z[i + i*n] = 1;
   if (lex_step(L, L->M, p, L->t, x, &Z, &k, &ident, record ? 0 : -1) < 0) return 0;
+  L->ill_at = -1;                  /* (only W's step reports it) */
   for (i=0;i<p;++i) if (fabs(lex_dot(L->M + i*n, x, n) - L->t[i]) > LEX_PRIMAL_TOL) return 0;
   for (j=0;j<L->levels;++j) {
     if (lex_step(L, L->LR + L->level_at[j]*n, L->level_rows[j], L->lt + L->level_at[j], x, &Z, &k, &ident,
@@ -581,4 +585,28 @@ int vfdsl_lex_solve(vfdsl_lex* L, const vfdsl_lex_prob* P, const int* s, double*
     if (L->hint >= 0) return 0;        /* the most violated row: add it */
   }
   return lex_certified(L, P, s, x);
+}
+
+/* The levels' optimum over s into x; 1 when certified (lexls.py's solve_over). When W's rows are nearly dependent
+ * (a degenerate vertex: lexls.py's _degenerate), s without one of them (those in pivot order up to the nearly
+ * dependent one), the last hard row first; s becomes the working set certified. */
+int vfdsl_lex_solve(vfdsl_lex* L, const vfdsl_lex_prob* P, int* s, double* x) {
+  int count, k, i, held;
+  if (lex_solve_over(L, P, s, x)) return 1;
+  if (L->ill_at < 0) return 0;
+  count = L->ill_at + 1;
+  for (i=0;i<P->K;++i) L->drop[i] = 0;
+  for (k=0;k<count;++k) L->drop[L->piv[k]] = 1;     /* W's rows, by their place among the held, to try without */
+  for (i=P->K-1, held=0; i>=0; --i) held += s[i] != LEX_FREE;
+  for (i=P->K-1; i>=0; --i) {
+    if (s[i] == LEX_FREE || !L->drop[--held] || s[i] == LEX_FIXED) continue;
+    memcpy(L->trial, s, sizeof(int) * P->K);
+    L->trial[i] = LEX_FREE;
+    if (lex_solve_over(L, P, L->trial, x)) {
+      s[i] = LEX_FREE;
+      return 1;
+    }
+  }
+  L->hint = -1;
+  return 0;
 }

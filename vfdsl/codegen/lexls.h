@@ -13,7 +13,8 @@
  * vfdsl_lex_solve(lex, prob, s, x) computes the levels' optimum with the working set s (LEX_UPPER, LEX_LOWER,
  * LEX_FIXED held as equalities, LEX_FREE left out) and returns 1 when it is certified as the optimum of the whole
  * problem, 0 otherwise (x then undefined; L->hint names a row whose change may fix the working set: the most
- * violated row, or the held row with the most negative multiplier). vfdsl_lex_repair(lex, s) applies the hint to s
+ * violated row, or the held row with the most negative multiplier). When s's rows are nearly dependent (a
+ * degenerate vertex), s without one of them is tried, and s becomes the working set that was certified. vfdsl_lex_repair(lex, s) applies the hint to s
  * (1 when there was one). The certificate tries, per level, the multipliers from the solve's own factors and a
  * test by dimensions before its nonnegative least squares (as lexls.py). All memory is one block, allocated once by
  * vfdsl_lex_alloc and released by vfdsl_lex_free.
@@ -31,7 +32,9 @@ typedef struct vfdsl_lex {
   int valid;              /* guess holds a working set */
   int hint_column;        /* lexls.c's: the NNLS column with the most negative multiplier */
   int hint, hint_side;    /* after a refusal: a hard row to add at side hint_side (+1, -1), or to drop (0); -1: none */
+  int ill_at;             /* lex_qr's first pivot in (RANK_TOL, COND_TOL] of the last ill-conditioned step, or -1 */
   int *guess, *piv, *cols;
+  int *drop, *trial;      /* a degenerate working set: its rows to try without, and the working set tried */
   const double* A;        /* the hard rows (K x n, row-major: DAQP's), set by vfdsl_lex_rows */
   double *inv, *lo, *up;  /* 1 / each hard row's length, and its bounds over that length (the unit row's) */
   int levels;             /* the levels with a row that is not zero or has a target that is not (vfdsl_lex_rows): */
@@ -59,7 +62,7 @@ vfdsl_lex* vfdsl_lex_alloc(int n, int K, int P);
 void vfdsl_lex_free(vfdsl_lex* L);
 void vfdsl_lex_rows(vfdsl_lex* L, const vfdsl_lex_prob* P);
 void vfdsl_lex_working_set(const vfdsl_lex* L, const double* x, int* s);
-int vfdsl_lex_solve(vfdsl_lex* L, const vfdsl_lex_prob* P, const int* s, double* x);
+int vfdsl_lex_solve(vfdsl_lex* L, const vfdsl_lex_prob* P, int* s, double* x);
 int vfdsl_lex_repair(vfdsl_lex* L, int* s);
 
 #endif

@@ -52,11 +52,11 @@ RANK_TOL = 1e-10
 orthonormal)."""
 COND_TOL = 1e-4
 """A pivot between RANK_TOL and COND_TOL makes the answer ill-conditioned (a direction pinned by rows that nearly
-depend on others: moving the rows by 1e-10 would move x by 1e-6 or more), and it is not certified. Measured at
-100 random states of every example task: kept pivots are >= 0.047 everywhere but on paper_a_follow_curve, where two
-nearly parallel faces of neighbouring curve segments both active give 2e-7 to 1.5e-6; the exact answer there was
-up to 100x worse on the second level than DAQP's and the independent reference's (which hold the rows to a
-tolerance)."""
+depend on others: moving the rows by 1e-10 would move x by 1e-6 or more), and it is not certified as it stands. In
+W's own rows it is a degenerate vertex (:func:`_degenerate`). Measured at 100 random states of every example task:
+kept pivots are >= 0.047 everywhere but on paper_a_follow_curve, where the tip's and the shaft's facets at the same
+corner of their octagons give 2e-7 to 1.5e-6; solved with all of them held, the answer there was up to 100x worse on
+the second level than DAQP's."""
 PRIMAL_TOL = 1e-9
 """Every hard row (unit length) must hold within this, and W's rows be met within it (m or rad per tick; phase 1 is
 accepted within 1e-8, vfdsl.runtime.qp.LEVEL_ACCEPTANCE). At 1e-10, four facets of a 31 x 31 stays_at polytope
@@ -91,7 +91,13 @@ def working_set(A: np.ndarray, lo: np.ndarray, up: np.ndarray, x: np.ndarray) ->
 
 
 class _IllConditioned(Exception):
-    """A pivot between RANK_TOL and COND_TOL."""
+    """A pivot between RANK_TOL and COND_TOL. ``rows``: the step's rows in pivot order up to the first such pivot
+    (the last of them nearly depends on the others); ``of_working_set``: the step is W's."""
+
+    def __init__(self, rows=()):
+        super().__init__()
+        self.rows = rows
+        self.of_working_set = False
 
 
 def _null_step(M: np.ndarray, Z: np.ndarray):
@@ -104,7 +110,7 @@ def _null_step(M: np.ndarray, Z: np.ndarray):
     d = np.abs(qr.diagonal())
     r = int(np.count_nonzero(d > RANK_TOL))
     if r and d[r - 1] <= COND_TOL:        # (pivoted: d decreases)
-        raise _IllConditioned
+        raise _IllConditioned(piv[:int(np.argmax(d <= COND_TOL)) + 1] - 1)
     reflectors = np.zeros((k, k), order="F")
     reflectors[:, :min(k, p)] = qr[:, :min(k, p)]
     taus = np.zeros(k)
@@ -141,8 +147,31 @@ def solve_over(H, f, A, lo, up, levels, s) -> tuple[np.ndarray, bool]:
     levels: [(R_j, r_j)]."""
     try:
         return _solve_over(H, f, A, lo, up, levels, s)
-    except _IllConditioned:
+    except _IllConditioned as ill:
+        if ill.of_working_set:
+            return _degenerate(H, f, A, lo, up, levels, s, ill.rows)
         return np.full(H.shape[0], np.nan), False
+
+
+def _degenerate(H, f, A, lo, up, levels, s, rows) -> tuple[np.ndarray, bool]:
+    """W's rows nearly dependent (``rows``: W's rows in pivot order, the last nearly a combination of the others):
+    a degenerate vertex, where more rows hold x than its motion needs (paper A's tip and shaft at the same corner of
+    their octagons, whose rows constrain the same motion twice). W without one of them, the last hard row first (an
+    order of the rows, not of the pivoting, so that both paths drop the same row): the first certified answer is
+    taken, the dropped row holding within PRIMAL_TOL as every hard row must."""
+    held = np.flatnonzero(s != FREE)
+    for i in sorted(held[list(rows)], reverse=True):
+        if s[i] == FIXED:
+            continue
+        fewer = s.copy()
+        fewer[i] = FREE
+        try:
+            x, certified = _solve_over(H, f, A, lo, up, levels, fewer)
+        except _IllConditioned:
+            continue
+        if certified:
+            return x, True
+    return np.full(H.shape[0], np.nan), False
 
 
 def _solve_over(H, f, A, lo, up, levels, s):
@@ -152,7 +181,11 @@ def _solve_over(H, f, A, lo, up, levels, s):
     if not np.all(np.isfinite(d)):
         return np.full(n, np.nan), False                  # a row held at an infinite bound
     steps = []
-    x, Z = _least_squares_step(C, d, np.zeros(n), np.eye(n), steps)
+    try:
+        x, Z = _least_squares_step(C, d, np.zeros(n), np.eye(n), steps)
+    except _IllConditioned as ill:
+        ill.of_working_set = True
+        raise
     if C.shape[0] and np.max(np.abs(C @ x - d)) > PRIMAL_TOL:
         return x, False                                   # W's rows cannot all hold
     for R, r in levels:
