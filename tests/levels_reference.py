@@ -104,3 +104,46 @@ def first_worse(levels, x, x_ref, close=1e-8):
         cost, cost_ref = (0.5 * y @ H @ y + g @ y for y in (x, x_ref))
         return j, (cost - cost_ref) / max(abs(cost_ref), 1e-300)
     return len(levels), 0.0
+
+
+TIE_BREAK = 1e-6        # vfdsl.runtime.qp.LEVEL_TIE_BREAK, restated: the last level, damping, is solved with it
+
+
+def kkt_excess(qp, x, last_is_damping: bool, active=1e-9):
+    """How far x is from each level's optimum, by that level's own KKT conditions over the hard rows and the optimal
+    sets of the levels above (the issue's oracle): for level j, its gradient G_j = R_j'(R_j x - r_j) against the rows
+    of the levels above (multipliers of any sign: the optimal set of a least-squares level is R_i x = R_i x*) and the
+    hard rows and bounds at a bound within ``active`` (each with the sign of the bound holding x, >= 0), by scipy's
+    bounded least squares (BVLS), relative to the gradient's scale |R_j| (|R_j| |x| + |r_j|) as the certificate's
+    (docs/runtime.md). The last level, damping alone, is solved with its documented tie-break: scaled to a unit
+    largest diagonal, plus TIE_BREAK I. Also the hard rows' largest excess (unit rows, m or rad per tick).
+    Returns ([relative residual per level], hard rows' excess)."""
+    from scipy.optimize import lsq_linear
+    n = len(x)
+    norms = np.linalg.norm(qp.A, axis=1)
+    unit = np.where(norms > 0, norms, 1)
+    A, lb, ub = qp.A / unit[:, None], qp.lb / unit, qp.ub / unit
+    Ax = A @ x
+    excess = float(np.max(np.r_[lb - Ax, Ax - ub, 0.0]))
+    held = [(A[i], 1.0) for i in range(len(Ax)) if Ax[i] >= ub[i] - active] + \
+           [(A[i], -1.0) for i in range(len(Ax)) if Ax[i] <= lb[i] + active and not Ax[i] >= ub[i] - active]
+    S = np.array([s * a for a, s in held]).reshape(-1, n).T               # columns s_i a_i, multipliers >= 0
+    residuals = []
+    for j, level in enumerate(qp.levels):
+        R, r = level.R, level.r
+        G = R.T @ (R @ x - r)
+        scale = np.linalg.norm(R) * (np.linalg.norm(R) * np.linalg.norm(x) + np.linalg.norm(r))
+        if last_is_damping and j == len(qp.levels) - 1:
+            s = 1 / max(np.max(np.diag(R.T @ R)), 1e-300)
+            G = s * G + TIE_BREAK * x
+            scale = s * scale + TIE_BREAK * np.linalg.norm(x)
+        above = np.vstack([lv.R for lv in qp.levels[:j]]).T if j else np.zeros((n, 0))
+        M = np.hstack([above, S])
+        if M.shape[1] == 0:
+            residual = np.linalg.norm(G)
+        else:
+            lower = np.r_[np.full(above.shape[1], -np.inf), np.zeros(S.shape[1])]
+            fit = lsq_linear(M, -G, bounds=(lower, np.full(M.shape[1], np.inf)), method="bvls", tol=1e-15)
+            residual = np.linalg.norm(M @ fit.x + G)
+        residuals.append(float(residual / max(scale, 1e-300)))
+    return residuals, excess

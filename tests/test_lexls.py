@@ -420,15 +420,17 @@ def test_the_generated_tick_does_not_depend_on_its_history(name):
     assert optimal >= 20
 
 
-def degenerate_problem(rng):
+def degenerate_problem(rng, binding=False):
     """A problem whose optimum is a degenerate vertex: three hard rows at their upper bounds there, and a fourth
-    nearly dependent on them (a combination of them moved by 1e-7 to 1e-5: paper A's tip and shaft at the same corner
-    of their octagons), at its bound there too; a level pulls x across all four."""
+    nearly dependent on them (a combination of them moved by 1e-7 to 1e-5 along v: paper A's tip and shaft at the same
+    corner of their octagons), at its bound there too; a level pulls x across the three, or with ``binding`` across
+    all four, each with a positive multiplier at x0 (its target x0 + C'lam + lam_4 a_4)."""
     n = int(rng.integers(4, 8))
     x0 = rng.uniform(-0.3, 0.3, n)
     C = rng.normal(size=(3, n))
     C /= np.linalg.norm(C, axis=1)[:, None]
-    near = rng.uniform(0.2, 1, 3) @ C + 10 ** rng.uniform(-7, -5) * rng.normal(size=n)
+    v = rng.normal(size=n)
+    near = rng.uniform(0.2, 1, 3) @ C + 10 ** rng.uniform(-7, -5) * v
     rows = np.vstack([C, near / np.linalg.norm(near), rng.normal(size=(int(rng.integers(0, 4)), n))])
     up = rows @ x0
     up[4:] += rng.exponential(0.5, len(up) - 4)               # the other rows slack at x0
@@ -436,6 +438,8 @@ def degenerate_problem(rng):
     lo, up = np.r_[np.full(len(rows), -np.inf), -np.ones(n)], np.r_[up, np.ones(n)]
     R = np.eye(n)
     r = x0 + C.T @ rng.uniform(0.1, 1, 3)                      # beyond the three rows' bounds
+    if binding:                                                # and beyond the fourth's
+        r = r + rng.uniform(0.1, 1) * rows[3]
     M = rng.normal(size=(n, n))
     H = M @ M.T / n + 1e-3 * np.eye(n)
     A = np.vstack([hard, R])
@@ -443,14 +447,16 @@ def degenerate_problem(rng):
     return H, rng.normal(size=n), A, lower, upper, [n + len(hard), n + len(hard) + n]
 
 
-def test_a_degenerate_vertex_is_certified_alike_by_the_c_and_the_python(harness):
+@pytest.mark.parametrize("binding", [False, True], ids=["pulled across three", "pulled across four"])
+def test_a_degenerate_vertex_is_certified_alike_by_the_c_and_the_python(harness, binding):
     """Where the working set's rows nearly depend on each other (a pivot in (RANK_TOL, COND_TOL]), the solve tries it
-    without one of them: both languages certify the same answer (1e-12), the rows all hold within 1e-9, and it is not
-    worse than the independent reference's."""
+    without one of them, then (the last resort: paper A's cold state 9 of tests/test_level_kkt.py) with all of them
+    held: both languages certify the same answer (1e-12), the rows all hold within 1e-9, and it is not worse than the
+    independent reference's."""
     rng = np.random.default_rng(8)
     certified = degenerate = 0
     for _ in range(60):
-        problem = degenerate_problem(rng)
+        problem = degenerate_problem(rng, binding)
         H_, f_, A_hard, lo, up, levels = lexls.split(*problem)
         x_daqp = daqp_answer(problem)
         if x_daqp is None:

@@ -209,7 +209,7 @@ static int lex_step(vfdsl_lex* L, const double* M, int p, const double* t, doubl
     if (*ident) memcpy(B, M, sizeof(double) * n * p);     /* Z = I: (M Z)' is M' (row-major M, column-major B) */
     else for (i=0;i<p;++i) for (l=0;l<kk;++l) B[l + i*kk] = lex_dot(M + i*n, Z + l*n, n);   /* (M Z)' */
     r = lex_qr(B, kk, p, L->tau, L->piv, &ill);
-    if (ill) { L->ill_at = ill - 1; return -1; }
+    if (ill && !L->ill_ok) { L->ill_at = ill - 1; return -1; }
   }
   if (rec >= 0) {
     L->steps = rec + 1;
@@ -539,12 +539,13 @@ int vfdsl_lex_repair(vfdsl_lex* L, int* s) {
 }
 
 /* The levels' optimum over the working set s into x; 1 when certified (lexls.py's _solve_over). W's rows nearly
- * dependent: L->ill_at >= 0 after it, L->piv their pivot order. */
-static int lex_solve_over(vfdsl_lex* L, const vfdsl_lex_prob* P, const int* s, double* x) {
+ * dependent: L->ill_at >= 0 after it, L->piv their pivot order; ill_ok: W's pivots only above RANK_TOL. */
+static int lex_solve_over(vfdsl_lex* L, const vfdsl_lex_prob* P, const int* s, double* x, int ill_ok) {
   int n = LEX_N(P), i, j, l, p = 0, k = n, ident = 1, record = L->levels + 1 <= L->max_steps;
   double *Z = L->Z;
   L->hint = -1;
   L->ill_at = -1;
+  L->ill_ok = 0;
   L->steps = 0;
   for (i=0;i<P->K;++i) if (s[i] != LEX_FREE) {
     L->side[p] = s[i];
@@ -555,7 +556,9 @@ static int lex_solve_over(vfdsl_lex* L, const vfdsl_lex_prob* P, const int* s, d
   memset(x, 0, sizeof(double) * n);
   memset(Z, 0, sizeof(double) * n * n);
   for (i=0;i<n;++i) Z[i + i*n] = 1;
+  L->ill_ok = ill_ok;              /* (W's step only) */
   if (lex_step(L, L->M, p, L->t, x, &Z, &k, &ident, record ? 0 : -1) < 0) return 0;
+  L->ill_ok = 0;
   L->ill_at = -1;                  /* (only W's step reports it) */
   for (i=0;i<p;++i) if (fabs(lex_dot(L->M + i*n, x, n) - L->t[i]) > LEX_PRIMAL_TOL) return 0;
   for (j=0;j<L->levels;++j) {
@@ -589,10 +592,11 @@ static int lex_solve_over(vfdsl_lex* L, const vfdsl_lex_prob* P, const int* s, d
 
 /* The levels' optimum over s into x; 1 when certified (lexls.py's solve_over). When W's rows are nearly dependent
  * (a degenerate vertex: lexls.py's _degenerate), s without one of them (those in pivot order up to the nearly
- * dependent one), the last hard row first; s becomes the working set certified. */
+ * dependent one), the last hard row first, then s as it is with W's pivots only above RANK_TOL; s becomes the
+ * working set certified. */
 int vfdsl_lex_solve(vfdsl_lex* L, const vfdsl_lex_prob* P, int* s, double* x) {
   int count, k, i, held;
-  if (lex_solve_over(L, P, s, x)) return 1;
+  if (lex_solve_over(L, P, s, x, 0)) return 1;
   if (L->ill_at < 0) return 0;
   count = L->ill_at + 1;
   for (i=0;i<P->K;++i) L->drop[i] = 0;
@@ -602,11 +606,12 @@ int vfdsl_lex_solve(vfdsl_lex* L, const vfdsl_lex_prob* P, int* s, double* x) {
     if (s[i] == LEX_FREE || !L->drop[--held] || s[i] == LEX_FIXED) continue;
     memcpy(L->trial, s, sizeof(int) * P->K);
     L->trial[i] = LEX_FREE;
-    if (lex_solve_over(L, P, L->trial, x)) {
+    if (lex_solve_over(L, P, L->trial, x, 0)) {
       s[i] = LEX_FREE;
       return 1;
     }
   }
+  if (lex_solve_over(L, P, s, x, 1)) return 1;
   L->hint = -1;
   return 0;
 }

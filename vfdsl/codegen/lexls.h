@@ -14,7 +14,8 @@
  * LEX_FIXED held as equalities, LEX_FREE left out) and returns 1 when it is certified as the optimum of the whole
  * problem, 0 otherwise (x then undefined; L->hint names a row whose change may fix the working set: the most
  * violated row, or the held row with the most negative multiplier). When s's rows are nearly dependent (a
- * degenerate vertex), s without one of them is tried, and s becomes the working set that was certified. vfdsl_lex_repair(lex, s) applies the hint to s
+ * degenerate vertex), s without one of them is tried, then s with its pivots only above RANK_TOL, and s becomes the
+ * working set that was certified. vfdsl_lex_repair(lex, s) applies the hint to s
  * (1 when there was one). The certificate tries, per level, the multipliers from the solve's own factors and a
  * test by dimensions before its nonnegative least squares (as lexls.py). All memory is one block, allocated once by
  * vfdsl_lex_alloc and released by vfdsl_lex_free.
@@ -33,6 +34,7 @@ typedef struct vfdsl_lex {
   int hint_column;        /* lexls.c's: the NNLS column with the most negative multiplier */
   int hint, hint_side;    /* after a refusal: a hard row to add at side hint_side (+1, -1), or to drop (0); -1: none */
   int ill_at;             /* lex_qr's first pivot in (RANK_TOL, COND_TOL] of the last ill-conditioned step, or -1 */
+  int ill_ok;             /* the step being made may have such pivots (W's, as the last resort at a degenerate vertex) */
   int *guess, *piv, *cols;
   int *drop, *trial;      /* a degenerate working set: its rows to try without, and the working set tried */
   const double* A;        /* the hard rows (K x n, row-major: DAQP's), set by vfdsl_lex_rows */

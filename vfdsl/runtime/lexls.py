@@ -100,7 +100,7 @@ class _IllConditioned(Exception):
         self.of_working_set = False
 
 
-def _null_step(M: np.ndarray, Z: np.ndarray):
+def _null_step(M: np.ndarray, Z: np.ndarray, ill_ok: bool = False):
     """(Q, R1, piv, r): the pivoted QR (M Z)' P = Q R (LAPACK's dgeqp3, Q k x k), its rank r, the first r rows of
     R (below the diagonal: reflector entries, not zeros)."""
     k, p = Z.shape[1], M.shape[0]
@@ -109,7 +109,7 @@ def _null_step(M: np.ndarray, Z: np.ndarray):
     qr, piv, tau, _, info = lapack.dgeqp3(np.asfortranarray((M @ Z).T))
     d = np.abs(qr.diagonal())
     r = int(np.count_nonzero(d > RANK_TOL))
-    if r and d[r - 1] <= COND_TOL:        # (pivoted: d decreases)
+    if r and d[r - 1] <= COND_TOL and not ill_ok:        # (pivoted: d decreases)
         raise _IllConditioned(piv[:int(np.argmax(d <= COND_TOL)) + 1] - 1)
     reflectors = np.zeros((k, k), order="F")
     reflectors[:, :min(k, p)] = qr[:, :min(k, p)]
@@ -125,10 +125,10 @@ def _null_space(M, Z):
     return Z @ Q[:, r:]
 
 
-def _least_squares_step(M, t, x, Z, steps=None):
+def _least_squares_step(M, t, x, Z, steps=None, ill_ok=False):
     """x + Z y, y the least-squares step of M (x + Z y) = t within range(Z); and the null space Z N left. ``steps``
     (a list) gets the step's factors for :func:`_factors_dual`: (M, Y = Z Q1, R11, piv), and the null space left."""
-    Q, R1, piv, r = _null_step(M, Z)
+    Q, R1, piv, r = _null_step(M, Z, ill_ok)
     if r:
         c = (t - M @ x)[piv]
         if r == len(c):         # R1' z = c, R1 upper triangular (dtrtrs reads only its upper triangle)
@@ -158,7 +158,9 @@ def _degenerate(H, f, A, lo, up, levels, s, rows) -> tuple[np.ndarray, bool]:
     a degenerate vertex, where more rows hold x than its motion needs (paper A's tip and shaft at the same corner of
     their octagons, whose rows constrain the same motion twice). W without one of them, the last hard row first (an
     order of the rows, not of the pivoting, so that both paths drop the same row): the first certified answer is
-    taken, the dropped row holding within PRIMAL_TOL as every hard row must."""
+    taken, the dropped row holding within PRIMAL_TOL as every hard row must. Where none is (the optimum holds them
+    all), W as it is, its pivots only above RANK_TOL: its rows are then consistent within PRIMAL_TOL or refused, and
+    the certificate decides as everywhere."""
     held = np.flatnonzero(s != FREE)
     for i in sorted(held[list(rows)], reverse=True):
         if s[i] == FIXED:
@@ -171,10 +173,13 @@ def _degenerate(H, f, A, lo, up, levels, s, rows) -> tuple[np.ndarray, bool]:
             continue
         if certified:
             return x, True
-    return np.full(H.shape[0], np.nan), False
+    try:
+        return _solve_over(H, f, A, lo, up, levels, s, ill_ok=True)
+    except _IllConditioned:            # (in a level's step)
+        return np.full(H.shape[0], np.nan), False
 
 
-def _solve_over(H, f, A, lo, up, levels, s):
+def _solve_over(H, f, A, lo, up, levels, s, ill_ok=False):
     n = H.shape[0]
     held = s != FREE
     C, d = A[held], np.where(s[held] == LOWER, lo[held], up[held])
@@ -182,7 +187,7 @@ def _solve_over(H, f, A, lo, up, levels, s):
         return np.full(n, np.nan), False                  # a row held at an infinite bound
     steps = []
     try:
-        x, Z = _least_squares_step(C, d, np.zeros(n), np.eye(n), steps)
+        x, Z = _least_squares_step(C, d, np.zeros(n), np.eye(n), steps, ill_ok)
     except _IllConditioned as ill:
         ill.of_working_set = True
         raise
