@@ -16,6 +16,7 @@
 #define LEX_PRIMAL_TOL 1e-9
 #define LEX_DUAL_TOL 1e-9
 #define LEX_ACTIVE_TOL 1e-9
+#define LEX_DEGENERATE_DROPS 2
 
 /* The number of variables of a problem or a workspace X. A build defines VFDSL_LEX_N, the task's n (vfdsl.codegen.build
    compiles this file once per n): every loop over the variables then has a trip count known to the compiler, which
@@ -592,10 +593,11 @@ static int lex_solve_over(vfdsl_lex* L, const vfdsl_lex_prob* P, const int* s, d
 
 /* The levels' optimum over s into x; 1 when certified (lexls.py's solve_over). When W's rows are nearly dependent
  * (a degenerate vertex: lexls.py's _degenerate), s without one of them (those in pivot order up to the nearly
- * dependent one), the last hard row first, then s as it is with W's pivots only above RANK_TOL; s becomes the
+ * dependent one), the last hard row first and LEX_DEGENERATE_DROPS of them at most, then s as it is with W's pivots
+ * only above RANK_TOL; s becomes the
  * working set certified. */
 int vfdsl_lex_solve(vfdsl_lex* L, const vfdsl_lex_prob* P, int* s, double* x) {
-  int count, k, i, held;
+  int count, k, i, held, tried = 0;
   if (lex_solve_over(L, P, s, x, 0)) return 1;
   if (L->ill_at < 0) return 0;
   count = L->ill_at + 1;
@@ -604,6 +606,7 @@ int vfdsl_lex_solve(vfdsl_lex* L, const vfdsl_lex_prob* P, int* s, double* x) {
   for (i=P->K-1, held=0; i>=0; --i) held += s[i] != LEX_FREE;
   for (i=P->K-1; i>=0; --i) {
     if (s[i] == LEX_FREE || !L->drop[--held] || s[i] == LEX_FIXED) continue;
+    if (tried++ == LEX_DEGENERATE_DROPS) break;
     memcpy(L->trial, s, sizeof(int) * P->K);
     L->trial[i] = LEX_FREE;
     if (lex_solve_over(L, P, L->trial, x, 0)) {
