@@ -23,6 +23,7 @@ import vfdsl
 from vfdsl.compiler.context import flatten
 from vfdsl.errors import Span, VfError
 from vfdsl.export.selftest import parse_answer
+from vfdsl.files import check_writable
 from vfdsl.inputs import INPUT_TYPES
 from vfdsl.ir import model as ir
 from vfdsl.kinematics.robot import Robot
@@ -58,12 +59,16 @@ def add_parser(commands) -> None:
 
 
 def main(args: argparse.Namespace) -> int:
-    suffix = tr.check_path(args.output)
+    suffix = Path(args.output).suffix.lower()
+    if suffix not in tr.FORMATS:
+        raise VfError(f"-o {args.output}: write a .csv, a .parquet or an .mcap file")
+    tr.check_path(args.output)                 # (Parquet needs pyarrow)
+    check_writable(args.output)
     task = vfdsl.load(args.file)
     dt = args.dt if args.dt is not None else (task.scene.period or ASSUMED_PERIOD)
     if not (np.isfinite(dt) and dt > 0):
         raise VfError(f"--dt {args.dt}: a period in seconds, more than 0")
-    start = _numbers(Path(args.params), 1, Path(args.params).read_text()) if args.params else None
+    start = _numbers(Path(args.params), 1, " ".join(_lines(Path(args.params)))) if args.params else None
     trace = read(task, Path(args.ticks), Path(args.replayed), dt, start)
     result = SimpleNamespace(trace=trace, trial=0, seed=0, grid=[])
     out = Path(args.output)

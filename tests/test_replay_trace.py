@@ -1,0 +1,64 @@
+"""`vfdsl replay-trace` on what a user may hand it (issue 36, the export's replay as a trace): the ticks and answers of
+a replay become the trace's rows, params set by a tick line kept for the next, a refused tick kept as its error; and
+every mistaken input (a missing or unreadable file, a line of other numbers, answers of other ticks, a bad dt or
+params file, an output it cannot write) is refused with a message, exit 2, no traceback. The C build itself is
+tested in tests/test_export_teleop.py."""
+
+from __future__ import annotations
+
+import csv
+
+import pytest
+
+from vfdsl.cli import main
+
+from conftest import TASKS_DIR
+
+PAPER_B = TASKS_DIR / "paper_b_virtual_rcm.vf"       # 7 joints, a torque input (3), params pivot and axis (6)
+Q = "0.1 0.2 0.3 0.4 0.5 0.6 0.7"
+
+
+def _files(tmp_path, ticks: str, answers: str):
+    t, r = tmp_path / "ticks.txt", tmp_path / "replayed.txt"
+    t.write_text(ticks)
+    r.write_text(answers)
+    return t, r
+
+
+def test_ticks_and_answers_become_the_traces_rows(tmp_path):
+    ticks, answers = _files(tmp_path, f"{Q} 0 0 0.01\n\n{Q} 0 0 0.02 0 0 0.3 0 0 1\n{Q} 0 0 0.03\n",
+                            "0 1 2 3 4 5 6 7\n\n1 0 0 0 0 0 0 0\nerror -3 a joint value is not finite\n")
+    out = tmp_path / "run.csv"
+    assert main(["replay-trace", str(PAPER_B), str(ticks), str(answers), "-o", str(out), "--dt", "0.005"]) == 0
+    rows = list(csv.DictReader(out.open()))
+    assert [float(r["t_s"]) for r in rows] == [0.0, 0.005, 0.01]
+    assert [int(r["status"]) for r in rows] == [0, 1, -3]
+    dq = [c for c in rows[0] if c.startswith("dq.")]
+    assert rows[2]["violations"] == "error -3 a joint value is not finite" and rows[2][dq[0]] == ""
+    assert [float(rows[0][c]) for c in dq] == [1, 2, 3, 4, 5, 6, 7] and float(rows[1]["input.tau.tz_Nm"]) == 0.02
+    z = [c for c in rows[0] if c.startswith("param.pivot.") and c.endswith("z_m")][0]
+    assert [float(r[z]) for r in rows] == [float(rows[0][z]), 0.3, 0.3]      # set by tick 2, kept for tick 3
+
+
+@pytest.mark.parametrize("ticks, answers, extra, message", [
+    (None, "0 0 0 0 0 0 0 0\n", [], "cannot read"),
+    (f"{Q} 0 0\n", "0 0 0 0 0 0 0 0\n", [], "ticks.txt:1:1: error: 9 numbers, expected 10"),
+    (f"{Q} 0 0 x\n", "0 0 0 0 0 0 0 0\n", [], "ticks.txt:1:1: error: not a number"),
+    (f"{Q} 0 0 0\n{Q} 0 0 0\n", "0 0 0 0 0 0 0 0\n", [], "1 lines for the 2 ticks"),
+    (f"{Q} 0 0 0\n", "0 0 0\n", [], "replayed.txt:1:1: error: a tick's answer reads `STATUS` and 7 dq"),
+    (f"{Q} 0 0 0\n", "0 0 0 0 0 0 0 0\n", ["--dt", "nan"], "--dt nan: a period in seconds"),
+    (f"{Q} 0 0 0\n", "0 0 0 0 0 0 0 0\n", ["--params", "PARAMS"], "--params: 2 numbers, expected 6"),
+    (f"{Q} 0 0 0\n", "0 0 0 0 0 0 0 0\n", ["--params", "missing.txt"], "cannot read missing.txt"),
+    (f"{Q} 0 0 0\n", "0 0 0 0 0 0 0 0\n", ["-o", "/nonexistent/run.csv"], "cannot write /nonexistent/run.csv"),
+    (f"{Q} 0 0 0\n", "0 0 0 0 0 0 0 0\n", ["-o", "run.txt"], "-o run.txt: write a .csv, a .parquet or an .mcap"),
+])
+def test_mistaken_input_is_refused_without_a_traceback(tmp_path, capsys, monkeypatch, ticks, answers, extra, message):
+    monkeypatch.chdir(tmp_path)
+    t, r = _files(tmp_path, ticks or "", answers)
+    if ticks is None:
+        t.unlink()
+    (tmp_path / "PARAMS").write_text("1 2\n")
+    args = ["replay-trace", str(PAPER_B), str(t), str(r)] + (["-o", "run.csv"] if "-o" not in extra else []) + extra
+    assert main(args) == 2
+    err = capsys.readouterr().err
+    assert message in err and "Traceback" not in err, err
