@@ -257,7 +257,7 @@ def test_recorded_joints_are_a_reference_for_a_pose_input(tmp_path):
 
 
 @pytest.mark.parametrize("mapping, message", [
-    ("master: {topic: /joint_states, frame: tool}", "task 'teleop_guide_line' has no frame 'tool'"),
+    ("master: {topic: /joint_states, frame: tool}", "unknown frame 'tool'"),
     ("master: {topic: /joint_states}", "sensor_msgs/msg/JointState messages, but input 'master' reads "
                                        "geometry_msgs/msg/PoseStamped"),
     ("master: {topic: /joint_states, frame: tip, unit: mm}", "a reference from recorded joints is the frame's pose in "
@@ -306,7 +306,7 @@ def test_a_sensor_on_the_tool_in_its_own_units_is_turned_into_the_world(tmp_path
     ("tau: {topic: /ft/wrench, unit: mm}", "unit 'mm' is a length; input 'tau' needs a torque here"),
     ("tau: {topic: /ft/wrench, unit: [Nm, Nm]}", "input 'tau' is a torque: give 1 unit (a torque), not 2"),
     ("tau: {topic: /ft/wrench, unit: furlong}", "furlong"),
-    ("tau: {topic: /ft/wrench, in: tool}", "task 'paper_b_virtual_rcm' has no frame 'tool'"),
+    ("tau: {topic: /ft/wrench, in: tool}", "unknown frame 'tool'"),
     ("tau: {topic: /ft/wrench, frame: tip}", "input 'tau' is a torque: recorded joints give a frame's pose"),
     ("tau: {unit: Nm}", "input 'tau''s recording needs `topic`"),
 ])

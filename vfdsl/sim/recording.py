@@ -164,14 +164,14 @@ def _input_source(reader, key: str, kind: str, node: yaml.Node) -> Source:
         if extra:
             raise VfError(f"a reference from recorded joints is the frame's pose in the world, in SI: drop `{extra[0]}`",
                           reader.pos(fields[extra[0]][0]), code="E602")
-        return Source(topic, span, frame=_task_frame(reader, fields["frame"][1]))
+        return Source(topic, span, frame=reader.frame(fields["frame"][1]))
     expressed_in = None
     if "in" in fields:
         if kind not in ("force", "torque", "wrench", "twist"):
             raise VfError(f"input '{key}' is a {kind}: `in:` turns a force, torque, wrench or twist into the world",
                           reader.pos(fields["in"][0]), code="E602")
         name = reader.text(fields["in"][1], "a frame")
-        expressed_in = None if name == "world" else _task_frame(reader, fields["in"][1])
+        expressed_in = None if name == "world" else reader.frame(fields["in"][1])
     parts = INPUT_TYPES[kind].parts[:1] if kind == "pose" else INPUT_TYPES[kind].parts
     factors = tuple(1.0 for _ in parts)
     if "unit" in fields:
@@ -191,15 +191,6 @@ def _input_source(reader, key: str, kind: str, node: yaml.Node) -> Source:
             converted.append(factor)
         factors = tuple(converted)
     return Source(topic, span, expressed_in=expressed_in, factors=factors)
-
-
-def _task_frame(reader, node: yaml.Node) -> str:
-    frame = reader.text(node, "a frame")
-    frames = [f.name for f in reader.task.frames]
-    if frame not in frames:
-        raise VfError(f"task '{reader.task.name}' has no frame '{frame}'", reader.pos(node),
-                      hint=suggest(frame, frames, "frames"), code="E602")
-    return frame
 
 
 def load(bag: Path, task, mapping: dict[str, Source], start: tuple[str, Span] | None,
