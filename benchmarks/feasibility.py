@@ -67,6 +67,10 @@ class _Twin:
     def __getattr__(self, name):
         return getattr(self._native, name)
 
+    def reset(self):
+        self._native.reset()
+        self._interpreted.reset()
+
     def step(self, q, inputs=None, params=None, dt=None):
         f = self.figures
         f.ticks += 1

@@ -264,3 +264,16 @@ def test_the_command_prints_and_writes_the_procedure(tmp_path, capsys):
     assert [p["name"] for p in doc["procedure"]["phases"]] == [p.name for p in vfdsl.load(TASK).phases]
     assert "transitions: tick (s), from -> to, the guard that held" in printed
     assert re.search(r"^retract\s+\d+\.\d{3}\s+\d+ \(", printed, re.M)
+
+
+def test_every_trial_starts_the_procedure_afresh(tmp_path):
+    """The simulator's controller is cached per process: each trial starts in the initial phase with its captures
+    taken again, not where the last trial ended (trial 2 of the needle procedure once began in 'done')."""
+    from vfdsl.cli import main
+    out = tmp_path / "trace.csv"
+    assert main(["simulate", str(TASK), "--trials", "2", "--duration", "1 s", "--trace", str(out), "--quiet"]) == 0
+    import csv
+    rows = list(csv.DictReader(out.open()))
+    firsts = [next(r for r in rows if r["trial"] == t) for t in ("0", "1")]
+    assert [r["phase"] for r in firsts] == ["approach", "approach"]
+    assert [r["phase"] for r in rows if r["trial"] == "0"] == [r["phase"] for r in rows if r["trial"] == "1"]

@@ -134,7 +134,11 @@ def run_trial(job: Job, progress=None) -> TrialResult:
 
 
 def simulate_with(job: Job, task: ir.Task, ctrl: vfdsl.Controller, robot: Robot, progress) -> TrialResult:
-    """Simulate one trial of ``job`` with a given controller (anything with Controller's interface) and score it."""
+    """Simulate one trial of ``job`` with a given controller (anything with Controller's interface) and score it.
+    The trial starts from the controller's first tick (:meth:`vfdsl.Controller.reset`: a procedure in its initial
+    phase, its captures taken again, the teleoperation readout at rest), whatever ran on it before: the controller
+    is cached per process, and a trial must not continue the last one's procedure."""
+    ctrl.reset()
     s = job.settings
     dt = s.period
     ticks = max(1, int(round(s.duration / dt)))
