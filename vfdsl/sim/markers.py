@@ -29,7 +29,7 @@ POINT_SIZE = 0.002          # m: diameter of a SPHERE_LIST's spheres
 TEXT_HEIGHT = 0.004         # m: height of a fixture's label
 
 
-def frame_poses(task: ir.Task, poses: dict[str, tuple[np.ndarray, np.ndarray]]) -> dict[str, FramePose]:
+def shape_frames(task: ir.Task, poses: dict[str, tuple[np.ndarray, np.ndarray]]) -> dict[str, FramePose]:
     """The task frames as the shapes read them, from each frame's (position, rotation) in the world."""
     return {f.name: FramePose(position=np.asarray(poses[f.name][0], dtype=float).ravel(),
                               rotation=np.asarray(poses[f.name][1], dtype=float),

@@ -33,13 +33,13 @@ from pathlib import Path
 import numpy as np
 
 from vfdsl.compiler.context import unflatten
-from vfdsl.compiler.geometry import homogeneous
 from vfdsl.inputs import INPUT_TYPES
 from vfdsl.ir import model as ir
 from vfdsl.kinematics.robot import Robot
 from vfdsl.sim import trace as tr
 from vfdsl.sim.geometry import Scene
-from vfdsl.sim.markers import MARKER_RATE, FixtureMarkers, frame_poses
+from vfdsl.sim.markers import MARKER_RATE, FixtureMarkers, shape_frames
+from vfdsl.sim.metrics import frame_poses
 
 WORLD = "world"
 
@@ -93,17 +93,16 @@ def write_mcap(path: Path, results, task: ir.Task) -> None:
 
     traced = [r for r in results if r.trace is not None]
     robot = Robot.load(task.robots[0].urdf)
-    offsets = {f.name: (f.link, homogeneous(f.offset, f.rpy)) for f in task.frames}
     with Path(path).open("wb") as out:
         writer = Writer(out)
         writer.start(profile="ros2", library="vfdsl")
         channels = _Channels(writer)
         for k, result in enumerate(traced):
-            _trial(channels, result.trace, task, robot, offsets, f"/trial_{k}" if len(traced) > 1 else "")
+            _trial(channels, result.trace, task, robot, f"/trial_{k}" if len(traced) > 1 else "")
         writer.finish()
 
 
-def _trial(ch: _Channels, trace: dict, task: ir.Task, robot: Robot, offsets: dict, prefix: str) -> None:
+def _trial(ch: _Channels, trace: dict, task: ir.Task, robot: Robot, prefix: str) -> None:
     T = ch.types
     times = np.asarray(trace["t_s"], dtype=float)
     period = float(times[1] - times[0]) if len(times) > 1 else 1.0
@@ -116,6 +115,8 @@ def _trial(ch: _Channels, trace: dict, task: ir.Task, robot: Robot, offsets: dic
               if tr.param_columns(d)[0] in trace}
     layout = T["std_msgs/msg/MultiArrayLayout"](dim=[], data_offset=0)
     haptic = (np.column_stack([trace[f"haptic_{a}_N"] for a in "xyz"]) if "haptic_x_N" in trace else None)
+    placed = np.all(np.isfinite(q), axis=1)          # a refused tick's NaN joints: no TF and no markers there
+    poses = frame_poses(robot, task, np.where(placed[:, None], q, 0.0))
     markers, scene = FixtureMarkers(task, T), Scene(task)
     every, drawn = max(1, int(round(1.0 / (MARKER_RATE * period)))), 0
     for k, t in enumerate(times):
@@ -123,14 +124,13 @@ def _trial(ch: _Channels, trace: dict, task: ir.Task, robot: Robot, offsets: dic
         ch.write(f"{prefix}/joint_states", "sensor_msgs/msg/JointState", T["sensor_msgs/msg/JointState"](
             header=ch.header(ns, ""), name=list(robot.joint_names), position=q[k].astype(float),
             velocity=(dq[k] / period).astype(float), effort=np.zeros(0)), ns)
-        transforms, poses, placed = [], {}, bool(np.all(np.isfinite(q[k])))
-        for name, (link, offset) in (offsets.items() if placed else ()):    # a refused tick's NaN joints: no TF
-            p, R = poses[name] = robot.frame_pose(q[k], link, offset)
-            transforms.append(T["geometry_msgs/msg/TransformStamped"](
-                header=ch.header(ns), child_frame_id=name,
-                transform=T["geometry_msgs/msg/Transform"](translation=ch.vector(p), rotation=ch.quaternion(R))))
-        if placed:
-            ch.write(f"{prefix}/tf", "tf2_msgs/msg/TFMessage", T["tf2_msgs/msg/TFMessage"](transforms=transforms), ns)
+        at = {f.name: (poses.p[f.name][k], poses.R[f.name][k]) for f in task.frames} if placed[k] else {}
+        if placed[k]:
+            ch.write(f"{prefix}/tf", "tf2_msgs/msg/TFMessage", T["tf2_msgs/msg/TFMessage"](transforms=[
+                T["geometry_msgs/msg/TransformStamped"](
+                    header=ch.header(ns), child_frame_id=name,
+                    transform=T["geometry_msgs/msg/Transform"](translation=ch.vector(p), rotation=ch.quaternion(R)))
+                for name, (p, R) in at.items()]), ns)
         for decl in task.inputs:
             if decl.name in inputs:
                 _input(ch, f"{prefix}/vfdsl/input/{decl.name}", INPUT_TYPES[decl.type], inputs[decl.name][k], ns)
@@ -151,11 +151,11 @@ def _trial(ch: _Channels, trace: dict, task: ir.Task, robot: Robot, offsets: dic
         if haptic is not None:
             ch.write(f"{prefix}/vfdsl/haptic", "geometry_msgs/msg/WrenchStamped", ch.wrench(ns, haptic[k], np.zeros(3)),
                      ns)
-        if placed and (k % every == 0 or k == len(times) - 1):
+        if placed[k] and (k % every == 0 or k == len(times) - 1):
             moved = [name for name, values in params.items() if k == 0 or not np.array_equal(values[k], values[drawn])]
             for name in moved:
                 scene.set_value(name, unflatten(scene.values[name], params[name][k]))
-            changed, drawn = markers.update(ch.header(ns), scene, frame_poses(task, poses), bool(moved)), k
+            changed, drawn = markers.update(ch.header(ns), scene, shape_frames(task, at), bool(moved)), k
             if changed:
                 ch.write(f"{prefix}/vfdsl/fixtures", "visualization_msgs/msg/MarkerArray",
                          T["visualization_msgs/msg/MarkerArray"](markers=changed), ns)
