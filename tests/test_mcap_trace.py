@@ -147,7 +147,7 @@ def test_view_replays_one_trial_of_several_and_refuses_what_is_not_a_trace(tmp_p
 
 def test_the_params_a_motion_moves_are_written_each_tick(tmp_path):
     """breathing_vessel's vessel curve breathes (a motion): /vfdsl/param/vessel carries its points at each tick, equal
-    to the CSV trace's param columns."""
+    to the CSV trace's param columns, and vfdsl view --replay reads them from either file alike."""
     task = TASKS_DIR / "breathing_vessel.vf"
     found = _messages(_run(tmp_path, task, ".mcap", "--trials", "1"))
     rows = list(csv.DictReader(_run(tmp_path, task, ".csv", "--trials", "1").open()))
@@ -157,6 +157,13 @@ def test_the_params_a_motion_moves_are_written_each_tick(tmp_path):
     values = np.array([m.data for _, m, _ in messages])
     assert np.array_equal(values, [[float(row[c]) for c in columns] for row in rows])
     assert np.ptp(values, axis=0).max() > 1e-5                 # it moved
+    import vfdsl
+    from vfdsl.kinematics.robot import Robot
+    from vfdsl.view import replay
+    loaded = vfdsl.load(task)
+    joints, sizes = Robot.load(loaded.robots[0].urdf).joint_names, {"vessel": len(columns)}
+    played = [replay.read(tmp_path / f"run{s}", joints, loaded.scene.period, None, sizes) for s in (".mcap", ".csv")]
+    assert np.array_equal(played[0].params["vessel"], played[1].params["vessel"])
 
 
 def _marker_states(messages) -> list[tuple[int, dict]]:

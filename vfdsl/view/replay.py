@@ -96,7 +96,7 @@ def read(path: str | Path, joint_names: list[str], period: float | None = None, 
     numbers of the columns used."""
     path = Path(path)
     if path.suffix.lower() == ".mcap":
-        return read_mcap(path, joint_names, trial)
+        return read_mcap(path, joint_names, trial, params or {})
     if path.suffix.lower() == ".parquet":
         raise VfError(f"{path}: a trace to replay is a CSV file, not Parquet",
                       hint="write the run's trace as CSV: vfdsl simulate TASK --trace run.csv")
@@ -114,10 +114,11 @@ def read(path: str | Path, joint_names: list[str], period: float | None = None, 
         raise VfError(f"cannot read the trace {path}: {err.strerror or err}") from None
 
 
-def read_mcap(path: Path, joint_names: list[str], trial: str | None = None) -> Trace:
+def read_mcap(path: Path, joint_names: list[str], trial: str | None = None, params: dict[str, int] | None = None) -> Trace:
     """An MCAP trace as ``vfdsl simulate --trace run.mcap`` writes it (vfdsl.sim.mcap_trace): the joints from
-    /joint_states (by name), the status, the first metric whose name holds ``error``, a procedure's phase; a run of
-    several trials keeps trial ``trial`` (its /trial_<k> topics; default the first). Messages are matched by stamp."""
+    /joint_states (by name), the status, the first metric whose name holds ``error``, a procedure's phase, each
+    run-time param of ``params`` (name -> size) from /vfdsl/param/<name> as the CSV's param columns; a run of several
+    trials keeps trial ``trial`` (its /trial_<k> topics; default the first). Messages are matched by stamp."""
     from rosbags.highlevel import AnyReader
     os.close(open_file(path, "trace", limit=limits.TRACE_BYTES))        # a regular file within the size limit
     try:
@@ -155,6 +156,7 @@ def read_mcap(path: Path, joint_names: list[str], trial: str | None = None) -> T
                          if t.startswith(prefix + "/vfdsl/metric/") and "error" in t)
         error = read(f"/vfdsl/metric/{metrics[0]}") if metrics else {}
         phase = read("/vfdsl/phase")
+        moved = {name: read(f"/vfdsl/param/{name}") for name in (params or {})}
     finally:
         reader.close()
 
@@ -166,7 +168,10 @@ def read_mcap(path: Path, joint_names: list[str], trial: str | None = None) -> T
                  status=column(status, lambda m: float(m.data), math.nan) if status else None,
                  trial=None if trial is None and len(prefixes) == 1 else prefix[len("/trial_"):],
                  columns=tuple(sorted(topics)),
-                 phase=column(phase, lambda m: m.data, "") if phase else None)
+                 phase=column(phase, lambda m: m.data, "") if phase else None,
+                 params={name: np.array([np.asarray(messages[s].data, dtype=float) for s in stamps])
+                         for name, messages in moved.items()
+                         if messages and all(s in messages and len(messages[s].data) == params[name] for s in stamps)})
 
 
 def _parse(path: Path, reader, joint_names: list[str], period: float | None, trial: str | None,
