@@ -74,6 +74,11 @@ def record(ctrl, count: int, dt: float | None = None,
     return ticks
 
 
+READOUT_NUMBERS = 16
+"""Numbers of a readout as replay prints it (:func:`readout_numbers`): force 3, set-point 6, goal 3, depth 3,
+following 1."""
+
+
 def readout_numbers(out) -> np.ndarray | None:
     """A teleoperation readout (Controller.teleop) as replay prints it: force, set-point, goal, depth, following
     (None without one)."""

@@ -162,10 +162,9 @@ def _degenerate(H, f, A, lo, up, levels, s, rows) -> tuple[np.ndarray, bool]:
     a degenerate vertex, where more rows hold x than its motion needs (paper A's tip and shaft at the same corner of
     their octagons, whose rows constrain the same motion twice). W without one of them, the last hard row first (an
     order of the rows, not of the pivoting, so that both paths drop the same row; DEGENERATE_DROPS of them at most):
-    the first certified answer is
-    taken, the dropped row holding within PRIMAL_TOL as every hard row must. Where none is (the optimum holds them
-    all), W as it is, its pivots only above RANK_TOL: its rows are then consistent within PRIMAL_TOL or refused, and
-    the certificate decides as everywhere."""
+    the first certified answer is taken, the dropped row holding within PRIMAL_TOL as every hard row must. Where none
+    is (the optimum holds them all), W as it is, its pivots only above RANK_TOL: its rows are then consistent within
+    PRIMAL_TOL or refused, and the certificate decides as everywhere."""
     held = np.flatnonzero(s != FREE)
     for i in [i for i in sorted(held[list(rows)], reverse=True) if s[i] != FIXED][:DEGENERATE_DROPS]:
         fewer = s.copy()

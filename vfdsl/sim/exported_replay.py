@@ -20,11 +20,9 @@ from types import SimpleNamespace
 import numpy as np
 
 import vfdsl
-from vfdsl.compiler.context import flatten
 from vfdsl.errors import Span, VfError
-from vfdsl.export.selftest import parse_answer
+from vfdsl.export.selftest import READOUT_NUMBERS, parse_answer
 from vfdsl.files import check_writable
-from vfdsl.inputs import INPUT_TYPES
 from vfdsl.ir import model as ir
 from vfdsl.kinematics.robot import Robot
 from vfdsl.objectives.haptics import teleop_terms
@@ -36,7 +34,6 @@ Turn a run of an exported C controller into a trace: the ticks its replay progra
 and the lines it answered (> replayed.txt) become the trace `vfdsl simulate --trace` writes: CSV, Parquet, or an
 MCAP file of ROS 2 messages for Foxglove, PlotJuggler or RViz (docs/simulate.md), and `vfdsl view --replay`
 plays it."""
-TELEOP_NUMBERS = 16          # force (3), set-point (6), goal (3), depth (3), following
 
 
 def add_parser(commands) -> None:
@@ -85,11 +82,9 @@ def read(task: ir.Task, ticks: Path, replayed: Path, dt: float, start_params=Non
     """The trace columns (:mod:`vfdsl.sim.trace`) of a replay: ``ticks`` fed to it, ``replayed`` its answers."""
     robot = Robot.load(task.robots[0].urdf)
     nq = len(robot.joint_names)
-    inputs = [(i.name, INPUT_TYPES[i.type].columns) for i in task.inputs]
-    nu = sum(len(c) for _, c in inputs)
+    nu = len(tr.input_columns(task))
     params = tr.runtime_params(task)
-    sizes = [len(flatten(d.value)) for d in params]
-    current = np.concatenate([flatten(d.value) for d in params]) if params else np.zeros(0)
+    current = np.concatenate([tr.flat_param(d.value) for d in params]) if params else np.zeros(0)
     if start_params is not None:
         if len(start_params) != len(current):
             raise VfError(f"--params: {len(start_params)} numbers, expected {len(current)} (every param in order)")
@@ -123,10 +118,9 @@ def read(task: ir.Task, ticks: Path, replayed: Path, dt: float, start_params=Non
     u = np.array(rows["u"]).reshape(ticks_n, nu)
     for column, values in zip(tr.input_columns(task), u.T):
         trace[column] = values
-    p, k = np.array(rows["p"]).reshape(ticks_n, -1), 0
-    for decl, size in zip(params, sizes):
-        for column in tr.param_columns(decl):
-            trace[column], k = p[:, k], k + 1
+    p = np.array(rows["p"]).reshape(ticks_n, -1)
+    for column, values in zip([c for d in params for c in tr.param_columns(d)], p.T):
+        trace[column] = values
     trace["status"] = np.array(rows["status"], dtype=int)
     trace["violations"] = rows["violations"]
     if task.phases:
@@ -141,7 +135,7 @@ def read(task: ir.Task, ticks: Path, replayed: Path, dt: float, start_params=Non
 def _answer(rows: dict, path: Path, n: int, line: str, nq: int, teleop: bool, procedure: bool) -> None:
     """One line of the replay's output (:func:`vfdsl.export.selftest.parse_answer`) into ``rows``."""
     expected = (f"`STATUS` and {nq} dq{' | PHASE' if procedure else ''}"
-                f"{f' # and {TELEOP_NUMBERS} numbers of readout' if teleop else ''}, or `error CODE MESSAGE`")
+                f"{f' # and {READOUT_NUMBERS} numbers of readout' if teleop else ''}, or `error CODE MESSAGE`")
     try:
         answer = parse_answer(line)
     except (ValueError, IndexError):
@@ -158,7 +152,7 @@ def _answer(rows: dict, path: Path, n: int, line: str, nq: int, teleop: bool, pr
     phase = extra.pop(0) if procedure and extra and isinstance(extra[0], str) else None
     readout = extra.pop(0) if teleop and extra else None
     if len(answer[1]) != nq or extra or (procedure and phase is None) or (teleop and (
-            readout is None or len(readout) != TELEOP_NUMBERS)):
+            readout is None or len(readout) != READOUT_NUMBERS)):
         raise VfError(f"a tick's answer reads {expected}: this line does not", _at(path, n))
     rows["status"].append(answer[0])
     rows["dq"].append(answer[1])
