@@ -54,8 +54,7 @@ class FixtureMarkers:
         for k, c in enumerate(self.task.constraints):
             at = sh.depends_on(c, frames)
             built = self._built.get(k)
-            if built is not None and not params_changed and built[0].shape == at.shape and (
-                    np.abs(built[0] - at).max(initial=0.0) <= MARKER_MOVE):
+            if built is not None and not params_changed and _close(built[0], at):
                 seen |= built[1]
                 continue
             fixture, keys = sh.build_one(k, self.task, scene, frames), set()
@@ -78,9 +77,8 @@ class FixtureMarkers:
         return out
 
     def _moved(self, key: tuple[str, str], vertices: np.ndarray) -> bool:
-        old = self._written.get(key)
         vertices = np.asarray(vertices, dtype=float)
-        if old is not None and old.shape == vertices.shape and np.abs(old - vertices).max(initial=0.0) <= MARKER_MOVE:
+        if _close(self._written.get(key), vertices):
             return False
         self._written[key] = vertices.copy()
         return True
@@ -122,6 +120,11 @@ class FixtureMarkers:
             uv_coordinates=[], text=text, mesh_resource="",
             mesh_file=T["visualization_msgs/msg/MeshFile"](filename="", data=np.zeros(0, np.uint8)),
             mesh_use_embedded_materials=False)
+
+
+def _close(old: np.ndarray | None, new: np.ndarray) -> bool:
+    """Whether points drawn at ``old`` are still where ``new`` puts them, within MARKER_MOVE."""
+    return old is not None and old.shape == new.shape and np.abs(old - new).max(initial=0.0) <= MARKER_MOVE
 
 
 def _edges(faces: np.ndarray) -> np.ndarray:

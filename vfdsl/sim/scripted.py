@@ -193,8 +193,8 @@ class ScriptedInputs:
         self.presses = settings.presses
         self.operator = settings.operator
         self.recorded = () if settings.recording is None else settings.recording.inputs
-        self.sensor_frames = {r.expressed_in: (task.frame(r.expressed_in).link, homogeneous(
-            task.frame(r.expressed_in).offset, task.frame(r.expressed_in).rpy)) for r in self.recorded if r.expressed_in}
+        frames = [task.frame(r.expressed_in) for r in self.recorded if r.expressed_in]
+        self.sensor_frames = {f.name: (f.link, homogeneous(f.offset, f.rpy)) for f in frames}
         self.noise: dict[str, np.ndarray] = {}
         for sensor in settings.sensors:
             parts = INPUT_TYPES[task.input(sensor.input).type]
