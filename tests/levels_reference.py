@@ -147,3 +147,35 @@ def kkt_excess(qp, x, last_is_damping: bool, active=1e-9):
             residual = np.linalg.norm(M @ fit.x + G)
         residuals.append(float(residual / max(scale, 1e-300)))
     return residuals, excess
+
+
+PENALTY, LEAST_VIOLATION_TIE_BREAK = 1.0, 1e-3     # vfdsl.compile's penalty rho and tie_break mu, restated
+MARGIN = 1e-8               # vfdsl.runtime.qp.LEAST_VIOLATION_MARGIN feas_tol, restated
+RELAXED = 1e-12             # a group counts as violated above this (1e-3 feas_tol, as the controller)
+
+
+def least_violation_set(qp, groups):
+    """(x_A, lower, upper): phase 2's least violation solved here, and the general rows' bounds of the least-violation
+    set S over which the levels act (docs/runtime.md, Phase 2), from their definitions: (A) stacked here and solved
+    by DAQP's Python package directly (tight tolerance, no scaling); each row of a violated group relaxed by the
+    group's least violation and the margin, none worse than at rest (x_0: the point of the box nearest 0)."""
+    n = qp.P.shape[0]
+    A, lb, ub = qp.A[n:], qp.lb[n:], qp.ub[n:]
+    lo, hi = box(qp.lb[:n], qp.ub[:n])
+    ids = {g: k for k, g in enumerate(dict.fromkeys(groups))}
+    m, G = len(lb), len(ids)
+    E = np.zeros((m, G))
+    E[np.arange(m), [ids[g] for g in groups]] = 1
+    at_rest = A @ np.clip(0.0, lo, hi)
+    H = np.diag(np.r_[np.full(n, LEAST_VIOLATION_TIE_BREAK), np.ones(G)])
+    f = np.r_[np.zeros(n), PENALTY * np.ones(G)]
+    rows = np.vstack([np.hstack([A, E]), np.hstack([A, -E]), np.hstack([A, 0 * E])])
+    lower = np.r_[lo, np.zeros(G), lb, np.full(m, -BIG), np.minimum(lb, at_rest)]
+    upper = np.r_[hi, np.full(G, BIG), np.full(m, BIG), ub, np.maximum(ub, at_rest)]
+    z, _, flag, _ = daqp.solve(H, f, rows, np.minimum(upper, BIG), np.maximum(lower, -BIG),
+                               np.zeros(n + G + 3 * m, dtype=np.intc), primal_tol=1e-13, iter_limit=100000)
+    assert flag >= 1, flag
+    z = np.array(z)
+    relaxed = E @ z[n:]
+    widened = np.where(relaxed > RELAXED, relaxed + MARGIN, 0.0)
+    return z[:n], np.maximum(lb - widened, np.minimum(lb, at_rest)), np.minimum(ub + widened, np.maximum(ub, at_rest))

@@ -4,6 +4,8 @@
  *     guess: solve over the working set s (K entries), x the answer, and on a refusal change s by the solver's
  *     hint, at most ``repairs`` times; returns the number of solves made when one was certified, 0 when none
  *     was, -1 out of memory.
+ *   int lexls_from(n, nh, break_points, H, f, A, lower, upper, x): vfdsl_lex_from from x, a point of the hard
+ *     rows: x its last iterate; 1 when certified, 0 not, -1 out of memory.
  *   void lexls_working_set(n, nh, break_points, A, lower, upper, x, s): the working set of x.
  * A is row-major (rows past the n simple bounds), lower/upper hold the n simple bounds first. */
 #include "lexls.c"
@@ -29,6 +31,21 @@ int lexls_solve(int n, int nh, const int* bp, const double* H, const double* f, 
   }
   vfdsl_lex_free(L);
   return solves;
+}
+
+/* vfdsl_lex_from from x (a point of the hard rows): x its last iterate; 1 certified, 0 not, -1 out of memory. */
+int lexls_from(int n, int nh, const int* bp, const double* H, const double* f, const double* A,
+               const double* lower, const double* upper, double* x) {
+  vfdsl_lex_prob P;
+  vfdsl_lex* L;
+  int certified;
+  problem(&P, n, nh, bp, H, f, A, lower, upper);
+  L = vfdsl_lex_alloc(n, P.K, bp[nh - 1] - bp[0]);
+  if (!L) return -1;
+  vfdsl_lex_rows(L, &P);
+  certified = vfdsl_lex_from(L, &P, x);
+  vfdsl_lex_free(L);
+  return certified;
 }
 
 void lexls_working_set(int n, int nh, const int* bp, const double* A, const double* lower, const double* upper,

@@ -86,16 +86,19 @@ def test_the_plans_are_typed_and_the_names_hold_no_data():
     assert set(plans) == {"phase1_try0", "phase1_try1", "phase1_try2", "phase2a", "phase2b"}
     assert plans["phase1_try2"] == SolvePlan(False, (5, 6, 8), 1e-6, partial=True, exact=True)
     assert plans["phase2a"] == SolvePlan()
+    assert plans["phase2b"] == SolvePlan(break_points=(5, 6, 8), exact=True, start=True)
     assert plans_of(golden_step("one_level"))["phase1_warm"] == SolvePlan(warm_start=True)
+    assert plans_of(golden_step("one_level"))["phase2b"] == SolvePlan(break_points=(5,), exact=True, start=True)
     output = golden("two_levels", "patched")
-    assert "{3, 1e-6, 1, 1, {5, 6, 8}}" in output and "{3, 1e-8, 0, 1, {5, 6, 8}}" in output
+    assert "{3, 1e-6, 1, 1, 0, {5, 6, 8}}" in output and "{3, 1e-8, 0, 1, 0, {5, 6, 8}}" in output
+    assert "{3, 0.0, 0, 1, 1, {5, 6, 8}}" in output
 
 
 def test_a_rho_other_than_a_power_of_ten_reaches_the_c_exactly():
     source = golden("two_levels", "casadi")
     plans = dict(plans_of(golden_step("two_levels")))
     plans["phase1_try0"] = SolvePlan(False, (5, 6, 8), 0.1 + 0.2, exact=True)
-    assert "{3, 0.30000000000000004, 0, 1, {5, 6, 8}}" in patched(source, "two_levels", plans)
+    assert "{3, 0.30000000000000004, 0, 1, 0, {5, 6, 8}}" in patched(source, "two_levels", plans)
 
 
 def test_a_conic_without_a_plan_is_refused():

@@ -247,6 +247,7 @@ def compile_harness(directory, *flags):
     I = np.ctypeslib.ndpointer(np.intc, flags="C")       # noqa: E741
     lib.lexls_solve.argtypes = [ctypes.c_int, ctypes.c_int, I, D, D, D, D, D, I, D, ctypes.c_int]
     lib.lexls_working_set.argtypes = [ctypes.c_int, ctypes.c_int, I, D, D, D, D, I]
+    lib.lexls_from.argtypes = [ctypes.c_int, ctypes.c_int, I, D, D, D, D, D, D]
     return lib
 
 

@@ -181,7 +181,10 @@ def test_infeasible_least_violation_against_slsqp(random_paths, seed):
     assert violation[0] > 0
     measure = violation_measure(A, lba, uba, x)
     assert measure < violation_measure(A, lba, uba, np.zeros(N))
-    relaxed_margin = A.shape[0] * FEAS_TOL / 100          # phase (B) relaxes violated rows by tol / 100
+    # (B) may take each violated row out by LEAST_VIOLATION_MARGIN feas_tol beyond its least violation t, which
+    # adds (1 + t) times that (and its square) to the row's rho t + t^2 / 2
+    margin = qp_module.LEAST_VIOLATION_MARGIN * FEAS_TOL
+    relaxed_margin = A.shape[0] * margin * (1 + np.max(row_violation(A, lba, uba, x)) + margin)
     assert measure <= slsqp_least_violation(A, lba, uba, lbx, ubx) + 1e-7 + relaxed_margin
     rest = np.clip(np.zeros(N), lbx, ubx)                  # no row ends worse than at rest
     assert np.all(row_violation(A, lba, uba, x) <= row_violation(A, lba, uba, rest) + 1e-8)

@@ -15,6 +15,8 @@
  *     the squared violations of its rows, in the rows' own units (each row's soft weight is the conic's rho
  *     in the scale of the problem, which undoes DAQP's normalization of the rows), keeping every level above
  *     at its optimum; the QP's own cost acts last;
+ *   - from a point (phase 2's (B)): the levels solved from the conic's x0 by lexls.c's primal active-set method,
+ *     the answer when certified, else x0 (DAQP is not called);
  *   - exact levels (lexls.c): first the levels solved exactly over the previous tick's working set, taken
  *     when certified (DAQP is then not called), the guess repaired up to VFDSL_REPAIRS times (add the most
  *     violated row, or drop the held row with the most negative multiplier); else DAQP's answer, solved again
@@ -30,8 +32,10 @@
 #define VFDSL_REPAIRS 2    /* changes of one row to a refused guess (lexls.c's hint) before DAQP is called */
 /* A conic's levels (from its SolvePlan): DAQP's break points, rho (the soft rows' reciprocal weight), partial: a
    failed level gives the answer of the levels above it (which meets the hard level) rather than NaN, and exact:
-   the levels' rows are targets (lower = upper), so lexls.c may solve them exactly (see vfdsl_daqp_solve). */
-typedef struct { int nh; double rho; int partial; int exact; int break_points[VFDSL_LEVELS_MAX]; } vfdsl_levels;
+   the levels' rows are targets (lower = upper), so lexls.c may solve them exactly (see vfdsl_daqp_solve); start:
+   the levels solved from the conic's x0, a point of the hard rows, by lexls.c's primal active-set method alone. */
+typedef struct { int nh; double rho; int partial; int exact; int start; int break_points[VFDSL_LEVELS_MAX]; }
+  vfdsl_levels;
 
 static void vfdsl_daqp_cold_sense(const struct casadi_qp_prob* p_qp, const struct casadi_qp_data* d_qp,
                                   int* sense) {
@@ -160,6 +164,21 @@ static int vfdsl_daqp_solve(struct casadi_daqp_data* d, int warm, const vfdsl_le
   casadi_copy(d_qp->ubx, p_qp->nx, d->daqp.bupper);
   casadi_copy(d_qp->uba, p_qp->na, d->daqp.bupper+p_qp->nx);
   d->daqp.f = (casadi_real*) (d_qp->g);
+  if (levels && levels->start) {     /* from x0 (phase 2's (B)): the certified optimum, else x0; DAQP not called */
+    vfdsl_lex_prob_of(d, levels, &prob);
+    if (!d->lex) d->lex = vfdsl_lex_alloc(prob.n, prob.K, d->daqp.m - levels->break_points[0]);
+    if (d->lex && d_qp->x0) {
+      vfdsl_lex_rows(d->lex, &prob);
+      casadi_copy(d_qp->x0, p_qp->nx, d_qp->x);
+      if (!vfdsl_lex_from(d->lex, &prob, d_qp->x)) casadi_copy(d_qp->x0, p_qp->nx, d_qp->x);
+      vfdsl_exact_answer(d);
+    } else {
+      d->return_status = DAQP_EXIT_UNSUPPORTED;
+      d_qp->success = 0;
+      vfdsl_fill_nan(d_qp->x, p_qp->nx);
+    }
+    return 0;
+  }
   if (levels && levels->exact) {
     vfdsl_lex_prob_of(d, levels, &prob);
     if (!d->lex) d->lex = vfdsl_lex_alloc(prob.n, prob.K, d->daqp.m - levels->break_points[0]);

@@ -17,6 +17,8 @@
 #define LEX_DUAL_TOL 1e-9
 #define LEX_ACTIVE_TOL 1e-9
 #define LEX_DEGENERATE_DROPS 2
+#define LEX_ROUNDING 2.220446049250313e-16
+#define LEX_PRIMAL_STEPS 50
 
 /* The number of variables of a problem or a workspace X. A build defines VFDSL_LEX_N, the task's n (vfdsl.codegen.build
    compiles this file once per n): every loop over the variables then has a trip count known to the compiler, which
@@ -49,9 +51,9 @@ vfdsl_lex* vfdsl_lex_alloc(int n, int K, int P) {
   size_t R = (size_t) K + P + n;      /* most rows gathered at once (a step, or the fixed rows and every level) */
   size_t S = (size_t) P + 2;          /* most steps: W's, then one per level (a level has a row at least) */
   size_t head = (sizeof(vfdsl_lex) + sizeof(double) - 1) / sizeof(double) * sizeof(double);
-  size_t doubles = 6 * K1 + 3 * R * N + 4 * R + 3 * N * N + 3 * N + 2 * N * K1 + (N + 1) + (N * N + 1)
+  size_t doubles = 6 * K1 + 3 * R * N + 4 * R + 3 * N * N + 5 * N + 2 * N * K1 + (N + 1) + (N * N + 1)
                    + (P + 1) * (N + 1);
-  size_t ints = 5 * K1 + 2 * R + 3 * S + 2 * (S + 1) + 2 * S;
+  size_t ints = 6 * K1 + 2 * R + 3 * S + 2 * (S + 1) + 2 * S;
   char* block;
   double* d;
   int* i;
@@ -72,6 +74,7 @@ vfdsl_lex* vfdsl_lex_alloc(int n, int K, int P) {
   L->tau = lex_doubles(&d, R); L->tau2 = lex_doubles(&d, R); L->c = lex_doubles(&d, R);
   L->Z = lex_doubles(&d, N * N); L->U = lex_doubles(&d, N * N);
   L->x = lex_doubles(&d, N); L->g = lex_doubles(&d, N); L->y = lex_doubles(&d, N); L->K2 = lex_doubles(&d, N * N);
+  L->from_y = lex_doubles(&d, N); L->from_d = lex_doubles(&d, N);
   L->N = lex_doubles(&d, N * K1); L->NP = lex_doubles(&d, N * K1);
   L->lam = lex_doubles(&d, K1); L->sol = lex_doubles(&d, K1); L->w = lex_doubles(&d, K1);
   L->res = lex_doubles(&d, N + 1); L->fR = lex_doubles(&d, N * N + 1);
@@ -79,7 +82,7 @@ vfdsl_lex* vfdsl_lex_alloc(int n, int K, int P) {
   L->rows = (const double**) d;
   i = (int*) (L->rows + S);
   L->guess = lex_ints(&i, K1); L->piv = lex_ints(&i, R); L->cols = lex_ints(&i, K1);
-  L->drop = lex_ints(&i, K1); L->trial = lex_ints(&i, K1);
+  L->drop = lex_ints(&i, K1); L->trial = lex_ints(&i, K1); L->pinned = lex_ints(&i, K1);
   L->max_steps = (int) S;
   L->off = lex_ints(&i, S); L->r = lex_ints(&i, S); L->p = lex_ints(&i, S);
   L->fpiv_at = lex_ints(&i, S + 1); L->fR_at = lex_ints(&i, S + 1);
@@ -263,12 +266,14 @@ static int lex_cholesky_solve(double* K2, int k, double* b) {
   return 0;
 }
 
-/* |N lam - c| for lam >= 0 (N k x a, column-major). */
+/* |N lam - c| for lam >= 0 (N k x a, column-major), plus its rounding, LEX_ROUNDING per unit of lam (N's columns are
+ * unit rows projected: lexls.py's _rounding of the unprojected columns). */
 static double lex_residual(const double* N, int k, int a, const double* c, const double* lam) {
   int i, j;
-  double norm = 0;
+  double norm = 0, charge = 0;
   for (i=0;i<k;++i) { double r = c[i]; for (j=0;j<a;++j) r -= N[i + j*k]*lam[j]; norm += r*r; }
-  return sqrt(norm);
+  for (j=0;j<a;++j) charge += LEX_ROUNDING * fabs(lam[j]);
+  return sqrt(norm) + charge;
 }
 
 /* Least squares on the columns idx[0..q) of N (k x a): sol[idx[l]] = argmin |N_idx s - c|; 0, or -1 when a column
@@ -284,7 +289,8 @@ static int lex_ls_columns(vfdsl_lex* L, const double* N, int k, const int* idx, 
 }
 
 /* 1 when min |N lam - c| over lam >= 0 is at most thr (N k x a, column-major): first the least squares over
- * every column with its negative entries set to 0 (any lam >= 0 bounds the minimum), then Lawson-Hanson. */
+ * every column with its negative entries set to 0 (any lam >= 0 bounds the minimum), then Lawson-Hanson, which
+ * stops with the lam it has when a passive set's columns are (nearly) dependent. */
 static int lex_nnls_within(vfdsl_lex* L, const double* N, int k, int a, const double* c, double thr) {
   double *lam = L->lam, *sol = L->sol, *w = L->w, *res = L->res;
   int *passive = L->cols, *idx = L->piv, i, j, l, iter;
@@ -315,7 +321,10 @@ static int lex_nnls_within(vfdsl_lex* L, const double* N, int k, int a, const do
       int q = 0, neg = 0;
       double alpha = 1;
       for (j=0;j<a;++j) if (passive[j]) idx[q++] = j;
-      if (lex_ls_columns(L, N, k, idx, q, c) < 0) return 0;
+      if (lex_ls_columns(L, N, k, idx, q, c) < 0) {     /* a column (nearly) dependent on the others: lam as it is */
+        iter = 3*a+3;
+        break;
+      }
       for (l=0;l<q;++l) if (sol[idx[l]] <= 0) neg = 1;
       if (!neg) { for (l=0;l<q;++l) lam[idx[l]] = sol[idx[l]]; break; }
       for (l=0;l<q;++l) {
@@ -391,15 +400,15 @@ static int lex_fixed_rows(const vfdsl_lex* L, const int* s, double* out) {
   return q;
 }
 
-/* 1 when the solve's own factors certify level j (gradient g): multipliers by back-substitution through the steps of
- * the levels above (j .. 1) and then of W's rows (step 0), each R11 mu = -Y'v (v: g plus the rows' part so far; 0 on
- * a step's dependent rows), W's inequality multipliers clipped to their sign, and the whole residual
- * |g + sum_l R_l' mu_l + C_W' sigma| within thr: the KKT conditions of level j, so sufficient. (When a level above
- * is rank-deficient its multipliers are not unique, and this choice may miss: the general certificate decides.) */
-static int lex_factors_dual(vfdsl_lex* L, int j, const double* g, double thr) {
+/* The multipliers of gradient g by back-substitution through the steps of the levels above j (j .. 1) and then of
+ * W's rows (step 0), each R11 mu = -Y'v (v: g plus the rows' part so far; 0 on a step's dependent rows). sigma: W's
+ * multipliers (in W's order) unclipped into it; else W's inequality multipliers clipped to their sign. Returns
+ * |g + sum_l R_l' mu_l + C_W' sigma| plus LEX_ROUNDING sum |mu_i| |row_i| (lexls.py's _rounding). */
+static double lex_back_substitute(vfdsl_lex* L, int j, const double* g, double* sigma) {
   int n = LEX_N(L), st, i, l;
-  double *v = L->res, *c = L->c;
+  double *v = L->res, *c = L->c, charge = 0;
   memcpy(v, g, sizeof(double) * n);
+  if (sigma) for (i=0;i<L->p[0];++i) sigma[i] = 0;
   for (st=j; st>=0; --st) {
     int r = L->r[st];
     const int* piv = L->fpiv + L->fpiv_at[st];
@@ -411,11 +420,22 @@ static int lex_factors_dual(vfdsl_lex* L, int j, const double* g, double thr) {
     }
     for (i=0;i<r;++i) {
       const double* row = L->rows[st] + piv[i]*n;
-      if (st == 0 && L->side[piv[i]] != LEX_FIXED && c[i]*L->side[piv[i]] < 0) continue;   /* clipped to 0 */
+      if (st == 0 && sigma) sigma[piv[i]] = c[i];
+      else if (st == 0 && L->side[piv[i]] != LEX_FIXED && c[i]*L->side[piv[i]] < 0) continue;   /* clipped to 0 */
       for (l=0;l<n;++l) v[l] += c[i]*row[l];
+      charge += LEX_ROUNDING * fabs(c[i]) * lex_norm(row, n);
     }
   }
-  return lex_norm(v, n) <= thr;
+  return lex_norm(v, n) + charge;
+}
+
+/* 1 when the solve's own factors certify level j (gradient g): multipliers by back-substitution through the steps of
+ * the levels above (j .. 1) and then of W's rows (step 0), each R11 mu = -Y'v (v: g plus the rows' part so far; 0 on
+ * a step's dependent rows), W's inequality multipliers clipped to their sign, and the whole residual
+ * |g + sum_l R_l' mu_l + C_W' sigma| within thr: the KKT conditions of level j, so sufficient. (When a level above
+ * is rank-deficient its multipliers are not unique, and this choice may miss: the general certificate decides.) */
+static int lex_factors_dual(vfdsl_lex* L, int j, const double* g, double thr) {
+  return lex_back_substitute(L, j, g, 0) <= thr;
 }
 
 /* 1 when the q rows S (row-major, n columns) are independent, each at least COND_TOL from the span of those before
@@ -458,40 +478,70 @@ static int lex_dims_dual(vfdsl_lex* L, const vfdsl_lex_prob* P, const int* s, in
   return sqrt(norm2) <= thr;
 }
 
+/* Level j's gradient at x into g (the last cost's for j = L->levels), and its scale (lexls.py's _certified). */
+static double lex_gradient(const vfdsl_lex* L, const vfdsl_lex_prob* P, int j, const double* x, double* g) {
+  int n = LEX_N(P), i, l;
+  double xn = lex_norm(x, n);
+  if (j < L->levels) {
+    const double *R = L->LR + L->level_at[j]*n, *r = L->lt + L->level_at[j];
+    double rn = 0, Rn = 0;
+    int rows = L->level_rows[j];
+    for (i=0;i<n;++i) g[i] = 0;
+    for (i=0;i<rows;++i) {
+      double e = lex_dot(R + i*n, x, n) - r[i];
+      for (l=0;l<n;++l) g[l] += R[i*n + l]*e;
+      rn += r[i]*r[i];
+      Rn += lex_dot(R + i*n, R + i*n, n);
+    }
+    return sqrt(Rn) * (sqrt(Rn) * xn + sqrt(rn));
+  } else {
+    double Hn = 0;
+    for (i=0;i<n;++i) {
+      g[i] = P->f[i];
+      for (l=0;l<n;++l) { g[i] += P->H[i + l*n]*x[l]; Hn += P->H[i + l*n]*P->H[i + l*n]; }
+    }
+    return sqrt(Hn) * xn + lex_norm(P->f, n);
+  }
+}
+
+/* The held inequality row to drop when level j is refused (lexls.py's _drop), or -1: W's multipliers of each level
+ * lv <= j by back-substitution; among the rows no level above j holds back and not pinned (vfdsl_lex_from's), the
+ * one most negative at j. */
+static int lex_drop(vfdsl_lex* L, const vfdsl_lex_prob* P, const int* s, const double* x, int j) {
+  int i, w, lv, best = -1, *locked = L->cols;
+  double *sigma = L->w, least = 0;
+  if (L->steps <= j) return -1;
+  for (w=0;w<L->p[0];++w) locked[w] = 0;
+  for (lv=0; lv<=j; ++lv) {
+    double thr = LEX_DUAL_TOL * lex_gradient(L, P, lv, x, L->g);
+    lex_back_substitute(L, lv, L->g, sigma);
+    for (i=0, w=0; i<P->K; ++i) if (s[i] != LEX_FREE) {       /* (W's rows are the held ones, in order) */
+      int side = s[i] == LEX_FIXED || L->pinned[i] ? 0 : s[i];
+      double signed_sigma = sigma[w] * side;
+      if (lv < j) { if (signed_sigma > thr) locked[w] = 1; }
+      else if (side && !locked[w] && signed_sigma < -thr && (best < 0 || signed_sigma < least)) {
+        least = signed_sigma;
+        best = i;
+      }
+      ++w;
+    }
+  }
+  return best;
+}
+
 /* 1 when x (n) is certified (vfdsl.runtime.lexls._certified): per level, by the solve's factors or by dimensions
  * when they do, else by the nonnegative least squares over the null space U of the fixed rows and the levels above
- * (that chain built only when a level needs it). */
+ * (that chain built only when a level needs it). Refused by the NNLS: L->hint the row to drop (lex_drop). */
 static int lex_certified(vfdsl_lex* L, const vfdsl_lex_prob* P, const int* s, const double* x) {
   int n = LEX_N(P), i, j, l, a = 0, fixed = 0, k = n, ident = 1, chained = -1;
-  double *U = L->U, *N = L->N, *g = L->g, *b = L->y, xn = lex_norm(x, n);
+  double *U = L->U, *N = L->N, *g = L->g, *b = L->y;
   for (i=0;i<P->K;++i) {
     a += s[i] == LEX_UPPER || s[i] == LEX_LOWER;
     fixed += s[i] == LEX_FIXED;
   }
   if (a == 0) return 1;         /* the chain of null spaces is the primal one: optimal in it by construction */
   for (j=0;j<=L->levels;++j) {     /* the levels (vfdsl_lex_rows), then the last cost (j = L->levels) */
-    double scale, thr;
-    if (j < L->levels) {
-      const double *R = L->LR + L->level_at[j]*n, *r = L->lt + L->level_at[j];
-      double rn = 0, Rn = 0;
-      int rows = L->level_rows[j];
-      for (i=0;i<n;++i) g[i] = 0;
-      for (i=0;i<rows;++i) {
-        double e = lex_dot(R + i*n, x, n) - r[i];
-        for (l=0;l<n;++l) g[l] += R[i*n + l]*e;
-        rn += r[i]*r[i];
-        Rn += lex_dot(R + i*n, R + i*n, n);
-      }
-      scale = sqrt(Rn) * (sqrt(Rn) * xn + sqrt(rn));
-    } else {
-      double Hn = 0;
-      for (i=0;i<n;++i) {
-        g[i] = P->f[i];
-        for (l=0;l<n;++l) { g[i] += P->H[i + l*n]*x[l]; Hn += P->H[i + l*n]*P->H[i + l*n]; }
-      }
-      scale = sqrt(Hn) * xn + lex_norm(P->f, n);
-    }
-    thr = LEX_DUAL_TOL * scale;
+    double thr = LEX_DUAL_TOL * lex_gradient(L, P, j, x, g);
     if (L->steps > j && (lex_dims_dual(L, P, s, fixed, j, g, thr) || lex_factors_dual(L, j, g, thr))) continue;
     if (chained < 0) {           /* U: the null space of the fixed rows */
       lex_fixed_rows(L, s, L->T);
@@ -520,10 +570,14 @@ static int lex_certified(vfdsl_lex* L, const vfdsl_lex_prob* P, const int* s, co
       }
     }
     if (a ? !lex_nnls_within(L, N, k, a, b, thr) : lex_norm(b, k) > thr) {
-      if (a && L->hint_column >= 0) {     /* the held inequality row of that column: drop it */
+      L->hint = -1;
+      L->hint_side = LEX_FREE;
+      if (L->from) {                      /* vfdsl_lex_from's drop */
+        if (a) L->hint = lex_drop(L, P, s, x, j);
+      } else if (a && L->hint_column >= 0) {   /* a repair's: the held inequality row of that NNLS column */
         int column = 0;
         for (i=0;i<P->K;++i) if (s[i] == LEX_UPPER || s[i] == LEX_LOWER) {
-          if (column++ == L->hint_column) { L->hint = i; L->hint_side = 0; break; }
+          if (column++ == L->hint_column) { L->hint = i; break; }
         }
       }
       return 0;
@@ -540,7 +594,8 @@ int vfdsl_lex_repair(vfdsl_lex* L, int* s) {
 }
 
 /* The levels' optimum over the working set s into x; 1 when certified (lexls.py's _solve_over). W's rows nearly
- * dependent: L->ill_at >= 0 after it, L->piv their pivot order; ill_ok: W's pivots only above RANK_TOL. */
+ * dependent: L->ill_at >= 0 after it, L->piv their pivot order; ill_ok: W's pivots only above RANK_TOL (2: the
+ * levels' too). Refused with x computed: L->hint >= 0 (a row violated, or one to drop). */
 static int lex_solve_over(vfdsl_lex* L, const vfdsl_lex_prob* P, const int* s, double* x, int ill_ok) {
   int n = LEX_N(P), i, j, l, p = 0, k = n, ident = 1, record = L->levels + 1 <= L->max_steps;
   double *Z = L->Z;
@@ -559,7 +614,7 @@ static int lex_solve_over(vfdsl_lex* L, const vfdsl_lex_prob* P, const int* s, d
   for (i=0;i<n;++i) Z[i + i*n] = 1;
   L->ill_ok = ill_ok;              /* (W's step only) */
   if (lex_step(L, L->M, p, L->t, x, &Z, &k, &ident, record ? 0 : -1) < 0) return 0;
-  L->ill_ok = 0;
+  L->ill_ok = ill_ok == 2;
   L->ill_at = -1;                  /* (only W's step reports it) */
   for (i=0;i<p;++i) if (fabs(lex_dot(L->M + i*n, x, n) - L->t[i]) > LEX_PRIMAL_TOL) return 0;
   for (j=0;j<L->levels;++j) {
@@ -588,6 +643,7 @@ static int lex_solve_over(vfdsl_lex* L, const vfdsl_lex_prob* P, const int* s, d
     }
     if (L->hint >= 0) return 0;        /* the most violated row: add it */
   }
+  L->ill_ok = 0;
   return lex_certified(L, P, s, x);
 }
 
@@ -617,4 +673,85 @@ int vfdsl_lex_solve(vfdsl_lex* L, const vfdsl_lex_prob* P, int* s, double* x) {
   if (lex_solve_over(L, P, s, x, 1)) return 1;
   L->hint = -1;
   return 0;
+}
+
+/* The working set of x with each inequality row left out that lies within COND_TOL of the span of the held rows
+ * before it, the fixed rows first, then by index (lexls.py's _independent_working_set; L->B holds that span's
+ * orthonormal basis, L->c the row's coordinates in it). */
+static void lex_independent_working_set(vfdsl_lex* L, const double* x, int* s) {
+  int n = LEX_N(L), pass, i, l, j, q = 0;
+  double *basis = L->B, *rest = L->g, *w = L->c;
+  vfdsl_lex_working_set(L, x, s);
+  for (pass=0; pass<2; ++pass) for (i=0;i<L->K;++i) {
+    double norm;
+    if (pass == 0 ? s[i] != LEX_FIXED : (s[i] != LEX_UPPER && s[i] != LEX_LOWER)) continue;
+    lex_unit_row(L, i, rest);
+    for (l=0;l<q;++l) w[l] = lex_dot(basis + l*n, rest, n);
+    for (l=0;l<q;++l) for (j=0;j<n;++j) rest[j] -= w[l]*basis[l*n + j];
+    norm = lex_norm(rest, n);
+    if (norm > LEX_COND_TOL && q < n) {
+      for (j=0;j<n;++j) basis[q*n + j] = rest[j] / norm;
+      ++q;
+    } else if (s[i] != LEX_FIXED) {
+      s[i] = LEX_FREE;
+    }
+  }
+}
+
+/* The first free hard row met on the way from x to y (the smallest step alpha in [0, 1), the first row among
+ * equals), its side in *side and alpha in *alpha; -1 when none (lexls.py's _first_blocking). */
+static int lex_first_blocking(const vfdsl_lex* L, const int* s, const double* x, const double* y, double* d,
+                              int* side, double* alpha) {
+  int n = LEX_N(L), i, j, best = -1;
+  double moving;
+  for (j=0;j<n;++j) d[j] = y[j] - x[j];
+  moving = LEX_RANK_TOL * lex_norm(d, n);
+  for (i=0;i<L->K;++i) {
+    double ad, ax, a;
+    int at;
+    if (s[i] != LEX_FREE) continue;
+    ad = lex_dot(L->A + i*n, d, n)*L->inv[i];
+    ax = lex_dot(L->A + i*n, x, n)*L->inv[i];
+    if (ad > moving && isfinite(L->up[i])) { a = (L->up[i] - ax) / ad; at = LEX_UPPER; }
+    else if (ad < -moving && isfinite(L->lo[i])) { a = (L->lo[i] - ax) / ad; at = LEX_LOWER; }
+    else continue;
+    if (a < 0) a = 0;
+    if (a < 1 && (best < 0 || a < *alpha)) { best = i; *side = at; *alpha = a; }
+  }
+  return best;
+}
+
+/* From x, a point of the hard rows, to the levels' optimum (lexls.py's from_feasible): W the independent rows x
+ * holds; solve over W (y); when y leaves a hard row, step toward it up to the first row that blocks and hold that
+ * row; else move to y, certified or the row the certificate names dropped. x: the last iterate; 1 when certified.
+ * At most LEX_PRIMAL_STEPS iterations. */
+int vfdsl_lex_from(vfdsl_lex* L, const vfdsl_lex_prob* P, double* x) {
+  int n = LEX_N(P), *s = L->trial, iteration, j, dropped = -1, certified = 0;
+  double *y = L->from_y, *d = L->from_d;
+  lex_independent_working_set(L, x, s);
+  L->from = 1;
+  for (iteration=0; iteration<LEX_PRIMAL_STEPS; ++iteration) {
+    if (lex_solve_over(L, P, s, y, 2)) {
+      memcpy(x, y, sizeof(double) * n);
+      certified = 1;
+      break;
+    }
+    if (L->hint < 0) break;                  /* no answer over s, or a refusal without a row to drop */
+    if (L->hint_side != LEX_FREE) {          /* y leaves a hard row: up to the first that blocks, held from there */
+      int side = 0;
+      double alpha = 1;
+      int i = lex_first_blocking(L, s, x, y, d, &side, &alpha);
+      if (i < 0) break;
+      if (i == dropped && alpha == 0) L->pinned[i] = 1;    /* blocking at once after its drop: kept from now on */
+      for (j=0;j<n;++j) x[j] += alpha * d[j];
+      s[i] = side;
+    } else {                                 /* at y, the row the certificate names is dropped */
+      memcpy(x, y, sizeof(double) * n);
+      dropped = L->hint;
+      s[dropped] = LEX_FREE;
+    }
+  }
+  memset(L->pinned, 0, sizeof(int) * L->K);  /* (no pinned row outside this method) */
+  L->from = 0;
+  return certified;
 }

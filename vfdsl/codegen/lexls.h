@@ -13,10 +13,12 @@
  * vfdsl_lex_solve(lex, prob, s, x) computes the levels' optimum with the working set s (LEX_UPPER, LEX_LOWER,
  * LEX_FIXED held as equalities, LEX_FREE left out) and returns 1 when it is certified as the optimum of the whole
  * problem, 0 otherwise (x then undefined; L->hint names a row whose change may fix the working set: the most
- * violated row, or the held row with the most negative multiplier). When s's rows are nearly dependent (a
+ * violated row, or the held row with the most negative least-squares multiplier of the NNLS that refused; within
+ * vfdsl_lex_from, the held row of lexls.py's _drop rule). When s's rows are nearly dependent (a
  * degenerate vertex), s without one of them is tried, then s with its pivots only above RANK_TOL, and s becomes the
  * working set that was certified. vfdsl_lex_repair(lex, s) applies the hint to s
- * (1 when there was one). The certificate tries, per level, the multipliers from the solve's own factors and a
+ * (1 when there was one). vfdsl_lex_from(lex, prob, x) goes from x, a point of the hard rows, to the levels' optimum
+ * by a primal active-set method (lexls.py's from_feasible), x its last iterate, 1 when certified. The certificate tries, per level, the multipliers from the solve's own factors and a
  * test by dimensions before its nonnegative least squares (as lexls.py). All memory is one block, allocated once by
  * vfdsl_lex_alloc and released by vfdsl_lex_free.
  */
@@ -31,12 +33,14 @@ enum { LEX_FREE = 0, LEX_UPPER = 1, LEX_LOWER = -1, LEX_FIXED = 2 };
 typedef struct vfdsl_lex {
   int n, K;               /* variables, hard rows */
   int valid;              /* guess holds a working set */
-  int hint_column;        /* lexls.c's: the NNLS column with the most negative multiplier */
+  int hint_column;        /* a repair's hint: the NNLS column with the most negative least-squares multiplier */
+  int from;               /* in vfdsl_lex_from: a refusal's hint is lex_drop's (lexls.py's _drop) */
   int hint, hint_side;    /* after a refusal: a hard row to add at side hint_side (+1, -1), or to drop (0); -1: none */
   int ill_at;             /* lex_qr's first pivot in (RANK_TOL, COND_TOL] of the last ill-conditioned step, or -1 */
   int ill_ok;             /* the step being made may have such pivots (W's, as the last resort at a degenerate vertex) */
   int *guess, *piv, *cols;
   int *drop, *trial;      /* a degenerate working set: its rows to try without, and the working set tried */
+  int *pinned;            /* vfdsl_lex_from's rows not to drop (all 0 outside it) */
   const double* A;        /* the hard rows (K x n, row-major: DAQP's), set by vfdsl_lex_rows */
   double *inv, *lo, *up;  /* 1 / each hard row's length, and its bounds over that length (the unit row's) */
   int levels;             /* the levels with a row that is not zero or has a target that is not (vfdsl_lex_rows): */
@@ -45,6 +49,7 @@ typedef struct vfdsl_lex {
   double *M, *t;          /* gathered rows (row-major) and targets */
   double *B, *T, *tau, *tau2, *c;
   double *Z, *U, *x, *g, *y, *K2;
+  double *from_y, *from_d; /* vfdsl_lex_from's: the optimum over its working set, and the step toward it */
   double *N, *NP, *lam, *sol, *w, *res;
   /* the solve's factors, for the certificate: step 0 holds W's rows, step l >= 1 level l - 1; Z keeps its whole
      basis [Y_0 | Y_1 | ... | null space], Y_l = columns [off[l], off[l] + r[l]) of Z */
@@ -66,5 +71,6 @@ void vfdsl_lex_rows(vfdsl_lex* L, const vfdsl_lex_prob* P);
 void vfdsl_lex_working_set(const vfdsl_lex* L, const double* x, int* s);
 int vfdsl_lex_solve(vfdsl_lex* L, const vfdsl_lex_prob* P, int* s, double* x);
 int vfdsl_lex_repair(vfdsl_lex* L, int* s);
+int vfdsl_lex_from(vfdsl_lex* L, const vfdsl_lex_prob* P, double* x);
 
 #endif

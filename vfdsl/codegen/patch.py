@@ -101,7 +101,7 @@ def _conic_call(match: re.Match, plans: Mapping[str, SolvePlan]) -> str:
         return f"{body}vfdsl_daqp_solve(d, {int(plan.warm_start)}, 0);"
     points = plan.break_points
     table = (f"static const vfdsl_levels levels = {{{len(points)}, {_c_double(plan.rho)}, {int(plan.partial)}, "
-             f"{int(plan.exact)}, {{{', '.join(map(str, points))}}}}};")
+             f"{int(plan.exact)}, {int(plan.start)}, {{{', '.join(map(str, points))}}}}};")
     return f"{body}{{\n    {table}\n    vfdsl_daqp_solve(d, {int(plan.warm_start)}, &levels);\n  }}"
 
 

@@ -23,12 +23,15 @@ class SolvePlan:
     """One conic's DAQP solve. ``warm_start``: from the previous call's working set (else cold, as CasADi's own
     interface). ``break_points``: the constraint indices where each priority level ends (none: one plain QP);
     ``rho``: the soft rows' weight (:data:`vfdsl.runtime.qp.LEVEL_ATTEMPTS`); ``partial``: a failed level gives the
-    answer of the levels above it; ``exact``: the levels are solved exactly where certified (``lexls.c``)."""
+    answer of the levels above it; ``exact``: the levels are solved exactly where certified (``lexls.c``); ``start``:
+    the levels solved from the conic's x0, a point of the hard rows, by the primal active-set method of ``lexls.c``
+    alone (DAQP is not called; phase 2's (B))."""
     warm_start: bool = False
     break_points: tuple[int, ...] = ()
     rho: float = 0.0
     partial: bool = False
     exact: bool = False
+    start: bool = False
 
 
 class PlannedFunction(ca.Function):

@@ -25,7 +25,7 @@ at most 2 levels: a track term's two parts)."""
 
 def daqp_solver(n: int, m: int, primal_tol: float, name: str, native: bool, plans: dict[str, SolvePlan],
                 level_rows: Sequence[int] = (), rho: float = 1e-8, partial: bool = False,
-                exact: bool = False, warm_start: bool = False) -> Callable[..., ca.MX]:
+                exact: bool = False, warm_start: bool = False, start: bool = False) -> Callable[..., ca.MX]:
     """solve(H, g, *daqp_rows(A, lba, uba, lbx, ubx[, R, r[, r_upper]])) -> x: one dense DAQP solve, x = NaN when
     it fails.
     ``primal_tol``: DAQP's (1e-3 feas_tol for the solves without levels, :data:`vfdsl.runtime.qp.LEVEL_ATTEMPTS`
@@ -41,16 +41,21 @@ def daqp_solver(n: int, m: int, primal_tol: float, name: str, native: bool, plan
     ``exact``: the levels' targets are equalities (phase 1), so their exact solve (:mod:`vfdsl.runtime.lexls`)
     replaces DAQP's answer where it is certified.
     ``warm_start``: the generated C starts DAQP from the previous call's working set.
+    ``start``: solve(..., x0): the levels (or the one cost) solved exactly from x0, a point of the rows and bounds,
+    by :func:`vfdsl.runtime.lexls.from_feasible` (and its C twin), DAQP not called; x0 itself where no answer is
+    certified (the method's iterates there depend on the last bits of the data, which the paths do not share).
     ``native``: a CasADi conic, which only the generated C evaluates (vfdsl.codegen.build puts DAQP's own sources
     behind it, solving as the conic's plan in ``plans`` says); else the same solver, settings and rows through
     the ``daqp`` package (:class:`_DaqpNode`), for CasADi's evaluation."""
     free = ca.inf * ca.DM.ones(n)
     extra = sum(level_rows)
-    breaks = [int(b) for b in np.cumsum([2 * n + m, *level_rows])] if level_rows else []
-    if breaks:
-        if len(breaks) > MAX_LEVELS + 1:
-            raise ValueError(f"{len(level_rows)} priority levels; the generated solver takes at most {MAX_LEVELS}")
-    plan = SolvePlan(warm_start, tuple(breaks), rho, partial, exact) if breaks else SolvePlan(warm_start)
+    breaks = [int(b) for b in np.cumsum([2 * n + m, *level_rows])] if level_rows or start else []
+    if len(breaks) > MAX_LEVELS + 1:
+        raise ValueError(f"{len(level_rows)} priority levels; the generated solver takes at most {MAX_LEVELS}")
+    if start:
+        plan = SolvePlan(break_points=tuple(breaks), exact=True, start=True)
+    else:
+        plan = SolvePlan(warm_start, tuple(breaks), rho, partial, exact) if breaks else SolvePlan(warm_start)
     record(plans, name, plan)
     if native:
         sparsity = {"h": ca.Sparsity.dense(n, n), "a": ca.Sparsity.dense(m + n + extra, n)}
@@ -59,8 +64,9 @@ def daqp_solver(n: int, m: int, primal_tol: float, name: str, native: bool, plan
     else:
         conic = _DaqpNode.function(name, n, m + n + extra, primal_tol, plan)
 
-    def solve(H, g, a, lower, upper):
-        return conic(h=H, g=g, a=a, lba=lower, uba=upper, lbx=-free, ubx=free)["x"]
+    def solve(H, g, a, lower, upper, x0=None):
+        initial = {} if x0 is None else {"x0": x0}
+        return conic(h=H, g=g, a=a, lba=lower, uba=upper, lbx=-free, ubx=free, **initial)["x"]
 
     return solve
 
@@ -94,33 +100,38 @@ class _DaqpNode(ca.Callback):
         ca.Callback.__init__(self)
         self.n, self.rows, self.primal_tol = n, rows, primal_tol
         self.break_points, self.rho = list(plan.break_points), plan.rho
-        self.exact = plan.exact
+        self.exact, self.start = plan.exact, plan.start
         self.success = DAQP_SUCCESS + (DAQP_PARTIAL,) * plan.partial
         self.construct(name, {})
 
     def get_n_in(self):
-        return 7
+        return 8 if self.start else 7
 
     def get_n_out(self):
         return 1
 
     def get_name_in(self, i):
-        return ("h", "g", "a", "lba", "uba", "lbx", "ubx")[i]
+        return ("h", "g", "a", "lba", "uba", "lbx", "ubx", "x0")[i]
 
     def get_name_out(self, i):
         return "x"
 
     def get_sparsity_in(self, i):
         n, rows = self.n, self.rows
-        return ca.Sparsity.dense(*((n, n), (n, 1), (rows, n), (rows, 1), (rows, 1), (n, 1), (n, 1))[i])
+        return ca.Sparsity.dense(*((n, n), (n, 1), (rows, n), (rows, 1), (rows, 1), (n, 1), (n, 1), (n, 1))[i])
 
     def get_sparsity_out(self, i):
         return ca.Sparsity.dense(self.n, 1)
 
     def eval(self, arg):
-        H, g, A, lba, uba, lbx, ubx = (np.array(a, dtype=float) for a in arg)
+        H, g, A, lba, uba, lbx, ubx = (np.array(a, dtype=float) for a in arg[:7])
         g = g.ravel()
         lower, upper = np.concatenate((lbx.ravel(), lba.ravel())), np.concatenate((ubx.ravel(), uba.ravel()))
+        if self.start:      # from x0, a point of the rows and bounds, without DAQP
+            H, f, A_hard, lo, up, levels = lexls.split(H, g, A, lower, upper, self.break_points)
+            x0 = np.array(arg[7], dtype=float).ravel()
+            x, certified = lexls.from_feasible(H, f, A_hard, lo, up, levels, x0)
+            return [x if certified else x0]
         x, flag, *_ = solve_daqp(H, g, A, lower, upper, self.primal_tol, self.break_points, self.rho)
         if flag not in self.success:
             return [np.full(self.n, np.nan)]

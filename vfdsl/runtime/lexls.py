@@ -23,7 +23,8 @@ length first, which moves none of its bounds' points), and then *certifies* it:
   above (any sign), of W's equality rows (any sign) and of W's inequality rows each with the sign of the bound
   that holds x back: G_j + sum_{i<j} R_i'mu_i + C_eq'nu + sum_{i in W_in} lambda_i s_i a_i = 0 with lambda >= 0.
   With U_j spanning the null space of C_eq and of the levels above, that is: the nonnegative least squares
-  min_{lambda >= 0} |U_j'(G_j + C_in' S lambda)| is zero (within ``DUAL_TOL`` |G_j|).
+  min_{lambda >= 0} |U_j'(G_j + C_in' S lambda)| is zero (within ``DUAL_TOL`` |G_j|, the residual charged its
+  rounding: :data:`ROUNDING`).
 
 The certificate is the KKT conditions of level j over the hard rows and the optimal sets of the levels above
 (the minimizers of |R_i x - r_i|^2 over a convex set share R_i x, so that set is the hard rows and R_i x = R_i x*
@@ -31,20 +32,23 @@ for i < j): sufficient, the problems being convex. So a certified x is x*, whate
 whether a certificate is found (it is when W holds the rows active at x* with a positive multiplier at some level
 and no other row that the levels would leave). The generated C (``vfdsl/codegen/lexls.c``) runs the same steps
 with its own Householder QR, Cholesky and Lawson-Hanson NNLS; this module, the interpreted path's, uses LAPACK's
-(through scipy) and scipy's NNLS. No library offers the lexicographic solve over a working set with this
-certificate (DAQP's hierarchical mode, which both paths call when no certificate is found, holds each level to its
-tolerance, not exactly); the C is ours because the generated tick links no LAPACK.
+(through scipy) and the same NNLS (:func:`_nnls_within`). No library offers the lexicographic solve over a working
+set with this certificate (DAQP's hierarchical mode, which both paths call when no certificate is found, holds each
+level to its tolerance, not exactly); the C is ours because the generated tick links no LAPACK.
 
 Two cheaper sufficient tests run first at each level (:func:`_factors_dual`: multipliers from the solve's own
 factors; :func:`_dims_dual`: when the fixed rows and the levels above cut as many dimensions as the solve's steps
 up to that level did, U_j is the solve's null space, where G_j is zero by construction); the nonnegative least
 squares, and the chain of U_j it needs, only where neither certifies the level.
+
+:func:`from_feasible` reaches the optimum from a point of the hard rows by a primal active-set method over these
+solves and certificates (phase 2's (B), whose feasible set is a sliver around that point).
 """
 
 from __future__ import annotations
 
 import numpy as np
-import scipy.optimize
+import scipy.linalg
 from scipy.linalg import lapack
 
 RANK_TOL = 1e-10
@@ -69,6 +73,15 @@ DEGENERATE_DROPS = 2
 """At a degenerate vertex, the rows tried left out (:func:`_degenerate`). Measured on paper A: every answer certified
 without a row was certified at the first or the second try (54 and 13 of 100 random states); in its benchmark loop
 (benchmarks/tick_jobs.py) the ticks that no dropped row certifies would otherwise try all four."""
+ROUNDING = np.finfo(float).eps
+"""Per unit of |multiplier| |row|: the rounding a certificate's residual is charged (:func:`_rounding`). Nearly
+dependent rows cancel any gradient with multipliers of 1e12, whose residual is then rounding: seen at a
+least-violation vertex of paper B, where an LP found a direction of descent. Without the charge, 20 of 76
+least-violation states of the example tasks were certified wrongly (the independent reference found a level 1e-3 to
+0.3 above its optimum), and the two paths parted by up to 1e-2 (their nonnegative least squares find different
+multipliers); with it, none, and the paths agree to 1e-13."""
+PRIMAL_STEPS = 50
+""":func:`from_feasible`'s iterations at most (each a change of the working set)."""
 ACTIVE_TOL = 1e-9
 """:func:`working_set` counts a hard row (unit length) as held at a bound when x is within this of it."""
 
@@ -182,11 +195,21 @@ def _degenerate(H, f, A, lo, up, levels, s, rows) -> tuple[np.ndarray, bool]:
 
 
 def _solve_over(H, f, A, lo, up, levels, s, ill_ok=False):
+    x, steps = _solve_on(H, f, A, lo, up, levels, s, ill_ok)
+    if x is None or _violated(A, lo, up, x):
+        return (np.full(H.shape[0], np.nan) if x is None else x), False
+    return x, _certified(H, f, A, levels, s, x, steps)[0]
+
+
+def _solve_on(H, f, A, lo, up, levels, s, ill_ok=False, levels_ill_ok=False):
+    """(x, steps): the levels' optimum with W's rows as equalities, the other hard rows left out, and the solve's
+    factors; (None, steps) when W's rows cannot all hold, Z'HZ is not positive definite or x is not finite.
+    ``ill_ok``, ``levels_ill_ok``: W's step, the levels' steps may have pivots in (RANK_TOL, COND_TOL]."""
     n = H.shape[0]
     held = s != FREE
     C, d = A[held], np.where(s[held] == LOWER, lo[held], up[held])
     if not np.all(np.isfinite(d)):
-        return np.full(n, np.nan), False                  # a row held at an infinite bound
+        return None, []                                   # a row held at an infinite bound
     steps = []
     try:
         x, Z = _least_squares_step(C, d, np.zeros(n), np.eye(n), steps, ill_ok)
@@ -194,29 +217,106 @@ def _solve_over(H, f, A, lo, up, levels, s, ill_ok=False):
         ill.of_working_set = True
         raise
     if C.shape[0] and np.max(np.abs(C @ x - d)) > PRIMAL_TOL:
-        return x, False                                   # W's rows cannot all hold
+        return None, steps                                # W's rows cannot all hold
     for R, r in levels:
-        x, Z = _least_squares_step(R, r, x, Z, steps)
+        x, Z = _least_squares_step(R, r, x, Z, steps, levels_ill_ok)
     if Z.shape[1]:
         factor, info = lapack.dpotrf(Z.T @ H @ Z, lower=1)
         if info:
-            return x, False                               # Z'HZ not positive definite
+            return None, steps                            # Z'HZ not positive definite
         x = x - Z @ lapack.dpotrs(factor, Z.T @ (H @ x + f), lower=1)[0]
-    if not np.all(np.isfinite(x)):
-        return x, False
+    return (x if np.all(np.isfinite(x)) else None), steps
+
+
+def _violated(A, lo, up, x) -> bool:
+    """Some hard row misses its bounds by more than PRIMAL_TOL at x."""
     Ax = A @ x
-    if np.any(Ax < lo - PRIMAL_TOL) or np.any(Ax > up + PRIMAL_TOL):
-        return x, False
-    return x, _certified(H, f, A, levels, s, x, steps)
+    return bool(np.any(Ax < lo - PRIMAL_TOL) or np.any(Ax > up + PRIMAL_TOL))
 
 
-def _certified(H, f, A, levels, s, x, steps) -> bool:
+def from_feasible(H, f, A, lo, up, levels, x) -> tuple[np.ndarray, bool]:
+    """(x, certified): the levels' optimum reached from a point x of the hard rows by a primal active-set method
+    (phase 2's (B), whose least-violation set is often a sliver where DAQP's dual iterates fail a level): W starts
+    as the rows x holds, kept independent (:func:`_independent_working_set`); each iteration solves the levels over
+    W (y) and, when y leaves a hard row by more than PRIMAL_TOL, steps from x toward y up to the first row that
+    blocks and holds it; else moves to y, where the certificate either certifies y or names the held row with the
+    most negative multiplier at the first level it refuses, which is dropped (a row that blocks at once after its
+    drop is kept from then on: the multipliers missed what holds it, and dropping it again would cycle). Every
+    iterate holds the hard rows (within PRIMAL_TOL) and none is worse than x at any level before the first that
+    improves (each move goes toward an optimum over a set containing x). At most PRIMAL_STEPS iterations; the last
+    iterate is returned,
+    certified or not."""
+    s = _independent_working_set(A, lo, up, x)
+    dropped, pinned = None, set()
+    for _ in range(PRIMAL_STEPS):
+        y, steps = _solve_on(H, f, A, lo, up, levels, s, ill_ok=True, levels_ill_ok=True)
+        if y is None:
+            return x, False
+        if _violated(A, lo, up, y):
+            blocking = _first_blocking(A, lo, up, s, x, y)
+            if blocking is None:
+                return x, False
+            i, side, alpha = blocking
+            if i == dropped and alpha == 0:
+                pinned.add(i)                             # dropped and at once blocking again: kept from now on
+            x = x + alpha * (y - x)
+            s[i] = side
+            continue
+        x = y
+        try:
+            certified, dropped = _certified(H, f, A, levels, s, x, steps, pinned)
+        except _IllConditioned:                           # (the certificate's chain of null spaces)
+            return x, False
+        if certified or dropped is None:
+            return x, certified
+        s[dropped] = FREE
+    return x, False
+
+
+def _independent_working_set(A, lo, up, x) -> np.ndarray:
+    """The working set of x (:func:`working_set`) with each inequality row left out that lies within COND_TOL of
+    the span of the held rows before it (the fixed rows first, then by index): at a degenerate vertex more rows hold
+    x than its dimensions, and a working set of dependent rows has no unique multipliers."""
+    s = working_set(A, lo, up, x)
+    basis = np.zeros((0, A.shape[1]))
+    for i in [*np.flatnonzero(s == FIXED), *np.flatnonzero((s == UPPER) | (s == LOWER))]:
+        rest = A[i] - basis.T @ (basis @ A[i])
+        norm = np.linalg.norm(rest)
+        if norm > COND_TOL:
+            basis = np.vstack([basis, rest / norm])
+        elif s[i] != FIXED:
+            s[i] = FREE
+    return s
+
+
+def _first_blocking(A, lo, up, s, x, y):
+    """(row, side, alpha): the first free hard row met on the way from x to y (the smallest alpha in [0, 1], the
+    first row among equals), and the bound it meets; None when no row moves toward a bound it would leave."""
+    d = y - x
+    Ad, Ax = A @ d, A @ x
+    moving = RANK_TOL * np.linalg.norm(d)
+    best = None
+    for i in np.flatnonzero(s == FREE):
+        if Ad[i] > moving and np.isfinite(up[i]):
+            alpha, side = (up[i] - Ax[i]) / Ad[i], UPPER
+        elif Ad[i] < -moving and np.isfinite(lo[i]):
+            alpha, side = (lo[i] - Ax[i]) / Ad[i], LOWER
+        else:
+            continue
+        alpha = max(alpha, 0.0)
+        if alpha < 1 and (best is None or alpha < best[2]):
+            best = (i, side, alpha)
+    return best
+
+
+def _certified(H, f, A, levels, s, x, steps, pinned=()) -> tuple[bool, int | None]:
     """The dual half of the certificate, level by level (module docstring): by :func:`_dims_dual` or
-    :func:`_factors_dual` where they apply (both sufficient), else by the nonnegative least squares over U_j."""
+    :func:`_factors_dual` where they apply (both sufficient), else by the nonnegative least squares over U_j.
+    Also, when refused, the held inequality row to drop (:func:`_drop_hint`), or None."""
     n = H.shape[0]
     inequality = (s == UPPER) | (s == LOWER)
     if not np.any(inequality):
-        return True         # the chain of null spaces is the primal one: x is optimal in it by construction
+        return True, None   # the chain of null spaces is the primal one: x is optimal in it by construction
     columns = (A[inequality] * s[inequality, None]).T            # s_i a_i, one column per held inequality
     fixed = A[s == FIXED]
     gradients = [(R.T @ (R @ x - r), np.linalg.norm(R) * (np.linalg.norm(R) * np.linalg.norm(x) + np.linalg.norm(r)))
@@ -233,15 +333,99 @@ def _certified(H, f, A, levels, s, x, steps) -> bool:
             U = _null_space(R, U)
         chained = j
         if U.shape[1] == 0:
-            return True                                   # nothing below is free to move
+            return True, None                             # nothing below is free to move
         b = U.T @ G
         if columns.shape[1]:
-            residual = scipy.optimize.nnls(U.T @ columns, -b)[1]
+            certified = _nnls_within(U.T @ columns, -b, threshold)
         else:
-            residual = np.linalg.norm(b)
-        if residual > threshold:
-            return False
-    return True
+            certified = np.linalg.norm(b) <= threshold
+        if not certified:
+            return False, _drop(steps, s, gradients, j, pinned)
+    return True, None
+
+
+def _nnls_within(N, c, threshold) -> bool:
+    """min |N lam - c| over lam >= 0, plus its rounding (:func:`_rounding`; N's columns are unit rows projected), is
+    at most threshold: first the least squares over every column with its negative entries set to 0 (any lam >= 0
+    bounds the minimum), then Lawson and Hanson's active-set method, which stops with the lam it has when a passive
+    set's columns are (nearly) dependent. lexls.c's algorithm step for step, not scipy's nnls: where the multipliers
+    are not unique, two algorithms find different ones, and the rounding charged to them decided the certificate
+    differently on the two paths (polyline_guide, a least-violation state)."""
+    k, a = N.shape
+    tol = 10 * np.finfo(float).eps * max(k, a) * np.abs(N).sum()
+
+    def within(lam):
+        return np.linalg.norm(N @ lam - c) + ROUNDING * np.abs(lam).sum() <= threshold
+
+    def least_squares(columns):
+        if len(columns) > k:
+            return None
+        Q, R = np.linalg.qr(N[:, columns])
+        if not np.all(np.abs(np.diag(R)) > 1e-12):
+            return None
+        return scipy.linalg.solve_triangular(R, Q.T @ c)
+
+    lam = np.zeros(a)
+    every = least_squares(np.arange(a))
+    if every is not None and within(np.maximum(every, 0)):
+        return True
+    passive = np.zeros(a, dtype=bool)
+    for _ in range(3 * a + 3):
+        w = N.T @ (c - N @ lam)
+        w[passive] = -np.inf
+        t = int(np.argmax(w))
+        if not w[t] > tol:
+            break
+        passive[t] = True
+        for _ in range(3 * a + 3):      # least squares on the passive columns, kept >= 0
+            columns = np.flatnonzero(passive)
+            sol = least_squares(columns)
+            if sol is None:
+                return within(lam)
+            if np.all(sol > 0):
+                lam[columns] = sol
+                break
+            old = lam[columns]
+            with np.errstate(invalid="ignore", divide="ignore"):
+                steps = old / (old - sol)
+            alpha = min([1.0, *steps[(sol <= 0) & ~np.isnan(steps)]])
+            lam[columns] += alpha * (sol - lam[columns])
+            gone = columns[lam[columns] <= tol]
+            lam[gone], passive[gone] = 0.0, False
+    return within(lam)
+
+
+def _drop(steps, s, gradients, j, pinned=()) -> int | None:
+    """The held inequality row to drop when level j is refused, or None: W's multipliers of each level i <= j by
+    back-substitution through the solve's factors (:func:`_multipliers`); among the rows that no level above j holds
+    back (none of its multipliers of the bound's sign beyond that level's threshold) and not ``pinned``, the one most
+    negative at j."""
+    held = np.flatnonzero(s != FREE)
+    sides = np.where((s[held] == FIXED) | np.isin(held, list(pinned)), 0, s[held])
+    locked = np.zeros(len(held), dtype=bool)
+    for i, (G, scale) in enumerate(gradients[:j + 1]):
+        if len(steps) <= i:
+            return None
+        signed = _multipliers(steps[:i + 1], G) * sides
+        if i < j:
+            locked |= signed > DUAL_TOL * scale
+    candidates = np.flatnonzero(~locked & (sides != 0) & (signed < -DUAL_TOL * gradients[j][1]))
+    return int(held[candidates[np.argmin(signed[candidates])]]) if candidates.size else None
+
+
+def _multipliers(steps, G) -> np.ndarray:
+    """W's multipliers sigma (in W's order, 0 on a row its step found dependent) of the gradient G, by
+    back-substitution as :func:`_factors_dual`, unclipped."""
+    v = G.copy()
+    sigma = np.zeros(steps[0][0].shape[0])
+    for k, (M, Y, R11, piv, _) in reversed(list(enumerate(steps))):
+        if R11.shape[0] == 0:
+            continue
+        mu = lapack.dtrtrs(R11, -(Y.T @ v), lower=0)[0]
+        if k == 0:
+            sigma[piv[:len(mu)]] = mu
+        v = v + M[piv[:len(mu)]].T @ mu
+    return sigma
 
 
 def _factors_dual(steps, held, G, threshold) -> bool:
@@ -250,7 +434,7 @@ def _factors_dual(steps, held, G, threshold) -> bool:
     dependent rows), W's inequality multipliers clipped to their sign (``held``: W's s), then the whole residual
     |G + sum R_l'mu_l + C_W'sigma| within threshold: the KKT conditions of level j, so sufficient. (Below a
     rank-deficient level the multipliers are not unique and this choice may miss.)"""
-    v = G.copy()
+    v, charge = G.copy(), 0.0
     for k, (M, Y, R11, piv, _) in reversed(list(enumerate(steps))):
         if R11.shape[0] == 0:
             continue
@@ -259,7 +443,14 @@ def _factors_dual(steps, held, G, threshold) -> bool:
             sides = held[piv[:len(mu)]]
             mu = np.where((sides != FIXED) & (mu * sides < 0), 0.0, mu)
         v = v + M[piv[:len(mu)]].T @ mu
-    return bool(np.linalg.norm(v) <= threshold)
+        charge += _rounding(mu, M[piv[:len(mu)]].T)
+    return bool(np.linalg.norm(v) + charge <= threshold)
+
+
+def _rounding(multipliers, columns) -> float:
+    """ROUNDING sum_i |multiplier_i| |column_i|, the rounding of columns @ multipliers: added to a certificate's
+    residual, which certifies only when it stays within the threshold so."""
+    return ROUNDING * float(np.abs(multipliers) @ np.linalg.norm(columns, axis=0))
 
 
 def _dims_dual(above, Z, G, threshold) -> bool:

@@ -24,7 +24,7 @@ hard; level 1 minimizes its squared errors over them, level 2 over the optimal s
 own cost acts last: the task's last level when it is damping alone (``last_level_is_cost``; plus
 ``LEVEL_TIE_BREAK`` I), else |x|^2 / 2, the smallest motion among what the levels leave free. Each level's rows are scaled to a
 longest row of 1 (no minimizer changes) and weighted in the problem's scale (``LEVEL_ATTEMPTS``), so that a
-level weighs its terms as the task says; a tick where DAQP fails a level is solved again with another weight. H, g (the sum of all levels) serve phase 2.
+level weighs its terms as the task says; a tick where DAQP fails a level is solved again with another weight.
 
 **Phase 1** solves (P) over B. DAQP is a dual active-set method: its iterates are dual feasible
 and it stops when the primal iterate is feasible, so "x is finite and within ``feas_tol`` of every
@@ -40,9 +40,9 @@ per-group violation.
                            subject to  lba - E t <= A x <= uba + E t,   x in B,   t >= 0,
                                        min(lba, A x_0) <= A x <= max(uba, A x_0)   (x_0: the rest motion in B)
 
-    (B) objective:         minimize   1/2 x'Hx + g'x
-                           subject to  lba_i <= a_i'x <= uba_i  for the rows x_A satisfies,   x in B,
-                                       a_i'x = a_i'x_A          for the rows x_A violates (a soft level)
+    (B) the levels:        phase 1's levels (or its one cost), lexicographically, over the least-violation set
+                           S = {x in B : max(lba - E t', min(lba, A x_0)) <= A x <= min(uba + E t', max(uba, A x_0))}
+                           t'_g = t*_g + LEAST_VIOLATION_MARGIN feas_tol where t*_g > 0 (else 0)
 
 (A) is always feasible (x_0 with t large enough). Its last rows say that no row ends worse than at rest: a
 least-violation tick never trades one fixture's excess for another's (without them, paper A's plate moved 10 mm
@@ -56,19 +56,18 @@ eigenvalues span ~1e-6..10 on the example tasks, and mu H / trace(H) next to the
 (A) so ill-conditioned that CasADi's DAQP returned rows violated by up to 2e-7 while reporting
 success; with mu I (A) is solved to ~1e-13 (measured).
 
-(B) keeps every row that x_A satisfies hard and holds the others at their values at x_A: it is feasible by
-construction, and the user's objective acts only inside the least-violation set, so no row that could hold is
-traded for tracking. The held rows conflict (that is why they are violated), are often more than n, and with
-conflicting neighbours make any thin band around x_A nearly empty: as hard rows DAQP 0.11 declared (B)
-infeasible at 14 to 23 of 24 least-violation states of polyline_guide (bands of 1e-11 to 1e-9, or equalities).
-So they form a soft level of DAQP's hierarchical mode above the objective: least squares, met to ~1e-8 per tick
-where they are many (polyline_guide, measured; 1e-10 and closer elsewhere), and (B) never failed there; an answer
-that misses them by more than ``HELD_ROWS`` feas_tol is not taken. (A) has n + G variables and 3m rows; DAQP is dense,
-so G = m costs O((n + m)^3) per solve: pass coarse groups for large m (docs/runtime.md: timings).
+(B) keeps every row of a satisfied group hard and lets each violated one go out by its group's least violation
+(and the margin), no further than at rest: x_A lies in S, the user's levels act only inside it, so no row that
+could hold is traded for tracking, and the priorities stay lexicographic. S is a sliver (at the least violation the
+relaxed rows nearly depend on the rows that stop them, the box at a speed limit), where DAQP's dual iterates failed
+a level at most least-violation states of paper B; so (B) is solved from x_A by the primal active-set method of
+:func:`vfdsl.runtime.lexls.from_feasible` (the generated C runs its twin), whose certified answer is the levels'
+unique optimum over S, on both paths alike; where none is certified, x = x_A. (A) has n + G variables and 3m rows;
+DAQP is dense, so G = m costs O((n + m)^3) per solve: pass coarse groups for large m (docs/runtime.md: timings).
 
 (A) is feasible by construction, so its answer is taken unless the solve failed outright (rows or
 bounds off by more than 1e-6: a failed solve is off by orders of magnitude), clipped into B (the
-solver's bound noise). If (B) fails, x is x_A, a least-violation move without the objective; if (A)
+solver's bound noise). If (B) fails, x is x_A, a least-violation move without the levels; if (A)
 fails, x is the zero motion clipped to B, with status bit ``FALLBACK``. x always lies in B,
 and is finite when the QP data are.
 
@@ -79,6 +78,7 @@ and is finite when the QP data are.
 from __future__ import annotations
 
 import enum
+import functools
 import warnings
 from collections.abc import Callable, Hashable, Sequence
 
@@ -102,8 +102,11 @@ LEVEL_TIE_BREAK = 1e-6
 """epsilon: with ``last_level_is_cost``, DAQP's cost is the last level's (scaled to a unit largest diagonal) plus
 epsilon I, positive definite also along the slacks, which damping does not weigh; it biases only that last level
 (the smallest motion among the answers the levels above leave)."""
-HELD_ROWS = 10.0
-"""(B)'s answer is taken only if it holds the rows x_A violates within HELD_ROWS * feas_tol of their values at x_A."""
+LEAST_VIOLATION_MARGIN = 10.0
+"""The least-violation set of phase 2's (B) relaxes each violated row by its group's least violation and this many
+feas_tol (LEVEL_ACCEPTANCE's: phase 1 accepts rows within as much): at the least violation the relaxed rows are
+within ~1e-6 of the span of the rows that stop them (the box, at a speed limit), a vertex no working set of
+independent rows describes; 1e-8 of room parts them."""
 PER_ROW_GROUPS_LIMIT = 100
 """Above this many rows, one group per row makes phase 2 slow: a warning asks for groups."""
 
@@ -156,18 +159,13 @@ def build_step_function(qp_data: ca.Function, prefix: str, *,
     else:                                       # (an MX qp_data: e.g. a mesh fixture's external call in it)
         prepared = _straight_line(f"{prefix}_prepare", lambda *data: _prepare(data, levels, last_level_is_cost),
                                   qp_data.call(inputs), expand)
-    H, g, A, lba, uba, lo, hi, clipped = prepared[:8]
+    A, lba, uba, lo, hi, clipped = prepared[2:8]
     args = prepared[8:]     # the solve's H, g and rows (daqp_rows)
     plans: dict[str, SolvePlan] = {}
-    if levels > 1:      # one hierarchical solve over the levels' rows
-        sizes = [qp_data.size1_out(7 + 2 * j) for j in range(levels - last_level_is_cost)]
-        x1 = None
-        for k, (tol, rho) in enumerate(LEVEL_ATTEMPTS):
-            solve = daqp_solver(n, m, tol, f"{scope}phase1_try{k}", native, plans, sizes, rho,
-                                partial=k == len(LEVEL_ATTEMPTS) - 1, exact=True)
-            x1 = solve(*args) if x1 is None else _retried(x1, recover, solve, args)
-    else:
-        x1 = daqp_solver(n, m, feas_tol * 1e-3, f"{scope}phase1_warm", native, plans, warm_start=True)(*args)
+    sizes = [qp_data.size1_out(7 + 2 * j) for j in range(levels - last_level_is_cost)] if levels > 1 else []
+    solve_levels = functools.partial(_solve_levels, n=n, m=m, sizes=sizes, feas_tol=feas_tol, native=native,
+                                     plans=plans)
+    x1 = solve_levels(args, recover, f"{scope}phase1")
 
     if m == 0:
         picked = ca.vertcat(x1, int(StepStatus.OPTIMAL))
@@ -175,9 +173,10 @@ def build_step_function(qp_data: ca.Function, prefix: str, *,
         accept_tol = feas_tol * (LEVEL_ACCEPTANCE if levels > 1 else 1)
         ok1 = _straight_line(f"{prefix}_accept", lambda x, A, *box: [_acceptable(x, A @ x, *box, accept_tol)],
                              [x1, A, lba, uba, lo, hi], expand)
-        switch = _phase2_switch([H, g, A, lba, uba, lo, hi, x1], _incidence(m, row_groups),
-                                feas_tol, penalty, tie_break, native, plans, scope)
-        picked = switch(ca.logic_and(ok1, recover == 0), H, g, A, lba, uba, lo, hi, x1)
+        solve_from = daqp_solver(n, m, feas_tol * 1e-3, f"{scope}phase2b", native, plans, sizes, start=True)
+        switch = _phase2_switch([A, lba, uba, lo, hi, x1, *args], _incidence(m, row_groups),
+                                feas_tol, penalty, tie_break, solve_from, accept_tol, native, plans, scope)
+        picked = switch(ca.logic_and(ok1, recover == 0), A, lba, uba, lo, hi, x1, *args)
     x, status, violation = _straight_line(f"{prefix}_finish", lambda *v: _finish(*v, m, feas_tol),
                                           [picked, A, lba, uba, lo, hi, clipped], expand)
     return PlannedFunction(ca.Function(prefix, [*inputs, recover], [x, status, violation],
@@ -211,6 +210,21 @@ def build_procedure_step(cases: Sequence[tuple[ca.Function, Sequence[int], bool]
     case = choose(inputs[steps[0].index_in(tick_buffers.PHASE_ARGUMENTS[0])])
     chosen = ca.Function.conditional(f"{prefix}_cases", steps, steps[-1])(case, *inputs)
     return PlannedFunction(ca.Function(prefix, inputs, chosen, steps[0].name_in(), steps[0].name_out()), plans)
+
+
+def _solve_levels(args: list[ca.MX], recover: ca.MX, name: str, *, n: int, m: int, sizes: Sequence[int],
+                  feas_tol: float, native: bool, plans: dict[str, SolvePlan]) -> ca.MX:
+    """x of the levels over the hard rows: with priority levels (``sizes``: each level's row count), DAQP's
+    hierarchical solve, exact where certified, retried with each of LEVEL_ATTEMPTS where the one before fails; else
+    one QP warm-started from the previous call's working set. ``args``: [H, g, a, lower, upper] (daqp_rows)."""
+    if not sizes:
+        return daqp_solver(n, m, feas_tol * 1e-3, f"{name}_warm", native, plans, warm_start=True)(*args)
+    x = None
+    for k, (tol, rho) in enumerate(LEVEL_ATTEMPTS):
+        solve = daqp_solver(n, m, tol, f"{name}_try{k}", native, plans, sizes, rho,
+                            partial=k == len(LEVEL_ATTEMPTS) - 1, exact=True)
+        x = solve(*args) if x is None else _retried(x, recover, solve, args)
+    return x
 
 
 def _straight_line(name: str, build: Callable[..., list[ca.MX]], values: Sequence[ca.MX], expand: bool):
@@ -385,30 +399,33 @@ def _incidence(m: int, row_groups: Sequence[Hashable] | None) -> ca.DM:
     return ca.sparsify(ca.DM(E))
 
 
-def _phase2_switch(values: list[ca.MX], E: ca.DM, tol, rho, mu, native, plans, scope: str) -> ca.Function:
-    """switch(ok, H, g, A, lba, uba, lo, hi, x1) -> [x1; 0] when ok (phase 1's answer), else phase 2's [x; status].
+def _phase2_switch(values: list[ca.MX], E: ca.DM, tol, rho, mu, solve_from, accept_tol, native, plans,
+                   scope: str) -> ca.Function:
+    """switch(ok, A, lba, uba, lo, hi, x1, *args) -> [x1; 0] when ok (phase 1's answer), else phase 2's
+    [x; status] (args: phase 1's solve, [H, g, a, lower, upper]; ``solve_from``: (B)'s solve, from a point).
 
     The branches are Functions of values already computed: a short-circuit ``if_else`` on
     expressions would make each branch recompute them (QP data and phase 1) from the inputs.
     """
-    names = ("H", "g", "A", "lba", "uba", "lo", "hi", "x1")
+    names = ("A", "lba", "uba", "lo", "hi", "x1", "H_s", "g_s", "a_s", "lower_s", "upper_s")
     args = [ca.MX.sym(name, v.sparsity()) for name, v in zip(names, values)]
-    H, g, A, lba, uba, lo, hi, x1 = args
+    x1 = args[5]
     keep = ca.Function("keep", args, [ca.vertcat(x1, int(StepStatus.OPTIMAL))])
-    recover = ca.Function("recover", args,
-                          [_least_violation(H, g, A, lba, uba, lo, hi, E, tol, rho, mu, native, plans, scope)])
+    recover = ca.Function("recover", args, [_least_violation(*args[:5], args[6:], E, tol, rho, mu, solve_from,
+                                                             accept_tol, native, plans, scope)])
     return ca.Function.if_else("phase2_if_needed", keep, recover)
 
 
-# (B)'s rows are relaxed already; its check only has to catch a failed solve, whose answer is off by
-# orders of magnitude (seen: 1 to 20), not decide feasibility at the 1e-9 level, where the generated and
-# interpreted evaluations (whose QP data differ in the last bits) could decide differently.
+# (A) is feasible by construction; its check only has to catch a failed solve, whose answer is off by orders of
+# magnitude (seen: 1 to 20), not decide feasibility at the 1e-9 level, where the generated and interpreted
+# evaluations (whose QP data differ in the last bits) could decide differently.
 _GROSS_FAILURE = 1e-6
 
 
-def _least_violation(H, g, A, lba, uba, lo, hi, E: ca.DM, tol, rho, mu, native, plans, scope: str) -> ca.MX:
+def _least_violation(A, lba, uba, lo, hi, solve_args, E: ca.DM, tol, rho, mu, solve_from, accept_tol, native,
+                     plans, scope: str) -> ca.MX:
     """Phase 2 (A then B), returning [x; status]."""
-    n, m, G = H.size1(), A.size1(), E.size2()
+    n, m, G = lo.size1(), A.size1(), E.size2()
     H_a = ca.diagcat(mu * ca.DM.eye(n), ca.DM.eye(G))
     g_a = ca.vertcat(ca.DM.zeros(n), rho * ca.DM.ones(G))
     A_a = ca.vertcat(ca.horzcat(A, E), ca.horzcat(A, -E), ca.horzcat(A, ca.DM.zeros(m, G)))
@@ -419,22 +436,22 @@ def _least_violation(H, g, A, lba, uba, lo, hi, E: ca.DM, tol, rho, mu, native, 
     lbz, ubz = ca.vertcat(lo, ca.DM.zeros(G)), ca.vertcat(hi, inf_G)
     z = daqp_solver(n + G, 3 * m, tol * 1e-3, f"{scope}phase2a", native, plans)(H_a, g_a,
                                                                         *daqp_rows(A_a, lba_a, uba_a, lbz, ubz))
-    x_a = _clip(z[:n], lo, hi)      # used only when (A) is acceptable, i.e. z is finite
-    Ax_a = A @ x_a
-    violated = ca.logic_or(Ax_a < lba, Ax_a > uba)        # these rows leave level 0 and are held at x_a's values
-    inf = ca.inf * ca.DM.ones(m)
-    lba_b, uba_b = ca.if_else(violated, -inf, lba), ca.if_else(violated, inf, uba)
-    pin_lo, pin_hi = ca.if_else(violated, Ax_a, -inf), ca.if_else(violated, Ax_a, inf)
-    row_scale, cost_scale = _unit_rows(A), _unit_diagonal(H)   # (the held rows weigh the same against any objective)
-    x_b = daqp_solver(n, m, tol * 1e-3, f"{scope}phase2b", native, plans, [m])(
-        cost_scale * H, cost_scale * g, *daqp_rows(A, lba_b, uba_b, lo, hi, row_scale * A, row_scale * pin_lo,
-                                                   row_scale * pin_hi))
-
-    # Acceptance is decided on the solver's own answers, before any clipping: clipping a failed
-    # solve's NaN into B would turn it into a full-speed motion that looks feasible.
+    # Acceptance is decided on the solver's own answer, before any clipping: clipping a failed solve's NaN into B
+    # would turn it into a full-speed motion that looks feasible.
     ok_a = _acceptable(z, A_a @ z, lba_a, uba_a, lbz, ubz, _GROSS_FAILURE)
-    ok_b = _acceptable(x_b, A @ x_b, lba_b, uba_b, lo, hi, _GROSS_FAILURE)      # the rows x_a satisfies
-    ok_b = ca.logic_and(ok_b, ca.mmax(_row_violation(A @ x_b, pin_lo, pin_hi)) <= HELD_ROWS * tol)
+    x_a = _clip(z[:n], lo, hi)      # used only when (A) is acceptable, i.e. z is finite
+    lower, upper = _least_violation_set(lba, uba, at_rest, E @ ca.if_else(ok_a, ca.fmax(z[n:], 0), 0), tol)
+    H_s, g_s, a_s, lower_s, upper_s = solve_args
+    x_b = solve_from(H_s, g_s, a_s, ca.vertcat(lower, lower_s[m:]), ca.vertcat(upper, upper_s[m:]), x_a)
+    ok_b = _acceptable(x_b, A @ x_b, lower, upper, lo, hi, accept_tol)
     x = ca.if_else(ok_a, ca.if_else(ok_b, _clip(x_b, lo, hi), x_a), _rest(lo, hi))
     status = int(StepStatus.LEAST_VIOLATION) + int(StepStatus.FALLBACK) * (1 - ok_a)
     return ca.vertcat(x, status)
+
+
+def _least_violation_set(lba, uba, at_rest, relaxed, tol) -> tuple[ca.MX, ca.MX]:
+    """The rows' bounds of the least-violation set S: each row of a violated group (``relaxed``: E t*, above
+    1e-3 tol) relaxed by the group's least violation and LEAST_VIOLATION_MARGIN tol, and no row worse than at
+    rest."""
+    widened = ca.if_else(relaxed > 1e-3 * tol, relaxed + LEAST_VIOLATION_MARGIN * tol, 0)
+    return ca.fmax(lba - widened, ca.fmin(lba, at_rest)), ca.fmin(uba + widened, ca.fmax(uba, at_rest))

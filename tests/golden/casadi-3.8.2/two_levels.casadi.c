@@ -155,9 +155,6 @@ extern "C" {
 #define casadi_s0 CASADI_PREFIX(s0)
 #define casadi_s1 CASADI_PREFIX(s1)
 #define casadi_s10 CASADI_PREFIX(s10)
-#define casadi_s11 CASADI_PREFIX(s11)
-#define casadi_s12 CASADI_PREFIX(s12)
-#define casadi_s13 CASADI_PREFIX(s13)
 #define casadi_s2 CASADI_PREFIX(s2)
 #define casadi_s3 CASADI_PREFIX(s3)
 #define casadi_s4 CASADI_PREFIX(s4)
@@ -166,7 +163,6 @@ extern "C" {
 #define casadi_s7 CASADI_PREFIX(s7)
 #define casadi_s8 CASADI_PREFIX(s8)
 #define casadi_s9 CASADI_PREFIX(s9)
-#define casadi_sq CASADI_PREFIX(sq)
 #define casadi_trans CASADI_PREFIX(trans)
 #define casadi_vfmax CASADI_PREFIX(vfmax)
 #define casadi_vfmin CASADI_PREFIX(vfmin)
@@ -500,8 +496,6 @@ casadi_real casadi_mmax(const casadi_real* x, casadi_int n, casadi_int is_dense)
   return casadi_vfmax(x, n, r);
 }
 
-casadi_real casadi_sq(casadi_real x) { return x*x;}
-
 /* Configuration this file was compiled with */
 CASADI_SYMBOL_EXPORT void vf_golden_casadi_version(int* major, int* minor, int* patch) {
   *major = 3;
@@ -527,29 +521,20 @@ static const casadi_int casadi_s3[24] =
 static const casadi_int casadi_s4[15] = 
   {3, 3, 0, 3, 6, 9, 0, 1,
   2, 0, 1, 2, 0, 1, 2};
-static const casadi_int casadi_s5[13] = 
-  {4, 2, 0, 4, 8, 0, 1, 2,
-  3, 0, 1, 2, 3};
-static const casadi_int casadi_s6[9] = 
+static const casadi_int casadi_s5[9] = 
   {3, 3, 0, 1, 2, 3, 0, 1,
   2};
-static const casadi_int casadi_s7[18] = 
+static const casadi_int casadi_s6[18] = 
   {6, 3, 0, 4, 8, 12, 0, 1,
   2, 3, 0, 1, 2, 4, 0, 1,
   2, 5};
-static const casadi_int casadi_s8[21] = 
+static const casadi_int casadi_s7[21] = 
   {3, 6, 0, 3, 6, 9, 10, 11,
   12, 0, 1, 2, 0, 1, 2, 0,
   1, 2, 0, 1, 2};
-static const casadi_int casadi_s9[11] = 
-  {4, 2, 0, 3, 6, 0, 1, 3,
-  0, 2, 3};
-static const casadi_int casadi_s10[13] = 
-  {2, 4, 0, 2, 3, 4, 6, 0,
-  1, 0, 1, 0, 1};
-static const casadi_int casadi_s11[3] = {2, 1, 1};
-static const casadi_int casadi_s12[3] = {1, 1, 1};
-static const casadi_int casadi_s13[3] = {0, 1, 1};
+static const casadi_int casadi_s8[3] = {2, 1, 1};
+static const casadi_int casadi_s9[3] = {1, 1, 1};
+static const casadi_int casadi_s10[3] = {0, 1, 1};
 
 static const casadi_real casadi_c0[3] = {1.0000000000000000e-03, 1.0000000000000000e-03, 1.};
 static const casadi_real casadi_c1[3] = {0., 0., 1.};
@@ -1322,14 +1307,14 @@ void casadi_f14_decref(void) {
   }
 }
 
-/* phase2b:(h[2x2],g[2],a[4x2],lba[4],uba[4],lbx[2],ubx[2],x0[2],lam_x0[2],lam_a0[4],q[],p[])->(x[2],cost,lam_a[4],lam_x[2]) */
+/* phase2b:(h[2x2],g[2],a[6x2],lba[6],uba[6],lbx[2],ubx[2],x0[2],lam_x0[2],lam_a0[6],q[],p[])->(x[2],cost,lam_a[6],lam_x[2]) */
 static int casadi_f15(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   struct casadi_daqp_data* d=&casadi_f15_mem[mem];
   struct casadi_daqp_prob p;
   struct casadi_qp_data d_qp;
   struct casadi_qp_prob p_qp;
   d_qp.prob = &p_qp;
-  p_qp.sp_a = casadi_s5;
+  p_qp.sp_a = casadi_s0;
   p_qp.sp_h = casadi_s1;
   casadi_qp_setup(&p_qp);
   casadi_qp_set_work(&d_qp, &arg, &res, &iw, &w);
@@ -1413,14 +1398,14 @@ void casadi_f15_decref(void) {
   }
 }
 
-/* recover:(i0[2x2],i1[2],i2[1x2],i3,i4,i5[2],i6[2],i7[2])->(o0[3]) */
+/* recover:(i0[1x2],i1,i2,i3[2],i4[2],i5[2],i6[2x2,2nz],i7[2],i8[6x2],i9[6],i10[6])->(o0[3]) */
 static int casadi_f13(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_int i, j;
   casadi_real **res1=res+1, *rr, *w00=w+54, *w01=w+57, *w02=w+66, w03, *w04=w+68, *w05=w+71, *w06=w+74, *w07=w+77, *w08=w+80, *w09=w+92;
   casadi_real *w10=w+104, w11, w12, *w13=w+122, *w14=w+124, *w15=w+126, w16, w17, *w18=w+128, w19, w20, w21;
-  casadi_real *w22=w+134, *w23=w+140, *w24=w+143, *w25=w+146, *w26=w+149, *w28=w+155, w29, w30, *w31=w+158, *w32=w+167, *w33=w+171, *w34=w+173;
-  casadi_real *w35=w+175, *w36=w+177, *w37=w+179, *w38=w+187, *w39=w+191, *w40=w+195, *w41=w+197, *w42=w+201;
-  const casadi_real **arg1=arg+8, *cr, *cs;
+  casadi_real w22, *w23=w+134, *w24=w+140, *w25=w+143, *w26=w+146, *w27=w+149, *w29=w+155, w30, w31, *w32=w+158, *w33=w+167, *w34=w+171;
+  casadi_real *w35=w+176, *w36=w+178, *w37=w+180, *w38=w+182, *w39=w+184;
+  const casadi_real **arg1=arg+11, *cr, *cs, *wr09;
   int flag, mid;
   /* #0: @0 = 
   [[0.001, 00, 00], 
@@ -1428,11 +1413,11 @@ static int casadi_f13(const casadi_real** arg, casadi_real** res, casadi_int* iw
    [00, 00, 1]] */
   casadi_copy(casadi_c0, 3, w00);
   /* #1: @1 = dense(@0) */
-  casadi_densify(w00, casadi_s6, w01, 0);
+  casadi_densify(w00, casadi_s5, w01, 0);
   /* #2: @0 = [0, 0, 1] */
   casadi_copy(casadi_c1, 3, w00);
-  /* #3: @2 = input[2][0] */
-  casadi_copy(arg[2], 2, w02);
+  /* #3: @2 = input[0][0] */
+  casadi_copy(arg[0], 2, w02);
   /* #4: @3 = 1 */
   w03 = 1.;
   /* #5: @4 = horzcat(@2, @3) */
@@ -1463,23 +1448,23 @@ static int casadi_f13(const casadi_real** arg, casadi_real** res, casadi_int* iw
   for (i=0, cs=w06; i<3; ++i) *rr++ = *cs++;
   for (i=0, cs=w07; i<3; ++i) *rr++ = *cs++;
   /* #15: @9 = @8' */
-  casadi_trans(w08,casadi_s8, w09, casadi_s7, iw);
+  casadi_trans(w08,casadi_s7, w09, casadi_s6, iw);
   /* #16: @10 = dense(@9) */
-  casadi_densify(w09, casadi_s7, w10, 0);
-  /* #17: @3 = input[3][0] */
-  w03 = arg[3] ? arg[3][0] : 0;
+  casadi_densify(w09, casadi_s6, w10, 0);
+  /* #17: @3 = input[1][0] */
+  w03 = arg[1] ? arg[1][0] : 0;
   /* #18: @11 = -inf */
   w11 = -casadi_inf;
   /* #19: @12 = 0 */
   w12 = 0.;
   /* #20: @13 = zeros(2x1) */
   casadi_clear(w13, 2);
-  /* #21: @14 = input[5][0] */
-  casadi_copy(arg[5], 2, w14);
+  /* #21: @14 = input[3][0] */
+  casadi_copy(arg[3], 2, w14);
   /* #22: @13 = fmax(@13,@14) */
   for (i=0, rr=w13, cr=w13, cs=w14; i<2; ++i) (*rr++)  = casadi_fmax((*cr++),(*cs++));
-  /* #23: @15 = input[6][0] */
-  casadi_copy(arg[6], 2, w15);
+  /* #23: @15 = input[4][0] */
+  casadi_copy(arg[4], 2, w15);
   /* #24: @13 = fmin(@13,@15) */
   for (i=0, rr=w13, cr=w13, cs=w15; i<2; ++i) (*rr++)  = casadi_fmin((*cr++),(*cs++));
   /* #25: @12 = mac(@2,@13,@12) */
@@ -1497,44 +1482,44 @@ static int casadi_f13(const casadi_real** arg, casadi_real** res, casadi_int* iw
   *rr++ = w17;
   /* #29: @19 = inf */
   w19 = casadi_inf;
-  /* #30: @20 = input[4][0] */
-  w20 = arg[4] ? arg[4][0] : 0;
-  /* #31: @12 = fmax(@20,@12) */
-  w12  = casadi_fmax(w20,w12);
-  /* #32: @21 = inf */
-  w21 = casadi_inf;
-  /* #33: @22 = vertcat(@19, @20, @12, @15, @21) */
-  rr=w22;
+  /* #30: @20 = input[2][0] */
+  w20 = arg[2] ? arg[2][0] : 0;
+  /* #31: @21 = fmax(@20,@12) */
+  w21  = casadi_fmax(w20,w12);
+  /* #32: @22 = inf */
+  w22 = casadi_inf;
+  /* #33: @23 = vertcat(@19, @20, @21, @15, @22) */
+  rr=w23;
   *rr++ = w19;
   *rr++ = w20;
-  *rr++ = w12;
-  for (i=0, cs=w15; i<2; ++i) *rr++ = *cs++;
   *rr++ = w21;
+  for (i=0, cs=w15; i<2; ++i) *rr++ = *cs++;
+  *rr++ = w22;
   /* #34: @7 = -inf(3x1) */
   casadi_fill(w07, 3, -casadi_inf);
-  /* #35: @23 = inf(3x1) */
-  casadi_fill(w23, 3, casadi_inf);
-  /* #36: @24 = zeros(3x1) */
-  casadi_clear(w24, 3);
-  /* #37: @25 = zeros(3x1) */
+  /* #35: @24 = inf(3x1) */
+  casadi_fill(w24, 3, casadi_inf);
+  /* #36: @25 = zeros(3x1) */
   casadi_clear(w25, 3);
-  /* #38: @26 = zeros(6x1) */
-  casadi_clear(w26, 6);
-  /* #39: @27 = 0x0 */
-  /* #40: {@28, NULL, NULL, NULL} = phase2a(@1, @0, @10, @18, @22, @7, @23, @24, @25, @26, @27, @27) */
+  /* #37: @26 = zeros(3x1) */
+  casadi_clear(w26, 3);
+  /* #38: @27 = zeros(6x1) */
+  casadi_clear(w27, 6);
+  /* #39: @28 = 0x0 */
+  /* #40: {@29, NULL, NULL, NULL} = phase2a(@1, @0, @10, @18, @23, @7, @24, @25, @26, @27, @28, @28) */
   arg1[0]=w01;
   arg1[1]=w00;
   arg1[2]=w10;
   arg1[3]=w18;
-  arg1[4]=w22;
+  arg1[4]=w23;
   arg1[5]=w07;
-  arg1[6]=w23;
-  arg1[7]=w24;
-  arg1[8]=w25;
-  arg1[9]=w26;
+  arg1[6]=w24;
+  arg1[7]=w25;
+  arg1[8]=w26;
+  arg1[9]=w27;
   arg1[10]=0;
   arg1[11]=0;
-  res1[0]=w28;
+  res1[0]=w29;
   res1[1]=0;
   res1[2]=0;
   res1[3]=0;
@@ -1543,42 +1528,42 @@ static int casadi_f13(const casadi_real** arg, casadi_real** res, casadi_int* iw
   flag = casadi_f14(arg1, res1, iw, w, mid);
   casadi_f14_release(mid);
   if (flag) return 1;
-  /* #41: @0 = fabs(@28) */
-  for (i=0, rr=w00, cs=w28; i<3; ++i) *rr++ = casadi_fabs( *cs++ );
-  /* #42: @29 = inf */
-  w29 = casadi_inf;
-  /* #43: @0 = (@0<@29) */
-  for (i=0, rr=w00, cr=w00; i<3; ++i) (*rr++)  = ((*cr++)<w29);
-  /* #44: @29 = min(@0) */
-  w29 = casadi_mmin(w00, 3, 1);
-  /* #45: @30 = 0 */
-  w30 = 0.;
+  /* #41: @0 = fabs(@29) */
+  for (i=0, rr=w00, cs=w29; i<3; ++i) *rr++ = casadi_fabs( *cs++ );
+  /* #42: @30 = inf */
+  w30 = casadi_inf;
+  /* #43: @0 = (@0<@30) */
+  for (i=0, rr=w00, cr=w00; i<3; ++i) (*rr++)  = ((*cr++)<w30);
+  /* #44: @30 = min(@0) */
+  w30 = casadi_mmin(w00, 3, 1);
+  /* #45: @31 = 0 */
+  w31 = 0.;
   /* #46: @0 = vertcat(@14, @17) */
   rr=w00;
   for (i=0, cs=w14; i<2; ++i) *rr++ = *cs++;
   *rr++ = w17;
-  /* #47: @0 = (@0-@28) */
-  for (i=0, rr=w00, cs=w28; i<3; ++i) (*rr++) -= (*cs++);
-  /* #48: @7 = vertcat(@15, @21) */
+  /* #47: @0 = (@0-@29) */
+  for (i=0, rr=w00, cs=w29; i<3; ++i) (*rr++) -= (*cs++);
+  /* #48: @7 = vertcat(@15, @22) */
   rr=w07;
   for (i=0, cs=w15; i<2; ++i) *rr++ = *cs++;
-  *rr++ = w21;
-  /* #49: @7 = (@28-@7) */
-  for (i=0, rr=w07, cr=w28, cs=w07; i<3; ++i) (*rr++)  = ((*cr++)-(*cs++));
+  *rr++ = w22;
+  /* #49: @7 = (@29-@7) */
+  for (i=0, rr=w07, cr=w29, cs=w07; i<3; ++i) (*rr++)  = ((*cr++)-(*cs++));
   /* #50: @0 = fmax(@0,@7) */
   for (i=0, rr=w00, cr=w00, cs=w07; i<3; ++i) (*rr++)  = casadi_fmax((*cr++),(*cs++));
-  /* #51: @0 = fmax(@30,@0) */
-  for (i=0, rr=w00, cs=w00; i<3; ++i) (*rr++)  = casadi_fmax(w30,(*cs++));
-  /* #52: @30 = max(@0) */
-  w30 = casadi_mmax(w00, 3, 1);
-  /* #53: @21 = 1e-06 */
-  w21 = 9.9999999999999995e-07;
-  /* #54: @30 = (@30<=@21) */
-  w30  = (w30<=w21);
-  /* #55: @29 = (@29&&@30) */
-  w29  = (w29&&w30);
-  /* #56: @30 = 0 */
-  w30 = 0.;
+  /* #51: @0 = fmax(@31,@0) */
+  for (i=0, rr=w00, cs=w00; i<3; ++i) (*rr++)  = casadi_fmax(w31,(*cs++));
+  /* #52: @31 = max(@0) */
+  w31 = casadi_mmax(w00, 3, 1);
+  /* #53: @22 = 1e-06 */
+  w22 = 9.9999999999999995e-07;
+  /* #54: @31 = (@31<=@22) */
+  w31  = (w31<=w22);
+  /* #55: @30 = (@30&&@31) */
+  w30  = (w30&&w31);
+  /* #56: @31 = 0 */
+  w31 = 0.;
   /* #57: @0 = vertcat(@3, @11, @16) */
   rr=w00;
   *rr++ = w03;
@@ -1591,185 +1576,113 @@ static int casadi_f13(const casadi_real** arg, casadi_real** res, casadi_int* iw
   for (i=0, cs=w04; i<3; ++i) *rr++ = *cs++;
   for (i=0, cs=w05; i<3; ++i) *rr++ = *cs++;
   for (i=0, cs=w06; i<3; ++i) *rr++ = *cs++;
-  /* #60: @31 = @1' */
-  for (i=0, rr=w31, cs=w01; i<3; ++i) for (j=0; j<3; ++j) rr[i+j*3] = *cs++;
-  /* #61: @7 = mac(@31,@28,@7) */
-  casadi_mtimes_dense(w31, 3, 3, w28, 1, w07, 0);
+  /* #60: @32 = @1' */
+  for (i=0, rr=w32, cs=w01; i<3; ++i) for (j=0; j<3; ++j) rr[i+j*3] = *cs++;
+  /* #61: @7 = mac(@32,@29,@7) */
+  casadi_mtimes_dense(w32, 3, 3, w29, 1, w07, 0);
   /* #62: @0 = (@0-@7) */
   for (i=0, rr=w00, cs=w07; i<3; ++i) (*rr++) -= (*cs++);
-  /* #63: @4 = vertcat(@19, @20, @12) */
+  /* #63: @4 = vertcat(@19, @20, @21) */
   rr=w04;
   *rr++ = w19;
   *rr++ = w20;
-  *rr++ = w12;
+  *rr++ = w21;
   /* #64: @7 = (@7-@4) */
   for (i=0, rr=w07, cs=w04; i<3; ++i) (*rr++) -= (*cs++);
   /* #65: @0 = fmax(@0,@7) */
   for (i=0, rr=w00, cr=w00, cs=w07; i<3; ++i) (*rr++)  = casadi_fmax((*cr++),(*cs++));
-  /* #66: @0 = fmax(@30,@0) */
-  for (i=0, rr=w00, cs=w00; i<3; ++i) (*rr++)  = casadi_fmax(w30,(*cs++));
-  /* #67: @30 = max(@0) */
-  w30 = casadi_mmax(w00, 3, 1);
+  /* #66: @0 = fmax(@31,@0) */
+  for (i=0, rr=w00, cs=w00; i<3; ++i) (*rr++)  = casadi_fmax(w31,(*cs++));
+  /* #67: @31 = max(@0) */
+  w31 = casadi_mmax(w00, 3, 1);
   /* #68: @19 = 1e-06 */
   w19 = 9.9999999999999995e-07;
-  /* #69: @30 = (@30<=@19) */
-  w30  = (w30<=w19);
-  /* #70: @29 = (@29&&@30) */
-  w29  = (w29&&w30);
-  /* #71: @32 = input[0][0] */
-  casadi_copy(arg[0], 4, w32);
-  /* #72: @30 = 1e-300 */
-  w30 = 1.0000000000000000e-300;
-  /* #73: @13 = @32[:6:3] */
-  for (rr=w13, cs=w32+0; cs!=w32+6; cs+=3) *rr++ = *cs;
-  /* #74: @19 = max(@13) */
-  w19 = casadi_mmax(w13, 2, 1);
-  /* #75: @30 = fmax(@30,@19) */
-  w30  = casadi_fmax(w30,w19);
-  /* #76: @32 = (@32/@30) */
-  for (i=0, rr=w32; i<4; ++i) (*rr++) /= w30;
-  /* #77: @13 = input[1][0] */
-  casadi_copy(arg[1], 2, w13);
-  /* #78: @13 = (@13/@30) */
-  for (i=0, rr=w13; i<2; ++i) (*rr++) /= w30;
-  /* #79: @33 = @2' */
-  casadi_copy(w02, 2, w33);
-  /* #80: @34 = ones(2x2,2nz) */
-  casadi_fill(w34, 2, 1.);
-  /* #81: @30 = 0 */
-  w30 = 0.;
-  /* #82: @19 = 0 */
+  /* #69: @31 = (@31<=@19) */
+  w31  = (w31<=w19);
+  /* #70: @30 = (@30&&@31) */
+  w30  = (w30&&w31);
+  /* #71: @13 = input[6][0] */
+  casadi_copy(arg[6], 2, w13);
+  /* #72: @33 = dense(@13) */
+  casadi_densify(w13, casadi_s2, w33, 0);
+  /* #73: @13 = input[7][0] */
+  casadi_copy(arg[7], 2, w13);
+  /* #74: @9 = input[8][0] */
+  wr09 = arg[8] ? arg[8] : casadi_zeros;
+  /* #75: @31 = 1e-09 */
+  w31 = 1.0000000000000001e-09;
+  /* #76: @19 = 0 */
   w19 = 0.;
-  /* #83: @35 = sq(@2) */
-  for (i=0, rr=w35, cs=w02; i<2; ++i) *rr++ = casadi_sq( *cs++ );
-  /* #84: @36 = ones(2x1) */
-  casadi_fill(w36, 2, 1.);
-  /* #85: @19 = mac(@35,@36,@19) */
-  casadi_mtimes_dense(w35, 1, 2, w36, 1, (&w19), 0);
-  /* #86: @12 = max(@19) */
-  w12 = casadi_mmax((&w19), 1, 1);
-  /* #87: @12 = sqrt(@12) */
-  w12 = sqrt( w12 );
-  /* #88: @30 = (@30<@12) */
-  w30  = (w30<w12);
-  /* #89: @12 = (1./@12) */
-  w12 = (1./ w12 );
-  /* #90: @12 = (@30?@12:0) */
-  w12  = (w30?w12:0);
-  /* #91: @30 = (!@30) */
-  w30 = (! w30 );
-  /* #92: @19 = 1 */
-  w19 = 1.;
-  /* #93: @30 = (@30?@19:0) */
-  w30  = (w30?w19:0);
-  /* #94: @12 = (@12+@30) */
-  w12 += w30;
-  /* #95: @35 = (@12*@2) */
-  for (i=0, rr=w35, cs=w02; i<2; ++i) (*rr++)  = (w12*(*cs++));
-  /* #96: @35 = @35' */
-  /* #97: @18 = horzcat(@33, @34, @35) */
+  /* #77: @21 = @29[2] */
+  for (rr=(&w21), cs=w29+2; cs!=w29+3; cs+=1) *rr++ = *cs;
+  /* #78: @19 = fmax(@19,@21) */
+  w19  = casadi_fmax(w19,w21);
+  /* #79: @19 = (@30?@19:0) */
+  w19  = (w30?w19:0);
+  /* #80: @31 = (@31<@19) */
+  w31  = (w31<w19);
+  /* #81: @21 = 1e-05 */
+  w21 = 9.9999999999999991e-06;
+  /* #82: @21 = (@21+@19) */
+  w21 += w19;
+  /* #83: @31 = (@31?@21:0) */
+  w31  = (w31?w21:0);
+  /* #84: @21 = (@3-@31) */
+  w21  = (w03-w31);
+  /* #85: @3 = fmin(@3,@12) */
+  w03  = casadi_fmin(w03,w12);
+  /* #86: @21 = fmax(@21,@3) */
+  w21  = casadi_fmax(w21,w03);
+  /* #87: @18 = input[9][0] */
+  casadi_copy(arg[9], 6, w18);
+  /* #88: @34 = @18[1:6] */
+  for (rr=w34, cs=w18+1; cs!=w18+6; cs+=1) *rr++ = *cs;
+  /* #89: @18 = vertcat(@21, @34) */
   rr=w18;
-  for (i=0, cs=w33; i<2; ++i) *rr++ = *cs++;
-  for (i=0, cs=w34; i<2; ++i) *rr++ = *cs++;
-  for (i=0, cs=w35; i<2; ++i) *rr++ = *cs++;
-  /* #98: @22 = @18' */
-  casadi_trans(w18,casadi_s10, w22, casadi_s9, iw);
-  /* #99: @37 = dense(@22) */
-  casadi_densify(w22, casadi_s9, w37, 0);
-  /* #100: @30 = 0 */
-  w30 = 0.;
-  /* #101: @33 = @28[:2] */
-  for (rr=w33, cs=w28+0; cs!=w28+2; cs+=1) *rr++ = *cs;
-  /* #102: @33 = fmax(@33,@14) */
-  for (i=0, rr=w33, cr=w33, cs=w14; i<2; ++i) (*rr++)  = casadi_fmax((*cr++),(*cs++));
-  /* #103: @33 = fmin(@33,@15) */
-  for (i=0, rr=w33, cr=w33, cs=w15; i<2; ++i) (*rr++)  = casadi_fmin((*cr++),(*cs++));
-  /* #104: @30 = mac(@2,@33,@30) */
-  casadi_mtimes_dense(w02, 1, 2, w33, 1, (&w30), 0);
-  /* #105: @19 = (@30<@3) */
-  w19  = (w30<w03);
-  /* #106: @11 = (@20<@30) */
-  w11  = (w20<w30);
-  /* #107: @19 = (@19||@11) */
-  w19  = (w19||w11);
-  /* #108: @11 = -inf */
-  w11 = -casadi_inf;
-  /* #109: @11 = (@19?@11:0) */
-  w11  = (w19?w11:0);
-  /* #110: @16 = (!@19) */
-  w16 = (! w19 );
-  /* #111: @16 = (@16?@3:0) */
-  w16  = (w16?w03:0);
-  /* #112: @11 = (@11+@16) */
-  w11 += w16;
-  /* #113: @16 = (@19?@30:0) */
-  w16  = (w19?w30:0);
-  /* #114: @3 = (!@19) */
-  w03 = (! w19 );
-  /* #115: @21 = -inf */
-  w21 = -casadi_inf;
-  /* #116: @3 = (@3?@21:0) */
-  w03  = (w03?w21:0);
-  /* #117: @16 = (@16+@3) */
-  w16 += w03;
-  /* #118: @3 = (@12*@16) */
-  w03  = (w12*w16);
-  /* #119: @38 = vertcat(@11, @14, @3) */
-  rr=w38;
-  *rr++ = w11;
-  for (i=0, cs=w14; i<2; ++i) *rr++ = *cs++;
-  *rr++ = w03;
-  /* #120: @3 = inf */
-  w03 = casadi_inf;
-  /* #121: @3 = (@19?@3:0) */
-  w03  = (w19?w03:0);
-  /* #122: @21 = (!@19) */
-  w21 = (! w19 );
-  /* #123: @21 = (@21?@20:0) */
-  w21  = (w21?w20:0);
-  /* #124: @3 = (@3+@21) */
-  w03 += w21;
-  /* #125: @30 = (@19?@30:0) */
-  w30  = (w19?w30:0);
-  /* #126: @19 = (!@19) */
-  w19 = (! w19 );
-  /* #127: @21 = inf */
-  w21 = casadi_inf;
-  /* #128: @19 = (@19?@21:0) */
-  w19  = (w19?w21:0);
-  /* #129: @30 = (@30+@19) */
-  w30 += w19;
-  /* #130: @12 = (@12*@30) */
-  w12 *= w30;
-  /* #131: @39 = vertcat(@3, @15, @12) */
-  rr=w39;
-  *rr++ = w03;
-  for (i=0, cs=w15; i<2; ++i) *rr++ = *cs++;
-  *rr++ = w12;
-  /* #132: @34 = -inf(2x1) */
-  casadi_fill(w34, 2, -casadi_inf);
-  /* #133: @35 = inf(2x1) */
-  casadi_fill(w35, 2, casadi_inf);
-  /* #134: @36 = zeros(2x1) */
-  casadi_clear(w36, 2);
-  /* #135: @40 = zeros(2x1) */
-  casadi_clear(w40, 2);
-  /* #136: @41 = zeros(4x1) */
-  casadi_clear(w41, 4);
-  /* #137: {@42, NULL, NULL, NULL} = phase2b(@32, @13, @37, @38, @39, @34, @35, @36, @40, @41, @27, @27) */
-  arg1[0]=w32;
+  *rr++ = w21;
+  for (i=0, cs=w34; i<5; ++i) *rr++ = *cs++;
+  /* #90: @31 = (@20+@31) */
+  w31  = (w20+w31);
+  /* #91: @20 = fmax(@20,@12) */
+  w20  = casadi_fmax(w20,w12);
+  /* #92: @31 = fmin(@31,@20) */
+  w31  = casadi_fmin(w31,w20);
+  /* #93: @23 = input[10][0] */
+  casadi_copy(arg[10], 6, w23);
+  /* #94: @34 = @23[1:6] */
+  for (rr=w34, cs=w23+1; cs!=w23+6; cs+=1) *rr++ = *cs;
+  /* #95: @23 = vertcat(@31, @34) */
+  rr=w23;
+  *rr++ = w31;
+  for (i=0, cs=w34; i<5; ++i) *rr++ = *cs++;
+  /* #96: @35 = -inf(2x1) */
+  casadi_fill(w35, 2, -casadi_inf);
+  /* #97: @36 = inf(2x1) */
+  casadi_fill(w36, 2, casadi_inf);
+  /* #98: @37 = @29[:2] */
+  for (rr=w37, cs=w29+0; cs!=w29+2; cs+=1) *rr++ = *cs;
+  /* #99: @37 = fmax(@37,@14) */
+  for (i=0, rr=w37, cr=w37, cs=w14; i<2; ++i) (*rr++)  = casadi_fmax((*cr++),(*cs++));
+  /* #100: @37 = fmin(@37,@15) */
+  for (i=0, rr=w37, cr=w37, cs=w15; i<2; ++i) (*rr++)  = casadi_fmin((*cr++),(*cs++));
+  /* #101: @38 = zeros(2x1) */
+  casadi_clear(w38, 2);
+  /* #102: @27 = zeros(6x1) */
+  casadi_clear(w27, 6);
+  /* #103: {@39, NULL, NULL, NULL} = phase2b(@33, @13, @9, @18, @23, @35, @36, @37, @38, @27, @28, @28) */
+  arg1[0]=w33;
   arg1[1]=w13;
-  arg1[2]=w37;
-  arg1[3]=w38;
-  arg1[4]=w39;
-  arg1[5]=w34;
-  arg1[6]=w35;
-  arg1[7]=w36;
-  arg1[8]=w40;
-  arg1[9]=w41;
+  arg1[2]=wr09;
+  arg1[3]=w18;
+  arg1[4]=w23;
+  arg1[5]=w35;
+  arg1[6]=w36;
+  arg1[7]=w37;
+  arg1[8]=w38;
+  arg1[9]=w27;
   arg1[10]=0;
   arg1[11]=0;
-  res1[0]=w42;
+  res1[0]=w39;
   res1[1]=0;
   res1[2]=0;
   res1[3]=0;
@@ -1778,118 +1691,96 @@ static int casadi_f13(const casadi_real** arg, casadi_real** res, casadi_int* iw
   flag = casadi_f15(arg1, res1, iw, w, mid);
   casadi_f15_release(mid);
   if (flag) return 1;
-  /* #138: @13 = fabs(@42) */
-  for (i=0, rr=w13, cs=w42; i<2; ++i) *rr++ = casadi_fabs( *cs++ );
-  /* #139: @12 = inf */
-  w12 = casadi_inf;
-  /* #140: @13 = (@13<@12) */
-  for (i=0, rr=w13, cr=w13; i<2; ++i) (*rr++)  = ((*cr++)<w12);
-  /* #141: @12 = min(@13) */
-  w12 = casadi_mmin(w13, 2, 1);
-  /* #142: @19 = 0 */
-  w19 = 0.;
-  /* #143: @13 = (@14-@42) */
-  for (i=0, rr=w13, cr=w14, cs=w42; i<2; ++i) (*rr++)  = ((*cr++)-(*cs++));
-  /* #144: @34 = (@42-@15) */
-  for (i=0, rr=w34, cr=w42, cs=w15; i<2; ++i) (*rr++)  = ((*cr++)-(*cs++));
-  /* #145: @13 = fmax(@13,@34) */
-  for (i=0, rr=w13, cr=w13, cs=w34; i<2; ++i) (*rr++)  = casadi_fmax((*cr++),(*cs++));
-  /* #146: @13 = fmax(@19,@13) */
-  for (i=0, rr=w13, cs=w13; i<2; ++i) (*rr++)  = casadi_fmax(w19,(*cs++));
-  /* #147: @19 = max(@13) */
-  w19 = casadi_mmax(w13, 2, 1);
-  /* #148: @21 = 1e-06 */
-  w21 = 9.9999999999999995e-07;
-  /* #149: @19 = (@19<=@21) */
-  w19  = (w19<=w21);
-  /* #150: @12 = (@12&&@19) */
-  w12  = (w12&&w19);
-  /* #151: @19 = 0 */
-  w19 = 0.;
-  /* #152: @21 = 0 */
-  w21 = 0.;
-  /* #153: @21 = mac(@2,@42,@21) */
-  casadi_mtimes_dense(w02, 1, 2, w42, 1, (&w21), 0);
-  /* #154: @11 = (@11-@21) */
-  w11 -= w21;
-  /* #155: @21 = (@21-@3) */
+  /* #104: @13 = fabs(@39) */
+  for (i=0, rr=w13, cs=w39; i<2; ++i) *rr++ = casadi_fabs( *cs++ );
+  /* #105: @20 = inf */
+  w20 = casadi_inf;
+  /* #106: @13 = (@13<@20) */
+  for (i=0, rr=w13, cr=w13; i<2; ++i) (*rr++)  = ((*cr++)<w20);
+  /* #107: @20 = min(@13) */
+  w20 = casadi_mmin(w13, 2, 1);
+  /* #108: @12 = 0 */
+  w12 = 0.;
+  /* #109: @13 = (@14-@39) */
+  for (i=0, rr=w13, cr=w14, cs=w39; i<2; ++i) (*rr++)  = ((*cr++)-(*cs++));
+  /* #110: @35 = (@39-@15) */
+  for (i=0, rr=w35, cr=w39, cs=w15; i<2; ++i) (*rr++)  = ((*cr++)-(*cs++));
+  /* #111: @13 = fmax(@13,@35) */
+  for (i=0, rr=w13, cr=w13, cs=w35; i<2; ++i) (*rr++)  = casadi_fmax((*cr++),(*cs++));
+  /* #112: @13 = fmax(@12,@13) */
+  for (i=0, rr=w13, cs=w13; i<2; ++i) (*rr++)  = casadi_fmax(w12,(*cs++));
+  /* #113: @12 = max(@13) */
+  w12 = casadi_mmax(w13, 2, 1);
+  /* #114: @3 = 1e-05 */
+  w03 = 9.9999999999999991e-06;
+  /* #115: @12 = (@12<=@3) */
+  w12  = (w12<=w03);
+  /* #116: @20 = (@20&&@12) */
+  w20  = (w20&&w12);
+  /* #117: @12 = 0 */
+  w12 = 0.;
+  /* #118: @3 = 0 */
+  w03 = 0.;
+  /* #119: @3 = mac(@2,@39,@3) */
+  casadi_mtimes_dense(w02, 1, 2, w39, 1, (&w03), 0);
+  /* #120: @21 = (@21-@3) */
   w21 -= w03;
-  /* #156: @11 = fmax(@11,@21) */
-  w11  = casadi_fmax(w11,w21);
-  /* #157: @19 = fmax(@19,@11) */
-  w19  = casadi_fmax(w19,w11);
-  /* #158: @11 = max(@19) */
-  w11 = casadi_mmax((&w19), 1, 1);
-  /* #159: @19 = 1e-06 */
-  w19 = 9.9999999999999995e-07;
-  /* #160: @11 = (@11<=@19) */
-  w11  = (w11<=w19);
-  /* #161: @12 = (@12&&@11) */
-  w12  = (w12&&w11);
-  /* #162: @11 = 0 */
-  w11 = 0.;
-  /* #163: @19 = 0 */
-  w19 = 0.;
-  /* #164: @19 = mac(@2,@42,@19) */
-  casadi_mtimes_dense(w02, 1, 2, w42, 1, (&w19), 0);
-  /* #165: @16 = (@16-@19) */
-  w16 -= w19;
-  /* #166: @19 = (@19-@30) */
-  w19 -= w30;
-  /* #167: @16 = fmax(@16,@19) */
-  w16  = casadi_fmax(w16,w19);
-  /* #168: @11 = fmax(@11,@16) */
-  w11  = casadi_fmax(w11,w16);
-  /* #169: @16 = max(@11) */
-  w16 = casadi_mmax((&w11), 1, 1);
-  /* #170: @11 = 1e-05 */
-  w11 = 9.9999999999999991e-06;
-  /* #171: @16 = (@16<=@11) */
-  w16  = (w16<=w11);
-  /* #172: @12 = (@12&&@16) */
-  w12  = (w12&&w16);
-  /* #173: @42 = fmax(@42,@14) */
-  for (i=0, rr=w42, cr=w42, cs=w14; i<2; ++i) (*rr++)  = casadi_fmax((*cr++),(*cs++));
-  /* #174: @42 = fmin(@42,@15) */
-  for (i=0, rr=w42, cr=w42, cs=w15; i<2; ++i) (*rr++)  = casadi_fmin((*cr++),(*cs++));
-  /* #175: @42 = (@12?@42:0) */
-  for (i=0, rr=w42, cs=w42; i<2; ++i) (*rr++)  = (w12?cs[i]:0);
-  /* #176: @12 = (!@12) */
-  w12 = (! w12 );
-  /* #177: @33 = (@12?@33:0) */
-  for (i=0, rr=w33, cs=w33; i<2; ++i) (*rr++)  = (w12?cs[i]:0);
-  /* #178: @42 = (@42+@33) */
-  for (i=0, rr=w42, cs=w33; i<2; ++i) (*rr++) += (*cs++);
-  /* #179: @42 = (@29?@42:0) */
-  for (i=0, rr=w42, cs=w42; i<2; ++i) (*rr++)  = (w29?cs[i]:0);
-  /* #180: @12 = (!@29) */
-  w12 = (! w29 );
-  /* #181: @33 = zeros(2x1) */
-  casadi_clear(w33, 2);
-  /* #182: @33 = fmax(@33,@14) */
-  for (i=0, rr=w33, cr=w33, cs=w14; i<2; ++i) (*rr++)  = casadi_fmax((*cr++),(*cs++));
-  /* #183: @33 = fmin(@33,@15) */
-  for (i=0, rr=w33, cr=w33, cs=w15; i<2; ++i) (*rr++)  = casadi_fmin((*cr++),(*cs++));
-  /* #184: @33 = (@12?@33:0) */
-  for (i=0, rr=w33, cs=w33; i<2; ++i) (*rr++)  = (w12?cs[i]:0);
-  /* #185: @42 = (@42+@33) */
-  for (i=0, rr=w42, cs=w33; i<2; ++i) (*rr++) += (*cs++);
-  /* #186: output[0][0] = @42 */
-  casadi_copy(w42, 2, res[0]);
-  /* #187: @12 = 1 */
+  /* #121: @3 = (@3-@31) */
+  w03 -= w31;
+  /* #122: @21 = fmax(@21,@3) */
+  w21  = casadi_fmax(w21,w03);
+  /* #123: @12 = fmax(@12,@21) */
+  w12  = casadi_fmax(w12,w21);
+  /* #124: @21 = max(@12) */
+  w21 = casadi_mmax((&w12), 1, 1);
+  /* #125: @12 = 1e-05 */
+  w12 = 9.9999999999999991e-06;
+  /* #126: @21 = (@21<=@12) */
+  w21  = (w21<=w12);
+  /* #127: @20 = (@20&&@21) */
+  w20  = (w20&&w21);
+  /* #128: @39 = fmax(@39,@14) */
+  for (i=0, rr=w39, cr=w39, cs=w14; i<2; ++i) (*rr++)  = casadi_fmax((*cr++),(*cs++));
+  /* #129: @39 = fmin(@39,@15) */
+  for (i=0, rr=w39, cr=w39, cs=w15; i<2; ++i) (*rr++)  = casadi_fmin((*cr++),(*cs++));
+  /* #130: @39 = (@20?@39:0) */
+  for (i=0, rr=w39, cs=w39; i<2; ++i) (*rr++)  = (w20?cs[i]:0);
+  /* #131: @20 = (!@20) */
+  w20 = (! w20 );
+  /* #132: @37 = (@20?@37:0) */
+  for (i=0, rr=w37, cs=w37; i<2; ++i) (*rr++)  = (w20?cs[i]:0);
+  /* #133: @39 = (@39+@37) */
+  for (i=0, rr=w39, cs=w37; i<2; ++i) (*rr++) += (*cs++);
+  /* #134: @39 = (@30?@39:0) */
+  for (i=0, rr=w39, cs=w39; i<2; ++i) (*rr++)  = (w30?cs[i]:0);
+  /* #135: @20 = (!@30) */
+  w20 = (! w30 );
+  /* #136: @37 = zeros(2x1) */
+  casadi_clear(w37, 2);
+  /* #137: @37 = fmax(@37,@14) */
+  for (i=0, rr=w37, cr=w37, cs=w14; i<2; ++i) (*rr++)  = casadi_fmax((*cr++),(*cs++));
+  /* #138: @37 = fmin(@37,@15) */
+  for (i=0, rr=w37, cr=w37, cs=w15; i<2; ++i) (*rr++)  = casadi_fmin((*cr++),(*cs++));
+  /* #139: @37 = (@20?@37:0) */
+  for (i=0, rr=w37, cs=w37; i<2; ++i) (*rr++)  = (w20?cs[i]:0);
+  /* #140: @39 = (@39+@37) */
+  for (i=0, rr=w39, cs=w37; i<2; ++i) (*rr++) += (*cs++);
+  /* #141: output[0][0] = @39 */
+  casadi_copy(w39, 2, res[0]);
+  /* #142: @20 = 1 */
+  w20 = 1.;
+  /* #143: @21 = 4 */
+  w21 = 4.;
+  /* #144: @12 = 1 */
   w12 = 1.;
-  /* #188: @16 = 4 */
-  w16 = 4.;
-  /* #189: @11 = 1 */
-  w11 = 1.;
-  /* #190: @11 = (@11-@29) */
-  w11 -= w29;
-  /* #191: @16 = (@16*@11) */
-  w16 *= w11;
-  /* #192: @12 = (@12+@16) */
-  w12 += w16;
-  /* #193: output[0][1] = @12 */
-  if (res[0]) res[0][2] = w12;
+  /* #145: @12 = (@12-@30) */
+  w12 -= w30;
+  /* #146: @21 = (@21*@12) */
+  w21 *= w12;
+  /* #147: @20 = (@20+@21) */
+  w20 += w21;
+  /* #148: output[0][1] = @20 */
+  if (res[0]) res[0][2] = w20;
   return 0;
 }
 
@@ -1903,11 +1794,11 @@ void casadi_f13_decref(void) {
   casadi_f15_decref();
 }
 
-/* keep:(i0[2x2],i1[2],i2[1x2],i3,i4,i5[2],i6[2],i7[2])->(o0[3]) */
+/* keep:(i0[1x2],i1,i2,i3[2],i4[2],i5[2],i6[2x2,2nz],i7[2],i8[6x2],i9[6],i10[6])->(o0[3]) */
 static int casadi_f16(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real *w0=w+0, w1;
-  /* #0: @0 = input[7][0] */
-  casadi_copy(arg[7], 2, w0);
+  /* #0: @0 = input[5][0] */
+  casadi_copy(arg[5], 2, w0);
   /* #1: output[0][0] = @0 */
   casadi_copy(w0, 2, res[0]);
   /* #2: @1 = 0 */
@@ -1917,7 +1808,7 @@ static int casadi_f16(const casadi_real** arg, casadi_real** res, casadi_int* iw
   return 0;
 }
 
-/* phase2_if_needed:(i0,i1[2x2],i2[2],i3[1x2],i4,i5,i6[2],i7[2],i8[2])->(o0[3]) */
+/* phase2_if_needed:(i0,i1[1x2],i2,i3,i4[2],i5[2],i6[2],i7[2x2,2nz],i8[2],i9[6x2],i10[6],i11[6])->(o0[3]) */
 static int casadi_f12(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   if (arg[0] ? casadi_to_int(*arg[0]) : 0) {
     if (casadi_f16(arg+1, res, iw, w, 0)) return 1;
@@ -2010,9 +1901,8 @@ static int casadi_f17(const casadi_real** arg, casadi_real** res, casadi_int* iw
 /* vf_golden:(q[2],u[2],p,dt,recover)->(x[2],status,violation) */
 static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_int i;
-  casadi_real **res1=res+3, *rr, *w00=w+213, *w01=w+215, w02, w03, *w04=w+217, *w05=w+221, *w06=w+223, w07, w08, *w09=w+225;
-  casadi_real *w10=w+227, w11, *w12=w+229, *w13=w+231, *w14=w+233, *w15=w+245, *w16=w+251, *w17=w+257, *w18=w+261, *w19=w+263, *w20=w+265, *w22=w+271;
-  casadi_real w23, *w24=w+273;
+  casadi_real **res1=res+3, *rr, *w00=w+197, *w01=w+199, w02, w03, *w04=w+201, w05, w06, *w07=w+203, *w08=w+205, w09;
+  casadi_real *w10=w+207, *w11=w+209, *w12=w+211, *w13=w+223, *w14=w+229, *w15=w+235, *w16=w+239, *w17=w+241, *w18=w+243, *w20=w+249, w21, *w22=w+251;
   const casadi_real **arg1=arg+5, *cr, *cs;
   int flag, mid;
   /* #0: @0 = input[0][0] */
@@ -2023,52 +1913,52 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   w02 = arg[2] ? arg[2][0] : 0;
   /* #3: @3 = input[3][0] */
   w03 = arg[3] ? arg[3][0] : 0;
-  /* #4: {@4, @5, @6, @7, @8, @9, @10, @11, @12, @13, @14, @15, @16} = vf_golden_prepare(@0, @1, @2, @3) */
+  /* #4: {NULL, NULL, @4, @5, @6, @7, @8, @9, @10, @11, @12, @13, @14} = vf_golden_prepare(@0, @1, @2, @3) */
   arg1[0]=w00;
   arg1[1]=w01;
   arg1[2]=(&w02);
   arg1[3]=(&w03);
-  res1[0]=w04;
-  res1[1]=w05;
-  res1[2]=w06;
-  res1[3]=(&w07);
-  res1[4]=(&w08);
-  res1[5]=w09;
-  res1[6]=w10;
-  res1[7]=(&w11);
-  res1[8]=w12;
-  res1[9]=w13;
-  res1[10]=w14;
-  res1[11]=w15;
-  res1[12]=w16;
+  res1[0]=0;
+  res1[1]=0;
+  res1[2]=w04;
+  res1[3]=(&w05);
+  res1[4]=(&w06);
+  res1[5]=w07;
+  res1[6]=w08;
+  res1[7]=(&w09);
+  res1[8]=w10;
+  res1[9]=w11;
+  res1[10]=w12;
+  res1[11]=w13;
+  res1[12]=w14;
   if (casadi_f1(arg1, res1, iw, w, 0)) return 1;
-  /* #5: @17 = dense(@12) */
-  casadi_densify(w12, casadi_s2, w17, 0);
+  /* #5: @15 = dense(@10) */
+  casadi_densify(w10, casadi_s2, w15, 0);
   /* #6: @0 = -inf(2x1) */
   casadi_fill(w00, 2, -casadi_inf);
   /* #7: @1 = inf(2x1) */
   casadi_fill(w01, 2, casadi_inf);
-  /* #8: @18 = zeros(2x1) */
-  casadi_clear(w18, 2);
-  /* #9: @19 = zeros(2x1) */
-  casadi_clear(w19, 2);
-  /* #10: @20 = zeros(6x1) */
-  casadi_clear(w20, 6);
-  /* #11: @21 = 0x0 */
-  /* #12: {@22, NULL, NULL, NULL} = phase1_try0(@17, @13, @14, @15, @16, @0, @1, @18, @19, @20, @21, @21) */
-  arg1[0]=w17;
-  arg1[1]=w13;
-  arg1[2]=w14;
-  arg1[3]=w15;
-  arg1[4]=w16;
+  /* #8: @16 = zeros(2x1) */
+  casadi_clear(w16, 2);
+  /* #9: @17 = zeros(2x1) */
+  casadi_clear(w17, 2);
+  /* #10: @18 = zeros(6x1) */
+  casadi_clear(w18, 6);
+  /* #11: @19 = 0x0 */
+  /* #12: {@20, NULL, NULL, NULL} = phase1_try0(@15, @11, @12, @13, @14, @0, @1, @16, @17, @18, @19, @19) */
+  arg1[0]=w15;
+  arg1[1]=w11;
+  arg1[2]=w12;
+  arg1[3]=w13;
+  arg1[4]=w14;
   arg1[5]=w00;
   arg1[6]=w01;
-  arg1[7]=w18;
-  arg1[8]=w19;
-  arg1[9]=w20;
+  arg1[7]=w16;
+  arg1[8]=w17;
+  arg1[9]=w18;
   arg1[10]=0;
   arg1[11]=0;
-  res1[0]=w22;
+  res1[0]=w20;
   res1[1]=0;
   res1[2]=0;
   res1[3]=0;
@@ -2077,8 +1967,8 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   flag = casadi_f2(arg1, res1, iw, w, mid);
   casadi_f2_release(mid);
   if (flag) return 1;
-  /* #13: @0 = fabs(@22) */
-  for (i=0, rr=w00, cs=w22; i<2; ++i) *rr++ = casadi_fabs( *cs++ );
+  /* #13: @0 = fabs(@20) */
+  for (i=0, rr=w00, cs=w20; i<2; ++i) *rr++ = casadi_fabs( *cs++ );
   /* #14: @2 = inf */
   w02 = casadi_inf;
   /* #15: @0 = (@0<@2) */
@@ -2087,87 +1977,90 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   w02 = casadi_mmin(w00, 2, 1);
   /* #17: @3 = 0 */
   w03 = 0.;
-  /* #18: @23 = input[4][0] */
-  w23 = arg[4] ? arg[4][0] : 0;
-  /* #19: @3 = (@3==@23) */
-  w03  = (w03==w23);
+  /* #18: @21 = input[4][0] */
+  w21 = arg[4] ? arg[4][0] : 0;
+  /* #19: @3 = (@3==@21) */
+  w03  = (w03==w21);
   /* #20: @2 = (@2&&@3) */
   w02  = (w02&&w03);
-  /* #21: @0 = retry_if_failed(@2, @22, @12, @13, @14, @15, @16) */
+  /* #21: @0 = retry_if_failed(@2, @20, @10, @11, @12, @13, @14) */
   arg1[0]=(&w02);
-  arg1[1]=w22;
-  arg1[2]=w12;
-  arg1[3]=w13;
-  arg1[4]=w14;
-  arg1[5]=w15;
-  arg1[6]=w16;
+  arg1[1]=w20;
+  arg1[2]=w10;
+  arg1[3]=w11;
+  arg1[4]=w12;
+  arg1[5]=w13;
+  arg1[6]=w14;
   res1[0]=w00;
   if (casadi_f3(arg1, res1, iw, w, 0)) return 1;
-  /* #22: @22 = fabs(@0) */
-  for (i=0, rr=w22, cs=w00; i<2; ++i) *rr++ = casadi_fabs( *cs++ );
+  /* #22: @20 = fabs(@0) */
+  for (i=0, rr=w20, cs=w00; i<2; ++i) *rr++ = casadi_fabs( *cs++ );
   /* #23: @2 = inf */
   w02 = casadi_inf;
-  /* #24: @22 = (@22<@2) */
-  for (i=0, rr=w22, cr=w22; i<2; ++i) (*rr++)  = ((*cr++)<w02);
-  /* #25: @2 = min(@22) */
-  w02 = casadi_mmin(w22, 2, 1);
+  /* #24: @20 = (@20<@2) */
+  for (i=0, rr=w20, cr=w20; i<2; ++i) (*rr++)  = ((*cr++)<w02);
+  /* #25: @2 = min(@20) */
+  w02 = casadi_mmin(w20, 2, 1);
   /* #26: @3 = 0 */
   w03 = 0.;
-  /* #27: @3 = (@3==@23) */
-  w03  = (w03==w23);
+  /* #27: @3 = (@3==@21) */
+  w03  = (w03==w21);
   /* #28: @2 = (@2&&@3) */
   w02  = (w02&&w03);
-  /* #29: @22 = retry_if_failed(@2, @0, @12, @13, @14, @15, @16) */
+  /* #29: @20 = retry_if_failed(@2, @0, @10, @11, @12, @13, @14) */
   arg1[0]=(&w02);
   arg1[1]=w00;
-  arg1[2]=w12;
-  arg1[3]=w13;
-  arg1[4]=w14;
-  arg1[5]=w15;
-  arg1[6]=w16;
-  res1[0]=w22;
+  arg1[2]=w10;
+  arg1[3]=w11;
+  arg1[4]=w12;
+  arg1[5]=w13;
+  arg1[6]=w14;
+  res1[0]=w20;
   if (casadi_f7(arg1, res1, iw, w, 0)) return 1;
-  /* #30: @2 = vf_golden_accept(@22, @6, @7, @8, @9, @10) */
-  arg1[0]=w22;
-  arg1[1]=w06;
-  arg1[2]=(&w07);
-  arg1[3]=(&w08);
-  arg1[4]=w09;
-  arg1[5]=w10;
+  /* #30: @2 = vf_golden_accept(@20, @4, @5, @6, @7, @8) */
+  arg1[0]=w20;
+  arg1[1]=w04;
+  arg1[2]=(&w05);
+  arg1[3]=(&w06);
+  arg1[4]=w07;
+  arg1[5]=w08;
   res1[0]=(&w02);
   if (casadi_f11(arg1, res1, iw, w, 0)) return 1;
   /* #31: @3 = 0 */
   w03 = 0.;
-  /* #32: @3 = (@3==@23) */
-  w03  = (w03==w23);
+  /* #32: @3 = (@3==@21) */
+  w03  = (w03==w21);
   /* #33: @2 = (@2&&@3) */
   w02  = (w02&&w03);
-  /* #34: @24 = phase2_if_needed(@2, @4, @5, @6, @7, @8, @9, @10, @22) */
+  /* #34: @22 = phase2_if_needed(@2, @4, @5, @6, @7, @8, @20, @10, @11, @12, @13, @14) */
   arg1[0]=(&w02);
   arg1[1]=w04;
-  arg1[2]=w05;
-  arg1[3]=w06;
-  arg1[4]=(&w07);
-  arg1[5]=(&w08);
-  arg1[6]=w09;
+  arg1[2]=(&w05);
+  arg1[3]=(&w06);
+  arg1[4]=w07;
+  arg1[5]=w08;
+  arg1[6]=w20;
   arg1[7]=w10;
-  arg1[8]=w22;
-  res1[0]=w24;
+  arg1[8]=w11;
+  arg1[9]=w12;
+  arg1[10]=w13;
+  arg1[11]=w14;
+  res1[0]=w22;
   if (casadi_f12(arg1, res1, iw, w, 0)) return 1;
-  /* #35: {@5, @2, @3} = vf_golden_finish(@24, @6, @7, @8, @9, @10, @11) */
-  arg1[0]=w24;
-  arg1[1]=w06;
-  arg1[2]=(&w07);
-  arg1[3]=(&w08);
-  arg1[4]=w09;
-  arg1[5]=w10;
-  arg1[6]=(&w11);
-  res1[0]=w05;
+  /* #35: {@20, @2, @3} = vf_golden_finish(@22, @4, @5, @6, @7, @8, @9) */
+  arg1[0]=w22;
+  arg1[1]=w04;
+  arg1[2]=(&w05);
+  arg1[3]=(&w06);
+  arg1[4]=w07;
+  arg1[5]=w08;
+  arg1[6]=(&w09);
+  res1[0]=w20;
   res1[1]=(&w02);
   res1[2]=(&w03);
   if (casadi_f17(arg1, res1, iw, w, 0)) return 1;
-  /* #36: output[0][0] = @5 */
-  casadi_copy(w05, 2, res[0]);
+  /* #36: output[0][0] = @20 */
+  casadi_copy(w20, 2, res[0]);
   /* #37: output[1][0] = @2 */
   if (res[1]) res[1][0] = w02;
   /* #38: output[2][0] = @3 */
@@ -2240,37 +2133,37 @@ CASADI_SYMBOL_EXPORT const char* vf_golden_name_out(casadi_int i) {
 
 CASADI_SYMBOL_EXPORT const casadi_int* vf_golden_sparsity_in(casadi_int i) {
   switch (i) {
-    case 0: return casadi_s11;
-    case 1: return casadi_s11;
-    case 2: return casadi_s12;
-    case 3: return casadi_s12;
-    case 4: return casadi_s12;
+    case 0: return casadi_s8;
+    case 1: return casadi_s8;
+    case 2: return casadi_s9;
+    case 3: return casadi_s9;
+    case 4: return casadi_s9;
     default: return 0;
   }
 }
 
 CASADI_SYMBOL_EXPORT const casadi_int* vf_golden_sparsity_out(casadi_int i) {
   switch (i) {
-    case 0: return casadi_s11;
-    case 1: return casadi_s12;
-    case 2: return casadi_s12;
+    case 0: return casadi_s8;
+    case 1: return casadi_s9;
+    case 2: return casadi_s9;
     default: return 0;
   }
 }
 
 CASADI_SYMBOL_EXPORT int vf_golden_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
-  if (sz_arg) *sz_arg = 34;
+  if (sz_arg) *sz_arg = 40;
   if (sz_res) *sz_res = 16;
   if (sz_iw) *sz_iw = 9;
-  if (sz_w) *sz_w = 276;
+  if (sz_w) *sz_w = 254;
   return 0;
 }
 
 CASADI_SYMBOL_EXPORT int vf_golden_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
-  if (sz_arg) *sz_arg = 34*sizeof(const casadi_real*);
+  if (sz_arg) *sz_arg = 40*sizeof(const casadi_real*);
   if (sz_res) *sz_res = 16*sizeof(casadi_real*);
   if (sz_iw) *sz_iw = 9*sizeof(casadi_int);
-  if (sz_w) *sz_w = 276*sizeof(casadi_real);
+  if (sz_w) *sz_w = 254*sizeof(casadi_real);
   return 0;
 }
 
@@ -2322,14 +2215,14 @@ CASADI_SYMBOL_EXPORT const char* vf_golden_admissible_name_out(casadi_int i) {
 
 CASADI_SYMBOL_EXPORT const casadi_int* vf_golden_admissible_sparsity_in(casadi_int i) {
   switch (i) {
-    case 0: return casadi_s12;
+    case 0: return casadi_s9;
     default: return 0;
   }
 }
 
 CASADI_SYMBOL_EXPORT const casadi_int* vf_golden_admissible_sparsity_out(casadi_int i) {
   switch (i) {
-    case 0: return casadi_s13;
+    case 0: return casadi_s10;
     default: return 0;
   }
 }

@@ -1,0 +1,85 @@
+"""Least-violation ticks: are the priority levels exact over the least-violation set, and do the two paths agree?
+
+    python benchmarks/least_violation.py                 # every example task, 16 states at 1e-3 and at 1e-2 rad
+    python benchmarks/least_violation.py --states 4      # fewer states (a quick look)
+
+At random cold states near each task's start (the joints moved by a normal of the given scale, random pushes of
+scale 2, a fresh generated controller for each state), every tick both paths report LEAST_VIOLATION is checked
+against an independent reference (tests/levels_reference.py): its own phase-2 (A), solved by DAQP's Python package,
+gives its own least-violation set S; each level of the answer is judged by its KKT conditions over S and the optimal
+sets of the levels above (scipy's bounded least squares). "not exact": ticks where some level's residual exceeds
+1e-9 of its gradient's scale (the controller then found no certificate, and its answer is (A)'s x_A); "level": the
+largest residual; "S": the answer's largest excess over S; "paths": max |dq_generated - dq_interpreted|.
+docs/runtime.md (Phase 2) quotes this table; tests/test_level_kkt.py checks the same on fewer states.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import sys
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT / "tests"))
+
+from levels_reference import kkt_excess, least_violation_set  # noqa: E402
+
+import vfdsl  # noqa: E402
+from vfdsl.kinematics.robot import Robot  # noqa: E402
+from vfdsl.runtime.qp import StepStatus  # noqa: E402
+
+SCALES = ((1e-3, 5), (1e-2, 7))      # (rad, seed)
+
+
+def measure(name: str, states: int, scale: float, seed: int) -> list[tuple[float, float, float]]:
+    """(largest level residual, excess over S, path difference) per least-violation tick."""
+    task = vfdsl.load(ROOT / "tasks" / f"{name}.vf")
+    interpreted = vfdsl.compile(task, backend="interpreted")
+    robot = Robot.load(task.robots[0].urdf)
+    rng = np.random.default_rng(seed)
+    rows = []
+    for _ in range(states):
+        q = np.clip(np.array(task.start) + rng.normal(scale=scale, size=robot.nq), robot.lower, robot.upper)
+        inputs = {input_name: rng.normal(scale=2.0, size=size) for input_name, size in interpreted.input_sizes.items()}
+        answers = []
+        for ctrl in (vfdsl.compile(task, backend="native"), interpreted):
+            dq = ctrl.step(q, inputs)
+            answers.append((dq, ctrl.status, np.array(ctrl._runner.x)))
+        if not answers[0][1] == answers[1][1] == StepStatus.LEAST_VIOLATION:
+            continue
+        qp = interpreted.problem(q, inputs)
+        _, lower, upper = least_violation_set(qp, interpreted.assembled.row_groups)
+        n = qp.P.shape[0]
+        over_s = dataclasses.replace(qp, lb=np.r_[qp.lb[:n], lower], ub=np.r_[qp.ub[:n], upper])
+        checks = [kkt_excess(over_s, x, interpreted.assembled.last_level_is_damping) for _, _, x in answers]
+        rows.append((max(max(residuals) for residuals, _ in checks), max(excess for _, excess in checks),
+                     float(np.max(np.abs(answers[0][0] - answers[1][0])))))
+    return rows
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--states", type=int, default=16, help="random states per task and scale (default 16)")
+    states = parser.parse_args().states
+    names = sorted(p.stem for p in (ROOT / "tasks").glob("*.vf"))
+    print(f"{'task':30s} {'scale':>6s} {'LV ticks':>8s} {'not exact':>9s} {'level':>8s} {'S':>8s} {'paths':>8s}")
+    total = bad = 0
+    worst_paths = 0.0
+    for scale, seed in SCALES:
+        for name in names:
+            rows = measure(name, states, scale, seed)
+            if not rows:
+                continue
+            level, excess, paths = (max(column) for column in zip(*rows))
+            not_exact = sum(r[0] > 1e-9 for r in rows)
+            total, bad, worst_paths = total + len(rows), bad + not_exact, max(worst_paths, paths)
+            print(f"{name:30s} {scale:6.0e} {len(rows):8d} {not_exact:9d} {level:8.1e} {excess:8.1e} {paths:8.1e}",
+                  flush=True)
+    print(f"least-violation ticks: {total}, not exact: {bad}, paths within {worst_paths:.1e}")
+
+
+if __name__ == "__main__":
+    main()
