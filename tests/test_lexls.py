@@ -480,3 +480,54 @@ def test_a_degenerate_vertex_is_certified_alike_by_the_c_and_the_python(harness,
         if x_ref is not None:
             assert not_worse(problem, x_py, x_ref), (x_py, x_ref)
     assert degenerate >= 45 and certified >= degenerate, (degenerate, certified)
+
+
+def vertex_start(rng, problem):
+    """A point of the hard rows at a vertex, the start of lexls.from_feasible: DAQP's answer to a random linear cost
+    (and a tiny |x|^2) over them."""
+    H, f, A, lower, upper, break_points = problem
+    n = H.shape[0]
+    K = break_points[0]
+    x, flag, *_ = solve_daqp(1e-6 * np.eye(n), rng.normal(size=n), A[:K - n], lower[:K], upper[:K], 1e-12)
+    return x if flag in (1, 2) else None
+
+
+def c_from(lib, problem, x0):
+    """(x, certified): vfdsl_lex_from (tests/lexls_harness.c) from x0."""
+    H, f, A, lower, upper, break_points = problem
+    x = x0.copy()
+    certified = lib.lexls_from(H.shape[0], len(break_points), np.array(break_points, dtype=np.intc),
+                               np.ascontiguousarray(H), np.ascontiguousarray(f), np.ascontiguousarray(A), lower,
+                               upper, x)
+    assert certified >= 0
+    return x, bool(certified)
+
+
+def test_from_a_vertex_the_c_and_the_python_reach_the_independent_optimum(harness):
+    """Phase 2's (B) method (lexls.from_feasible and its C twin) from a vertex of the hard rows, on random problems
+    (repeated, dependent and equality rows; rank-deficient levels): the two decide alike and answer alike to
+    1e-12; every answer holds the hard rows within PRIMAL_TOL; a certified one is the independent reference's
+    optimum (not worse, lexicographically), and an uncertified one still no worse than its start."""
+    rng = np.random.default_rng(17)
+    compared = certified = 0
+    for _ in range(300):
+        problem = random_problem(rng)
+        x0 = vertex_start(rng, problem)
+        if x0 is None:
+            continue
+        H, f, A_hard, lo, up, levels = lexls.split(*problem)
+        x_py, ok_py = lexls.from_feasible(H, f, A_hard, lo, up, levels, x0.copy())
+        x_c, ok_c = c_from(harness, problem, x0)
+        assert ok_py == ok_c
+        assert np.max(np.abs(x_py - x_c)) <= 1e-12 * (1 + np.max(np.abs(x_py)))
+        Ax = A_hard @ x_py
+        assert np.all(Ax >= lo - lexls.PRIMAL_TOL) and np.all(Ax <= up + lexls.PRIMAL_TOL)
+        assert not_worse(problem, x_py, x0, rows_close=1e-9)
+        compared += 1
+        certified += ok_py
+        x_ref = reference(*problem)
+        if ok_py and x_ref is not None and np.max(np.r_[lo - A_hard @ x_ref, A_hard @ x_ref - up]) <= 1e-11:
+            assert not_worse(problem, x_py, x_ref, rows_close=1e-10), (x_py, x_ref)
+            # (the reference, off the rows by up to 1e-11, may be better by as much; one off by more is not compared)
+    assert compared >= 250 and certified >= 0.8 * compared, (compared, certified)
+
