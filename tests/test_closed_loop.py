@@ -69,6 +69,16 @@ def _reference_distance(points: np.ndarray, degree: int, tips: np.ndarray) -> tu
     return np.linalg.norm(spline(t) - tips, axis=1), t
 
 
+def plate_and_curve(task):
+    """Paper A's plate pose, its rotation, the curve's points in the plate frame, their chord-length parameters and
+    the b-spline through them (built here with scipy)."""
+    plate, path = task.param("plate").value, task.param("path").value
+    local = np.array(path.points)
+    s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(local, axis=0), axis=1))])
+    spline = make_interp_spline(s, local, k=path.degree)
+    return plate, Rotation.from_euler("xyz", plate.rpy).as_matrix(), local, s, spline
+
+
 @pytest.mark.parametrize("period", [0.01])
 def test_paper_a_follows_the_curve_when_pushed_along_it(period):
     """Experiment A: a hand pushes the tip along the curve (3 N along the tangent, with a sideways wobble);
@@ -78,11 +88,8 @@ def test_paper_a_follows_the_curve_when_pushed_along_it(period):
     task = vfdsl.load(TASKS_DIR / "paper_a_follow_curve.vf")
     ctrl = compile_task(task)
     robot = Robot.load("shr7")
-    plate, path = task.param("plate").value, task.param("path").value
-    R_plate = Rotation.from_euler("xyz", plate.rpy).as_matrix()
-    local = np.array(path.points)
-    s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(local, axis=0), axis=1))])
-    spline = make_interp_spline(s, local, k=path.degree)
+    plate, R_plate, local, s, spline = plate_and_curve(task)
+    path = task.param("path").value
     q = task.start.copy()
     tips, tilts, statuses = [], [], set()
     for k in range(int(60 / period)):
