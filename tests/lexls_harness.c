@@ -43,7 +43,7 @@ int lexls_from(int n, int nh, const int* bp, const double* H, const double* f, c
   L = vfdsl_lex_alloc(n, P.K, bp[nh - 1] - bp[0]);
   if (!L) return -1;
   vfdsl_lex_rows(L, &P);
-  certified = vfdsl_lex_from(L, &P, x);
+  certified = vfdsl_lex_from(L, &P, L->guess, x);
   vfdsl_lex_free(L);
   return certified;
 }

@@ -5,7 +5,7 @@ kkt_excess): independent of the controller's solvers and certificate. The hard r
 level's residual is within 1e-9 of its gradient's scale, on both paths; the two paths give the same dq.
 
 The states are cold (a fresh controller for each, no previous tick), 1e-5 rad from the start (inside the
-fixtures) and 1e-3 rad (mostly outside them). A least-violation tick is checked the same way over the
+fixtures) and 1e-3 rad (mostly outside them), every run-time param moved as far (m, rad) from its default. A least-violation tick is checked the same way over the
 least-violation set S, which the reference computes itself (levels_reference.least_violation_set: its own phase
 2 (A), its own S); where the controller found no certificate its answer is (A)'s, x_A, the reference's within
 1e-9 (at most half of a task's least-violation ticks: 3 of polyline_guide's 8 here, none on most tasks;
@@ -28,6 +28,18 @@ STATES = 16
 TASKS = sorted(p.stem for p in TASKS_DIR.glob("*.vf"))
 
 
+def random_params(ctrl, rng, scale):
+    """Every run-time param moved from its default by a normal of ``scale`` per entry (m, rad; a curve's points
+    each), or None for a task without params."""
+    layout = ctrl._values.layout
+    params = {}
+    for name, slot in layout.slots.items():
+        if slot.size and slot.type != "mesh":
+            value = layout.defaults[slot.offset:slot.offset + slot.size] + rng.normal(scale=scale, size=slot.size)
+            params[name] = value.reshape(-1, 3) if slot.type == "curve" else value
+    return params or None
+
+
 @pytest.mark.parametrize("name", TASKS)
 def test_every_level_is_exact_at_cold_states_on_both_paths(name):
     task = vfdsl.load(TASKS_DIR / f"{name}.vf")
@@ -40,14 +52,15 @@ def test_every_level_is_exact_at_cold_states_on_both_paths(name):
         scale = 1e-5 if k % 2 == 0 else 1e-3
         q = np.clip(np.array(task.start) + rng.normal(scale=scale, size=robot.nq), robot.lower, robot.upper)
         inputs = {name: rng.normal(scale=2.0, size=size) for name, size in interpreted.input_sizes.items()}
+        params = random_params(interpreted, rng, scale)
         answers = {}
         # a fresh generated controller: cold, no previous tick's working set to start from
         for backend, ctrl in (("native", vfdsl.compile(task, backend="native")), ("interpreted", interpreted)):
-            answers[backend] = (ctrl.step(q, inputs), ctrl.status, np.array(ctrl._runner.x))
+            answers[backend] = (ctrl.step(q, inputs, params), ctrl.status, np.array(ctrl._runner.x))
         (dq_n, status_n, x_n), (dq_i, status_i, x_i) = answers["native"], answers["interpreted"]
         assert status_n == status_i
         assert np.max(np.abs(dq_n - dq_i)) <= 1e-10, (k, status_n, np.max(np.abs(dq_n - dq_i)))
-        qp = interpreted.problem(q, inputs)
+        qp = interpreted.problem(q, inputs, params)
         if status_n == StepStatus.LEAST_VIOLATION:
             x_a, lower, upper = least_violation_set(qp, interpreted.assembled.row_groups)
             n = len(x_a)

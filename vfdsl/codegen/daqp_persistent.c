@@ -20,8 +20,9 @@
  *   - exact levels (lexls.c): first the levels solved exactly over the previous tick's working set, taken
  *     when certified (DAQP is then not called), the guess repaired up to VFDSL_REPAIRS times (add the most
  *     violated row, or drop the held row with the most negative multiplier); else DAQP's answer, solved again
- *     exactly over the rows it holds, taken when certified (the interpreted path does the same with
- *     vfdsl.runtime.lexls), else as is;
+ *     exactly over the rows it holds, then, where that is not certified, taken from there to the optimum by
+ *     lexls.c's primal active-set method: the result when certified (the interpreted path does the same with
+ *     vfdsl.runtime.lexls.polish), else DAQP's answer as is;
  *   - reports a failed solve as x = NaN, never as a stale or internal iterate.
  */
 #include <daqp/types.h>
@@ -170,7 +171,7 @@ static int vfdsl_daqp_solve(struct casadi_daqp_data* d, int warm, const vfdsl_le
     if (d->lex && d_qp->x0) {
       vfdsl_lex_rows(d->lex, &prob);
       casadi_copy(d_qp->x0, p_qp->nx, d_qp->x);
-      if (!vfdsl_lex_from(d->lex, &prob, d_qp->x)) casadi_copy(d_qp->x0, p_qp->nx, d_qp->x);
+      if (!vfdsl_lex_from(d->lex, &prob, d->lex->guess, d_qp->x)) casadi_copy(d_qp->x0, p_qp->nx, d_qp->x);
       vfdsl_exact_answer(d);
     } else {
       d->return_status = DAQP_EXIT_UNSUPPORTED;
@@ -217,6 +218,14 @@ static int vfdsl_daqp_solve(struct casadi_daqp_data* d, int warm, const vfdsl_le
       casadi_copy(lex->x, p_qp->nx, d_qp->x);
       vfdsl_exact_answer(d);     /* (the next tick tries this working set first) */
       return 0;
+    }
+    if (d_qp->success) {         /* from DAQP's answer by the primal active-set method (lexls.py's polish) */
+      casadi_copy(d_qp->x, p_qp->nx, lex->x);
+      if (vfdsl_lex_from(lex, &prob, lex->guess, lex->x)) {
+        casadi_copy(lex->x, p_qp->nx, d_qp->x);
+        vfdsl_exact_answer(d);
+        return 0;
+      }
     }
     lex->valid = 0;              /* not certified (e.g. an ill-conditioned working set): the next tick goes to DAQP */
   }

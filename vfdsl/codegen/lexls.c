@@ -676,15 +676,20 @@ int vfdsl_lex_solve(vfdsl_lex* L, const vfdsl_lex_prob* P, int* s, double* x) {
 }
 
 /* The working set of x with each inequality row left out that lies within COND_TOL of the span of the held rows
- * before it, the fixed rows first, then by index (lexls.py's _independent_working_set; L->B holds that span's
- * orthonormal basis, L->c the row's coordinates in it). */
+ * before it, the fixed rows first, then those x leaves by more than PRIMAL_TOL, then the others, each by index
+ * (lexls.py's _independent_working_set; L->B holds that span's orthonormal basis, L->c the row's coordinates in
+ * it). */
 static void lex_independent_working_set(vfdsl_lex* L, const double* x, int* s) {
   int n = LEX_N(L), pass, i, l, j, q = 0;
   double *basis = L->B, *rest = L->g, *w = L->c;
   vfdsl_lex_working_set(L, x, s);
-  for (pass=0; pass<2; ++pass) for (i=0;i<L->K;++i) {
-    double norm;
+  for (pass=0; pass<3; ++pass) for (i=0;i<L->K;++i) {
+    double norm, ax;
+    int off;
     if (pass == 0 ? s[i] != LEX_FIXED : (s[i] != LEX_UPPER && s[i] != LEX_LOWER)) continue;
+    ax = lex_dot(L->A + i*n, x, n)*L->inv[i];
+    off = ax < L->lo[i] - LEX_PRIMAL_TOL || ax > L->up[i] + LEX_PRIMAL_TOL;
+    if ((pass == 1 && !off) || (pass == 2 && off)) continue;
     lex_unit_row(L, i, rest);
     for (l=0;l<q;++l) w[l] = lex_dot(basis + l*n, rest, n);
     for (l=0;l<q;++l) for (j=0;j<n;++j) rest[j] -= w[l]*basis[l*n + j];
@@ -723,10 +728,11 @@ static int lex_first_blocking(const vfdsl_lex* L, const int* s, const double* x,
 
 /* From x, a point of the hard rows, to the levels' optimum (lexls.py's from_feasible): W the independent rows x
  * holds; solve over W (y); when y leaves a hard row, step toward it up to the first row that blocks and hold that
- * row; else move to y, certified or the row the certificate names dropped. x: the last iterate; 1 when certified.
+ * row; else move to y, certified or the row the certificate names dropped. x: the last iterate, s its working set
+ * (K entries); 1 when certified.
  * At most LEX_PRIMAL_STEPS iterations. */
-int vfdsl_lex_from(vfdsl_lex* L, const vfdsl_lex_prob* P, double* x) {
-  int n = LEX_N(P), *s = L->trial, iteration, j, dropped = -1, certified = 0;
+int vfdsl_lex_from(vfdsl_lex* L, const vfdsl_lex_prob* P, int* s, double* x) {
+  int n = LEX_N(P), iteration, j, dropped = -1, certified = 0;
   double *y = L->from_y, *d = L->from_d;
   lex_independent_working_set(L, x, s);
   L->from = 1;

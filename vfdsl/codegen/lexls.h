@@ -17,8 +17,9 @@
  * vfdsl_lex_from, the held row of lexls.py's _drop rule). When s's rows are nearly dependent (a
  * degenerate vertex), s without one of them is tried, then s with its pivots only above RANK_TOL, and s becomes the
  * working set that was certified. vfdsl_lex_repair(lex, s) applies the hint to s
- * (1 when there was one). vfdsl_lex_from(lex, prob, x) goes from x, a point of the hard rows, to the levels' optimum
- * by a primal active-set method (lexls.py's from_feasible), x its last iterate, 1 when certified. The certificate tries, per level, the multipliers from the solve's own factors and a
+ * (1 when there was one). vfdsl_lex_from(lex, prob, s, x) goes from x, a point of the hard rows, to the levels'
+ * optimum by a primal active-set method (lexls.py's from_feasible), x its last iterate and s its working set, 1 when
+ * certified. The certificate tries, per level, the multipliers from the solve's own factors and a
  * test by dimensions before its nonnegative least squares (as lexls.py). All memory is one block, allocated once by
  * vfdsl_lex_alloc and released by vfdsl_lex_free.
  */
@@ -71,6 +72,6 @@ void vfdsl_lex_rows(vfdsl_lex* L, const vfdsl_lex_prob* P);
 void vfdsl_lex_working_set(const vfdsl_lex* L, const double* x, int* s);
 int vfdsl_lex_solve(vfdsl_lex* L, const vfdsl_lex_prob* P, int* s, double* x);
 int vfdsl_lex_repair(vfdsl_lex* L, int* s);
-int vfdsl_lex_from(vfdsl_lex* L, const vfdsl_lex_prob* P, double* x);
+int vfdsl_lex_from(vfdsl_lex* L, const vfdsl_lex_prob* P, int* s, double* x);
 
 #endif

@@ -19,8 +19,9 @@ full allowed speed. Status bit ``BOUNDS_CLIPPED`` reports it. The clipped box B 
 cost being 1/2 |Rj x - rj|^2): phase 1 is then the levels solved exactly over a working set and certified
 (:mod:`vfdsl.runtime.lexls`: the generated C tries the previous tick's working set first), else one call of DAQP's
 hierarchical mode (Arnström & Axehill's lexicographic least squares, in the daqp sources the generated C is built
-from), whose answer is solved again exactly over the rows it holds and taken when certified. The rows and the box are level 0,
-hard; level 1 minimizes its squared errors over them, level 2 over the optimal set of level 1, and so on; DAQP's
+from), whose answer is solved again exactly over the rows it holds, or taken from there to the optimum by the primal
+active-set method of :func:`vfdsl.runtime.lexls.from_feasible`, and taken when certified. The rows and the box are
+level 0, hard; level 1 minimizes its squared errors over them, level 2 over the optimal set of level 1, and so on; DAQP's
 own cost acts last: the task's last level when it is damping alone (``last_level_is_cost``; plus
 ``LEVEL_TIE_BREAK`` I), else |x|^2 / 2, the smallest motion among what the levels leave free. Each level's rows are scaled to a
 longest row of 1 (no minimizer changes) and weighted in the problem's scale (``LEVEL_ATTEMPTS``), so that a
