@@ -531,3 +531,32 @@ def test_from_a_vertex_the_c_and_the_python_reach_the_independent_optimum(harnes
             # (the reference, off the rows by up to 1e-11, may be better by as much; one off by more is not compared)
     assert compared >= 250 and certified >= 0.8 * compared, (compared, certified)
 
+
+
+def test_the_primal_method_stops_at_its_bound_with_a_point_of_the_rows(tmp_path, monkeypatch):
+    """A bounded tick (docs/runtime.md): with PRIMAL_STEPS = 1 (the C built with LEX_PRIMAL_STEPS=1), the method
+    stops after one iteration on both paths alike. Its point holds the hard rows and is no worse than the start;
+    where it is certified it is the full method's answer."""
+    one_step = compile_harness(tmp_path, "-DLEX_PRIMAL_STEPS=1")
+    rng = np.random.default_rng(23)
+    stopped = compared = 0
+    for _ in range(150):
+        problem = random_problem(rng)
+        x0 = vertex_start(rng, problem)
+        if x0 is None:
+            continue
+        H, f, A_hard, lo, up, levels = lexls.split(*problem)
+        x_full, ok_full = lexls.from_feasible(H, f, A_hard, lo, up, levels, x0.copy())
+        with monkeypatch.context() as patched:
+            patched.setattr(lexls, "PRIMAL_STEPS", 1)
+            x_py, ok_py = lexls.from_feasible(H, f, A_hard, lo, up, levels, x0.copy())
+        x_c, ok_c = c_from(one_step, problem, x0)
+        assert ok_py == ok_c and np.max(np.abs(x_py - x_c)) <= 1e-12 * (1 + np.max(np.abs(x_py)))
+        Ax = A_hard @ x_py
+        assert np.all(Ax >= lo - lexls.PRIMAL_TOL) and np.all(Ax <= up + lexls.PRIMAL_TOL)
+        assert not_worse(problem, x_py, x0, rows_close=1e-9)
+        if ok_py:
+            assert ok_full and np.max(np.abs(x_py - x_full)) <= 1e-12 * (1 + np.max(np.abs(x_full)))
+        compared += 1
+        stopped += ok_full and not ok_py
+    assert compared >= 120 and stopped >= 10, (compared, stopped)       # the bound did cut runs short

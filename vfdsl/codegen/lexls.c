@@ -18,7 +18,9 @@
 #define LEX_ACTIVE_TOL 1e-9
 #define LEX_DEGENERATE_DROPS 2
 #define LEX_ROUNDING 2.220446049250313e-16
-#define LEX_PRIMAL_STEPS 50
+#ifndef LEX_PRIMAL_STEPS
+#define LEX_PRIMAL_STEPS 50     /* lexls.py's PRIMAL_STEPS (a test builds it with another) */
+#endif
 
 /* The number of variables of a problem or a workspace X. A build defines VFDSL_LEX_N, the task's n (vfdsl.codegen.build
    compiles this file once per n): every loop over the variables then has a trip count known to the compiler, which
