@@ -503,6 +503,21 @@ def c_from(lib, problem, x0):
     return x, bool(certified)
 
 
+def from_on_both_paths(lib, problem, x0):
+    """(x, certified, hard rows as lexls.split gives them) of lexls.from_feasible from x0, held to its C twin's (lib):
+    the same decision, answers alike to 1e-12; the answer holds the hard rows within PRIMAL_TOL and is no worse than
+    its start."""
+    H, f, A_hard, lo, up, levels = lexls.split(*problem)
+    x_py, ok_py = lexls.from_feasible(H, f, A_hard, lo, up, levels, x0.copy())
+    x_c, ok_c = c_from(lib, problem, x0)
+    assert ok_py == ok_c
+    assert np.max(np.abs(x_py - x_c)) <= 1e-12 * (1 + np.max(np.abs(x_py)))
+    Ax = A_hard @ x_py
+    assert np.all(Ax >= lo - lexls.PRIMAL_TOL) and np.all(Ax <= up + lexls.PRIMAL_TOL)
+    assert not_worse(problem, x_py, x0, rows_close=1e-9)
+    return x_py, ok_py, (A_hard, lo, up)
+
+
 def test_from_a_vertex_the_c_and_the_python_reach_the_independent_optimum(harness):
     """Phase 2's (B) method (lexls.from_feasible and its C twin) from a vertex of the hard rows, on random problems
     (repeated, dependent and equality rows; rank-deficient levels): the two decide alike and answer alike to
@@ -515,14 +530,7 @@ def test_from_a_vertex_the_c_and_the_python_reach_the_independent_optimum(harnes
         x0 = vertex_start(rng, problem)
         if x0 is None:
             continue
-        H, f, A_hard, lo, up, levels = lexls.split(*problem)
-        x_py, ok_py = lexls.from_feasible(H, f, A_hard, lo, up, levels, x0.copy())
-        x_c, ok_c = c_from(harness, problem, x0)
-        assert ok_py == ok_c
-        assert np.max(np.abs(x_py - x_c)) <= 1e-12 * (1 + np.max(np.abs(x_py)))
-        Ax = A_hard @ x_py
-        assert np.all(Ax >= lo - lexls.PRIMAL_TOL) and np.all(Ax <= up + lexls.PRIMAL_TOL)
-        assert not_worse(problem, x_py, x0, rows_close=1e-9)
+        x_py, ok_py, (A_hard, lo, up) = from_on_both_paths(harness, problem, x0)
         compared += 1
         certified += ok_py
         x_ref = reference(*problem)
@@ -530,7 +538,6 @@ def test_from_a_vertex_the_c_and_the_python_reach_the_independent_optimum(harnes
             assert not_worse(problem, x_py, x_ref, rows_close=1e-10), (x_py, x_ref)
             # (the reference, off the rows by up to 1e-11, may be better by as much; one off by more is not compared)
     assert compared >= 250 and certified >= 0.8 * compared, (compared, certified)
-
 
 
 def test_the_primal_method_stops_at_its_bound_with_a_point_of_the_rows(tmp_path, monkeypatch):
@@ -545,16 +552,10 @@ def test_the_primal_method_stops_at_its_bound_with_a_point_of_the_rows(tmp_path,
         x0 = vertex_start(rng, problem)
         if x0 is None:
             continue
-        H, f, A_hard, lo, up, levels = lexls.split(*problem)
-        x_full, ok_full = lexls.from_feasible(H, f, A_hard, lo, up, levels, x0.copy())
+        x_full, ok_full = lexls.from_feasible(*lexls.split(*problem), x0.copy())
         with monkeypatch.context() as patched:
             patched.setattr(lexls, "PRIMAL_STEPS", 1)
-            x_py, ok_py = lexls.from_feasible(H, f, A_hard, lo, up, levels, x0.copy())
-        x_c, ok_c = c_from(one_step, problem, x0)
-        assert ok_py == ok_c and np.max(np.abs(x_py - x_c)) <= 1e-12 * (1 + np.max(np.abs(x_py)))
-        Ax = A_hard @ x_py
-        assert np.all(Ax >= lo - lexls.PRIMAL_TOL) and np.all(Ax <= up + lexls.PRIMAL_TOL)
-        assert not_worse(problem, x_py, x0, rows_close=1e-9)
+            x_py, ok_py, _ = from_on_both_paths(one_step, problem, x0)
         if ok_py:
             assert ok_full and np.max(np.abs(x_py - x_full)) <= 1e-12 * (1 + np.max(np.abs(x_full)))
         compared += 1

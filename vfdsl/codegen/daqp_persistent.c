@@ -116,6 +116,15 @@ static void vfdsl_lex_prob_of(const struct casadi_daqp_data* d, const vfdsl_leve
   prob->bupper = d->daqp.bupper;
 }
 
+/* lexls.c's problem (prob) and workspace (d->lex, allocated on the first call) for this call's data, its rows read;
+   NULL when it cannot be allocated (out of memory, or compiled for another n). */
+static vfdsl_lex* vfdsl_lex_ready(struct casadi_daqp_data* d, const vfdsl_levels* levels, vfdsl_lex_prob* prob) {
+  vfdsl_lex_prob_of(d, levels, prob);
+  if (!d->lex) d->lex = vfdsl_lex_alloc(prob->n, prob->K, d->daqp.m - levels->break_points[0]);
+  if (d->lex) vfdsl_lex_rows(d->lex, prob);
+  return d->lex;
+}
+
 /* x (in d->qp->x) is the certified optimum of the levels: a success, without multipliers. */
 static void vfdsl_exact_answer(struct casadi_daqp_data* d) {
   struct casadi_qp_data* d_qp = d->qp;
@@ -166,10 +175,7 @@ static int vfdsl_daqp_solve(struct casadi_daqp_data* d, int warm, const vfdsl_le
   casadi_copy(d_qp->uba, p_qp->na, d->daqp.bupper+p_qp->nx);
   d->daqp.f = (casadi_real*) (d_qp->g);
   if (levels && levels->start) {     /* from x0 (phase 2's (B)): the certified optimum, else x0; DAQP not called */
-    vfdsl_lex_prob_of(d, levels, &prob);
-    if (!d->lex) d->lex = vfdsl_lex_alloc(prob.n, prob.K, d->daqp.m - levels->break_points[0]);
-    if (d->lex && d_qp->x0) {
-      vfdsl_lex_rows(d->lex, &prob);
+    if (vfdsl_lex_ready(d, levels, &prob) && d_qp->x0) {
       casadi_copy(d_qp->x0, p_qp->nx, d_qp->x);
       if (!vfdsl_lex_from(d->lex, &prob, d->lex->guess, d_qp->x)) casadi_copy(d_qp->x0, p_qp->nx, d_qp->x);
       vfdsl_exact_answer(d);
@@ -181,10 +187,7 @@ static int vfdsl_daqp_solve(struct casadi_daqp_data* d, int warm, const vfdsl_le
     return 0;
   }
   if (levels && levels->exact) {
-    vfdsl_lex_prob_of(d, levels, &prob);
-    if (!d->lex) d->lex = vfdsl_lex_alloc(prob.n, prob.K, d->daqp.m - levels->break_points[0]);
-    if (d->lex) {
-      vfdsl_lex_rows(d->lex, &prob);
+    if (vfdsl_lex_ready(d, levels, &prob)) {
       int repair;
       for (repair=0; d->lex->valid; ++repair) {
         if (vfdsl_lex_solve(d->lex, &prob, d->lex->guess, d_qp->x)) {

@@ -614,7 +614,7 @@ static int lex_solve_over(vfdsl_lex* L, const vfdsl_lex_prob* P, const int* s, d
   memset(x, 0, sizeof(double) * n);
   memset(Z, 0, sizeof(double) * n * n);
   for (i=0;i<n;++i) Z[i + i*n] = 1;
-  L->ill_ok = ill_ok;              /* (W's step only) */
+  L->ill_ok = ill_ok;              /* (W's step; with 2 the levels' too) */
   if (lex_step(L, L->M, p, L->t, x, &Z, &k, &ident, record ? 0 : -1) < 0) return 0;
   L->ill_ok = ill_ok == 2;
   L->ill_at = -1;                  /* (only W's step reports it) */

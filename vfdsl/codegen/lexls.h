@@ -38,7 +38,8 @@ typedef struct vfdsl_lex {
   int from;               /* in vfdsl_lex_from: a refusal's hint is lex_drop's (lexls.py's _drop) */
   int hint, hint_side;    /* after a refusal: a hard row to add at side hint_side (+1, -1), or to drop (0); -1: none */
   int ill_at;             /* lex_qr's first pivot in (RANK_TOL, COND_TOL] of the last ill-conditioned step, or -1 */
-  int ill_ok;             /* the step being made may have such pivots (W's, as the last resort at a degenerate vertex) */
+  int ill_ok;             /* the step being made may have such pivots (W's, as the last resort at a degenerate vertex;
+                             the levels' too in vfdsl_lex_from) */
   int *guess, *piv, *cols;
   int *drop, *trial;      /* a degenerate working set: its rows to try without, and the working set tried */
   int *pinned;            /* vfdsl_lex_from's rows not to drop (all 0 outside it) */

@@ -244,8 +244,7 @@ def from_feasible(H, f, A, lo, up, levels, x) -> tuple[np.ndarray, bool]:
     drop is kept from then on: the multipliers missed what holds it, and dropping it again would cycle). Every
     iterate holds the hard rows (within PRIMAL_TOL) and none is worse than x at any level before the first that
     improves (each move goes toward an optimum over a set containing x). At most PRIMAL_STEPS iterations; the last
-    iterate is returned,
-    certified or not."""
+    iterate is returned, certified or not."""
     s = _independent_working_set(A, lo, up, x)
     dropped, pinned = None, set()
     for _ in range(PRIMAL_STEPS):
@@ -317,7 +316,7 @@ def _first_blocking(A, lo, up, s, x, y):
 def _certified(H, f, A, levels, s, x, steps, pinned=()) -> tuple[bool, int | None]:
     """The dual half of the certificate, level by level (module docstring): by :func:`_dims_dual` or
     :func:`_factors_dual` where they apply (both sufficient), else by the nonnegative least squares over U_j.
-    Also, when refused, the held inequality row to drop (:func:`_drop_hint`), or None."""
+    Also, when refused, the held inequality row to drop (:func:`_drop`), or None."""
     n = H.shape[0]
     inequality = (s == UPPER) | (s == LOWER)
     if not np.any(inequality):
@@ -419,18 +418,9 @@ def _drop(steps, s, gradients, j, pinned=()) -> int | None:
 
 
 def _multipliers(steps, G) -> np.ndarray:
-    """W's multipliers sigma (in W's order, 0 on a row its step found dependent) of the gradient G, by
-    back-substitution as :func:`_factors_dual`, unclipped."""
-    v = G.copy()
-    sigma = np.zeros(steps[0][0].shape[0])
-    for k, (M, Y, R11, piv, _) in reversed(list(enumerate(steps))):
-        if R11.shape[0] == 0:
-            continue
-        mu = lapack.dtrtrs(R11, -(Y.T @ v), lower=0)[0]
-        if k == 0:
-            sigma[piv[:len(mu)]] = mu
-        v = v + M[piv[:len(mu)]].T @ mu
-    return sigma
+    """W's multipliers sigma (in W's order, 0 on a row its step found dependent) of the gradient G, unclipped
+    (:func:`_back_substitute`)."""
+    return _back_substitute(steps, G)[2]
 
 
 def _factors_dual(steps, held, G, threshold) -> bool:
@@ -439,17 +429,29 @@ def _factors_dual(steps, held, G, threshold) -> bool:
     dependent rows), W's inequality multipliers clipped to their sign (``held``: W's s), then the whole residual
     |G + sum R_l'mu_l + C_W'sigma| within threshold: the KKT conditions of level j, so sufficient. (Below a
     rank-deficient level the multipliers are not unique and this choice may miss.)"""
+    v, charge, _ = _back_substitute(steps, G, held)
+    return bool(np.linalg.norm(v) + charge <= threshold)
+
+
+def _back_substitute(steps, G, held=None):
+    """(v, charge, sigma): the multipliers of the gradient G by back-substitution from the last step to W's, each
+    R11 mu = -Y'v (0 on a step's dependent rows); v = G plus the rows' part, charge their rounding
+    (:func:`_rounding`), sigma W's multipliers in W's order. ``held`` (W's s): W's inequality multipliers clipped to
+    their sign first (lexls.c's lex_back_substitute)."""
     v, charge = G.copy(), 0.0
+    sigma = np.zeros(steps[0][0].shape[0])
     for k, (M, Y, R11, piv, _) in reversed(list(enumerate(steps))):
         if R11.shape[0] == 0:
             continue
         mu = lapack.dtrtrs(R11, -(Y.T @ v), lower=0)[0]
         if k == 0:
-            sides = held[piv[:len(mu)]]
-            mu = np.where((sides != FIXED) & (mu * sides < 0), 0.0, mu)
+            if held is not None:
+                sides = held[piv[:len(mu)]]
+                mu = np.where((sides != FIXED) & (mu * sides < 0), 0.0, mu)
+            sigma[piv[:len(mu)]] = mu
         v = v + M[piv[:len(mu)]].T @ mu
         charge += _rounding(mu, M[piv[:len(mu)]].T)
-    return bool(np.linalg.norm(v) + charge <= threshold)
+    return v, charge, sigma
 
 
 def _rounding(multipliers, columns) -> float:

@@ -79,7 +79,6 @@ and is finite when the QP data are.
 from __future__ import annotations
 
 import enum
-import functools
 import warnings
 from collections.abc import Callable, Hashable, Sequence
 
@@ -160,13 +159,12 @@ def build_step_function(qp_data: ca.Function, prefix: str, *,
     else:                                       # (an MX qp_data: e.g. a mesh fixture's external call in it)
         prepared = _straight_line(f"{prefix}_prepare", lambda *data: _prepare(data, levels, last_level_is_cost),
                                   qp_data.call(inputs), expand)
-    A, lba, uba, lo, hi, clipped = prepared[2:8]
-    args = prepared[8:]     # the solve's H, g and rows (daqp_rows)
+    A, lba, uba, lo, hi, clipped = prepared[:6]
+    args = prepared[6:]     # the solve's H, g and rows (daqp_rows)
     plans: dict[str, SolvePlan] = {}
     sizes = [qp_data.size1_out(7 + 2 * j) for j in range(levels - last_level_is_cost)] if levels > 1 else []
-    solve_levels = functools.partial(_solve_levels, n=n, m=m, sizes=sizes, feas_tol=feas_tol, native=native,
-                                     plans=plans)
-    x1 = solve_levels(args, recover, f"{scope}phase1")
+    x1 = _solve_levels(args, recover, f"{scope}phase1", n=n, m=m, sizes=sizes, feas_tol=feas_tol, native=native,
+                       plans=plans)
 
     if m == 0:
         picked = ca.vertcat(x1, int(StepStatus.OPTIMAL))
@@ -240,15 +238,14 @@ def _straight_line(name: str, build: Callable[..., list[ca.MX]], values: Sequenc
 
 
 def _prepare(data: Sequence[ca.MX], levels: int, last_level_is_cost: bool) -> list[ca.MX]:
-    """From qp_data's outputs: [H, g, A, lba, uba, lo, hi, clipped] of the QP (the box made safe, g saturated), then
-    the phase-1 solve's [H, g, a, lower, upper] (:func:`~vfdsl.runtime.daqp_solve.daqp_rows`): with priority levels,
+    """From qp_data's outputs: [A, lba, uba, lo, hi, clipped] of the QP (the box made safe), then the solve's
+    [H, g, a, lower, upper] (g saturated) (:func:`~vfdsl.runtime.daqp_solve.daqp_rows`): with priority levels,
     DAQP's cost and the levels' rows and targets (each level scaled) after the rows and the box."""
     data = [ca.densify(v) for v in data]
     n = data[0].size1()
     H, g, A, lba, uba, lbx, ubx = data[:7]
     lo, hi, clipped = _safe_box(lbx, ubx)
-    g = _saturated_gradient(H, g, lo, hi)
-    prepared = [H, g, A, lba, uba, lo, hi, clipped]
+    prepared = [A, lba, uba, lo, hi, clipped]
     if levels > 1:
         pairs = list(zip(data[7::2], data[8::2]))
         if last_level_is_cost:      # DAQP's own cost: the last level, + epsilon I
@@ -262,7 +259,7 @@ def _prepare(data: Sequence[ca.MX], levels: int, last_level_is_cost: bool) -> li
         rows = [_level_rows(R, r, lo, hi) for R, r in pairs]
         R, r = ca.vertcat(*(R for R, _ in rows)), ca.vertcat(*(r for _, r in rows))
         return prepared + [H_cost, g_cost, *daqp_rows(A, lba, uba, lo, hi, R, r)]
-    return prepared + [H, g, *daqp_rows(A, lba, uba, lo, hi)]
+    return prepared + [H, _saturated_gradient(H, g, lo, hi), *daqp_rows(A, lba, uba, lo, hi)]
 
 
 def _finish(picked, A, lba, uba, lo, hi, clipped, m: int, feas_tol: float) -> list[ca.MX]:

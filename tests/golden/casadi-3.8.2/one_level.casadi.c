@@ -141,6 +141,10 @@ extern "C" {
   #endif
 #endif
 
+#ifndef casadi_inf
+  #define casadi_inf INFINITY
+#endif
+
 casadi_real casadi_fabs(casadi_real x) {
 /* Pre-c99 compatibility */
 #if __STDC_VERSION__ < 199901L
@@ -149,10 +153,6 @@ casadi_real casadi_fabs(casadi_real x) {
   return fabs(x);
 #endif
 }
-
-#ifndef casadi_inf
-  #define casadi_inf INFINITY
-#endif
 
 casadi_real casadi_fmax(casadi_real x, casadi_real y) {
 /* Pre-c99 compatibility */
@@ -483,136 +483,130 @@ static const casadi_int casadi_s9[3] = {0, 1, 1};
 static const casadi_real casadi_c0[3] = {1.0000000000000000e-03, 1.0000000000000000e-03, 1.};
 static const casadi_real casadi_c1[3] = {0., 0., 1.};
 
-/* vf_golden_prepare:(i0[2],i1[2],i2,i3)->(o0[2x2],o1[2],o2[1x2],o3,o4,o5[2],o6[2],o7,o8[2x2],o9[2],o10[3x2],o11[3],o12[3]) */
+/* vf_golden_prepare:(i0[2],i1[2],i2,i3)->(o0[1x2],o1,o2,o3[2],o4[2],o5,o6[2x2],o7[2],o8[3x2],o9[3],o10[3]) */
 static int casadi_f1(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a00, a01, a02, a03, a04, a05, a06, a07, a08, a09, a10, a11;
-  casadi_real a12, a13, a14, a15;
+  casadi_real a12, a13, a14;
   a00=1.;
-  a01=1.0000000000000001e-01;
-  a02=arg[0]? arg[0][0] : 0;
-  a02=cos(a02);
-  a02=(a01*a02);
-  a02=(a00+a02);
-  if (res[0]!=0) res[0][0]=a02;
-  a03=0.;
-  if (res[0]!=0) res[0][1]=a03;
-  if (res[0]!=0) res[0][2]=a03;
-  a04=arg[0]? arg[0][1] : 0;
-  a04=cos(a04);
-  a01=(a01*a04);
-  a01=(a00+a01);
-  if (res[0]!=0) res[0][3]=a01;
-  a04=arg[1]? arg[1][0] : 0;
-  a05=10.;
-  a06=arg[3]? arg[3][0] : 0;
-  a05=(a05*a06);
-  a07=-10.;
-  a07=(a07*a06);
-  a06=(a05<a07);
-  a08=casadi_fabs(a07);
-  a09=casadi_fabs(a05);
-  a08=(a08<=a09);
-  a09=(a08?a07:0);
-  a08=(!a08);
+  if (res[0]!=0) res[0][0]=a00;
+  if (res[0]!=0) res[0][1]=a00;
+  a01=-casadi_inf;
+  if (res[1]!=0) res[1][0]=a01;
+  a02=arg[2]? arg[2][0] : 0;
+  if (res[2]!=0) res[2][0]=a02;
+  a03=10.;
+  a04=arg[3]? arg[3][0] : 0;
+  a03=(a03*a04);
+  a05=-10.;
+  a05=(a05*a04);
+  a04=(a03<a05);
+  a06=casadi_fabs(a05);
+  a07=casadi_fabs(a03);
+  a06=(a06<=a07);
+  a07=(a06?a05:0);
+  a06=(!a06);
+  a06=(a06?a03:0);
+  a07=(a07+a06);
+  a06=(a04?a07:0);
+  a08=(!a04);
   a08=(a08?a05:0);
-  a09=(a09+a08);
-  a08=(a06?a09:0);
-  a10=(!a06);
-  a10=(a10?a07:0);
-  a08=(a08+a10);
-  a10=casadi_fabs(a08);
-  a11=casadi_inf;
-  a10=(a10<a11);
-  a12=casadi_fabs(a08);
-  a10=(a10?a12:0);
-  a09=(a06?a09:0);
-  a12=(!a06);
-  a12=(a12?a05:0);
-  a09=(a09+a12);
-  a12=casadi_fabs(a09);
-  a12=(a12<a11);
-  a13=casadi_fabs(a09);
-  a12=(a12?a13:0);
-  a10=casadi_fmax(a10,a12);
-  a12=(a05<a07);
+  a06=(a06+a08);
+  if (res[3]!=0) res[3][0]=a06;
+  a08=(a03<a05);
+  a09=casadi_fabs(a05);
+  a10=casadi_fabs(a03);
+  a09=(a09<=a10);
+  a10=(a09?a05:0);
+  a09=(!a09);
+  a09=(a09?a03:0);
+  a10=(a10+a09);
+  a09=(a08?a10:0);
+  a11=(!a08);
+  a11=(a11?a05:0);
+  a09=(a09+a11);
+  if (res[3]!=0) res[3][1]=a09;
+  a07=(a04?a07:0);
+  a11=(!a04);
+  a11=(a11?a03:0);
+  a07=(a07+a11);
+  if (res[4]!=0) res[4][0]=a07;
+  a10=(a08?a10:0);
+  a08=(!a08);
+  a08=(a08?a03:0);
+  a10=(a10+a08);
+  if (res[4]!=0) res[4][1]=a10;
+  if (res[5]!=0) res[5][0]=a04;
+  a04=1.0000000000000001e-01;
+  a08=arg[0]? arg[0][0] : 0;
+  a08=cos(a08);
+  a08=(a04*a08);
+  a08=(a00+a08);
+  if (res[6]!=0) res[6][0]=a08;
+  a03=0.;
+  if (res[6]!=0) res[6][1]=a03;
+  if (res[6]!=0) res[6][2]=a03;
+  a11=arg[0]? arg[0][1] : 0;
+  a11=cos(a11);
+  a04=(a04*a11);
+  a04=(a00+a04);
+  if (res[6]!=0) res[6][3]=a04;
+  a11=arg[1]? arg[1][0] : 0;
+  a05=casadi_fabs(a06);
+  a12=casadi_inf;
+  a05=(a05<a12);
+  a13=casadi_fabs(a06);
+  a05=(a05?a13:0);
   a13=casadi_fabs(a07);
-  a14=casadi_fabs(a05);
-  a13=(a13<=a14);
-  a14=(a13?a07:0);
-  a13=(!a13);
-  a13=(a13?a05:0);
-  a14=(a14+a13);
-  a13=(a12?a14:0);
-  a15=(!a12);
-  a15=(a15?a07:0);
-  a13=(a13+a15);
-  a15=casadi_fabs(a13);
-  a15=(a15<a11);
-  a07=casadi_fabs(a13);
-  a15=(a15?a07:0);
-  a14=(a12?a14:0);
-  a12=(!a12);
-  a12=(a12?a05:0);
-  a14=(a14+a12);
-  a12=casadi_fabs(a14);
-  a12=(a12<a11);
-  a11=casadi_fabs(a14);
-  a12=(a12?a11:0);
-  a15=casadi_fmax(a15,a12);
-  a10=casadi_fmax(a10,a15);
-  a15=(a03<a10);
-  a12=1000.;
-  a11=casadi_fabs(a02);
-  a05=casadi_fabs(a01);
-  a11=casadi_fmax(a11,a05);
-  a12=(a12*a11);
-  a12=(a12*a10);
-  a10=casadi_fabs(a04);
-  a11=arg[1]? arg[1][1] : 0;
+  a13=(a13<a12);
+  a14=casadi_fabs(a07);
+  a13=(a13?a14:0);
+  a05=casadi_fmax(a05,a13);
+  a13=casadi_fabs(a09);
+  a13=(a13<a12);
+  a14=casadi_fabs(a09);
+  a13=(a13?a14:0);
+  a14=casadi_fabs(a10);
+  a14=(a14<a12);
+  a12=casadi_fabs(a10);
+  a14=(a14?a12:0);
+  a13=casadi_fmax(a13,a14);
+  a05=casadi_fmax(a05,a13);
+  a13=(a03<a05);
+  a14=1000.;
+  a08=casadi_fabs(a08);
+  a04=casadi_fabs(a04);
+  a08=casadi_fmax(a08,a04);
+  a14=(a14*a08);
+  a14=(a14*a05);
   a05=casadi_fabs(a11);
-  a10=casadi_fmax(a10,a05);
-  a05=(a12<a10);
-  a15=(a15&&a05);
-  a12=(a12/a10);
-  a12=(a15?a12:0);
-  a15=(!a15);
-  a15=(a15?a00:0);
-  a12=(a12+a15);
-  a04=(a04*a12);
-  a04=(-a04);
-  if (res[1]!=0) res[1][0]=a04;
-  a11=(a11*a12);
+  a08=arg[1]? arg[1][1] : 0;
+  a04=casadi_fabs(a08);
+  a05=casadi_fmax(a05,a04);
+  a04=(a14<a05);
+  a13=(a13&&a04);
+  a14=(a14/a05);
+  a14=(a13?a14:0);
+  a13=(!a13);
+  a13=(a13?a00:0);
+  a14=(a14+a13);
+  a11=(a11*a14);
   a11=(-a11);
-  if (res[1]!=0) res[1][1]=a11;
-  if (res[2]!=0) res[2][0]=a00;
-  if (res[2]!=0) res[2][1]=a00;
-  a12=-casadi_inf;
-  if (res[3]!=0) res[3][0]=a12;
-  a15=arg[2]? arg[2][0] : 0;
-  if (res[4]!=0) res[4][0]=a15;
-  if (res[5]!=0) res[5][0]=a08;
-  if (res[5]!=0) res[5][1]=a13;
-  if (res[6]!=0) res[6][0]=a09;
-  if (res[6]!=0) res[6][1]=a14;
-  if (res[7]!=0) res[7][0]=a06;
-  if (res[8]!=0) res[8][0]=a02;
-  if (res[8]!=0) res[8][1]=a03;
+  if (res[7]!=0) res[7][0]=a11;
+  a08=(a08*a14);
+  a08=(-a08);
+  if (res[7]!=0) res[7][1]=a08;
+  if (res[8]!=0) res[8][0]=a00;
+  if (res[8]!=0) res[8][1]=a00;
   if (res[8]!=0) res[8][2]=a03;
-  if (res[8]!=0) res[8][3]=a01;
-  if (res[9]!=0) res[9][0]=a04;
-  if (res[9]!=0) res[9][1]=a11;
-  if (res[10]!=0) res[10][0]=a00;
-  if (res[10]!=0) res[10][1]=a00;
-  if (res[10]!=0) res[10][2]=a03;
-  if (res[10]!=0) res[10][3]=a00;
-  if (res[10]!=0) res[10][4]=a03;
-  if (res[10]!=0) res[10][5]=a00;
-  if (res[11]!=0) res[11][0]=a12;
-  if (res[11]!=0) res[11][1]=a08;
-  if (res[11]!=0) res[11][2]=a13;
-  if (res[12]!=0) res[12][0]=a15;
-  if (res[12]!=0) res[12][1]=a09;
-  if (res[12]!=0) res[12][2]=a14;
+  if (res[8]!=0) res[8][3]=a00;
+  if (res[8]!=0) res[8][4]=a03;
+  if (res[8]!=0) res[8][5]=a00;
+  if (res[9]!=0) res[9][0]=a01;
+  if (res[9]!=0) res[9][1]=a06;
+  if (res[9]!=0) res[9][2]=a09;
+  if (res[10]!=0) res[10][0]=a02;
+  if (res[10]!=0) res[10][1]=a07;
+  if (res[10]!=0) res[10][2]=a10;
   return 0;
 }
 
@@ -1446,24 +1440,22 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   w02 = arg[2] ? arg[2][0] : 0;
   /* #3: @3 = input[3][0] */
   w03 = arg[3] ? arg[3][0] : 0;
-  /* #4: {NULL, NULL, @4, @5, @6, @7, @8, @9, @10, @11, @12, @13, @14} = vf_golden_prepare(@0, @1, @2, @3) */
+  /* #4: {@4, @5, @6, @7, @8, @9, @10, @11, @12, @13, @14} = vf_golden_prepare(@0, @1, @2, @3) */
   arg1[0]=w00;
   arg1[1]=w01;
   arg1[2]=(&w02);
   arg1[3]=(&w03);
-  res1[0]=0;
-  res1[1]=0;
-  res1[2]=w04;
-  res1[3]=(&w05);
-  res1[4]=(&w06);
-  res1[5]=w07;
-  res1[6]=w08;
-  res1[7]=(&w09);
-  res1[8]=w10;
-  res1[9]=w11;
-  res1[10]=w12;
-  res1[11]=w13;
-  res1[12]=w14;
+  res1[0]=w04;
+  res1[1]=(&w05);
+  res1[2]=(&w06);
+  res1[3]=w07;
+  res1[4]=w08;
+  res1[5]=(&w09);
+  res1[6]=w10;
+  res1[7]=w11;
+  res1[8]=w12;
+  res1[9]=w13;
+  res1[10]=w14;
   if (casadi_f1(arg1, res1, iw, w, 0)) return 1;
   /* #5: @0 = -inf(2x1) */
   casadi_fill(w00, 2, -casadi_inf);
@@ -1632,7 +1624,7 @@ CASADI_SYMBOL_EXPORT const casadi_int* vf_golden_sparsity_out(casadi_int i) {
 
 CASADI_SYMBOL_EXPORT int vf_golden_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
   if (sz_arg) *sz_arg = 40;
-  if (sz_res) *sz_res = 16;
+  if (sz_res) *sz_res = 14;
   if (sz_iw) *sz_iw = 9;
   if (sz_w) *sz_w = 229;
   return 0;
@@ -1640,7 +1632,7 @@ CASADI_SYMBOL_EXPORT int vf_golden_work(casadi_int *sz_arg, casadi_int* sz_res, 
 
 CASADI_SYMBOL_EXPORT int vf_golden_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
   if (sz_arg) *sz_arg = 40*sizeof(const casadi_real*);
-  if (sz_res) *sz_res = 16*sizeof(casadi_real*);
+  if (sz_res) *sz_res = 14*sizeof(casadi_real*);
   if (sz_iw) *sz_iw = 9*sizeof(casadi_int);
   if (sz_w) *sz_w = 229*sizeof(casadi_real);
   return 0;
