@@ -10,6 +10,8 @@ held *exactly* at their optimal values, not within a band.
 
 from __future__ import annotations
 
+import dataclasses
+
 import daqp
 import numpy as np
 
@@ -155,10 +157,11 @@ RELAXED = 1e-12             # a group counts as violated above this (1e-3 feas_t
 
 
 def least_violation_set(qp, groups):
-    """(x_A, lower, upper): phase 2's least violation solved here, and the general rows' bounds of the least-violation
-    set S over which the levels act (docs/runtime.md, Phase 2), from their definitions: (A) stacked here and solved
-    by DAQP's Python package directly (tight tolerance, no scaling); each row of a violated group relaxed by the
-    group's least violation and the margin, none worse than at rest (x_0: the point of the box nearest 0)."""
+    """(x_A, qp over S): phase 2's least violation solved here, and the tick's QP with its general rows' bounds those
+    of the least-violation set S over which the levels act (docs/runtime.md, Phase 2), from their definitions: (A)
+    stacked here and solved by DAQP's Python package directly (tight tolerance, no scaling); each row of a violated
+    group relaxed by the group's least violation and the margin, none worse than at rest (x_0: the point of the box
+    nearest 0)."""
     n = qp.P.shape[0]
     A, lb, ub = qp.A[n:], qp.lb[n:], qp.ub[n:]
     lo, hi = box(qp.lb[:n], qp.ub[:n])
@@ -178,4 +181,5 @@ def least_violation_set(qp, groups):
     z = np.array(z)
     relaxed = E @ z[n:]
     widened = np.where(relaxed > RELAXED, relaxed + MARGIN, 0.0)
-    return z[:n], np.maximum(lb - widened, np.minimum(lb, at_rest)), np.minimum(ub + widened, np.maximum(ub, at_rest))
+    lower, upper = np.maximum(lb - widened, np.minimum(lb, at_rest)), np.minimum(ub + widened, np.maximum(ub, at_rest))
+    return z[:n], dataclasses.replace(qp, lb=np.r_[qp.lb[:n], lower], ub=np.r_[qp.ub[:n], upper])

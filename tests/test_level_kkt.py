@@ -4,16 +4,14 @@ the optimal sets of the levels above, computed here with scipy's bounded least s
 kkt_excess): independent of the controller's solvers and certificate. The hard rows hold within 1e-9 and every
 level's residual is within 1e-9 of its gradient's scale, on both paths; the two paths give the same dq.
 
-The states are cold (a fresh controller for each, no previous tick), 1e-5 rad from the start (inside the
-fixtures) and 1e-3 rad (mostly outside them), every run-time param moved as far (m, rad) from its default. A least-violation tick is checked the same way over the
-least-violation set S, which the reference computes itself (levels_reference.least_violation_set: its own phase
-2 (A), its own S); where the controller found no certificate its answer is (A)'s, x_A, the reference's within
-1e-9 (at most half of a task's least-violation ticks: 3 of polyline_guide's 8 here, none on most tasks;
-benchmarks/least_violation.py counts them on more states)."""
+The states are cold (a fresh controller for each, no previous tick), 1e-5 rad from the start (inside the fixtures) and
+1e-3 rad (mostly outside them), every run-time param moved as far (m, rad) from its default. A least-violation tick is
+checked the same way over the least-violation set S, which the reference computes itself
+(levels_reference.least_violation_set: its own phase 2 (A), its own S); where the controller found no certificate its
+answer is (A)'s, x_A, the reference's within 1e-9 (at most half of a task's least-violation ticks: 3 of polyline_guide's
+8 here, none on most tasks; benchmarks/least_violation.py counts them on more states)."""
 
 from __future__ import annotations
-
-import dataclasses
 
 import numpy as np
 import pytest
@@ -62,9 +60,7 @@ def test_every_level_is_exact_at_cold_states_on_both_paths(name):
         assert np.max(np.abs(dq_n - dq_i)) <= 1e-10, (k, status_n, np.max(np.abs(dq_n - dq_i)))
         qp = interpreted.problem(q, inputs, params)
         if status_n == StepStatus.LEAST_VIOLATION:
-            x_a, lower, upper = least_violation_set(qp, interpreted.assembled.row_groups)
-            n = len(x_a)
-            qp = dataclasses.replace(qp, lb=np.r_[qp.lb[:n], lower], ub=np.r_[qp.ub[:n], upper])
+            x_a, qp = least_violation_set(qp, interpreted.assembled.row_groups)
             least += 1
         elif status_n != StepStatus.OPTIMAL:
             continue
