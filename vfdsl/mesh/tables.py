@@ -24,7 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-LEAF = 4
+LEAF = 8
 PAD = 1e-12
 """m: the oriented boxes' half-sides are widened by this (a picometre: rounding in the query is far below)."""
 
