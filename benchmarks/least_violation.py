@@ -8,7 +8,8 @@ scale 2, a fresh generated controller for each state), every tick both paths rep
 against an independent reference (tests/levels_reference.py): its own phase-2 (A), solved by DAQP's Python package,
 gives its own least-violation set S; each level of the answer is judged by its KKT conditions over S and the optimal
 sets of the levels above (scipy's bounded least squares). "not exact": ticks where some level's residual exceeds
-1e-9 of its gradient's scale (the controller then found no certificate, and its answer is (A)'s x_A); "level": the
+1e-9 of its gradient's scale (the controller then found no certificate, and its answer is (A)'s x_A); "flagged":
+ticks whose status has the bit UNCERTIFIED (the controller saying it found no certificate); "level": the
 largest residual; "S": the answer's largest excess over S; "paths": max |dq_generated - dq_interpreted|.
 docs/runtime.md (Phase 2) quotes this table; tests/test_level_kkt.py checks the same on fewer states.
 """
@@ -47,13 +48,14 @@ def measure(name: str, states: int, scale: float, seed: int) -> list[tuple[float
         for ctrl in (vfdsl.compile(task, backend="native"), interpreted):
             dq = ctrl.step(q, inputs)
             answers.append((dq, ctrl.status, np.array(ctrl._runner.x)))
-        if not answers[0][1] == answers[1][1] == StepStatus.LEAST_VIOLATION:
+        status = answers[0][1]
+        if status != answers[1][1] or not status & StepStatus.LEAST_VIOLATION:
             continue
         qp = interpreted.problem(q, inputs)
         _, over_s = least_violation_set(qp, interpreted.assembled.row_groups)
         checks = [kkt_excess(over_s, x, interpreted.assembled.last_level_is_damping) for _, _, x in answers]
         rows.append((max(max(residuals) for residuals, _ in checks), max(excess for _, excess in checks),
-                     float(np.max(np.abs(answers[0][0] - answers[1][0])))))
+                     float(np.max(np.abs(answers[0][0] - answers[1][0]))), bool(status & StepStatus.UNCERTIFIED)))
     return rows
 
 
@@ -62,20 +64,23 @@ def main() -> None:
     parser.add_argument("--states", type=int, default=16, help="random states per task and scale (default 16)")
     states = parser.parse_args().states
     names = sorted(p.stem for p in (ROOT / "tasks").glob("*.vf"))
-    print(f"{'task':30s} {'scale':>6s} {'LV ticks':>8s} {'not exact':>9s} {'level':>8s} {'S':>8s} {'paths':>8s}")
-    total = bad = 0
+    print(f"{'task':30s} {'scale':>6s} {'LV ticks':>8s} {'not exact':>9s} {'flagged':>7s} {'level':>8s} {'S':>8s} "
+          f"{'paths':>8s}")
+    total = bad = flagged = 0
     worst_paths = 0.0
     for scale, seed in SCALES:
         for name in names:
             rows = measure(name, states, scale, seed)
             if not rows:
                 continue
-            level, excess, paths = (max(column) for column in zip(*rows))
-            not_exact = sum(r[0] > 1e-9 for r in rows)
-            total, bad, worst_paths = total + len(rows), bad + not_exact, max(worst_paths, paths)
-            print(f"{name:30s} {scale:6.0e} {len(rows):8d} {not_exact:9d} {level:8.1e} {excess:8.1e} {paths:8.1e}",
-                  flush=True)
-    print(f"least-violation ticks: {total}, not exact: {bad}, paths within {worst_paths:.1e}")
+            level, excess, paths, _ = (max(column) for column in zip(*rows))
+            not_exact, said = sum(r[0] > 1e-9 for r in rows), sum(r[3] for r in rows)
+            total, bad, flagged = total + len(rows), bad + not_exact, flagged + said
+            worst_paths = max(worst_paths, paths)
+            print(f"{name:30s} {scale:6.0e} {len(rows):8d} {not_exact:9d} {said:7d} {level:8.1e} {excess:8.1e} "
+                  f"{paths:8.1e}", flush=True)
+    print(f"least-violation ticks: {total}, not exact: {bad}, status UNCERTIFIED: {flagged}, "
+          f"paths within {worst_paths:.1e}")
 
 
 if __name__ == "__main__":

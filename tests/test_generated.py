@@ -41,14 +41,16 @@ def test_generated_and_interpreted_agree(both):
     certified answer is exact to the certificate's primal tolerance (1e-9 per row), and the generated tick, which
     starts from the previous state's working set, may certify it with another of the nearly dependent rows left
     out. Measured: paper A 1 of 200 states above 1e-10 (1.5e-9; the generated tick fresh at that state: 3e-20),
-    every other task within 1e-10."""
+    every other task within 1e-10. Where no certificate is found both paths say so (the status bit UNCERTIFIED: DAQP's
+    answer, measured at 2 of lecture_remote_center's 200 states, the paths 1e-11 apart there)."""
     task, native, interpreted = both
     assert native.backend == "native" and interpreted.backend == "interpreted"
     rng = np.random.default_rng(11)
     gaps = []
     for q, inputs in _random_states(task, native, rng, 200, 1e-5):
         dq_n, dq_i = native.step(q, inputs), interpreted.step(q, inputs)
-        assert native.status == interpreted.status == StepStatus.OPTIMAL
+        assert native.status == interpreted.status
+        assert native.status & ~StepStatus.UNCERTIFIED == StepStatus.OPTIMAL
         gaps.append(float(np.max(np.abs(dq_n - dq_i))))
     assert max(gaps) <= 2e-9 and np.mean(np.array(gaps) <= 1e-10) >= 0.99, max(gaps)
 

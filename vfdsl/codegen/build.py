@@ -95,7 +95,7 @@ HEADER_CONTRACT = """
  * - Inputs: check them each tick with @PREFIX@_input_checks(arg = {u}, res = {margins}, iw, w, 0) (sizes:
  *   @PREFIX@_input_checks_work) after checking that every number of u is finite: margin m holds iff it is
  *   finite and >= 0; it is check m / nu of u[m % nu] (the .json's inputs say each type's checks).
- * - status bits: 0 OPTIMAL, 1 LEAST_VIOLATION, 2 BOUNDS_CLIPPED, 4 FALLBACK; violation[i] is row i's
+ * - status bits: 0 OPTIMAL, 1 LEAST_VIOLATION, 2 BOUNDS_CLIPPED, 4 FALLBACK, 8 UNCERTIFIED; violation[i] is row i's
  *   excess (the rows are listed in the .json next to this header).
  * - The first call on a slot allocates the DAQP workspaces; later calls allocate nothing.
  */

@@ -125,8 +125,10 @@ static vfdsl_lex* vfdsl_lex_ready(struct casadi_daqp_data* d, const vfdsl_levels
   return d->lex;
 }
 
-/* x (in d->qp->x) is the certified optimum of the levels: a success, without multipliers. */
-static void vfdsl_exact_answer(struct casadi_daqp_data* d) {
+/* x (in d->qp->x) is the levels' answer: a success, without multipliers. The conic's cost output carries the
+   certificate instead of a cost (vfdsl.runtime.daqp_solve): 0 where x is the certified optimum, 1 where it is not
+   (the x0 of a start plan kept). */
+static void vfdsl_exact_answer(struct casadi_daqp_data* d, int certified) {
   struct casadi_qp_data* d_qp = d->qp;
   const struct casadi_qp_prob* p_qp = d->prob->qp;
   casadi_int i;
@@ -137,16 +139,7 @@ static void vfdsl_exact_answer(struct casadi_daqp_data* d) {
   d_qp->success = 1;
   if (d_qp->lam_x) for (i=0;i<p_qp->nx;++i) d_qp->lam_x[i] = 0;
   if (d_qp->lam_a) for (i=0;i<p_qp->na;++i) d_qp->lam_a[i] = 0;
-  if (d_qp->f) {
-    double f = 0;
-    for (i=0;i<p_qp->nx;++i) {
-      double Hx = 0;
-      casadi_int j;
-      for (j=0;j<p_qp->nx;++j) Hx += d->daqp.H[i*p_qp->nx + j]*d_qp->x[j];
-      f += d_qp->x[i] * (d->daqp.f[i] + 0.5 * Hx);
-    }
-    *d_qp->f = f;
-  }
+  if (d_qp->f) *d_qp->f = !certified;
 }
 
 static int vfdsl_daqp_solve(struct casadi_daqp_data* d, int warm, const vfdsl_levels* levels) {
@@ -176,13 +169,16 @@ static int vfdsl_daqp_solve(struct casadi_daqp_data* d, int warm, const vfdsl_le
   d->daqp.f = (casadi_real*) (d_qp->g);
   if (levels && levels->start) {     /* from x0 (phase 2's (B)): the certified optimum, else x0; DAQP not called */
     if (vfdsl_lex_ready(d, levels, &prob) && d_qp->x0) {
+      int certified;
       casadi_copy(d_qp->x0, p_qp->nx, d_qp->x);
-      if (!vfdsl_lex_from(d->lex, &prob, d->lex->guess, d_qp->x)) casadi_copy(d_qp->x0, p_qp->nx, d_qp->x);
-      vfdsl_exact_answer(d);
+      certified = vfdsl_lex_from(d->lex, &prob, d->lex->guess, d_qp->x);
+      if (!certified) casadi_copy(d_qp->x0, p_qp->nx, d_qp->x);
+      vfdsl_exact_answer(d, certified);
     } else {
       d->return_status = DAQP_EXIT_UNSUPPORTED;
       d_qp->success = 0;
       vfdsl_fill_nan(d_qp->x, p_qp->nx);
+      if (d_qp->f) *d_qp->f = NAN;
     }
     return 0;
   }
@@ -191,7 +187,7 @@ static int vfdsl_daqp_solve(struct casadi_daqp_data* d, int warm, const vfdsl_le
       int repair;
       for (repair=0; d->lex->valid; ++repair) {
         if (vfdsl_lex_solve(d->lex, &prob, d->lex->guess, d_qp->x)) {
-          vfdsl_exact_answer(d);
+          vfdsl_exact_answer(d, 1);
           return 0;
         }
         if (repair == VFDSL_REPAIRS || !vfdsl_lex_repair(d->lex, d->lex->guess)) break;
@@ -219,14 +215,14 @@ static int vfdsl_daqp_solve(struct casadi_daqp_data* d, int warm, const vfdsl_le
     if (d_qp->success) vfdsl_lex_working_set(lex, d_qp->x, lex->guess);
     if (d_qp->success && vfdsl_lex_solve(lex, &prob, lex->guess, lex->x)) {
       casadi_copy(lex->x, p_qp->nx, d_qp->x);
-      vfdsl_exact_answer(d);     /* (the next tick tries this working set first) */
+      vfdsl_exact_answer(d, 1);  /* (the next tick tries this working set first) */
       return 0;
     }
     if (d_qp->success) {         /* from DAQP's answer by the primal active-set method (lexls.py's polish) */
       casadi_copy(d_qp->x, p_qp->nx, lex->x);
       if (vfdsl_lex_from(lex, &prob, lex->guess, lex->x)) {
         casadi_copy(lex->x, p_qp->nx, d_qp->x);
-        vfdsl_exact_answer(d);
+        vfdsl_exact_answer(d, 1);
         return 0;
       }
     }
@@ -235,7 +231,7 @@ static int vfdsl_daqp_solve(struct casadi_daqp_data* d, int warm, const vfdsl_le
   if (d_qp->success) {
     casadi_copy(d->res.lam, p_qp->nx, d_qp->lam_x);
     casadi_copy(d->res.lam+p_qp->nx, p_qp->na, d_qp->lam_a);
-    if (d_qp->f) *d_qp->f = d->res.fval;
+    if (d_qp->f) *d_qp->f = levels && levels->exact ? 1 : d->res.fval;   /* exact plans: not certified */
   } else {
     vfdsl_fill_nan(d_qp->x, p_qp->nx);
     vfdsl_fill_nan(d_qp->lam_x, p_qp->nx);

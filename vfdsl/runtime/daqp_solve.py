@@ -39,11 +39,14 @@ def daqp_solver(n: int, m: int, primal_tol: float, name: str, native: bool, plan
     by ``rho`` (:data:`vfdsl.runtime.qp.LEVEL_ATTEMPTS`). ``partial``: when DAQP fails a level, x is its answer for
     the levels above it (which meets the rows and bounds) instead of NaN.
     ``exact``: the levels' targets are equalities (phase 1), so their exact solve (:mod:`vfdsl.runtime.lexls`)
-    replaces DAQP's answer where it is certified.
+    replaces DAQP's answer where it is certified; solve(...) then gives [x; uncertified], the last entry 0 where x
+    is certified the levels' optimum, 1 where it is DAQP's answer (NaN with x). The conic's cost output carries
+    it: an exact plan's conic has no other use for its cost.
     ``warm_start``: the generated C starts DAQP from the previous call's working set.
     ``start``: solve(..., x0): the levels (or the one cost) solved exactly from x0, a point of the rows and bounds,
     by :func:`vfdsl.runtime.lexls.from_feasible` (and its C twin), DAQP not called; x0 itself where no answer is
-    certified (the method's iterates there depend on the last bits of the data, which the paths do not share).
+    certified (the method's iterates there depend on the last bits of the data, which the paths do not share), and
+    [x; uncertified] as with ``exact``.
     ``native``: a CasADi conic, which only the generated C evaluates (vfdsl.codegen.build puts DAQP's own sources
     behind it, solving as the conic's plan in ``plans`` says); else the same solver, settings and rows through
     the ``daqp`` package (:class:`_DaqpNode`), for CasADi's evaluation."""
@@ -66,7 +69,8 @@ def daqp_solver(n: int, m: int, primal_tol: float, name: str, native: bool, plan
 
     def solve(H, g, a, lower, upper, x0=None):
         initial = {} if x0 is None else {"x0": x0}
-        return conic(h=H, g=g, a=a, lba=lower, uba=upper, lbx=-free, ubx=free, **initial)["x"]
+        out = conic(h=H, g=g, a=a, lba=lower, uba=upper, lbx=-free, ubx=free, **initial)
+        return ca.vertcat(out["x"], out["cost"]) if plan.exact else out["x"]
 
     return solve
 
@@ -81,10 +85,12 @@ def daqp_rows(A, lba, uba, lbx, ubx, R=None, r=None, r_upper=None):
 
 
 class _DaqpNode(ca.Callback):
-    """(h, g, a, lba, uba, lbx, ubx) -> x: the generated conic's DAQP solve, cold, through the ``daqp`` package
-    (the same DAQP version the generated C is built from): the same problem (bounds as simple bounds, rows with
-    lba = uba as equalities), tolerance and settings; x = NaN unless DAQP reports success. The plan's ``exact``:
-    DAQP's answer solved again exactly over the rows it holds, taken when certified (:func:`vfdsl.runtime.lexls.polish`)."""
+    """(h, g, a, lba, uba, lbx, ubx) -> (x, cost): the generated conic's DAQP solve, cold, through the ``daqp``
+    package (the same DAQP version the generated C is built from): the same problem (bounds as simple bounds, rows
+    with lba = uba as equalities), tolerance and settings; x = NaN unless DAQP reports success. The plan's ``exact``:
+    DAQP's answer solved again exactly over the rows it holds, taken when certified
+    (:func:`vfdsl.runtime.lexls.polish`), and the cost output is the certificate, as the generated conic's
+    (:func:`daqp_solver`)."""
 
     _alive: dict = {}        # CasADi holds a Callback by reference: each node lives as long as the process; nodes
     # hold no state between calls, so one node serves every graph that needs its problem (bounded by their kinds)
@@ -108,20 +114,20 @@ class _DaqpNode(ca.Callback):
         return 8 if self.start else 7
 
     def get_n_out(self):
-        return 1
+        return 2
 
     def get_name_in(self, i):
         return ("h", "g", "a", "lba", "uba", "lbx", "ubx", "x0")[i]
 
     def get_name_out(self, i):
-        return "x"
+        return ("x", "cost")[i]
 
     def get_sparsity_in(self, i):
         n, rows = self.n, self.rows
         return ca.Sparsity.dense(*((n, n), (n, 1), (rows, n), (rows, 1), (rows, 1), (n, 1), (n, 1), (n, 1))[i])
 
     def get_sparsity_out(self, i):
-        return ca.Sparsity.dense(self.n, 1)
+        return ca.Sparsity.dense(self.n if i == 0 else 1, 1)
 
     def eval(self, arg):
         H, g, A, lba, uba, lbx, ubx = (np.array(a, dtype=float) for a in arg[:7])
@@ -131,15 +137,14 @@ class _DaqpNode(ca.Callback):
             H, f, A_hard, lo, up, levels = lexls.split(H, g, A, lower, upper, self.break_points)
             x0 = np.array(arg[7], dtype=float).ravel()
             x, certified = lexls.from_feasible(H, f, A_hard, lo, up, levels, x0)
-            return [x if certified else x0]
+            return [x, 0.0] if certified else [x0, 1.0]
         x, flag, *_ = solve_daqp(H, g, A, lower, upper, self.primal_tol, self.break_points, self.rho)
         if flag not in self.success:
-            return [np.full(self.n, np.nan)]
+            return [np.full(self.n, np.nan), np.nan]
         if self.exact:      # the levels solved exactly over the rows DAQP's answer holds, when certified
             x_exact, certified = lexls.polish(H, g, A, lower, upper, self.break_points, x)
-            if certified:
-                return [x_exact]
-        return [x]
+            return [x_exact, 0.0] if certified else [x, 1.0]
+        return [x, 0.5 * x @ H @ x + g @ x]
 
 
 DAQP_SUCCESS = (1, 2)

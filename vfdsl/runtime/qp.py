@@ -122,6 +122,8 @@ class StepStatus(enum.IntFlag):
     LEAST_VIOLATION = 1  # phase 1 gave no feasible point: x solves the least-violation problem
     BOUNDS_CLIPPED = 2   # lbx > ubx somewhere (q outside its joint limits): bounds were clipped
     FALLBACK = 4         # the least-violation QP failed numerically: x is the zero motion clipped to B
+    UNCERTIFIED = 8      # no certificate that x is the levels' optimum (lexls): phase 1's is DAQP's hierarchical
+                         # answer, to its tolerance; a least-violation tick's is (A)'s x_A, without the levels
 
 
 def build_step_function(qp_data: ca.Function, prefix: str, *,
@@ -163,19 +165,19 @@ def build_step_function(qp_data: ca.Function, prefix: str, *,
     args = prepared[6:]     # the solve's H, g and rows (daqp_rows)
     plans: dict[str, SolvePlan] = {}
     sizes = [qp_data.size1_out(7 + 2 * j) for j in range(levels - last_level_is_cost)] if levels > 1 else []
-    x1 = _solve_levels(args, recover, f"{scope}phase1", n=n, m=m, sizes=sizes, feas_tol=feas_tol, native=native,
-                       plans=plans)
+    x1, uncertified = _solve_levels(args, recover, f"{scope}phase1", n=n, m=m, sizes=sizes, feas_tol=feas_tol,
+                                    native=native, plans=plans)
 
     if m == 0:
-        picked = ca.vertcat(x1, int(StepStatus.OPTIMAL))
+        picked = ca.vertcat(x1, int(StepStatus.UNCERTIFIED) * uncertified)
     else:
         accept_tol = feas_tol * (LEVEL_ACCEPTANCE if levels > 1 else 1)
         ok1 = _straight_line(f"{prefix}_accept", lambda x, A, *box: [_acceptable(x, A @ x, *box, accept_tol)],
                              [x1, A, lba, uba, lo, hi], expand)
         solve_from = daqp_solver(n, m, feas_tol * 1e-3, f"{scope}phase2b", native, plans, sizes, start=True)
-        switch = _phase2_switch([A, lba, uba, lo, hi, x1, *args], _incidence(m, row_groups),
+        switch = _phase2_switch([A, lba, uba, lo, hi, x1, uncertified, *args], _incidence(m, row_groups),
                                 feas_tol, penalty, tie_break, solve_from, accept_tol, native, plans, scope)
-        picked = switch(ca.logic_and(ok1, recover == 0), A, lba, uba, lo, hi, x1, *args)
+        picked = switch(ca.logic_and(ok1, recover == 0), A, lba, uba, lo, hi, x1, uncertified, *args)
     x, status, violation = _straight_line(f"{prefix}_finish", lambda *v: _finish(*v, m, feas_tol),
                                           [picked, A, lba, uba, lo, hi, clipped], expand)
     return PlannedFunction(ca.Function(prefix, [*inputs, recover], [x, status, violation],
@@ -212,18 +214,19 @@ def build_procedure_step(cases: Sequence[tuple[ca.Function, Sequence[int], bool]
 
 
 def _solve_levels(args: list[ca.MX], recover: ca.MX, name: str, *, n: int, m: int, sizes: Sequence[int],
-                  feas_tol: float, native: bool, plans: dict[str, SolvePlan]) -> ca.MX:
-    """x of the levels over the hard rows: with priority levels (``sizes``: each level's row count), DAQP's
-    hierarchical solve, exact where certified, retried with each of LEVEL_ATTEMPTS where the one before fails; else
-    one QP warm-started from the previous call's working set. ``args``: [H, g, a, lower, upper] (daqp_rows)."""
+                  feas_tol: float, native: bool, plans: dict[str, SolvePlan]) -> tuple[ca.MX, ca.MX]:
+    """(x, uncertified) of the levels over the hard rows: with priority levels (``sizes``: each level's row count),
+    DAQP's hierarchical solve, exact where certified (uncertified 0, else 1), retried with each of LEVEL_ATTEMPTS
+    where the one before fails; else one QP warm-started from the previous call's working set (uncertified 0: no
+    levels). ``args``: [H, g, a, lower, upper] (daqp_rows)."""
     if not sizes:
-        return daqp_solver(n, m, feas_tol * 1e-3, f"{name}_warm", native, plans, warm_start=True)(*args)
-    x = None
+        return daqp_solver(n, m, feas_tol * 1e-3, f"{name}_warm", native, plans, warm_start=True)(*args), ca.MX(0)
+    answer = None
     for k, (tol, rho) in enumerate(LEVEL_ATTEMPTS):
         solve = daqp_solver(n, m, tol, f"{name}_try{k}", native, plans, sizes, rho,
                             partial=k == len(LEVEL_ATTEMPTS) - 1, exact=True)
-        x = solve(*args) if x is None else _retried(x, recover, solve, args)
-    return x
+        answer = solve(*args) if answer is None else _retried(answer, recover, solve, args)
+    return answer[:n], answer[n]
 
 
 def _straight_line(name: str, build: Callable[..., list[ca.MX]], values: Sequence[ca.MX], expand: bool):
@@ -320,7 +323,8 @@ def _unit_diagonal(H: ca.MX) -> ca.MX:
 
 
 def _retried(x: ca.MX, recover: ca.MX, again: Callable[..., ca.MX], args: list) -> ca.MX:
-    """x, or ``again(*args)`` when x is not finite (a failed solve) or ``recover`` is nonzero (the priming tick,
+    """x (a solve's answer: [x; uncertified]), or ``again(*args)`` when x is not finite (a failed solve) or
+    ``recover`` is nonzero (the priming tick,
     which so sets up the retry's solver too): a switch between Functions, so the second solve runs only on the
     ticks that need it."""
     symbols = [ca.MX.sym(f"a{k}", v.sparsity()) for k, v in enumerate([x, *args])]
@@ -399,17 +403,18 @@ def _incidence(m: int, row_groups: Sequence[Hashable] | None) -> ca.DM:
 
 def _phase2_switch(values: list[ca.MX], E: ca.DM, tol, rho, mu, solve_from, accept_tol, native, plans,
                    scope: str) -> ca.Function:
-    """switch(ok, A, lba, uba, lo, hi, x1, *args) -> [x1; 0] when ok (phase 1's answer), else phase 2's
-    [x; status] (args: phase 1's solve, [H, g, a, lower, upper]; ``solve_from``: (B)'s solve, from a point).
+    """switch(ok, A, lba, uba, lo, hi, x1, uncertified, *args) -> [x1; status] when ok (phase 1's answer: OPTIMAL,
+    or UNCERTIFIED where phase 1's ``uncertified`` is 1), else phase 2's [x; status] (args: phase 1's solve, [H, g, a,
+    lower, upper]; ``solve_from``: (B)'s solve, from a point).
 
     The branches are Functions of values already computed: a short-circuit ``if_else`` on
     expressions would make each branch recompute them (QP data and phase 1) from the inputs.
     """
-    names = ("A", "lba", "uba", "lo", "hi", "x1", "H_s", "g_s", "a_s", "lower_s", "upper_s")
+    names = ("A", "lba", "uba", "lo", "hi", "x1", "uncertified", "H_s", "g_s", "a_s", "lower_s", "upper_s")
     args = [ca.MX.sym(name, v.sparsity()) for name, v in zip(names, values)]
-    x1 = args[5]
-    keep = ca.Function("keep", args, [ca.vertcat(x1, int(StepStatus.OPTIMAL))])
-    recover = ca.Function("recover", args, [_least_violation(*args[:5], args[6:], E, tol, rho, mu, solve_from,
+    x1, uncertified = args[5], args[6]
+    keep = ca.Function("keep", args, [ca.vertcat(x1, int(StepStatus.UNCERTIFIED) * uncertified)])
+    recover = ca.Function("recover", args, [_least_violation(*args[:5], args[7:], E, tol, rho, mu, solve_from,
                                                              accept_tol, native, plans, scope)])
     return ca.Function.if_else("phase2_if_needed", keep, recover)
 
@@ -440,10 +445,13 @@ def _least_violation(A, lba, uba, lo, hi, solve_args, E: ca.DM, tol, rho, mu, so
     x_a = _clip(z[:n], lo, hi)      # used only when (A) is acceptable, i.e. z is finite
     lower, upper = _least_violation_set(lba, uba, at_rest, E @ ca.if_else(ok_a, ca.fmax(z[n:], 0), 0), tol)
     H_s, g_s, a_s, lower_s, upper_s = solve_args
-    x_b = solve_from(H_s, g_s, a_s, ca.vertcat(lower, lower_s[m:]), ca.vertcat(upper, upper_s[m:]), x_a)
+    answer = solve_from(H_s, g_s, a_s, ca.vertcat(lower, lower_s[m:]), ca.vertcat(upper, upper_s[m:]), x_a)
+    x_b = answer[:n]
     ok_b = _acceptable(x_b, A @ x_b, lower, upper, lo, hi, accept_tol)
     x = ca.if_else(ok_a, ca.if_else(ok_b, _clip(x_b, lo, hi), x_a), _rest(lo, hi))
-    status = int(StepStatus.LEAST_VIOLATION) + int(StepStatus.FALLBACK) * (1 - ok_a)
+    uncertified = ca.if_else(ok_a, ca.if_else(ok_b, answer[n], 1), 0)     # (A) failed: FALLBACK says it
+    status = (int(StepStatus.LEAST_VIOLATION) + int(StepStatus.FALLBACK) * (1 - ok_a)
+              + int(StepStatus.UNCERTIFIED) * uncertified)
     return ca.vertcat(x, status)
 
 

@@ -166,7 +166,7 @@ def simulate_with(job: Job, task: ir.Task, ctrl: vfdsl.Controller, robot: Robot,
     us = np.zeros((ticks, sum(i.size for i in task.inputs)))
     record = _Recorder(task, robot, ctrl, ticks) if job.keep_trace else None
     fallback = 0
-    optimal = StepStatus.OPTIMAL
+    solved = ~StepStatus.UNCERTIFIED     # an uncertified answer is still phase 1's (or the same least violation)
     for k in range(ticks):
         t = k * dt
         if events and events[0].at <= t + 1e-12:
@@ -195,7 +195,7 @@ def simulate_with(job: Job, task: ir.Task, ctrl: vfdsl.Controller, robot: Robot,
             dq = ctrl.step(q, inputs, params or None, dt)
         except VfError as err:
             raise moving.explain(err, t) from None
-        if ctrl.status != optimal:
+        if ctrl.status & solved:
             fallback += 1
         if record is not None:
             record.tick(k, inputs, dq, params, scene, ctrl)

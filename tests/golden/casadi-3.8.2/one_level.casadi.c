@@ -928,14 +928,14 @@ void casadi_f7_decref(void) {
   }
 }
 
-/* recover:(i0[1x2],i1,i2,i3[2],i4[2],i5[2],i6[2x2],i7[2],i8[3x2],i9[3],i10[3])->(o0[3]) */
+/* recover:(i0[1x2],i1,i2,i3[2],i4[2],i5[2],i6,i7[2x2],i8[2],i9[3x2],i10[3],i11[3])->(o0[3]) */
 static int casadi_f5(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_int i, j;
   casadi_real **res1=res+1, *rr, *w00=w+54, *w01=w+57, *w02=w+66, w03, *w04=w+68, *w05=w+71, *w06=w+74, *w07=w+77, *w08=w+80, *w09=w+92;
   casadi_real *w10=w+104, w11, w12, *w13=w+122, *w14=w+124, *w15=w+126, w16, w17, *w18=w+128, w19, w20, w21;
   casadi_real w22, *w23=w+134, *w24=w+140, *w25=w+143, *w26=w+146, *w27=w+149, *w29=w+155, w30, w31, *w32=w+158, *w33=w+167, *w34=w+171;
   casadi_real *w35=w+173, *w36=w+175, *w37=w+177, *w38=w+179;
-  const casadi_real **arg1=arg+11, *cr, *cs;
+  const casadi_real **arg1=arg+12, *cr, *cs;
   int flag, mid;
   /* #0: @0 = 
   [[0.001, 00, 00], 
@@ -1131,12 +1131,12 @@ static int casadi_f5(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   w31  = (w31<=w19);
   /* #70: @30 = (@30&&@31) */
   w30  = (w30&&w31);
-  /* #71: @33 = input[6][0] */
-  casadi_copy(arg[6], 4, w33);
-  /* #72: @13 = input[7][0] */
-  casadi_copy(arg[7], 2, w13);
-  /* #73: @18 = input[8][0] */
-  casadi_copy(arg[8], 6, w18);
+  /* #71: @33 = input[7][0] */
+  casadi_copy(arg[7], 4, w33);
+  /* #72: @13 = input[8][0] */
+  casadi_copy(arg[8], 2, w13);
+  /* #73: @18 = input[9][0] */
+  casadi_copy(arg[9], 6, w18);
   /* #74: @31 = 1e-09 */
   w31 = 1.0000000000000001e-09;
   /* #75: @19 = 0 */
@@ -1161,8 +1161,8 @@ static int casadi_f5(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   w03  = casadi_fmin(w03,w12);
   /* #85: @21 = fmax(@21,@3) */
   w21  = casadi_fmax(w21,w03);
-  /* #86: @0 = input[9][0] */
-  casadi_copy(arg[9], 3, w00);
+  /* #86: @0 = input[10][0] */
+  casadi_copy(arg[10], 3, w00);
   /* #87: @34 = @0[1:3] */
   for (rr=w34, cs=w00+1; cs!=w00+3; cs+=1) *rr++ = *cs;
   /* #88: @0 = vertcat(@21, @34) */
@@ -1175,8 +1175,8 @@ static int casadi_f5(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   w20  = casadi_fmax(w20,w12);
   /* #91: @31 = fmin(@31,@20) */
   w31  = casadi_fmin(w31,w20);
-  /* #92: @7 = input[10][0] */
-  casadi_copy(arg[10], 3, w07);
+  /* #92: @7 = input[11][0] */
+  casadi_copy(arg[11], 3, w07);
   /* #93: @34 = @7[1:3] */
   for (rr=w34, cs=w07+1; cs!=w07+3; cs+=1) *rr++ = *cs;
   /* #94: @7 = vertcat(@31, @34) */
@@ -1197,7 +1197,7 @@ static int casadi_f5(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   casadi_clear(w37, 2);
   /* #101: @29 = zeros(3x1) */
   casadi_clear(w29, 3);
-  /* #102: {@38, NULL, NULL, NULL} = phase2b(@33, @13, @18, @0, @7, @34, @35, @36, @37, @29, @28, @28) */
+  /* #102: {@38, @20, NULL, NULL} = phase2b(@33, @13, @18, @0, @7, @34, @35, @36, @37, @29, @28, @28) */
   arg1[0]=w33;
   arg1[1]=w13;
   arg1[2]=w18;
@@ -1211,7 +1211,7 @@ static int casadi_f5(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   arg1[10]=0;
   arg1[11]=0;
   res1[0]=w38;
-  res1[1]=0;
+  res1[1]=(&w20);
   res1[2]=0;
   res1[3]=0;
   mid = casadi_f7_checkout();
@@ -1221,94 +1221,112 @@ static int casadi_f5(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   if (flag) return 1;
   /* #103: @13 = fabs(@38) */
   for (i=0, rr=w13, cs=w38; i<2; ++i) *rr++ = casadi_fabs( *cs++ );
-  /* #104: @20 = inf */
-  w20 = casadi_inf;
-  /* #105: @13 = (@13<@20) */
-  for (i=0, rr=w13, cr=w13; i<2; ++i) (*rr++)  = ((*cr++)<w20);
-  /* #106: @20 = min(@13) */
-  w20 = casadi_mmin(w13, 2, 1);
-  /* #107: @12 = 0 */
-  w12 = 0.;
+  /* #104: @12 = inf */
+  w12 = casadi_inf;
+  /* #105: @13 = (@13<@12) */
+  for (i=0, rr=w13, cr=w13; i<2; ++i) (*rr++)  = ((*cr++)<w12);
+  /* #106: @12 = min(@13) */
+  w12 = casadi_mmin(w13, 2, 1);
+  /* #107: @3 = 0 */
+  w03 = 0.;
   /* #108: @13 = (@14-@38) */
   for (i=0, rr=w13, cr=w14, cs=w38; i<2; ++i) (*rr++)  = ((*cr++)-(*cs++));
   /* #109: @34 = (@38-@15) */
   for (i=0, rr=w34, cr=w38, cs=w15; i<2; ++i) (*rr++)  = ((*cr++)-(*cs++));
   /* #110: @13 = fmax(@13,@34) */
   for (i=0, rr=w13, cr=w13, cs=w34; i<2; ++i) (*rr++)  = casadi_fmax((*cr++),(*cs++));
-  /* #111: @13 = fmax(@12,@13) */
-  for (i=0, rr=w13, cs=w13; i<2; ++i) (*rr++)  = casadi_fmax(w12,(*cs++));
-  /* #112: @12 = max(@13) */
-  w12 = casadi_mmax(w13, 2, 1);
-  /* #113: @3 = 1e-06 */
-  w03 = 9.9999999999999995e-07;
-  /* #114: @12 = (@12<=@3) */
-  w12  = (w12<=w03);
-  /* #115: @20 = (@20&&@12) */
-  w20  = (w20&&w12);
-  /* #116: @12 = 0 */
-  w12 = 0.;
-  /* #117: @3 = 0 */
+  /* #111: @13 = fmax(@3,@13) */
+  for (i=0, rr=w13, cs=w13; i<2; ++i) (*rr++)  = casadi_fmax(w03,(*cs++));
+  /* #112: @3 = max(@13) */
+  w03 = casadi_mmax(w13, 2, 1);
+  /* #113: @19 = 1e-06 */
+  w19 = 9.9999999999999995e-07;
+  /* #114: @3 = (@3<=@19) */
+  w03  = (w03<=w19);
+  /* #115: @12 = (@12&&@3) */
+  w12  = (w12&&w03);
+  /* #116: @3 = 0 */
   w03 = 0.;
-  /* #118: @3 = mac(@2,@38,@3) */
-  casadi_mtimes_dense(w02, 1, 2, w38, 1, (&w03), 0);
-  /* #119: @21 = (@21-@3) */
-  w21 -= w03;
-  /* #120: @3 = (@3-@31) */
-  w03 -= w31;
-  /* #121: @21 = fmax(@21,@3) */
-  w21  = casadi_fmax(w21,w03);
-  /* #122: @12 = fmax(@12,@21) */
-  w12  = casadi_fmax(w12,w21);
-  /* #123: @21 = max(@12) */
-  w21 = casadi_mmax((&w12), 1, 1);
-  /* #124: @12 = 1e-06 */
-  w12 = 9.9999999999999995e-07;
-  /* #125: @21 = (@21<=@12) */
-  w21  = (w21<=w12);
-  /* #126: @20 = (@20&&@21) */
-  w20  = (w20&&w21);
+  /* #117: @19 = 0 */
+  w19 = 0.;
+  /* #118: @19 = mac(@2,@38,@19) */
+  casadi_mtimes_dense(w02, 1, 2, w38, 1, (&w19), 0);
+  /* #119: @21 = (@21-@19) */
+  w21 -= w19;
+  /* #120: @19 = (@19-@31) */
+  w19 -= w31;
+  /* #121: @21 = fmax(@21,@19) */
+  w21  = casadi_fmax(w21,w19);
+  /* #122: @3 = fmax(@3,@21) */
+  w03  = casadi_fmax(w03,w21);
+  /* #123: @21 = max(@3) */
+  w21 = casadi_mmax((&w03), 1, 1);
+  /* #124: @3 = 1e-06 */
+  w03 = 9.9999999999999995e-07;
+  /* #125: @21 = (@21<=@3) */
+  w21  = (w21<=w03);
+  /* #126: @12 = (@12&&@21) */
+  w12  = (w12&&w21);
   /* #127: @38 = fmax(@38,@14) */
   for (i=0, rr=w38, cr=w38, cs=w14; i<2; ++i) (*rr++)  = casadi_fmax((*cr++),(*cs++));
   /* #128: @38 = fmin(@38,@15) */
   for (i=0, rr=w38, cr=w38, cs=w15; i<2; ++i) (*rr++)  = casadi_fmin((*cr++),(*cs++));
-  /* #129: @38 = (@20?@38:0) */
-  for (i=0, rr=w38, cs=w38; i<2; ++i) (*rr++)  = (w20?cs[i]:0);
-  /* #130: @20 = (!@20) */
-  w20 = (! w20 );
-  /* #131: @36 = (@20?@36:0) */
-  for (i=0, rr=w36, cs=w36; i<2; ++i) (*rr++)  = (w20?cs[i]:0);
+  /* #129: @38 = (@12?@38:0) */
+  for (i=0, rr=w38, cs=w38; i<2; ++i) (*rr++)  = (w12?cs[i]:0);
+  /* #130: @21 = (!@12) */
+  w21 = (! w12 );
+  /* #131: @36 = (@21?@36:0) */
+  for (i=0, rr=w36, cs=w36; i<2; ++i) (*rr++)  = (w21?cs[i]:0);
   /* #132: @38 = (@38+@36) */
   for (i=0, rr=w38, cs=w36; i<2; ++i) (*rr++) += (*cs++);
   /* #133: @38 = (@30?@38:0) */
   for (i=0, rr=w38, cs=w38; i<2; ++i) (*rr++)  = (w30?cs[i]:0);
-  /* #134: @20 = (!@30) */
-  w20 = (! w30 );
+  /* #134: @21 = (!@30) */
+  w21 = (! w30 );
   /* #135: @36 = zeros(2x1) */
   casadi_clear(w36, 2);
   /* #136: @36 = fmax(@36,@14) */
   for (i=0, rr=w36, cr=w36, cs=w14; i<2; ++i) (*rr++)  = casadi_fmax((*cr++),(*cs++));
   /* #137: @36 = fmin(@36,@15) */
   for (i=0, rr=w36, cr=w36, cs=w15; i<2; ++i) (*rr++)  = casadi_fmin((*cr++),(*cs++));
-  /* #138: @36 = (@20?@36:0) */
-  for (i=0, rr=w36, cs=w36; i<2; ++i) (*rr++)  = (w20?cs[i]:0);
+  /* #138: @36 = (@21?@36:0) */
+  for (i=0, rr=w36, cs=w36; i<2; ++i) (*rr++)  = (w21?cs[i]:0);
   /* #139: @38 = (@38+@36) */
   for (i=0, rr=w38, cs=w36; i<2; ++i) (*rr++) += (*cs++);
   /* #140: output[0][0] = @38 */
   casadi_copy(w38, 2, res[0]);
-  /* #141: @20 = 1 */
-  w20 = 1.;
-  /* #142: @21 = 4 */
-  w21 = 4.;
-  /* #143: @12 = 1 */
-  w12 = 1.;
-  /* #144: @12 = (@12-@30) */
-  w12 -= w30;
-  /* #145: @21 = (@21*@12) */
-  w21 *= w12;
-  /* #146: @20 = (@20+@21) */
-  w20 += w21;
-  /* #147: output[0][1] = @20 */
-  if (res[0]) res[0][2] = w20;
+  /* #141: @21 = 1 */
+  w21 = 1.;
+  /* #142: @3 = 4 */
+  w03 = 4.;
+  /* #143: @19 = 1 */
+  w19 = 1.;
+  /* #144: @19 = (@19-@30) */
+  w19 -= w30;
+  /* #145: @3 = (@3*@19) */
+  w03 *= w19;
+  /* #146: @21 = (@21+@3) */
+  w21 += w03;
+  /* #147: @3 = 8 */
+  w03 = 8.;
+  /* #148: @20 = (@12?@20:0) */
+  w20  = (w12?w20:0);
+  /* #149: @12 = (!@12) */
+  w12 = (! w12 );
+  /* #150: @19 = 1 */
+  w19 = 1.;
+  /* #151: @12 = (@12?@19:0) */
+  w12  = (w12?w19:0);
+  /* #152: @20 = (@20+@12) */
+  w20 += w12;
+  /* #153: @3 = (@3*@20) */
+  w03 *= w20;
+  /* #154: @30 = (@30?@3:0) */
+  w30  = (w30?w03:0);
+  /* #155: @21 = (@21+@30) */
+  w21 += w30;
+  /* #156: output[0][1] = @21 */
+  if (res[0]) res[0][2] = w21;
   return 0;
 }
 
@@ -1322,21 +1340,25 @@ void casadi_f5_decref(void) {
   casadi_f7_decref();
 }
 
-/* keep:(i0[1x2],i1,i2,i3[2],i4[2],i5[2],i6[2x2],i7[2],i8[3x2],i9[3],i10[3])->(o0[3]) */
+/* keep:(i0[1x2],i1,i2,i3[2],i4[2],i5[2],i6,i7[2x2],i8[2],i9[3x2],i10[3],i11[3])->(o0[3]) */
 static int casadi_f8(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
-  casadi_real *w0=w+0, w1;
+  casadi_real *w0=w+0, w1, w2;
   /* #0: @0 = input[5][0] */
   casadi_copy(arg[5], 2, w0);
   /* #1: output[0][0] = @0 */
   casadi_copy(w0, 2, res[0]);
-  /* #2: @1 = 0 */
-  w1 = 0.;
-  /* #3: output[0][1] = @1 */
+  /* #2: @1 = 8 */
+  w1 = 8.;
+  /* #3: @2 = input[6][0] */
+  w2 = arg[6] ? arg[6][0] : 0;
+  /* #4: @1 = (@1*@2) */
+  w1 *= w2;
+  /* #5: output[0][1] = @1 */
   if (res[0]) res[0][2] = w1;
   return 0;
 }
 
-/* phase2_if_needed:(i0,i1[1x2],i2,i3,i4[2],i5[2],i6[2],i7[2x2],i8[2],i9[3x2],i10[3],i11[3])->(o0[3]) */
+/* phase2_if_needed:(i0,i1[1x2],i2,i3,i4[2],i5[2],i6[2],i7,i8[2x2],i9[2],i10[3x2],i11[3],i12[3])->(o0[3]) */
 static int casadi_f4(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   if (arg[0] ? casadi_to_int(*arg[0]) : 0) {
     if (casadi_f8(arg+1, res, iw, w, 0)) return 1;
@@ -1507,7 +1529,9 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   w03  = (w03==w20);
   /* #16: @2 = (@2&&@3) */
   w02  = (w02&&w03);
-  /* #17: @17 = phase2_if_needed(@2, @4, @5, @6, @7, @8, @19, @10, @11, @12, @13, @14) */
+  /* #17: @3 = 0 */
+  w03 = 0.;
+  /* #18: @17 = phase2_if_needed(@2, @4, @5, @6, @7, @8, @19, @3, @10, @11, @12, @13, @14) */
   arg1[0]=(&w02);
   arg1[1]=w04;
   arg1[2]=(&w05);
@@ -1515,14 +1539,15 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   arg1[4]=w07;
   arg1[5]=w08;
   arg1[6]=w19;
-  arg1[7]=w10;
-  arg1[8]=w11;
-  arg1[9]=w12;
-  arg1[10]=w13;
-  arg1[11]=w14;
+  arg1[7]=(&w03);
+  arg1[8]=w10;
+  arg1[9]=w11;
+  arg1[10]=w12;
+  arg1[11]=w13;
+  arg1[12]=w14;
   res1[0]=w17;
   if (casadi_f4(arg1, res1, iw, w, 0)) return 1;
-  /* #18: {@19, @2, @3} = vf_golden_finish(@17, @4, @5, @6, @7, @8, @9) */
+  /* #19: {@19, @2, @3} = vf_golden_finish(@17, @4, @5, @6, @7, @8, @9) */
   arg1[0]=w17;
   arg1[1]=w04;
   arg1[2]=(&w05);
@@ -1534,11 +1559,11 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   res1[1]=(&w02);
   res1[2]=(&w03);
   if (casadi_f9(arg1, res1, iw, w, 0)) return 1;
-  /* #19: output[0][0] = @19 */
+  /* #20: output[0][0] = @19 */
   casadi_copy(w19, 2, res[0]);
-  /* #20: output[1][0] = @2 */
+  /* #21: output[1][0] = @2 */
   if (res[1]) res[1][0] = w02;
-  /* #21: output[2][0] = @3 */
+  /* #22: output[2][0] = @3 */
   if (res[2]) res[2][0] = w03;
   return 0;
 }
@@ -1623,7 +1648,7 @@ CASADI_SYMBOL_EXPORT const casadi_int* vf_golden_sparsity_out(casadi_int i) {
 }
 
 CASADI_SYMBOL_EXPORT int vf_golden_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
-  if (sz_arg) *sz_arg = 40;
+  if (sz_arg) *sz_arg = 42;
   if (sz_res) *sz_res = 14;
   if (sz_iw) *sz_iw = 9;
   if (sz_w) *sz_w = 229;
@@ -1631,7 +1656,7 @@ CASADI_SYMBOL_EXPORT int vf_golden_work(casadi_int *sz_arg, casadi_int* sz_res, 
 }
 
 CASADI_SYMBOL_EXPORT int vf_golden_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
-  if (sz_arg) *sz_arg = 40*sizeof(const casadi_real*);
+  if (sz_arg) *sz_arg = 42*sizeof(const casadi_real*);
   if (sz_res) *sz_res = 14*sizeof(casadi_real*);
   if (sz_iw) *sz_iw = 9*sizeof(casadi_int);
   if (sz_w) *sz_w = 229*sizeof(casadi_real);

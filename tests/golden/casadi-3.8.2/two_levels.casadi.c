@@ -841,9 +841,9 @@ void casadi_f5_decref(void) {
   }
 }
 
-/* solve_again:(i0[2],i1[2x2,2nz],i2[2],i3[6x2],i4[6],i5[6])->(o0[2]) */
+/* solve_again:(i0[3],i1[2x2,2nz],i2[2],i3[6x2],i4[6],i5[6])->(o0[3]) */
 static int casadi_f4(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
-  casadi_real **res1=res+1, *w00=w+40, *w01=w+42, *w03=w+46, *w04=w+52, *w05=w+58, *w06=w+60, *w07=w+62, *w08=w+64, *w09=w+66, *w11=w+72;
+  casadi_real **res1=res+1, *w00=w+40, *w01=w+42, *w03=w+46, *w04=w+52, *w05=w+58, *w06=w+60, *w07=w+62, *w08=w+64, *w09=w+66, *w11=w+72, w12;
   const casadi_real **arg1=arg+6, *wr02;
   int flag, mid;
   /* #0: @0 = input[1][0] */
@@ -869,7 +869,7 @@ static int casadi_f4(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   /* #10: @9 = zeros(6x1) */
   casadi_clear(w09, 6);
   /* #11: @10 = 0x0 */
-  /* #12: {@11, NULL, NULL, NULL} = phase1_try1(@1, @0, @2, @3, @4, @5, @6, @7, @8, @9, @10, @10) */
+  /* #12: {@11, @12, NULL, NULL} = phase1_try1(@1, @0, @2, @3, @4, @5, @6, @7, @8, @9, @10, @10) */
   arg1[0]=w01;
   arg1[1]=w00;
   arg1[2]=wr02;
@@ -883,7 +883,7 @@ static int casadi_f4(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   arg1[10]=0;
   arg1[11]=0;
   res1[0]=w11;
-  res1[1]=0;
+  res1[1]=(&w12);
   res1[2]=0;
   res1[3]=0;
   mid = casadi_f5_checkout();
@@ -893,6 +893,8 @@ static int casadi_f4(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   if (flag) return 1;
   /* #13: output[0][0] = @11 */
   casadi_copy(w11, 2, res[0]);
+  /* #14: output[0][1] = @12 */
+  if (res[0]) res[0][2] = w12;
   return 0;
 }
 
@@ -904,17 +906,17 @@ void casadi_f4_decref(void) {
   casadi_f5_decref();
 }
 
-/* keep_first:(i0[2],i1[2x2,2nz],i2[2],i3[6x2],i4[6],i5[6])->(o0[2]) */
+/* keep_first:(i0[3],i1[2x2,2nz],i2[2],i3[6x2],i4[6],i5[6])->(o0[3]) */
 static int casadi_f6(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real *w0=w+0;
   /* #0: @0 = input[0][0] */
-  casadi_copy(arg[0], 2, w0);
+  casadi_copy(arg[0], 3, w0);
   /* #1: output[0][0] = @0 */
-  casadi_copy(w0, 2, res[0]);
+  casadi_copy(w0, 3, res[0]);
   return 0;
 }
 
-/* retry_if_failed:(i0,i1[2],i2[2x2,2nz],i3[2],i4[6x2],i5[6],i6[6])->(o0[2]) */
+/* retry_if_failed:(i0,i1[3],i2[2x2,2nz],i3[2],i4[6x2],i5[6],i6[6])->(o0[3]) */
 static int casadi_f3(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   if (arg[0] ? casadi_to_int(*arg[0]) : 0) {
     if (casadi_f6(arg+1, res, iw, w, 0)) return 1;
@@ -1023,9 +1025,9 @@ void casadi_f9_decref(void) {
   }
 }
 
-/* solve_again:(i0[2],i1[2x2,2nz],i2[2],i3[6x2],i4[6],i5[6])->(o0[2]) */
+/* solve_again:(i0[3],i1[2x2,2nz],i2[2],i3[6x2],i4[6],i5[6])->(o0[3]) */
 static int casadi_f8(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
-  casadi_real **res1=res+1, *w00=w+40, *w01=w+42, *w03=w+46, *w04=w+52, *w05=w+58, *w06=w+60, *w07=w+62, *w08=w+64, *w09=w+66, *w11=w+72;
+  casadi_real **res1=res+1, *w00=w+40, *w01=w+42, *w03=w+46, *w04=w+52, *w05=w+58, *w06=w+60, *w07=w+62, *w08=w+64, *w09=w+66, *w11=w+72, w12;
   const casadi_real **arg1=arg+6, *wr02;
   int flag, mid;
   /* #0: @0 = input[1][0] */
@@ -1051,7 +1053,7 @@ static int casadi_f8(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   /* #10: @9 = zeros(6x1) */
   casadi_clear(w09, 6);
   /* #11: @10 = 0x0 */
-  /* #12: {@11, NULL, NULL, NULL} = phase1_try2(@1, @0, @2, @3, @4, @5, @6, @7, @8, @9, @10, @10) */
+  /* #12: {@11, @12, NULL, NULL} = phase1_try2(@1, @0, @2, @3, @4, @5, @6, @7, @8, @9, @10, @10) */
   arg1[0]=w01;
   arg1[1]=w00;
   arg1[2]=wr02;
@@ -1065,7 +1067,7 @@ static int casadi_f8(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   arg1[10]=0;
   arg1[11]=0;
   res1[0]=w11;
-  res1[1]=0;
+  res1[1]=(&w12);
   res1[2]=0;
   res1[3]=0;
   mid = casadi_f9_checkout();
@@ -1075,6 +1077,8 @@ static int casadi_f8(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   if (flag) return 1;
   /* #13: output[0][0] = @11 */
   casadi_copy(w11, 2, res[0]);
+  /* #14: output[0][1] = @12 */
+  if (res[0]) res[0][2] = w12;
   return 0;
 }
 
@@ -1086,17 +1090,17 @@ void casadi_f8_decref(void) {
   casadi_f9_decref();
 }
 
-/* keep_first:(i0[2],i1[2x2,2nz],i2[2],i3[6x2],i4[6],i5[6])->(o0[2]) */
+/* keep_first:(i0[3],i1[2x2,2nz],i2[2],i3[6x2],i4[6],i5[6])->(o0[3]) */
 static int casadi_f10(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real *w0=w+0;
   /* #0: @0 = input[0][0] */
-  casadi_copy(arg[0], 2, w0);
+  casadi_copy(arg[0], 3, w0);
   /* #1: output[0][0] = @0 */
-  casadi_copy(w0, 2, res[0]);
+  casadi_copy(w0, 3, res[0]);
   return 0;
 }
 
-/* retry_if_failed:(i0,i1[2],i2[2x2,2nz],i3[2],i4[6x2],i5[6],i6[6])->(o0[2]) */
+/* retry_if_failed:(i0,i1[3],i2[2x2,2nz],i3[2],i4[6x2],i5[6],i6[6])->(o0[3]) */
 static int casadi_f7(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   if (arg[0] ? casadi_to_int(*arg[0]) : 0) {
     if (casadi_f10(arg+1, res, iw, w, 0)) return 1;
@@ -1341,14 +1345,14 @@ void casadi_f15_decref(void) {
   }
 }
 
-/* recover:(i0[1x2],i1,i2,i3[2],i4[2],i5[2],i6[2x2,2nz],i7[2],i8[6x2],i9[6],i10[6])->(o0[3]) */
+/* recover:(i0[1x2],i1,i2,i3[2],i4[2],i5[2],i6,i7[2x2,2nz],i8[2],i9[6x2],i10[6],i11[6])->(o0[3]) */
 static int casadi_f13(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_int i, j;
   casadi_real **res1=res+1, *rr, *w00=w+54, *w01=w+57, *w02=w+66, w03, *w04=w+68, *w05=w+71, *w06=w+74, *w07=w+77, *w08=w+80, *w09=w+92;
   casadi_real *w10=w+104, w11, w12, *w13=w+122, *w14=w+124, *w15=w+126, w16, w17, *w18=w+128, w19, w20, w21;
   casadi_real w22, *w23=w+134, *w24=w+140, *w25=w+143, *w26=w+146, *w27=w+149, *w29=w+155, w30, w31, *w32=w+158, *w33=w+167, *w34=w+171;
   casadi_real *w35=w+176, *w36=w+178, *w37=w+180, *w38=w+182, *w39=w+184;
-  const casadi_real **arg1=arg+11, *cr, *cs, *wr09;
+  const casadi_real **arg1=arg+12, *cr, *cs, *wr09;
   int flag, mid;
   /* #0: @0 = 
   [[0.001, 00, 00], 
@@ -1544,14 +1548,14 @@ static int casadi_f13(const casadi_real** arg, casadi_real** res, casadi_int* iw
   w31  = (w31<=w19);
   /* #70: @30 = (@30&&@31) */
   w30  = (w30&&w31);
-  /* #71: @13 = input[6][0] */
-  casadi_copy(arg[6], 2, w13);
+  /* #71: @13 = input[7][0] */
+  casadi_copy(arg[7], 2, w13);
   /* #72: @33 = dense(@13) */
   casadi_densify(w13, casadi_s2, w33, 0);
-  /* #73: @13 = input[7][0] */
-  casadi_copy(arg[7], 2, w13);
-  /* #74: @9 = input[8][0] */
-  wr09 = arg[8] ? arg[8] : casadi_zeros;
+  /* #73: @13 = input[8][0] */
+  casadi_copy(arg[8], 2, w13);
+  /* #74: @9 = input[9][0] */
+  wr09 = arg[9] ? arg[9] : casadi_zeros;
   /* #75: @31 = 1e-09 */
   w31 = 1.0000000000000001e-09;
   /* #76: @19 = 0 */
@@ -1576,8 +1580,8 @@ static int casadi_f13(const casadi_real** arg, casadi_real** res, casadi_int* iw
   w03  = casadi_fmin(w03,w12);
   /* #86: @21 = fmax(@21,@3) */
   w21  = casadi_fmax(w21,w03);
-  /* #87: @18 = input[9][0] */
-  casadi_copy(arg[9], 6, w18);
+  /* #87: @18 = input[10][0] */
+  casadi_copy(arg[10], 6, w18);
   /* #88: @34 = @18[1:6] */
   for (rr=w34, cs=w18+1; cs!=w18+6; cs+=1) *rr++ = *cs;
   /* #89: @18 = vertcat(@21, @34) */
@@ -1590,8 +1594,8 @@ static int casadi_f13(const casadi_real** arg, casadi_real** res, casadi_int* iw
   w20  = casadi_fmax(w20,w12);
   /* #92: @31 = fmin(@31,@20) */
   w31  = casadi_fmin(w31,w20);
-  /* #93: @23 = input[10][0] */
-  casadi_copy(arg[10], 6, w23);
+  /* #93: @23 = input[11][0] */
+  casadi_copy(arg[11], 6, w23);
   /* #94: @34 = @23[1:6] */
   for (rr=w34, cs=w23+1; cs!=w23+6; cs+=1) *rr++ = *cs;
   /* #95: @23 = vertcat(@31, @34) */
@@ -1612,7 +1616,7 @@ static int casadi_f13(const casadi_real** arg, casadi_real** res, casadi_int* iw
   casadi_clear(w38, 2);
   /* #102: @27 = zeros(6x1) */
   casadi_clear(w27, 6);
-  /* #103: {@39, NULL, NULL, NULL} = phase2b(@33, @13, @9, @18, @23, @35, @36, @37, @38, @27, @28, @28) */
+  /* #103: {@39, @20, NULL, NULL} = phase2b(@33, @13, @9, @18, @23, @35, @36, @37, @38, @27, @28, @28) */
   arg1[0]=w33;
   arg1[1]=w13;
   arg1[2]=wr09;
@@ -1626,7 +1630,7 @@ static int casadi_f13(const casadi_real** arg, casadi_real** res, casadi_int* iw
   arg1[10]=0;
   arg1[11]=0;
   res1[0]=w39;
-  res1[1]=0;
+  res1[1]=(&w20);
   res1[2]=0;
   res1[3]=0;
   mid = casadi_f15_checkout();
@@ -1636,94 +1640,112 @@ static int casadi_f13(const casadi_real** arg, casadi_real** res, casadi_int* iw
   if (flag) return 1;
   /* #104: @13 = fabs(@39) */
   for (i=0, rr=w13, cs=w39; i<2; ++i) *rr++ = casadi_fabs( *cs++ );
-  /* #105: @20 = inf */
-  w20 = casadi_inf;
-  /* #106: @13 = (@13<@20) */
-  for (i=0, rr=w13, cr=w13; i<2; ++i) (*rr++)  = ((*cr++)<w20);
-  /* #107: @20 = min(@13) */
-  w20 = casadi_mmin(w13, 2, 1);
-  /* #108: @12 = 0 */
-  w12 = 0.;
+  /* #105: @12 = inf */
+  w12 = casadi_inf;
+  /* #106: @13 = (@13<@12) */
+  for (i=0, rr=w13, cr=w13; i<2; ++i) (*rr++)  = ((*cr++)<w12);
+  /* #107: @12 = min(@13) */
+  w12 = casadi_mmin(w13, 2, 1);
+  /* #108: @3 = 0 */
+  w03 = 0.;
   /* #109: @13 = (@14-@39) */
   for (i=0, rr=w13, cr=w14, cs=w39; i<2; ++i) (*rr++)  = ((*cr++)-(*cs++));
   /* #110: @35 = (@39-@15) */
   for (i=0, rr=w35, cr=w39, cs=w15; i<2; ++i) (*rr++)  = ((*cr++)-(*cs++));
   /* #111: @13 = fmax(@13,@35) */
   for (i=0, rr=w13, cr=w13, cs=w35; i<2; ++i) (*rr++)  = casadi_fmax((*cr++),(*cs++));
-  /* #112: @13 = fmax(@12,@13) */
-  for (i=0, rr=w13, cs=w13; i<2; ++i) (*rr++)  = casadi_fmax(w12,(*cs++));
-  /* #113: @12 = max(@13) */
-  w12 = casadi_mmax(w13, 2, 1);
-  /* #114: @3 = 1e-05 */
-  w03 = 9.9999999999999991e-06;
-  /* #115: @12 = (@12<=@3) */
-  w12  = (w12<=w03);
-  /* #116: @20 = (@20&&@12) */
-  w20  = (w20&&w12);
-  /* #117: @12 = 0 */
-  w12 = 0.;
-  /* #118: @3 = 0 */
+  /* #112: @13 = fmax(@3,@13) */
+  for (i=0, rr=w13, cs=w13; i<2; ++i) (*rr++)  = casadi_fmax(w03,(*cs++));
+  /* #113: @3 = max(@13) */
+  w03 = casadi_mmax(w13, 2, 1);
+  /* #114: @19 = 1e-05 */
+  w19 = 9.9999999999999991e-06;
+  /* #115: @3 = (@3<=@19) */
+  w03  = (w03<=w19);
+  /* #116: @12 = (@12&&@3) */
+  w12  = (w12&&w03);
+  /* #117: @3 = 0 */
   w03 = 0.;
-  /* #119: @3 = mac(@2,@39,@3) */
-  casadi_mtimes_dense(w02, 1, 2, w39, 1, (&w03), 0);
-  /* #120: @21 = (@21-@3) */
-  w21 -= w03;
-  /* #121: @3 = (@3-@31) */
-  w03 -= w31;
-  /* #122: @21 = fmax(@21,@3) */
-  w21  = casadi_fmax(w21,w03);
-  /* #123: @12 = fmax(@12,@21) */
-  w12  = casadi_fmax(w12,w21);
-  /* #124: @21 = max(@12) */
-  w21 = casadi_mmax((&w12), 1, 1);
-  /* #125: @12 = 1e-05 */
-  w12 = 9.9999999999999991e-06;
-  /* #126: @21 = (@21<=@12) */
-  w21  = (w21<=w12);
-  /* #127: @20 = (@20&&@21) */
-  w20  = (w20&&w21);
+  /* #118: @19 = 0 */
+  w19 = 0.;
+  /* #119: @19 = mac(@2,@39,@19) */
+  casadi_mtimes_dense(w02, 1, 2, w39, 1, (&w19), 0);
+  /* #120: @21 = (@21-@19) */
+  w21 -= w19;
+  /* #121: @19 = (@19-@31) */
+  w19 -= w31;
+  /* #122: @21 = fmax(@21,@19) */
+  w21  = casadi_fmax(w21,w19);
+  /* #123: @3 = fmax(@3,@21) */
+  w03  = casadi_fmax(w03,w21);
+  /* #124: @21 = max(@3) */
+  w21 = casadi_mmax((&w03), 1, 1);
+  /* #125: @3 = 1e-05 */
+  w03 = 9.9999999999999991e-06;
+  /* #126: @21 = (@21<=@3) */
+  w21  = (w21<=w03);
+  /* #127: @12 = (@12&&@21) */
+  w12  = (w12&&w21);
   /* #128: @39 = fmax(@39,@14) */
   for (i=0, rr=w39, cr=w39, cs=w14; i<2; ++i) (*rr++)  = casadi_fmax((*cr++),(*cs++));
   /* #129: @39 = fmin(@39,@15) */
   for (i=0, rr=w39, cr=w39, cs=w15; i<2; ++i) (*rr++)  = casadi_fmin((*cr++),(*cs++));
-  /* #130: @39 = (@20?@39:0) */
-  for (i=0, rr=w39, cs=w39; i<2; ++i) (*rr++)  = (w20?cs[i]:0);
-  /* #131: @20 = (!@20) */
-  w20 = (! w20 );
-  /* #132: @37 = (@20?@37:0) */
-  for (i=0, rr=w37, cs=w37; i<2; ++i) (*rr++)  = (w20?cs[i]:0);
+  /* #130: @39 = (@12?@39:0) */
+  for (i=0, rr=w39, cs=w39; i<2; ++i) (*rr++)  = (w12?cs[i]:0);
+  /* #131: @21 = (!@12) */
+  w21 = (! w12 );
+  /* #132: @37 = (@21?@37:0) */
+  for (i=0, rr=w37, cs=w37; i<2; ++i) (*rr++)  = (w21?cs[i]:0);
   /* #133: @39 = (@39+@37) */
   for (i=0, rr=w39, cs=w37; i<2; ++i) (*rr++) += (*cs++);
   /* #134: @39 = (@30?@39:0) */
   for (i=0, rr=w39, cs=w39; i<2; ++i) (*rr++)  = (w30?cs[i]:0);
-  /* #135: @20 = (!@30) */
-  w20 = (! w30 );
+  /* #135: @21 = (!@30) */
+  w21 = (! w30 );
   /* #136: @37 = zeros(2x1) */
   casadi_clear(w37, 2);
   /* #137: @37 = fmax(@37,@14) */
   for (i=0, rr=w37, cr=w37, cs=w14; i<2; ++i) (*rr++)  = casadi_fmax((*cr++),(*cs++));
   /* #138: @37 = fmin(@37,@15) */
   for (i=0, rr=w37, cr=w37, cs=w15; i<2; ++i) (*rr++)  = casadi_fmin((*cr++),(*cs++));
-  /* #139: @37 = (@20?@37:0) */
-  for (i=0, rr=w37, cs=w37; i<2; ++i) (*rr++)  = (w20?cs[i]:0);
+  /* #139: @37 = (@21?@37:0) */
+  for (i=0, rr=w37, cs=w37; i<2; ++i) (*rr++)  = (w21?cs[i]:0);
   /* #140: @39 = (@39+@37) */
   for (i=0, rr=w39, cs=w37; i<2; ++i) (*rr++) += (*cs++);
   /* #141: output[0][0] = @39 */
   casadi_copy(w39, 2, res[0]);
-  /* #142: @20 = 1 */
-  w20 = 1.;
-  /* #143: @21 = 4 */
-  w21 = 4.;
-  /* #144: @12 = 1 */
-  w12 = 1.;
-  /* #145: @12 = (@12-@30) */
-  w12 -= w30;
-  /* #146: @21 = (@21*@12) */
-  w21 *= w12;
-  /* #147: @20 = (@20+@21) */
-  w20 += w21;
-  /* #148: output[0][1] = @20 */
-  if (res[0]) res[0][2] = w20;
+  /* #142: @21 = 1 */
+  w21 = 1.;
+  /* #143: @3 = 4 */
+  w03 = 4.;
+  /* #144: @19 = 1 */
+  w19 = 1.;
+  /* #145: @19 = (@19-@30) */
+  w19 -= w30;
+  /* #146: @3 = (@3*@19) */
+  w03 *= w19;
+  /* #147: @21 = (@21+@3) */
+  w21 += w03;
+  /* #148: @3 = 8 */
+  w03 = 8.;
+  /* #149: @20 = (@12?@20:0) */
+  w20  = (w12?w20:0);
+  /* #150: @12 = (!@12) */
+  w12 = (! w12 );
+  /* #151: @19 = 1 */
+  w19 = 1.;
+  /* #152: @12 = (@12?@19:0) */
+  w12  = (w12?w19:0);
+  /* #153: @20 = (@20+@12) */
+  w20 += w12;
+  /* #154: @3 = (@3*@20) */
+  w03 *= w20;
+  /* #155: @30 = (@30?@3:0) */
+  w30  = (w30?w03:0);
+  /* #156: @21 = (@21+@30) */
+  w21 += w30;
+  /* #157: output[0][1] = @21 */
+  if (res[0]) res[0][2] = w21;
   return 0;
 }
 
@@ -1737,21 +1759,25 @@ void casadi_f13_decref(void) {
   casadi_f15_decref();
 }
 
-/* keep:(i0[1x2],i1,i2,i3[2],i4[2],i5[2],i6[2x2,2nz],i7[2],i8[6x2],i9[6],i10[6])->(o0[3]) */
+/* keep:(i0[1x2],i1,i2,i3[2],i4[2],i5[2],i6,i7[2x2,2nz],i8[2],i9[6x2],i10[6],i11[6])->(o0[3]) */
 static int casadi_f16(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
-  casadi_real *w0=w+0, w1;
+  casadi_real *w0=w+0, w1, w2;
   /* #0: @0 = input[5][0] */
   casadi_copy(arg[5], 2, w0);
   /* #1: output[0][0] = @0 */
   casadi_copy(w0, 2, res[0]);
-  /* #2: @1 = 0 */
-  w1 = 0.;
-  /* #3: output[0][1] = @1 */
+  /* #2: @1 = 8 */
+  w1 = 8.;
+  /* #3: @2 = input[6][0] */
+  w2 = arg[6] ? arg[6][0] : 0;
+  /* #4: @1 = (@1*@2) */
+  w1 *= w2;
+  /* #5: output[0][1] = @1 */
   if (res[0]) res[0][2] = w1;
   return 0;
 }
 
-/* phase2_if_needed:(i0,i1[1x2],i2,i3,i4[2],i5[2],i6[2],i7[2x2,2nz],i8[2],i9[6x2],i10[6],i11[6])->(o0[3]) */
+/* phase2_if_needed:(i0,i1[1x2],i2,i3,i4[2],i5[2],i6[2],i7,i8[2x2,2nz],i9[2],i10[6x2],i11[6],i12[6])->(o0[3]) */
 static int casadi_f12(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   if (arg[0] ? casadi_to_int(*arg[0]) : 0) {
     if (casadi_f16(arg+1, res, iw, w, 0)) return 1;
@@ -1845,7 +1871,8 @@ static int casadi_f17(const casadi_real** arg, casadi_real** res, casadi_int* iw
 static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_int i;
   casadi_real **res1=res+3, *rr, *w00=w+197, *w01=w+199, w02, w03, *w04=w+201, w05, w06, *w07=w+203, *w08=w+205, w09;
-  casadi_real *w10=w+207, *w11=w+209, *w12=w+211, *w13=w+223, *w14=w+229, *w15=w+235, *w16=w+239, *w17=w+241, *w18=w+243, *w20=w+249, w21, *w22=w+251;
+  casadi_real *w10=w+207, *w11=w+209, *w12=w+211, *w13=w+223, *w14=w+229, *w15=w+235, *w16=w+239, *w17=w+241, *w18=w+243, *w20=w+249, *w21=w+251, *w22=w+254;
+  casadi_real w23;
   const casadi_real **arg1=arg+5, *cr, *cs;
   int flag, mid;
   /* #0: @0 = input[0][0] */
@@ -1886,7 +1913,7 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   /* #10: @18 = zeros(6x1) */
   casadi_clear(w18, 6);
   /* #11: @19 = 0x0 */
-  /* #12: {@20, NULL, NULL, NULL} = phase1_try0(@15, @11, @12, @13, @14, @0, @1, @16, @17, @18, @19, @19) */
+  /* #12: {@20, @2, NULL, NULL} = phase1_try0(@15, @11, @12, @13, @14, @0, @1, @16, @17, @18, @19, @19) */
   arg1[0]=w15;
   arg1[1]=w11;
   arg1[2]=w12;
@@ -1900,7 +1927,7 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   arg1[10]=0;
   arg1[11]=0;
   res1[0]=w20;
-  res1[1]=0;
+  res1[1]=(&w02);
   res1[2]=0;
   res1[3]=0;
   mid = casadi_f2_checkout();
@@ -1908,57 +1935,63 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   flag = casadi_f2(arg1, res1, iw, w, mid);
   casadi_f2_release(mid);
   if (flag) return 1;
-  /* #13: @0 = fabs(@20) */
-  for (i=0, rr=w00, cs=w20; i<2; ++i) *rr++ = casadi_fabs( *cs++ );
-  /* #14: @2 = inf */
+  /* #13: @21 = vertcat(@20, @2) */
+  rr=w21;
+  for (i=0, cs=w20; i<2; ++i) *rr++ = *cs++;
+  *rr++ = w02;
+  /* #14: @22 = fabs(@21) */
+  for (i=0, rr=w22, cs=w21; i<3; ++i) *rr++ = casadi_fabs( *cs++ );
+  /* #15: @2 = inf */
   w02 = casadi_inf;
-  /* #15: @0 = (@0<@2) */
-  for (i=0, rr=w00, cr=w00; i<2; ++i) (*rr++)  = ((*cr++)<w02);
-  /* #16: @2 = min(@0) */
-  w02 = casadi_mmin(w00, 2, 1);
-  /* #17: @3 = 0 */
+  /* #16: @22 = (@22<@2) */
+  for (i=0, rr=w22, cr=w22; i<3; ++i) (*rr++)  = ((*cr++)<w02);
+  /* #17: @2 = min(@22) */
+  w02 = casadi_mmin(w22, 3, 1);
+  /* #18: @3 = 0 */
   w03 = 0.;
-  /* #18: @21 = input[4][0] */
-  w21 = arg[4] ? arg[4][0] : 0;
-  /* #19: @3 = (@3==@21) */
-  w03  = (w03==w21);
-  /* #20: @2 = (@2&&@3) */
+  /* #19: @23 = input[4][0] */
+  w23 = arg[4] ? arg[4][0] : 0;
+  /* #20: @3 = (@3==@23) */
+  w03  = (w03==w23);
+  /* #21: @2 = (@2&&@3) */
   w02  = (w02&&w03);
-  /* #21: @0 = retry_if_failed(@2, @20, @10, @11, @12, @13, @14) */
+  /* #22: @22 = retry_if_failed(@2, @21, @10, @11, @12, @13, @14) */
   arg1[0]=(&w02);
-  arg1[1]=w20;
+  arg1[1]=w21;
   arg1[2]=w10;
   arg1[3]=w11;
   arg1[4]=w12;
   arg1[5]=w13;
   arg1[6]=w14;
-  res1[0]=w00;
+  res1[0]=w22;
   if (casadi_f3(arg1, res1, iw, w, 0)) return 1;
-  /* #22: @20 = fabs(@0) */
-  for (i=0, rr=w20, cs=w00; i<2; ++i) *rr++ = casadi_fabs( *cs++ );
-  /* #23: @2 = inf */
+  /* #23: @21 = fabs(@22) */
+  for (i=0, rr=w21, cs=w22; i<3; ++i) *rr++ = casadi_fabs( *cs++ );
+  /* #24: @2 = inf */
   w02 = casadi_inf;
-  /* #24: @20 = (@20<@2) */
-  for (i=0, rr=w20, cr=w20; i<2; ++i) (*rr++)  = ((*cr++)<w02);
-  /* #25: @2 = min(@20) */
-  w02 = casadi_mmin(w20, 2, 1);
-  /* #26: @3 = 0 */
+  /* #25: @21 = (@21<@2) */
+  for (i=0, rr=w21, cr=w21; i<3; ++i) (*rr++)  = ((*cr++)<w02);
+  /* #26: @2 = min(@21) */
+  w02 = casadi_mmin(w21, 3, 1);
+  /* #27: @3 = 0 */
   w03 = 0.;
-  /* #27: @3 = (@3==@21) */
-  w03  = (w03==w21);
-  /* #28: @2 = (@2&&@3) */
+  /* #28: @3 = (@3==@23) */
+  w03  = (w03==w23);
+  /* #29: @2 = (@2&&@3) */
   w02  = (w02&&w03);
-  /* #29: @20 = retry_if_failed(@2, @0, @10, @11, @12, @13, @14) */
+  /* #30: @21 = retry_if_failed(@2, @22, @10, @11, @12, @13, @14) */
   arg1[0]=(&w02);
-  arg1[1]=w00;
+  arg1[1]=w22;
   arg1[2]=w10;
   arg1[3]=w11;
   arg1[4]=w12;
   arg1[5]=w13;
   arg1[6]=w14;
-  res1[0]=w20;
+  res1[0]=w21;
   if (casadi_f7(arg1, res1, iw, w, 0)) return 1;
-  /* #30: @2 = vf_golden_accept(@20, @4, @5, @6, @7, @8) */
+  /* #31: @20 = @21[:2] */
+  for (rr=w20, cs=w21+0; cs!=w21+2; cs+=1) *rr++ = *cs;
+  /* #32: @2 = vf_golden_accept(@20, @4, @5, @6, @7, @8) */
   arg1[0]=w20;
   arg1[1]=w04;
   arg1[2]=(&w05);
@@ -1967,13 +2000,15 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   arg1[5]=w08;
   res1[0]=(&w02);
   if (casadi_f11(arg1, res1, iw, w, 0)) return 1;
-  /* #31: @3 = 0 */
+  /* #33: @3 = 0 */
   w03 = 0.;
-  /* #32: @3 = (@3==@21) */
-  w03  = (w03==w21);
-  /* #33: @2 = (@2&&@3) */
+  /* #34: @3 = (@3==@23) */
+  w03  = (w03==w23);
+  /* #35: @2 = (@2&&@3) */
   w02  = (w02&&w03);
-  /* #34: @22 = phase2_if_needed(@2, @4, @5, @6, @7, @8, @20, @10, @11, @12, @13, @14) */
+  /* #36: @3 = @21[2] */
+  for (rr=(&w03), cs=w21+2; cs!=w21+3; cs+=1) *rr++ = *cs;
+  /* #37: @21 = phase2_if_needed(@2, @4, @5, @6, @7, @8, @20, @3, @10, @11, @12, @13, @14) */
   arg1[0]=(&w02);
   arg1[1]=w04;
   arg1[2]=(&w05);
@@ -1981,15 +2016,16 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   arg1[4]=w07;
   arg1[5]=w08;
   arg1[6]=w20;
-  arg1[7]=w10;
-  arg1[8]=w11;
-  arg1[9]=w12;
-  arg1[10]=w13;
-  arg1[11]=w14;
-  res1[0]=w22;
+  arg1[7]=(&w03);
+  arg1[8]=w10;
+  arg1[9]=w11;
+  arg1[10]=w12;
+  arg1[11]=w13;
+  arg1[12]=w14;
+  res1[0]=w21;
   if (casadi_f12(arg1, res1, iw, w, 0)) return 1;
-  /* #35: {@20, @2, @3} = vf_golden_finish(@22, @4, @5, @6, @7, @8, @9) */
-  arg1[0]=w22;
+  /* #38: {@20, @2, @3} = vf_golden_finish(@21, @4, @5, @6, @7, @8, @9) */
+  arg1[0]=w21;
   arg1[1]=w04;
   arg1[2]=(&w05);
   arg1[3]=(&w06);
@@ -2000,11 +2036,11 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   res1[1]=(&w02);
   res1[2]=(&w03);
   if (casadi_f17(arg1, res1, iw, w, 0)) return 1;
-  /* #36: output[0][0] = @20 */
+  /* #39: output[0][0] = @20 */
   casadi_copy(w20, 2, res[0]);
-  /* #37: output[1][0] = @2 */
+  /* #40: output[1][0] = @2 */
   if (res[1]) res[1][0] = w02;
-  /* #38: output[2][0] = @3 */
+  /* #41: output[2][0] = @3 */
   if (res[2]) res[2][0] = w03;
   return 0;
 }
@@ -2093,18 +2129,18 @@ CASADI_SYMBOL_EXPORT const casadi_int* vf_golden_sparsity_out(casadi_int i) {
 }
 
 CASADI_SYMBOL_EXPORT int vf_golden_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
-  if (sz_arg) *sz_arg = 40;
+  if (sz_arg) *sz_arg = 42;
   if (sz_res) *sz_res = 14;
   if (sz_iw) *sz_iw = 9;
-  if (sz_w) *sz_w = 254;
+  if (sz_w) *sz_w = 257;
   return 0;
 }
 
 CASADI_SYMBOL_EXPORT int vf_golden_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
-  if (sz_arg) *sz_arg = 40*sizeof(const casadi_real*);
+  if (sz_arg) *sz_arg = 42*sizeof(const casadi_real*);
   if (sz_res) *sz_res = 14*sizeof(casadi_real*);
   if (sz_iw) *sz_iw = 9*sizeof(casadi_int);
-  if (sz_w) *sz_w = 254*sizeof(casadi_real);
+  if (sz_w) *sz_w = 257*sizeof(casadi_real);
   return 0;
 }
 

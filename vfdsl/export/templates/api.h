@@ -14,7 +14,7 @@
  * array is passed.
  *
  * @API@_step returns the status bits of the tick (>= 0: VF_OPTIMAL, or VF_LEAST_VIOLATION,
- * VF_BOUNDS_CLIPPED, VF_FALLBACK set) or a negative VF_ERR_* code naming the argument it refuses; it
+ * VF_BOUNDS_CLIPPED, VF_FALLBACK, VF_UNCERTIFIED set) or a negative VF_ERR_* code naming the argument it refuses; it
  * checks before anything moves what Python's Controller.step() checks: every number finite, each q_i
  * within its joint's limits widened by the joint's span on each side, dt within [@MIN_PERIOD@, @MAX_PERIOD@] s (the
  * task's range around its period: further is a unit slip, VF_ERR_DT_PERIOD).
@@ -43,6 +43,8 @@ extern "C" {
 #define VF_LEAST_VIOLATION 1     /* the hard rows could not all hold: dq is the least-violation motion */
 #define VF_BOUNDS_CLIPPED 2      /* q was outside its joint limits: dq returns toward them */
 #define VF_FALLBACK 4            /* a solve failed numerically: dq is the rest motion */
+#define VF_UNCERTIFIED 8         /* priority levels: no certificate that dq is their exact optimum (DAQP's answer,
+                                    to its tolerance; at a least-violation tick, the least violation alone) */
 /* Errors (a return value < 0): nothing moved, dq_out is zeros. */
 #define VF_ERR_NULL (-1)         /* a pointer argument is NULL */
 #define VF_ERR_Q_NONFINITE (-2)  /* q holds NaN or inf */
