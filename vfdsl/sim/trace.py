@@ -18,7 +18,8 @@ for m/s, ``rad_s`` for rad/s; a dimensionless number has no suffix)::
                                    pose x y z (m) roll pitch yaw (rad, fixed-axis xyz), a run-time curve
                                    p<i>.x p<i>.y p<i>.z (m) per point, a scalar its own unit
     status                         the step's status flags: 0 optimal, +1 least violation, +2 joint bounds
-                                   clipped, +4 fallback (zero motion)
+                                   clipped, +4 fallback (zero motion), +8 priority levels not certified
+                                   exact
     violations                     what the step left violated, ``"label: amount unit"`` joined by ``"; "``
                                    (a hard row's excess, a soft constraint's slack); empty when none
     metric.<name>_<unit>           every metric of the run at this tick, by the encoders (the robot's exact
