@@ -57,7 +57,7 @@ def test_ideal_run_of_b_stays_within_the_polytope_plus_the_linearization_bound(t
     pivot_bound = math.sqrt(3) * eps_p + 0.01 * dth ** 2 / 2 + dth * dl
     angle_bound = eps_r / (math.cos(gamma) * math.cos(math.pi / 8)) + dth ** 2 / 2
     metrics = doc["metrics"]
-    assert doc["fallback_ticks"] == 0
+    assert doc["fallback_ticks"] == 0 and doc["uncertified_ticks"] == 0      # every tick's levels certified
     assert metrics["pivot_error_mm"]["max"] <= pivot_bound * 1e3
     assert metrics["tool_angle_error_deg"]["max"] <= math.degrees(angle_bound)
     assert metrics["pivot_error_mm"]["max"] > 0.2 * eps_p * 1e3          # it measured something

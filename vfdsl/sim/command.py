@@ -170,6 +170,9 @@ def main(args: argparse.Namespace) -> int:
                   "acting)\n" + teleop_table(doc))
         if doc["fallback_ticks"]:
             print(f"\n{doc['fallback_ticks']} of {doc['ticks']} ticks needed the least-violation fallback")
+        if doc["uncertified_ticks"]:
+            print(f"\n{doc['uncertified_ticks']} of {doc['ticks']} ticks found no certificate that their priority "
+                  "levels are exact (status UNCERTIFIED: DAQP's answer, to its tolerance; docs/runtime.md)")
     if args.json:
         _write(args.json, lambda path: path.write_text(report.to_json(doc)))
     if args.csv:

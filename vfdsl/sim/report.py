@@ -58,7 +58,8 @@ def document(task_name: str, task_file: str, settings: SimSettings, results: lis
 
     doc = {"vfdsl": vfdsl.__version__, "task": task_name, "file": task_file, "seed": settings.seed,
            "settings": settings.summary(), "hand": results[0].hand,
-           "fallback_ticks": sum(r.fallback_ticks for r in results), "ticks": sum(r.ticks for r in results)}
+           "fallback_ticks": sum(r.fallback_ticks for r in results),
+           "uncertified_ticks": sum(r.uncertified_ticks for r in results), "ticks": sum(r.ticks for r in results)}
     if grid:
         doc["grid"] = {name: values for name, values in grid}
         doc["groups"] = [{"settings": dict(point), "metrics": metrics_of(rs)} for point, rs in groups(results)]
@@ -148,7 +149,8 @@ def trial_rows(results: list[TrialResult]) -> list[dict]:
     """One row per trial: its grid settings, seed, and each metric's mean, min and max."""
     rows = []
     for r in results:
-        row = {"trial": r.trial, "seed": r.seed, **dict(r.grid), "fallback_ticks": r.fallback_ticks}
+        row = {"trial": r.trial, "seed": r.seed, **dict(r.grid), "fallback_ticks": r.fallback_ticks,
+               "uncertified_ticks": r.uncertified_ticks}
         if r.motion is not None:
             row.update({"motion.path_mm": 1e3 * r.motion["path"], "motion.net_mm": 1e3 * r.motion["net"],
                         "motion.turn_deg": math.degrees(r.motion["turn"])})

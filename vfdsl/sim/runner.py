@@ -88,6 +88,7 @@ class TrialResult:
     motion: dict | None = None                # how far the hand's frame moved (achieved_motion)
     procedure: dict | None = None             # a procedure's phases and transitions (PhaseRecord.summary)
     teleop: dict | None = None                # a teleoperated run's figures (TeleopRecord.summary)
+    uncertified_ticks: int = 0                # ticks whose priority levels have no certificate (UNCERTIFIED)
 
 
 @dataclass
@@ -165,7 +166,7 @@ def simulate_with(job: Job, task: ir.Task, ctrl: vfdsl.Controller, robot: Robot,
     qs = np.empty((ticks, robot.nq))
     us = np.zeros((ticks, sum(i.size for i in task.inputs)))
     record = _Recorder(task, robot, ctrl, ticks) if job.keep_trace else None
-    fallback = 0
+    fallback = uncertified = 0
     solved = ~StepStatus.UNCERTIFIED     # an uncertified answer is still phase 1's (or the same least violation)
     for k in range(ticks):
         t = k * dt
@@ -197,6 +198,7 @@ def simulate_with(job: Job, task: ir.Task, ctrl: vfdsl.Controller, robot: Robot,
             raise moving.explain(err, t) from None
         if ctrl.status & solved:
             fallback += 1
+        uncertified += bool(ctrl.status & StepStatus.UNCERTIFIED)
         if record is not None:
             record.tick(k, inputs, dq, params, scene, ctrl)
         if phases is not None:
@@ -212,6 +214,7 @@ def simulate_with(job: Job, task: ir.Task, ctrl: vfdsl.Controller, robot: Robot,
         progress(SIMULATED * (ticks % PROGRESS_EVERY))
     result = _score(job, task, robot, qs, segments, tracker_rng, fallback, hand_settings, moving.tables, record,
                     progress, phases, teleop)
+    result.uncertified_ticks = uncertified
     if result.motion is not None:
         result.motion["commanded"] = commanded_fraction(ctrl, qs, us, dt)
     return result
