@@ -35,6 +35,7 @@ from vfdsl.export import Export, api_name, export
 from vfdsl.export.selftest import MAX_TICKS, build, check_count, record, replay
 from vfdsl.export.writer import cpp_class_name
 from vfdsl.kinematics.robot import Robot
+from vfdsl.runtime.qp import StepStatus
 
 pytestmark = pytest.mark.skipif(shutil.which("make") is None or shutil.which("cc") is None,
                                 reason="needs make and a C compiler")
@@ -110,6 +111,27 @@ def test_replay_gives_controller_steps_answers(exported):
     assert statuses == [t.status for t in ticks]
     worst = max(float(np.max(np.abs(dq - t.dq), initial=0.0)) for (_, dq), t in zip(answers, ticks))
     assert worst <= 1e-12
+
+
+def test_replay_says_uncertified_where_controller_step_does(exports):
+    """Forty states of polyline_guide 1e-3 rad from its start (random pushes), one after another: most outside the
+    fixture, and at some of those phase 2's (B) finds no certificate (least violation, x_A: status 9). The C
+    library gives every tick's status as Controller.step() does, the bit UNCERTIFIED included, and the same dq."""
+    exported = exports("polyline_guide")
+    ctrl = exported.controller()
+    robot = Robot.load(exported.task.robots[0].urdf)
+    rng = np.random.default_rng(21)
+    lines, statuses, steps = [], [], []
+    for _ in range(40):
+        q = np.clip(np.array(exported.task.start) + rng.normal(scale=1e-3, size=robot.nq), robot.lower, robot.upper)
+        inputs = {name: rng.normal(scale=2.0, size=size) for name, size in ctrl.input_sizes.items()}
+        steps.append(ctrl.step(q, inputs, dt=0.01))
+        statuses.append(int(ctrl.status))
+        lines.append(" ".join(f"{x:.17g}" for x in (*q, *np.concatenate(list(inputs.values())))))
+    answers = replay(exported.directory, lines, 0.01)
+    assert [status for status, _ in answers] == statuses
+    assert statuses.count(StepStatus.LEAST_VIOLATION | StepStatus.UNCERTIFIED) > 0
+    assert max(float(np.max(np.abs(dq - step))) for (_, dq), step in zip(answers, steps)) <= 1e-12
 
 
 def test_replay_with_params_gives_controller_steps_answers(experiment_b, tmp_path):
