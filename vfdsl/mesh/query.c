@@ -90,7 +90,7 @@ typedef struct {
 
 typedef struct {
   const double *a, *b;
-  double ab[3], ab2, cutoff, side;
+  double ab[3], cutoff, side;
   int point, parts;                 /* parts: 1 for a point, 7 for a segment */
   vfm_item heap[VFM_HEAP];
   vfm_hit slot[VFM_HEAP];
@@ -602,7 +602,6 @@ static void vfm_query(vfm_walk* w, const double* a, const double* b, double cuto
   double key;
   w->a = a; w->b = b; w->cutoff = cutoff; w->side = side;
   for (i = 0; i < 3; ++i) { w->ab[i] = b[i] - a[i]; w->count[i] = 0; w->part_side[i] = 1; }
-  w->ab2 = vfm_dot(w->ab, w->ab);
   w->point = a[0] == b[0] && a[1] == b[1] && a[2] == b[2];
   w->parts = w->point ? 1 : 7;
   w->total = 0; w->size = 0; w->used = 0; w->nfree = 0; w->horizon = INFINITY; w->successor = 0;
