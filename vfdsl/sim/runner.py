@@ -80,6 +80,7 @@ class TrialResult:
     grid: tuple[tuple[str, object], ...]
     ticks: int
     fallback_ticks: int                       # ticks solved by the least-violation fallback
+    uncertified_ticks: int                    # ticks whose priority levels have no certificate (UNCERTIFIED)
     stats: dict[str, Stats]
     units: dict[str, str]
     series: dict | None = None                # time series of the trial, for plots
@@ -88,7 +89,6 @@ class TrialResult:
     motion: dict | None = None                # how far the hand's frame moved (achieved_motion)
     procedure: dict | None = None             # a procedure's phases and transitions (PhaseRecord.summary)
     teleop: dict | None = None                # a teleoperated run's figures (TeleopRecord.summary)
-    uncertified_ticks: int = 0                # ticks whose priority levels have no certificate (UNCERTIFIED)
 
 
 @dataclass
@@ -212,9 +212,8 @@ def simulate_with(job: Job, task: ir.Task, ctrl: vfdsl.Controller, robot: Robot,
             progress(SIMULATED * PROGRESS_EVERY)
     if progress is not None:
         progress(SIMULATED * (ticks % PROGRESS_EVERY))
-    result = _score(job, task, robot, qs, segments, tracker_rng, fallback, hand_settings, moving.tables, record,
-                    progress, phases, teleop)
-    result.uncertified_ticks = uncertified
+    result = _score(job, task, robot, qs, segments, tracker_rng, fallback, uncertified, hand_settings,
+                    moving.tables, record, progress, phases, teleop)
     if result.motion is not None:
         result.motion["commanded"] = commanded_fraction(ctrl, qs, us, dt)
     return result
@@ -330,7 +329,7 @@ class Moving:
 
 
 def _score(job: Job, task: ir.Task, robot: Robot, qs: np.ndarray, segments, rng, fallback: int,
-           hand_settings, shifts: dict[str, np.ndarray], record: _Recorder | None = None,
+           uncertified: int, hand_settings, shifts: dict[str, np.ndarray], record: _Recorder | None = None,
            progress=None, phases: PhaseRecord | None = None, teleop: TeleopRecord | None = None) -> TrialResult:
     s = job.settings
     if phases is not None:              # the phases' fixtures measured against the values they captured
@@ -397,8 +396,8 @@ def _score(job: Job, task: ir.Task, robot: Robot, qs: np.ndarray, segments, rng,
             motion = achieved_motion(poses.p[name], poses.axis(task.frame(name)))
             motion["frame"] = name
     procedure = None if phases is None else phases.summary(s.period, series_values, owners)
-    return TrialResult(job.trial, job.seed, job.grid, len(qs), fallback, stats, units, series, hand, trace, motion,
-                       procedure, None if teleop is None else teleop.summary(s.period))
+    return TrialResult(job.trial, job.seed, job.grid, len(qs), fallback, uncertified, stats, units, series, hand, trace,
+                       motion, procedure, None if teleop is None else teleop.summary(s.period))
 
 
 def achieved_motion(p: np.ndarray, axis: np.ndarray) -> dict:
