@@ -32,7 +32,7 @@ from vfdsl.compiler.admissible import Admissible
 from vfdsl.compiler.context import ParamLayout
 from vfdsl.errors import VfError
 from vfdsl.export import Export, api_name, export
-from vfdsl.export.selftest import MAX_TICKS, build, check_count, record, replay
+from vfdsl.export.selftest import MAX_TICKS, Tick, build, check_count, record, replay
 from vfdsl.export.writer import cpp_class_name
 from vfdsl.kinematics.robot import Robot
 from vfdsl.runtime.qp import StepStatus
@@ -121,17 +121,17 @@ def test_replay_says_uncertified_where_controller_step_does(exports):
     ctrl = exported.controller()
     robot = Robot.load(exported.task.robots[0].urdf)
     rng = np.random.default_rng(21)
-    lines, statuses, steps = [], [], []
+    ticks = []
     for _ in range(40):
         q = np.clip(np.array(exported.task.start) + rng.normal(scale=1e-3, size=robot.nq), robot.lower, robot.upper)
         inputs = {name: rng.normal(scale=2.0, size=size) for name, size in ctrl.input_sizes.items()}
-        steps.append(ctrl.step(q, inputs, dt=0.01))
-        statuses.append(int(ctrl.status))
-        lines.append(" ".join(f"{x:.17g}" for x in (*q, *np.concatenate(list(inputs.values())))))
-    answers = replay(exported.directory, lines, 0.01)
+        dq = ctrl.step(q, inputs, dt=0.01)
+        ticks.append(Tick(q, np.concatenate(list(inputs.values())), 0.01, int(ctrl.status), dq))
+    answers = replay(exported.directory, [t.line() for t in ticks], 0.01)
+    statuses = [t.status for t in ticks]
     assert [status for status, _ in answers] == statuses
     assert statuses.count(StepStatus.LEAST_VIOLATION | StepStatus.UNCERTIFIED) > 0
-    assert max(float(np.max(np.abs(dq - step))) for (_, dq), step in zip(answers, steps)) <= 1e-12
+    assert max(float(np.max(np.abs(dq - t.dq))) for (_, dq), t in zip(answers, ticks)) <= 1e-12
 
 
 def test_replay_with_params_gives_controller_steps_answers(experiment_b, tmp_path):

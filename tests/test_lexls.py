@@ -492,6 +492,15 @@ def vertex_start(rng, problem):
     return x if flag in (1, 2) else None
 
 
+def vertex_problems(rng, count):
+    """(problem, x0) for those of ``count`` random problems whose hard rows have a vertex (vertex_start)."""
+    for _ in range(count):
+        problem = random_problem(rng)
+        x0 = vertex_start(rng, problem)
+        if x0 is not None:
+            yield problem, x0
+
+
 def c_from(lib, problem, x0):
     """(x, certified): vfdsl_lex_from (tests/lexls_harness.c) from x0."""
     H, f, A, lower, upper, break_points = problem
@@ -525,11 +534,7 @@ def test_from_a_vertex_the_c_and_the_python_reach_the_independent_optimum(harnes
     optimum (not worse, lexicographically), and an uncertified one still no worse than its start."""
     rng = np.random.default_rng(17)
     compared = certified = 0
-    for _ in range(300):
-        problem = random_problem(rng)
-        x0 = vertex_start(rng, problem)
-        if x0 is None:
-            continue
+    for problem, x0 in vertex_problems(rng, 300):
         x_py, ok_py, (A_hard, lo, up) = from_on_both_paths(harness, problem, x0)
         compared += 1
         certified += ok_py
@@ -547,11 +552,7 @@ def test_the_primal_method_stops_at_its_bound_with_a_point_of_the_rows(tmp_path,
     one_step = compile_harness(tmp_path, "-DLEX_PRIMAL_STEPS=1")
     rng = np.random.default_rng(23)
     stopped = compared = 0
-    for _ in range(150):
-        problem = random_problem(rng)
-        x0 = vertex_start(rng, problem)
-        if x0 is None:
-            continue
+    for problem, x0 in vertex_problems(rng, 150):
         x_full, ok_full = lexls.from_feasible(*lexls.split(*problem), x0.copy())
         with monkeypatch.context() as patched:
             patched.setattr(lexls, "PRIMAL_STEPS", 1)
