@@ -287,7 +287,7 @@ def test_scoring_a_mesh_task_shows_progress(monkeypatch):
         settings = load_settings(task, default_scene(file)).replace(duration=1.0, trials=1, noise=noise)
         [job] = runner.make_jobs(file, settings)
         reports = []
-        runner._score(job, task, robot, qs, [(0, dict(Scene(task).values))], np.random.default_rng(0), 0, None, {},
-                      None, reports.append)
+        runner._score(job, task, robot, qs, [(0, dict(Scene(task).values))], np.random.default_rng(0), 0, 0,
+                      None, {}, None, reports.append)
         assert sum(reports) == pytest.approx((1 - runner.SIMULATED) * 100)
         assert len(reports) == per_tick * 100 // 10
