@@ -128,3 +128,28 @@ def test_two_controllers_in_two_threads_answer_as_alone(exported, recorded, tmp_
     _, result = exported
     exe = _contract(type("Exported", (), {"directory": result.directory, "result": result}), tmp_path, [])
     assert _run_contract(exe, "threads", [_Line(t[0]) for t in recorded.ticks]) == "0"
+
+
+def test_a_phase_s_derived_direction_is_checked_from_the_first_phase(exported):
+    """needle_procedure's `align` phase keeps the needle along normalize(target - entry): an entry moved onto the
+    target is refused in `approach` already (VF_ERR_PARAM, the derived vector's check), as in a task without phases;
+    before, it was accepted and the fixture was off when `align` came."""
+    task, result = exported
+    lib = ctypes.CDLL(str(result.directory / f"lib{result.api}.so"))
+
+    def call(name, restype=ctypes.c_int, *argtypes):
+        function = getattr(lib, f"{result.api}_{name}")
+        function.restype, function.argtypes = restype, list(argtypes) or None
+        return function
+
+    names = [call("param_name", ctypes.c_char_p, ctypes.c_int)(k).decode() for k in range(call("num_params")())]
+    set_param = call("set_param", ctypes.c_int, ctypes.c_void_p, ctypes.c_int, ctypes.POINTER(ctypes.c_double))
+    point = (ctypes.c_double * 3)(0.010, 0.005, 0.300)
+    ctrl = call("new", ctypes.c_void_p)()
+    try:
+        assert set_param(ctrl, names.index("target"), point) == 0
+        assert set_param(ctrl, names.index("entry"), point) == -7             # VF_ERR_PARAM
+        check = call("error_check", ctypes.c_int, ctypes.c_void_p)(ctrl)
+        assert "must not be zero" in call("check_meaning", ctypes.c_char_p, ctypes.c_int)(check).decode()
+    finally:
+        call("free", None, ctypes.c_void_p)(ctrl)

@@ -483,3 +483,85 @@ def test_a_degenerate_value_inside_a_fixture_names_its_use_site(tmp_path):
             ctrl.step(START, PUSH, params={"entry": [0, 0, 0.25]}, dt=DT)
         assert info.value.pos.file.endswith("lib.vf") and info.value.pos.line == 4
         assert any(note.startswith("in a fixture used at") and "t.vf:13" in note for note in info.value.notes)
+
+
+PHASED = """task phased
+units mm, deg
+robot shr = urdf "shr7"
+frame tip = shr.link("tool_tip")
+input f : force
+input go : button
+param a : point = [0, 0, 290] mm
+param b : point = [10, 0, 290] mm
+param c : point = [0, 10, 290] mm
+param u : direction = [1, 0, 0]
+param v : direction = [0, 1, 0]
+param r : length = 5 mm
+monitor pressed = go
+monitor leaning = angle(tip, normalize(c - a)) < 10 deg
+minimize damping() weight 1e-6
+require joint_limits()
+require joint_speed()
+phase free initial {
+    minimize track(tip, f, gain = 2 mm/s/N)
+}
+phase guarded {
+    capture held = tip.position
+    minimize track(tip, f, gain = 2 mm/s/N)
+    require tip along(line(a, b)) within 1 mm
+    require tip keeps_direction(cross(u, v)) within 2 deg
+    require tip outside_sphere(b, r)
+    require tip stays_at(held) within 5 mm
+}
+transition free -> guarded when pressed
+transition guarded -> free when leaning
+"""
+
+
+@pytest.fixture(scope="module", params=BACKENDS)
+def phased(request, tmp_path_factory):
+    path = tmp_path_factory.mktemp("phased") / "phased.vf"
+    path.write_text(PHASED)
+    return vfdsl.compile(vfdsl.load(path), backend=request.param)
+
+
+@pytest.mark.parametrize("params, message", [
+    ({"a": [0.01, 0.0, 0.29]}, "the two points of this line coincide"),
+    ({"u": [0.0, 1.0, 0.0]}, r"with params .u., this vector is zero"),
+    ({"r": -0.005}, r"param 'r' = -0.005 \(SI\) must be > 0"),
+    ({"r": 0.0}, r"param 'r' = 0 \(SI\) must be > 0"),
+    ({"c": [0.0, 0.0, 0.29]}, "this vector is zero"),
+])
+def test_the_params_of_every_phase_and_monitor_are_checked_whichever_phase_is_active(phased, params, message):
+    """A degenerate value fed to a phase's fixture or to a monitor is refused as it is without phases, in the phase
+    that uses it and in the others alike (before: accepted, the fixture off when its phase came, and the monitor's
+    angle to a zero direction 0, so true); nothing the user reads changes."""
+    for go in (0.0, 1.0, 0.0):          # free, then guarded (go pressed), then guarded
+        ctrl = phased
+        dq = ctrl.step(START, {"f": [0.0, 0.0, 0.0], "go": [go]}, dt=DT)
+        assert np.all(np.isfinite(dq))
+        phase, captures, lb = ctrl.phase, ctrl.captures, ctrl.problem(START, {"f": [0, 0, 0], "go": [go]}, dt=DT).lb
+        with pytest.raises(VfError, match=message) as info:
+            ctrl.step(START, {"f": [0.0, 0.0, 0.0], "go": [go]}, params=params, dt=DT)
+        if "c" in params:
+            assert any("in monitor 'leaning'" in note for note in info.value.notes)
+        assert ctrl.phase == phase
+        assert all(np.array_equal(captures[k], ctrl.captures[k]) for k in captures)
+        np.testing.assert_array_equal(ctrl.problem(START, {"f": [0, 0, 0], "go": [go]}, dt=DT).lb, lb)
+    assert ctrl.phase == "guarded"
+    ctrl.reset()
+
+
+def test_a_derived_argument_that_reads_a_capture_is_not_checked_as_a_params_one(tmp_path):
+    """`normalize(held - a)` has no value before its phase captures `held`: it is not in the params' column, which
+    every tick checks (else every tick before the capture would be refused); the task steps in its first phase."""
+    columns = []
+    for k, text in enumerate((PHASED, PHASED.replace("    require tip stays_at(held) within 5 mm\n",
+                                                     "    require tip keeps_direction(normalize(held - a)) within 80 deg\n"))):
+        path = tmp_path / f"t{k}.vf"
+        path.write_text(text)
+        task = vfdsl.load(path)
+        columns.append(Admissible(task, Robot.load(task.robots[0].urdf).reach).margins.symbolic().numel())
+    assert columns[0] == columns[1]
+    ctrl = vfdsl.compile(task, backend="interpreted")
+    assert np.all(np.isfinite(ctrl.step(START, {"f": [0.3, 0.0, 0.0], "go": [0.0]}, dt=DT)))

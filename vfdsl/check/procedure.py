@@ -46,9 +46,7 @@ def is_procedure(task: ir.Task) -> bool:
 def every_statement(task: ir.Task) -> ir.Task:
     """The task with every phase's statements beside the phase-less ones: for the analyses of one statement at a
     time (polytopes, tolerances, speeds, unused declarations)."""
-    return task.model_copy(update={
-        "constraints": [*task.constraints, *(c for p in task.phases for c in p.constraints)],
-        "objectives": [*task.objectives, *(o for p in task.phases for o in p.objectives)]})
+    return task.model_copy(update={"constraints": task.every_constraint, "objectives": task.every_objective})
 
 
 def analyse(task: ir.Task) -> list[Finding]:

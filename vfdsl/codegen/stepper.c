@@ -63,6 +63,8 @@ typedef struct {
   PyObject* q_range;            /* float64 array [lo_0..lo_n-1, hi_0..hi_n-1] of admissible q */
   double dt_default;            /* NAN when the task has no default period */
   PyObject* checked;            /* checked(stepper, q, inputs, params, dt) for what the fast path does not take; None */
+  double* incoming;             /* the fast path's q, u, p as read, copied to the buffers only when all of them pass:
+                                   a refused call leaves the buffers (a procedure's captures in p) as they were */
 #ifdef VFDSL_PROCEDURE
   vfdsl_procedure procedure;    /* the machine before each solve (procedure_tick.h) */
   double activity[VFDSL_ACTIVITY_LENGTH];
@@ -133,7 +135,7 @@ static int ready(Stepper* s) {
 
 static PyObject* Stepper_step(Stepper* s, PyObject* const* args, Py_ssize_t nargs, PyObject* kwnames) {
   PyObject *a[4], *q, *inputs, *params, *dt, *result;
-  double dt_value;
+  double dt_value, *q_in, *u_in, *p_in;
   if (!ready(s)) return NULL;
   if (!step_arguments(args, nargs, kwnames, a)) return hand_over(s, args, nargs, kwnames);
   q = a[0];
@@ -141,10 +143,21 @@ static PyObject* Stepper_step(Stepper* s, PyObject* const* args, Py_ssize_t narg
   params = a[2];
   dt = a[3];
   lock(s);
-  if (!plain_vector(q, s->core.size[Q], s->core.data[Q], 0) || vfdsl_q_outside(&s->core, s->core.data[Q]) >= 0
-      || !plain_inputs(s, inputs) || !plain_dt(s, dt, &dt_value) || !plain_params(s, params)) {
+  q_in = s->incoming;
+  u_in = q_in + s->core.size[Q];
+  p_in = u_in + s->core.size[U];
+  if (!plain_vector(q, s->core.size[Q], q_in, 0) || vfdsl_q_outside(&s->core, q_in) >= 0
+      || !plain_inputs(s, inputs, u_in) || !plain_dt(s, dt, &dt_value) || !plain_params(s, params, p_in)) {
     PyThread_release_lock(s->lock);
     return hand_over(s, args, nargs, kwnames);
+  }
+  memcpy(s->core.data[Q], q_in, s->core.size[Q] * sizeof(double));
+  memcpy(s->core.data[U], u_in, s->core.size[U] * sizeof(double));
+  if (params == NULL || params == Py_None) {
+    use_default_params(s);
+  } else {
+    memcpy(s->core.data[P], p_in, s->core.size[P] * sizeof(double));
+    s->p_is_default = 0;
   }
   result = tick(s, dt_value);
   PyThread_release_lock(s->lock);
@@ -323,7 +336,8 @@ static int Stepper_init(Stepper* s, PyObject* args, PyObject* kwds) {
     return -1;
   }
   s->param_points = (int*) calloc(PyTuple_GET_SIZE(points) + 1, sizeof(int));
-  if (!s->param_points) { PyErr_NoMemory(); return -1; }
+  s->incoming = (double*) calloc(s->core.size[Q] + s->core.size[U] + s->core.size[P] + 1, sizeof(double));
+  if (!s->param_points || !s->incoming) { PyErr_NoMemory(); return -1; }
   for (k=0; k<PyTuple_GET_SIZE(points); ++k) s->param_points[k] = PyTuple_GET_ITEM(points, k) == Py_True;
   s->core.q_lower = (const double*) PyArray_DATA((PyArrayObject*) s->q_range);
   s->core.q_upper = s->core.q_lower + s->core.size[Q];
@@ -358,6 +372,7 @@ static void Stepper_dealloc(Stepper* s) {
 #endif
   if (s->lock) PyThread_free_lock(s->lock);
   free(s->offsets); free(s->sizes); free(s->param_offsets); free(s->param_sizes); free(s->param_points);
+  free(s->incoming);
   if (s->arrays) {               /* the references below were taken only when init succeeded */
     Py_DECREF(s->arrays);
     Py_DECREF(s->names);

@@ -52,7 +52,9 @@ static int plain_vector(PyObject* value, Py_ssize_t n, double* out, int points) 
   return 0;
 }
 
-static int plain_inputs(Stepper* s, PyObject* inputs) {
+/* 1 when ``inputs`` is an exact dict of every input's name (exact str keys) with plain values that pass every check,
+ * copied to u (the inputs' buffer's layout). */
+static int plain_inputs(Stepper* s, PyObject* inputs, double* u) {
   Py_ssize_t k, pos = 0, n = PyTuple_GET_SIZE(s->names);
   PyObject *key, *value;
   if (inputs == Py_None || inputs == NULL) return n == 0;
@@ -63,9 +65,9 @@ static int plain_inputs(Stepper* s, PyObject* inputs) {
   for (k=0; k<n; ++k) {
     value = PyDict_GetItemWithError(inputs, PyTuple_GET_ITEM(s->names, k));
     if (value == NULL) { PyErr_Clear(); return 0; }
-    if (!plain_vector(value, s->sizes[k], s->core.data[U] + s->offsets[k], 0)) return 0;
+    if (!plain_vector(value, s->sizes[k], u + s->offsets[k], 0)) return 0;
   }
-  return vfdsl_first_input_failure(&s->core, s->core.data[U]) < 0;
+  return vfdsl_first_input_failure(&s->core, u) < 0;
 }
 
 static void use_default_params(Stepper* s) {
@@ -75,18 +77,14 @@ static void use_default_params(Stepper* s) {
   }
 }
 
-/* 1 when ``params`` is None, or an exact dict of run-time param names with plain values (copied over the
- * defaults in data[P]) that pass every check. */
-static int plain_params(Stepper* s, PyObject* params) {
+/* 1 when ``params`` is None (nothing copied: the defaults), or an exact dict of run-time param names with plain
+ * values, copied over the defaults to p, that pass every check. */
+static int plain_params(Stepper* s, PyObject* params, double* p) {
   Py_ssize_t pos = 0, k, n = PyTuple_GET_SIZE(s->param_names);
   PyObject *key, *value;
-  if (params == NULL || params == Py_None) {
-    use_default_params(s);
-    return 1;
-  }
+  if (params == NULL || params == Py_None) return 1;
   if (!PyDict_CheckExact(params)) return 0;
-  memcpy(s->core.data[P], PyArray_DATA((PyArrayObject*) s->p_default), s->core.size[P] * sizeof(double));
-  s->p_is_default = 0;
+  memcpy(p, PyArray_DATA((PyArrayObject*) s->p_default), s->core.size[P] * sizeof(double));
   while (PyDict_Next(params, &pos, &key, &value)) {
     double* out;
     if (!PyUnicode_CheckExact(key)) return 0;
@@ -95,7 +93,7 @@ static int plain_params(Stepper* s, PyObject* params) {
       if (name == key || PyUnicode_Compare(name, key) == 0) break;
     }
     if (k == n) return 0;
-    out = s->core.data[P] + s->param_offsets[k];
+    out = p + s->param_offsets[k];
     if (s->param_sizes[k] == 1 && !PyList_CheckExact(value) && !PyTuple_CheckExact(value)
         && !PyArray_CheckExact(value)) {
       if (!plain_number(value, out)) return 0;
@@ -103,7 +101,7 @@ static int plain_params(Stepper* s, PyObject* params) {
       return 0;
     }
   }
-  return vfdsl_first_failure(&s->core, s->core.data[P]) < 0;
+  return vfdsl_first_failure(&s->core, p) < 0;
 }
 
 static int plain_dt(Stepper* s, PyObject* dt, double* out) {

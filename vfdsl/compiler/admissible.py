@@ -19,8 +19,9 @@ and accepts a tick only when every check holds). Each check, in SI units:
 - a scalar param: the range of every argument it feeds (``ArgSpec.range``, as a literal there);
 - a run-time curve: consecutive points at least ``MIN_CHORD`` apart, and for a b-spline (its parameters
   fixed from the chords of its default points) each chord within a factor ``CHORD_RATIO`` of its default;
-- a derived argument (``normalize(target - entry)``, ``plane(a, cross(u, v))``): every vector it normalizes
-  at least ``derived.MIN_NORM`` long, and its value finite (:func:`vfdsl.compiler.derived.add_checks`).
+- a derived argument (``normalize(target - entry)``, ``plane(a, cross(u, v))``) of any statement, in every phase
+  whichever is active, or of a monitor: every vector it normalizes at least ``derived.MIN_NORM`` long, and its
+  value finite (:func:`vfdsl.compiler.derived.add_checks`); one that reads a capture is not a param's.
 """
 
 from __future__ import annotations
@@ -76,11 +77,8 @@ class Admissible:
             slot = reader.layout.slots[decl.name]
             if slot.size:
                 self._param(decl, slot, reader.p[slot.offset:slot.offset + slot.size], ranges.get(decl.name, []))
-        for statement in [*task.constraints, *task.objectives]:
-            notes = tuple(f"in a fixture used at {span}" for span in reversed(statement.via))
-            for arg in statement.args.values():
-                if isinstance(arg, ir.Derived):
-                    derived.add_checks(self.margins, arg, reader.read, notes)
+        for arg, notes in _derived_args(task):
+            derived.add_checks(self.margins, arg, reader.read, notes)
         self.function = ca.Function("admissible", [reader.p], [self.margins.symbolic()], ["p"], ["margins"])
 
     @cached_property
@@ -173,11 +171,39 @@ class Admissible:
                 f"reach of {self.reach:.3g} m, at most {MAX_DISTANCE:g} m)")
 
 
+def _derived_args(task: ir.Task):
+    """(derived argument, notes) of every statement, in phases too, and of every monitor's measure: each derived
+    from params and constants alone (one that reads a capture has no value until its phase is entered, and the
+    params' check runs at every tick, in every phase)."""
+    for statement in [*task.every_constraint, *task.every_objective]:
+        notes = tuple(f"in a fixture used at {span}" for span in reversed(statement.via))
+        yield from ((arg, notes) for arg in statement.args.values() if _of_params(arg))
+    for monitor in task.monitors:
+        for node in _monitor_leaves(monitor.expr):
+            arg = getattr(node.measure, "to", None) or getattr(node.measure, "direction", None)
+            if _of_params(arg):
+                yield arg, (f"in monitor '{monitor.name}' at {monitor.span}",)
+
+
+def _of_params(arg) -> bool:
+    """``arg`` is derived, from params and constants alone."""
+    return isinstance(arg, ir.Derived) and not any(isinstance(leaf, ir.CaptureRef) for leaf in derived.leaves(arg))
+
+
+def _monitor_leaves(node):
+    """The comparisons of a monitor's expression."""
+    if isinstance(node, (ir.And, ir.Or, ir.Not)):
+        for item in node.items:
+            yield from _monitor_leaves(item)
+    elif isinstance(node, ir.Compare):
+        yield node
+
+
 def _param_ranges(task: ir.Task) -> dict[str, list]:
     """param name -> [(Range, 'argument x of y'), ...]: the allowed range (``ArgSpec.range``) of every
-    argument the param feeds, so that a run-time value meets the same range as a literal."""
+    argument the param feeds, in phases too, so that a run-time value meets the same range as a literal."""
     out: dict[str, list] = {}
-    for statement in [*task.constraints, *task.objectives]:
+    for statement in [*task.every_constraint, *task.every_objective]:
         name = statement.primitive if isinstance(statement, ir.Constraint) else statement.term
         lowering = registry.CONSTRAINTS.get(name) or registry.OBJECTIVES.get(name)
         spec = lowering.spec if lowering else None

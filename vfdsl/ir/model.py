@@ -431,6 +431,16 @@ class Task(_Model):
         """The scene's start configuration, or None when the scene gives none."""
         return None if self.scene.start is None else np.array(self.scene.start, dtype=float)
 
+    @property
+    def every_constraint(self) -> list[Constraint]:
+        """The phase-less constraints, then each phase's, in file order."""
+        return [*self.constraints, *(c for phase in self.phases for c in phase.constraints)]
+
+    @property
+    def every_objective(self) -> list[Objective]:
+        """The phase-less objectives, then each phase's, in file order."""
+        return [*self.objectives, *(o for phase in self.phases for o in phase.objectives)]
+
     def frame(self, name: str) -> FrameDecl:
         return next(f for f in self.frames if f.name == name)
 

@@ -55,7 +55,7 @@ READOUT = ("force", "setpoint", "goal", "depth", "following", "acting", "next_st
 
 def teleop_terms(task: ir.Task) -> list[ir.Objective]:
     """Every `teleop` term of the task, outside phases then phase by phase (the readout's state order)."""
-    return [o for o in task.objectives + [o for phase in task.phases for o in phase.objectives] if o.term == "teleop"]
+    return [o for o in task.every_objective if o.term == "teleop"]
 
 
 def readout_function(task: ir.Task, problem: AssembledProblem) -> ca.Function | None:

@@ -291,7 +291,7 @@ GRID_NAMES = ("duration", "period", "latency", "servo_lag", "noise", "resolution
 def tracked_frame(task: ir.Task, input_name: str) -> str | None:
     """The frame that ``minimize track(frame, input)`` moves with this input, if any (outside the phases first,
     then in the phases of a procedure, in file order)."""
-    for o in task.objectives + [o for phase in task.phases for o in phase.objectives]:
+    for o in task.every_objective:
         if o.term == "track" and o.args["input"].name == input_name:
             return o.args["frame"].name
     return None
