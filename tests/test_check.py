@@ -360,10 +360,11 @@ def test_direction_far_off_at_the_start_is_an_error_with_its_cause(tmp_path, dir
 
 
 def test_opposite_direction_is_invisible_to_the_rows(tmp_path):
-    """The reason the true angle is measured: at 177 deg the rows see only sin(3 deg)."""
+    """The reason the true angle is measured: at 177 deg the rows see 2 - sin(3 deg), not an angle (the paper's
+    sine alone: sin(3 deg), as if 3 deg off)."""
     text = PROBE.replace(STAYS_AT, "require tip keeps_direction([0, 0, -1]) within 1 deg")
     [finding] = codes(probe(tmp_path, text, TILTED))["residual-far"]
-    assert finding.data["rows_error"] == pytest.approx(math.sin(math.radians(3)), rel=1e-3)
+    assert finding.data["rows_error"] == pytest.approx(2 - math.sin(math.radians(3)), rel=1e-3)
 
 
 def test_small_start_error_is_a_warning_and_none_inside(tmp_path):

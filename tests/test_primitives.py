@@ -317,6 +317,8 @@ def test_keeps_direction_roll_free(tmp_path, robot, frame, n):
         qp = ctrl.problem(q, {}, {"d": 2.5 * l_d}, dt=0.01)        # unnormalized on purpose
         A, _, lb, ub = rows_of(ctrl, qp, "keeps_direction", frame)
         delta_r = np.cross(l_d, f.l)                                  # paper II-B.2: l_d x l_t
+        if l_d @ f.l < 0:                                             # past 90 deg: length 2 - sin (primitives.md 8)
+            delta_r *= (2 - np.linalg.norm(delta_r)) / np.linalg.norm(delta_r)
         assert_polygon_rows(A, lb, ub, f.Jw, delta_r, eps, f.l, n)   # polygon normal to the tool axis
 
 

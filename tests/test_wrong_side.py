@@ -2,7 +2,8 @@
 
 For every geometric primitive, a task on the Steady-Hand-like robot with that one hard fixture and a speed limit
 (0.1 mm and 0.11 deg per 10 ms tick) has its run-time params placed so that the tool is 1 mm, 10 mm or 1 m (angles:
-2, 20, 90 deg) on the wrong side; for every example task, its params (or its registration) are moved and the
+2, 20, 90 deg, and for the axes 150 deg and reversed, a cone's axis along the tool and its opposite nappe too) on the
+wrong side; for every example task, its params (or its registration) are moved and the
 robot's stage is shifted off its fixtures. At every such state, on both paths:
 
 - the fixture has rows, violated at dq = 0 (never the always-true 0 >= -inf);
@@ -42,6 +43,7 @@ ROBOT = Robot.load("shr7")
 DEG = math.pi / 180
 LENGTHS = (1e-3, 1e-2, 1.0)
 ANGLES = (2 * DEG, 20 * DEG, 90 * DEG)
+REVERSED = (150 * DEG, 180 * DEG)   # past 90 deg the paper's sine falls again: 0 at 180 deg (a cone's: at 180 - gamma)
 SPEED_LIMITS = "require tip speed(0.01)\nrequire tip angular_speed(0.2)\nrequire shaft speed(0.01)\n"
 RATE_PRIMITIVES = {name for name, spec in CONSTRAINTS.items() if spec.rate} | {"joint_limits"}
 
@@ -121,7 +123,7 @@ def _case(primitive):
                 lambda q, m: np.linalg.norm(np.cross(port + m * e - _pose(q)[0], _pose(q)[1])))
     if primitive == "keeps_direction":
         return (f"param d : direction = {fmt(l)}\nrequire tip keeps_direction(d) within 0.001",
-                ANGLES, lambda a: {"d": _rotated(l, E2, a)},
+                ANGLES + REVERSED, lambda a: {"d": _rotated(l, E2, a)},
                 lambda q, a: math.acos(np.clip(_pose(q)[1] @ _rotated(l, E2, a), -1, 1)))
     if primitive == "rotates_around":
         return (f"param ax : direction = {fmt(e)}\nrequire tip rotates_around(ax) within 0.001",
@@ -131,8 +133,10 @@ def _case(primitive):
         call = f"{primitive}(ax, 0.2)" + (" within 0.001" if primitive == "cone" else "")
         axis = lambda a: _rotated(l, E2, 0.2 + a)        # noqa: E731
         angle = lambda q, a: math.acos(np.clip(_pose(q)[1] @ axis(a), -1, 1))      # noqa: E731
+        # the cone: also its axis along the tool (theta = 0, d1 undefined), the opposite nappe and the axis reversed
+        far = (-0.2, 150 * DEG, math.pi - 0.4, math.pi - 0.2) if primitive == "cone" else (150 * DEG,)
         return (f"param ax : direction = {fmt(axis(0))}\nrequire tip {call}",
-                ANGLES, lambda a: {"ax": axis(a)},
+                ANGLES + far, lambda a: {"ax": axis(a)},
                 (lambda q, a: abs(angle(q, a) - 0.2)) if primitive == "cone" else (lambda q, a: angle(q, a) - 0.2))
     if primitive in ("inside_mesh", "outside_mesh"):
         keep_in = primitive == "inside_mesh"
@@ -357,3 +361,25 @@ def test_far_on_the_wrong_side_in_an_exported_build(name, tmp_path):
     assert [status for status, _ in answers] == [status for status, _ in expected]
     assert max(float(np.max(np.abs(a[1] - e[1]))) for a, e in zip(answers, expected)) <= 1e-12
     assert any(status & StepStatus.LEAST_VIOLATION for status, _ in expected)
+
+
+@pytest.mark.parametrize("primitive, far", [("cone", 150 * DEG), ("cone", math.pi - 0.4), ("keeps_direction", 179 * DEG)])
+def test_a_reversed_axis_comes_back_steadily_in_closed_loop(tmp_path, primitive, far):
+    """Past 90 deg the rows' sine falls again; on a cone's opposite nappe (theta = 180 deg - gamma) it is that of the
+    cone itself, and the paper's rows held the tool there; between, their linearization made the joints reverse at
+    their speed limits tick after tick (a cone 154-165 deg off beside a port: 486 sign changes in 100 ticks). With
+    the sine continued past 90 deg, 200 ticks from such a state: the true error never grows, it falls by at least
+    the angular speed limit's worth, and no joint turns back."""
+    ctrl = _task(tmp_path, primitive, "interpreted")
+    _, _, place, error, *_ = _case(primitive)
+    params, q, errors, steps = place(far), Q0.copy(), [], []
+    for _ in range(200):
+        errors.append(error(q, far))
+        dq = ctrl.step(q, None, params, DT)
+        steps.append(dq)
+        q = q + dq
+    errors = np.array(errors)
+    assert np.all(np.diff(errors) <= 1e-9), np.max(np.diff(errors))
+    assert errors[0] - errors[-1] > 100 * 0.2 * DT, (errors[0], errors[-1])     # >= half the angular speed limit
+    signs = np.sign(np.round(np.array(steps), 9))
+    assert not np.any(signs[1:] * signs[:-1] < 0), "a joint turned back"

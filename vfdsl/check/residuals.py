@@ -2,9 +2,9 @@
 
 The rows measure the state at rest (dq = 0): a constraint's error is ``gauge = eps + max(lb, -ub)`` over
 its rows, i.e. max_i u_i . delta for a polytope (between cos(pi/n) ||delta|| and ||delta||), the signed
-depth for a plane. Direction constraints linearize with a cross product, whose length is sin(angle): a
-tool axis pointing exactly the *opposite* way shows no error at all in the rows (and the controller then
-drives it further off). For those the true angle is measured instead, the ``true_angle`` of the
+depth for a plane. Direction constraints linearize with a cross product, whose length is sin(angle) up to
+90 deg, continued as 2 - sin(angle) beyond (docs/primitives.md, note 8): not the angle (a tool axis 177 deg off
+measures 1.95). For those the true angle is measured instead, the ``true_angle`` of the
 primitive's spec (keeps_direction: angle(l_t, l_d); cone: | angle(l_t, l_a) - gamma |; tilt_at_most:
 max(0, angle(l_t, a) - gamma); rotates_around: | asin(l_t . w) |), and where the spec says
 ``error_is_distance`` (stays_at, within_distance, within_sphere) the distance || p - P || to its

@@ -56,6 +56,23 @@ def normalize_scaled(v):
     return normalize(v / (ca.mmax(ca.fabs(v)) + 1e-300))
 
 
+PARALLEL = 1e-9
+"""|l x l'| of two unit axes at most this: parallel or opposite, the cross product has no direction."""
+
+
+def turn_axis(cross, fallback):
+    """cross / |cross| (cross = l x l' of unit axes), or the unit ``fallback`` where the axes are parallel or
+    opposite (|cross| <= PARALLEL): then any axis normal to them turns one toward the other."""
+    return ca.if_else(ca.norm_2(cross) > PARALLEL, normalize(cross), fallback)
+
+
+def continued_sine(cross, cosine, fallback):
+    """cross = l x l' of unit axes (length sin theta), continued past 90 deg (cosine = l . l' < 0) by length
+    2 - sin theta along the same direction (``fallback``, a unit normal to both, where they are opposite): a length
+    that increases over [0, 180] deg. The sine falls back to 0 at 180 deg, where rows built on it see no error."""
+    return ca.if_else(cosine >= 0, cross, turn_axis(cross, fallback) * (2 - ca.norm_2(cross)))
+
+
 def plane_basis(l):
     """v1, v2 spanning the plane normal to the unit vector l (paper eq. 8), with l' = x unless l is near x."""
     helper = ca.if_else(ca.fabs(l[0]) < 0.9, ca.DM([1.0, 0.0, 0.0]), ca.DM([0.0, 1.0, 0.0]))

@@ -3,7 +3,10 @@
 Keep the tool axis l_t at angle gamma from an axis l_a (a cone of half-angle gamma): the instantaneous
 rotation axis w_d = R [cos gamma, sin gamma, 0]^T with d1 = l_t x l_a / ||.||, d2 = d1 x l_a / ||.||,
 R = [d2, l_a/||l_a||, -d1] (eq. 22); delta_r = d1 sin gamma - l_t x l_a (eq. 23); then the
-"rotate around a line" rows (eq. 13) about w_d.
+"rotate around a line" rows (eq. 13) about w_d. Beyond 90 deg (l_t . l_a < 0) |l_t x l_a| = sin theta is continued as
+2 - sin theta (:func:`vfdsl.compiler.geometry.continued_sine`): the paper's delta_r = (sin gamma - sin theta) d1 is 0
+on the opposite nappe (theta = 180 deg - gamma), where the rows held the tool reversed. Where l_t is along +-l_a, d1
+(undefined) is a fixed normal to l_a: the paper's delta_r was 0 there, the tool held on the axis or reversed.
 """
 
 from __future__ import annotations
@@ -13,7 +16,7 @@ from typing import TYPE_CHECKING
 
 import casadi as ca
 
-from vfdsl.compiler.geometry import normalize
+from vfdsl.compiler.geometry import continued_sine, normalize, plane_basis, turn_axis
 from vfdsl.compiler.rows import Rows
 from vfdsl.ir import model as ir
 from vfdsl.primitives.keeps_direction import angle_between
@@ -49,8 +52,8 @@ def lower(c: ir.Constraint, ctx: Context) -> Rows:
     l_a = ctx.direction(c.args["axis"])
     gamma = ctx.scalar(c.args["angle"])
     cross = ca.cross(l_t, l_a)
-    d1 = normalize(cross)
+    d1 = turn_axis(cross, plane_basis(l_a)[0])
     d2 = normalize(ca.cross(d1, l_a))
     w_d = ca.cos(gamma) * d2 + ca.sin(gamma) * l_a          # eq. 22: R [cos g, sin g, 0]^T, R = [d2, l_a, -d1]
-    delta_r = d1 * ca.sin(gamma) - cross                     # eq. 23
+    delta_r = d1 * ca.sin(gamma) - continued_sine(cross, ca.dot(l_t, l_a), d1)      # eq. 23
     return around_axis(f, w_d, c.tolerance, c.resolution[0], delta_r)

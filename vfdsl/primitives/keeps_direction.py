@@ -1,6 +1,9 @@
 """Maintain a direction (paper II-B.2, eqs. 5-6).
 
-Keep the tool axis l_t along a direction l_d:  delta_r = l_d x l_t,  || delta_r + dx_r || <= eps.
+Keep the tool axis l_t along a direction l_d:  delta_r = l_d x l_t,  || delta_r + dx_r || <= eps; beyond 90 deg
+(l_d . l_t < 0) the length of delta_r is 2 - sin theta instead of sin theta, along the same axis (a fixed normal to
+l_t where the two are opposite): the paper's sine falls back to 0 at 180 deg, where the rows would hold at dq = 0
+with the tool reversed (:func:`vfdsl.compiler.geometry.continued_sine`).
 The paper's 3-D polytope also bounds the roll about the tool axis by eps per tick (erratum 4), which pins
 tool roll; the default is roll-free: only the two components of (delta_r + dx_r) normal to l_t are bounded
 (an n-gon in the plane normal to l_t). ``pin_roll = true`` gives the paper's n x m sphere form.
@@ -12,7 +15,7 @@ from typing import TYPE_CHECKING
 
 import casadi as ca
 
-from vfdsl.compiler.geometry import polygon_directions, sphere_directions
+from vfdsl.compiler.geometry import continued_sine, plane_basis, polygon_directions, sphere_directions
 from vfdsl.compiler.rows import Rows, facets
 from vfdsl.ir import model as ir
 from vfdsl.primitives.spec import ArgSpec, ConstraintSpec, flag
@@ -47,7 +50,8 @@ SPEC = ConstraintSpec(
 
 def lower(c: ir.Constraint, ctx: Context) -> Rows:
     f = ctx.frame(c.frame)
-    delta_r = ca.cross(ctx.direction(c.args["direction"]), f.axis)
+    l_d = ctx.direction(c.args["direction"])
+    delta_r = continued_sine(ca.cross(l_d, f.axis), ca.dot(l_d, f.axis), plane_basis(f.axis)[0])     # eq. 5
     if flag(c.args, "pin_roll"):
         U = ca.DM(sphere_directions(*c.resolution))
     else:
