@@ -556,8 +556,8 @@ def test_a_derived_argument_that_reads_a_capture_is_not_checked_as_a_params_one(
     """`normalize(held - a)` has no value before its phase captures `held`: it is not in the params' column, which
     every tick checks (else every tick before the capture would be refused); the task steps in its first phase."""
     columns = []
-    for k, text in enumerate((PHASED, PHASED.replace("    require tip stays_at(held) within 5 mm\n",
-                                                     "    require tip keeps_direction(normalize(held - a)) within 80 deg\n"))):
+    captured = "    require tip keeps_direction(normalize(held - a)) within 80 deg\n"
+    for k, text in enumerate((PHASED, PHASED.replace("    require tip stays_at(held) within 5 mm\n", captured))):
         path = tmp_path / f"t{k}.vf"
         path.write_text(text)
         task = vfdsl.load(path)

@@ -363,7 +363,8 @@ def test_far_on_the_wrong_side_in_an_exported_build(name, tmp_path):
     assert any(status & StepStatus.LEAST_VIOLATION for status, _ in expected)
 
 
-@pytest.mark.parametrize("primitive, far", [("cone", 150 * DEG), ("cone", math.pi - 0.4), ("keeps_direction", 179 * DEG)])
+@pytest.mark.parametrize("primitive, far", [("cone", 150 * DEG), ("cone", math.pi - 0.4),
+                                            ("keeps_direction", 179 * DEG)])
 def test_a_reversed_axis_comes_back_steadily_in_closed_loop(tmp_path, primitive, far):
     """Past 90 deg the rows' sine falls again; on a cone's opposite nappe (theta = 180 deg - gamma) it is that of the
     cone itself, and the paper's rows held the tool there; between, their linearization made the joints reverse at
