@@ -134,7 +134,7 @@ def _case(primitive):
         axis = lambda a: _rotated(l, E2, 0.2 + a)        # noqa: E731
         angle = lambda q, a: math.acos(np.clip(_pose(q)[1] @ axis(a), -1, 1))      # noqa: E731
         # the cone: also its axis along the tool (theta = 0, d1 undefined), the opposite nappe and the axis reversed
-        far = (-0.2, 150 * DEG, math.pi - 0.4, math.pi - 0.2) if primitive == "cone" else (150 * DEG,)
+        far = (-0.2, 150 * DEG, math.pi - 0.4, math.pi - 0.2) if primitive == "cone" else (150 * DEG, math.pi - 0.2)
         return (f"param ax : direction = {fmt(axis(0))}\nrequire tip {call}",
                 ANGLES + far, lambda a: {"ax": axis(a)},
                 (lambda q, a: abs(angle(q, a) - 0.2)) if primitive == "cone" else (lambda q, a: angle(q, a) - 0.2))
@@ -364,7 +364,7 @@ def test_far_on_the_wrong_side_in_an_exported_build(name, tmp_path):
 
 
 @pytest.mark.parametrize("primitive, far", [("cone", 150 * DEG), ("cone", math.pi - 0.4),
-                                            ("keeps_direction", 179 * DEG)])
+                                            ("keeps_direction", 179 * DEG), ("tilt_at_most", math.pi - 0.2)])
 def test_a_reversed_axis_comes_back_steadily_in_closed_loop(tmp_path, primitive, far):
     """Past 90 deg the rows' sine falls again; on a cone's opposite nappe (theta = 180 deg - gamma) it is that of the
     cone itself, and the paper's rows held the tool there; between, their linearization made the joints reverse at

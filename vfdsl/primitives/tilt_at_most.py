@@ -7,8 +7,10 @@ one exact row (a half-space of rotations, like ``above``, with no tolerance and 
     (l x a)^T J_w dq >= cos gamma - l . a.
 
 At l = a the gradient l x a is zero and the row reads 0 >= cos gamma - 1 < 0: inactive, as it should be (the
-axis is the cone's centre). At l = -a it reads 0 >= cos gamma + 1 > 0, which no step can meet: the solver's
-least-violation fallback reports it and ``check`` flags such a start (the true angle, not the rows).
+axis is the cone's centre). At l = -a it would read 0 >= cos gamma + 1 > 0, which no step can meet (the tool held
+reversed, the row violated tick after tick): there (|l x a| <= PARALLEL, l . a < 0) the gradient is a fixed unit
+normal k to a instead, any turn about which takes l off -a, after which l x a points along k and the exact row
+takes over. ``check`` flags such a start (the true angle, not the rows).
 
 Bound: a step that turns l by an angle phi about any axis and meets the row ends with
 l' . a >= cos gamma - (1 - cos phi) - (phi - sin phi)  (Rodrigues' formula; |(k x l) . a|, |k x (k x l) . a| <= 1),
@@ -23,6 +25,7 @@ from typing import TYPE_CHECKING
 
 import casadi as ca
 
+from vfdsl.compiler.geometry import PARALLEL, plane_basis
 from vfdsl.compiler.rows import Rows, lower_bounds
 from vfdsl.ir import model as ir
 from vfdsl.primitives.keeps_direction import angle_between
@@ -54,5 +57,6 @@ SPEC = ConstraintSpec(
 def lower(c: ir.Constraint, ctx: Context) -> Rows:
     f = ctx.frame(c.frame)
     a = ctx.direction(c.args["axis"])
-    gradient = ca.cross(f.axis, a)                       # d(l . a) = alpha . (l x a)
+    cross = ca.cross(f.axis, a)                          # d(l . a) = alpha . (l x a)
+    gradient = ca.if_else(ca.logic_or(ca.norm_2(cross) > PARALLEL, ca.dot(f.axis, a) >= 0), cross, plane_basis(a)[0])
     return lower_bounds(gradient.T @ f.Jw, ca.cos(ctx.scalar(c.args["angle"])) - ca.dot(f.axis, a), ["tilt"])
