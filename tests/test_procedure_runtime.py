@@ -322,3 +322,54 @@ def test_a_frame_pose_is_captured_as_origin_then_roll_pitch_yaw(tmp_path):
         np.testing.assert_allclose(s0[:3], p, rtol=0, atol=1e-12)
         np.testing.assert_allclose(rotation(s0[3:]), R, rtol=0, atol=1e-12)
     assert np.abs(captured["interpreted"] - captured["native"]).max() < 1e-12
+
+
+CAPTURED_DIRECTION = """task captured
+units mm, deg
+robot shr = urdf "shr7"
+frame tip = shr.link("tool_tip")
+input f : force
+input go : button
+monitor pressed = go
+minimize damping() weight 1e-6
+require joint_limits()
+require joint_speed()
+phase first initial {
+    capture a = tip.position
+    minimize track(tip, f, gain = 2 mm/s/N)
+}
+phase second {
+    capture b = tip.position
+    minimize track(tip, f, gain = 2 mm/s/N)
+    require tip keeps_direction(normalize(b - a)) within 2 deg
+}
+transition first -> second when pressed
+"""
+
+
+@pytest.mark.parametrize("backend", ["native", "interpreted"])
+def test_a_direction_from_captures_that_coincide_holds_the_tool_and_says_so(tmp_path, backend):
+    """`normalize(b - a)` of two captures of the tip's position: when the tip did not move between them it has no
+    direction. Before, its rows' bounds were 0 / 0 guarded to 0, the fixture silently off (OPTIMAL, nothing named);
+    now its rows are undefined: the tick holds still (LEAST_VIOLATION | FALLBACK, dq = 0, the box holding 0) and
+    violations() names every row of the fixture as undefined. Moved between the captures, the fixture acts."""
+    (tmp_path / "captured.vf").write_text(CAPTURED_DIRECTION)
+    (tmp_path / "captured.yaml").write_text("units: mm, deg\nperiod: 10 ms\nstart: [0, 0, 0, 0, 0, 0, 20]\n")
+    task = vfdsl.load(tmp_path / "captured.vf")
+    ctrl = vfdsl.compile(task, backend=backend)
+    for push, undefined in (([0.0, 0.0, 0.0], True), ([3.0, 0.0, 0.0], False)):
+        ctrl.reset()
+        q = np.array(task.start, dtype=float)
+        for k in range(40):
+            dq = ctrl.step(q, {"f": push, "go": [1.0 if k >= 30 else 0.0]}, dt=0.01)
+            assert np.all(np.isfinite(dq))
+            q = q + dq
+        assert ctrl.phase == "second"
+        named = [v for v in ctrl.violations() if v.label.primitive == "keeps_direction"]
+        if undefined:
+            assert ctrl.status == StepStatus.LEAST_VIOLATION | StepStatus.FALLBACK
+            assert np.all(dq == 0) and len(named) == 8 and all(v.amount == np.inf for v in named)
+            assert "undefined" in str(named[0])
+        else:
+            assert not ctrl.status & StepStatus.FALLBACK and np.abs(dq).max() > 0
+            assert all(np.isfinite(v.amount) for v in named)

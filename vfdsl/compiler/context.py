@@ -202,6 +202,12 @@ class ParamReader:
         return arg.kind if isinstance(arg, ir.Derived) else arg.value.kind
 
     def derived(self, arg: ir.Derived):
+        """A derived argument's value. One that reads a capture is not checked before the tick as a param's is
+        (:mod:`vfdsl.compiler.admissible`): a vector it normalizes shorter than ``derived.MIN_NORM`` (two captured
+        points that coincide) gives NaN, not 0, so that its fixture's rows are undefined (the tick then holds
+        still and names them, :func:`vfdsl.runtime.qp._finish`) rather than absent."""
+        if any(isinstance(leaf, ir.CaptureRef) for leaf in derived.leaves(arg)):
+            return derived.evaluate(arg, self.read, _unit_or_nan)
         return derived.evaluate(arg, self.read)
 
     def point(self, arg) -> ca.SX:
@@ -326,3 +332,8 @@ def capture_slots(task: ir.Task) -> tuple[ParamSlot, ...]:
                     task.input(source.name).size if isinstance(source, ir.InputRef) else params[source.name].size)
             slots.append(ParamSlot(c.name, c.kind, 0, size))
     return tuple(slots)
+
+
+def _unit_or_nan(v, node: ir.Derived):
+    """v / |v|, NaN where |v| < derived.MIN_NORM (no direction)."""
+    return ca.if_else(ca.norm_2(v) >= derived.MIN_NORM, normalize(v), ca.DM.nan(v.numel(), 1))

@@ -34,13 +34,17 @@ _UNITS = {"length": "m", "angle": "rad"}
 @dataclass(frozen=True)
 class Violation:
     """A constraint the last step could not satisfy, and by how much, in its own SI unit: a hard row's
-    excess, or a soft constraint's slack (how far the fixture is off)."""
+    excess, or a soft constraint's slack (how far the fixture is off); inf for a row that is undefined at this
+    tick (its geometry not a number: a direction from captures that coincide), the tick then holding still."""
 
     label: RowLabel
     amount: float
     unit: str = ""
 
     def __str__(self) -> str:
+        if self.amount == float("inf"):
+            return f"{self.label}: undefined (its geometry has no direction at this tick: captured points that " \
+                   "coincide?); the robot holds still"
         return f"{self.label}: violated by {self.amount:.3g} {self.unit}".rstrip()
 
 
