@@ -268,12 +268,12 @@ def _prepare(data: Sequence[ca.MX], levels: int, last_level_is_cost: bool) -> li
 def _finish(picked, A, lba, uba, lo, hi, clipped, m: int, feas_tol: float) -> list[ca.MX]:
     """(x, status, violation) from the picked [x; status]. The last line of defence, for every path: x is finite
     and in B (up to the solver's bound noise, then clipped), or it is the rest motion with FALLBACK. A row whose
-    data are not numbers (NaN: a fixture's direction from captures that coincide, :meth:`Context.derived`) is
+    bounds are not numbers (NaN: a fixture's direction from captures that coincide, :meth:`Context.derived`) is
     undefined, not absent (the solvers read a NaN bound as none): the tick is the rest motion with FALLBACK, and the
     row's violation is inf, so ``violations()`` names it."""
     n = lo.size1()
     x, status = picked[:n], picked[n]
-    undefined = _undefined_rows(A, lba, uba)
+    undefined = _undefined_rows(lba, uba)
     safe = ca.logic_and(_in_box(x, lo, hi, _GROSS_FAILURE), ca.mmax(undefined) == 0) if m else \
         _in_box(x, lo, hi, _GROSS_FAILURE)
     x = ca.if_else(safe, _clip(x, lo, hi), _rest(lo, hi))
@@ -283,10 +283,10 @@ def _finish(picked, A, lba, uba, lo, hi, clipped, m: int, feas_tol: float) -> li
     return [x, status, ca.if_else(undefined, ca.inf, ca.if_else(violation > feas_tol, violation, 0))]
 
 
-def _undefined_rows(A, lba, uba) -> ca.MX:
-    """1 for each row with a NaN among its entries or bounds (every comparison with NaN is false)."""
-    finite_row = ca.sum2(ca.fabs(A) < ca.inf) == A.size2()
-    return 1 - ca.logic_and(ca.logic_and(lba <= ca.inf, uba >= -ca.inf), finite_row)
+def _undefined_rows(lba, uba) -> ca.MX:
+    """1 for each row with a NaN bound (every comparison with NaN is false). A fixture's undefined geometry is in its
+    rows' bounds, its error (a NaN in a row's entries alone would fail the solve: the rest motion with FALLBACK)."""
+    return 1 - ca.logic_and(lba <= ca.inf, uba >= -ca.inf)
 
 
 def _check_qp_data(qp_data: ca.Function) -> int:

@@ -1663,7 +1663,7 @@ void casadi_f12_decref(void) {
 /* vf_golden_finish:(i0[3],i1[1x2],i2,i3,i4[2],i5[2],i6)->(o0[2],o1,o2) */
 static int casadi_f17(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a00, a01, a02, a03, a04, a05, a06, a07, a08, a09, a10, a11;
-  casadi_real a12, a13, a14, a15, a16, a17, a18;
+  casadi_real a12, a13, a14;
   a00=arg[0]? arg[0][0] : 0;
   a01=casadi_fabs(a00);
   a02=casadi_inf;
@@ -1695,16 +1695,6 @@ static int casadi_f17(const casadi_real** arg, casadi_real** res, casadi_int* iw
   a13=-casadi_inf;
   a14=arg[3]? arg[3][0] : 0;
   a13=(a13<=a14);
-  a12=(a12&&a13);
-  a13=2.;
-  a15=arg[1]? arg[1][0] : 0;
-  a16=casadi_fabs(a15);
-  a16=(a16<a02);
-  a17=arg[1]? arg[1][1] : 0;
-  a18=casadi_fabs(a17);
-  a18=(a18<a02);
-  a16=(a16+a18);
-  a13=(a13==a16);
   a12=(a12&&a13);
   a06=(a06-a12);
   a12=(a04==a06);
@@ -1738,12 +1728,14 @@ static int casadi_f17(const casadi_real** arg, casadi_real** res, casadi_int* iw
   if (res[1]!=0) res[1][0]=a12;
   a02=(a06?a02:0);
   a06=(!a06);
-  a15=(a15*a00);
-  a17=(a17*a03);
-  a15=(a15+a17);
-  a11=(a11-a15);
-  a15=(a15-a14);
-  a11=casadi_fmax(a11,a15);
+  a12=arg[1]? arg[1][0] : 0;
+  a12=(a12*a00);
+  a00=arg[1]? arg[1][1] : 0;
+  a00=(a00*a03);
+  a12=(a12+a00);
+  a11=(a11-a12);
+  a12=(a12-a14);
+  a11=casadi_fmax(a11,a12);
   a04=casadi_fmax(a04,a11);
   a09=(a09<a04);
   a09=(a09?a04:0);
