@@ -263,6 +263,17 @@ def built_export(task, directory: Path):
     return result
 
 
+def api_caller(result):
+    """call(name, restype=int, *argtypes): the exported library's function ``<api>_<name>`` with its ctypes types."""
+    lib = ctypes.CDLL(str(result.directory / f"lib{result.api}.so"))
+
+    def call(name, restype=ctypes.c_int, *argtypes):
+        function = getattr(lib, f"{result.api}_{name}")
+        function.restype, function.argtypes = restype, list(argtypes) or None
+        return function
+    return call
+
+
 def heap_calls(result, lines: list[str], dt: float, workdir: Path) -> tuple[int, int, int]:
     """export_contract.c's count of heap calls (at _new, in the ticks of ``lines``, after them) on ``result``."""
     wrap = "-Wl," + ",".join(f"--wrap={f}" for f in ("malloc", "calloc", "realloc", "free"))

@@ -13,7 +13,7 @@ import pytest
 import vfdsl
 from vfdsl.export.selftest import replay
 
-from test_export import _contract, _run_contract, built_export, heap_calls
+from test_export import _contract, _run_contract, api_caller, built_export, heap_calls
 from test_procedure_runtime import EXAMPLE, Driver
 
 pytestmark = pytest.mark.skipif(shutil.which("make") is None or shutil.which("cc") is None,
@@ -79,13 +79,7 @@ def test_replay_gives_the_native_controllers_dq_and_phases_across_transitions(ex
 
 def test_the_api_names_phases_monitors_and_transitions(exported):
     task, result = exported
-    lib = ctypes.CDLL(str(result.directory / f"lib{result.api}.so"))
-
-    def call(name, restype=ctypes.c_int, *argtypes):
-        function = getattr(lib, f"{result.api}_{name}")
-        function.restype, function.argtypes = restype, list(argtypes) or None
-        return function
-
+    call = api_caller(result)
     text = ctypes.c_char_p
     assert call("num_phases")() == len(task.phases)
     assert [call("phase_name", text)(k).decode() for k in range(len(task.phases))] == [p.name for p in task.phases]
@@ -135,13 +129,7 @@ def test_a_phase_s_derived_direction_is_checked_from_the_first_phase(exported):
     target is refused in `approach` already (VF_ERR_PARAM, the derived vector's check), as in a task without phases;
     before, it was accepted and the fixture was off when `align` came."""
     task, result = exported
-    lib = ctypes.CDLL(str(result.directory / f"lib{result.api}.so"))
-
-    def call(name, restype=ctypes.c_int, *argtypes):
-        function = getattr(lib, f"{result.api}_{name}")
-        function.restype, function.argtypes = restype, list(argtypes) or None
-        return function
-
+    call = api_caller(result)
     names = [call("param_name", ctypes.c_char_p, ctypes.c_int)(k).decode() for k in range(call("num_params")())]
     set_param = call("set_param", ctypes.c_int, ctypes.c_void_p, ctypes.c_int, ctypes.POINTER(ctypes.c_double))
     point = (ctypes.c_double * 3)(0.010, 0.005, 0.300)

@@ -15,7 +15,7 @@ import pytest
 import vfdsl
 from vfdsl.export.selftest import readout_numbers, replay
 
-from test_export import built_export, heap_calls
+from test_export import api_caller, built_export, heap_calls
 
 pytestmark = pytest.mark.skipif(shutil.which("make") is None or shutil.which("cc") is None,
                                 reason="needs make and a C compiler")
@@ -73,12 +73,7 @@ class Readout(ctypes.Structure):
 
 def test_the_api_gives_the_readout_and_the_acting_rows(exported, recorded):
     task, result = exported
-    lib = ctypes.CDLL(str(result.directory / f"lib{result.api}.so"))
-
-    def call(name, restype=ctypes.c_int, *argtypes):
-        function = getattr(lib, f"{result.api}_{name}")
-        function.restype, function.argtypes = restype, list(argtypes) or None
-        return function
+    call = api_caller(result)
 
     assert call("is_teleoperated")() == 1
     new, free = call("new", ctypes.c_void_p), call("free", None, ctypes.c_void_p)
