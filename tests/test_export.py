@@ -677,6 +677,21 @@ def test_the_export_never_writes_through_a_link(experiment_b, tmp_path):
     assert len(list(elsewhere.rglob("*.c"))) == sum(p.suffix == ".c" for p in written.files)
 
 
+def test_a_file_the_export_would_replace_that_is_the_tasks_own_is_refused(tmp_path, capsys):
+    """A task file named as a file of the export (Makefile) in the folder it is exported into: refused before
+    anything is written, the task as it was."""
+    out = tmp_path / "out"
+    out.mkdir()
+    shutil.copy(TASKS_DIR / "lecture_remote_center.vf", out / "Makefile")
+    shutil.copy(TASKS_DIR / "lecture_remote_center.yaml", out / "Makefile.yaml")
+    text = (out / "Makefile").read_text()
+    assert main(["export", str(out / "Makefile"), "-o", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert f"-o {out}: the export's file {out / 'Makefile'} is the task file" in err and "Traceback" not in err, err
+    assert (out / "Makefile").read_text() == text and sorted(p.name for p in out.iterdir()) == ["Makefile",
+                                                                                               "Makefile.yaml"]
+
+
 def test_self_test_count_has_a_limit(tmp_path, capsys):
     """--self-test takes 1 to MAX_TICKS ticks: past it (or not a whole number) a usage error, before anything is
     exported; self_test() itself refuses it too."""

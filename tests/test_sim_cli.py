@@ -163,6 +163,36 @@ def test_an_output_that_is_a_fifo_without_a_reader_is_refused_not_waited_on(tmp_
         assert result.returncode == 2 and f"cannot write {fifo}" in result.stderr, result.stderr
 
 
+def test_an_output_that_is_an_input_or_another_output_is_refused_before_the_run(tmp_path, capsys):
+    """--json, --csv, --trace or --plot naming the task, its scene or the simulation scene would destroy it, and two
+    outputs naming one file would replace each other: refused, exit 2, every file as it was (--plot on the task used
+    to be refused by its suffix alone, --json on it replaced the task with JSON)."""
+    import shutil
+    for name in ("paper_b_virtual_rcm.vf", "paper_b_virtual_rcm.yaml"):
+        shutil.copy(TASKS_DIR / name, tmp_path / name)
+    shutil.copytree(TASKS_DIR / "library", tmp_path / "library")
+    task, scene, sim = (tmp_path / "paper_b_virtual_rcm.vf", tmp_path / "paper_b_virtual_rcm.yaml",
+                        tmp_path / "b.sim.yaml")
+    sim.write_text("duration: 0.1 s\n")
+    (tmp_path / "link.csv").symlink_to(scene)
+    library = tmp_path / "library" / "fixtures.vf"
+    before = {path: path.read_bytes() for path in (task, scene, sim, library)}
+    for args, message in (
+            (["--json", str(task)], f"--json {task} is the task file: writing the output there would destroy it"),
+            (["--csv", str(tmp_path / "link.csv")], "is the task's scene file"),
+            (["--json", str(tmp_path / "." / "b.sim.yaml")], "is the simulation scene"),
+            (["--plot", str(task)], "is the task file"),
+            (["--json", str(library)], "is a file the task imports"),
+            (["--json", str(tmp_path / "x"), "--csv", str(tmp_path / "x")], "name the same file: one output would "
+                                                                           "replace the other"),
+            (["--trace", str(tmp_path / "x.csv"), "--csv", str(tmp_path / "x.csv")], "name the same file")):
+        assert main(["simulate", str(task), "--scene", str(sim), "--quiet", *args]) == 2
+        err = capsys.readouterr().err
+        assert message in err and "Traceback" not in err, err
+    assert {path: path.read_bytes() for path in before} == before
+    assert not (tmp_path / "x").exists() and not (tmp_path / "x.csv").exists()
+
+
 def test_readme_first_command_simulates_experiment_b(capsys, monkeypatch):
     """The README's quick start: install, then `vfdsl simulate` of experiment B, which needs nothing else."""
     from conftest import REPO

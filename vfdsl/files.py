@@ -87,6 +87,36 @@ def check_writable(name: str | Path) -> None:
         path.unlink(missing_ok=True)
 
 
+def check_outputs(outputs: dict[str, str | Path | None], inputs: list[tuple[str, str | Path | None]],
+                  hint: str = "write the output to another file") -> None:
+    """Refuse, before any work, an output file that would destroy a file the command reads or another output:
+    ``outputs`` maps each output option (``--json``) to its path (None: not given), ``inputs`` lists the files read
+    as (what it is, path). The same file through a link, a hard link or another spelling of its path counts."""
+    given = [(option, path) for option, path in outputs.items() if path]
+    for k, (option, path) in enumerate(given):
+        for what, source in inputs:
+            if source and _same_file(path, source):
+                raise VfError(f"{option} {path} is {what}: writing the output there would destroy it", hint=hint)
+        for other, earlier in given[:k]:
+            if _same_file(path, earlier):
+                raise VfError(f"{other} {earlier} and {option} {path} name the same file: one output would replace "
+                              "the other", hint="give each output its own file")
+
+
+def task_sources(task) -> list[tuple[str, str | None]]:
+    """The source files of a loaded task, as :func:`check_outputs` takes them: the task file, its scene file, the
+    files it imports."""
+    return [("the task file", task.file), ("the task's scene file", task.scene.file),
+            *(("a file the task imports", path) for path in task.imports)]
+
+
+def _same_file(a: str | Path, b: str | Path) -> bool:
+    try:
+        return os.path.samefile(a, b)
+    except (OSError, ValueError):                # one of them does not exist (yet)
+        return os.path.realpath(a) == os.path.realpath(b)
+
+
 class BoundedLoader(yaml.SafeLoader):
     """PyYAML's safe loader, refusing lists and mappings nested deeper than ``limits.YAML_DEPTH``."""
 

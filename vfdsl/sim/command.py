@@ -12,7 +12,7 @@ from tqdm import tqdm
 
 import vfdsl
 from vfdsl.errors import VfError
-from vfdsl.files import check_writable
+from vfdsl.files import check_outputs, check_writable, task_sources
 from vfdsl import limits
 from vfdsl.ir import captures
 from vfdsl.sim.mcap_trace import write_mcap
@@ -48,7 +48,8 @@ examples:
 limits (exit status 2 before any work; docs/language.md, "Limits"): at most 1,000,000 ticks per trial
 (duration / period) and 20,000,000 in a run, a period of 10 us at least, 100,000 trials, 1,000 grid
 points; --workers is capped at the trials and the cores; --cluster must answer as a Dask scheduler
-within 10 s; the output files are checked writable before the run.
+within 10 s; the output files are checked writable before the run, and refused when one is a file the
+run reads (the task, its scenes, its imports) or two name the same file.
 
 Values take units (10ms, 0.2mm); bare numbers are SI. --json writes every metric by name
 (metrics.<name>.mean / std / max) with the settings and the seed; --csv one row per trial; --trace
@@ -134,6 +135,9 @@ def main(args: argparse.Namespace) -> int:
         raise VfError(f"--workers must be at least 1, got {args.workers}")
     if args.trace:
         trace.check_path(args.trace)
+    check_outputs({"--json": args.json, "--csv": args.csv, "--trace": args.trace, "--plot": args.plot},
+                  [*task_sources(task), ("the simulation scene", scene),
+                   ("the scene's recording", settings.recording and settings.recording.bag)])
     _check_work(settings, grid)
     for warning in _events_after_the_end(settings, grid):
         print(warning.render("warning"), file=sys.stderr)

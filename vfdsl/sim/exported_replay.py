@@ -22,7 +22,7 @@ import numpy as np
 import vfdsl
 from vfdsl.errors import Span, VfError
 from vfdsl.export.selftest import READOUT_NUMBERS, parse_answer
-from vfdsl.files import check_writable
+from vfdsl.files import check_outputs, check_writable, task_sources
 from vfdsl.ir import model as ir
 from vfdsl.kinematics.robot import Robot
 from vfdsl.objectives.haptics import teleop_terms
@@ -62,6 +62,8 @@ def main(args: argparse.Namespace) -> int:
     tr.check_path(args.output)                 # (Parquet needs pyarrow)
     check_writable(args.output)
     task = vfdsl.load(args.file)
+    check_outputs({"-o": args.output}, [*task_sources(task), ("the ticks file", args.ticks),
+                                        ("the replayed file", args.replayed), ("the params file", args.params)])
     dt = args.dt if args.dt is not None else (task.scene.period or ASSUMED_PERIOD)
     if not (np.isfinite(dt) and dt > 0):
         raise VfError(f"--dt {args.dt}: a period in seconds, more than 0")
