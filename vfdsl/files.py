@@ -9,6 +9,7 @@ than :data:`~vfdsl.limits.YAML_DEPTH` before Python's own recursion limit could 
 
 from __future__ import annotations
 
+import argparse
 import os
 import stat
 from pathlib import Path
@@ -64,6 +65,14 @@ def read_text(path: Path, what: str, pos: Span | None = None, hint: str | None =
         return data.decode("utf-8-sig")          # a leading byte-order mark (some Windows editors) is not text
     except UnicodeDecodeError as exc:
         raise VfError(f"{what} {path} is not UTF-8 text (byte {exc.start})", pos) from None
+
+
+def path_argument(text: str) -> str:
+    """The argparse type of a command's file and folder options: an empty path names nothing (it used to be taken
+    as "not given", or as the current directory: `export -o ""` replaced the README.md and Makefile there)."""
+    if not text:
+        raise argparse.ArgumentTypeError("an empty path names no file or folder")
+    return text
 
 
 def check_writable(name: str | Path) -> None:

@@ -10,6 +10,7 @@ from pathlib import Path
 from vfdsl.check import DEFAULT_OVERSHOOT, Report
 from vfdsl.check.sampling import DEFAULT_SAMPLES
 from vfdsl.errors import VfError
+from vfdsl.files import path_argument
 from vfdsl import limits
 
 EPILOG = """\
@@ -35,8 +36,9 @@ def register(commands: argparse._SubParsersAction) -> None:
                     "scene's start, kinematics, the closed loop with the hands off, configurations reached "
                     "under random input, unused or contradictory statements.",
         epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("file", help="the .vf task file")
-    parser.add_argument("--scene", metavar="S.yaml", help="use this scene file instead of the task's own")
+    parser.add_argument("file", type=path_argument, help="the .vf task file")
+    parser.add_argument("--scene", metavar="S.yaml", type=path_argument,
+                        help="use this scene file instead of the task's own")
     parser.add_argument("--json", action="store_true", help="print the report as JSON (see docs/check.md)")
     parser.add_argument("--strict", action="store_true", help="exit with status 1 on warnings too")
     parser.add_argument("--overshoot", metavar="PCT", default=DEFAULT_OVERSHOOT, type=_fraction,

@@ -12,7 +12,7 @@ from tqdm import tqdm
 
 import vfdsl
 from vfdsl.errors import VfError
-from vfdsl.files import check_outputs, check_writable, task_sources
+from vfdsl.files import check_outputs, check_writable, path_argument, task_sources
 from vfdsl import limits
 from vfdsl.ir import captures
 from vfdsl.sim.mcap_trace import write_mcap
@@ -61,8 +61,9 @@ def add_parser(commands) -> None:
     p = commands.add_parser("simulate", help="run a task on a simulated robot and hand, and measure its errors",
                             description=DESCRIPTION, epilog=EPILOG,
                             formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("file", help="the .vf task file")
-    p.add_argument("--scene", metavar="S.yaml", help="simulation scene (default: <task>.sim.yaml if it exists)")
+    p.add_argument("file", type=path_argument, help="the .vf task file")
+    p.add_argument("--scene", metavar="S.yaml", type=path_argument,
+                   help="simulation scene (default: <task>.sim.yaml if it exists)")
     p.add_argument("--duration", metavar="T", help="simulated time per trial (e.g. 60s)")
     p.add_argument("--period", metavar="DT", help="control period (e.g. 10ms; default: the scene's)")
     p.add_argument("--latency", metavar="L", help="command latency (e.g. 140ms)")
@@ -77,10 +78,12 @@ def add_parser(commands) -> None:
                    help="local processes (default: all cores for long runs, else 1; at most one per trial "
                         "and per core)")
     p.add_argument("--cluster", metavar="ADDRESS", help="run the trials on this Dask distributed scheduler")
-    p.add_argument("--json", metavar="OUT.json", help="write every metric, the settings and the seeds")
-    p.add_argument("--csv", metavar="OUT.csv", help="write one row per trial (settings, seed, metrics)")
-    p.add_argument("--plot", metavar="OUT.png", help="write a plot of the first trial (PNG)")
-    p.add_argument("--trace", metavar="OUT.csv|OUT.parquet|OUT.mcap",
+    p.add_argument("--json", metavar="OUT.json", type=path_argument,
+                   help="write every metric, the settings and the seeds")
+    p.add_argument("--csv", metavar="OUT.csv", type=path_argument,
+                   help="write one row per trial (settings, seed, metrics)")
+    p.add_argument("--plot", type=path_argument, metavar="OUT.png", help="write a plot of the first trial (PNG)")
+    p.add_argument("--trace", type=path_argument, metavar="OUT.csv|OUT.parquet|OUT.mcap",
                    help="write every tick of every trial: time, q, dq, inputs, params, status, violations, metrics "
                         "(SI units; columns in docs/simulate.md)")
     p.add_argument("--quiet", action="store_true", help="no progress bar and no table")

@@ -22,7 +22,7 @@ import numpy as np
 import vfdsl
 from vfdsl.errors import Span, VfError
 from vfdsl.export.selftest import READOUT_NUMBERS, parse_answer
-from vfdsl.files import check_outputs, check_writable, task_sources
+from vfdsl.files import check_outputs, check_writable, path_argument, task_sources
 from vfdsl.ir import model as ir
 from vfdsl.kinematics.robot import Robot
 from vfdsl.objectives.haptics import teleop_terms
@@ -46,12 +46,14 @@ def add_parser(commands) -> None:
                "The trace has the columns of `vfdsl simulate --trace` that a replay knows (time, q, dq, inputs, params,\n"
                "status, violations; a procedure's phase; a teleoperated task's haptic force, following) and, as MCAP,\n"
                "the topics of docs/simulate.md, the fixtures' markers included.")
-    p.add_argument("file", help="the .vf task file the controller was exported from")
-    p.add_argument("ticks", help="the replay's input: one tick a line (q, inputs[, params])")
-    p.add_argument("replayed", help="the replay's output: one line a tick")
-    p.add_argument("-o", "--output", metavar="OUT.csv|OUT.parquet|OUT.mcap", required=True, help="the trace to write")
+    p.add_argument("file", type=path_argument, help="the .vf task file the controller was exported from")
+    p.add_argument("ticks", type=path_argument, help="the replay's input: one tick a line (q, inputs[, params])")
+    p.add_argument("replayed", type=path_argument, help="the replay's output: one line a tick")
+    p.add_argument("-o", "--output", metavar="OUT.csv|OUT.parquet|OUT.mcap", required=True, type=path_argument,
+                   help="the trace to write")
     p.add_argument("--dt", metavar="SECONDS", type=float, help="the replay's dt (default: the task's scene period)")
-    p.add_argument("--params", metavar="FILE", help="the replay's --params FILE: the params at the start")
+    p.add_argument("--params", metavar="FILE", type=path_argument,
+                   help="the replay's --params FILE: the params at the start")
     p.set_defaults(run=main)
 
 
