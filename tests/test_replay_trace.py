@@ -50,6 +50,8 @@ def test_ticks_and_answers_become_the_traces_rows(tmp_path):
     (f"{Q} 0 0 0\n", "0 0 0 0 0 0 0 0\n", ["--params", "PARAMS"], "--params: 2 numbers, expected 6"),
     (f"{Q} 0 0 0\n", "0 0 0 0 0 0 0 0\n", ["--params", "missing.txt"], "cannot read missing.txt"),
     (f"{Q} 0 0 0\n", "0 0 0 0 0 0 0 0\n", ["-o", "/nonexistent/run.csv"], "cannot write /nonexistent/run.csv"),
+    ("", "", [], "ticks.txt holds no tick (it is empty or blank)"),       # a reshape of no rows: ValueError
+    (" \n\n", "\n", ["-o", "run.mcap"], "ticks.txt holds no tick"),
     (f"{Q} 0 0 0\n", "0 0 0 0 0 0 0 0\n", ["-o", "run.txt"], "-o run.txt: write a .csv, a .parquet or an .mcap"),
     (f"{Q} 0 0 0\n", "0 0 0 0 0 0 0 0\n", ["-o", "PARAMS.csv", "--params", "PARAMS.csv"],
      "-o PARAMS.csv is the params file: writing the output there would destroy it"),

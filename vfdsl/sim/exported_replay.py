@@ -95,6 +95,9 @@ def read(task: ir.Task, ticks: Path, replayed: Path, dt: float, start_params=Non
         current = np.asarray(start_params, dtype=float)
     fed = [(n, line) for n, line in enumerate(_lines(ticks), start=1) if line.split()]
     answers = [(n, line) for n, line in enumerate(_lines(replayed), start=1) if line.strip()]
+    if not fed:
+        raise VfError(f"{ticks} holds no tick (it is empty or blank): a trace needs at least one",
+                      hint="give the file the replay was fed, one tick a line")
     if len(answers) != len(fed):
         raise VfError(f"{replayed}: {len(answers)} lines for the {len(fed)} ticks of {ticks}: the replay's output of "
                       "another input, or cut short")
