@@ -193,6 +193,18 @@ def test_an_output_that_is_an_input_or_another_output_is_refused_before_the_run(
     assert not (tmp_path / "x").exists() and not (tmp_path / "x.csv").exists()
 
 
+def test_a_scene_without_start_is_refused_naming_it(tmp_path, capsys):
+    """No `start:` in the task's scene: refused before the run, naming the scene (the robot started at zero clipped
+    into its joint limits, and the fixture then moved it 228 mm on its own)."""
+    task, scene = tmp_path / "t.vf", tmp_path / "t.yaml"
+    task.write_text((TASKS_DIR / "lecture_remote_center.vf").read_text())
+    own = (TASKS_DIR / "lecture_remote_center.yaml").read_text().splitlines(keepends=True)
+    scene.write_text("".join(line for line in own if not line.startswith("start:")))
+    assert main(["simulate", str(task), "--duration", "0.1s", "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert f"its scene {scene} has no `start:`" in err and "give the scene `start: [...]`" in err, err
+
+
 def test_readme_first_command_simulates_experiment_b(capsys, monkeypatch):
     """The README's quick start: install, then `vfdsl simulate` of experiment B, which needs nothing else."""
     from conftest import REPO

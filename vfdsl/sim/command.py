@@ -21,7 +21,7 @@ from vfdsl.sim.operator import teleop_table
 from vfdsl.sim import report, trace
 from vfdsl.sim.cluster import connect
 from vfdsl.sim.metrics import metric_defs
-from vfdsl.sim.runner import default_workers, loaded, make_jobs, run
+from vfdsl.sim.runner import default_workers, loaded, make_jobs, run, start_configuration
 from vfdsl.sim.scene_file import default_scene, load_settings, parse_setting
 from vfdsl.sim.scripted import late_events
 from vfdsl.sim.settings import GRID_NAMES, SHOWN_IN, check_setting, check_ticks
@@ -142,6 +142,7 @@ def main(args: argparse.Namespace) -> int:
                   [*task_sources(task), ("the simulation scene", scene),
                    ("the scene's recording", settings.recording and settings.recording.bag)])
     _check_work(settings, grid)
+    start_configuration(task, settings)
     for warning in _events_after_the_end(settings, grid):
         print(warning.render("warning"), file=sys.stderr)
     for name in (args.json, args.csv, args.trace):
