@@ -116,6 +116,8 @@ BAD_SCENES = [
     ("hand: {input: tau, kind: turn, axis: [0, 0, 1], magnitude: 1 Nmm, tremor_band: [8, 1e308]}\n", 1,
      "a tremor band up to 1e+308 Hz is beyond the 1000 Hz"),
     ("units: mm\ntracker: {noise: 1e308}\n", 2, "a tracker noise of 1e+308 mm RMS is beyond the 10 mm"),
+    ("latency: 1e308 s\n", 1, "a latency of 1e+308 s is beyond the 10 s a simulated robot may have"),   # (it ran:
+    ("servo_lag: 11 s\n", 1, "a servo lag of 11 s is beyond the 10 s"),             # "latency inf ms", no motion)
     ("units: mm\ntracker: {marker_distance: 1e308}\n", 2, "marker_distance must be from 1 mm to 1000 mm, got 1e+308 mm"),
     ("units: mm\ndisturbances:\n  - {at: 1 s, kind: push_tool, frame: tip, by: [1e308, 0, 0]}\n", 3,
      "a push_tool displacement of 1e+308 mm is beyond the 100 mm"),
@@ -142,6 +144,9 @@ def test_bad_scene_is_a_clear_error_with_file_and_line(tmp_path, capsys, text, l
     (["--json", "no/such/dir/out.json"], "cannot write no/such/dir/out.json: no directory"),
     (["--scene", "no_such.sim.yaml"], "simulation scene not found: no_such.sim.yaml"),
     (["--noise", "1e308m"], "a tracker noise of 1e+308 m RMS is beyond the 10 mm"),
+    (["--noise", "0.2"], "bare numbers on the command line are SI (m, s): give the unit, e.g. 0.2mm"),
+    (["--latency", "20"], "--latency 20: a latency of 20 s is beyond the 10 s a simulated robot may have"),
+    (["--grid", "servo_lag=0,1e308"], "--grid servo_lag=1e308: a servo lag of 1e+308 s is beyond the 10 s"),
 ])
 def test_bad_setting_on_the_command_line_is_a_clear_error(capsys, args, message):
     assert main(["simulate", B, "--quiet", *args]) == 2
