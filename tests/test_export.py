@@ -427,6 +427,10 @@ def test_cli_errors_are_clear(tmp_path, capsys, monkeypatch):
     blocker.write_text("")
     assert main(["export", str(TASKS_DIR / "lecture_stay_near_goal.vf"), "-o", str(blocker)]) == 2
     assert "not a directory" in capsys.readouterr().err
+    assert main(["export", str(TASKS_DIR / "lecture_stay_near_goal.vf"), "-o", str(tmp_path / "out"),
+                 "--cache", str(blocker)]) == 2
+    err = capsys.readouterr().err                      # (the hint named compile's -o only)
+    assert f"the build directory {blocker} is not a directory" in err and "export --cache" in err, err
     monkeypatch.setenv("PATH", str(tmp_path))          # no make (nor anything else) on the PATH
     with pytest.raises(VfError, match="make not found"):
         build(tmp_path)

@@ -146,6 +146,11 @@ def test_bad_scene_is_a_clear_error_with_file_and_line(tmp_path, capsys, text, l
     (["--noise", "1e308m"], "a tracker noise of 1e+308 m RMS is beyond the 10 mm"),
     (["--noise", "0.2"], "bare numbers on the command line are SI (m, s): give the unit, e.g. 0.2mm"),
     (["--latency", "20"], "--latency 20: a latency of 20 s is beyond the 10 s a simulated robot may have"),
+    # the controller's dt range, before the run (it was the Controller.step error about dt, from the first tick)
+    (["--period", "2s"], "a period of 2000 ms is outside [0.1 ms, 100 ms], the periods task 'paper_b_virtual_rcm' "
+                         "steps at (1/100 to 10 times its scene's period, 10 ms)"),
+    (["--grid", "period=10ms,0.05ms"], "--grid period=5e-05: a period of 0.05 ms is outside [0.1 ms, 100 ms]"),
+    (["--period", "0.001ms"], "the shortest control period is 0.01 ms"),        # (said "10 us": no unit 'us')
     (["--grid", "servo_lag=0,1e308"], "--grid servo_lag=1e308: a servo lag of 1e+308 s is beyond the 10 s"),
 ])
 def test_bad_setting_on_the_command_line_is_a_clear_error(capsys, args, message):

@@ -252,7 +252,7 @@ def check_setting(name: str, value, where: Span | None = None) -> None:
             raise VfError(f"{name} must be a positive time, got {value!r}", where)
         if name == "period" and value < limits.MIN_PERIOD:
             raise limits.exceeded(f"a period of {value:g} s is too short", limits.MIN_PERIOD, where,
-                                  hint="the shortest control period is 10 us (100 kHz)", unit="s")
+                                  hint="the shortest control period is 0.01 ms (100 kHz)", unit="s")
     elif name in ("latency", "servo_lag", "noise"):
         if not (isinstance(value, float) and math.isfinite(value) and value >= 0):
             raise VfError(f"{name} must be zero or positive, got {value!r}", where)
