@@ -3,6 +3,7 @@ behind the findings against independent computations; the command line (exit cod
 
 from __future__ import annotations
 
+import argparse
 import itertools
 import json
 import math
@@ -283,6 +284,21 @@ def test_cli_usage_and_front_end_errors_exit_2(tmp_path):
     proc = vfdsl_cli("check", str(tmp_path / "probe.vf"))
     assert proc.returncode == 2 and "Traceback" not in proc.stderr and "unknown" in proc.stderr
     assert vfdsl_cli("check", str(tmp_path / "probe.vf"), "--overshoot", "lots").returncode == 2
+
+
+def test_a_bare_overshoot_is_a_percentage_as_pct_says(tmp_path):
+    """--overshoot 5 is 5%, as --overshoot 5% (it was read as a fraction, 500%, hiding the probe's 73% overshoot
+    warning); 10 is 10%, not refused as beyond 1000%."""
+    from vfdsl.check.command import _fraction
+    write_probe(tmp_path, PROBE)
+    for given in ("5", "5%"):
+        proc = vfdsl_cli("check", str(tmp_path / "probe.vf"), "--overshoot", given)
+        assert "VF102" in proc.stdout and "(limit 5%;" in proc.stdout, proc.stdout
+    assert _fraction("5") == _fraction("5%") == pytest.approx(0.05)
+    assert _fraction("10") == pytest.approx(0.1) and _fraction("999") == pytest.approx(9.99)
+    for text in ("0", "1000", "-5%", "lots"):
+        with pytest.raises(argparse.ArgumentTypeError):
+            _fraction(text)
     proc = vfdsl_cli("check", str(TASKS_DIR / "paper_b_virtual_rcm.vf"), "--scene", str(tmp_path / "none.yaml"))
     assert proc.returncode == 2 and "scene file not found" in proc.stderr
 

@@ -174,6 +174,29 @@ def test_usage_errors_exit_2(args, message):
     assert "Traceback" not in proc.stderr
 
 
+@pytest.mark.parametrize("args", [
+    ("show", ""), ("compile", str(TASK_B), "-o", ""), ("export", str(TASK_B), "-o", ""),
+    ("export", str(TASK_B), "-o", "out", "--cache", ""), ("check", str(TASK_B), "--scene", ""),
+    *(("simulate", str(TASK_B), option, "") for option in ("--scene", "--json", "--csv", "--plot", "--trace")),
+    ("replay-trace", str(TASK_B), "", "r.txt", "-o", "run.csv"),
+    ("replay-trace", str(TASK_B), "t.txt", "", "-o", "run.csv"),
+    ("replay-trace", str(TASK_B), "t.txt", "r.txt", "-o", ""),
+    ("replay-trace", str(TASK_B), "t.txt", "r.txt", "-o", "run.csv", "--params", ""),
+    ("view", str(TASK_B), "--replay", ""), ("view", str(TASK_B), "--screenshot", ""),
+])
+def test_an_empty_path_is_a_usage_error(tmp_path, monkeypatch, capsys, args):
+    """An empty file or folder name is refused before any work: `export -o ""` wrote into the current directory (its
+    README.md and Makefile replaced), `simulate --json ""` wrote nothing, `check --scene ""` read the task's own."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "README.md").write_text("the user's")
+    with pytest.raises(SystemExit) as exit_:
+        main(list(args))
+    err = capsys.readouterr().err
+    assert exit_.value.code == 2 and "an empty path names no file or folder" in err, err
+    assert [p.name for p in tmp_path.iterdir()] == ["README.md"]
+    assert (tmp_path / "README.md").read_text() == "the user's"
+
+
 def test_primitives_lists_every_argument_with_its_allowed_range(capsys):
     from vfdsl.objectives import OBJECTIVES
     from vfdsl.primitives import CONSTRAINTS

@@ -438,6 +438,10 @@ def test_cli_errors_are_clear(tmp_path, capsys, monkeypatch):
     blocker.write_text("")
     assert main(["export", str(TASKS_DIR / "lecture_stay_near_goal.vf"), "-o", str(blocker)]) == 2
     assert "not a directory" in capsys.readouterr().err
+    assert main(["export", str(TASKS_DIR / "lecture_stay_near_goal.vf"), "-o", str(tmp_path / "out"),
+                 "--cache", str(blocker)]) == 2
+    err = capsys.readouterr().err                      # (the hint named compile's -o only)
+    assert f"the build directory {blocker} is not a directory" in err and "export --cache" in err, err
     monkeypatch.setenv("PATH", str(tmp_path))          # no make (nor anything else) on the PATH
     with pytest.raises(VfError, match="make not found"):
         build(tmp_path)
@@ -686,6 +690,21 @@ def test_the_export_never_writes_through_a_link(experiment_b, tmp_path):
     (tmp_path / "link_to_folder").symlink_to(elsewhere)
     written = _write_as(exported, tmp_path / "link_to_folder")
     assert len(list(elsewhere.rglob("*.c"))) == sum(p.suffix == ".c" for p in written.files)
+
+
+def test_a_file_the_export_would_replace_that_is_the_tasks_own_is_refused(tmp_path, capsys):
+    """A task file named as a file of the export (Makefile) in the folder it is exported into: refused before
+    anything is written, the task as it was."""
+    out = tmp_path / "out"
+    out.mkdir()
+    shutil.copy(TASKS_DIR / "lecture_remote_center.vf", out / "Makefile")
+    shutil.copy(TASKS_DIR / "lecture_remote_center.yaml", out / "Makefile.yaml")
+    text = (out / "Makefile").read_text()
+    assert main(["export", str(out / "Makefile"), "-o", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert f"-o {out}: the export's file {out / 'Makefile'} is the task file" in err and "Traceback" not in err, err
+    assert (out / "Makefile").read_text() == text and sorted(p.name for p in out.iterdir()) == ["Makefile",
+                                                                                               "Makefile.yaml"]
 
 
 def test_self_test_count_has_a_limit(tmp_path, capsys):

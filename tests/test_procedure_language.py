@@ -243,6 +243,12 @@ def test_each_mistake_has_its_code_line_and_column(tmp_path, body, where, code, 
     assert message in err.message
 
 
+def test_a_hint_says_e_g_once(tmp_path):
+    """The hint of a value in the wrong unit (E806) read "e.g. a number with a unit, e.g. 5 N"."""
+    err = error(tmp_path, "monitor m = norm(f) > 1 mm\n")
+    assert err.errors[0].hint == "write a number with a unit, e.g. 5 N", err.render()
+
+
 def test_independent_mistakes_are_reported_together(tmp_path):
     """Three independent mistakes, each at its place; a transition naming a failed monitor is not an echo."""
     err = error(tmp_path, "monitor bad = norm(f) > 1 mm\n"

@@ -71,11 +71,18 @@ def test_every_scalar_argument_states_its_range():
     ("require joint_speed(fraction = 1.5)\n", 32, "'fraction' must be in (0, 1]"),
     ("require tip cone([0, 0, 1], 90 deg)\n", 29, "'angle' must be in (0, 90) deg, got 90 deg"),
     ("require tip cone([0, 0, 1], 0)\n", 29, "'angle' must be in (0, 90) deg"),
-    ("require tip within_distance([0, 0, 0], -3)\n", 40, "'distance' must be > 0, got -3 mm"),
-    ("require tip within_distance([0, 0, 0], 0 mm)\n", 40, "'distance' must be > 0"),
-    ("require tip speed(0)\n", 19, "'max' must be > 0, got 0 mm/s"),
-    ("require tip angular_speed(-1 deg/s)\n", 27, "'max' must be > 0"),
-    ("minimize track(tip, f, gain = -1 mm/s/N)\n", 31, "'gain' must be > 0"),
+    ("require tip within_distance([0, 0, 0], -3)\n", 40, "'distance' must be in (0, 1e+06], got -3 mm"),
+    ("require tip within_distance([0, 0, 0], 0 mm)\n", 40, "'distance' must be in (0, 1e+06]"),
+    ("require tip speed(0)\n", 19, "'max' must be in (0, 1e+06], got 0 mm/s"),
+    ("require tip angular_speed(-1 deg/s)\n", 27, "'max' must be in (0, 1e+06]"),
+    ("minimize track(tip, f, gain = -1 mm/s/N)\n", 31, "'gain' must be in [1e-06, 1e+06]"),
+    # beyond any robot (a unit slip): check refused them, but show, compile and simulate took them (a 1e308 mm
+    # tolerance overflowed the generic hand's probe; a gain of 1e300 or 1e-300 passed everything)
+    ("require tip speed(1e308)\n", 19, "'max' must be in (0, 1e+06], got 1e+308 mm/s"),
+    ("require tip angular_speed(1e30)\n", 27, "'max' must be in (0, 1e+06], got 1e+30 deg/s"),
+    ("require tip within_distance([0, 0, 0], 1e300)\n", 40, "'distance' must be in (0, 1e+06], got 1e+300 mm"),
+    ("minimize track(tip, f, gain = 1e300)\n", 31, "'gain' must be in [1e-06, 1e+06], got 1e+297 (SI units)"),
+    ("minimize track(tip, f, gain = 1e-300)\n", 31, "'gain' must be in [1e-06, 1e+06]"),
 ])
 def test_argument_out_of_range(tmp_path, body, column, message):
     err = fails(tmp_path, body, 6, column, message)
@@ -90,6 +97,9 @@ def test_argument_out_of_range(tmp_path, body, column, message):
     "require tip within_distance([0, 0, 0], 1 um)\n",
     "require tip speed(1e-3)\n",
     "minimize track(tip, f, gain = 1e-3 mm/s/N)\n",
+    "minimize track(tip, f, gain = 1e6 m/s/N)\n",
+    "require tip within_distance([0, 0, 0], 1e6 m)\n",
+    "require tip speed(1e6 m/s)\n",
 ])
 def test_argument_near_miss_loads(tmp_path, body):
     load(tmp_path, body)
@@ -138,6 +148,15 @@ def test_tolerance_below_the_solver_names_both_numbers_in_the_tasks_units(tmp_pa
     assert f"{clause_ranges.TOLERANCE_MARGIN * FEASIBILITY_TOLERANCE * 1e3:g} mm" in err.hint
     low = clause_ranges.TOLERANCE_MARGIN * FEASIBILITY_TOLERANCE
     load(tmp_path, f"require tip stays_at([0, 0, 290]) within {low * 1e3 * 1.01!r}\n")
+
+
+def test_tolerance_beyond_any_robot_is_refused_where_check_refused_it(tmp_path):
+    """A length tolerance above limits.ROW_VALUE (the size `check` refused, as rows beyond what it analyses) is
+    refused at load: `simulate` crashed on it (OverflowError in the generic hand's probe)."""
+    for within, column in (("1e308", 42), ("1e307 mm", 42)):
+        fails(tmp_path, f"require tip stays_at([0, 0, 290]) within {within}\n", 6, column,
+              "is beyond any robot's size: the limit is 1e+09 mm (1e+06 m)")
+    load(tmp_path, "require tip stays_at([0, 0, 290]) within 1e6 m\n")
 
 
 def test_tolerance_from_a_fixture_formal_points_at_the_use(tmp_path):

@@ -50,7 +50,11 @@ def test_ticks_and_answers_become_the_traces_rows(tmp_path):
     (f"{Q} 0 0 0\n", "0 0 0 0 0 0 0 0\n", ["--params", "PARAMS"], "--params: 2 numbers, expected 6"),
     (f"{Q} 0 0 0\n", "0 0 0 0 0 0 0 0\n", ["--params", "missing.txt"], "cannot read missing.txt"),
     (f"{Q} 0 0 0\n", "0 0 0 0 0 0 0 0\n", ["-o", "/nonexistent/run.csv"], "cannot write /nonexistent/run.csv"),
+    ("", "", [], "ticks.txt holds no tick (it is empty or blank)"),       # a reshape of no rows: ValueError
+    (" \n\n", "\n", ["-o", "run.mcap"], "ticks.txt holds no tick"),
     (f"{Q} 0 0 0\n", "0 0 0 0 0 0 0 0\n", ["-o", "run.txt"], "-o run.txt: write a .csv, a .parquet or an .mcap"),
+    (f"{Q} 0 0 0\n", "0 0 0 0 0 0 0 0\n", ["-o", "PARAMS.csv", "--params", "PARAMS.csv"],
+     "-o PARAMS.csv is the params file: writing the output there would destroy it"),
 ])
 def test_mistaken_input_is_refused_without_a_traceback(tmp_path, capsys, monkeypatch, ticks, answers, extra, message):
     monkeypatch.chdir(tmp_path)
@@ -58,7 +62,20 @@ def test_mistaken_input_is_refused_without_a_traceback(tmp_path, capsys, monkeyp
     if ticks is None:
         t.unlink()
     (tmp_path / "PARAMS").write_text("1 2\n")
+    (tmp_path / "PARAMS.csv").write_text("1 2\n")
     args = ["replay-trace", str(PAPER_B), str(t), str(r)] + (["-o", "run.csv"] if "-o" not in extra else []) + extra
     assert main(args) == 2
     err = capsys.readouterr().err
     assert message in err and "Traceback" not in err, err
+    assert (tmp_path / "PARAMS.csv").read_text() == "1 2\n"
+
+
+def test_an_output_that_is_an_input_is_refused_and_the_file_kept(tmp_path, capsys):
+    """-o naming the ticks, the answers or the task would replace what the trace is made from."""
+    ticks, answers = _files(tmp_path, f"{Q} 0 0 0\n", "0 0 0 0 0 0 0 0\n")
+    for out, what in ((tmp_path / "ticks.csv", "the ticks file"), (tmp_path / "replayed.csv", "the replayed file")):
+        out.symlink_to(ticks if what == "the ticks file" else answers)
+        assert main(["replay-trace", str(PAPER_B), str(ticks), str(answers), "-o", str(out)]) == 2
+        err = capsys.readouterr().err
+        assert f"-o {out} is {what}" in err and "Traceback" not in err, err
+    assert ticks.read_text() == f"{Q} 0 0 0\n" and answers.read_text() == "0 0 0 0 0 0 0 0\n"

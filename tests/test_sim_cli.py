@@ -116,6 +116,8 @@ BAD_SCENES = [
     ("hand: {input: tau, kind: turn, axis: [0, 0, 1], magnitude: 1 Nmm, tremor_band: [8, 1e308]}\n", 1,
      "a tremor band up to 1e+308 Hz is beyond the 1000 Hz"),
     ("units: mm\ntracker: {noise: 1e308}\n", 2, "a tracker noise of 1e+308 mm RMS is beyond the 10 mm"),
+    ("latency: 1e308 s\n", 1, "a latency of 1e+308 s is beyond the 10 s a simulated robot may have"),   # (it ran:
+    ("servo_lag: 11 s\n", 1, "a servo lag of 11 s is beyond the 10 s"),             # "latency inf ms", no motion)
     ("units: mm\ntracker: {marker_distance: 1e308}\n", 2, "marker_distance must be from 1 mm to 1000 mm, got 1e+308 mm"),
     ("units: mm\ndisturbances:\n  - {at: 1 s, kind: push_tool, frame: tip, by: [1e308, 0, 0]}\n", 3,
      "a push_tool displacement of 1e+308 mm is beyond the 100 mm"),
@@ -142,6 +144,14 @@ def test_bad_scene_is_a_clear_error_with_file_and_line(tmp_path, capsys, text, l
     (["--json", "no/such/dir/out.json"], "cannot write no/such/dir/out.json: no directory"),
     (["--scene", "no_such.sim.yaml"], "simulation scene not found: no_such.sim.yaml"),
     (["--noise", "1e308m"], "a tracker noise of 1e+308 m RMS is beyond the 10 mm"),
+    (["--noise", "0.2"], "bare numbers on the command line are SI (m, s): give the unit, e.g. 0.2mm"),
+    (["--latency", "20"], "--latency 20: a latency of 20 s is beyond the 10 s a simulated robot may have"),
+    # the controller's dt range, before the run (it was the Controller.step error about dt, from the first tick)
+    (["--period", "2s"], "a period of 2000 ms is outside [0.1 ms, 100 ms], the periods task 'paper_b_virtual_rcm' "
+                         "steps at (1/100 to 10 times its scene's period, 10 ms)"),
+    (["--grid", "period=10ms,0.05ms"], "--grid period=5e-05: a period of 0.05 ms is outside [0.1 ms, 100 ms]"),
+    (["--period", "0.001ms"], "the shortest control period is 0.01 ms"),        # (said "10 us": no unit 'us')
+    (["--grid", "servo_lag=0,1e308"], "--grid servo_lag=1e308: a servo lag of 1e+308 s is beyond the 10 s"),
 ])
 def test_bad_setting_on_the_command_line_is_a_clear_error(capsys, args, message):
     assert main(["simulate", B, "--quiet", *args]) == 2
@@ -161,6 +171,48 @@ def test_an_output_that_is_a_fifo_without_a_reader_is_refused_not_waited_on(tmp_
         result = subprocess.run([sys.executable, "-m", "vfdsl.cli", "simulate", B, "--quiet", flag, str(fifo)],
                                 capture_output=True, text=True, timeout=120)
         assert result.returncode == 2 and f"cannot write {fifo}" in result.stderr, result.stderr
+
+
+def test_an_output_that_is_an_input_or_another_output_is_refused_before_the_run(tmp_path, capsys):
+    """--json, --csv, --trace or --plot naming the task, its scene or the simulation scene would destroy it, and two
+    outputs naming one file would replace each other: refused, exit 2, every file as it was (--plot on the task used
+    to be refused by its suffix alone, --json on it replaced the task with JSON)."""
+    import shutil
+    for name in ("paper_b_virtual_rcm.vf", "paper_b_virtual_rcm.yaml"):
+        shutil.copy(TASKS_DIR / name, tmp_path / name)
+    shutil.copytree(TASKS_DIR / "library", tmp_path / "library")
+    task, scene, sim = (tmp_path / "paper_b_virtual_rcm.vf", tmp_path / "paper_b_virtual_rcm.yaml",
+                        tmp_path / "b.sim.yaml")
+    sim.write_text("duration: 0.1 s\n")
+    (tmp_path / "link.csv").symlink_to(scene)
+    library = tmp_path / "library" / "fixtures.vf"
+    before = {path: path.read_bytes() for path in (task, scene, sim, library)}
+    for args, message in (
+            (["--json", str(task)], f"--json {task} is the task file: writing the output there would destroy it"),
+            (["--csv", str(tmp_path / "link.csv")], "is the task's scene file"),
+            (["--json", str(tmp_path / "." / "b.sim.yaml")], "is the simulation scene"),
+            (["--plot", str(task)], "is the task file"),
+            (["--json", str(library)], "is a file the task imports"),
+            (["--json", str(tmp_path / "x"), "--csv", str(tmp_path / "x")], "name the same file: one output would "
+                                                                           "replace the other"),
+            (["--trace", str(tmp_path / "x.csv"), "--csv", str(tmp_path / "x.csv")], "name the same file")):
+        assert main(["simulate", str(task), "--scene", str(sim), "--quiet", *args]) == 2
+        err = capsys.readouterr().err
+        assert message in err and "Traceback" not in err, err
+    assert {path: path.read_bytes() for path in before} == before
+    assert not (tmp_path / "x").exists() and not (tmp_path / "x.csv").exists()
+
+
+def test_a_scene_without_start_is_refused_naming_it(tmp_path, capsys):
+    """No `start:` in the task's scene: refused before the run, naming the scene (the robot started at zero clipped
+    into its joint limits, and the fixture then moved it 228 mm on its own)."""
+    task, scene = tmp_path / "t.vf", tmp_path / "t.yaml"
+    task.write_text((TASKS_DIR / "lecture_remote_center.vf").read_text())
+    own = (TASKS_DIR / "lecture_remote_center.yaml").read_text().splitlines(keepends=True)
+    scene.write_text("".join(line for line in own if not line.startswith("start:")))
+    assert main(["simulate", str(task), "--duration", "0.1s", "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert f"its scene {scene} has no `start:`" in err and "give the scene `start: [...]`" in err, err
 
 
 def test_readme_first_command_simulates_experiment_b(capsys, monkeypatch):

@@ -104,3 +104,21 @@ def test_the_probe_works_inside_a_running_event_loop(monkeypatch):
             probe("tcp://127.0.0.1:9")
 
     asyncio.run(inside())
+
+
+def test_a_grid_point_without_the_trackers_metrics_first(tmp_path, capsys):
+    """--grid noise=0,0.2mm: the first grid point has no tracker, so none of the tracker_* metrics the second has (they
+    were looked up in the first trial's units: KeyError). Every output holds the union: the first point's JSON group
+    has no tracker metric, its CSV row and trace rows empty tracker cells."""
+    out = {suffix: tmp_path / f"run{suffix}" for suffix in (".json", ".csv", ".trace.csv")}
+    assert main(["simulate", B, "--trials", "1", "--duration", "0.2s", "--grid", "noise=0,0.2mm", "--quiet",
+                 "--json", str(out[".json"]), "--csv", str(out[".csv"]), "--trace", str(out[".trace.csv"])]) == 0
+    quiet, noisy = json.loads(out[".json"].read_text())["groups"]
+    assert "tracker_pivot_error_mm" not in quiet["metrics"]
+    assert noisy["metrics"]["tracker_pivot_error_mm"]["unit"] == "mm"
+    rows = list(csv.DictReader(out[".csv"].open()))
+    assert rows[0]["tracker_pivot_error_mm.max"] == "" and float(rows[1]["tracker_pivot_error_mm.max"]) > 0
+    ticks = list(csv.DictReader(out[".trace.csv"].open()))
+    assert len(ticks) == 40 and ticks[0]["tracker.pivot_error_m"] == ""
+    assert float(ticks[-1]["tracker.pivot_error_m"]) > 0
+    assert "Traceback" not in capsys.readouterr().err

@@ -260,11 +260,10 @@ def _placements(task, ctrl, q0):
 def test_far_on_the_wrong_side_every_example(path, backend):
     from vfdsl.sim.geometry import Scene
     from vfdsl.sim.metrics import errors, frame_poses, metric_defs
-    from vfdsl.sim.runner import start_configuration
     task = vfdsl.load(path)
     ctrl = vfdsl.compile(task, backend=backend)
     robot = Robot.load(task.robots[0].urdf, Path(task.file).parent)
-    q0 = start_configuration(task, robot)
+    q0 = task.start
     period = task.scene.period or DT
     hard = [d for d in metric_defs(task, robot, ())
             if d.constraint is not None and not d.constraint.soft and d.dimension in ("length", "angle")
@@ -337,14 +336,13 @@ def test_far_on_the_wrong_side_in_an_exported_build(name, tmp_path):
     import subprocess
     from vfdsl.export import export
     from vfdsl.export.selftest import replay
-    from vfdsl.sim.runner import start_configuration
     task = vfdsl.load(ROOT / "tasks" / f"{name}.vf")
     export(task, tmp_path / name)
     subprocess.run(["make", "-s", "-j2"], cwd=tmp_path / name, check=True, capture_output=True,
                    env={"PATH": __import__("os").environ.get("PATH", "/usr/bin:/bin"), "LANG": "C"})
     ctrl = vfdsl.compile(task, backend="native")
     robot = Robot.load(task.robots[0].urdf, Path(task.file).parent)
-    q0 = start_configuration(task, robot)
+    q0 = task.start
     dt = task.scene.period
     lines, expected = [], []
     for what, q, _, params in _placements(task, ctrl, q0):

@@ -1,7 +1,8 @@
 """The ``vfdsl`` command line.
 
 User mistakes (syntax, names, units, files) print a diagnostic with file:line:col and a caret, and exit
-with status 2; no Python traceback is shown for them.
+with status 2; no Python traceback is shown for them. An empty path given for a file or folder is a usage error
+(:func:`vfdsl.files.path_argument`).
 """
 
 from __future__ import annotations
@@ -17,6 +18,7 @@ import yaml
 import vfdsl
 from vfdsl.check import command as check_command
 from vfdsl.errors import EXIT_USER_ERROR, VfError
+from vfdsl.files import path_argument
 
 _DESCRIPTION = """\
 vfdsl compiles virtual fixtures written as .vf task files into constrained least-squares controllers.
@@ -142,7 +144,7 @@ def _parser() -> argparse.ArgumentParser:
     show = commands.add_parser("show", help="print the checked task (the IR the compiler sees)",
                                description="Load, check and print a task file's IR.", epilog=_SHOW_EPILOG,
                                formatter_class=argparse.RawDescriptionHelpFormatter)
-    show.add_argument("file", help="the .vf task file")
+    show.add_argument("file", type=path_argument, help="the .vf task file")
     show.add_argument("--format", choices=("yaml", "json"), default="yaml", help="output format (default: yaml)")
     show.add_argument("--statechart", choices=("dot", "mermaid"),
                       help="print the task's phase machine instead: states, initial and final marks, transitions "
@@ -155,8 +157,8 @@ def _parser() -> argparse.ArgumentParser:
                     "constraint rows, QP assembly, DAQP solve, least-violation fallback), built with the "
                     "system C compiler ($CC, default cc) and cached by content hash.",
         epilog=_COMPILE_EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
-    build.add_argument("file", help="the .vf task file")
-    build.add_argument("-o", "--output", metavar="DIR",
+    build.add_argument("file", type=path_argument, help="the .vf task file")
+    build.add_argument("-o", "--output", type=path_argument, metavar="DIR",
                        help="where to put the build (default: $VFDSL_CACHE or ~/.cache/vfdsl)")
     build.set_defaults(run=_compile)
     from vfdsl.export.selftest import MAX_TICKS
@@ -166,14 +168,14 @@ def _parser() -> argparse.ArgumentParser:
                     "sources, a small stable API (vf_<task>.h, and .hpp for C++), a Makefile and a CMakeLists.txt, "
                     "an example and a replay program. For C and C++ control loops without Python.",
         epilog=_EXPORT_EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
-    export.add_argument("file", help="the .vf task file")
-    export.add_argument("-o", "--output", metavar="DIR", required=True,
+    export.add_argument("file", type=path_argument, help="the .vf task file")
+    export.add_argument("-o", "--output", type=path_argument, metavar="DIR", required=True,
                         help="the folder to write (created if missing; files of the same names are replaced)")
     export.add_argument("--self-test", metavar="TICKS", type=_ticks, nargs="?", const=200, default=None,
                         help="then build a copy of the written files with make and replay TICKS (default 200, at most "
                              f"{MAX_TICKS:,}) closed-loop ticks recorded from Controller.step(): statuses must be "
                              "equal; prints the largest dq difference")
-    export.add_argument("--cache", metavar="DIR",
+    export.add_argument("--cache", type=path_argument, metavar="DIR",
                         help="the build cache of the generated library (default: $VFDSL_CACHE or ~/.cache/vfdsl)")
     export.set_defaults(run=_export)
     reference = commands.add_parser(

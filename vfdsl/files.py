@@ -9,6 +9,7 @@ than :data:`~vfdsl.limits.YAML_DEPTH` before Python's own recursion limit could 
 
 from __future__ import annotations
 
+import argparse
 import os
 import stat
 from pathlib import Path
@@ -66,6 +67,14 @@ def read_text(path: Path, what: str, pos: Span | None = None, hint: str | None =
         raise VfError(f"{what} {path} is not UTF-8 text (byte {exc.start})", pos) from None
 
 
+def path_argument(text: str) -> str:
+    """The argparse type of a command's file and folder options: an empty path names nothing (it used to be taken
+    as "not given", or as the current directory: `export -o ""` replaced the README.md and Makefile there)."""
+    if not text:
+        raise argparse.ArgumentTypeError("an empty path names no file or folder")
+    return text
+
+
 def check_writable(name: str | Path) -> None:
     """Refuse an output file before the work that makes it rather than after: its directory must exist, it
     must not be a directory, and it must open for writing, without waiting (a FIFO without a reader is
@@ -85,6 +94,36 @@ def check_writable(name: str | Path) -> None:
         raise VfError(f"cannot write {name}: {reason}") from None
     if not existed:
         path.unlink(missing_ok=True)
+
+
+def check_outputs(outputs: dict[str, str | Path | None], inputs: list[tuple[str, str | Path | None]],
+                  hint: str = "write the output to another file") -> None:
+    """Refuse, before any work, an output file that would destroy a file the command reads or another output:
+    ``outputs`` maps each output option (``--json``) to its path (None: not given), ``inputs`` lists the files read
+    as (what it is, path). The same file through a link, a hard link or another spelling of its path counts."""
+    given = [(option, path) for option, path in outputs.items() if path]
+    for k, (option, path) in enumerate(given):
+        for what, source in inputs:
+            if source and _same_file(path, source):
+                raise VfError(f"{option} {path} is {what}: writing the output there would destroy it", hint=hint)
+        for other, earlier in given[:k]:
+            if _same_file(path, earlier):
+                raise VfError(f"{other} {earlier} and {option} {path} name the same file: one output would replace "
+                              "the other", hint="give each output its own file")
+
+
+def task_sources(task) -> list[tuple[str, str | None]]:
+    """The source files of a loaded task, as :func:`check_outputs` takes them: the task file, its scene file, the
+    files it imports."""
+    return [("the task file", task.file), ("the task's scene file", task.scene.file),
+            *(("a file the task imports", path) for path in task.imports)]
+
+
+def _same_file(a: str | Path, b: str | Path) -> bool:
+    try:
+        return os.path.samefile(a, b)
+    except (OSError, ValueError):                # one of them does not exist (yet)
+        return os.path.realpath(a) == os.path.realpath(b)
 
 
 class BoundedLoader(yaml.SafeLoader):

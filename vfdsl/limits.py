@@ -42,7 +42,11 @@ TRIAL_TICKS = 1_000_000          # control ticks of one trial (duration / period
 RUN_TICKS = 20_000_000           # control ticks of one `simulate` run, all trials and grid points
 TRIALS = 100_000                 # trials per setting
 GRID_POINTS = 1_000              # settings of one sweep (the product of every --grid)
-ROW_VALUE = 1e6                  # m or rad: the largest number in a constraint's rows `check` analyses (LPs)
+ROW_VALUE = 1e6                  # m, rad, m/s or rad/s: the largest length, speed or length tolerance a task may
+                                 # state (the loader refuses more: a unit slip), and the largest number in a
+                                 # constraint's rows `check` analyses (LPs)
+GAIN = 1e6                       # SI: the largest gain of `track` (m/s per N, rad/s per N m, or a twist's scale);
+                                 # 1 / GAIN the smallest
 CHECK_SAMPLES = 5_000            # states of check's random walk (about 7 ms each on a loaded 2-core machine)
 SEED = 2 ** 32 - 1               # the largest seed (seeds are 0 or more)
 CONNECT_TIMEOUT = 10.0           # s: to reach a Dask scheduler and hear its handshake

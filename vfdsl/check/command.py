@@ -10,6 +10,7 @@ from pathlib import Path
 from vfdsl.check import DEFAULT_OVERSHOOT, Report
 from vfdsl.check.sampling import DEFAULT_SAMPLES
 from vfdsl.errors import VfError
+from vfdsl.files import path_argument
 from vfdsl import limits
 
 EPILOG = """\
@@ -35,13 +36,14 @@ def register(commands: argparse._SubParsersAction) -> None:
                     "scene's start, kinematics, the closed loop with the hands off, configurations reached "
                     "under random input, unused or contradictory statements.",
         epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("file", help="the .vf task file")
-    parser.add_argument("--scene", metavar="S.yaml", help="use this scene file instead of the task's own")
+    parser.add_argument("file", type=path_argument, help="the .vf task file")
+    parser.add_argument("--scene", metavar="S.yaml", type=path_argument,
+                        help="use this scene file instead of the task's own")
     parser.add_argument("--json", action="store_true", help="print the report as JSON (see docs/check.md)")
     parser.add_argument("--strict", action="store_true", help="exit with status 1 on warnings too")
     parser.add_argument("--overshoot", metavar="PCT", default=DEFAULT_OVERSHOOT, type=_fraction,
-                        help="largest accepted excess of a polytope's worst error over its tolerance "
-                             f"(default: {DEFAULT_OVERSHOOT * 100:.0f}%%)")
+                        help="largest accepted excess of a polytope's worst error over its tolerance, in percent: "
+                             f"5%% or 5 (default: {DEFAULT_OVERSHOOT * 100:.0f}%%)")
     parser.add_argument("--samples", metavar="N", type=_counter(limits.CHECK_SAMPLES), default=DEFAULT_SAMPLES,
                         help=f"states of the random walk under random input to check (default: {DEFAULT_SAMPLES}; "
                              f"0 skips it; at most {limits.CHECK_SAMPLES:,})")
@@ -107,9 +109,9 @@ def _counter(limit: int):
 
 
 def _fraction(text: str) -> float:
-    """'10%' or '0.1' -> 0.1."""
+    """'10%' or '10' (a percentage, as the option's PCT says) -> 0.1."""
     try:
-        value = float(text[:-1]) / 100 if text.endswith("%") else float(text)
+        value = float(text.removesuffix("%")) / 100
     except ValueError:
         raise argparse.ArgumentTypeError(f"expected a percentage like 10%, got {text!r}") from None
     if not 0 < value < 10:

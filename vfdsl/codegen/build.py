@@ -101,6 +101,8 @@ HEADER_CONTRACT = """
  */
 """
 _IDENTIFIER = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
+CACHE_OPTIONS = "the build cache (compile -o, export --cache, or $VFDSL_CACHE)"
+"""How a user names the build cache, for hints (each command names it its own way)."""
 
 
 class CompilerUnavailable(VfError):
@@ -143,7 +145,7 @@ def build_library(fn: ca.Function, prefix: str, cache_dir: Path, metadata: dict,
     cache_dir = Path(cache_dir)
     if cache_dir.exists() and not cache_dir.is_dir():
         raise VfError(f"the build directory {cache_dir} is not a directory",
-                      hint="point -o / VFDSL_CACHE at a directory (it is created if missing)")
+                      hint=f"point {CACHE_OPTIONS} at a directory (it is created if missing)")
     compiler = find_compiler()
     try:
         cache_dir.mkdir(parents=True, exist_ok=True)
@@ -172,7 +174,7 @@ def build_library(fn: ca.Function, prefix: str, cache_dir: Path, metadata: dict,
             return _publish(work, built, entry, prefix, digest)
     except OSError as exc:
         raise VfError(f"cannot write the build of {prefix}: {exc.strerror or exc} ({exc.filename or cache_dir})",
-                      hint="free disk space, or point VFDSL_CACHE (or -o) at a writable directory") from None
+                      hint=f"free disk space, or point {CACHE_OPTIONS} at a writable directory") from None
 
 
 class BuildCacheUnwritable(UserWarning):

@@ -9,6 +9,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from vfdsl.export.writer import Export, api_name, portable, prepare_directory, write_export
+from vfdsl.files import task_sources
 from vfdsl.ir import model as ir
 
 
@@ -22,7 +23,7 @@ def export(task: ir.Task, directory: str | Path, *, cache_dir: str | Path | None
     from vfdsl.codegen.daqp_sources import daqp_sources
     directory = prepare_directory(Path(directory))
     _, library = pipeline.build(portable(task), backend="native", cache_dir=cache_dir)
-    return write_export(library, daqp_sources(daqp_home()), directory)
+    return write_export(library, daqp_sources(daqp_home()), directory, task_sources(task))
 
 
 __all__ = ["Export", "api_name", "export", "write_export"]

@@ -16,7 +16,7 @@ header, metadata) and from DAQP's sources; templates are filled by ``@NAME@`` re
 depends on the time, the machine, the build cache or how the task's path was given (:func:`portable`), so
 exporting an unchanged task again writes the same bytes. Files the export does not write are left alone; a file
 it writes is replaced (a new file renamed over it), never written through: a link, or a path under a link, in
-the folder is refused before anything is written.
+the folder is refused before anything is written, and so is a file that is one of the task's own sources.
 """
 
 from __future__ import annotations
@@ -32,6 +32,7 @@ from vfdsl.codegen.build import CHECKED_STEP, LEXLS_HEADER, LEXLS_SOURCE, TELEOP
 from vfdsl.codegen.procedure_code import PROCEDURE_TICK
 from vfdsl.errors import VfError
 from vfdsl.export.tables import comment_text, task_tables
+from vfdsl.files import check_outputs
 from vfdsl.ir import model as ir
 
 TEMPLATES = Path(__file__).parent / "templates"
@@ -96,9 +97,11 @@ def portable(task: ir.Task) -> ir.Task:
     return ir.Task.model_validate(walk(task.model_dump(mode="json")))
 
 
-def write_export(library: BuiltLibrary, daqp_root: Path, directory: Path) -> Export:
+def write_export(library: BuiltLibrary, daqp_root: Path, directory: Path,
+                 sources: list[tuple[str, str | None]] = ()) -> Export:
     """Write the folder for the generated ``library`` into ``directory`` (created if missing), with DAQP's sources
-    from ``daqp_root`` (``LICENSE``, ``include/daqp/*.h``, ``src/*.c``)."""
+    from ``daqp_root`` (``LICENSE``, ``include/daqp/*.h``, ``src/*.c``); nothing is written when a file it would
+    replace is one of the task's ``sources`` (:func:`vfdsl.files.task_sources`)."""
     meta = json.loads(library.meta_path.read_text())
     api, tick = api_name(meta["task"]), meta["prefix"]
     daqp_sources = sorted((daqp_root / "src").glob("*.c"))
@@ -126,6 +129,8 @@ def write_export(library: BuiltLibrary, daqp_root: Path, directory: Path) -> Exp
     directory = Path(directory)
     for name in files:
         _refuse_links(directory, name)
+        check_outputs({f"-o {directory}: the export's file": directory / name}, sources,
+                      hint="export into another folder with -o")
     written = []
     try:
         for name, data in files.items():

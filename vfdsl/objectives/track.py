@@ -25,7 +25,7 @@ import casadi as ca
 from vfdsl.compiler.rows import Term
 from vfdsl.inputs import INPUT_TYPES
 from vfdsl.ir import model as ir
-from vfdsl.primitives.spec import POSITIVE, ArgSpec, ObjectiveSpec, flag
+from vfdsl.primitives.spec import GAIN, SIZE, ArgSpec, ObjectiveSpec, flag
 
 SPEC = ObjectiveSpec(
     name="track",
@@ -33,15 +33,15 @@ SPEC = ObjectiveSpec(
     args=(ArgSpec("frame", "frame", "the task frame that follows the input"),
           ArgSpec("input", "input", "the user's force, torque, wrench or twist"),
           ArgSpec("gain", "gain", "linear admittance (m/s per N, or a scale for a twist)", default=None,
-                  range=POSITIVE),
+                  range=GAIN),
           ArgSpec("angular_gain", "angular_gain", "angular admittance (rad/s per N m, or a scale)",
-                  default=None, range=POSITIVE),
+                  default=None, range=GAIN),
           ArgSpec("linear", "flag", "track the frame's linear velocity (false: leave it free)",
                   default=ir.FlagValue(value=True)),
           ArgSpec("angular", "flag", "track the frame's angular velocity (false: leave it free)",
                   default=ir.FlagValue(value=True)),
           ArgSpec("lever", "length", "solve both parts on one level, an angular error weighing as the speed "
-                  "error of a point this far away", default=None, range=POSITIVE)),
+                  "error of a point this far away", default=None, range=SIZE)),
     source="Li, Kapoor & Taylor 2005, II-C, eq. (18)",
 )
 

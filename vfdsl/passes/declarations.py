@@ -361,7 +361,7 @@ class Declarations:
             raise VfError("the period must be positive", value.span, code="E402")
         if period < limits.MIN_PERIOD:
             raise limits.exceeded(f"a period of {period:g} s is too short", limits.MIN_PERIOD, value.span,
-                                  hint="the shortest control period is 10 us (100 kHz)", unit="s", code="E701")
+                                  hint="the shortest control period is 0.01 ms (100 kHz)", unit="s", code="E701")
         if period > limits.MAX_PERIOD:
             raise limits.exceeded(f"a period of {period:g} s is too long", limits.MAX_PERIOD, value.span,
                                   hint="the longest control period is 1 s: a longer tick lets the joints' speed "

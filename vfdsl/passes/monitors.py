@@ -67,7 +67,7 @@ class Conditions:
             written = u.parse_unit(value.unit, value.span)[0]
             if written != dim:
                 raise VfError(f"{what} is {u.describe(dim)}, but {value.number:g} {value.unit} is "
-                              f"{u.describe(written)}", value.span, hint=f"e.g. {u.example(dim)}", code="E806")
+                              f"{u.describe(written)}", value.span, hint=f"write {u.example(dim)}", code="E806")
         return LiteralReader(self.resolver.units, self.resolver.no_names).scalar(value, dim, what)
 
     @staticmethod

@@ -399,8 +399,12 @@ class Resolver(Declarations):
                           written, hint=f"use at least {allowed.low / scale:g} {unit} "
                                               f"({clause_ranges.TOLERANCE_MARGIN} times the solver's tolerance)",
                           code="E402")
-        raise VfError(f"an angle tolerance must be below 90 deg, got {math.degrees(tolerance):g} deg", written,
-                      code="E402")
+        if kind == "angle":
+            raise VfError(f"an angle tolerance must be below 90 deg, got {math.degrees(tolerance):g} deg", written,
+                          code="E402")
+        raise VfError(f"tolerance {tolerance / scale:g} {unit} is beyond any robot's size: the limit is "
+                      f"{allowed.high / scale:g} {unit} ({allowed.high:g} m)", written,
+                      hint="a unit slip? give the unit, e.g. `within 0.5 mm`", code="E402")
 
     def _resolution(self, given: ast.Resolution | None, shape: str, spec) -> list[int]:
         if given is None:

@@ -6,7 +6,7 @@ from typing import TYPE_CHECKING
 
 from vfdsl.compiler.rows import Rows
 from vfdsl.ir import model as ir
-from vfdsl.primitives.spec import POSITIVE, ArgSpec, ConstraintSpec
+from vfdsl.primitives.spec import SIZE, ArgSpec, ConstraintSpec
 from vfdsl.primitives.speed import speed_rows
 
 if TYPE_CHECKING:
@@ -16,7 +16,7 @@ SPEC = ConstraintSpec(
     name="angular_speed",
     summary="bound the angular speed of the frame",
     subject=True,
-    args=(ArgSpec("max", "angular_speed", "the largest angular speed", range=POSITIVE),),
+    args=(ArgSpec("max", "angular_speed", "the largest angular speed", range=SIZE),),
     resolution="sphere",
     source="Li, Kapoor & Taylor 2005, II-C",
     rate=True,

@@ -17,7 +17,7 @@ import casadi as ca
 
 from vfdsl.compiler.rows import Rows, lower_bounds
 from vfdsl.ir import model as ir
-from vfdsl.primitives.spec import POSITIVE, ArgSpec, ConstraintSpec
+from vfdsl.primitives.spec import SIZE, ArgSpec, ConstraintSpec
 
 if TYPE_CHECKING:
     from vfdsl.compiler.context import Context
@@ -27,7 +27,7 @@ SPEC = ConstraintSpec(
     summary="keep the frame origin within `half_width` of a plane, on either side",
     subject=True,
     args=(ArgSpec("plane", "plane", "the band's middle plane"),
-          ArgSpec("half_width", "length", "the largest distance from the plane, either side", range=POSITIVE)),
+          ArgSpec("half_width", "length", "the largest distance from the plane, either side", range=SIZE)),
     source="Li, Kapoor & Taylor 2005, II-B.5, eqs. (16)-(17), made symmetric",
     metric="length", row_unit="m", stated_by=("length", "half_width"), drawn_around_frame=True,
 )

@@ -22,6 +22,7 @@ from typing import TYPE_CHECKING, Callable, Literal
 
 from vfdsl.inputs import INPUT_TYPES
 from vfdsl.ir import model as ir
+from vfdsl import limits
 from vfdsl import units as u
 
 if TYPE_CHECKING:
@@ -84,6 +85,11 @@ class Range:
 
 
 POSITIVE = Range(low=0.0, low_open=True)
+SIZE = Range(low=0.0, low_open=True, high=limits.ROW_VALUE)
+"""A positive length, speed or angular speed, at most :data:`vfdsl.limits.ROW_VALUE` (SI): a larger one is no robot's
+(a unit slip), overflows the simulator's arithmetic, and its rows are beyond what ``vfdsl check`` analyses."""
+GAIN = Range(low=1 / limits.GAIN, high=limits.GAIN)
+"""A ``track`` gain (SI): velocity = gain * input, from 1 um/s to 1000 km/s per N (or rad/s per N m, or a scale)."""
 
 ResolutionShape = Literal["sphere", "polygon"] | None
 

@@ -9,7 +9,7 @@ import casadi as ca
 from vfdsl.compiler.geometry import sphere_directions
 from vfdsl.compiler.rows import Rows, facets
 from vfdsl.ir import model as ir
-from vfdsl.primitives.spec import POSITIVE, ArgSpec, ConstraintSpec
+from vfdsl.primitives.spec import SIZE, ArgSpec, ConstraintSpec
 
 if TYPE_CHECKING:
     from vfdsl.compiler.context import Context
@@ -18,7 +18,7 @@ SPEC = ConstraintSpec(
     name="speed",
     summary="bound the linear speed of the frame origin",
     subject=True,
-    args=(ArgSpec("max", "speed", "the largest speed", range=POSITIVE),),
+    args=(ArgSpec("max", "speed", "the largest speed", range=SIZE),),
     resolution="sphere",
     source="Li, Kapoor & Taylor 2005, II-C",
     rate=True,

@@ -12,7 +12,7 @@ import casadi as ca
 from vfdsl.compiler.geometry import sphere_directions
 from vfdsl.compiler.rows import Rows, facets
 from vfdsl.ir import model as ir
-from vfdsl.primitives.spec import POSITIVE, ArgSpec, ConstraintSpec
+from vfdsl.primitives.spec import SIZE, ArgSpec, ConstraintSpec
 
 if TYPE_CHECKING:
     from vfdsl.compiler.context import Context
@@ -22,7 +22,7 @@ SPEC = ConstraintSpec(
     summary="keep the frame origin at most `distance` from a point",
     subject=True,
     args=(ArgSpec("center", "point", "the goal point"),
-          ArgSpec("distance", "length", "the largest allowed distance", range=POSITIVE)),
+          ArgSpec("distance", "length", "the largest allowed distance", range=SIZE)),
     resolution="sphere",
     source="Taylor, lecture notes, slide 44",
     metric="length", row_unit="m", stated_by=("length", "distance"), reference_point="center",

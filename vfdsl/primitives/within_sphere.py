@@ -20,7 +20,7 @@ import casadi as ca
 from vfdsl.compiler.geometry import normalize
 from vfdsl.compiler.rows import Rows, lower_bounds
 from vfdsl.ir import model as ir
-from vfdsl.primitives.spec import POSITIVE, ArgSpec, ConstraintSpec
+from vfdsl.primitives.spec import SIZE, ArgSpec, ConstraintSpec
 
 if TYPE_CHECKING:
     from vfdsl.compiler.context import Context
@@ -28,7 +28,7 @@ if TYPE_CHECKING:
 COINCIDENT = 1e-12     # m: when no coordinate of p - c is larger, the direction p - c is not used
 
 BALL = (ArgSpec("center", "point", "the ball's center c"),
-        ArgSpec("radius", "length", "the ball's radius r", range=POSITIVE))
+        ArgSpec("radius", "length", "the ball's radius r", range=SIZE))
 
 SPEC = ConstraintSpec(
     name="within_sphere",

@@ -12,16 +12,17 @@ from tqdm import tqdm
 
 import vfdsl
 from vfdsl.errors import VfError
-from vfdsl.files import check_writable
+from vfdsl.files import check_outputs, check_writable, path_argument, task_sources
 from vfdsl import limits
 from vfdsl.ir import captures
+from vfdsl.runtime.values import ASSUMED_PERIOD, dt_range
 from vfdsl.sim.mcap_trace import write_mcap
 from vfdsl.sim.recording import recording_text
 from vfdsl.sim.operator import teleop_table
 from vfdsl.sim import report, trace
 from vfdsl.sim.cluster import connect
 from vfdsl.sim.metrics import metric_defs
-from vfdsl.sim.runner import default_workers, loaded, make_jobs, run
+from vfdsl.sim.runner import default_workers, loaded, make_jobs, run, start_configuration
 from vfdsl.sim.scene_file import default_scene, load_settings, parse_setting
 from vfdsl.sim.scripted import late_events
 from vfdsl.sim.settings import GRID_NAMES, SHOWN_IN, check_setting, check_ticks
@@ -46,9 +47,11 @@ examples:
   vfdsl simulate tasks/paper_b_virtual_rcm.vf --trials 1000 --duration 1s --cluster tcp://host:8786
 
 limits (exit status 2 before any work; docs/language.md, "Limits"): at most 1,000,000 ticks per trial
-(duration / period) and 20,000,000 in a run, a period of 10 us at least, 100,000 trials, 1,000 grid
+(duration / period) and 20,000,000 in a run, a period of 0.01 ms at least and within [P / 100, 10 x P] of
+the task scene's period P (the controller's dt range), 100,000 trials, 1,000 grid
 points; --workers is capped at the trials and the cores; --cluster must answer as a Dask scheduler
-within 10 s; the output files are checked writable before the run.
+within 10 s; the output files are checked writable before the run, and refused when one is a file the
+run reads (the task, its scenes, its imports) or two name the same file.
 
 Values take units (10ms, 0.2mm); bare numbers are SI. --json writes every metric by name
 (metrics.<name>.mean / std / max) with the settings and the seed; --csv one row per trial; --trace
@@ -60,12 +63,14 @@ def add_parser(commands) -> None:
     p = commands.add_parser("simulate", help="run a task on a simulated robot and hand, and measure its errors",
                             description=DESCRIPTION, epilog=EPILOG,
                             formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("file", help="the .vf task file")
-    p.add_argument("--scene", metavar="S.yaml", help="simulation scene (default: <task>.sim.yaml if it exists)")
+    p.add_argument("file", type=path_argument, help="the .vf task file")
+    p.add_argument("--scene", metavar="S.yaml", type=path_argument,
+                   help="simulation scene (default: <task>.sim.yaml if it exists)")
     p.add_argument("--duration", metavar="T", help="simulated time per trial (e.g. 60s)")
-    p.add_argument("--period", metavar="DT", help="control period (e.g. 10ms; default: the scene's)")
-    p.add_argument("--latency", metavar="L", help="command latency (e.g. 140ms)")
-    p.add_argument("--servo-lag", metavar="T", help="first-order servo time constant (e.g. 5ms)")
+    p.add_argument("--period", metavar="DT", help="control period (e.g. 10ms; default: the scene's; within 1/100 to 10 "
+                                                   "times the task scene's period)")
+    p.add_argument("--latency", metavar="L", help="command latency (e.g. 140ms; at most 10s)")
+    p.add_argument("--servo-lag", metavar="T", help="first-order servo time constant (e.g. 5ms; at most 10s)")
     p.add_argument("--resolution", choices=("off", "robot"), help="joint resolution: robot = the URDF sidecar's")
     p.add_argument("--noise", metavar="RMS", help="tracker noise, 3-D RMS per marker (e.g. 0.2mm)")
     p.add_argument("--trials", type=int, metavar="N", help="trials per setting (seeds K, K+1, ...)")
@@ -76,10 +81,12 @@ def add_parser(commands) -> None:
                    help="local processes (default: all cores for long runs, else 1; at most one per trial "
                         "and per core)")
     p.add_argument("--cluster", metavar="ADDRESS", help="run the trials on this Dask distributed scheduler")
-    p.add_argument("--json", metavar="OUT.json", help="write every metric, the settings and the seeds")
-    p.add_argument("--csv", metavar="OUT.csv", help="write one row per trial (settings, seed, metrics)")
-    p.add_argument("--plot", metavar="OUT.png", help="write a plot of the first trial (PNG)")
-    p.add_argument("--trace", metavar="OUT.csv|OUT.parquet|OUT.mcap",
+    p.add_argument("--json", metavar="OUT.json", type=path_argument,
+                   help="write every metric, the settings and the seeds")
+    p.add_argument("--csv", metavar="OUT.csv", type=path_argument,
+                   help="write one row per trial (settings, seed, metrics)")
+    p.add_argument("--plot", type=path_argument, metavar="OUT.png", help="write a plot of the first trial (PNG)")
+    p.add_argument("--trace", type=path_argument, metavar="OUT.csv|OUT.parquet|OUT.mcap",
                    help="write every tick of every trial: time, q, dq, inputs, params, status, violations, metrics "
                         "(SI units; columns in docs/simulate.md)")
     p.add_argument("--quiet", action="store_true", help="no progress bar and no table")
@@ -134,7 +141,11 @@ def main(args: argparse.Namespace) -> int:
         raise VfError(f"--workers must be at least 1, got {args.workers}")
     if args.trace:
         trace.check_path(args.trace)
-    _check_work(settings, grid)
+    check_outputs({"--json": args.json, "--csv": args.csv, "--trace": args.trace, "--plot": args.plot},
+                  [*task_sources(task), ("the simulation scene", scene),
+                   ("the scene's recording", settings.recording and settings.recording.bag)])
+    _check_work(settings, grid, task)
+    start_configuration(task, settings)
     for warning in _events_after_the_end(settings, grid):
         print(warning.render("warning"), file=sys.stderr)
     for name in (args.json, args.csv, args.trace):
@@ -202,9 +213,10 @@ def _events_after_the_end(settings, grid: list[tuple[str, list]]) -> list[VfErro
             for t, what, where in events if t >= end - 1e-12]
 
 
-def _check_work(settings, grid: list[tuple[str, list]]) -> None:
+def _check_work(settings, grid: list[tuple[str, list]], task) -> None:
     """Refuse a run beyond the limits of vfdsl/limits.py before any work starts: ticks per trial (at
-    every grid point), grid points, and ticks of the whole run."""
+    every grid point), grid points, and ticks of the whole run; and a period the task's controller does not step
+    with (:func:`vfdsl.runtime.values.dt_range`)."""
     points: list[dict] = [{}]
     for name, values in grid:
         if len(points) * len(values) > limits.GRID_POINTS:
@@ -215,6 +227,12 @@ def _check_work(settings, grid: list[tuple[str, list]]) -> None:
     for point in points:
         duration, period = point.get("duration", settings.duration), point.get("period", settings.period)
         where = " ".join(f"--grid {k}={v:g}" if isinstance(v, float) else f"--grid {k}={v}" for k, v in point.items())
+        low, high = dt_range(task.scene.period)
+        if not low <= period <= high:
+            raise VfError(f"{where + ': ' if where else ''}a period of {period * 1e3:g} ms is outside "
+                          f"[{low * 1e3:g} ms, {high * 1e3:g} ms], the periods task '{task.name}' steps at (1/100 to "
+                          f"10 times its scene's period, {(task.scene.period or ASSUMED_PERIOD) * 1e3:g} ms)",
+                          hint="a loop much faster or slower than that: give it as the `period` of the task's scene")
         total += check_ticks(duration, period, None, f"{where}: " if where else "") * settings.trials
     if total > limits.RUN_TICKS:
         raise limits.exceeded(f"this run is {total:,} control ticks ({settings.trials:,} trial(s) x "

@@ -22,7 +22,7 @@ import numpy as np
 import vfdsl
 from vfdsl.errors import Span, VfError
 from vfdsl.export.selftest import READOUT_NUMBERS, parse_answer
-from vfdsl.files import check_writable
+from vfdsl.files import check_outputs, check_writable, path_argument, task_sources
 from vfdsl.ir import model as ir
 from vfdsl.kinematics.robot import Robot
 from vfdsl.objectives.haptics import teleop_terms
@@ -46,12 +46,14 @@ def add_parser(commands) -> None:
                "The trace has the columns of `vfdsl simulate --trace` that a replay knows (time, q, dq, inputs, params,\n"
                "status, violations; a procedure's phase; a teleoperated task's haptic force, following) and, as MCAP,\n"
                "the topics of docs/simulate.md, the fixtures' markers included.")
-    p.add_argument("file", help="the .vf task file the controller was exported from")
-    p.add_argument("ticks", help="the replay's input: one tick a line (q, inputs[, params])")
-    p.add_argument("replayed", help="the replay's output: one line a tick")
-    p.add_argument("-o", "--output", metavar="OUT.csv|OUT.parquet|OUT.mcap", required=True, help="the trace to write")
+    p.add_argument("file", type=path_argument, help="the .vf task file the controller was exported from")
+    p.add_argument("ticks", type=path_argument, help="the replay's input: one tick a line (q, inputs[, params])")
+    p.add_argument("replayed", type=path_argument, help="the replay's output: one line a tick")
+    p.add_argument("-o", "--output", metavar="OUT.csv|OUT.parquet|OUT.mcap", required=True, type=path_argument,
+                   help="the trace to write")
     p.add_argument("--dt", metavar="SECONDS", type=float, help="the replay's dt (default: the task's scene period)")
-    p.add_argument("--params", metavar="FILE", help="the replay's --params FILE: the params at the start")
+    p.add_argument("--params", metavar="FILE", type=path_argument,
+                   help="the replay's --params FILE: the params at the start")
     p.set_defaults(run=main)
 
 
@@ -62,6 +64,8 @@ def main(args: argparse.Namespace) -> int:
     tr.check_path(args.output)                 # (Parquet needs pyarrow)
     check_writable(args.output)
     task = vfdsl.load(args.file)
+    check_outputs({"-o": args.output}, [*task_sources(task), ("the ticks file", args.ticks),
+                                        ("the replayed file", args.replayed), ("the params file", args.params)])
     dt = args.dt if args.dt is not None else (task.scene.period or ASSUMED_PERIOD)
     if not (np.isfinite(dt) and dt > 0):
         raise VfError(f"--dt {args.dt}: a period in seconds, more than 0")
@@ -91,6 +95,9 @@ def read(task: ir.Task, ticks: Path, replayed: Path, dt: float, start_params=Non
         current = np.asarray(start_params, dtype=float)
     fed = [(n, line) for n, line in enumerate(_lines(ticks), start=1) if line.split()]
     answers = [(n, line) for n, line in enumerate(_lines(replayed), start=1) if line.strip()]
+    if not fed:
+        raise VfError(f"{ticks} holds no tick (it is empty or blank): a trace needs at least one",
+                      hint="give the file the replay was fed, one tick a line")
     if len(answers) != len(fed):
         raise VfError(f"{replayed}: {len(answers)} lines for the {len(fed)} ticks of {ticks}: the replay's output of "
                       "another input, or cut short")

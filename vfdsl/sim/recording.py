@@ -187,7 +187,7 @@ def _input_source(reader, key: str, kind: str, node: yaml.Node) -> Source:
             dim, factor = u.parse_unit(name, reader.pos(unit_node))
             if dim != part.dimension:
                 raise VfError(f"unit '{name}' is {u.describe(dim)}; input '{key}' needs {u.describe(part.dimension)} "
-                              f"here", reader.pos(unit_node), hint=f"e.g. {u.example(part.dimension)}", code="E602")
+                              f"here", reader.pos(unit_node), hint=f"write {u.example(part.dimension)}", code="E602")
             converted.append(factor)
         factors = tuple(converted)
     return Source(topic, span, expressed_in=expressed_in, factors=factors)

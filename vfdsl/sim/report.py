@@ -49,7 +49,7 @@ def document(task_name: str, task_file: str, settings: SimSettings, results: lis
              grid: list[tuple[str, list]] | None) -> dict:
     """The whole run as JSON data: settings, seed, metrics (per grid point when there is a grid), trials."""
     paper = paper_figures(settings)
-    units = results[0].units
+    units = {name: unit for r in results for name, unit in r.units.items()}    # a grid point without a tracker
 
     def metrics_of(rs: list[TrialResult]) -> dict:
         return {name: {**stats.summary(), "unit": units[name],
@@ -169,7 +169,8 @@ def to_json(doc: dict) -> str:
 def to_csv(doc: dict) -> str:
     rows = doc["trials"]
     out = io.StringIO()
-    writer = csv.DictWriter(out, fieldnames=list(rows[0]), lineterminator="\n")
+    columns = dict.fromkeys(name for row in rows for name in row)      # a metric a grid point lacks: an empty cell
+    writer = csv.DictWriter(out, fieldnames=list(columns), lineterminator="\n")
     writer.writeheader()
     writer.writerows(rows)
     return out.getvalue()

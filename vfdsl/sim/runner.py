@@ -122,9 +122,18 @@ def loaded(task_file: str, backend: str = "auto") -> _Loaded:
         return _cache[key]
 
 
-def start_configuration(task: ir.Task, robot: Robot) -> np.ndarray:
-    """The scene's start, else zero clipped into the joint limits."""
-    return task.start if task.start is not None else np.clip(np.zeros(robot.nq), robot.lower, robot.upper)
+def start_configuration(task: ir.Task, settings: SimSettings) -> np.ndarray:
+    """Where a trial starts: the recording's start, else the task scene's ``start:``. Neither is an error (the robot
+    started at zero clipped into its joint limits, and a fixture then moved it on its own)."""
+    if settings.recording is not None and settings.recording.start is not None:
+        return settings.recording.start
+    if task.start is None:
+        where = (f"its scene {task.scene.file} has no `start:`" if task.scene.file else
+                 f"it has no scene file ({Path(task.file).with_suffix('.yaml')})")
+        raise VfError(f"task '{task.name}': nothing gives the robot's configuration at the start of a run: {where}",
+                      hint="give the scene `start: [...]`, one value per joint in the robot's order (in the scene's "
+                           "units)")
+    return task.start
 
 
 def run_trial(job: Job, progress=None) -> TrialResult:
@@ -144,7 +153,7 @@ def simulate_with(job: Job, task: ir.Task, ctrl: vfdsl.Controller, robot: Robot,
     dt = s.period
     ticks = max(1, int(round(s.duration / dt)))
     hand_rng, tracker_rng, sensor_rng = (np.random.default_rng(x) for x in np.random.SeedSequence(job.seed).spawn(3))
-    q0 = start_configuration(task, robot) if s.recording is None or s.recording.start is None else s.recording.start
+    q0 = start_configuration(task, s)
     scene = Scene(task)
     sim = SimRobot(robot, q0, s.latency, s.servo_lag, robot.resolution if s.resolution == "robot" else None)
     if s.resolution == "robot" and robot.resolution is None:

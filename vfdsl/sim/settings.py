@@ -39,6 +39,9 @@ MAX_TREMOR_FREQUENCY = 1e3
 """Hz: the highest frequency of a tremor band (physiological tremor is 8-12 Hz)."""
 MAX_NOISE = 0.01
 """m: the largest tracker noise (RMS per marker; optical trackers: 0.1-0.3 mm)."""
+MAX_DELAY = 10.0
+"""s: the longest latency and servo lag (teleoperation over long links: up to about 2 s; with 1e308 s the robot never
+moved, and the run reported perfect metrics)."""
 MARKER_DISTANCES = (1e-3, 1.0)
 """m: how near and how far a tracker's second marker may be up the tool axis."""
 SHOWN_IN = {u.FORCE: ("N", 1.0), u.TORQUE: ("Nmm", 1e3), u.SPEED: ("mm/s", 1e3),
@@ -249,14 +252,19 @@ def check_setting(name: str, value, where: Span | None = None) -> None:
             raise VfError(f"{name} must be a positive time, got {value!r}", where)
         if name == "period" and value < limits.MIN_PERIOD:
             raise limits.exceeded(f"a period of {value:g} s is too short", limits.MIN_PERIOD, where,
-                                  hint="the shortest control period is 10 us (100 kHz)", unit="s")
+                                  hint="the shortest control period is 0.01 ms (100 kHz)", unit="s")
     elif name in ("latency", "servo_lag", "noise"):
         if not (isinstance(value, float) and math.isfinite(value) and value >= 0):
             raise VfError(f"{name} must be zero or positive, got {value!r}", where)
+        bare = ("bare numbers take the scene's units" if where is not None
+                else "bare numbers on the command line are SI (m, s): give the unit, e.g. 0.2mm or 140ms")
         if name == "noise" and value > MAX_NOISE:
             raise VfError(f"a tracker noise of {shown(value, u.LENGTH)} RMS is beyond the {shown(MAX_NOISE, u.LENGTH)} "
                           "a simulated tracker may have", where,
-                          hint="optical trackers: 0.1-0.3 mm; bare numbers take the scene's units (units: mm?)")
+                          hint=f"optical trackers: 0.1-0.3 mm; {bare}{' (units: mm?)' if where is not None else ''}")
+        if name != "noise" and value > MAX_DELAY:
+            raise VfError(f"a {name.replace('_', ' ')} of {value:g} s is beyond the {MAX_DELAY:g} s a simulated robot "
+                          "may have", where, hint=f"teleoperation latencies are up to about 2 s, servo lags ms; {bare}")
     elif name == "resolution":
         if value not in RESOLUTIONS:
             raise VfError(f"resolution must be {' or '.join(RESOLUTIONS)}, got {value!r}", where,

@@ -122,15 +122,16 @@ def columns(results) -> tuple[list[str], list[list]]:
     if not traced:
         return [], []
     grid_names = [name for name, _ in traced[0].grid]
-    names = ["trial", "seed", *(f"{g}{_GRID_UNITS.get(g, '')}" for g in grid_names), *traced[0].trace]
+    traced_names = list(dict.fromkeys(name for r in traced for name in r.trace))   # a grid point without a tracker
+    names = ["trial", "seed", *(f"{g}{_GRID_UNITS.get(g, '')}" for g in grid_names), *traced_names]
     data: list[list] = [[] for _ in names]
     for r in traced:
         n = len(r.trace["tick"])
         fixed = [r.trial, r.seed, *(value for _, value in r.grid)]
         for i, value in enumerate(fixed):
             data[i].extend([value] * n)
-        for i, name in enumerate(r.trace, start=len(fixed)):
-            column = r.trace[name]
+        for i, name in enumerate(traced_names, start=len(fixed)):
+            column = r.trace.get(name, [math.nan] * n)                       # has none of its columns: missing
             data[i].extend(column.tolist() if hasattr(column, "tolist") else column)
     return names, data
 

@@ -12,6 +12,7 @@ import webbrowser
 from pathlib import Path
 
 from vfdsl.errors import VfError
+from vfdsl.files import path_argument
 from vfdsl import limits
 from vfdsl.view import options
 
@@ -39,15 +40,17 @@ def add_parser(commands) -> None:
                     "task frames, every fixture with its tolerance; a draggable hand drives the compiled "
                     "controller live; --replay plays a recorded run.",
         epilog=_EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
-    view.add_argument("file", help="the .vf task file")
+    view.add_argument("file", type=path_argument, help="the .vf task file")
     view.add_argument("--host", default="127.0.0.1", help="address to listen on (default: 127.0.0.1)")
     view.add_argument("--port", type=int, default=0,
                       help="port to listen on, 0 to 65535 (default 0: a free port)")
     view.add_argument("--no-browser", action="store_true", help="do not open a browser")
-    view.add_argument("--replay", metavar="FILE", help="play a per-tick trace (CSV, or the MCAP of vfdsl simulate "
+    view.add_argument("--replay", metavar="FILE", type=path_argument,
+                      help="play a per-tick trace (CSV, or the MCAP of vfdsl simulate "
                       "--trace run.mcap; see docs/view.md)")
     view.add_argument("--trial", help="with --replay: the trial to play (default: the first)")
-    view.add_argument("--screenshot", metavar="PNG", help="save a picture of the page (headless Chromium) and exit")
+    view.add_argument("--screenshot", metavar="PNG", type=path_argument,
+                      help="save a picture of the page (headless Chromium) and exit")
     view.add_argument("--size", help=f"--screenshot: picture size in pixels, at most {limits.PICTURE_SIDE} a side "
                                        "(default 1280x800)")
     view.add_argument("--magnify", type=float, default=1.0,
