@@ -57,7 +57,7 @@ def _refused(capsys, *args) -> str:
     (["--seed", "-1"], "--seed -1: seed must be a whole number from 0"),
     (["--grid", "duration=1e9s"], "--grid duration=1e+09: 1e+09 s at a 10 ms period"),
     (["--grid", "period=1e-12s,10ms"], "--grid period=1e-12s: a period of 1e-12 s is too short"),
-    (["--grid", "period=0.02ms,10ms", "--duration", "30s"], "--grid period=2e-05: 30 s at a 0.02 ms period"),
+    (["--grid", "period=0.1ms,10ms", "--duration", "200s"], "--grid period=0.0001: 200 s at a 0.1 ms period"),
     (["--trials", "100000", "--duration", "10s"], "this run is 100,000,000 control ticks"),
     (["--grid", "latency=" + ",".join(["0ms"] * 40), "--grid", "noise=" + ",".join(["0mm"] * 40)],
      "the --grid sweep has too many settings: the limit is 1,000"),
