@@ -739,3 +739,12 @@ def test_a_task_without_teleop_has_no_readout(exports):
     finally:
         getattr(lib, f"{api}_free").argtypes = [ctypes.c_void_p]
         getattr(lib, f"{api}_free")(ctrl)
+
+
+def test_an_empty_folder_is_refused_by_the_python_api_too(tmp_path, monkeypatch):
+    """`vfdsl export -o ""` is a usage error; export(task, "") wrote into the current directory (Path("") is ".")."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "README.md").write_text("mine")
+    with pytest.raises(VfError, match="an empty path names no folder"):
+        export(vfdsl.load(TASKS_DIR / "paper_b_virtual_rcm.vf"), "")
+    assert (tmp_path / "README.md").read_text() == "mine" and len(list(tmp_path.iterdir())) == 1

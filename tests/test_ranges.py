@@ -5,6 +5,7 @@ class has a case that must fail at a known line and column and a near miss that 
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import pytest
 
@@ -184,3 +185,20 @@ def test_weight_near_miss(tmp_path, weight):
 def test_weight_hint_says_plain_number(tmp_path):
     err = fails(tmp_path, "minimize damping() weight [1]\n", 6, 27, "expected a plain number")
     assert err.hint == "write a plain number, e.g. 10"
+
+
+CHANNEL = Path(__file__).resolve().parent.parent / "tasks" / "anatomy" / "channel.stl"
+
+
+@pytest.mark.parametrize("argument, column", [("margin = 1e300", 43), ("radius = 1e12 m", 57),
+                                              ("reach = 1e300", 56)])
+def test_mesh_sizes_beyond_any_robot_are_refused(tmp_path, argument, column):
+    """A mesh fixture's margin, radius and reach had no upper bound (a unit slip loaded); they take the limit of
+    every other size, limits.ROW_VALUE."""
+    mesh = f'param channel : mesh(unit = 1 mm) = "{CHANNEL}"\n'
+    if not argument.startswith("margin"):
+        argument = "margin = 0.5, " + argument
+    line = mesh + f"require tip inside_mesh(channel, {argument})\n"
+    err = fails(tmp_path, line, 7, column, "must be in")
+    assert "1e+06" in err.message
+    load(tmp_path, mesh + "require tip inside_mesh(channel, margin = 0.5, radius = 1, reach = 2)\n")

@@ -431,3 +431,11 @@ def test_the_readout_equals_an_independent_computation(wall):
         previous, F_prev = out.depth, out.force
         q = q + dq
     assert checked > 200                              # the floor acted on most of the run's ticks
+
+
+def test_a_master_reach_beyond_any_robot_is_refused(tmp_path):
+    """master_reach had no upper bound (a unit slip loaded, and `check`'s workspace check read it)."""
+    (tmp_path / "t.vf").write_text(WALL.replace("ramp = 100 ms)", "ramp = 100 ms, master_reach = 1e300)"))
+    (tmp_path / "t.yaml").write_text(START)
+    with pytest.raises(VfError, match="'master_reach' must be in"):
+        vfdsl.load(tmp_path / "t.vf")

@@ -21,6 +21,7 @@ The haptic arguments (stiffness, damping, saturation, rate_limit, ramp) shape th
 
 import casadi as ca
 
+from vfdsl import limits
 from vfdsl.compiler.geometry import rotation_vector, rpy_matrix
 from vfdsl.compiler.rows import Term, toward
 from vfdsl.ir import model as ir
@@ -61,7 +62,7 @@ SPEC = ObjectiveSpec(
                   range=NONNEGATIVE),
           ArgSpec("master_reach", "length", "how far the master moves from its engage pose, for vfdsl check's "
                   "workspace check (0: not known)", default=ir.ScalarValue(dimension="length", value=0.0),
-                  range=NONNEGATIVE)),
+                  range=Range(low=0.0, high=limits.ROW_VALUE))),
     source="dVRK teleoperation (mtsTeleOperationPSM), Li, Kapoor & Taylor 2005 for the fixture",
 )
 
