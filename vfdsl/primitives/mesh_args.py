@@ -16,5 +16,6 @@ MESH_ARGS = (
     ArgSpec("radius", "length", "the tool's radius around the segment",
             default=ir.ScalarValue(dimension="length", value=0.0), range=Range(low=0.0, high=limits.ROW_VALUE)),
     ArgSpec("reach", "length", "features farther than radius + margin + reach get no row (at least the motion "
-            "of one tick)", default=ir.ScalarValue(dimension="length", value=REACH), range=Range(low=0.0, low_open=True, high=limits.ROW_VALUE)),
+            "of one tick)", default=ir.ScalarValue(dimension="length", value=REACH),
+            range=Range(low=0.0, low_open=True, high=limits.ROW_VALUE)),
 )
