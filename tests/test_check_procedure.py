@@ -1,4 +1,4 @@
-"""``vfdsl check`` of a procedure (issue 33, item 4): the analyses the IR decides (docs/check.md, VF950-VF959).
+"""``vfdsl check`` of a procedure (issue 33, item 4): the analyses the IR decides (docs/check.md, VF950-VF960).
 
 Variants of the example are its text with one change (str.replace), loaded beside a copy of its scene and the
 library it imports; each finding is asserted at its line, with its code."""
@@ -360,3 +360,14 @@ def test_a_button_input_is_left_released_by_the_random_walk(tmp_path):
     assert max(np.linalg.norm(i["f"]) for i in inputs) > 0
     report = vfdsl.check(task)
     assert report.count(Severity.ERROR) == 0 and any(f.code == "VF700" for f in report.findings)
+
+
+def test_a_direction_from_two_captured_points_is_noted(variant):
+    """VF960 at the expression: a line through the points captured on entry to insert and to retract; none for the
+    example's line through one captured point along a captured axis."""
+    assert not found(variant()[0], "VF960")
+    task, text = variant("require needle along(line(stop, axis0)) within 0.5 mm",
+                         "require needle along(line(start, stop)) within 0.5 mm")
+    [finding] = found(task, "VF960")
+    assert finding.severity == Severity.NOTE and finding.data["captures"] == ["start", "stop"]
+    assert finding.span.line == line(text, "line(start, stop)")

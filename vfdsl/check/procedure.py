@@ -50,7 +50,8 @@ def every_statement(task: ir.Task) -> ir.Task:
 
 
 def analyse(task: ir.Task) -> list[Finding]:
-    return [*statechart.analyse(task), *monitors.analyse(task), *_entries(task), *_every_phase(task)]
+    return [*statechart.analyse(task), *monitors.analyse(task), *_entries(task), *_every_phase(task),
+            *_captured_directions(task)]
 
 
 def phase_tasks(task: ir.Task, backend: str) -> dict[str, ir.Task | None]:
@@ -233,6 +234,46 @@ def _entry(task, t: ir.Transition, c: ir.Constraint, m: ir.Measure, size: float,
                     f"with no blend its rows snap it in one tick", t.span,
                     "add a blend so the funnel reaches it (`blend 200 ms` after the transition or task-wide), or a "
                     "guard within the fixture's size", subject, data)]
+
+
+# ------------------------------------------------------------------------------------------ captured directions
+def _captured_directions(task: ir.Task) -> list[Finding]:
+    """VF960: a phase's fixture whose direction (a normalized vector, a line through two points, a line's direction
+    or a plane's normal) is derived from two or more captured points: where they coincide it has none, and the
+    controller holds the tool still with its rows undefined (docs/runtime.md, "A fixture's geometry from
+    captures")."""
+    points = {c.name for p in task.phases for c in p.captures if c.kind == "point"}
+    findings = []
+    for phase in task.phases:
+        for c in phase.constraints:
+            for node in (n for arg in c.args.values() for n in _normalizing(arg)):
+                names = sorted({leaf.name for operand in _normalized_operands(node)
+                                for leaf in derived.leaves(operand)
+                                if isinstance(leaf, ir.CaptureRef) and leaf.name in points})
+                if len(names) >= 2:
+                    findings.append(Finding(
+                        "captured-direction", Severity.NOTE,
+                        f"{describe(c)} at {where(c)} takes its direction from the captured points "
+                        f"{', '.join(names)}: where they coincide (the frame not moved between the captures) it has "
+                        "none, and the controller then holds the tool still (FALLBACK, its rows named undefined)",
+                        node.span, "capture the points where the frame has moved between them, or state the "
+                        "direction otherwise (a param, a captured axis)", f"{describe(c)} at {where(c)}",
+                        {"constraint": describe(c), "where": where(c), "captures": names}))
+    return findings
+
+
+def _normalizing(arg):
+    """The derived nodes in ``arg`` that normalize a vector."""
+    if isinstance(arg, ir.Derived):
+        if arg.op in ("normalize", "line2", "line", "plane"):
+            yield arg
+        for operand in arg.operands:
+            yield from _normalizing(operand)
+
+
+def _normalized_operands(node: ir.Derived):
+    """The operands whose difference or value a normalizing node divides by its length."""
+    return node.operands if node.op in ("normalize", "line2") else node.operands[1:]
 
 
 # ------------------------------------------------------------------------------------------ fixtures of every phase

@@ -63,6 +63,7 @@ CODES: dict[str, str] = {
     "entry-always-violated": "VF957",
     "every-phase-fixtures": "VF958",
     "fixture-loosened": "VF959",
+    "captured-direction": "VF960",
     "haptic-passivity": "VF970",
     "teleop-workspace": "VF971",
     "teleop-anchor-kept": "VF972",
