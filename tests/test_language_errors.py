@@ -58,6 +58,10 @@ CASES = [
     # ------------------------------------------------------------------------------------------- syntax
     Case("missing-paren", edit("gain = 1 mm/s/N)", "gain = 1 mm/s/N"), 8, 1,
          "unexpected 'require'; expected ')'"),
+    # a call left open before its clause (the hint said "'port' was read as a unit; did you mean 'import'?")
+    Case("unclosed-call-before-clause", edit("stays_at(p) within", "stays_at(port within",
+                                             edit("param p :", "param port :")), 8, 27,
+         "unexpected 'within'", hint="is a ')' missing before 'within'?"),
     Case("misspelt-keyword-require", edit("require tip", "requir tip"), 8, 1,
          "unexpected name 'requir'", hint="did you mean 'require'?"),
     Case("misspelt-keyword-param", edit("input f : force\n", "input f : force\nparm q : point = [0, 0, 0]\n"),

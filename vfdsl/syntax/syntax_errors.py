@@ -63,12 +63,14 @@ def syntax_error(exc: UnexpectedInput, text: str, file: str, parser: Lark) -> Vf
         close = difflib.get_close_matches(found, candidates, n=1, cutoff=0.6)
         previous = (exc.token_history or [None])[-1]
         swallowed = (difflib.get_close_matches(str(previous), STATEMENT_KEYWORDS, n=1, cutoff=0.75)
-                     if previous is not None and previous.type == "NAME" else [])
+                     if previous is not None and previous.type == "NAME" and _starts_line(text, previous) else [])
         if close:
             hint = f"did you mean '{close[0]}'?"
         elif swallowed:
             hint = (f"'{previous}' (line {previous.line}) was read as a unit; did you mean the statement "
                     f"'{swallowed[0]}'?")
+        elif found in _CLAUSE_WORDS and "')'" in words:
+            hint = f"is a ')' missing before '{found}'? A call's arguments end with ')', and its clauses follow it"
     elif isinstance(exc, UnexpectedCharacters):
         char = text[exc.pos_in_stream] if 0 <= exc.pos_in_stream < len(text) else "?"
         message = f"unexpected character {char!r}"
@@ -79,6 +81,16 @@ def syntax_error(exc: UnexpectedInput, text: str, file: str, parser: Lark) -> Vf
         message += "; expected " + _join_or(words)
     pos = Span(file=file, line=line, column=column, end_line=line, end_column=column + width)
     return VfError(message, pos, hint, source_text=text, code="E101")
+
+
+_CLAUSE_WORDS = ("within", "resolution", "weight", "priority", "soft")
+
+
+def _starts_line(text: str, token: Token) -> bool:
+    """Only blanks stand before ``token`` on its line (a name there may be a statement keyword misspelt, which the
+    parser read as the unit of the line before)."""
+    lines = text.splitlines()
+    return 0 < token.line <= len(lines) and not lines[token.line - 1][:token.column - 1].strip()
 
 
 def _found_word(token: Token) -> str:
