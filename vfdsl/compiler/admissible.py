@@ -179,24 +179,16 @@ def _derived_args(task: ir.Task):
         notes = tuple(f"in a fixture used at {span}" for span in reversed(statement.via))
         yield from ((arg, notes) for arg in statement.args.values() if _of_params(arg))
     for monitor in task.monitors:
-        for node in _monitor_leaves(monitor.expr):
-            arg = getattr(node.measure, "to", None) or getattr(node.measure, "direction", None)
+        for node in ir.expression_leaves(monitor.expr):
+            measure = getattr(node, "measure", None)
+            arg = getattr(measure, "to", None) or getattr(measure, "direction", None)
             if _of_params(arg):
                 yield arg, (f"in monitor '{monitor.name}' at {monitor.span}",)
 
 
 def _of_params(arg) -> bool:
     """``arg`` is derived, from params and constants alone."""
-    return isinstance(arg, ir.Derived) and not any(isinstance(leaf, ir.CaptureRef) for leaf in derived.leaves(arg))
-
-
-def _monitor_leaves(node):
-    """The comparisons of a monitor's expression."""
-    if isinstance(node, (ir.And, ir.Or, ir.Not)):
-        for item in node.items:
-            yield from _monitor_leaves(item)
-    elif isinstance(node, ir.Compare):
-        yield node
+    return isinstance(arg, ir.Derived) and not derived.reads_capture(arg)
 
 
 def _param_ranges(task: ir.Task) -> dict[str, list]:

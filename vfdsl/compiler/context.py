@@ -206,7 +206,7 @@ class ParamReader:
         (:mod:`vfdsl.compiler.admissible`): a vector it normalizes shorter than ``derived.MIN_NORM`` (two captured
         points that coincide) gives NaN, not 0, so that its fixture's rows are undefined (the tick then holds
         still and names them, :func:`vfdsl.runtime.qp._finish`) rather than absent."""
-        if any(isinstance(leaf, ir.CaptureRef) for leaf in derived.leaves(arg)):
+        if derived.reads_capture(arg):
             return derived.evaluate(arg, self.read, _unit_or_nan)
         return derived.evaluate(arg, self.read)
 

@@ -104,6 +104,11 @@ def leaves(arg: ir.Arg):
         yield arg
 
 
+def reads_capture(arg: ir.Arg) -> bool:
+    """``arg`` is computed from a captured value (it has none before its phase is entered)."""
+    return any(isinstance(leaf, ir.CaptureRef) for leaf in leaves(arg))
+
+
 def to_value(kind: str, value) -> ir.Value:
     """A numeric result of :func:`evaluate` (DM) as the IR value of ``kind``."""
     if kind in ("line", "plane"):

@@ -193,26 +193,20 @@ def monitor_values(task: ir.Task, ctx: Context) -> MonitorValues:
     raw: list[ca.SX] = []
     index: dict[str, tuple[int, int]] = {}
 
-    def visit(node) -> None:
-        if isinstance(node, (ir.And, ir.Or, ir.Not)):
-            for item in node.items:
-                visit(item)
-        elif isinstance(node, (ir.Compare, ir.Flag)) and needs_value(node) and leaf_key(node) not in index:
-            measure = _measure(node.measure, ctx)
-            if isinstance(node, ir.Flag):
-                margins = [measure - 0.5]
-            else:
-                sign = 1 if node.op in ("<", "<=") else -1
-                margins = [sign * (node.threshold - measure)]
-                if node.release is not None:
-                    margins.append(sign * (node.release - measure))
-            index[leaf_key(node)] = (len(raw), len(raw) + 1 if len(margins) > 1 else -1)
-            raw.extend(margins)
-
-    for monitor in task.monitors:
-        visit(monitor.expr)
-    for transition in task.transitions:
-        visit(transition.guard)
+    expressions = [*(monitor.expr for monitor in task.monitors), *(t.guard for t in task.transitions)]
+    for node in (leaf for expr in expressions for leaf in ir.expression_leaves(expr)):
+        if not (isinstance(node, (ir.Compare, ir.Flag)) and needs_value(node)) or leaf_key(node) in index:
+            continue
+        measure = _measure(node.measure, ctx)
+        if isinstance(node, ir.Flag):
+            margins = [measure - 0.5]
+        else:
+            sign = 1 if node.op in ("<", "<=") else -1
+            margins = [sign * (node.threshold - measure)]
+            if node.release is not None:
+                margins.append(sign * (node.release - measure))
+        index[leaf_key(node)] = (len(raw), len(raw) + 1 if len(margins) > 1 else -1)
+        raw.extend(margins)
     values = ca.vertcat(*raw) if raw else ca.SX(0, 1)
     return MonitorValues(ca.Function("monitor_values", [ctx.q, ctx.u, ctx.p], [values], ["q", "u", "p"], ["raw"]),
                          index)

@@ -355,6 +355,15 @@ for _node in (And, Or, Not):
     _node.model_rebuild()
 
 
+def expression_leaves(expr):
+    """The leaves of a monitor expression (comparisons, flags, references to monitors), left to right."""
+    if isinstance(expr, (And, Or, Not)):
+        for item in expr.items:
+            yield from expression_leaves(item)
+    else:
+        yield expr
+
+
 class Monitor(_Model):
     """``monitor NAME = EXPR [for HOLD]``: true once EXPR has held for ``hold`` seconds (0: at once);
     ``text``: EXPR as written."""

@@ -274,8 +274,9 @@ def _finish(picked, A, lba, uba, lo, hi, clipped, m: int, feas_tol: float) -> li
     n = lo.size1()
     x, status = picked[:n], picked[n]
     undefined = _undefined_rows(lba, uba)
-    safe = ca.logic_and(_in_box(x, lo, hi, _GROSS_FAILURE), ca.mmax(undefined) == 0) if m else \
-        _in_box(x, lo, hi, _GROSS_FAILURE)
+    safe = _in_box(x, lo, hi, _GROSS_FAILURE)
+    if m:
+        safe = ca.logic_and(safe, ca.mmax(undefined) == 0)
     x = ca.if_else(safe, _clip(x, lo, hi), _rest(lo, hi))
     status = ca.if_else(safe, status, int(StepStatus.LEAST_VIOLATION) * (m > 0) + int(StepStatus.FALLBACK))
     status = status + int(StepStatus.BOUNDS_CLIPPED) * clipped
