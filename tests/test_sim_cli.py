@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -201,6 +202,27 @@ def test_an_output_that_is_an_input_or_another_output_is_refused_before_the_run(
         assert message in err and "Traceback" not in err, err
     assert {path: path.read_bytes() for path in before} == before
     assert not (tmp_path / "x").exists() and not (tmp_path / "x.csv").exists()
+
+
+def test_an_output_that_is_the_robots_urdf_or_a_mesh_file_is_refused(tmp_path, capsys):
+    """The robot's URDF file and a mesh param's file are read too: an output naming one of them is refused before the
+    run, the file as it was (`--json channel.stl` replaced the mesh with JSON, `--csv arm.urdf` the robot)."""
+    import shutil
+    shutil.copytree(TASKS_DIR / "anatomy", tmp_path / "anatomy")
+    shutil.copytree(TASKS_DIR / "library", tmp_path / "library")
+    shutil.copy(Path(vfdsl.__file__).parent / "robots" / "shr7.urdf", tmp_path / "arm.urdf")
+    source = (TASKS_DIR / "sinus_channel.vf").read_text()
+    assert 'urdf "shr7"' in source
+    (tmp_path / "t.vf").write_text(source.replace('urdf "shr7"', 'urdf "arm.urdf"'))
+    shutil.copy(TASKS_DIR / "sinus_channel.yaml", tmp_path / "t.yaml")
+    mesh, urdf = tmp_path / "anatomy" / "channel.stl", tmp_path / "arm.urdf"
+    before = {path: path.read_bytes() for path in (mesh, urdf)}
+    for args, message in ((["--json", str(mesh)], "is the mesh file of param channel"),
+                          (["--csv", str(urdf)], "is the URDF file of robot shr")):
+        assert main(["simulate", str(tmp_path / "t.vf"), "--duration", "0.1s", "--quiet", *args]) == 2
+        err = capsys.readouterr().err
+        assert message in err and "writing the output there would destroy it" in err and "Traceback" not in err, err
+    assert {path: path.read_bytes() for path in before} == before
 
 
 def test_a_scene_without_start_is_refused_naming_it(tmp_path, capsys):

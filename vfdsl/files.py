@@ -114,9 +114,13 @@ def check_outputs(outputs: dict[str, str | Path | None], inputs: list[tuple[str,
 
 def task_sources(task) -> list[tuple[str, str | None]]:
     """The source files of a loaded task, as :func:`check_outputs` takes them: the task file, its scene file, the
-    files it imports."""
+    files it imports, its robot's URDF file (a shipped robot is no file of the user's) and its meshes' files."""
     return [("the task file", task.file), ("the task's scene file", task.scene.file),
-            *(("a file the task imports", path) for path in task.imports)]
+            *(("a file the task imports", path) for path in task.imports),
+            *((f"the URDF file of robot {robot.name}", robot.urdf) for robot in task.robots
+              if Path(robot.urdf).is_absolute()),
+            *((f"the mesh file of param {param.name}", param.value.file) for param in task.params
+              if getattr(param.value, "kind", None) == "mesh")]
 
 
 def _same_file(a: str | Path, b: str | Path) -> bool:
