@@ -26,8 +26,9 @@ from vfdsl.runtime import daqp_solve
 
 import export_tail
 
-SOLVES_PER_TICK = 5
-"""DAQP solves a tick makes at most: phase 1 (one, or LEVEL_ATTEMPTS = 3 with priority levels) and phase 2's two."""
+SOLVES_PER_TICK = 6
+"""DAQP solves a tick makes at most: phase 1 (one, or LEVEL_ATTEMPTS = 3 with priority levels) and phase 2's (A), its
+retry where DAQP fails it, and (B)."""
 MANY = 50
 """Solves of at least this many iterations give the time per iteration (DAQP's own solve time over its iterations:
 the setup and the first factorization spread over many; below, a solve's fixed cost dominates)."""

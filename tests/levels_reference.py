@@ -153,6 +153,7 @@ def kkt_excess(qp, x, last_is_damping: bool, active=1e-9):
 
 PENALTY, LEAST_VIOLATION_TIE_BREAK = 1.0, 1e-3     # vfdsl.compile's penalty rho and tie_break mu, restated
 MARGIN = 1e-8               # vfdsl.runtime.qp.LEAST_VIOLATION_MARGIN feas_tol, restated
+FLOOR = 1e-4                # vfdsl.runtime.qp.REST_VIOLATION_FLOOR, restated
 RELAXED = 1e-12             # a group counts as violated above this (1e-3 feas_tol, as the controller)
 
 
@@ -161,7 +162,7 @@ def least_violation_set(qp, groups):
     of the least-violation set S over which the levels act (docs/runtime.md, Phase 2), from their definitions: (A)
     stacked here and solved by DAQP's Python package directly (tight tolerance, no scaling); each row of a violated
     group relaxed by the group's least violation and the margin, none worse than at rest (x_0: the point of the box
-    nearest 0)."""
+    nearest 0); each group's penalty rho t_g / max(v_g, FLOOR), v_g its largest violation at rest."""
     n = qp.P.shape[0]
     A, lb, ub = qp.A[n:], qp.lb[n:], qp.ub[n:]
     lo, hi = box(qp.lb[:n], qp.ub[:n])
@@ -170,8 +171,10 @@ def least_violation_set(qp, groups):
     E = np.zeros((m, G))
     E[np.arange(m), [ids[g] for g in groups]] = 1
     at_rest = A @ np.clip(0.0, lo, hi)
+    worst_at_rest = np.zeros(G)
+    np.maximum.at(worst_at_rest, [ids[g] for g in groups], np.maximum(np.maximum(lb - at_rest, at_rest - ub), 0))
     H = np.diag(np.r_[np.full(n, LEAST_VIOLATION_TIE_BREAK), np.ones(G)])
-    f = np.r_[np.zeros(n), PENALTY * np.ones(G)]
+    f = np.r_[np.zeros(n), PENALTY / np.maximum(worst_at_rest, FLOOR)]
     rows = np.vstack([np.hstack([A, E]), np.hstack([A, -E]), np.hstack([A, 0 * E])])
     lower = np.r_[lo, np.zeros(G), lb, np.full(m, -BIG), np.minimum(lb, at_rest)]
     upper = np.r_[hi, np.full(G, BIG), np.full(m, BIG), ub, np.maximum(ub, at_rest)]

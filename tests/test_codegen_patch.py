@@ -83,9 +83,9 @@ def test_the_patch_gives_the_golden_output(name):
 
 def test_the_plans_are_typed_and_the_names_hold_no_data():
     plans = plans_of(golden_step("two_levels"))
-    assert set(plans) == {"phase1_try0", "phase1_try1", "phase1_try2", "phase2a", "phase2b"}
+    assert set(plans) == {"phase1_try0", "phase1_try1", "phase1_try2", "phase2a", "phase2a_again", "phase2b"}
     assert plans["phase1_try2"] == SolvePlan(False, (5, 6, 8), 1e-6, partial=True, exact=True)
-    assert plans["phase2a"] == SolvePlan()
+    assert plans["phase2a"] == plans["phase2a_again"] == SolvePlan()
     assert plans["phase2b"] == SolvePlan(break_points=(5, 6, 8), exact=True, start=True)
     assert plans_of(golden_step("one_level"))["phase1_warm"] == SolvePlan(warm_start=True)
     assert plans_of(golden_step("one_level"))["phase2b"] == SolvePlan(break_points=(5,), exact=True, start=True)

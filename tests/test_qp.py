@@ -67,10 +67,14 @@ def row_violation(A, lba, uba, x) -> np.ndarray:
     return np.maximum(np.maximum(lba - r, r - uba), 0)
 
 
-def violation_measure(A, lba, uba, x, rho=1.0) -> float:
-    """sum_i rho v_i + v_i^2 / 2: phase 2's measure with one group per row."""
-    v = row_violation(A, lba, uba, x)
-    return float(np.sum(rho * v + 0.5 * v * v))
+REST_VIOLATION_FLOOR = 1e-4     # vfdsl.runtime.qp's, restated
+
+
+def violation_measure(A, lba, uba, x, rest, rho=1.0) -> float:
+    """sum_i rho v_i / max(w_i, floor) + v_i^2 / 2, w_i row i's violation at ``rest``: phase 2's measure with one
+    group per row."""
+    v, w = row_violation(A, lba, uba, x), row_violation(A, lba, uba, rest)
+    return float(np.sum(rho * v / np.maximum(w, REST_VIOLATION_FLOOR) + 0.5 * v * v))
 
 
 def kkt_residual(H, g, A, lba, uba, lbx, ubx, x, active_tol=1e-7) -> float:
@@ -179,23 +183,27 @@ def test_infeasible_least_violation_against_slsqp(random_paths, seed):
     expected = row_violation(A, lba, uba, x)
     np.testing.assert_allclose(violation, np.where(expected > FEAS_TOL, expected, 0), atol=1e-12)
     assert violation[0] > 0
-    measure = violation_measure(A, lba, uba, x)
-    assert measure < violation_measure(A, lba, uba, np.zeros(N))
+    rest = np.clip(np.zeros(N), lbx, ubx)
+    measure = violation_measure(A, lba, uba, x, rest)
+    assert measure < violation_measure(A, lba, uba, rest, rest)
     # (B) may take each violated row out by LEAST_VIOLATION_MARGIN feas_tol beyond its least violation t, which
-    # adds (1 + t) times that (and its square) to the row's rho t + t^2 / 2
+    # adds (1 / floor + t) times that (and its square) to the row's rho t / max(w, floor) + t^2 / 2
     margin = qp_module.LEAST_VIOLATION_MARGIN * FEAS_TOL
-    relaxed_margin = A.shape[0] * margin * (1 + np.max(row_violation(A, lba, uba, x)) + margin)
+    relaxed_margin = A.shape[0] * margin * (1 / REST_VIOLATION_FLOOR + np.max(row_violation(A, lba, uba, x)) + margin)
     assert measure <= slsqp_least_violation(A, lba, uba, lbx, ubx) + 1e-7 + relaxed_margin
-    rest = np.clip(np.zeros(N), lbx, ubx)                  # no row ends worse than at rest
+                                                           # no row ends worse than at rest
     assert np.all(row_violation(A, lba, uba, x) <= row_violation(A, lba, uba, rest) + 1e-8)
 
 
 def slsqp_least_violation(A, lba, uba, lbx, ubx) -> float:
-    """An independent solve of min sum(rho t + t^2/2) s.t. lba - t <= A x <= uba + t, t >= 0, and no row worse than
-    at rest: min(lba, A x0) <= A x <= max(uba, A x0), x0 the point of the box nearest 0."""
+    """An independent solve of min sum(rho t / max(w, floor) + t^2/2) s.t. lba - t <= A x <= uba + t, t >= 0, and no
+    row worse than at rest: min(lba, A x0) <= A x <= max(uba, A x0), x0 the point of the box nearest 0, w each row's
+    violation there."""
     m, n = A.shape
     finite_upper = np.isfinite(uba)
-    at_rest = A @ np.clip(np.zeros(n), lbx, ubx)
+    rest = np.clip(np.zeros(n), lbx, ubx)
+    at_rest = A @ rest
+    weight = 1 / np.maximum(row_violation(A, lba, uba, rest), REST_VIOLATION_FLOOR)
     floor, ceiling = np.minimum(lba, at_rest), np.maximum(uba, at_rest)
     finite_floor, finite_ceiling = np.isfinite(floor), np.isfinite(ceiling)
     constraints = [
@@ -210,10 +218,10 @@ def slsqp_least_violation(A, lba, uba, lbx, ubx) -> float:
     for start in range(3):
         x0 = np.random.default_rng(start).uniform(lbx, ubx)
         z0 = np.r_[x0, row_violation(A, lba, uba, x0)]
-        result = minimize(lambda z: z[n:].sum() + 0.5 * z[n:] @ z[n:], z0, method="SLSQP",
+        result = minimize(lambda z: weight @ z[n:] + 0.5 * z[n:] @ z[n:], z0, method="SLSQP",
                           bounds=bounds, constraints=constraints,
                           options={"ftol": 1e-14, "maxiter": 1000})
-        best = min(best, violation_measure(A, lba, uba, np.clip(result.x[:n], lbx, ubx)))
+        best = min(best, violation_measure(A, lba, uba, np.clip(result.x[:n], lbx, ubx), rest))
     return best
 
 
@@ -241,6 +249,28 @@ def test_row_groups_share_one_violation():
     np.testing.assert_allclose(np.array(violation).ravel(), [0.9, 0.05, 0.05, 0, 0, 0], atol=1e-8)
     with pytest.raises(ValueError, match="row_groups"):
         build_step_function(conflict_qp_data(), "grouped", row_groups=[0, 1])
+
+
+def test_a_row_a_little_off_is_brought_back_before_one_far_off(tmp_path):
+    """A row far off (x0 >= 1, violated by 1 at rest) and one a little off (x1 - x0 >= 0.001, by 0.001) share the box
+    |x| <= 0.1: bringing the near one back costs the far one 0.001 of progress. Each row's penalty weighs its
+    violation against its own violation at rest, so the near one comes back exactly: x = (0.099, 0.1). With the same
+    weight for both (the measure before) the far one won, x = (0.1, 0.1), and the near one stayed off: a held
+    fixture's second-order drift was never brought back while another fixture came back."""
+    q, u, p, dt = ca.SX.sym("q", 2), ca.SX.sym("u", 2), ca.SX.sym("p", 0), ca.SX.sym("dt")
+    qp_data = ca.Function("near_far", [q, u, p, dt],
+                          [ca.SX.eye(2), -u, ca.DM([[1, 0], [-1, 1]]), ca.DM([1, 0.001]), ca.DM.inf(2),
+                           -SPEED * dt * ca.DM.ones(2), SPEED * dt * ca.DM.ones(2)])
+    library = build_library(build_step_function(qp_data, "vf_test_near_far", native=True), "vf_test_near_far",
+                            tmp_path, {}, NO_CHECKS)
+    paths = (BufferedFunction.native(library.so_path, "vf_test_near_far"),
+             BufferedFunction.interpreted(build_step_function(qp_data, "vf_test_near_far")))
+    x, status, violation = solve_both(paths, (np.zeros(2), np.zeros(2), np.zeros(0), np.array([DT])))
+    assert status == StepStatus.LEAST_VIOLATION
+    # (B) takes the far row out by LEAST_VIOLATION_MARGIN feas_tol (1e-5 here) more, for the smaller motion
+    np.testing.assert_allclose(x, [0.099, 0.1], atol=2e-5)
+    np.testing.assert_allclose(violation, [0.901, 0.0], atol=2e-5)
+    assert violation[1] == 0 and x[1] - x[0] >= 0.001 - 1e-12
 
 
 def test_many_rows_without_groups_warn():

@@ -37,7 +37,7 @@ lexicographic. Rows are partitioned into G groups (one per row by default, or on
 constraint, see ``row_groups``); E in {0,1}^{m x G} is the incidence matrix and t in R^G the
 per-group violation.
 
-    (A) least violation:   minimize   1/2 |t|^2 + rho 1't + mu/2 |x|^2
+    (A) least violation:   minimize   1/2 |t|^2 + rho sum_g t_g / w_g + mu/2 |x|^2,   w_g = max(v_g, 1e-4)
                            subject to  lba - E t <= A x <= uba + E t,   x in B,   t >= 0,
                                        min(lba, A x_0) <= A x <= max(uba, A x_0)   (x_0: the rest motion in B)
 
@@ -45,14 +45,18 @@ per-group violation.
                            S = {x in B : max(lba - E t', min(lba, A x_0)) <= A x <= min(uba + E t', max(uba, A x_0))}
                            t'_g = t*_g + LEAST_VIOLATION_MARGIN feas_tol where t*_g > 0 (else 0)
 
-(A) is always feasible (x_0 with t large enough). Its last rows say that no row ends worse than at rest: a
+v_g is group g's largest violation at rest (its rows at x_0). (A) is always feasible (x_0 with t large enough). Its last rows say that no row ends worse than at rest: a
 least-violation tick never trades one fixture's excess for another's (without them, paper A's plate moved 10 mm
-gave a step that took the shaft further off its curve to bring the tip nearer its own). Its measure sum_g (rho t_g + t_g^2/2) is
-strictly increasing and strictly convex in t, so the least violation t* is unique. With one group
+gave a step that took the shaft further off its curve to bring the tip nearer its own). Its measure
+sum_g (rho t_g / w_g + t_g^2/2) is strictly increasing and strictly convex in t, so the least violation t* is unique.
+Each group's penalty is weighed against the group's own violation at rest: a fixture a little off (a held one taken
+out by a step's second-order remainder) comes back first; with one weight for all, a millimetre weighing as much as
+a radian, a port held within 0.5 mm was pushed 4.8 mm off while a cone 30 deg away came back, each tick's remainder
+adding up (docs/runtime.md, Phase 2). With one group
 per row it sums over rows; with coarser groups each group counts its worst row (an L-infinity
 measure inside one polytope). The linear term makes the penalty exact at t = 0: a group that can
 be satisfied is satisfied exactly, since the tie-breaker mu (smallest motion among least-violating
-points) has a marginal cost far below rho. The tie-breaker is mu I, not a multiple of H: H's
+points) has a marginal cost far below rho / w_g (such a group is off by at most one tick's motion). The tie-breaker is mu I, not a multiple of H: H's
 eigenvalues span ~1e-6..10 on the example tasks, and mu H / trace(H) next to the identity on t made
 (A) so ill-conditioned that CasADi's DAQP returned rows violated by up to 2e-7 while reporting
 success; with mu I (A) is solved to ~1e-13 (measured).
@@ -107,6 +111,9 @@ LEAST_VIOLATION_MARGIN = 10.0
 feas_tol (LEVEL_ACCEPTANCE's: phase 1 accepts rows within as much): at the least violation the relaxed rows are
 within ~1e-6 of the span of the rows that stop them (the box, at a speed limit), a vertex no working set of
 independent rows describes; 1e-8 of room parts them."""
+REST_VIOLATION_FLOOR = 1e-4
+"""The least w_g of phase 2's (A) (m or rad): it bounds the weight rho / w_g of a group off by little or nothing at
+rest (with 1e-6, DAQP failed (A) where two joints sat at their limits)."""
 PER_ROW_GROUPS_LIMIT = 100
 """Above this many rows, one group per row makes phase 2 slow: a warning asks for groups."""
 
@@ -175,9 +182,9 @@ def build_step_function(qp_data: ca.Function, prefix: str, *,
         ok1 = _straight_line(f"{prefix}_accept", lambda x, A, *box: [_acceptable(x, A @ x, *box, accept_tol)],
                              [x1, A, lba, uba, lo, hi], expand)
         solve_from = daqp_solver(n, m, feas_tol * 1e-3, f"{scope}phase2b", native, plans, sizes, start=True)
-        switch = _phase2_switch([A, lba, uba, lo, hi, x1, uncertified, *args], _incidence(m, row_groups),
+        switch = _phase2_switch([A, lba, uba, lo, hi, x1, uncertified, recover, *args], _incidence(m, row_groups),
                                 feas_tol, penalty, tie_break, solve_from, accept_tol, native, plans, scope)
-        picked = switch(ca.logic_and(ok1, recover == 0), A, lba, uba, lo, hi, x1, uncertified, *args)
+        picked = switch(ca.logic_and(ok1, recover == 0), A, lba, uba, lo, hi, x1, uncertified, recover, *args)
     x, status, violation = _straight_line(f"{prefix}_finish", lambda *v: _finish(*v, m, feas_tol),
                                           [picked, A, lba, uba, lo, hi, clipped], expand)
     return PlannedFunction(ca.Function(prefix, [*inputs, recover], [x, status, violation],
@@ -415,19 +422,19 @@ def _incidence(m: int, row_groups: Sequence[Hashable] | None) -> ca.DM:
 
 def _phase2_switch(values: list[ca.MX], E: ca.DM, tol, rho, mu, solve_from, accept_tol, native, plans,
                    scope: str) -> ca.Function:
-    """switch(ok, A, lba, uba, lo, hi, x1, uncertified, *args) -> [x1; status] when ok (phase 1's answer: OPTIMAL,
-    or UNCERTIFIED where phase 1's ``uncertified`` is 1), else phase 2's [x; status] (args: phase 1's solve, [H, g, a,
-    lower, upper]; ``solve_from``: (B)'s solve, from a point).
+    """switch(ok, A, lba, uba, lo, hi, x1, uncertified, recover, *args) -> [x1; status] when ok (phase 1's answer:
+    OPTIMAL, or UNCERTIFIED where phase 1's ``uncertified`` is 1), else phase 2's [x; status] (args: phase 1's solve,
+    [H, g, a, lower, upper]; ``solve_from``: (B)'s solve, from a point; ``recover``: the priming tick).
 
     The branches are Functions of values already computed: a short-circuit ``if_else`` on
     expressions would make each branch recompute them (QP data and phase 1) from the inputs.
     """
-    names = ("A", "lba", "uba", "lo", "hi", "x1", "uncertified", "H_s", "g_s", "a_s", "lower_s", "upper_s")
+    names = ("A", "lba", "uba", "lo", "hi", "x1", "uncertified", "recover", "H_s", "g_s", "a_s", "lower_s", "upper_s")
     args = [ca.MX.sym(name, v.sparsity()) for name, v in zip(names, values)]
     x1, uncertified = args[5], args[6]
     keep = ca.Function("keep", args, [ca.vertcat(x1, int(StepStatus.UNCERTIFIED) * uncertified)])
-    recover = ca.Function("recover", args, [_least_violation(*args[:5], args[7:], E, tol, rho, mu, solve_from,
-                                                             accept_tol, native, plans, scope)])
+    recover = ca.Function("recover", args, [_least_violation(*args[:5], args[8:], E, tol, rho, mu, solve_from,
+                                                             accept_tol, native, plans, scope, args[7])])
     return ca.Function.if_else("phase2_if_needed", keep, recover)
 
 
@@ -438,19 +445,21 @@ _GROSS_FAILURE = 1e-6
 
 
 def _least_violation(A, lba, uba, lo, hi, solve_args, E: ca.DM, tol, rho, mu, solve_from, accept_tol, native,
-                     plans, scope: str) -> ca.MX:
-    """Phase 2 (A then B), returning [x; status]."""
+                     plans, scope: str, recover: ca.MX) -> ca.MX:
+    """Phase 2 (A then B), returning [x; status]. (A) is solved at primal tolerance 1e-3 tol, and where DAQP fails
+    there, once more at tol (seen: a weighted (A) that DAQP called infeasible at 1e-12 and solved at 1e-9)."""
     n, m, G = lo.size1(), A.size1(), E.size2()
+    at_rest = A @ _rest(lo, hi)                   # no row ends worse than at rest: nothing goes further the wrong way
     H_a = ca.diagcat(mu * ca.DM.eye(n), ca.DM.eye(G))
-    g_a = ca.vertcat(ca.DM.zeros(n), rho * ca.DM.ones(G))
+    g_a = ca.vertcat(ca.DM.zeros(n), rho / _penalty_scales(E, lba, uba, at_rest))
     A_a = ca.vertcat(ca.horzcat(A, E), ca.horzcat(A, -E), ca.horzcat(A, ca.DM.zeros(m, G)))
     inf_m, inf_G = ca.inf * ca.DM.ones(m), ca.inf * ca.DM.ones(G)
-    at_rest = A @ _rest(lo, hi)                   # no row ends worse than at rest: nothing goes further the wrong way
     lba_a = ca.vertcat(lba, -inf_m, ca.fmin(lba, at_rest))
     uba_a = ca.vertcat(inf_m, uba, ca.fmax(uba, at_rest))
     lbz, ubz = ca.vertcat(lo, ca.DM.zeros(G)), ca.vertcat(hi, inf_G)
-    z = daqp_solver(n + G, 3 * m, tol * 1e-3, f"{scope}phase2a", native, plans)(H_a, g_a,
-                                                                        *daqp_rows(A_a, lba_a, uba_a, lbz, ubz))
+    rows_a = [H_a, g_a, *daqp_rows(A_a, lba_a, uba_a, lbz, ubz)]
+    z = _retried(daqp_solver(n + G, 3 * m, tol * 1e-3, f"{scope}phase2a", native, plans)(*rows_a), recover,
+                 daqp_solver(n + G, 3 * m, tol, f"{scope}phase2a_again", native, plans), rows_a)
     # Acceptance is decided on the solver's own answer, before any clipping: clipping a failed solve's NaN into B
     # would turn it into a full-speed motion that looks feasible.
     ok_a = _acceptable(z, A_a @ z, lba_a, uba_a, lbz, ubz, _GROSS_FAILURE)
@@ -465,6 +474,15 @@ def _least_violation(A, lba, uba, lo, hi, solve_args, E: ca.DM, tol, rho, mu, so
     status = (int(StepStatus.LEAST_VIOLATION) + int(StepStatus.FALLBACK) * (1 - ok_a)
               + int(StepStatus.UNCERTIFIED) * uncertified)
     return ca.vertcat(x, status)
+
+
+def _penalty_scales(E: ca.DM, lba, uba, at_rest) -> ca.MX:
+    """w_g = max(v_g, REST_VIOLATION_FLOOR), v_g the largest violation at rest of group g's rows (a group that holds
+    at rest gets the floor: (A) keeps its rows hard anyway)."""
+    at_rest_violation = ca.fmax(ca.fmax(lba - at_rest, at_rest - uba), 0)
+    rows = [np.flatnonzero(np.array(ca.DM(E[:, g])).ravel()) for g in range(E.size2())]
+    return ca.vertcat(*(ca.fmax(ca.mmax(at_rest_violation[[int(i) for i in r]]), REST_VIOLATION_FLOOR)
+                        for r in rows))
 
 
 def _least_violation_set(lba, uba, at_rest, relaxed, tol) -> tuple[ca.MX, ca.MX]:

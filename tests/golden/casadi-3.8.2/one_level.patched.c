@@ -42,7 +42,6 @@ static int vfdsl_current_slot(void);
 
 /* Add prefix to internal symbols */
 #define casadi_c0 CASADI_PREFIX(c0)
-#define casadi_c1 CASADI_PREFIX(c1)
 #define casadi_clear CASADI_PREFIX(clear)
 #define casadi_copy CASADI_PREFIX(copy)
 #define casadi_daqp_data CASADI_PREFIX(daqp_data)
@@ -58,6 +57,22 @@ static int vfdsl_current_slot(void);
 #define casadi_f0_incref CASADI_PREFIX(f0_incref)
 #define casadi_f1 CASADI_PREFIX(f1)
 #define casadi_f10 CASADI_PREFIX(f10)
+#define casadi_f11 CASADI_PREFIX(f11)
+#define casadi_f11_alloc_mem CASADI_PREFIX(f11_alloc_mem)
+#define casadi_f11_checkout CASADI_PREFIX(f11_checkout)
+#define casadi_f11_decref CASADI_PREFIX(f11_decref)
+#define casadi_f11_free_mem CASADI_PREFIX(f11_free_mem)
+#define casadi_f11_incref CASADI_PREFIX(f11_incref)
+#define casadi_f11_init_mem CASADI_PREFIX(f11_init_mem)
+#define casadi_f11_mem CASADI_PREFIX(f11_mem)
+#define casadi_f11_mem_counter CASADI_PREFIX(f11_mem_counter)
+#define casadi_f11_ref_counter CASADI_PREFIX(f11_ref_counter)
+#define casadi_f11_release CASADI_PREFIX(f11_release)
+#define casadi_f11_unused_stack CASADI_PREFIX(f11_unused_stack)
+#define casadi_f11_unused_stack_counter CASADI_PREFIX(f11_unused_stack_counter)
+#define casadi_f12 CASADI_PREFIX(f12)
+#define casadi_f13 CASADI_PREFIX(f13)
+#define casadi_f14 CASADI_PREFIX(f14)
 #define casadi_f2 CASADI_PREFIX(f2)
 #define casadi_f2_alloc_mem CASADI_PREFIX(f2_alloc_mem)
 #define casadi_f2_checkout CASADI_PREFIX(f2_checkout)
@@ -92,20 +107,24 @@ static int vfdsl_current_slot(void);
 #define casadi_f6_unused_stack CASADI_PREFIX(f6_unused_stack)
 #define casadi_f6_unused_stack_counter CASADI_PREFIX(f6_unused_stack_counter)
 #define casadi_f7 CASADI_PREFIX(f7)
-#define casadi_f7_alloc_mem CASADI_PREFIX(f7_alloc_mem)
-#define casadi_f7_checkout CASADI_PREFIX(f7_checkout)
 #define casadi_f7_decref CASADI_PREFIX(f7_decref)
-#define casadi_f7_free_mem CASADI_PREFIX(f7_free_mem)
 #define casadi_f7_incref CASADI_PREFIX(f7_incref)
-#define casadi_f7_init_mem CASADI_PREFIX(f7_init_mem)
-#define casadi_f7_mem CASADI_PREFIX(f7_mem)
-#define casadi_f7_mem_counter CASADI_PREFIX(f7_mem_counter)
-#define casadi_f7_ref_counter CASADI_PREFIX(f7_ref_counter)
-#define casadi_f7_release CASADI_PREFIX(f7_release)
-#define casadi_f7_unused_stack CASADI_PREFIX(f7_unused_stack)
-#define casadi_f7_unused_stack_counter CASADI_PREFIX(f7_unused_stack_counter)
 #define casadi_f8 CASADI_PREFIX(f8)
+#define casadi_f8_decref CASADI_PREFIX(f8_decref)
+#define casadi_f8_incref CASADI_PREFIX(f8_incref)
 #define casadi_f9 CASADI_PREFIX(f9)
+#define casadi_f9_alloc_mem CASADI_PREFIX(f9_alloc_mem)
+#define casadi_f9_checkout CASADI_PREFIX(f9_checkout)
+#define casadi_f9_decref CASADI_PREFIX(f9_decref)
+#define casadi_f9_free_mem CASADI_PREFIX(f9_free_mem)
+#define casadi_f9_incref CASADI_PREFIX(f9_incref)
+#define casadi_f9_init_mem CASADI_PREFIX(f9_init_mem)
+#define casadi_f9_mem CASADI_PREFIX(f9_mem)
+#define casadi_f9_mem_counter CASADI_PREFIX(f9_mem_counter)
+#define casadi_f9_ref_counter CASADI_PREFIX(f9_ref_counter)
+#define casadi_f9_release CASADI_PREFIX(f9_release)
+#define casadi_f9_unused_stack CASADI_PREFIX(f9_unused_stack)
+#define casadi_f9_unused_stack_counter CASADI_PREFIX(f9_unused_stack_counter)
 #define casadi_fabs CASADI_PREFIX(fabs)
 #define casadi_fill CASADI_PREFIX(fill)
 #define casadi_fmax CASADI_PREFIX(fmax)
@@ -131,6 +150,7 @@ static int vfdsl_current_slot(void);
 #define casadi_trans CASADI_PREFIX(trans)
 #define casadi_vfmax CASADI_PREFIX(vfmax)
 #define casadi_vfmin CASADI_PREFIX(vfmin)
+#define casadi_zeros CASADI_PREFIX(zeros)
 
 /* Symbol visibility in DLLs */
 #ifndef CASADI_SYMBOL_EXPORT
@@ -314,12 +334,12 @@ static int casadi_f6_unused_stack[CASADI_MAX_NUM_THREADS];
 static struct casadi_daqp_data casadi_f6_mem[CASADI_MAX_NUM_THREADS];
 
 static int casadi_f6_ref_counter = 0;
-static int casadi_f7_mem_counter = 0;
-static int casadi_f7_unused_stack_counter = -1;
-static int casadi_f7_unused_stack[CASADI_MAX_NUM_THREADS];
-static struct casadi_daqp_data casadi_f7_mem[CASADI_MAX_NUM_THREADS];
+static int casadi_f9_mem_counter = 0;
+static int casadi_f9_unused_stack_counter = -1;
+static int casadi_f9_unused_stack[CASADI_MAX_NUM_THREADS];
+static struct casadi_daqp_data casadi_f9_mem[CASADI_MAX_NUM_THREADS];
 
-static int casadi_f7_ref_counter = 0;
+static int casadi_f9_ref_counter = 0;
 void casadi_fill(casadi_real* x, casadi_int n, casadi_real alpha) {
   casadi_int i;
   if (x) {
@@ -327,21 +347,14 @@ void casadi_fill(casadi_real* x, casadi_int n, casadi_real alpha) {
   }
 }
 
-void casadi_trans(const casadi_real* x, const casadi_int* sp_x, casadi_real* y,
-    const casadi_int* sp_y, casadi_int* tmp) {
-  casadi_int ncol_x, nnz_x, ncol_y, k;
-  const casadi_int* row_x, *colind_y;
-  ncol_x = sp_x[1];
-  nnz_x = sp_x[2 + ncol_x];
-  row_x = sp_x + 2 + ncol_x+1;
-  ncol_y = sp_y[1];
-  colind_y = sp_y+2;
-  for (k=0; k<ncol_y; ++k) tmp[k] = colind_y[k];
-  for (k=0; k<nnz_x; ++k) {
-    y[tmp[row_x[k]]++] = x[k];
-  }
-}
+#define casadi_to_int(x) ((casadi_int) x)
 
+static int casadi_f11_mem_counter = 0;
+static int casadi_f11_unused_stack_counter = -1;
+static int casadi_f11_unused_stack[CASADI_MAX_NUM_THREADS];
+static struct casadi_daqp_data casadi_f11_mem[CASADI_MAX_NUM_THREADS];
+
+static int casadi_f11_ref_counter = 0;
 void casadi_mtimes_dense(const casadi_real* x, casadi_int nrow_x, casadi_int ncol_x,
     const casadi_real* y, casadi_int ncol_y, casadi_real* z, casadi_int tr) {
   casadi_int i, j, k;
@@ -364,18 +377,6 @@ void casadi_mtimes_dense(const casadi_real* x, casadi_int nrow_x, casadi_int nco
   }
 }
 
-casadi_real casadi_vfmin(const casadi_real* x, casadi_int n, casadi_real r) {
-  casadi_int i;
-  for (i=0; i<n; ++i) r = casadi_fmin(r, x[i]);
-  return r;
-}
-
-casadi_real casadi_mmin(const casadi_real* x, casadi_int n, casadi_int is_dense) {
-  casadi_real r = is_dense ? casadi_inf : 0;
-  if (!x) return r;
-  return casadi_vfmin(x, n, r);
-}
-
 casadi_real casadi_vfmax(const casadi_real* x, casadi_int n, casadi_real r) {
   casadi_int i;
   for (i=0; i<n; ++i) r = casadi_fmax(r, x[i]);
@@ -388,7 +389,32 @@ casadi_real casadi_mmax(const casadi_real* x, casadi_int n, casadi_int is_dense)
   return casadi_vfmax(x, n, r);
 }
 
-#define casadi_to_int(x) ((casadi_int) x)
+void casadi_trans(const casadi_real* x, const casadi_int* sp_x, casadi_real* y,
+    const casadi_int* sp_y, casadi_int* tmp) {
+  casadi_int ncol_x, nnz_x, ncol_y, k;
+  const casadi_int* row_x, *colind_y;
+  ncol_x = sp_x[1];
+  nnz_x = sp_x[2 + ncol_x];
+  row_x = sp_x + 2 + ncol_x+1;
+  ncol_y = sp_y[1];
+  colind_y = sp_y+2;
+  for (k=0; k<ncol_y; ++k) tmp[k] = colind_y[k];
+  for (k=0; k<nnz_x; ++k) {
+    y[tmp[row_x[k]]++] = x[k];
+  }
+}
+
+casadi_real casadi_vfmin(const casadi_real* x, casadi_int n, casadi_real r) {
+  casadi_int i;
+  for (i=0; i<n; ++i) r = casadi_fmin(r, x[i]);
+  return r;
+}
+
+casadi_real casadi_mmin(const casadi_real* x, casadi_int n, casadi_int is_dense) {
+  casadi_real r = is_dense ? casadi_inf : 0;
+  if (!x) return r;
+  return casadi_vfmin(x, n, r);
+}
 
 /* Configuration this file was compiled with */
 CASADI_SYMBOL_EXPORT void vf_golden_casadi_version(int* major, int* minor, int* patch) {
@@ -429,7 +455,9 @@ static const casadi_int casadi_s8[3] = {1, 1, 1};
 static const casadi_int casadi_s9[3] = {0, 1, 1};
 
 static const casadi_real casadi_c0[3] = {1.0000000000000000e-03, 1.0000000000000000e-03, 1.};
-static const casadi_real casadi_c1[3] = {0., 0., 1.};
+
+static const casadi_real casadi_zeros[18] = 
+  {0.};
 
 /* vf_golden_prepare:(i0[2],i1[2],i2,i3)->(o0[1x2],o1,o2,o3[2],o4[2],o5,o6[2x2],o7[2],o8[3x2],o9[3],o10[3]) */
 static int casadi_f1(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
@@ -747,9 +775,172 @@ void casadi_f6_decref(void) {
   }
 }
 
-/* phase2b:(h[2x2],g[2],a[3x2],lba[3],uba[3],lbx[2],ubx[2],x0[2],lam_x0[2],lam_a0[3],q[],p[])->(x[2],cost,lam_a[3],lam_x[2]) */
+/* phase2a_again:(h[3x3],g[3],a[6x3],lba[6],uba[6],lbx[3],ubx[3],x0[3],lam_x0[3],lam_a0[6],q[],p[])->(x[3],cost,lam_a[6],lam_x[3]) */
+static int casadi_f9(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+  struct casadi_daqp_data* d=&casadi_f9_mem[mem];
+  struct casadi_daqp_prob p;
+  struct casadi_qp_data d_qp;
+  struct casadi_qp_prob p_qp;
+  d_qp.prob = &p_qp;
+  p_qp.sp_a = casadi_s2;
+  p_qp.sp_h = casadi_s3;
+  casadi_qp_setup(&p_qp);
+  casadi_qp_set_work(&d_qp, &arg, &res, &iw, &w);
+  d_qp.h = arg[0];
+  d_qp.g = arg[1];
+  d_qp.a = arg[2];
+  d_qp.lbx = arg[5];
+  d_qp.ubx = arg[6];
+  d_qp.lba = arg[3];
+  d_qp.uba = arg[4];
+  d_qp.x0 = arg[7];
+  d_qp.lam_x0 = arg[8];
+  d_qp.lam_a0 = arg[9];
+  d_qp.f = res[1];
+  d_qp.x = res[0];
+  d_qp.lam_x = res[3];
+  d_qp.lam_a = res[2];
+  p.qp = &p_qp;
+  daqp_default_settings(&p.settings);
+  p.integrality = 0;
+  p.settings.primal_tol = 9.9999999999999995e-07;
+  casadi_daqp_setup(&p);
+  d->prob = &p;
+  d->qp = &d_qp;
+  casadi_daqp_set_work(d, &arg, &res, &iw, &w);
+  vfdsl_daqp_solve(d, 0, 0);
+  /* vfdsl: solver failure reported through the outputs */
+  return 0;
+  return 0;
+}
+
+int casadi_f9_alloc_mem(void) {
+  return casadi_f9_mem_counter++;
+}
+
+int casadi_f9_init_mem(int mem) {
+  casadi_daqp_init_mem(&casadi_f9_mem[mem]);
+  return 0;
+}
+
+void casadi_f9_free_mem(int mem) {
+  casadi_daqp_free_mem(&casadi_f9_mem[mem]);
+}
+
+int casadi_f9_checkout(void) {
+  return vfdsl_current_slot();
+}
+
+void casadi_f9_release(int mem) {
+}
+
+void casadi_f9_incref(void) {
+  casadi_f9_ref_counter++;
+}
+
+void casadi_f9_decref(void) {
+  casadi_f9_ref_counter--;
+  if (casadi_f9_ref_counter==0) {
+    while (casadi_f9_mem_counter>0) {
+      casadi_f9_free_mem(--casadi_f9_mem_counter);
+    }
+  }
+}
+
+/* solve_again:(i0[3],i1[3x3,3nz],i2[3],i3[6x3],i4[6],i5[6])->(o0[3]) */
+static int casadi_f8(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+  casadi_real **res1=res+1, *w00=w+54, *w01=w+57, *w03=w+66, *w04=w+72, *w05=w+78, *w06=w+81, *w07=w+84, *w08=w+87, *w09=w+90, *w11=w+96;
+  const casadi_real **arg1=arg+6, *wr02;
+  int flag, mid;
+  /* #0: @0 = input[1][0] */
+  casadi_copy(arg[1], 3, w00);
+  /* #1: @1 = dense(@0) */
+  casadi_densify(w00, casadi_s4, w01, 0);
+  /* #2: @0 = input[2][0] */
+  casadi_copy(arg[2], 3, w00);
+  /* #3: @2 = input[3][0] */
+  wr02 = arg[3] ? arg[3] : casadi_zeros;
+  /* #4: @3 = input[4][0] */
+  casadi_copy(arg[4], 6, w03);
+  /* #5: @4 = input[5][0] */
+  casadi_copy(arg[5], 6, w04);
+  /* #6: @5 = -inf(3x1) */
+  casadi_fill(w05, 3, -casadi_inf);
+  /* #7: @6 = inf(3x1) */
+  casadi_fill(w06, 3, casadi_inf);
+  /* #8: @7 = zeros(3x1) */
+  casadi_clear(w07, 3);
+  /* #9: @8 = zeros(3x1) */
+  casadi_clear(w08, 3);
+  /* #10: @9 = zeros(6x1) */
+  casadi_clear(w09, 6);
+  /* #11: @10 = 0x0 */
+  /* #12: {@11, NULL, NULL, NULL} = phase2a_again(@1, @0, @2, @3, @4, @5, @6, @7, @8, @9, @10, @10) */
+  arg1[0]=w01;
+  arg1[1]=w00;
+  arg1[2]=wr02;
+  arg1[3]=w03;
+  arg1[4]=w04;
+  arg1[5]=w05;
+  arg1[6]=w06;
+  arg1[7]=w07;
+  arg1[8]=w08;
+  arg1[9]=w09;
+  arg1[10]=0;
+  arg1[11]=0;
+  res1[0]=w11;
+  res1[1]=0;
+  res1[2]=0;
+  res1[3]=0;
+  mid = casadi_f9_checkout();
+  if (mid<0) return 1;
+  flag = casadi_f9(arg1, res1, iw, w, mid);
+  casadi_f9_release(mid);
+  if (flag) return 1;
+  /* #13: output[0][0] = @11 */
+  casadi_copy(w11, 3, res[0]);
+  return 0;
+}
+
+void casadi_f8_incref(void) {
+  casadi_f9_incref();
+}
+
+void casadi_f8_decref(void) {
+  casadi_f9_decref();
+}
+
+/* keep_first:(i0[3],i1[3x3,3nz],i2[3],i3[6x3],i4[6],i5[6])->(o0[3]) */
+static int casadi_f10(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+  casadi_real *w0=w+0;
+  /* #0: @0 = input[0][0] */
+  casadi_copy(arg[0], 3, w0);
+  /* #1: output[0][0] = @0 */
+  casadi_copy(w0, 3, res[0]);
+  return 0;
+}
+
+/* retry_if_failed:(i0,i1[3],i2[3x3,3nz],i3[3],i4[6x3],i5[6],i6[6])->(o0[3]) */
 static int casadi_f7(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
-  struct casadi_daqp_data* d=&casadi_f7_mem[mem];
+  if (arg[0] ? casadi_to_int(*arg[0]) : 0) {
+    if (casadi_f10(arg+1, res, iw, w, 0)) return 1;
+  } else {
+    if (casadi_f8(arg+1, res, iw, w, 0)) return 1;
+  }
+  return 0;
+}
+
+void casadi_f7_incref(void) {
+  casadi_f8_incref();
+}
+
+void casadi_f7_decref(void) {
+  casadi_f8_decref();
+}
+
+/* phase2b:(h[2x2],g[2],a[3x2],lba[3],uba[3],lbx[2],ubx[2],x0[2],lam_x0[2],lam_a0[3],q[],p[])->(x[2],cost,lam_a[3],lam_x[2]) */
+static int casadi_f11(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+  struct casadi_daqp_data* d=&casadi_f11_mem[mem];
   struct casadi_daqp_prob p;
   struct casadi_qp_data d_qp;
   struct casadi_qp_prob p_qp;
@@ -789,47 +980,47 @@ static int casadi_f7(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   return 0;
 }
 
-int casadi_f7_alloc_mem(void) {
-  return casadi_f7_mem_counter++;
+int casadi_f11_alloc_mem(void) {
+  return casadi_f11_mem_counter++;
 }
 
-int casadi_f7_init_mem(int mem) {
-  casadi_daqp_init_mem(&casadi_f7_mem[mem]);
+int casadi_f11_init_mem(int mem) {
+  casadi_daqp_init_mem(&casadi_f11_mem[mem]);
   return 0;
 }
 
-void casadi_f7_free_mem(int mem) {
-  casadi_daqp_free_mem(&casadi_f7_mem[mem]);
+void casadi_f11_free_mem(int mem) {
+  casadi_daqp_free_mem(&casadi_f11_mem[mem]);
 }
 
-int casadi_f7_checkout(void) {
+int casadi_f11_checkout(void) {
   return vfdsl_current_slot();
 }
 
-void casadi_f7_release(int mem) {
+void casadi_f11_release(int mem) {
 }
 
-void casadi_f7_incref(void) {
-  casadi_f7_ref_counter++;
+void casadi_f11_incref(void) {
+  casadi_f11_ref_counter++;
 }
 
-void casadi_f7_decref(void) {
-  casadi_f7_ref_counter--;
-  if (casadi_f7_ref_counter==0) {
-    while (casadi_f7_mem_counter>0) {
-      casadi_f7_free_mem(--casadi_f7_mem_counter);
+void casadi_f11_decref(void) {
+  casadi_f11_ref_counter--;
+  if (casadi_f11_ref_counter==0) {
+    while (casadi_f11_mem_counter>0) {
+      casadi_f11_free_mem(--casadi_f11_mem_counter);
     }
   }
 }
 
-/* recover:(i0[1x2],i1,i2,i3[2],i4[2],i5[2],i6,i7[2x2],i8[2],i9[3x2],i10[3],i11[3])->(o0[3]) */
+/* recover:(i0[1x2],i1,i2,i3[2],i4[2],i5[2],i6,i7,i8[2x2],i9[2],i10[3x2],i11[3],i12[3])->(o0[3]) */
 static int casadi_f5(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_int i, j;
-  casadi_real **res1=res+1, *rr, *w00=w+54, *w01=w+57, *w02=w+66, w03, *w04=w+68, *w05=w+71, *w06=w+74, *w07=w+77, *w08=w+80, *w09=w+92;
-  casadi_real *w10=w+104, w11, w12, *w13=w+122, *w14=w+124, *w15=w+126, w16, w17, *w18=w+128, w19, w20, w21;
-  casadi_real w22, *w23=w+134, *w24=w+140, *w25=w+143, *w26=w+146, *w27=w+149, *w29=w+155, w30, w31, *w32=w+158, *w33=w+167, *w34=w+171;
-  casadi_real *w35=w+173, *w36=w+175, *w37=w+177, *w38=w+179;
-  const casadi_real **arg1=arg+12, *cr, *cs;
+  casadi_real **res1=res+1, *rr, *w00=w+117, *w01=w+120, *w02=w+129, w03, w04, w05, w06, *w07=w+131, *w08=w+133, *w09=w+135;
+  casadi_real *w10=w+137, w11, w12, w13, *w14=w+139, *w15=w+142, *w16=w+145, *w17=w+148, *w18=w+151, *w19=w+163, *w20=w+175, *w21=w+193;
+  casadi_real w22, w23, *w24=w+199, *w25=w+205, *w26=w+208, *w27=w+211, *w28=w+214, *w30=w+220, w31, w32, w33, *w34=w+223;
+  casadi_real *w35=w+232, *w36=w+236, *w37=w+238, *w38=w+240, *w39=w+242;
+  const casadi_real **arg1=arg+13, *cr, *cs;
   int flag, mid;
   /* #0: @0 = 
   [[0.001, 00, 00], 
@@ -838,112 +1029,134 @@ static int casadi_f5(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   casadi_copy(casadi_c0, 3, w00);
   /* #1: @1 = dense(@0) */
   casadi_densify(w00, casadi_s4, w01, 0);
-  /* #2: @0 = [0, 0, 1] */
-  casadi_copy(casadi_c1, 3, w00);
-  /* #3: @2 = input[0][0] */
-  casadi_copy(arg[0], 2, w02);
-  /* #4: @3 = 1 */
+  /* #2: @2 = zeros(2x1) */
+  casadi_clear(w02, 2);
+  /* #3: @3 = 0.0001 */
+  w03 = 1.0000000000000000e-04;
+  /* #4: @4 = 0 */
+  w04 = 0.;
+  /* #5: @5 = input[1][0] */
+  w05 = arg[1] ? arg[1][0] : 0;
+  /* #6: @6 = 0 */
+  w06 = 0.;
+  /* #7: @7 = input[0][0] */
+  casadi_copy(arg[0], 2, w07);
+  /* #8: @8 = zeros(2x1) */
+  casadi_clear(w08, 2);
+  /* #9: @9 = input[3][0] */
+  casadi_copy(arg[3], 2, w09);
+  /* #10: @8 = fmax(@8,@9) */
+  for (i=0, rr=w08, cr=w08, cs=w09; i<2; ++i) (*rr++)  = casadi_fmax((*cr++),(*cs++));
+  /* #11: @10 = input[4][0] */
+  casadi_copy(arg[4], 2, w10);
+  /* #12: @8 = fmin(@8,@10) */
+  for (i=0, rr=w08, cr=w08, cs=w10; i<2; ++i) (*rr++)  = casadi_fmin((*cr++),(*cs++));
+  /* #13: @6 = mac(@7,@8,@6) */
+  casadi_mtimes_dense(w07, 1, 2, w08, 1, (&w06), 0);
+  /* #14: @11 = (@5-@6) */
+  w11  = (w05-w06);
+  /* #15: @12 = input[2][0] */
+  w12 = arg[2] ? arg[2][0] : 0;
+  /* #16: @13 = (@6-@12) */
+  w13  = (w06-w12);
+  /* #17: @11 = fmax(@11,@13) */
+  w11  = casadi_fmax(w11,w13);
+  /* #18: @4 = fmax(@4,@11) */
+  w04  = casadi_fmax(w04,w11);
+  /* #19: @11 = max(@4) */
+  w11 = casadi_mmax((&w04), 1, 1);
+  /* #20: @3 = fmax(@3,@11) */
+  w03  = casadi_fmax(w03,w11);
+  /* #21: @3 = (1./@3) */
+  w03 = (1./ w03 );
+  /* #22: @0 = vertcat(@2, @3) */
+  rr=w00;
+  for (i=0, cs=w02; i<2; ++i) *rr++ = *cs++;
+  *rr++ = w03;
+  /* #23: @3 = 1 */
   w03 = 1.;
-  /* #5: @4 = horzcat(@2, @3) */
-  rr=w04;
-  for (i=0, cs=w02; i<2; ++i) *rr++ = *cs++;
+  /* #24: @14 = horzcat(@7, @3) */
+  rr=w14;
+  for (i=0, cs=w07; i<2; ++i) *rr++ = *cs++;
   *rr++ = w03;
-  /* #6: @4 = @4' */
-  /* #7: @3 = -1 */
+  /* #25: @14 = @14' */
+  /* #26: @3 = -1 */
   w03 = -1.;
-  /* #8: @5 = horzcat(@2, @3) */
-  rr=w05;
-  for (i=0, cs=w02; i<2; ++i) *rr++ = *cs++;
+  /* #27: @15 = horzcat(@7, @3) */
+  rr=w15;
+  for (i=0, cs=w07; i<2; ++i) *rr++ = *cs++;
   *rr++ = w03;
-  /* #9: @5 = @5' */
-  /* #10: @3 = 0 */
+  /* #28: @15 = @15' */
+  /* #29: @3 = 0 */
   w03 = 0.;
-  /* #11: @6 = horzcat(@2, @3) */
-  rr=w06;
-  for (i=0, cs=w02; i<2; ++i) *rr++ = *cs++;
+  /* #30: @16 = horzcat(@7, @3) */
+  rr=w16;
+  for (i=0, cs=w07; i<2; ++i) *rr++ = *cs++;
   *rr++ = w03;
-  /* #12: @6 = @6' */
-  /* #13: @7 = ones(3x3,3nz) */
-  casadi_fill(w07, 3, 1.);
-  /* #14: @8 = horzcat(@4, @5, @6, @7) */
-  rr=w08;
-  for (i=0, cs=w04; i<3; ++i) *rr++ = *cs++;
-  for (i=0, cs=w05; i<3; ++i) *rr++ = *cs++;
-  for (i=0, cs=w06; i<3; ++i) *rr++ = *cs++;
-  for (i=0, cs=w07; i<3; ++i) *rr++ = *cs++;
-  /* #15: @9 = @8' */
-  casadi_trans(w08,casadi_s6, w09, casadi_s5, iw);
-  /* #16: @10 = dense(@9) */
-  casadi_densify(w09, casadi_s5, w10, 0);
-  /* #17: @3 = input[1][0] */
-  w03 = arg[1] ? arg[1][0] : 0;
-  /* #18: @11 = -inf */
-  w11 = -casadi_inf;
-  /* #19: @12 = 0 */
-  w12 = 0.;
-  /* #20: @13 = zeros(2x1) */
-  casadi_clear(w13, 2);
-  /* #21: @14 = input[3][0] */
-  casadi_copy(arg[3], 2, w14);
-  /* #22: @13 = fmax(@13,@14) */
-  for (i=0, rr=w13, cr=w13, cs=w14; i<2; ++i) (*rr++)  = casadi_fmax((*cr++),(*cs++));
-  /* #23: @15 = input[4][0] */
-  casadi_copy(arg[4], 2, w15);
-  /* #24: @13 = fmin(@13,@15) */
-  for (i=0, rr=w13, cr=w13, cs=w15; i<2; ++i) (*rr++)  = casadi_fmin((*cr++),(*cs++));
-  /* #25: @12 = mac(@2,@13,@12) */
-  casadi_mtimes_dense(w02, 1, 2, w13, 1, (&w12), 0);
-  /* #26: @16 = fmin(@3,@12) */
-  w16  = casadi_fmin(w03,w12);
-  /* #27: @17 = 0 */
-  w17 = 0.;
-  /* #28: @18 = vertcat(@3, @11, @16, @14, @17) */
+  /* #31: @16 = @16' */
+  /* #32: @17 = ones(3x3,3nz) */
+  casadi_fill(w17, 3, 1.);
+  /* #33: @18 = horzcat(@14, @15, @16, @17) */
   rr=w18;
+  for (i=0, cs=w14; i<3; ++i) *rr++ = *cs++;
+  for (i=0, cs=w15; i<3; ++i) *rr++ = *cs++;
+  for (i=0, cs=w16; i<3; ++i) *rr++ = *cs++;
+  for (i=0, cs=w17; i<3; ++i) *rr++ = *cs++;
+  /* #34: @19 = @18' */
+  casadi_trans(w18,casadi_s6, w19, casadi_s5, iw);
+  /* #35: @20 = dense(@19) */
+  casadi_densify(w19, casadi_s5, w20, 0);
+  /* #36: @3 = -inf */
+  w03 = -casadi_inf;
+  /* #37: @11 = fmin(@5,@6) */
+  w11  = casadi_fmin(w05,w06);
+  /* #38: @4 = 0 */
+  w04 = 0.;
+  /* #39: @21 = vertcat(@5, @3, @11, @9, @4) */
+  rr=w21;
+  *rr++ = w05;
   *rr++ = w03;
   *rr++ = w11;
-  *rr++ = w16;
-  for (i=0, cs=w14; i<2; ++i) *rr++ = *cs++;
-  *rr++ = w17;
-  /* #29: @19 = inf */
-  w19 = casadi_inf;
-  /* #30: @20 = input[2][0] */
-  w20 = arg[2] ? arg[2][0] : 0;
-  /* #31: @21 = fmax(@20,@12) */
-  w21  = casadi_fmax(w20,w12);
-  /* #32: @22 = inf */
-  w22 = casadi_inf;
-  /* #33: @23 = vertcat(@19, @20, @21, @15, @22) */
-  rr=w23;
-  *rr++ = w19;
-  *rr++ = w20;
-  *rr++ = w21;
-  for (i=0, cs=w15; i<2; ++i) *rr++ = *cs++;
+  for (i=0, cs=w09; i<2; ++i) *rr++ = *cs++;
+  *rr++ = w04;
+  /* #40: @13 = inf */
+  w13 = casadi_inf;
+  /* #41: @22 = fmax(@12,@6) */
+  w22  = casadi_fmax(w12,w06);
+  /* #42: @23 = inf */
+  w23 = casadi_inf;
+  /* #43: @24 = vertcat(@13, @12, @22, @10, @23) */
+  rr=w24;
+  *rr++ = w13;
+  *rr++ = w12;
   *rr++ = w22;
-  /* #34: @7 = -inf(3x1) */
-  casadi_fill(w07, 3, -casadi_inf);
-  /* #35: @24 = inf(3x1) */
-  casadi_fill(w24, 3, casadi_inf);
-  /* #36: @25 = zeros(3x1) */
-  casadi_clear(w25, 3);
-  /* #37: @26 = zeros(3x1) */
+  for (i=0, cs=w10; i<2; ++i) *rr++ = *cs++;
+  *rr++ = w23;
+  /* #44: @17 = -inf(3x1) */
+  casadi_fill(w17, 3, -casadi_inf);
+  /* #45: @25 = inf(3x1) */
+  casadi_fill(w25, 3, casadi_inf);
+  /* #46: @26 = zeros(3x1) */
   casadi_clear(w26, 3);
-  /* #38: @27 = zeros(6x1) */
-  casadi_clear(w27, 6);
-  /* #39: @28 = 0x0 */
-  /* #40: {@29, NULL, NULL, NULL} = phase2a(@1, @0, @10, @18, @23, @7, @24, @25, @26, @27, @28, @28) */
+  /* #47: @27 = zeros(3x1) */
+  casadi_clear(w27, 3);
+  /* #48: @28 = zeros(6x1) */
+  casadi_clear(w28, 6);
+  /* #49: @29 = 0x0 */
+  /* #50: {@30, NULL, NULL, NULL} = phase2a(@1, @0, @20, @21, @24, @17, @25, @26, @27, @28, @29, @29) */
   arg1[0]=w01;
   arg1[1]=w00;
-  arg1[2]=w10;
-  arg1[3]=w18;
-  arg1[4]=w23;
-  arg1[5]=w07;
-  arg1[6]=w24;
-  arg1[7]=w25;
-  arg1[8]=w26;
-  arg1[9]=w27;
+  arg1[2]=w20;
+  arg1[3]=w21;
+  arg1[4]=w24;
+  arg1[5]=w17;
+  arg1[6]=w25;
+  arg1[7]=w26;
+  arg1[8]=w27;
+  arg1[9]=w28;
   arg1[10]=0;
   arg1[11]=0;
-  res1[0]=w29;
+  res1[0]=w30;
   res1[1]=0;
   res1[2]=0;
   res1[3]=0;
@@ -952,290 +1165,323 @@ static int casadi_f5(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   flag = casadi_f6(arg1, res1, iw, w, mid);
   casadi_f6_release(mid);
   if (flag) return 1;
-  /* #41: @0 = fabs(@29) */
-  for (i=0, rr=w00, cs=w29; i<3; ++i) *rr++ = casadi_fabs( *cs++ );
-  /* #42: @30 = inf */
-  w30 = casadi_inf;
-  /* #43: @0 = (@0<@30) */
-  for (i=0, rr=w00, cr=w00; i<3; ++i) (*rr++)  = ((*cr++)<w30);
-  /* #44: @30 = min(@0) */
-  w30 = casadi_mmin(w00, 3, 1);
-  /* #45: @31 = 0 */
-  w31 = 0.;
-  /* #46: @0 = vertcat(@14, @17) */
-  rr=w00;
-  for (i=0, cs=w14; i<2; ++i) *rr++ = *cs++;
-  *rr++ = w17;
-  /* #47: @0 = (@0-@29) */
-  for (i=0, rr=w00, cs=w29; i<3; ++i) (*rr++) -= (*cs++);
-  /* #48: @7 = vertcat(@15, @22) */
-  rr=w07;
-  for (i=0, cs=w15; i<2; ++i) *rr++ = *cs++;
-  *rr++ = w22;
-  /* #49: @7 = (@29-@7) */
-  for (i=0, rr=w07, cr=w29, cs=w07; i<3; ++i) (*rr++)  = ((*cr++)-(*cs++));
-  /* #50: @0 = fmax(@0,@7) */
-  for (i=0, rr=w00, cr=w00, cs=w07; i<3; ++i) (*rr++)  = casadi_fmax((*cr++),(*cs++));
-  /* #51: @0 = fmax(@31,@0) */
-  for (i=0, rr=w00, cs=w00; i<3; ++i) (*rr++)  = casadi_fmax(w31,(*cs++));
-  /* #52: @31 = max(@0) */
-  w31 = casadi_mmax(w00, 3, 1);
-  /* #53: @22 = 1e-06 */
-  w22 = 9.9999999999999995e-07;
-  /* #54: @31 = (@31<=@22) */
-  w31  = (w31<=w22);
-  /* #55: @30 = (@30&&@31) */
-  w30  = (w30&&w31);
-  /* #56: @31 = 0 */
-  w31 = 0.;
-  /* #57: @0 = vertcat(@3, @11, @16) */
-  rr=w00;
+  /* #51: @17 = fabs(@30) */
+  for (i=0, rr=w17, cs=w30; i<3; ++i) *rr++ = casadi_fabs( *cs++ );
+  /* #52: @31 = inf */
+  w31 = casadi_inf;
+  /* #53: @17 = (@17<@31) */
+  for (i=0, rr=w17, cr=w17; i<3; ++i) (*rr++)  = ((*cr++)<w31);
+  /* #54: @31 = min(@17) */
+  w31 = casadi_mmin(w17, 3, 1);
+  /* #55: @32 = 0 */
+  w32 = 0.;
+  /* #56: @33 = input[7][0] */
+  w33 = arg[7] ? arg[7][0] : 0;
+  /* #57: @32 = (@32==@33) */
+  w32  = (w32==w33);
+  /* #58: @31 = (@31&&@32) */
+  w31  = (w31&&w32);
+  /* #59: @17 = 
+  [[0.001, 00, 00], 
+   [00, 0.001, 00], 
+   [00, 00, 1]] */
+  casadi_copy(casadi_c0, 3, w17);
+  /* #60: @25 = retry_if_failed(@31, @30, @17, @0, @20, @21, @24) */
+  arg1[0]=(&w31);
+  arg1[1]=w30;
+  arg1[2]=w17;
+  arg1[3]=w00;
+  arg1[4]=w20;
+  arg1[5]=w21;
+  arg1[6]=w24;
+  res1[0]=w25;
+  if (casadi_f7(arg1, res1, iw, w, 0)) return 1;
+  /* #61: @30 = fabs(@25) */
+  for (i=0, rr=w30, cs=w25; i<3; ++i) *rr++ = casadi_fabs( *cs++ );
+  /* #62: @31 = inf */
+  w31 = casadi_inf;
+  /* #63: @30 = (@30<@31) */
+  for (i=0, rr=w30, cr=w30; i<3; ++i) (*rr++)  = ((*cr++)<w31);
+  /* #64: @31 = min(@30) */
+  w31 = casadi_mmin(w30, 3, 1);
+  /* #65: @32 = 0 */
+  w32 = 0.;
+  /* #66: @30 = vertcat(@9, @4) */
+  rr=w30;
+  for (i=0, cs=w09; i<2; ++i) *rr++ = *cs++;
+  *rr++ = w04;
+  /* #67: @30 = (@30-@25) */
+  for (i=0, rr=w30, cs=w25; i<3; ++i) (*rr++) -= (*cs++);
+  /* #68: @17 = vertcat(@10, @23) */
+  rr=w17;
+  for (i=0, cs=w10; i<2; ++i) *rr++ = *cs++;
+  *rr++ = w23;
+  /* #69: @17 = (@25-@17) */
+  for (i=0, rr=w17, cr=w25, cs=w17; i<3; ++i) (*rr++)  = ((*cr++)-(*cs++));
+  /* #70: @30 = fmax(@30,@17) */
+  for (i=0, rr=w30, cr=w30, cs=w17; i<3; ++i) (*rr++)  = casadi_fmax((*cr++),(*cs++));
+  /* #71: @30 = fmax(@32,@30) */
+  for (i=0, rr=w30, cs=w30; i<3; ++i) (*rr++)  = casadi_fmax(w32,(*cs++));
+  /* #72: @32 = max(@30) */
+  w32 = casadi_mmax(w30, 3, 1);
+  /* #73: @23 = 1e-06 */
+  w23 = 9.9999999999999995e-07;
+  /* #74: @32 = (@32<=@23) */
+  w32  = (w32<=w23);
+  /* #75: @31 = (@31&&@32) */
+  w31  = (w31&&w32);
+  /* #76: @32 = 0 */
+  w32 = 0.;
+  /* #77: @30 = vertcat(@5, @3, @11) */
+  rr=w30;
+  *rr++ = w05;
   *rr++ = w03;
   *rr++ = w11;
-  *rr++ = w16;
-  /* #58: @7 = zeros(3x1) */
-  casadi_clear(w07, 3);
-  /* #59: @1 = horzcat(@4, @5, @6) */
+  /* #78: @17 = zeros(3x1) */
+  casadi_clear(w17, 3);
+  /* #79: @1 = horzcat(@14, @15, @16) */
   rr=w01;
-  for (i=0, cs=w04; i<3; ++i) *rr++ = *cs++;
-  for (i=0, cs=w05; i<3; ++i) *rr++ = *cs++;
-  for (i=0, cs=w06; i<3; ++i) *rr++ = *cs++;
-  /* #60: @32 = @1' */
-  for (i=0, rr=w32, cs=w01; i<3; ++i) for (j=0; j<3; ++j) rr[i+j*3] = *cs++;
-  /* #61: @7 = mac(@32,@29,@7) */
-  casadi_mtimes_dense(w32, 3, 3, w29, 1, w07, 0);
-  /* #62: @0 = (@0-@7) */
-  for (i=0, rr=w00, cs=w07; i<3; ++i) (*rr++) -= (*cs++);
-  /* #63: @4 = vertcat(@19, @20, @21) */
-  rr=w04;
-  *rr++ = w19;
-  *rr++ = w20;
-  *rr++ = w21;
-  /* #64: @7 = (@7-@4) */
-  for (i=0, rr=w07, cs=w04; i<3; ++i) (*rr++) -= (*cs++);
-  /* #65: @0 = fmax(@0,@7) */
-  for (i=0, rr=w00, cr=w00, cs=w07; i<3; ++i) (*rr++)  = casadi_fmax((*cr++),(*cs++));
-  /* #66: @0 = fmax(@31,@0) */
-  for (i=0, rr=w00, cs=w00; i<3; ++i) (*rr++)  = casadi_fmax(w31,(*cs++));
-  /* #67: @31 = max(@0) */
-  w31 = casadi_mmax(w00, 3, 1);
-  /* #68: @19 = 1e-06 */
-  w19 = 9.9999999999999995e-07;
-  /* #69: @31 = (@31<=@19) */
-  w31  = (w31<=w19);
-  /* #70: @30 = (@30&&@31) */
-  w30  = (w30&&w31);
-  /* #71: @33 = input[7][0] */
-  casadi_copy(arg[7], 4, w33);
-  /* #72: @13 = input[8][0] */
-  casadi_copy(arg[8], 2, w13);
-  /* #73: @18 = input[9][0] */
-  casadi_copy(arg[9], 6, w18);
-  /* #74: @31 = 1e-09 */
-  w31 = 1.0000000000000001e-09;
-  /* #75: @19 = 0 */
-  w19 = 0.;
-  /* #76: @21 = @29[2] */
-  for (rr=(&w21), cs=w29+2; cs!=w29+3; cs+=1) *rr++ = *cs;
-  /* #77: @19 = fmax(@19,@21) */
-  w19  = casadi_fmax(w19,w21);
-  /* #78: @19 = (@30?@19:0) */
-  w19  = (w30?w19:0);
-  /* #79: @31 = (@31<@19) */
-  w31  = (w31<w19);
-  /* #80: @21 = 1e-05 */
-  w21 = 9.9999999999999991e-06;
-  /* #81: @21 = (@21+@19) */
-  w21 += w19;
-  /* #82: @31 = (@31?@21:0) */
-  w31  = (w31?w21:0);
-  /* #83: @21 = (@3-@31) */
-  w21  = (w03-w31);
-  /* #84: @3 = fmin(@3,@12) */
-  w03  = casadi_fmin(w03,w12);
-  /* #85: @21 = fmax(@21,@3) */
-  w21  = casadi_fmax(w21,w03);
-  /* #86: @0 = input[10][0] */
-  casadi_copy(arg[10], 3, w00);
-  /* #87: @34 = @0[1:3] */
-  for (rr=w34, cs=w00+1; cs!=w00+3; cs+=1) *rr++ = *cs;
-  /* #88: @0 = vertcat(@21, @34) */
-  rr=w00;
-  *rr++ = w21;
-  for (i=0, cs=w34; i<2; ++i) *rr++ = *cs++;
-  /* #89: @31 = (@20+@31) */
-  w31  = (w20+w31);
-  /* #90: @20 = fmax(@20,@12) */
-  w20  = casadi_fmax(w20,w12);
-  /* #91: @31 = fmin(@31,@20) */
-  w31  = casadi_fmin(w31,w20);
-  /* #92: @7 = input[11][0] */
-  casadi_copy(arg[11], 3, w07);
-  /* #93: @34 = @7[1:3] */
-  for (rr=w34, cs=w07+1; cs!=w07+3; cs+=1) *rr++ = *cs;
-  /* #94: @7 = vertcat(@31, @34) */
-  rr=w07;
-  *rr++ = w31;
-  for (i=0, cs=w34; i<2; ++i) *rr++ = *cs++;
-  /* #95: @34 = -inf(2x1) */
-  casadi_fill(w34, 2, -casadi_inf);
-  /* #96: @35 = inf(2x1) */
-  casadi_fill(w35, 2, casadi_inf);
-  /* #97: @36 = @29[:2] */
-  for (rr=w36, cs=w29+0; cs!=w29+2; cs+=1) *rr++ = *cs;
-  /* #98: @36 = fmax(@36,@14) */
-  for (i=0, rr=w36, cr=w36, cs=w14; i<2; ++i) (*rr++)  = casadi_fmax((*cr++),(*cs++));
-  /* #99: @36 = fmin(@36,@15) */
-  for (i=0, rr=w36, cr=w36, cs=w15; i<2; ++i) (*rr++)  = casadi_fmin((*cr++),(*cs++));
-  /* #100: @37 = zeros(2x1) */
-  casadi_clear(w37, 2);
-  /* #101: @29 = zeros(3x1) */
-  casadi_clear(w29, 3);
-  /* #102: {@38, @20, NULL, NULL} = phase2b(@33, @13, @18, @0, @7, @34, @35, @36, @37, @29, @28, @28) */
-  arg1[0]=w33;
-  arg1[1]=w13;
-  arg1[2]=w18;
-  arg1[3]=w00;
-  arg1[4]=w07;
-  arg1[5]=w34;
-  arg1[6]=w35;
-  arg1[7]=w36;
-  arg1[8]=w37;
-  arg1[9]=w29;
+  for (i=0, cs=w14; i<3; ++i) *rr++ = *cs++;
+  for (i=0, cs=w15; i<3; ++i) *rr++ = *cs++;
+  for (i=0, cs=w16; i<3; ++i) *rr++ = *cs++;
+  /* #80: @34 = @1' */
+  for (i=0, rr=w34, cs=w01; i<3; ++i) for (j=0; j<3; ++j) rr[i+j*3] = *cs++;
+  /* #81: @17 = mac(@34,@25,@17) */
+  casadi_mtimes_dense(w34, 3, 3, w25, 1, w17, 0);
+  /* #82: @30 = (@30-@17) */
+  for (i=0, rr=w30, cs=w17; i<3; ++i) (*rr++) -= (*cs++);
+  /* #83: @14 = vertcat(@13, @12, @22) */
+  rr=w14;
+  *rr++ = w13;
+  *rr++ = w12;
+  *rr++ = w22;
+  /* #84: @17 = (@17-@14) */
+  for (i=0, rr=w17, cs=w14; i<3; ++i) (*rr++) -= (*cs++);
+  /* #85: @30 = fmax(@30,@17) */
+  for (i=0, rr=w30, cr=w30, cs=w17; i<3; ++i) (*rr++)  = casadi_fmax((*cr++),(*cs++));
+  /* #86: @30 = fmax(@32,@30) */
+  for (i=0, rr=w30, cs=w30; i<3; ++i) (*rr++)  = casadi_fmax(w32,(*cs++));
+  /* #87: @32 = max(@30) */
+  w32 = casadi_mmax(w30, 3, 1);
+  /* #88: @13 = 1e-06 */
+  w13 = 9.9999999999999995e-07;
+  /* #89: @32 = (@32<=@13) */
+  w32  = (w32<=w13);
+  /* #90: @31 = (@31&&@32) */
+  w31  = (w31&&w32);
+  /* #91: @35 = input[8][0] */
+  casadi_copy(arg[8], 4, w35);
+  /* #92: @2 = input[9][0] */
+  casadi_copy(arg[9], 2, w02);
+  /* #93: @21 = input[10][0] */
+  casadi_copy(arg[10], 6, w21);
+  /* #94: @32 = 1e-09 */
+  w32 = 1.0000000000000001e-09;
+  /* #95: @13 = 0 */
+  w13 = 0.;
+  /* #96: @22 = @25[2] */
+  for (rr=(&w22), cs=w25+2; cs!=w25+3; cs+=1) *rr++ = *cs;
+  /* #97: @13 = fmax(@13,@22) */
+  w13  = casadi_fmax(w13,w22);
+  /* #98: @13 = (@31?@13:0) */
+  w13  = (w31?w13:0);
+  /* #99: @32 = (@32<@13) */
+  w32  = (w32<w13);
+  /* #100: @22 = 1e-05 */
+  w22 = 9.9999999999999991e-06;
+  /* #101: @22 = (@22+@13) */
+  w22 += w13;
+  /* #102: @32 = (@32?@22:0) */
+  w32  = (w32?w22:0);
+  /* #103: @22 = (@5-@32) */
+  w22  = (w05-w32);
+  /* #104: @5 = fmin(@5,@6) */
+  w05  = casadi_fmin(w05,w06);
+  /* #105: @22 = fmax(@22,@5) */
+  w22  = casadi_fmax(w22,w05);
+  /* #106: @30 = input[11][0] */
+  casadi_copy(arg[11], 3, w30);
+  /* #107: @8 = @30[1:3] */
+  for (rr=w08, cs=w30+1; cs!=w30+3; cs+=1) *rr++ = *cs;
+  /* #108: @30 = vertcat(@22, @8) */
+  rr=w30;
+  *rr++ = w22;
+  for (i=0, cs=w08; i<2; ++i) *rr++ = *cs++;
+  /* #109: @32 = (@12+@32) */
+  w32  = (w12+w32);
+  /* #110: @12 = fmax(@12,@6) */
+  w12  = casadi_fmax(w12,w06);
+  /* #111: @32 = fmin(@32,@12) */
+  w32  = casadi_fmin(w32,w12);
+  /* #112: @17 = input[12][0] */
+  casadi_copy(arg[12], 3, w17);
+  /* #113: @8 = @17[1:3] */
+  for (rr=w08, cs=w17+1; cs!=w17+3; cs+=1) *rr++ = *cs;
+  /* #114: @17 = vertcat(@32, @8) */
+  rr=w17;
+  *rr++ = w32;
+  for (i=0, cs=w08; i<2; ++i) *rr++ = *cs++;
+  /* #115: @8 = -inf(2x1) */
+  casadi_fill(w08, 2, -casadi_inf);
+  /* #116: @36 = inf(2x1) */
+  casadi_fill(w36, 2, casadi_inf);
+  /* #117: @37 = @25[:2] */
+  for (rr=w37, cs=w25+0; cs!=w25+2; cs+=1) *rr++ = *cs;
+  /* #118: @37 = fmax(@37,@9) */
+  for (i=0, rr=w37, cr=w37, cs=w09; i<2; ++i) (*rr++)  = casadi_fmax((*cr++),(*cs++));
+  /* #119: @37 = fmin(@37,@10) */
+  for (i=0, rr=w37, cr=w37, cs=w10; i<2; ++i) (*rr++)  = casadi_fmin((*cr++),(*cs++));
+  /* #120: @38 = zeros(2x1) */
+  casadi_clear(w38, 2);
+  /* #121: @25 = zeros(3x1) */
+  casadi_clear(w25, 3);
+  /* #122: {@39, @12, NULL, NULL} = phase2b(@35, @2, @21, @30, @17, @8, @36, @37, @38, @25, @29, @29) */
+  arg1[0]=w35;
+  arg1[1]=w02;
+  arg1[2]=w21;
+  arg1[3]=w30;
+  arg1[4]=w17;
+  arg1[5]=w08;
+  arg1[6]=w36;
+  arg1[7]=w37;
+  arg1[8]=w38;
+  arg1[9]=w25;
   arg1[10]=0;
   arg1[11]=0;
-  res1[0]=w38;
-  res1[1]=(&w20);
+  res1[0]=w39;
+  res1[1]=(&w12);
   res1[2]=0;
   res1[3]=0;
-  mid = casadi_f7_checkout();
+  mid = casadi_f11_checkout();
   if (mid<0) return 1;
-  flag = casadi_f7(arg1, res1, iw, w, mid);
-  casadi_f7_release(mid);
+  flag = casadi_f11(arg1, res1, iw, w, mid);
+  casadi_f11_release(mid);
   if (flag) return 1;
-  /* #103: @13 = fabs(@38) */
-  for (i=0, rr=w13, cs=w38; i<2; ++i) *rr++ = casadi_fabs( *cs++ );
-  /* #104: @12 = inf */
-  w12 = casadi_inf;
-  /* #105: @13 = (@13<@12) */
-  for (i=0, rr=w13, cr=w13; i<2; ++i) (*rr++)  = ((*cr++)<w12);
-  /* #106: @12 = min(@13) */
-  w12 = casadi_mmin(w13, 2, 1);
-  /* #107: @3 = 0 */
-  w03 = 0.;
-  /* #108: @13 = (@14-@38) */
-  for (i=0, rr=w13, cr=w14, cs=w38; i<2; ++i) (*rr++)  = ((*cr++)-(*cs++));
-  /* #109: @34 = (@38-@15) */
-  for (i=0, rr=w34, cr=w38, cs=w15; i<2; ++i) (*rr++)  = ((*cr++)-(*cs++));
-  /* #110: @13 = fmax(@13,@34) */
-  for (i=0, rr=w13, cr=w13, cs=w34; i<2; ++i) (*rr++)  = casadi_fmax((*cr++),(*cs++));
-  /* #111: @13 = fmax(@3,@13) */
-  for (i=0, rr=w13, cs=w13; i<2; ++i) (*rr++)  = casadi_fmax(w03,(*cs++));
-  /* #112: @3 = max(@13) */
-  w03 = casadi_mmax(w13, 2, 1);
-  /* #113: @19 = 1e-06 */
-  w19 = 9.9999999999999995e-07;
-  /* #114: @3 = (@3<=@19) */
-  w03  = (w03<=w19);
-  /* #115: @12 = (@12&&@3) */
-  w12  = (w12&&w03);
-  /* #116: @3 = 0 */
-  w03 = 0.;
-  /* #117: @19 = 0 */
-  w19 = 0.;
-  /* #118: @19 = mac(@2,@38,@19) */
-  casadi_mtimes_dense(w02, 1, 2, w38, 1, (&w19), 0);
-  /* #119: @21 = (@21-@19) */
-  w21 -= w19;
-  /* #120: @19 = (@19-@31) */
-  w19 -= w31;
-  /* #121: @21 = fmax(@21,@19) */
-  w21  = casadi_fmax(w21,w19);
-  /* #122: @3 = fmax(@3,@21) */
-  w03  = casadi_fmax(w03,w21);
-  /* #123: @21 = max(@3) */
-  w21 = casadi_mmax((&w03), 1, 1);
-  /* #124: @3 = 1e-06 */
-  w03 = 9.9999999999999995e-07;
-  /* #125: @21 = (@21<=@3) */
-  w21  = (w21<=w03);
-  /* #126: @12 = (@12&&@21) */
-  w12  = (w12&&w21);
-  /* #127: @38 = fmax(@38,@14) */
-  for (i=0, rr=w38, cr=w38, cs=w14; i<2; ++i) (*rr++)  = casadi_fmax((*cr++),(*cs++));
-  /* #128: @38 = fmin(@38,@15) */
-  for (i=0, rr=w38, cr=w38, cs=w15; i<2; ++i) (*rr++)  = casadi_fmin((*cr++),(*cs++));
-  /* #129: @38 = (@12?@38:0) */
-  for (i=0, rr=w38, cs=w38; i<2; ++i) (*rr++)  = (w12?cs[i]:0);
-  /* #130: @21 = (!@12) */
-  w21 = (! w12 );
-  /* #131: @36 = (@21?@36:0) */
-  for (i=0, rr=w36, cs=w36; i<2; ++i) (*rr++)  = (w21?cs[i]:0);
-  /* #132: @38 = (@38+@36) */
-  for (i=0, rr=w38, cs=w36; i<2; ++i) (*rr++) += (*cs++);
-  /* #133: @38 = (@30?@38:0) */
-  for (i=0, rr=w38, cs=w38; i<2; ++i) (*rr++)  = (w30?cs[i]:0);
-  /* #134: @21 = (!@30) */
-  w21 = (! w30 );
-  /* #135: @36 = zeros(2x1) */
-  casadi_clear(w36, 2);
-  /* #136: @36 = fmax(@36,@14) */
-  for (i=0, rr=w36, cr=w36, cs=w14; i<2; ++i) (*rr++)  = casadi_fmax((*cr++),(*cs++));
-  /* #137: @36 = fmin(@36,@15) */
-  for (i=0, rr=w36, cr=w36, cs=w15; i<2; ++i) (*rr++)  = casadi_fmin((*cr++),(*cs++));
-  /* #138: @36 = (@21?@36:0) */
-  for (i=0, rr=w36, cs=w36; i<2; ++i) (*rr++)  = (w21?cs[i]:0);
-  /* #139: @38 = (@38+@36) */
-  for (i=0, rr=w38, cs=w36; i<2; ++i) (*rr++) += (*cs++);
-  /* #140: output[0][0] = @38 */
-  casadi_copy(w38, 2, res[0]);
-  /* #141: @21 = 1 */
-  w21 = 1.;
-  /* #142: @3 = 4 */
-  w03 = 4.;
-  /* #143: @19 = 1 */
-  w19 = 1.;
-  /* #144: @19 = (@19-@30) */
-  w19 -= w30;
-  /* #145: @3 = (@3*@19) */
-  w03 *= w19;
-  /* #146: @21 = (@21+@3) */
-  w21 += w03;
-  /* #147: @3 = 8 */
-  w03 = 8.;
-  /* #148: @20 = (@12?@20:0) */
-  w20  = (w12?w20:0);
-  /* #149: @12 = (!@12) */
-  w12 = (! w12 );
-  /* #150: @19 = 1 */
-  w19 = 1.;
-  /* #151: @12 = (@12?@19:0) */
-  w12  = (w12?w19:0);
-  /* #152: @20 = (@20+@12) */
-  w20 += w12;
-  /* #153: @3 = (@3*@20) */
-  w03 *= w20;
-  /* #154: @30 = (@30?@3:0) */
-  w30  = (w30?w03:0);
-  /* #155: @21 = (@21+@30) */
-  w21 += w30;
-  /* #156: output[0][1] = @21 */
-  if (res[0]) res[0][2] = w21;
+  /* #123: @2 = fabs(@39) */
+  for (i=0, rr=w02, cs=w39; i<2; ++i) *rr++ = casadi_fabs( *cs++ );
+  /* #124: @6 = inf */
+  w06 = casadi_inf;
+  /* #125: @2 = (@2<@6) */
+  for (i=0, rr=w02, cr=w02; i<2; ++i) (*rr++)  = ((*cr++)<w06);
+  /* #126: @6 = min(@2) */
+  w06 = casadi_mmin(w02, 2, 1);
+  /* #127: @5 = 0 */
+  w05 = 0.;
+  /* #128: @2 = (@9-@39) */
+  for (i=0, rr=w02, cr=w09, cs=w39; i<2; ++i) (*rr++)  = ((*cr++)-(*cs++));
+  /* #129: @8 = (@39-@10) */
+  for (i=0, rr=w08, cr=w39, cs=w10; i<2; ++i) (*rr++)  = ((*cr++)-(*cs++));
+  /* #130: @2 = fmax(@2,@8) */
+  for (i=0, rr=w02, cr=w02, cs=w08; i<2; ++i) (*rr++)  = casadi_fmax((*cr++),(*cs++));
+  /* #131: @2 = fmax(@5,@2) */
+  for (i=0, rr=w02, cs=w02; i<2; ++i) (*rr++)  = casadi_fmax(w05,(*cs++));
+  /* #132: @5 = max(@2) */
+  w05 = casadi_mmax(w02, 2, 1);
+  /* #133: @13 = 1e-06 */
+  w13 = 9.9999999999999995e-07;
+  /* #134: @5 = (@5<=@13) */
+  w05  = (w05<=w13);
+  /* #135: @6 = (@6&&@5) */
+  w06  = (w06&&w05);
+  /* #136: @5 = 0 */
+  w05 = 0.;
+  /* #137: @13 = 0 */
+  w13 = 0.;
+  /* #138: @13 = mac(@7,@39,@13) */
+  casadi_mtimes_dense(w07, 1, 2, w39, 1, (&w13), 0);
+  /* #139: @22 = (@22-@13) */
+  w22 -= w13;
+  /* #140: @13 = (@13-@32) */
+  w13 -= w32;
+  /* #141: @22 = fmax(@22,@13) */
+  w22  = casadi_fmax(w22,w13);
+  /* #142: @5 = fmax(@5,@22) */
+  w05  = casadi_fmax(w05,w22);
+  /* #143: @22 = max(@5) */
+  w22 = casadi_mmax((&w05), 1, 1);
+  /* #144: @5 = 1e-06 */
+  w05 = 9.9999999999999995e-07;
+  /* #145: @22 = (@22<=@5) */
+  w22  = (w22<=w05);
+  /* #146: @6 = (@6&&@22) */
+  w06  = (w06&&w22);
+  /* #147: @39 = fmax(@39,@9) */
+  for (i=0, rr=w39, cr=w39, cs=w09; i<2; ++i) (*rr++)  = casadi_fmax((*cr++),(*cs++));
+  /* #148: @39 = fmin(@39,@10) */
+  for (i=0, rr=w39, cr=w39, cs=w10; i<2; ++i) (*rr++)  = casadi_fmin((*cr++),(*cs++));
+  /* #149: @39 = (@6?@39:0) */
+  for (i=0, rr=w39, cs=w39; i<2; ++i) (*rr++)  = (w06?cs[i]:0);
+  /* #150: @22 = (!@6) */
+  w22 = (! w06 );
+  /* #151: @37 = (@22?@37:0) */
+  for (i=0, rr=w37, cs=w37; i<2; ++i) (*rr++)  = (w22?cs[i]:0);
+  /* #152: @39 = (@39+@37) */
+  for (i=0, rr=w39, cs=w37; i<2; ++i) (*rr++) += (*cs++);
+  /* #153: @39 = (@31?@39:0) */
+  for (i=0, rr=w39, cs=w39; i<2; ++i) (*rr++)  = (w31?cs[i]:0);
+  /* #154: @22 = (!@31) */
+  w22 = (! w31 );
+  /* #155: @37 = zeros(2x1) */
+  casadi_clear(w37, 2);
+  /* #156: @37 = fmax(@37,@9) */
+  for (i=0, rr=w37, cr=w37, cs=w09; i<2; ++i) (*rr++)  = casadi_fmax((*cr++),(*cs++));
+  /* #157: @37 = fmin(@37,@10) */
+  for (i=0, rr=w37, cr=w37, cs=w10; i<2; ++i) (*rr++)  = casadi_fmin((*cr++),(*cs++));
+  /* #158: @37 = (@22?@37:0) */
+  for (i=0, rr=w37, cs=w37; i<2; ++i) (*rr++)  = (w22?cs[i]:0);
+  /* #159: @39 = (@39+@37) */
+  for (i=0, rr=w39, cs=w37; i<2; ++i) (*rr++) += (*cs++);
+  /* #160: output[0][0] = @39 */
+  casadi_copy(w39, 2, res[0]);
+  /* #161: @22 = 1 */
+  w22 = 1.;
+  /* #162: @5 = 4 */
+  w05 = 4.;
+  /* #163: @13 = 1 */
+  w13 = 1.;
+  /* #164: @13 = (@13-@31) */
+  w13 -= w31;
+  /* #165: @5 = (@5*@13) */
+  w05 *= w13;
+  /* #166: @22 = (@22+@5) */
+  w22 += w05;
+  /* #167: @5 = 8 */
+  w05 = 8.;
+  /* #168: @12 = (@6?@12:0) */
+  w12  = (w06?w12:0);
+  /* #169: @6 = (!@6) */
+  w06 = (! w06 );
+  /* #170: @13 = 1 */
+  w13 = 1.;
+  /* #171: @6 = (@6?@13:0) */
+  w06  = (w06?w13:0);
+  /* #172: @12 = (@12+@6) */
+  w12 += w06;
+  /* #173: @5 = (@5*@12) */
+  w05 *= w12;
+  /* #174: @31 = (@31?@5:0) */
+  w31  = (w31?w05:0);
+  /* #175: @22 = (@22+@31) */
+  w22 += w31;
+  /* #176: output[0][1] = @22 */
+  if (res[0]) res[0][2] = w22;
   return 0;
 }
 
 void casadi_f5_incref(void) {
   casadi_f6_incref();
   casadi_f7_incref();
+  casadi_f11_incref();
 }
 
 void casadi_f5_decref(void) {
   casadi_f6_decref();
   casadi_f7_decref();
+  casadi_f11_decref();
 }
 
-/* keep:(i0[1x2],i1,i2,i3[2],i4[2],i5[2],i6,i7[2x2],i8[2],i9[3x2],i10[3],i11[3])->(o0[3]) */
-static int casadi_f8(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+/* keep:(i0[1x2],i1,i2,i3[2],i4[2],i5[2],i6,i7,i8[2x2],i9[2],i10[3x2],i11[3],i12[3])->(o0[3]) */
+static int casadi_f12(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real *w0=w+0, w1, w2;
   /* #0: @0 = input[5][0] */
   casadi_copy(arg[5], 2, w0);
@@ -1252,10 +1498,10 @@ static int casadi_f8(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   return 0;
 }
 
-/* phase2_if_needed:(i0,i1[1x2],i2,i3,i4[2],i5[2],i6[2],i7,i8[2x2],i9[2],i10[3x2],i11[3],i12[3])->(o0[3]) */
+/* phase2_if_needed:(i0,i1[1x2],i2,i3,i4[2],i5[2],i6[2],i7,i8,i9[2x2],i10[2],i11[3x2],i12[3],i13[3])->(o0[3]) */
 static int casadi_f4(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   if (arg[0] ? casadi_to_int(*arg[0]) : 0) {
-    if (casadi_f8(arg+1, res, iw, w, 0)) return 1;
+    if (casadi_f12(arg+1, res, iw, w, 0)) return 1;
   } else {
     if (casadi_f5(arg+1, res, iw, w, 0)) return 1;
   }
@@ -1271,7 +1517,7 @@ void casadi_f4_decref(void) {
 }
 
 /* vf_golden_finish:(i0[3],i1[1x2],i2,i3,i4[2],i5[2],i6)->(o0[2],o1,o2) */
-static int casadi_f9(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+static int casadi_f13(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a00, a01, a02, a03, a04, a05, a06, a07, a08, a09, a10, a11;
   casadi_real a12, a13, a14;
   a00=arg[0]? arg[0][0] : 0;
@@ -1357,8 +1603,8 @@ static int casadi_f9(const casadi_real** arg, casadi_real** res, casadi_int* iw,
 
 /* vf_golden:(q[2],u[2],p,dt,recover)->(x[2],status,violation) */
 static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
-  casadi_real **res1=res+3, *w00=w+192, *w01=w+194, w02, w03, *w04=w+196, w05, w06, *w07=w+198, *w08=w+200, w09, *w10=w+202;
-  casadi_real *w11=w+206, *w12=w+208, *w13=w+214, *w14=w+217, *w15=w+220, *w16=w+222, *w17=w+224, *w19=w+227, w20;
+  casadi_real **res1=res+3, *w00=w+256, *w01=w+258, w02, w03, *w04=w+260, w05, w06, *w07=w+262, *w08=w+264, w09, *w10=w+266;
+  casadi_real *w11=w+270, *w12=w+272, *w13=w+278, *w14=w+281, *w15=w+284, *w16=w+286, *w17=w+288, *w19=w+291, w20;
   const casadi_real **arg1=arg+5;
   int flag, mid;
   /* #0: @0 = input[0][0] */
@@ -1438,7 +1684,7 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   w02  = (w02&&w03);
   /* #17: @3 = 0 */
   w03 = 0.;
-  /* #18: @17 = phase2_if_needed(@2, @4, @5, @6, @7, @8, @19, @3, @10, @11, @12, @13, @14) */
+  /* #18: @17 = phase2_if_needed(@2, @4, @5, @6, @7, @8, @19, @3, @20, @10, @11, @12, @13, @14) */
   arg1[0]=(&w02);
   arg1[1]=w04;
   arg1[2]=(&w05);
@@ -1447,11 +1693,12 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   arg1[5]=w08;
   arg1[6]=w19;
   arg1[7]=(&w03);
-  arg1[8]=w10;
-  arg1[9]=w11;
-  arg1[10]=w12;
-  arg1[11]=w13;
-  arg1[12]=w14;
+  arg1[8]=(&w20);
+  arg1[9]=w10;
+  arg1[10]=w11;
+  arg1[11]=w12;
+  arg1[12]=w13;
+  arg1[13]=w14;
   res1[0]=w17;
   if (casadi_f4(arg1, res1, iw, w, 0)) return 1;
   /* #19: {@19, @2, @3} = vf_golden_finish(@17, @4, @5, @6, @7, @8, @9) */
@@ -1465,7 +1712,7 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   res1[0]=w19;
   res1[1]=(&w02);
   res1[2]=(&w03);
-  if (casadi_f9(arg1, res1, iw, w, 0)) return 1;
+  if (casadi_f13(arg1, res1, iw, w, 0)) return 1;
   /* #20: output[0][0] = @19 */
   casadi_copy(w19, 2, res[0]);
   /* #21: output[1][0] = @2 */
@@ -1488,13 +1735,16 @@ void casadi_f0_decref(void) {
 /* golden: memory_slots.c of vf_golden */
   casadi_f2_init_mem(s);
   casadi_f6_init_mem(s);
-  casadi_f7_init_mem(s);
+  casadi_f9_init_mem(s);
+  casadi_f11_init_mem(s);
   casadi_f2_free_mem(s);
   memset(&casadi_f2_mem[s], 0, sizeof casadi_f2_mem[s]);
   casadi_f6_free_mem(s);
   memset(&casadi_f6_mem[s], 0, sizeof casadi_f6_mem[s]);
-  casadi_f7_free_mem(s);
-  memset(&casadi_f7_mem[s], 0, sizeof casadi_f7_mem[s]);
+  casadi_f9_free_mem(s);
+  memset(&casadi_f9_mem[s], 0, sizeof casadi_f9_mem[s]);
+  casadi_f11_free_mem(s);
+  memset(&casadi_f11_mem[s], 0, sizeof casadi_f11_mem[s]);
 
 CASADI_SYMBOL_EXPORT void vf_golden_incref(void) {
   casadi_f0_incref();
@@ -1555,28 +1805,28 @@ CASADI_SYMBOL_EXPORT const casadi_int* vf_golden_sparsity_out(casadi_int i) {
 }
 
 CASADI_SYMBOL_EXPORT int vf_golden_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
-  if (sz_arg) *sz_arg = 42;
+  if (sz_arg) *sz_arg = 57;
   if (sz_res) *sz_res = 14;
   if (sz_iw) *sz_iw = 9;
-  if (sz_w) *sz_w = 229;
+  if (sz_w) *sz_w = 293;
   return 0;
 }
 
 CASADI_SYMBOL_EXPORT int vf_golden_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
-  if (sz_arg) *sz_arg = 42*sizeof(const casadi_real*);
+  if (sz_arg) *sz_arg = 57*sizeof(const casadi_real*);
   if (sz_res) *sz_res = 14*sizeof(casadi_real*);
   if (sz_iw) *sz_iw = 9*sizeof(casadi_int);
-  if (sz_w) *sz_w = 229*sizeof(casadi_real);
+  if (sz_w) *sz_w = 293*sizeof(casadi_real);
   return 0;
 }
 
 /* vf_golden_admissible:(i0)->(o0[0]) */
-static int casadi_f10(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+static int casadi_f14(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   return 0;
 }
 
 CASADI_SYMBOL_EXPORT int vf_golden_admissible(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem){
-  return casadi_f10(arg, res, iw, w, mem);
+  return casadi_f14(arg, res, iw, w, mem);
 }
 
 CASADI_SYMBOL_EXPORT int vf_golden_admissible_checkout(void) {
