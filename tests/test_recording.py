@@ -132,6 +132,68 @@ def test_a_bad_bag_is_refused_with_the_bag_the_topic_and_the_index(tmp_path, cap
     assert message in err and "run.sim.yaml:" in err and "Traceback" not in err
 
 
+def _write_one_topic(path: Path, topic: str, msgtype: str, messages: list):
+    """A rosbag2 (MCAP) holding ``messages`` on ``topic`` (built by each callable from the typestore's types), 1 ms
+    apart."""
+    from rosbags.rosbag2 import StoragePlugin, Writer
+    from rosbags.typesys import Stores, get_typestore
+    store = get_typestore(Stores.ROS2_HUMBLE)
+    T = store.types
+    with Writer(path, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
+        connection = writer.add_connection(topic, msgtype, typestore=store)
+        for k, build in enumerate(messages):
+            header = T["std_msgs/msg/Header"](stamp=T["builtin_interfaces/msg/Time"](sec=100, nanosec=k * 1_000_000),
+                                              frame_id="")
+            writer.write(connection, 100_000_000_000 + k * 1_000_000, store.serialize_cdr(build(T, header), msgtype))
+
+
+def _wrench(torque):
+    def build(T, header):
+        v = T["geometry_msgs/msg/Vector3"]
+        return T["geometry_msgs/msg/WrenchStamped"](header=header, wrench=T["geometry_msgs/msg/Wrench"](
+            force=v(x=0.0, y=0.0, z=0.0), torque=v(x=torque[0], y=torque[1], z=torque[2])))
+    return build
+
+
+def _joint_state(names, positions):
+    def build(T, header):
+        return T["sensor_msgs/msg/JointState"](header=header, name=list(names), position=np.array(positions, float),
+                                               velocity=np.zeros(0), effort=np.zeros(0))
+    return build
+
+
+def _bad_message_cases():
+    joints, _ = _joints()
+    names, q = list(joints), list(joints.values())
+    torque, state = ("/ft/wrench", "geometry_msgs/msg/WrenchStamped"), ("/joint_states", "sensor_msgs/msg/JointState")
+    return [
+        (torque, [], "topic /ft/wrench: no message"),
+        (state, [], "topic /joint_states: no message"),
+        (torque, [_wrench([0.0, 0.0, 0.005])] * 3 + [_wrench([0.0, float("nan"), 0.005])],
+         "topic /ft/wrench, message 3 holds NaN or inf in its torque: [0.0, nan, 0.005]"),
+        (torque, [_wrench([float("inf"), 0.0, 0.0])], "topic /ft/wrench, message 0 holds NaN or inf in its torque"),
+        (state, [_joint_state(names, [float("nan")] + q[1:])],
+         "topic /joint_states, message 0 holds NaN or inf in its positions"),
+        (state, [_joint_state(names, q + [0.0])], "topic /joint_states, message 0 names 7 joints but has 8 positions"),
+        (state, [_joint_state(names + names[:1], q + [0.5])],
+         f"topic /joint_states, message 0 names joint '{names[0]}' twice"),
+    ]
+
+
+@pytest.mark.parametrize("case", range(7))
+def test_a_message_that_cannot_drive_the_run_is_refused_before_it_starts(tmp_path, capsys, case):
+    """An empty topic, NaN or inf in a message, a JointState with a joint twice or more positions than names: refused
+    when the bag is read, naming the bag, the topic and the message (not a traceback, not a refusal of some tick in
+    the middle of the run without the bag)."""
+    (topic, msgtype), messages, message = _bad_message_cases()[case]
+    _write_one_topic(tmp_path / "lab", topic, msgtype, messages)
+    mapping = "  inputs: {tau: /ft/wrench}\n" if topic == "/ft/wrench" else "  start: /joint_states\n"
+    scene = _scene(tmp_path, "recording:\n  bag: lab\n" + mapping)
+    assert main(["simulate", str(PAPER_B), "--scene", str(scene), "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert f"bag lab, {message}" in err and "run.sim.yaml:" in err and "Traceback" not in err, err
+
+
 def test_the_open_mode_replays_the_recorded_joints_and_records_what_the_fixture_would_command(tmp_path):
     """A closed loop of paper B recorded as a bag (its joints at each 10 ms tick, the torque at 1 kHz), replayed open
     loop: the trace's q is the recorded joints, and its dq what Controller.step commands there with the recorded

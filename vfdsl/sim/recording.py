@@ -26,9 +26,10 @@ expressed in (a sensor on the tool), turned into the world at each tick by that 
 the recorded joints say at each tick (the same hold), the controller is stepped there with the recorded inputs, and
 its dq is recorded, not applied: what the fixture would have commanded, and the rows it would have found violated.
 
-Refused, each with the bag, the topic and the message's index: a topic the bag lacks (its topics listed), a message
-type the input cannot take, stamps that go back in time, a JointState naming a joint the robot lacks or missing one
-it has.
+Refused, each with the bag, the topic and the message's index: a topic the bag lacks (its topics listed) or that has
+no message, a message type the input cannot take, stamps that go back in time, a value that is NaN or inf (or a pose's
+zero quaternion), a JointState naming a joint the robot lacks, missing one it has, naming one twice, or with another
+number of positions than names.
 """
 
 from __future__ import annotations
@@ -222,8 +223,13 @@ def load(bag: Path, task, mapping: dict[str, Source], start: tuple[str, Span] | 
                 raise VfError(f"bag {bag.name}, topic {topic}: {got} messages, but "
                               f"{'the start' if name == '(start)' else f'input {name!r}'} reads {expected}", span,
                               code="E602")
-            read[name] = (span, [(stamp, reader.deserialize(raw, connection.msgtype)) for connection, stamp, raw
-                                 in reader.messages(connections=[topics[topic]])])
+            try:
+                read[name] = (span, [(stamp, reader.deserialize(raw, connection.msgtype)) for connection, stamp, raw
+                                     in reader.messages(connections=[topics[topic]])])
+            except Exception as exc:  # a damaged chunk or message past the summary rosbags opened
+                raise VfError(f"cannot read bag {bag.name}, topic {topic}: {exc}", span, code="E602") from None
+            if not read[name][1]:
+                raise VfError(f"bag {bag.name}, topic {topic}: no message", span, code="E602")
     finally:
         reader.close()
     stamped = {name: (span, _stamps(bag.name, wanted[name], span, messages), messages)
@@ -235,8 +241,8 @@ def load(bag: Path, task, mapping: dict[str, Source], start: tuple[str, Span] | 
             continue
         source = mapping[name]
         if source.frame is None:
-            kind = INPUT_TYPES[task.input(name).type]
-            values = np.array([_value(task.input(name).type, kind, m) for _, m in messages]).reshape(len(messages), -1)
+            values = np.array([_value(task.input(name).type, m, (bag.name, wanted[name], span, k))
+                               for k, (_, m) in enumerate(messages)]).reshape(len(messages), -1)
             for k, factor in enumerate(source.factors):           # each part's units to SI
                 values[:, 3 * k:3 * k + 3] *= factor
         else:
@@ -246,8 +252,6 @@ def load(bag: Path, task, mapping: dict[str, Source], start: tuple[str, Span] | 
     q0, replayed = None, None
     if start is not None:
         span, times, messages = stamped["(start)"]
-        if not messages:
-            raise VfError(f"bag {bag.name}, topic {start[0]}: no message", span, code="E602")
         q0 = _joints(bag.name, start[0], span, messages[0][1], robot.joint_names)
         if joints is not None:
             q = np.array([_joints(bag.name, start[0], span, m, robot.joint_names, k) for k, (_, m) in
@@ -284,32 +288,59 @@ def _stamps(bag: str, topic: str, span: Span, messages: list) -> np.ndarray:
     return times
 
 
-def _value(type_name: str, kind, message) -> np.ndarray:
-    """An input's value from its message (SI)."""
+def _message_error(where: tuple, text: str, hint: str | None = None) -> VfError:
+    """A refusal of message ``index`` of a topic: ``where`` is (bag, topic, span, index)."""
+    bag, topic, span, index = where
+    return VfError(f"bag {bag}, topic {topic}, message {index} {text}", span, hint=hint, code="E602")
+
+
+def _finite(where: tuple, what: str, values) -> np.ndarray:
+    """``values`` as floats, refused (naming the message) when one is NaN or inf."""
+    values = np.asarray(values, dtype=float)
+    if not np.all(np.isfinite(values)):
+        raise _message_error(where, f"holds NaN or inf in its {what}: {values.tolist()}",
+                             hint="a sensor's dropout recorded as NaN: cut it from the bag, or fill it")
+    return values
+
+
+def _value(type_name: str, message, where: tuple) -> np.ndarray:
+    """An input's value from its message (SI); ``where`` (bag, topic, span, index) names it when refused."""
     if type_name == "pose":
         from scipy.spatial.transform import Rotation
         p, o = message.pose.position, message.pose.orientation
-        return np.r_[[p.x, p.y, p.z], Rotation.from_quat([o.x, o.y, o.z, o.w]).as_euler("xyz")]
+        position = _finite(where, "position", [p.x, p.y, p.z])
+        quaternion = _finite(where, "orientation", [o.x, o.y, o.z, o.w])
+        if not np.linalg.norm(quaternion) > 1e-6:
+            raise _message_error(where, f"has a zero orientation quaternion {quaternion.tolist()}: no rotation",
+                                 hint="an unset orientation is (x, y, z, w) = (0, 0, 0, 1)")
+        return np.r_[position, Rotation.from_quat(quaternion).as_euler("xyz")]
     if type_name == "twist":
         v, w = message.twist.linear, message.twist.angular
-        return np.array([v.x, v.y, v.z, w.x, w.y, w.z])
+        return _finite(where, "twist", [v.x, v.y, v.z, w.x, w.y, w.z])
     f, t = message.wrench.force, message.wrench.torque
     parts = {"force": [f.x, f.y, f.z], "torque": [t.x, t.y, t.z], "wrench": [f.x, f.y, f.z, t.x, t.y, t.z]}
-    return np.array(parts[type_name], dtype=float)
+    return _finite(where, type_name, parts[type_name])
 
 
 def _joints(bag: str, topic: str, span: Span, message, joints, index: int = 0) -> np.ndarray:
-    """The robot's joints from a JointState (message ``index`` of its topic), by name."""
+    """The robot's joints from a JointState (message ``index`` of its topic), by name: each joint of the robot
+    named once, no other, one position per name, every position finite."""
+    where = (bag, topic, span, index)
     names = list(message.name)
     unknown = [n for n in names if n not in joints]
     if unknown:
-        raise VfError(f"bag {bag}, topic {topic}, message {index} names joint '{unknown[0]}', which the robot lacks",
-                      span, hint=suggest(unknown[0], joints, "joints"), code="E602")
+        raise _message_error(where, f"names joint '{unknown[0]}', which the robot lacks",
+                             hint=suggest(unknown[0], joints, "joints"))
+    twice = [n for k, n in enumerate(names) if n in names[:k]]
+    if twice:
+        raise _message_error(where, f"names joint '{twice[0]}' twice")
     missing = [j for j in joints if j not in names]
-    if missing or len(message.position) != len(names):
-        raise VfError(f"bag {bag}, topic {topic}, message {index} has no position of joint "
-                      f"'{missing[0] if missing else names[len(message.position)]}'", span, code="E602")
-    return np.array([message.position[names.index(j)] for j in joints], dtype=float)
+    if missing:
+        raise _message_error(where, f"has no position of joint '{missing[0]}'")
+    if len(message.position) != len(names):
+        raise _message_error(where, f"names {len(names)} joints but has {len(message.position)} positions")
+    positions = _finite(where, "positions", message.position)
+    return np.array([positions[names.index(j)] for j in joints], dtype=float)
 
 
 def recording_text(recording: Recording, period: float) -> str:
