@@ -61,6 +61,7 @@ def task_tables(meta: dict) -> str:
             f"#define MIN_PERIOD {c_number(meta['min_period'])}\n",
             f"#define MAX_PERIOD {c_number(meta['max_period'])}\n",
             f"#define DT_RULE {c_string(meta['dt_rule'])}\n",
+            f"#define INPUT_RULE {c_string(meta['input_rule'])}\n",
             f"#define FEASIBILITY_TOLERANCE {c_number(meta['feasibility_tolerance'])}\n\n"]
     out += [_array("char* const", "joint_names", [c_string(n) for n in meta["joints"]]),
             _array("char* const", "joint_units", [c_string(u) for u in meta["joint_units"]]),

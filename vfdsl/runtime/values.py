@@ -30,6 +30,7 @@ from vfdsl.compiler.admissible import Admissible
 from vfdsl.compiler.context import flatten
 from vfdsl.errors import VfError, show_vector, suggest
 from vfdsl.inputs import INPUT_TYPES
+from vfdsl.inputs.base import FINITE
 from vfdsl.ir import model as ir
 from vfdsl.limits import MAX_PERIOD, MIN_PERIOD
 
@@ -298,6 +299,15 @@ class RuntimeValues:
                           hint="dt is in seconds (1 ms is 0.001): pass the loop's period; if the loop really runs at "
                                "that period, give it as the `period` of the task's scene")
         return dt
+
+    @property
+    def input_rule(self) -> str:
+        """What an input its checks refuse is told by the C library (VF_ERR_INPUT): finite, and each input's
+        further checks (a button's range, a pose's plausible position and angles)."""
+        rules = [f"'{name}' ({kind.name}): {check.meaning}" for name, kind in self.input_types.items()
+                 for check in kind.checks if check is not FINITE]
+        checks = "" if not rules else ", or fails its type's check: " + "; ".join(rules)
+        return "an input contains NaN or inf" + checks
 
     @property
     def dt_rule(self) -> str:

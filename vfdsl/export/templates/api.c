@@ -258,7 +258,7 @@ VF_EXPORT const char* @API@_error_message(int code) {
     case VF_ERR_Q_NONFINITE: return "q (joint coordinates) contains NaN or inf";
     case VF_ERR_Q_RANGE: return "q is far outside its joint's limits: check the unit (radians, metres), the joint "
                                 "order, or the encoder";
-    case VF_ERR_INPUT: return "an input contains NaN or inf";
+    case VF_ERR_INPUT: return INPUT_RULE;
     case VF_ERR_DT: return "dt must be a positive number of seconds";
     case VF_ERR_DT_PERIOD: return "dt " DT_RULE " (dt is in seconds: 1 ms is 0.001)";
     case VF_ERR_PARAM_INDEX: return "no run-time param has this index";
