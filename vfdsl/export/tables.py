@@ -54,6 +54,7 @@ def task_tables(meta: dict) -> str:
     inputs, params, rows, slacks = meta["input_layout"], meta["param_layout"], meta["rows"], meta["slacks"]
     start = meta["start"] or [0.0] * nq
     sizes = {"NQ": nq, "NU": sum(i["size"] for i in inputs), "NP": len(meta["default_params"]),
+             "NP_SET": max((p["offset"] + p["size"] for p in params), default=0),   # before the captures
              "NX": nq + meta["variables"]["slack"], "NROWS": len(rows), "NSLACK": len(slacks),
              "NCHECKS": meta["param_checks"]["count"], "NINPUTS": len(inputs), "NPARAMS": len(params)}
     out = [f"#define {name} {value}\n" for name, value in sizes.items()]

@@ -204,7 +204,9 @@ VF_EXPORT int @API@_set_params(@API@* c, @PARAMS_ARGUMENT@) {
   int code;
   if (!c) return VF_ERR_NULL;
   if (!enter(c)) return VF_ERR_BUSY;
-  code = !values && NP > 0 ? refuse(c, VF_ERR_NULL, -1, -1) : set_values(c, 0, NP, values);
+  /* the run-time params' numbers only: the captured values after them are the procedure's (setting them does
+     nothing, and a NaN there is no param's error) */
+  code = !values && NP_SET > 0 ? refuse(c, VF_ERR_NULL, -1, -1) : set_values(c, 0, NP_SET, values);
   leave(c);
   return code;
 }
