@@ -132,19 +132,21 @@ def test_a_bad_bag_is_refused_with_the_bag_the_topic_and_the_index(tmp_path, cap
     assert message in err and "run.sim.yaml:" in err and "Traceback" not in err
 
 
-def _write_one_topic(path: Path, topic: str, msgtype: str, messages: list):
-    """A rosbag2 (MCAP) holding ``messages`` on ``topic`` (built by each callable from the typestore's types), 1 ms
-    apart."""
+def _write_topics(path: Path, topics: list):
+    """A rosbag2 (MCAP) holding, for each (topic, msgtype, messages, sec) of ``topics``, its messages (built by each
+    callable from the typestore's types) stamped ``sec`` + 1 ms apart."""
     from rosbags.rosbag2 import StoragePlugin, Writer
     from rosbags.typesys import Stores, get_typestore
     store = get_typestore(Stores.ROS2_HUMBLE)
     T = store.types
     with Writer(path, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
-        connection = writer.add_connection(topic, msgtype, typestore=store)
-        for k, build in enumerate(messages):
-            header = T["std_msgs/msg/Header"](stamp=T["builtin_interfaces/msg/Time"](sec=100, nanosec=k * 1_000_000),
-                                              frame_id="")
-            writer.write(connection, 100_000_000_000 + k * 1_000_000, store.serialize_cdr(build(T, header), msgtype))
+        for topic, msgtype, messages, sec in topics:
+            connection = writer.add_connection(topic, msgtype, typestore=store)
+            for k, build in enumerate(messages):
+                header = T["std_msgs/msg/Header"](stamp=T["builtin_interfaces/msg/Time"](
+                    sec=sec, nanosec=k * 1_000_000), frame_id="")
+                writer.write(connection, sec * 1_000_000_000 + k * 1_000_000,
+                             store.serialize_cdr(build(T, header), msgtype))
 
 
 def _wrench(torque):
@@ -186,12 +188,29 @@ def test_a_message_that_cannot_drive_the_run_is_refused_before_it_starts(tmp_pat
     when the bag is read, naming the bag, the topic and the message (not a traceback, not a refusal of some tick in
     the middle of the run without the bag)."""
     (topic, msgtype), messages, message = _bad_message_cases()[case]
-    _write_one_topic(tmp_path / "lab", topic, msgtype, messages)
+    _write_topics(tmp_path / "lab", [(topic, msgtype, messages, 100)])
     mapping = "  inputs: {tau: /ft/wrench}\n" if topic == "/ft/wrench" else "  start: /joint_states\n"
     scene = _scene(tmp_path, "recording:\n  bag: lab\n" + mapping)
     assert main(["simulate", str(PAPER_B), "--scene", str(scene), "--quiet"]) == 2
     err = capsys.readouterr().err
     assert f"bag lab, {message}" in err and "run.sim.yaml:" in err and "Traceback" not in err, err
+
+
+def test_an_input_recorded_after_the_run_by_another_clock_is_warned_of(tmp_path, capsys):
+    """The start's JointState stamped by the robot's clock (100 s), the torque by the sensor's (wall time): time 0 is
+    the earliest stamp, so every torque message comes 1.7e9 s after the run's end and the torque reads zero the whole
+    run. The run says so (it said nothing)."""
+    joints, _ = _joints()
+    _write_topics(tmp_path / "lab", [("/joint_states", "sensor_msgs/msg/JointState",
+                                      [_joint_state(list(joints), list(joints.values()))], 100),
+                                     ("/ft/wrench", "geometry_msgs/msg/WrenchStamped",
+                                      [_wrench([0.0, 0.0, 0.05])] * 20, 1_700_000_000)])
+    scene = _scene(tmp_path, "recording:\n  bag: lab\n  inputs: {tau: /ft/wrench}\n  start: /joint_states\n")
+    assert main(["simulate", str(PAPER_B), "--scene", str(scene), "--quiet", "--duration", "0.1s"]) == 0
+    err = capsys.readouterr().err
+    said = ("warning: input 'tau''s recording (/ft/wrench, its first message stamped 1.7e+09 s after the recording's "
+            "time 0")
+    assert "run.sim.yaml:" in err and said in err and "starts after the run's 0.1 s" in err, err
 
 
 def test_the_open_mode_replays_the_recorded_joints_and_records_what_the_fixture_would_command(tmp_path):
