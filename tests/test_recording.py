@@ -438,3 +438,28 @@ def test_a_bag_drives_paper_b_and_the_mcap_it_writes_reads_back_with_every_docum
     for k, w in enumerate(wrenches):
         latest = torques[np.searchsorted(stamps, k * 0.01 + 1e-12, side="right") - 1]
         assert np.array_equal([w.wrench.torque.x, w.wrench.torque.y, w.wrench.torque.z], latest)
+
+
+def _pose(position, quaternion=(0.0, 0.0, 0.0, 1.0)):
+    def build(T, header):
+        x, y, z, w = quaternion
+        return T["geometry_msgs/msg/PoseStamped"](header=header, pose=T["geometry_msgs/msg/Pose"](
+            position=T["geometry_msgs/msg/Point"](x=position[0], y=position[1], z=position[2]),
+            orientation=T["geometry_msgs/msg/Quaternion"](x=x, y=y, z=z, w=w)))
+    return build
+
+
+@pytest.mark.parametrize("message, said", [
+    (_pose([15.0, 0.0, 0.0]),
+     "message 1 is refused by the task: input 'master' is a pose: its position is 15 m on axis x"),
+    (_pose([0.0, 0.0, 0.0], (0.0, 0.0, 0.0, 0.0)), "message 1 has a zero orientation quaternion"),
+])
+def test_a_recorded_pose_the_task_refuses_is_refused_when_the_bag_is_read(tmp_path, capsys, message, said):
+    """A master's pose recorded in millimetres as metres (15 m) or with an unset quaternion: refused naming the bag,
+    the topic and the message (the first was refused mid-run without the bag, the second was a traceback)."""
+    _write_topics(tmp_path / "lab", [("/master", "geometry_msgs/msg/PoseStamped", [_pose([0.0, 0.0, 0.0]), message],
+                                      100)])
+    scene = _scene(tmp_path, "recording:\n  bag: lab\n  inputs: {master: /master}\n")
+    assert main(["simulate", str(TELEOP_LINE), "--scene", str(scene), "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert f"bag lab, topic /master, {said}" in err and "run.sim.yaml:" in err and "Traceback" not in err, err

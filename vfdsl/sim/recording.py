@@ -28,8 +28,8 @@ its dq is recorded, not applied: what the fixture would have commanded, and the 
 
 Refused, each with the bag, the topic and the message's index: a topic the bag lacks (its topics listed) or that has
 no message, a message type the input cannot take, stamps that go back in time, a value that is NaN or inf (or a pose's
-zero quaternion), a JointState naming a joint the robot lacks, missing one it has, naming one twice, or with another
-number of positions than names.
+zero quaternion) or that the input type's checks refuse (a pose 10 m away: millimetres as metres), a JointState
+naming a joint the robot lacks, missing one it has, naming one twice, or with another number of positions than names.
 """
 
 from __future__ import annotations
@@ -248,6 +248,11 @@ def load(bag: Path, task, mapping: dict[str, Source], start: tuple[str, Span] | 
         else:
             values = _frame_poses(robot, task.frame(source.frame), [
                 _joints(bag.name, wanted[name], span, m, robot.joint_names, k) for k, (_, m) in enumerate(messages)])
+        for k, value in enumerate(values):                      # the input type's checks, as Controller.step's
+            failed = INPUT_TYPES[task.input(name).type].first_failure(value)
+            if failed:
+                raise _message_error((bag.name, wanted[name], span, k),
+                                     f"is refused by the task: {failed[0].message(name, failed[1], value)}")
         inputs.append(RecordedInput(name, wanted[name], times - origin, values, source.frame, source.expressed_in))
     q0, replayed = None, None
     if start is not None:
