@@ -179,14 +179,16 @@ def _bad_message_cases():
         (state, [_joint_state(names, q + [0.0])], "topic /joint_states, message 0 names 7 joints but has 8 positions"),
         (state, [_joint_state(names + names[:1], q + [0.5])],
          f"topic /joint_states, message 0 names joint '{names[0]}' twice"),
+        (state, [_joint_state(names, [q[0], 57.3 * q[1]] + q[2:])],
+         "topic /joint_states, message 0 puts joint 'y' at -0.253969, far outside its limits [-0.06, 0.06]"),
     ]
 
 
-@pytest.mark.parametrize("case", range(7))
+@pytest.mark.parametrize("case", range(8))
 def test_a_message_that_cannot_drive_the_run_is_refused_before_it_starts(tmp_path, capsys, case):
-    """An empty topic, NaN or inf in a message, a JointState with a joint twice or more positions than names: refused
-    when the bag is read, naming the bag, the topic and the message (not a traceback, not a refusal of some tick in
-    the middle of the run without the bag)."""
+    """An empty topic, NaN or inf in a message, a JointState with a joint twice, more positions than names or a joint
+    far outside its limits (degrees as radians): refused when the bag is read, naming the bag, the topic and the
+    message (not a traceback, not a refusal of some tick in the middle of the run without the bag)."""
     (topic, msgtype), messages, message = _bad_message_cases()[case]
     _write_topics(tmp_path / "lab", [(topic, msgtype, messages, 100)])
     mapping = "  inputs: {tau: /ft/wrench}\n" if topic == "/ft/wrench" else "  start: /joint_states\n"

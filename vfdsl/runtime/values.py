@@ -159,6 +159,13 @@ def input_checks(types: Mapping, offsets: Mapping[str, tuple[int, int]], n: int)
     return ca.Function("input_checks", [u], [ca.vertcat(*columns) if columns else ca.SX(0, 1)], ["u"], ["margins"])
 
 
+def admissible_joints(lower: np.ndarray, upper: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The joint coordinates q accepts: its limits widened by their span on each side (farther out is a unit slip,
+    degrees for radians, or a faulty encoder; an unbounded joint accepts any)."""
+    span = np.where(np.isfinite(upper - lower), upper - lower, np.inf)
+    return lower - span, upper + span
+
+
 class RuntimeValues:
     """The checks of one task's run-time values (its inputs, params, joints and period)."""
 
@@ -173,9 +180,8 @@ class RuntimeValues:
         self.admissible = admissible
         self.layout = admissible.layout
         self.joint_names = joint_names
-        span = np.where(np.isfinite(upper - lower), upper - lower, np.inf)
         self.lower, self.upper = lower, upper
-        self.q_min, self.q_max = lower - span, upper + span
+        self.q_min, self.q_max = admissible_joints(lower, upper)
         self.default_period = task.scene.period
         self.dt_min, self.dt_max = dt_range(self.default_period)
 

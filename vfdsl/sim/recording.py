@@ -29,7 +29,8 @@ its dq is recorded, not applied: what the fixture would have commanded, and the 
 Refused, each with the bag, the topic and the message's index: a topic the bag lacks (its topics listed) or that has
 no message, a message type the input cannot take, stamps that go back in time, a value that is NaN or inf (or a pose's
 zero quaternion) or that the input type's checks refuse (a pose 10 m away: millimetres as metres), a JointState
-naming a joint the robot lacks, missing one it has, naming one twice, or with another number of positions than names.
+naming a joint the robot lacks, missing one it has, naming one twice, with another number of positions than names, or
+a position far outside its joint's limits (degrees recorded as radians).
 """
 
 from __future__ import annotations
@@ -43,6 +44,7 @@ import yaml
 from vfdsl import units as u
 from vfdsl.errors import Span, VfError, suggest
 from vfdsl.inputs import INPUT_TYPES
+from vfdsl.runtime.values import admissible_joints
 
 RECORDING_KEYS = ("bag", "mode", "inputs", "start", "joints")
 MODES = ("closed", "open")
@@ -247,7 +249,7 @@ def load(bag: Path, task, mapping: dict[str, Source], start: tuple[str, Span] | 
                 values[:, 3 * k:3 * k + 3] *= factor
         else:
             values = _frame_poses(robot, task.frame(source.frame), [
-                _joints(bag.name, wanted[name], span, m, robot.joint_names, k) for k, (_, m) in enumerate(messages)])
+                _joints(bag.name, wanted[name], span, m, robot, k) for k, (_, m) in enumerate(messages)])
         for k, value in enumerate(values):                      # the input type's checks, as Controller.step's
             failed = INPUT_TYPES[task.input(name).type].first_failure(value)
             if failed:
@@ -257,9 +259,9 @@ def load(bag: Path, task, mapping: dict[str, Source], start: tuple[str, Span] | 
     q0, replayed = None, None
     if start is not None:
         span, times, messages = stamped["(start)"]
-        q0 = _joints(bag.name, start[0], span, messages[0][1], robot.joint_names)
+        q0 = _joints(bag.name, start[0], span, messages[0][1], robot)
         if joints is not None:
-            q = np.array([_joints(bag.name, start[0], span, m, robot.joint_names, k) for k, (_, m) in
+            q = np.array([_joints(bag.name, start[0], span, m, robot, k) for k, (_, m) in
                           enumerate(messages)])
             replayed = RecordedInput("(joints)", joints[0], times - origin, q)
     summary = {"bag": str(bag), "mode": mode, "inputs": {r.input: r.topic for r in inputs},
@@ -327,10 +329,10 @@ def _value(type_name: str, message, where: tuple) -> np.ndarray:
     return _finite(where, type_name, parts[type_name])
 
 
-def _joints(bag: str, topic: str, span: Span, message, joints, index: int = 0) -> np.ndarray:
+def _joints(bag: str, topic: str, span: Span, message, robot, index: int = 0) -> np.ndarray:
     """The robot's joints from a JointState (message ``index`` of its topic), by name: each joint of the robot
-    named once, no other, one position per name, every position finite."""
-    where = (bag, topic, span, index)
+    named once, no other, one position per name, every position finite and admissible (as Controller.step's q)."""
+    where, joints = (bag, topic, span, index), robot.joint_names
     names = list(message.name)
     unknown = [n for n in names if n not in joints]
     if unknown:
@@ -344,8 +346,15 @@ def _joints(bag: str, topic: str, span: Span, message, joints, index: int = 0) -
         raise _message_error(where, f"has no position of joint '{missing[0]}'")
     if len(message.position) != len(names):
         raise _message_error(where, f"names {len(names)} joints but has {len(message.position)} positions")
-    positions = _finite(where, "positions", message.position)
-    return np.array([positions[names.index(j)] for j in joints], dtype=float)
+    q = _finite(where, "positions", message.position)[[names.index(j) for j in joints]]
+    low, high = admissible_joints(robot.lower, robot.upper)
+    outside = np.flatnonzero((q < low) | (q > high))
+    if outside.size:
+        i = int(outside[0])
+        raise _message_error(where, f"puts joint '{joints[i]}' at {q[i]:.6g}, far outside its limits "
+                             f"[{robot.lower[i]:.6g}, {robot.upper[i]:.6g}] (SI: m or rad)",
+                             hint="a JointState is in radians and metres: degrees or millimetres recorded?")
+    return q
 
 
 def late_inputs(recording: Recording, end: float) -> list[tuple[float, str, Span | None]]:
