@@ -149,9 +149,11 @@ def _write_topics(path: Path, topics: list):
                              store.serialize_cdr(build(T, header), msgtype))
 
 
-def _wrench(torque):
+def _wrench(torque, stamped=True):
     def build(T, header):
         v = T["geometry_msgs/msg/Vector3"]
+        if not stamped:
+            header = T["std_msgs/msg/Header"](stamp=T["builtin_interfaces/msg/Time"](sec=0, nanosec=0), frame_id="")
         return T["geometry_msgs/msg/WrenchStamped"](header=header, wrench=T["geometry_msgs/msg/Wrench"](
             force=v(x=0.0, y=0.0, z=0.0), torque=v(x=torque[0], y=torque[1], z=torque[2])))
     return build
@@ -179,12 +181,14 @@ def _bad_message_cases():
         (state, [_joint_state(names, q + [0.0])], "topic /joint_states, message 0 names 7 joints but has 8 positions"),
         (state, [_joint_state(names + names[:1], q + [0.5])],
          f"topic /joint_states, message 0 names joint '{names[0]}' twice"),
+        (torque, [_wrench([0.0, 0.0, 0.005], stamped=False)] + [_wrench([0.0, 0.0, 0.005])] * 3,
+         "topic /ft/wrench: message 0 has a zero header stamp and message 1 has one"),
         (state, [_joint_state(names, [q[0], 57.3 * q[1]] + q[2:])],
          "topic /joint_states, message 0 puts joint 'y' at -0.253969, far outside its limits [-0.06, 0.06]"),
     ]
 
 
-@pytest.mark.parametrize("case", range(8))
+@pytest.mark.parametrize("case", range(9))
 def test_a_message_that_cannot_drive_the_run_is_refused_before_it_starts(tmp_path, capsys, case):
     """An empty topic, NaN or inf in a message, a JointState with a joint twice, more positions than names or a joint
     far outside its limits (degrees as radians): refused when the bag is read, naming the bag, the topic and the

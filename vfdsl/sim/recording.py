@@ -11,26 +11,26 @@ ROS 1 bag, read without ROS by ``rosbags``.
       mode: closed                   # closed (default): the recorded inputs drive the simulated robot from the start;
       joints: /joint_states          # open: the recorded joints, and what the fixture would have commanded at each
 
-Each mapped topic's messages are read once, when the scene is read, each stamped by its header (or, with a zero
-header stamp, by when it was recorded); time 0 is the earliest stamp of the mapped topics. At tick k (t = k x the
-task's period) an input is the latest message stamped at or before t, as a controller reads the newest sample of a
-sensor (a zero-order hold; before the first message, zero); after the last message it holds that one. The inputs are
-in SI as ROS's messages are (N, N m, m/s, rad/s, m and a quaternion for a pose). A pose input mapped to a
-JointState topic with ``frame:`` is a reference trajectory: at each message, the pose of that task frame at the
-recorded joints (Pinocchio's forward kinematics of the task's robot), so that a recorded motion drives a ``teleop``
-term (a new fixture replayed on a motion recorded without it). Conversions, stated per input: ``unit:`` the units the
-message is in, one per part (a force's, a wrench's force and torque, a twist's speed and angular speed, a pose's
-position), each checked against its part's dimension; ``in:`` the task frame a force, torque, wrench or twist is
-expressed in (a sensor on the tool), turned into the world at each tick by that frame's rotation at the tick's joints
-(the simulated robot's, or the recorded ones in the open mode). In the open mode the robot is where
-the recorded joints say at each tick (the same hold), the controller is stepped there with the recorded inputs, and
-its dq is recorded, not applied: what the fixture would have commanded, and the rows it would have found violated.
+Each mapped topic's messages are read once, when the scene is read, each stamped by its header (or, when the topic's
+header stamps are all zero, by when it was recorded); time 0 is the earliest stamp of the mapped topics. At tick k (t =
+k x the task's period) an input is the latest message stamped at or before t, as a controller reads the newest sample of
+a sensor (a zero-order hold; before the first message, zero); after the last message it holds that one. The inputs are
+in SI as ROS's messages are (N, N m, m/s, rad/s, m and a quaternion for a pose). A pose input mapped to a JointState
+topic with ``frame:`` is a reference trajectory: at each message, the pose of that task frame at the recorded joints
+(Pinocchio's forward kinematics of the task's robot), so that a recorded motion drives a ``teleop`` term (a new fixture
+replayed on a motion recorded without it). Conversions, stated per input: ``unit:`` the units the message is in, one per
+part (a force's, a wrench's force and torque, a twist's speed and angular speed, a pose's position), each checked
+against its part's dimension; ``in:`` the task frame a force, torque, wrench or twist is expressed in (a sensor on the
+tool), turned into the world at each tick by that frame's rotation at the tick's joints (the simulated robot's, or the
+recorded ones in the open mode). In the open mode the robot is where the recorded joints say at each tick (the same
+hold), the controller is stepped there with the recorded inputs, and its dq is recorded, not applied: what the fixture
+would have commanded, and the rows it would have found violated.
 
 Refused, each with the bag, the topic and the message's index: a topic the bag lacks (its topics listed) or that has
-no message, a message type the input cannot take, stamps that go back in time, a value that is NaN or inf (or a pose's
-zero quaternion) or that the input type's checks refuse (a pose 10 m away: millimetres as metres), a JointState
-naming a joint the robot lacks, missing one it has, naming one twice, with another number of positions than names, or
-a position far outside its joint's limits (degrees recorded as radians).
+no message, a message type the input cannot take, stamps that go back in time or mix header stamps with zero ones, a
+value that is NaN or inf (or a pose's zero quaternion) or that the input type's checks refuse (a pose 10 m away:
+millimetres as metres), a JointState naming a joint the robot lacks, missing one it has, naming one twice, with
+another number of positions than names, or a position far outside its joint's limits (degrees recorded as radians).
 """
 
 from __future__ import annotations
@@ -279,12 +279,19 @@ def _frame_poses(robot, frame, joints: list[np.ndarray]) -> np.ndarray:
 
 
 def _stamps(bag: str, topic: str, span: Span, messages: list) -> np.ndarray:
-    """Each message's stamp (s): its header's, or when it was recorded where the header's is zero; increasing."""
-    times = []
-    for _, (recorded, message) in enumerate(messages):
+    """Each message's stamp (s): its header's, or, when every header stamp of the topic is zero, when it was recorded
+    (one clock per topic: a zero among header stamps is refused); increasing."""
+    headers = []
+    for recorded, message in messages:
         stamp = getattr(getattr(message, "header", None), "stamp", None)
-        header = 0.0 if stamp is None else stamp.sec + 1e-9 * stamp.nanosec
-        times.append(header if header > 0 else recorded * 1e-9)
+        headers.append(0.0 if stamp is None else stamp.sec + 1e-9 * stamp.nanosec)
+    zero, stamped = [k for k, h in enumerate(headers) if not h > 0], [k for k, h in enumerate(headers) if h > 0]
+    if zero and stamped:
+        raise VfError(f"bag {bag}, topic {topic}: message {zero[0]} has a zero header stamp and message {stamped[0]} "
+                      "has one: its times would mix the sensor's clock with the recorder's", span,
+                      hint="stamp every message of the topic (or none: then each is timed by when it was recorded)",
+                      code="E602")
+    times = headers if stamped else [recorded * 1e-9 for recorded, _ in messages]
     times = np.array(times, dtype=float)
     back = np.flatnonzero(np.diff(times) < 0)
     if back.size:
