@@ -147,7 +147,7 @@ def test_set_params_reads_the_params_not_the_captured_slots_after_them(exported)
     """_set_params with the defaults and NaN in the captured slots (_param_length() counts them; setting them does
     nothing) is accepted and changes nothing; before, it was refused as a NaN in the last param, 'target', which held
     none. A NaN in a param is still refused, naming it."""
-    task, result = exported
+    _, result = exported
     call = api_caller(result)
     n_params, length = call("num_params")(), call("param_length")()
     size = call("param_size", ctypes.c_int, ctypes.c_int)

@@ -367,9 +367,10 @@ def _joints(bag: str, topic: str, span: Span, message, robot, index: int = 0) ->
 def late_inputs(recording: Recording, end: float) -> list[tuple[float, str, Span | None]]:
     """Recorded inputs whose first message is stamped at or after ``end`` (s from the recording's time 0): they read
     zero the whole run. (start, what, where) of each, as :func:`vfdsl.sim.scripted.late_events`."""
-    return [(float(r.times[0]), f"input '{r.input}''s recording ({r.topic}, its first message stamped "
-             f"{r.times[0]:.6g} s after the recording's time 0, the earliest stamp of its mapped topics: stamped by "
-             "another clock?)", recording.where) for r in recording.inputs if r.times[0] >= end - 1e-12]
+    return [(float(r.times[0]), (f"input '{r.input}''s recording ({r.topic}, its first message stamped "
+                                 f"{r.times[0]:.6g} s after the recording's time 0, the earliest stamp of its mapped "
+                                 "topics: stamped by another clock?)"), recording.where)
+            for r in recording.inputs if r.times[0] >= end - 1e-12]
 
 
 def recording_text(recording: Recording, period: float) -> str:
