@@ -141,3 +141,27 @@ def test_a_phase_s_derived_direction_is_checked_from_the_first_phase(exported):
         assert "must not be zero" in call("check_meaning", ctypes.c_char_p, ctypes.c_int)(check).decode()
     finally:
         call("free", None, ctypes.c_void_p)(ctrl)
+
+
+def test_set_params_reads_the_params_not_the_captured_slots_after_them(exported):
+    """_set_params with the defaults and NaN in the captured slots (_param_length() counts them; setting them does
+    nothing) is accepted and changes nothing; before, it was refused as a NaN in the last param, 'target', which held
+    none. A NaN in a param is still refused, naming it."""
+    _, result = exported
+    call = api_caller(result)
+    n_params, length = call("num_params")(), call("param_length")()
+    size = call("param_size", ctypes.c_int, ctypes.c_int)
+    default = call("param_default", ctypes.POINTER(ctypes.c_double), ctypes.c_int)
+    values = [default(k)[i] for k in range(n_params) for i in range(size(k))]
+    assert 0 < len(values) < length
+    set_params = call("set_params", ctypes.c_int, ctypes.c_void_p, ctypes.POINTER(ctypes.c_double))
+    error_index = call("error_index", ctypes.c_int, ctypes.c_void_p)
+    ctrl = call("new", ctypes.c_void_p)()
+    try:
+        assert set_params(ctrl, (ctypes.c_double * length)(*values, *[np.nan] * (length - len(values)))) == 0
+        assert error_index(ctrl) == -1
+        values[-1] = np.nan
+        assert set_params(ctrl, (ctypes.c_double * length)(*values, *[0.0] * (length - len(values)))) == -7
+        assert error_index(ctrl) == n_params - 1
+    finally:
+        call("free", None, ctypes.c_void_p)(ctrl)

@@ -135,3 +135,26 @@ def test_replay_trace_turns_the_exported_replay_into_an_mcap_trace(exported, rec
     assert main(["replay-trace", str(TASK), str(ticks), str(replayed), "-o", str(out)]) == 2
     err = capsys.readouterr().err
     assert "replayed.txt:21:1" in err and "a tick's answer reads `STATUS` and" in err and "Traceback" not in err
+
+
+def test_an_input_its_type_refuses_is_named_by_the_error_message(exported):
+    """A clutch of 2 or a master 50 m away: the C step refuses them as Controller.step() does, and its message says
+    what the inputs' checks ask (it said "an input contains NaN or inf", which these numbers are not)."""
+    task, result = exported
+    call = api_caller(result)
+    new, free = call("new", ctypes.c_void_p), call("free", None, ctypes.c_void_p)
+    step = call("step", ctypes.c_int, ctypes.c_void_p, ctypes.POINTER(ctypes.c_double),
+                ctypes.POINTER(ctypes.c_double), ctypes.c_double, ctypes.POINTER(ctypes.c_double))
+    message = call("error_message", ctypes.c_char_p, ctypes.c_int)(-4).decode()
+    assert message.startswith("an input contains NaN or inf, or fails its type's check: ")
+    assert "'master' (pose): the position within 10 m" in message and "'clutch' (button): " in message
+    python = vfdsl.compile(task, backend="native")
+    ctrl = new()
+    try:
+        q, dq = (ctypes.c_double * 6)(*task.start), (ctypes.c_double * 6)()
+        for master, clutch, said in (([0.0] * 6, 2.0, "is a button"), ([50.0] + [0.0] * 5, 0.0, "is a pose")):
+            assert step(ctrl, q, (ctypes.c_double * 7)(*master, clutch), DT, dq) == -4 and not any(dq)
+            with pytest.raises(vfdsl.VfError, match=said):
+                python.step(np.array(task.start), {"master": master, "clutch": [clutch]}, dt=DT)
+    finally:
+        free(ctrl)

@@ -256,3 +256,40 @@ def test_paper_b_draws_its_pivot_at_the_pivot_param(paper_b):
     assert len(cube) == 12 * 3                                      # 12 triangles
     assert np.allclose(np.abs(cube - pivot), 1e-6, rtol=0, atol=1e-15)
     assert np.allclose(np.linalg.norm(bound - pivot, axis=1), np.sqrt(3) * 1e-6, rtol=1e-9)
+
+
+def _joint_states(path, messages):
+    """An MCAP bag of /joint_states: each of ``messages`` a (names, positions), 10 ms apart."""
+    from rosbags.rosbag2 import StoragePlugin, Writer
+    from rosbags.typesys import Stores, get_typestore
+    store = get_typestore(Stores.ROS2_HUMBLE)
+    T = store.types
+    with Writer(path, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
+        connection = writer.add_connection("/joint_states", "sensor_msgs/msg/JointState", typestore=store)
+        for k, (names, positions) in enumerate(messages):
+            header = T["std_msgs/msg/Header"](stamp=T["builtin_interfaces/msg/Time"](sec=100, nanosec=k * 10_000_000),
+                                              frame_id="")
+            msg = T["sensor_msgs/msg/JointState"](header=header, name=list(names), position=np.array(positions, float),
+                                                  velocity=np.zeros(0), effort=np.zeros(0))
+            writer.write(connection, 100_000_000_000 + k * 10_000_000,
+                         store.serialize_cdr(msg, "sensor_msgs/msg/JointState"))
+    return next(path.glob("*.mcap"))
+
+
+def test_view_reads_each_joint_state_by_its_own_names_and_refuses_a_broken_one(tmp_path):
+    """A lab's /joint_states whose driver changes the joints' order, a NaN joint (a refused tick), an empty topic, a
+    message lacking a joint or a position: read by each message's names, the NaN one dropped, the others refused with
+    the file and the message (before: the first message's order for all, NaN passed on, IndexError tracebacks)."""
+    from vfdsl.errors import VfError
+    from vfdsl.view import replay
+    names = ["a", "b", "c"]
+    q = [0.1, 0.2, 0.3]
+    trace = replay.read(_joint_states(tmp_path / "order", [(names, q), (names[::-1], q[::-1]),
+                                                            (names, [np.nan, 0.2, 0.3]), (names, q)]), names)
+    assert np.array_equal(trace.q, [q, q, q]) and np.allclose(trace.t, [0.0, 0.01, 0.03])
+    for name, messages, message in (
+            ("empty", [], "its /joint_states topic has no message"),
+            ("lacks", [(names, q), (names[:2], q[:2])], "joint state 1 has no joint 'c' of the task's robot"),
+            ("short", [(names, q[:2])], "joint state 0 names 3 joints but has 2 positions")):
+        with pytest.raises(VfError, match=message):
+            replay.read(_joint_states(tmp_path / name, messages), names)

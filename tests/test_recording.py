@@ -132,6 +132,93 @@ def test_a_bad_bag_is_refused_with_the_bag_the_topic_and_the_index(tmp_path, cap
     assert message in err and "run.sim.yaml:" in err and "Traceback" not in err
 
 
+def _write_topics(path: Path, topics: list):
+    """A rosbag2 (MCAP) holding, for each (topic, msgtype, messages, sec) of ``topics``, its messages (built by each
+    callable from the typestore's types) stamped ``sec`` + 1 ms apart."""
+    from rosbags.rosbag2 import StoragePlugin, Writer
+    from rosbags.typesys import Stores, get_typestore
+    store = get_typestore(Stores.ROS2_HUMBLE)
+    T = store.types
+    with Writer(path, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
+        for topic, msgtype, messages, sec in topics:
+            connection = writer.add_connection(topic, msgtype, typestore=store)
+            for k, build in enumerate(messages):
+                header = T["std_msgs/msg/Header"](stamp=T["builtin_interfaces/msg/Time"](
+                    sec=sec, nanosec=k * 1_000_000), frame_id="")
+                writer.write(connection, sec * 1_000_000_000 + k * 1_000_000,
+                             store.serialize_cdr(build(T, header), msgtype))
+
+
+def _wrench(torque, stamped=True):
+    def build(T, header):
+        v = T["geometry_msgs/msg/Vector3"]
+        if not stamped:
+            header = T["std_msgs/msg/Header"](stamp=T["builtin_interfaces/msg/Time"](sec=0, nanosec=0), frame_id="")
+        return T["geometry_msgs/msg/WrenchStamped"](header=header, wrench=T["geometry_msgs/msg/Wrench"](
+            force=v(x=0.0, y=0.0, z=0.0), torque=v(x=torque[0], y=torque[1], z=torque[2])))
+    return build
+
+
+def _joint_state(names, positions):
+    def build(T, header):
+        return T["sensor_msgs/msg/JointState"](header=header, name=list(names), position=np.array(positions, float),
+                                               velocity=np.zeros(0), effort=np.zeros(0))
+    return build
+
+
+def _bad_message_cases():
+    joints, _ = _joints()
+    names, q = list(joints), list(joints.values())
+    torque, state = ("/ft/wrench", "geometry_msgs/msg/WrenchStamped"), ("/joint_states", "sensor_msgs/msg/JointState")
+    return [
+        (torque, [], "topic /ft/wrench: no message"),
+        (state, [], "topic /joint_states: no message"),
+        (torque, [_wrench([0.0, 0.0, 0.005])] * 3 + [_wrench([0.0, float("nan"), 0.005])],
+         "topic /ft/wrench, message 3 holds NaN or inf in its torque: [0.0, nan, 0.005]"),
+        (torque, [_wrench([float("inf"), 0.0, 0.0])], "topic /ft/wrench, message 0 holds NaN or inf in its torque"),
+        (state, [_joint_state(names, [float("nan")] + q[1:])],
+         "topic /joint_states, message 0 holds NaN or inf in its positions"),
+        (state, [_joint_state(names, q + [0.0])], "topic /joint_states, message 0 names 7 joints but has 8 positions"),
+        (state, [_joint_state(names + names[:1], q + [0.5])],
+         f"topic /joint_states, message 0 names joint '{names[0]}' twice"),
+        (torque, [_wrench([0.0, 0.0, 0.005], stamped=False)] + [_wrench([0.0, 0.0, 0.005])] * 3,
+         "topic /ft/wrench: message 0 has a zero header stamp and message 1 has one"),
+        (state, [_joint_state(names, [q[0], 57.3 * q[1]] + q[2:])],
+         "topic /joint_states, message 0 puts joint 'y' at -0.253969, far outside its limits [-0.06, 0.06]"),
+    ]
+
+
+@pytest.mark.parametrize("case", range(9))
+def test_a_message_that_cannot_drive_the_run_is_refused_before_it_starts(tmp_path, capsys, case):
+    """An empty topic, NaN or inf in a message, a JointState with a joint twice, more positions than names or a joint
+    far outside its limits (degrees as radians): refused when the bag is read, naming the bag, the topic and the
+    message (not a traceback, not a refusal of some tick in the middle of the run without the bag)."""
+    (topic, msgtype), messages, message = _bad_message_cases()[case]
+    _write_topics(tmp_path / "lab", [(topic, msgtype, messages, 100)])
+    mapping = "  inputs: {tau: /ft/wrench}\n" if topic == "/ft/wrench" else "  start: /joint_states\n"
+    scene = _scene(tmp_path, "recording:\n  bag: lab\n" + mapping)
+    assert main(["simulate", str(PAPER_B), "--scene", str(scene), "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert f"bag lab, {message}" in err and "run.sim.yaml:" in err and "Traceback" not in err, err
+
+
+def test_an_input_recorded_after_the_run_by_another_clock_is_warned_of(tmp_path, capsys):
+    """The start's JointState stamped by the robot's clock (100 s), the torque by the sensor's (wall time): time 0 is
+    the earliest stamp, so every torque message comes 1.7e9 s after the run's end and the torque reads zero the whole
+    run. The run says so (it said nothing)."""
+    joints, _ = _joints()
+    _write_topics(tmp_path / "lab", [("/joint_states", "sensor_msgs/msg/JointState",
+                                      [_joint_state(list(joints), list(joints.values()))], 100),
+                                     ("/ft/wrench", "geometry_msgs/msg/WrenchStamped",
+                                      [_wrench([0.0, 0.0, 0.05])] * 20, 1_700_000_000)])
+    scene = _scene(tmp_path, "recording:\n  bag: lab\n  inputs: {tau: /ft/wrench}\n  start: /joint_states\n")
+    assert main(["simulate", str(PAPER_B), "--scene", str(scene), "--quiet", "--duration", "0.1s"]) == 0
+    err = capsys.readouterr().err
+    said = ("warning: input 'tau''s recording (/ft/wrench, its first message stamped 1.7e+09 s after the recording's "
+            "time 0")
+    assert "run.sim.yaml:" in err and said in err and "starts after the run's 0.1 s" in err, err
+
+
 def test_the_open_mode_replays_the_recorded_joints_and_records_what_the_fixture_would_command(tmp_path):
     """A closed loop of paper B recorded as a bag (its joints at each 10 ms tick, the torque at 1 kHz), replayed open
     loop: the trace's q is the recorded joints, and its dq what Controller.step commands there with the recorded
@@ -357,3 +444,28 @@ def test_a_bag_drives_paper_b_and_the_mcap_it_writes_reads_back_with_every_docum
     for k, w in enumerate(wrenches):
         latest = torques[np.searchsorted(stamps, k * 0.01 + 1e-12, side="right") - 1]
         assert np.array_equal([w.wrench.torque.x, w.wrench.torque.y, w.wrench.torque.z], latest)
+
+
+def _pose(position, quaternion=(0.0, 0.0, 0.0, 1.0)):
+    def build(T, header):
+        x, y, z, w = quaternion
+        return T["geometry_msgs/msg/PoseStamped"](header=header, pose=T["geometry_msgs/msg/Pose"](
+            position=T["geometry_msgs/msg/Point"](x=position[0], y=position[1], z=position[2]),
+            orientation=T["geometry_msgs/msg/Quaternion"](x=x, y=y, z=z, w=w)))
+    return build
+
+
+@pytest.mark.parametrize("message, said", [
+    (_pose([15.0, 0.0, 0.0]),
+     "message 1 is refused by the task: input 'master' is a pose: its position is 15 m on axis x"),
+    (_pose([0.0, 0.0, 0.0], (0.0, 0.0, 0.0, 0.0)), "message 1 has a zero orientation quaternion"),
+])
+def test_a_recorded_pose_the_task_refuses_is_refused_when_the_bag_is_read(tmp_path, capsys, message, said):
+    """A master's pose recorded in millimetres as metres (15 m) or with an unset quaternion: refused naming the bag,
+    the topic and the message (the first was refused mid-run without the bag, the second was a traceback)."""
+    _write_topics(tmp_path / "lab", [("/master", "geometry_msgs/msg/PoseStamped", [_pose([0.0, 0.0, 0.0]), message],
+                                      100)])
+    scene = _scene(tmp_path, "recording:\n  bag: lab\n  inputs: {master: /master}\n")
+    assert main(["simulate", str(TELEOP_LINE), "--scene", str(scene), "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert f"bag lab, topic /master, {said}" in err and "run.sim.yaml:" in err and "Traceback" not in err, err

@@ -40,6 +40,20 @@ def test_ticks_and_answers_become_the_traces_rows(tmp_path):
     assert [float(r[z]) for r in rows] == [float(rows[0][z]), 0.3, 0.3]      # set by tick 2, kept for tick 3
 
 
+def test_params_the_replay_refused_are_not_the_traces_params(tmp_path):
+    """A line whose params the replay refused (`error -7`: a zero axis) ran no tick and set nothing: the trace keeps
+    the params before it, for that row and the next (it showed the zero axis, which the controller never had)."""
+    ticks, answers = _files(tmp_path, f"{Q} 0 0 0.01 0 0 0.3 0 0 1\n{Q} 0 0 0.02 0 0 0.4 0 0 0\n{Q} 0 0 0.03\n",
+                            "0 1 2 3 4 5 6 7\nerror -7 a param value is NaN or inf, or fails a check: param 'axis' must "
+                            "not be a zero direction\n0 1 2 3 4 5 6 7\n")
+    out = tmp_path / "run.csv"
+    assert main(["replay-trace", str(PAPER_B), str(ticks), str(answers), "-o", str(out), "--dt", "0.005"]) == 0
+    rows = list(csv.DictReader(out.open()))
+    assert [int(r["status"]) for r in rows] == [0, -7, 0]
+    assert [float(r["param.axis.z"]) for r in rows] == [1.0] * 3
+    assert [float(r["param.pivot.z_m"]) for r in rows] == [0.3] * 3
+
+
 @pytest.mark.parametrize("ticks, answers, extra, message", [
     (None, "0 0 0 0 0 0 0 0\n", [], "cannot read"),
     (f"{Q} 0 0\n", "0 0 0 0 0 0 0 0\n", [], "ticks.txt:1:1: error: 9 numbers, expected 10"),

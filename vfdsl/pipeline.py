@@ -217,6 +217,7 @@ def metadata(task: ir.Task, problem: AssembledProblem, values: RuntimeValues, di
         "min_period": values.dt_min,
         "max_period": values.dt_max,
         "dt_rule": values.dt_rule,
+        "input_rule": values.input_rule,
         "feasibility_tolerance": FEASIBILITY_TOLERANCE,
         "rows": [{"label": str(label), "primitive": label.primitive, "frame": label.frame,
                   "file": label.span.file, "line": label.span.line, "group": group, "soft": label.soft,

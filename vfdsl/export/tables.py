@@ -54,6 +54,7 @@ def task_tables(meta: dict) -> str:
     inputs, params, rows, slacks = meta["input_layout"], meta["param_layout"], meta["rows"], meta["slacks"]
     start = meta["start"] or [0.0] * nq
     sizes = {"NQ": nq, "NU": sum(i["size"] for i in inputs), "NP": len(meta["default_params"]),
+             "NP_SET": max((p["offset"] + p["size"] for p in params), default=0),   # before the captures
              "NX": nq + meta["variables"]["slack"], "NROWS": len(rows), "NSLACK": len(slacks),
              "NCHECKS": meta["param_checks"]["count"], "NINPUTS": len(inputs), "NPARAMS": len(params)}
     out = [f"#define {name} {value}\n" for name, value in sizes.items()]
@@ -61,6 +62,7 @@ def task_tables(meta: dict) -> str:
             f"#define MIN_PERIOD {c_number(meta['min_period'])}\n",
             f"#define MAX_PERIOD {c_number(meta['max_period'])}\n",
             f"#define DT_RULE {c_string(meta['dt_rule'])}\n",
+            f"#define INPUT_RULE {c_string(meta['input_rule'])}\n",
             f"#define FEASIBILITY_TOLERANCE {c_number(meta['feasibility_tolerance'])}\n\n"]
     out += [_array("char* const", "joint_names", [c_string(n) for n in meta["joints"]]),
             _array("char* const", "joint_units", [c_string(u) for u in meta["joint_units"]]),

@@ -30,6 +30,7 @@ from vfdsl.compiler.admissible import Admissible
 from vfdsl.compiler.context import flatten
 from vfdsl.errors import VfError, show_vector, suggest
 from vfdsl.inputs import INPUT_TYPES
+from vfdsl.inputs.base import FINITE
 from vfdsl.ir import model as ir
 from vfdsl.limits import MAX_PERIOD, MIN_PERIOD
 
@@ -158,6 +159,13 @@ def input_checks(types: Mapping, offsets: Mapping[str, tuple[int, int]], n: int)
     return ca.Function("input_checks", [u], [ca.vertcat(*columns) if columns else ca.SX(0, 1)], ["u"], ["margins"])
 
 
+def admissible_joints(lower: np.ndarray, upper: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The joint coordinates q accepts: its limits widened by their span on each side (farther out is a unit slip,
+    degrees for radians, or a faulty encoder; an unbounded joint accepts any)."""
+    span = np.where(np.isfinite(upper - lower), upper - lower, np.inf)
+    return lower - span, upper + span
+
+
 class RuntimeValues:
     """The checks of one task's run-time values (its inputs, params, joints and period)."""
 
@@ -172,9 +180,8 @@ class RuntimeValues:
         self.admissible = admissible
         self.layout = admissible.layout
         self.joint_names = joint_names
-        span = np.where(np.isfinite(upper - lower), upper - lower, np.inf)
         self.lower, self.upper = lower, upper
-        self.q_min, self.q_max = lower - span, upper + span
+        self.q_min, self.q_max = admissible_joints(lower, upper)
         self.default_period = task.scene.period
         self.dt_min, self.dt_max = dt_range(self.default_period)
 
@@ -298,6 +305,15 @@ class RuntimeValues:
                           hint="dt is in seconds (1 ms is 0.001): pass the loop's period; if the loop really runs at "
                                "that period, give it as the `period` of the task's scene")
         return dt
+
+    @property
+    def input_rule(self) -> str:
+        """What an input its checks refuse is told by the C library (VF_ERR_INPUT): finite, and each input's
+        further checks (a button's range, a pose's plausible position and angles)."""
+        rules = [f"'{name}' ({kind.name}): {check.meaning}" for name, kind in self.input_types.items()
+                 for check in kind.checks if check is not FINITE]
+        checks = "" if not rules else ", or fails its type's check: " + "; ".join(rules)
+        return "an input contains NaN or inf" + checks
 
     @property
     def dt_rule(self) -> str:

@@ -17,7 +17,7 @@ from vfdsl import limits
 from vfdsl.ir import captures
 from vfdsl.runtime.values import ASSUMED_PERIOD, dt_range
 from vfdsl.sim.mcap_trace import write_mcap
-from vfdsl.sim.recording import recording_text
+from vfdsl.sim.recording import late_inputs, recording_text
 from vfdsl.sim.operator import teleop_table
 from vfdsl.sim import report, trace
 from vfdsl.sim.cluster import connect
@@ -200,14 +200,15 @@ def main(args: argparse.Namespace) -> int:
 
 
 def _events_after_the_end(settings, grid: list[tuple[str, list]]) -> list[VfError]:
-    """A warning for each disturbance, step, ramp, push or button press of the scene that starts at or after the end
-    of the run (the longest ``duration`` of the grid): it never happens (a run shortened with --duration, or a
-    mistyped time)."""
+    """A warning for each disturbance, step, ramp, push, button press or recorded input of the scene that starts at or
+    after the end of the run (the longest ``duration`` of the grid): it never happens (a run shortened with
+    --duration, a mistyped time, a topic stamped by another clock)."""
     end = max(dict(grid).get("duration", [settings.duration]))
     events = [(d.at, f"the {d.kind} disturbance at {d.at:g} s", d.where) for d in settings.disturbances]
     starts = [(m.at if m.kind == "step" else m.start, m) for m in settings.motions if m.kind in ("step", "ramp")]
     events += [(t, f"the {m.kind} motion of param '{m.param}' (from {t:g} s)", m.where) for t, m in starts]
     events += late_events(settings, end)
+    events += late_inputs(settings.recording, end) if settings.recording is not None else []
     return [VfError(f"{what} starts after the run's {end:g} s: it does not happen in this run", where,
                     hint="lengthen the run (--duration, or duration in the scene) or move the event earlier")
             for t, what, where in events if t >= end - 1e-12]

@@ -7,7 +7,7 @@ ticks.txt``) and the lines it answered, turned into vfdsl's trace (CSV, Parquet 
                   following``], or ``error CODE MESSAGE`` for a refused tick (replay.c's output)
 
 Tick k is at t = k dt (dt: ``--dt``, else the task's scene period). The params are the task's defaults (or
-``--params FILE``) until a tick line sets them, as in the replay. A refused tick has the error's code as its status
+``--params FILE``) until a tick line sets them, as in the replay (a line whose params the replay refused sets none). A refused tick has the error's code as its status
 (negative), ``error CODE MESSAGE`` as its violations, and no dq (NaN).
 """
 
@@ -28,6 +28,9 @@ from vfdsl.kinematics.robot import Robot
 from vfdsl.objectives.haptics import teleop_terms
 from vfdsl.runtime.values import ASSUMED_PERIOD
 from vfdsl.sim import trace as tr
+
+PARAMS_REFUSED = -7
+"""VF_ERR_PARAM: the replay refused the line's params and ran no tick; the controller kept the ones before."""
 
 DESCRIPTION = """\
 Turn a run of an exported C controller into a trace: the ticks its replay program was fed (./replay < ticks.txt)
@@ -110,12 +113,12 @@ def read(task: ir.Task, ticks: Path, replayed: Path, dt: float, start_params=Non
             raise VfError(f"{len(values)} numbers, expected {nq + nu} (q, then every input)"
                           + (f" or {nq + nu + len(current)} (then every param)" if len(current) else ""),
                           _at(ticks, n))
-        if len(values) > nq + nu:
+        _answer(rows, replayed, m, answer, nq, teleop, bool(task.phases))
+        if len(values) > nq + nu and rows["status"][-1] != PARAMS_REFUSED:     # refused params were not set
             current = values[nq + nu:]
         rows["q"].append(values[:nq])
         rows["u"].append(values[nq:nq + nu])
         rows["p"].append(current)
-        _answer(rows, replayed, m, answer, nq, teleop, bool(task.phases))
     ticks_n = len(fed)
     trace: dict = {"tick": np.arange(ticks_n), "t_s": np.arange(ticks_n) * dt}
     q, dq = np.array(rows["q"]).reshape(ticks_n, nq), np.array(rows["dq"]).reshape(ticks_n, nq)

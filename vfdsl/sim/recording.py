@@ -11,24 +11,26 @@ ROS 1 bag, read without ROS by ``rosbags``.
       mode: closed                   # closed (default): the recorded inputs drive the simulated robot from the start;
       joints: /joint_states          # open: the recorded joints, and what the fixture would have commanded at each
 
-Each mapped topic's messages are read once, when the scene is read, each stamped by its header (or, with a zero
-header stamp, by when it was recorded); time 0 is the earliest stamp of the mapped topics. At tick k (t = k x the
-task's period) an input is the latest message stamped at or before t, as a controller reads the newest sample of a
-sensor (a zero-order hold; before the first message, zero); after the last message it holds that one. The inputs are
-in SI as ROS's messages are (N, N m, m/s, rad/s, m and a quaternion for a pose). A pose input mapped to a
-JointState topic with ``frame:`` is a reference trajectory: at each message, the pose of that task frame at the
-recorded joints (Pinocchio's forward kinematics of the task's robot), so that a recorded motion drives a ``teleop``
-term (a new fixture replayed on a motion recorded without it). Conversions, stated per input: ``unit:`` the units the
-message is in, one per part (a force's, a wrench's force and torque, a twist's speed and angular speed, a pose's
-position), each checked against its part's dimension; ``in:`` the task frame a force, torque, wrench or twist is
-expressed in (a sensor on the tool), turned into the world at each tick by that frame's rotation at the tick's joints
-(the simulated robot's, or the recorded ones in the open mode). In the open mode the robot is where
-the recorded joints say at each tick (the same hold), the controller is stepped there with the recorded inputs, and
-its dq is recorded, not applied: what the fixture would have commanded, and the rows it would have found violated.
+Each mapped topic's messages are read once, when the scene is read, each stamped by its header (or, when the topic's
+header stamps are all zero, by when it was recorded); time 0 is the earliest stamp of the mapped topics. At tick k (t =
+k x the task's period) an input is the latest message stamped at or before t, as a controller reads the newest sample of
+a sensor (a zero-order hold; before the first message, zero); after the last message it holds that one. The inputs are
+in SI as ROS's messages are (N, N m, m/s, rad/s, m and a quaternion for a pose). A pose input mapped to a JointState
+topic with ``frame:`` is a reference trajectory: at each message, the pose of that task frame at the recorded joints
+(Pinocchio's forward kinematics of the task's robot), so that a recorded motion drives a ``teleop`` term (a new fixture
+replayed on a motion recorded without it). Conversions, stated per input: ``unit:`` the units the message is in, one per
+part (a force's, a wrench's force and torque, a twist's speed and angular speed, a pose's position), each checked
+against its part's dimension; ``in:`` the task frame a force, torque, wrench or twist is expressed in (a sensor on the
+tool), turned into the world at each tick by that frame's rotation at the tick's joints (the simulated robot's, or the
+recorded ones in the open mode). In the open mode the robot is where the recorded joints say at each tick (the same
+hold), the controller is stepped there with the recorded inputs, and its dq is recorded, not applied: what the fixture
+would have commanded, and the rows it would have found violated.
 
-Refused, each with the bag, the topic and the message's index: a topic the bag lacks (its topics listed), a message
-type the input cannot take, stamps that go back in time, a JointState naming a joint the robot lacks or missing one
-it has.
+Refused, each with the bag, the topic and the message's index: a topic the bag lacks (its topics listed) or that has
+no message, a message type the input cannot take, stamps that go back in time or mix header stamps with zero ones, a
+value that is NaN or inf (or a pose's zero quaternion) or that the input type's checks refuse (a pose 10 m away:
+millimetres as metres), a JointState naming a joint the robot lacks, missing one it has, naming one twice, with
+another number of positions than names, or a position far outside its joint's limits (degrees recorded as radians).
 """
 
 from __future__ import annotations
@@ -42,6 +44,7 @@ import yaml
 from vfdsl import units as u
 from vfdsl.errors import Span, VfError, suggest
 from vfdsl.inputs import INPUT_TYPES
+from vfdsl.runtime.values import admissible_joints
 
 RECORDING_KEYS = ("bag", "mode", "inputs", "start", "joints")
 MODES = ("closed", "open")
@@ -222,8 +225,13 @@ def load(bag: Path, task, mapping: dict[str, Source], start: tuple[str, Span] | 
                 raise VfError(f"bag {bag.name}, topic {topic}: {got} messages, but "
                               f"{'the start' if name == '(start)' else f'input {name!r}'} reads {expected}", span,
                               code="E602")
-            read[name] = (span, [(stamp, reader.deserialize(raw, connection.msgtype)) for connection, stamp, raw
-                                 in reader.messages(connections=[topics[topic]])])
+            try:
+                read[name] = (span, [(stamp, reader.deserialize(raw, connection.msgtype)) for connection, stamp, raw
+                                     in reader.messages(connections=[topics[topic]])])
+            except Exception as exc:  # a damaged chunk or message past the summary rosbags opened
+                raise VfError(f"cannot read bag {bag.name}, topic {topic}: {exc}", span, code="E602") from None
+            if not read[name][1]:
+                raise VfError(f"bag {bag.name}, topic {topic}: no message", span, code="E602")
     finally:
         reader.close()
     stamped = {name: (span, _stamps(bag.name, wanted[name], span, messages), messages)
@@ -235,22 +243,25 @@ def load(bag: Path, task, mapping: dict[str, Source], start: tuple[str, Span] | 
             continue
         source = mapping[name]
         if source.frame is None:
-            kind = INPUT_TYPES[task.input(name).type]
-            values = np.array([_value(task.input(name).type, kind, m) for _, m in messages]).reshape(len(messages), -1)
+            values = np.array([_value(task.input(name).type, m, (bag.name, wanted[name], span, k))
+                               for k, (_, m) in enumerate(messages)]).reshape(len(messages), -1)
             for k, factor in enumerate(source.factors):           # each part's units to SI
                 values[:, 3 * k:3 * k + 3] *= factor
         else:
             values = _frame_poses(robot, task.frame(source.frame), [
-                _joints(bag.name, wanted[name], span, m, robot.joint_names, k) for k, (_, m) in enumerate(messages)])
+                _joints(bag.name, wanted[name], span, m, robot, k) for k, (_, m) in enumerate(messages)])
+        for k, value in enumerate(values):                      # the input type's checks, as Controller.step's
+            failed = INPUT_TYPES[task.input(name).type].first_failure(value)
+            if failed:
+                raise _message_error((bag.name, wanted[name], span, k),
+                                     f"is refused by the task: {failed[0].message(name, failed[1], value)}")
         inputs.append(RecordedInput(name, wanted[name], times - origin, values, source.frame, source.expressed_in))
     q0, replayed = None, None
     if start is not None:
         span, times, messages = stamped["(start)"]
-        if not messages:
-            raise VfError(f"bag {bag.name}, topic {start[0]}: no message", span, code="E602")
-        q0 = _joints(bag.name, start[0], span, messages[0][1], robot.joint_names)
+        q0 = _joints(bag.name, start[0], span, messages[0][1], robot)
         if joints is not None:
-            q = np.array([_joints(bag.name, start[0], span, m, robot.joint_names, k) for k, (_, m) in
+            q = np.array([_joints(bag.name, start[0], span, m, robot, k) for k, (_, m) in
                           enumerate(messages)])
             replayed = RecordedInput("(joints)", joints[0], times - origin, q)
     summary = {"bag": str(bag), "mode": mode, "inputs": {r.input: r.topic for r in inputs},
@@ -268,12 +279,19 @@ def _frame_poses(robot, frame, joints: list[np.ndarray]) -> np.ndarray:
 
 
 def _stamps(bag: str, topic: str, span: Span, messages: list) -> np.ndarray:
-    """Each message's stamp (s): its header's, or when it was recorded where the header's is zero; increasing."""
-    times = []
-    for _, (recorded, message) in enumerate(messages):
+    """Each message's stamp (s): its header's, or, when every header stamp of the topic is zero, when it was recorded
+    (one clock per topic: a zero among header stamps is refused); increasing."""
+    headers = []
+    for recorded, message in messages:
         stamp = getattr(getattr(message, "header", None), "stamp", None)
-        header = 0.0 if stamp is None else stamp.sec + 1e-9 * stamp.nanosec
-        times.append(header if header > 0 else recorded * 1e-9)
+        headers.append(0.0 if stamp is None else stamp.sec + 1e-9 * stamp.nanosec)
+    zero, stamped = [k for k, h in enumerate(headers) if not h > 0], [k for k, h in enumerate(headers) if h > 0]
+    if zero and stamped:
+        raise VfError(f"bag {bag}, topic {topic}: message {zero[0]} has a zero header stamp and message {stamped[0]} "
+                      "has one: its times would mix the sensor's clock with the recorder's", span,
+                      hint="stamp every message of the topic (or none: then each is timed by when it was recorded)",
+                      code="E602")
+    times = headers if stamped else [recorded * 1e-9 for recorded, _ in messages]
     times = np.array(times, dtype=float)
     back = np.flatnonzero(np.diff(times) < 0)
     if back.size:
@@ -284,32 +302,75 @@ def _stamps(bag: str, topic: str, span: Span, messages: list) -> np.ndarray:
     return times
 
 
-def _value(type_name: str, kind, message) -> np.ndarray:
-    """An input's value from its message (SI)."""
+def _message_error(where: tuple, text: str, hint: str | None = None) -> VfError:
+    """A refusal of message ``index`` of a topic: ``where`` is (bag, topic, span, index)."""
+    bag, topic, span, index = where
+    return VfError(f"bag {bag}, topic {topic}, message {index} {text}", span, hint=hint, code="E602")
+
+
+def _finite(where: tuple, what: str, values) -> np.ndarray:
+    """``values`` as floats, refused (naming the message) when one is NaN or inf."""
+    values = np.asarray(values, dtype=float)
+    if not np.all(np.isfinite(values)):
+        raise _message_error(where, f"holds NaN or inf in its {what}: {values.tolist()}",
+                             hint="a sensor's dropout recorded as NaN: cut it from the bag, or fill it")
+    return values
+
+
+def _value(type_name: str, message, where: tuple) -> np.ndarray:
+    """An input's value from its message (SI); ``where`` (bag, topic, span, index) names it when refused."""
     if type_name == "pose":
         from scipy.spatial.transform import Rotation
         p, o = message.pose.position, message.pose.orientation
-        return np.r_[[p.x, p.y, p.z], Rotation.from_quat([o.x, o.y, o.z, o.w]).as_euler("xyz")]
+        position = _finite(where, "position", [p.x, p.y, p.z])
+        quaternion = _finite(where, "orientation", [o.x, o.y, o.z, o.w])
+        if not np.linalg.norm(quaternion) > 1e-6:
+            raise _message_error(where, f"has a zero orientation quaternion {quaternion.tolist()}: no rotation",
+                                 hint="an unset orientation is (x, y, z, w) = (0, 0, 0, 1)")
+        return np.r_[position, Rotation.from_quat(quaternion).as_euler("xyz")]
     if type_name == "twist":
         v, w = message.twist.linear, message.twist.angular
-        return np.array([v.x, v.y, v.z, w.x, w.y, w.z])
+        return _finite(where, "twist", [v.x, v.y, v.z, w.x, w.y, w.z])
     f, t = message.wrench.force, message.wrench.torque
     parts = {"force": [f.x, f.y, f.z], "torque": [t.x, t.y, t.z], "wrench": [f.x, f.y, f.z, t.x, t.y, t.z]}
-    return np.array(parts[type_name], dtype=float)
+    return _finite(where, type_name, parts[type_name])
 
 
-def _joints(bag: str, topic: str, span: Span, message, joints, index: int = 0) -> np.ndarray:
-    """The robot's joints from a JointState (message ``index`` of its topic), by name."""
+def _joints(bag: str, topic: str, span: Span, message, robot, index: int = 0) -> np.ndarray:
+    """The robot's joints from a JointState (message ``index`` of its topic), by name: each joint of the robot
+    named once, no other, one position per name, every position finite and admissible (as Controller.step's q)."""
+    where, joints = (bag, topic, span, index), robot.joint_names
     names = list(message.name)
     unknown = [n for n in names if n not in joints]
     if unknown:
-        raise VfError(f"bag {bag}, topic {topic}, message {index} names joint '{unknown[0]}', which the robot lacks",
-                      span, hint=suggest(unknown[0], joints, "joints"), code="E602")
+        raise _message_error(where, f"names joint '{unknown[0]}', which the robot lacks",
+                             hint=suggest(unknown[0], joints, "joints"))
+    twice = [n for k, n in enumerate(names) if n in names[:k]]
+    if twice:
+        raise _message_error(where, f"names joint '{twice[0]}' twice")
     missing = [j for j in joints if j not in names]
-    if missing or len(message.position) != len(names):
-        raise VfError(f"bag {bag}, topic {topic}, message {index} has no position of joint "
-                      f"'{missing[0] if missing else names[len(message.position)]}'", span, code="E602")
-    return np.array([message.position[names.index(j)] for j in joints], dtype=float)
+    if missing:
+        raise _message_error(where, f"has no position of joint '{missing[0]}'")
+    if len(message.position) != len(names):
+        raise _message_error(where, f"names {len(names)} joints but has {len(message.position)} positions")
+    q = _finite(where, "positions", message.position)[[names.index(j) for j in joints]]
+    low, high = admissible_joints(robot.lower, robot.upper)
+    outside = np.flatnonzero((q < low) | (q > high))
+    if outside.size:
+        i = int(outside[0])
+        raise _message_error(where, f"puts joint '{joints[i]}' at {q[i]:.6g}, far outside its limits "
+                             f"[{robot.lower[i]:.6g}, {robot.upper[i]:.6g}] (SI: m or rad)",
+                             hint="a JointState is in radians and metres: degrees or millimetres recorded?")
+    return q
+
+
+def late_inputs(recording: Recording, end: float) -> list[tuple[float, str, Span | None]]:
+    """Recorded inputs whose first message is stamped at or after ``end`` (s from the recording's time 0): they read
+    zero the whole run. (start, what, where) of each, as :func:`vfdsl.sim.scripted.late_events`."""
+    return [(float(r.times[0]), (f"input '{r.input}''s recording ({r.topic}, its first message stamped "
+                                 f"{r.times[0]:.6g} s after the recording's time 0, the earliest stamp of its mapped "
+                                 "topics: stamped by another clock?)"), recording.where)
+            for r in recording.inputs if r.times[0] >= end - 1e-12]
 
 
 def recording_text(recording: Recording, period: float) -> str:

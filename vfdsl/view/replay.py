@@ -118,7 +118,8 @@ def read_mcap(path: Path, joint_names: list[str], trial: str | None = None, para
     """An MCAP trace as ``vfdsl simulate --trace run.mcap`` writes it (vfdsl.sim.mcap_trace): the joints from
     /joint_states (by name), the status, the first metric whose name holds ``error``, a procedure's phase, each
     run-time param of ``params`` (name -> size) from /vfdsl/param/<name> as the CSV's param columns; a run of several
-    trials keeps trial ``trial`` (its /trial_<k> topics; default the first). Messages are matched by stamp."""
+    trials keeps trial ``trial`` (its /trial_<k> topics; default the first). Messages are matched by stamp; each
+    joint state is read by its own names, and one holding NaN is dropped (as a CSV row with a missing joint)."""
     from rosbags.highlevel import AnyReader
     os.close(open_file(path, "trace", limit=limits.TRACE_BYTES))        # a regular file within the size limit
     try:
@@ -144,25 +145,30 @@ def read_mcap(path: Path, joint_names: list[str], trial: str | None = None, para
             return {stamp: reader.deserialize(raw, connection.msgtype)
                     for _, stamp, raw in reader.messages(connections=[connection])}
         states = read("/joint_states")
-        stamps = np.array(sorted(states))
-        first = states[stamps[0]]
-        missing = [j for j in joint_names if j not in list(first.name)]
-        if missing:
-            raise VfError(f"{path}: its joint states have no joint '{missing[0]}' of the task's robot")
-        order = [list(first.name).index(j) for j in joint_names]
-        q = np.array([np.asarray(states[s].position, dtype=float)[order] for s in stamps])
+        if not states:
+            raise VfError(f"{path}: its {prefix}/joint_states topic has no message")
+        origin = min(states)
+        q = np.array([_positions(path, k, states[s], joint_names) for k, s in enumerate(sorted(states))])
+        stamps = np.array(sorted(states))[np.all(np.isfinite(q), axis=1)]     # as the CSV: a NaN joint drops its row
+        if not len(stamps):
+            raise VfError(f"{path}: no joint state with every joint finite")
+        q = q[np.all(np.isfinite(q), axis=1)]
         status = read("/vfdsl/status")
         metrics = sorted(t[len(prefix) + len("/vfdsl/metric/"):] for t in topics
                          if t.startswith(prefix + "/vfdsl/metric/") and "error" in t)
         error = read(f"/vfdsl/metric/{metrics[0]}") if metrics else {}
         phase = read("/vfdsl/phase")
         moved = {name: read(f"/vfdsl/param/{name}") for name in (params or {})}
+    except VfError:
+        raise
+    except Exception as exc:                     # a damaged chunk or message past the summary rosbags opened
+        raise VfError(f"{path}: not a readable MCAP trace ({exc})") from None
     finally:
         reader.close()
 
     def column(messages, value, missing):
         return np.array([value(messages[s]) if s in messages else missing for s in stamps])
-    return Trace(t=(stamps - stamps[0]) * 1e-9, q=q,
+    return Trace(t=(stamps - origin) * 1e-9, q=q,
                  error=column(error, lambda m: m.data, math.nan) if error else None,
                  error_name=f"metric.{metrics[0]}" if metrics else None,
                  status=column(status, lambda m: float(m.data), math.nan) if status else None,
@@ -172,6 +178,17 @@ def read_mcap(path: Path, joint_names: list[str], trial: str | None = None, para
                  params={name: np.array([np.asarray(messages[s].data, dtype=float) for s in stamps])
                          for name, messages in moved.items()
                          if messages and all(s in messages and len(messages[s].data) == params[name] for s in stamps)})
+
+
+def _positions(path: Path, index: int, message, joint_names: list[str]) -> np.ndarray:
+    """The positions of ``joint_names`` in JointState ``index`` of a trace, by that message's own names."""
+    names, position = list(message.name), np.asarray(message.position, dtype=float)
+    missing = [j for j in joint_names if j not in names]
+    if missing:
+        raise VfError(f"{path}: joint state {index} has no joint '{missing[0]}' of the task's robot")
+    if len(position) != len(names):
+        raise VfError(f"{path}: joint state {index} names {len(names)} joints but has {len(position)} positions")
+    return position[[names.index(j) for j in joint_names]]
 
 
 def _parse(path: Path, reader, joint_names: list[str], period: float | None, trial: str | None,

@@ -204,7 +204,9 @@ VF_EXPORT int @API@_set_params(@API@* c, @PARAMS_ARGUMENT@) {
   int code;
   if (!c) return VF_ERR_NULL;
   if (!enter(c)) return VF_ERR_BUSY;
-  code = !values && NP > 0 ? refuse(c, VF_ERR_NULL, -1, -1) : set_values(c, 0, NP, values);
+  /* the run-time params' numbers only: the captured values after them are the procedure's (setting them does
+     nothing, and a NaN there is no param's error) */
+  code = !values && NP_SET > 0 ? refuse(c, VF_ERR_NULL, -1, -1) : set_values(c, 0, NP_SET, values);
   leave(c);
   return code;
 }
@@ -258,7 +260,7 @@ VF_EXPORT const char* @API@_error_message(int code) {
     case VF_ERR_Q_NONFINITE: return "q (joint coordinates) contains NaN or inf";
     case VF_ERR_Q_RANGE: return "q is far outside its joint's limits: check the unit (radians, metres), the joint "
                                 "order, or the encoder";
-    case VF_ERR_INPUT: return "an input contains NaN or inf";
+    case VF_ERR_INPUT: return INPUT_RULE;
     case VF_ERR_DT: return "dt must be a positive number of seconds";
     case VF_ERR_DT_PERIOD: return "dt " DT_RULE " (dt is in seconds: 1 ms is 0.001)";
     case VF_ERR_PARAM_INDEX: return "no run-time param has this index";
