@@ -300,6 +300,15 @@ def test_end_of_file_is_reported_on_the_line_the_parser_counted(tmp_path):
     assert " 6 | require tip stays_at(" in err.render()
 
 
+@pytest.mark.parametrize("separator", ["\u2028", "\x85", "\u2029", "\r"])
+def test_a_scene_line_is_shown_as_yaml_counted_it(tmp_path, separator):
+    # YAML ends a line (and a comment) at these too: the line shown was another one than the error's.
+    scene = f"units: mm   # a{separator}period: 20 ms\nperiod: 10 ms\n"
+    err = fails(tmp_path, 'scene "s.yaml"\n', "key 'period' appears twice", 3, 1, {"s.yaml": scene.encode()},
+                file="s.yaml")
+    assert " 3 | period: 10 ms" in err.render()
+
+
 def test_caret_lines_up_under_tabs(tmp_path):
     err = fails(tmp_path, "\t\trequire tpi speed(5)\n", "unknown frame", 5, 11)
     source, caret = err.render().splitlines()[1:3]
