@@ -7,6 +7,7 @@ import pytest
 from conftest import TASKS_DIR
 
 import vfdsl
+from vfdsl.export import export
 from vfdsl.kinematics.robot import Robot
 from vfdsl.runtime.qp import StepStatus
 
@@ -135,3 +136,20 @@ def test_step_result_is_a_copy(task_b, ctrl_b):
     kept = first.copy()
     ctrl_b.step(task_b.start, {"tau": [0.0, 0.0, -0.01]})
     np.testing.assert_array_equal(first, kept)
+
+
+@pytest.mark.parametrize("entry", ["check", "compile", "export"])
+@pytest.mark.parametrize("given", [str(TASKS_DIR / "paper_b_virtual_rcm.vf"), TASKS_DIR / "paper_b_virtual_rcm.vf", None])
+def test_entry_points_refuse_what_is_not_a_loaded_task(tmp_path, entry, given):
+    # A path given where the task belongs raised an AttributeError from deep inside.
+    calls = {"check": lambda: vfdsl.check(given), "compile": lambda: vfdsl.compile(given),
+             "export": lambda: export(given, tmp_path / "out")}
+    with pytest.raises(vfdsl.VfError, match=rf"{entry}\(\) takes a task loaded by vfdsl.load") as info:
+        calls[entry]()
+    assert given is None or "vfdsl.load(" in info.value.hint
+
+
+@pytest.mark.parametrize("given", [None, 3, b"tasks/paper_b_virtual_rcm.vf"])
+def test_load_refuses_what_is_not_a_path(given):
+    with pytest.raises(vfdsl.VfError, match="load\\(\\) takes the path of a .vf task file"):
+        vfdsl.load(given)

@@ -269,10 +269,44 @@ def test_source_line_is_the_line_the_parser_counted(tmp_path):
 
 @pytest.mark.parametrize("separator", ["\u2028", "\x85", "\u2029", "\x0b", "\x1b"])
 def test_line_separators_stay_inside_the_line_and_are_shown_as_one_character(tmp_path, separator):
-    err = fails(tmp_path, f"# a{separator}b\nparam q : point = [0, 0, 0]{separator} # x\n", "unexpected character", 6, 28)
+    err = fails(tmp_path, f"# a\x1bb\nparam q : point = [0, 0, 0]{separator} # x\n", "unexpected character", 6, 28)
     shown = err.render().splitlines()
     assert shown[1] == " 6 | param q : point = [0, 0, 0]? # x"
     assert shown[2].index("^") == shown[1].index("?")
+
+
+@pytest.mark.parametrize("separator", ["\u2028", "\x85", "\u2029", "\x0b", "\x1c"])
+def test_a_line_separator_ends_a_comment_so_no_statement_hides_in_it(tmp_path, separator):
+    # An editor may show the text after the separator on a line of its own: it is refused, not commented out.
+    fails(tmp_path, f"param q : point = [0, 0, 0]  # see{separator}require tip stays_at(q)\n", "unexpected character",
+          5, 35)
+
+
+def test_text_after_a_form_feed_in_a_comment_is_read(tmp_path):
+    task = load(tmp_path, "param q : point = [0, 0, 290]  # see\frequire tip stays_at(q)\n")
+    assert [c.primitive for c in task.constraints] == ["stays_at"]
+
+
+def test_carriage_returns_alone_are_refused_not_read_as_one_commented_line(tmp_path):
+    body = (HEAD + "param q : point = [0, 0, 290]   # the pivot\nrequire tip stays_at(q)\n").replace("\n", "\r")
+    err = fails(tmp_path, body, "a carriage return without a newline", 1, 7)
+    assert err.code == "E101" and " 1 | task t?units" in err.render()
+    crlf = load(tmp_path, body.replace("\r", "\r\n"))
+    assert [c.primitive for c in crlf.constraints] == ["stays_at"]
+
+
+def test_end_of_file_is_reported_on_the_line_the_parser_counted(tmp_path):
+    err = fails(tmp_path, "param q : point = [0, 0, 290]\f\f\nrequire tip stays_at(", "unexpected end of file", 6, 22)
+    assert " 6 | require tip stays_at(" in err.render()
+
+
+@pytest.mark.parametrize("separator", ["\u2028", "\x85", "\u2029", "\r"])
+def test_a_scene_line_is_shown_as_yaml_counted_it(tmp_path, separator):
+    # YAML ends a line (and a comment) at these too: the line shown was another one than the error's.
+    scene = f"units: mm   # a{separator}period: 20 ms\nperiod: 10 ms\n"
+    err = fails(tmp_path, 'scene "s.yaml"\n', "key 'period' appears twice", 3, 1, {"s.yaml": scene.encode()},
+                file="s.yaml")
+    assert " 3 | period: 10 ms" in err.render()
 
 
 def test_caret_lines_up_under_tabs(tmp_path):

@@ -187,6 +187,18 @@ def test_check_through_the_api_refuses_the_same_values():
         vfdsl.check(task, seed=-1)
 
 
+@pytest.mark.parametrize("overshoot", [float("nan"), -0.1, 0, 10, float("inf"), "10%", True, None])
+def test_check_through_the_api_refuses_an_overshoot_the_option_refuses(overshoot):
+    # NaN passed every polytope silently (no overshoot warning), a negative one failed them all.
+    with pytest.raises(VfError, match="the overshoot must be"):
+        vfdsl.check(vfdsl.load(B), overshoot=overshoot, samples=0)
+
+
+def test_check_through_the_api_refuses_booleans_as_counts():
+    with pytest.raises(VfError, match="samples must be a whole number"):
+        vfdsl.check(vfdsl.load(B), samples=True)
+
+
 FAR = ("task far\nunits mm, deg\nrobot shr = urdf \"shr7\"\nframe tip = shr.link(\"tool_tip\")OFFSET\n"
        "input f : force\nparam p : point = POINT\nminimize track(tip, f, gain = 1 mm/s/N)\n"
        "require tip stays_at(p) within 0.1\n")

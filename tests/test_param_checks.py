@@ -399,6 +399,25 @@ def test_task_defaults_get_the_run_time_checks(tmp_path):
     assert info.value.pos.line == 6
 
 
+
+@pytest.mark.parametrize("body, line, message", [
+    ("require tip stays_at([0, 0, 290] m)\n", 8, r"stays_at\(...\) argument 'target' is \[0, 0, 290\] m: beyond"),
+    ("require tip above(plane([0, 0, 270] m, [0, 0, 1]))\n", 8, r"above\(...\) argument 'plane''s point is"),
+    ("require tip follows([[0, 0, 2.8], [0.01, 0, 2.8], [0.02, 0, 2.8], [0.03, 0, 2.8]] m)\n", 8,
+     r"follows\(...\) argument 'curve''s point 1 is \[0, 0, 2.8\] m"),
+])
+def test_constant_points_get_the_plausible_distance_a_params_point_gets(tmp_path, body, line, message):
+    # A point in mm read as m, written in the statement: it loaded, and the tool ran at full speed toward it.
+    path = tmp_path / "t.vf"
+    path.write_text(HEAD.format(params="", body=body))
+    with pytest.raises(VfError, match=message) as info:
+        vfdsl.load(path)
+    assert (info.value.pos.line, info.value.code) == (line, "E402")
+    path.write_text(HEAD.format(params="", body=body.replace("290] m", "290] mm").replace("270] m", "270] mm")
+                                .replace("2.8]", "0.29]")))
+    vfdsl.load(path)
+
+
 # -------------------------------------------------------------------------------- fast path with params
 def test_preallocated_arrays_take_the_fast_path_and_lists_the_checked_one(tmp_path):
     path = tmp_path / "repro.vf"

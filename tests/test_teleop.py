@@ -361,7 +361,6 @@ def test_a_moving_camera_turns_the_masters_motion(tmp_path):
     (("    capture m0 = master\n", ""), "master_anchor"),                                      # captured nowhere now
     (("phase clutched {\n", "phase clutched {\n    capture m1 = master\n"), None),             # (m1 unused: fine)
     (("master_anchor = m0", "master_anchor = camera"), "master_anchor"),                     # a fixed param
-    (("capture s0 = tip.pose", "capture s0 = master"), "anchor"),                            # another source
 ])
 def test_check_warns_when_an_anchor_is_not_retaken_at_engage(tmp_path, change, argument):
     text = WALL.replace(*change)
@@ -376,6 +375,22 @@ def test_check_warns_when_an_anchor_is_not_retaken_at_engage(tmp_path, change, a
     else:
         line = text.splitlines().index(next(t for t in text.splitlines() if "minimize teleop" in t)) + 1
         assert [f.data["argument"] for f in found] == [argument] and found[0].span.line == line
+
+
+@pytest.mark.parametrize("change, argument", [
+    (("anchor = s0, master_anchor = m0", "anchor = m0, master_anchor = s0"), None),           # both swapped
+    (("capture s0 = tip.pose", "capture s0 = master"), "anchor"),                            # the master as anchor
+])
+def test_check_refuses_an_anchor_captured_from_the_other_side(tmp_path, change, argument):
+    # It was a warning (VF972, as for a kept anchor), and the task "sound", while the tool ran off hands-off.
+    text = WALL.replace(*change)
+    assert text != WALL
+    (tmp_path / "t.vf").write_text(text)
+    (tmp_path / "t.yaml").write_text(START)
+    report = vfdsl.check(vfdsl.load(tmp_path / "t.vf"), samples=0, backend="interpreted")
+    found = [f for f in report.findings if f.code == "VF973"]
+    assert sorted(f.data["argument"] for f in found) == ([argument] if argument else ["anchor", "master_anchor"])
+    assert report.exit_status() == 1 and not [f for f in report.findings if f.code == "VF972"]
 
 
 def test_the_readout_equals_an_independent_computation(wall):

@@ -10,7 +10,8 @@ diagnostic::
     hint: did you mean 'tip'? known frames: tip, shaft
 
 Notes add context, such as the ``use`` site of a fixture whose body holds the mistake. The source line is
-the one the parser counted (lines end at "\n" only, so form feeds, U+0085 and U+2028 stay inside a line),
+the one the parser counted (lines end at "\n" only, so form feeds, U+0085 and U+2028 stay inside a line; a
+YAML file's lines end where YAML ends them, at "\r", U+0085, U+2028 and U+2029 too),
 and the caret copies the line's tabs so that it lines up under tab-indented text.
 
 A mistake in a task, library or scene file has a stable code from :data:`CODES` (``E201``), printed on a last
@@ -21,6 +22,7 @@ one :class:`VfErrors`, sorted by position, which stands for its first error and 
 from __future__ import annotations
 
 import difflib
+import re
 import unicodedata
 from pathlib import Path
 from typing import Iterable
@@ -168,7 +170,8 @@ class VfError(Exception):
                 text = Path(self.pos.file).read_text(encoding="utf-8-sig")
             except (OSError, ValueError):
                 return None
-        all_lines = text.split("\n")
+        yaml = Path(self.pos.file).suffix.lower() in (".yaml", ".yml")
+        all_lines = _YAML_LINE_BREAK.split(text) if yaml else text.split("\n")
         if 1 <= self.pos.line <= len(all_lines):
             return _printable(all_lines[self.pos.line - 1].rstrip("\r"))
         return None
@@ -203,6 +206,9 @@ def combined(errors: list[VfError]) -> VfError:
                                                                          if e.pos else ()))
     return ordered[0] if len(ordered) == 1 else VfErrors(ordered)
 
+
+_YAML_LINE_BREAK = re.compile("\r\n|[\r\n\x85\u2028\u2029]")
+"""Where YAML ends a line (its positions count these): a scene's line is shown as YAML counted it."""
 
 _CONTEXT = 80          # characters shown on each side of the caret when a source line is long
 

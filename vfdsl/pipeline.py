@@ -79,6 +79,7 @@ def build(task: ir.Task, *, backend: str = "auto",
           cache_dir: str | Path | None = None) -> tuple[Controller, BuiltLibrary | None]:
     """As :func:`compile`, also returning the generated library (None on the interpreted path)."""
     global _warned
+    task = ir.checked_task(task, "compile")
     if backend not in BACKENDS:
         raise VfError(f"unknown backend '{backend}'; use one of {', '.join(BACKENDS)}")
     robot = Robot.load(task.robots[0].urdf)

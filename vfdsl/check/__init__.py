@@ -25,8 +25,9 @@ from vfdsl.check.report import Finding, Report, Severity
 from vfdsl.ir import model as ir
 
 DEFAULT_OVERSHOOT = 0.10
+MAX_OVERSHOOT = 10.0           # 1000%: a polytope's worst error may not be accepted at more than 11 x its tolerance
 
-__all__ = ["DEFAULT_OVERSHOOT", "Finding", "Report", "Severity", "check"]
+__all__ = ["DEFAULT_OVERSHOOT", "MAX_OVERSHOOT", "checked_overshoot", "Finding", "Report", "Severity", "check"]
 
 
 def check(task: ir.Task, *, overshoot: float = DEFAULT_OVERSHOOT, samples: int = sampling.DEFAULT_SAMPLES,
@@ -38,9 +39,11 @@ def check(task: ir.Task, *, overshoot: float = DEFAULT_OVERSHOOT, samples: int =
     from vfdsl.errors import VfError
     from vfdsl import limits
 
-    if not (isinstance(samples, int) and 0 <= samples <= limits.CHECK_SAMPLES):
+    task = ir.checked_task(task, "check")
+    overshoot = checked_overshoot(overshoot)
+    if not (isinstance(samples, int) and not isinstance(samples, bool) and 0 <= samples <= limits.CHECK_SAMPLES):
         raise VfError(f"samples must be a whole number from 0 to {limits.CHECK_SAMPLES:,}, got {samples!r}")
-    if not (isinstance(seed, int) and 0 <= seed <= limits.SEED):
+    if not (isinstance(seed, int) and not isinstance(seed, bool) and 0 <= seed <= limits.SEED):
         raise VfError(f"seed must be a whole number from 0 to {limits.SEED:,}, got {seed!r}")
     started = time.perf_counter()
     report = Report(task.name, task.file)
@@ -173,3 +176,15 @@ def _check_magnitudes(rows) -> None:
             raise VfError(f"at the start, the rows of {describe(r.constraint)} hold {worst:g} (m or rad): the limit "
                           f"is {limits.ROW_VALUE:g}; its geometry lies far beyond any robot's reach",
                           r.constraint.span, hint="is a point, a distance or a frame offset in the wrong unit?")
+
+
+def checked_overshoot(value) -> float:
+    """``value`` as a float when it is a real number in (0, MAX_OVERSHOOT); else VfError (NaN would pass
+    every polytope silently, a negative one fail every polytope)."""
+    from vfdsl.errors import VfError
+    from vfdsl.runtime.values import real_scalar
+    fraction = real_scalar(value, "the overshoot")
+    if not 0 < fraction < MAX_OVERSHOOT:
+        raise VfError(f"the overshoot must be between 0 and {MAX_OVERSHOOT:g} ({MAX_OVERSHOOT:.0%}), got {fraction:g}",
+                      hint="a fraction: 0.10 accepts a polytope whose worst error is 10% over its tolerance")
+    return fraction

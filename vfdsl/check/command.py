@@ -7,7 +7,7 @@ import json
 import sys
 from pathlib import Path
 
-from vfdsl.check import DEFAULT_OVERSHOOT, Report
+from vfdsl.check import DEFAULT_OVERSHOOT, MAX_OVERSHOOT, Report, checked_overshoot
 from vfdsl.check.sampling import DEFAULT_SAMPLES
 from vfdsl.errors import VfError
 from vfdsl.files import path_argument
@@ -114,6 +114,7 @@ def _fraction(text: str) -> float:
         value = float(text.removesuffix("%")) / 100
     except ValueError:
         raise argparse.ArgumentTypeError(f"expected a percentage like 10%, got {text!r}") from None
-    if not 0 < value < 10:
-        raise argparse.ArgumentTypeError(f"the overshoot must be between 0% and 1000%, got {text}")
-    return value
+    try:
+        return checked_overshoot(value)
+    except VfError:
+        raise argparse.ArgumentTypeError(f"the overshoot must be between 0% and {MAX_OVERSHOOT:.0%}, got {text}") from None

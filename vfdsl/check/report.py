@@ -67,6 +67,7 @@ CODES: dict[str, str] = {
     "haptic-passivity": "VF970",
     "teleop-workspace": "VF971",
     "teleop-anchor-kept": "VF972",
+    "teleop-anchor-swapped": "VF973",
 }
 
 

@@ -8,7 +8,9 @@ master command the tool where the fixture (or the robot) will not let it go?
 - **Anchors** (VF972). A teleop term in a phase re-anchors on each entry only if that phase captures both anchors:
   ``anchor`` the pose of the term's own frame and ``master_anchor`` its own master. An anchor captured elsewhere
   (another phase, another frame or input) or a fixed param keeps an old pose across a clutch: at re-engage the
-  goal jumps by the master's motion while clutched (a warning, at the term, naming the anchor).
+  goal jumps by the master's motion while clutched (a warning, at the term, naming the anchor). An anchor captured
+  from the other side (VF973: the master's pose as ``anchor``, a frame's pose as ``master_anchor``) anchors the goal
+  in the wrong coordinates, and the tool moves off with the hands off (an error).
 - **Workspace** (VF971). With ``master_reach`` R, the scaled master commands the frame anywhere in the ball of radius
   scale R around its engage pose. From the start, the compiled controller is driven with the master held at R along
   each of WORKSPACE_DIRECTIONS directions (through the camera) for WORKSPACE_SECONDS; where the frame stays short
@@ -68,6 +70,7 @@ def passivity(task: ir.Task, period: float) -> list[Finding]:
 def anchors(task: ir.Task) -> list[Finding]:
     """VF972 (module docstring) for every teleop term inside a phase."""
     findings = []
+    every = {c.name: c.source for phase in task.phases for c in phase.captures}
     for phase in task.phases:
         taken = {c.name: c.source for c in phase.captures}
         for o in phase.objectives:
@@ -78,6 +81,9 @@ def anchors(task: ir.Task) -> list[Finding]:
             for arg, source in wanted.items():
                 given = o.args[arg]
                 if isinstance(given, ir.CaptureRef) and taken.get(given.name) == source:
+                    continue
+                if isinstance(given, ir.CaptureRef) and every[given.name].ref != source.ref:
+                    findings.append(_swapped(o, arg, every[given.name], phase.name))
                     continue
                 what = (f"captured in another phase or of another {'frame' if arg == 'anchor' else 'input'}"
                         if isinstance(given, ir.CaptureRef) else "not captured")
@@ -90,6 +96,19 @@ def anchors(task: ir.Task) -> list[Finding]:
                     f"capture it in phase '{phase.name}': `{expected}`", f"teleop({o.args['frame'].name})",
                     {"phase": phase.name, "argument": arg}))
     return findings
+
+
+def _swapped(o, arg: str, source, phase: str) -> Finding:
+    """VF973: a teleop anchor captured from the other side (the master's pose as the frame's, or the reverse)."""
+    frame, master = o.args["frame"].name, o.args["master"].name
+    given = f"the pose of input '{source.name}'" if source.ref == "input" else f"the pose of frame '{source.frame}'"
+    expected = f"capture NAME = {frame}.pose" if arg == "anchor" else f"capture NAME = {master}"
+    return Finding(
+        "teleop-anchor-swapped", Severity.ERROR,
+        f"teleop's {arg} in phase '{phase}' is {given}: the {'frame' if arg == 'anchor' else 'master'}'s pose at "
+        "engage is meant, and the goal is anchored in the other side's coordinates, so the tool leaves its engage "
+        "pose with the hands off", o.span, f"give {arg} a capture of the phase: `{expected}`", f"teleop({frame})",
+        {"phase": phase, "argument": arg})
 
 
 def workspace(controller, task: ir.Task, period: float, figures: dict) -> list[Finding]:

@@ -90,6 +90,31 @@ class Admissible:
         already evaluated, e.g. by the generated C)."""
         self.margins.verify(self.function(p) if numbers is None else numbers, p, when)
 
+    def far_constants(self):
+        """(span, notes, message) of every constant point written in a statement or a monitor (a point, a line's or a
+        plane's point, a curve's points) with a coordinate beyond the plausible distance: the rule a param's point
+        meets, so that a point in millimetres read as metres is refused wherever it is written."""
+        for statement in [*self.task.every_constraint, *self.task.every_objective]:
+            name = statement.primitive if isinstance(statement, ir.Constraint) else statement.term
+            notes = tuple(f"in a fixture used at {span}" for span in reversed(statement.via))
+            for arg_name, arg in statement.args.items():
+                yield from self._far(arg, f"{name}(...) argument '{arg_name}'", statement.span, notes)
+        for monitor in self.task.monitors:
+            for node in ir.expression_leaves(monitor.expr):
+                arg = getattr(getattr(node, "measure", None), "to", None)
+                yield from self._far(arg, f"monitor '{monitor.name}''s point", monitor.span, ())
+
+    def _far(self, arg, what: str, span, notes: tuple):
+        if not isinstance(arg, ir.Const):
+            return
+        value = arg.value
+        points = {"point": lambda: [value.xyz], "line": lambda: [value.point], "plane": lambda: [value.point],
+                  "curve": lambda: value.points}.get(value.kind, lambda: [])()
+        for k, xyz in enumerate(points):
+            if np.max(np.abs(xyz)) > self.distance:
+                part = f"'s point {k + 1}" if value.kind == "curve" else "" if value.kind == "point" else "'s point"
+                yield span, notes, f"{what}{part} is {show_vector(xyz)} m: beyond {self._bound_words()}"
+
     # ------------------------------------------------------------------------------------------ params
     def _param(self, decl: ir.ParamDecl, slot: ParamSlot, x, ranges: list) -> None:
         name, kind = decl.name, decl.type

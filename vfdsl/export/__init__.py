@@ -22,6 +22,7 @@ def export(task: ir.Task, directory: str | Path, *, cache_dir: str | Path | None
     from vfdsl import pipeline
     from vfdsl.codegen.build import daqp_home
     from vfdsl.codegen.daqp_sources import daqp_sources
+    task = ir.checked_task(task, "export")
     if not str(directory):
         raise VfError("an empty path names no folder to export into", hint="give the folder, e.g. 'build/vf_task'")
     directory = prepare_directory(Path(directory))

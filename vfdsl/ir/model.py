@@ -8,12 +8,13 @@ The IR round-trips through JSON: ``Task.model_validate_json(task.model_dump_json
 
 from __future__ import annotations
 
+import os
 from typing import Annotated, Literal, Union
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, model_serializer
 
-from vfdsl.errors import Span
+from vfdsl.errors import Span, VfError
 from vfdsl.inputs import INPUT_TYPES
 
 Vec3 = Annotated[list[float], Field(min_length=3, max_length=3)]
@@ -458,3 +459,14 @@ class Task(_Model):
 
     def input(self, name: str) -> InputDecl:
         return next(i for i in self.inputs if i.name == name)
+
+
+def checked_task(value, caller: str) -> Task:
+    """``value`` when it is a :class:`Task`; otherwise a VfError saying that ``caller`` takes what
+    ``vfdsl.load`` returns (a path, or anything else, is not loaded here)."""
+    if isinstance(value, Task):
+        return value
+    given = f"the path {str(value)!r}" if isinstance(value, (str, os.PathLike)) else f"a {type(value).__name__}"
+    hint = (f"load it first: vfdsl.{caller}(vfdsl.load({str(value)!r}))" if isinstance(value, (str, os.PathLike))
+            else "pass the task vfdsl.load(path) returns")
+    raise VfError(f"{caller}() takes a task loaded by vfdsl.load, got {given}", hint=hint)

@@ -16,7 +16,7 @@ from vfdsl import limits
 from vfdsl import units as u
 from vfdsl.compiler.admissible import Admissible
 from vfdsl.compiler.geometry import compose, rotation
-from vfdsl.errors import VfError, suggest
+from vfdsl.errors import VfError, combined, suggest
 from vfdsl.inputs import INPUT_TYPES
 from vfdsl.ir import model as ir
 from vfdsl.kinematics.robot import ROBOTS_DIR, Robot
@@ -88,6 +88,11 @@ class Declarations:
         """The params' values (the task's defaults, or the scene's) pass the checks a run-time value gets
         (:mod:`vfdsl.compiler.admissible`); an error points at the value, in the task or the scene file."""
         admissible = Admissible(task, robot.reach)
+        far = [VfError(message, span, "a point written without a unit is in the file's length unit (SI without a "
+                                      "`units` statement): millimetres read as metres?", notes=notes, code="E402")
+               for span, notes, message in admissible.far_constants()]
+        if far:
+            raise combined(far)
         p = admissible.layout.defaults
         numbers = admissible.function(p)
         i = admissible.margins.first_failure(numbers)

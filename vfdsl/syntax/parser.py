@@ -24,8 +24,9 @@ from vfdsl import limits
 from vfdsl.syntax import ast
 from vfdsl.syntax.syntax_errors import syntax_error
 
-_COMMENT = re.compile(r"#[^\n]*")
-_FIRST_WORD = re.compile(r"(?:\s|#[^\n]*)*([A-Za-z_]\w*)?")
+_COMMENT = re.compile(r"#[^\n\r\x0b\x0c\x1c-\x1e\x85\u2028\u2029]*")    # as the grammar's COMMENT
+_FIRST_WORD = re.compile(rf"(?:\s|{_COMMENT.pattern})*([A-Za-z_]\w*)?")
+_LONE_CR = re.compile(r"\r(?!\n)")
 _NESTED_RULES = ("vector", "call", "add", "sub", "mul", "neg", "cond_or", "cond_and", "cond_not", "measure_call")
 
 
@@ -50,6 +51,7 @@ def parse_module(text: str, file: str) -> ast.Module:
     first = _FIRST_WORD.match(text).group(1) or ""
     if not difflib.get_close_matches(first, ["task", "library"], n=1, cutoff=0.6):
         raise VfError(f"{file} is not a .vf file: it does not start with `task NAME` or `library NAME`", code="E102")
+    _refuse_lone_carriage_return(text, file)
     try:
         tree = parser.parse(text)
     except UnexpectedInput as exc:
@@ -61,6 +63,18 @@ def parse_module(text: str, file: str) -> ast.Module:
         if isinstance(exc.orig_exc, VfError):
             raise exc.orig_exc.with_source(text) from None
         raise
+
+
+def _refuse_lone_carriage_return(text: str, file: str) -> None:
+    """A line ending of a carriage return alone (classic Mac OS) is refused: lines are counted at "\n", so the
+    file would be one line, and a comment on it would hide every statement after it."""
+    lone = _LONE_CR.search(text)
+    if lone:
+        line = text.count("\n", 0, lone.start()) + 1
+        column = lone.start() - text.rfind("\n", 0, lone.start())
+        raise VfError("a carriage return without a newline: lines end with \"\\n\" or \"\\r\\n\"",
+                      Span(file=file, line=line, column=column, end_line=line, end_column=column + 1),
+                      hint="save the file with Unix (LF) or Windows (CRLF) line endings", code="E101").with_source(text)
 
 
 def _check_limits(tree: Tree, text: str, file: str) -> None:

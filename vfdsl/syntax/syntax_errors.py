@@ -51,7 +51,7 @@ def syntax_error(exc: UnexpectedInput, text: str, file: str, parser: Lark) -> Vf
     hint = None
     if isinstance(exc, UnexpectedToken) and exc.token.type == "$END" or isinstance(exc, UnexpectedEOF):
         message = "unexpected end of file"
-        lines = text.rstrip().splitlines() or [""]
+        lines = text.rstrip().split("\n")             # lines as the parser counts them
         line, column = len(lines), len(lines[-1]) + 1
     elif isinstance(exc, UnexpectedToken):
         found = str(exc.token)
@@ -89,7 +89,7 @@ _CLAUSE_WORDS = ("within", "resolution", "weight", "priority", "soft")
 def _starts_line(text: str, token: Token) -> bool:
     """Only blanks stand before ``token`` on its line (a name there may be a statement keyword misspelt, which the
     parser read as the unit of the line before)."""
-    lines = text.splitlines()
+    lines = text.split("\n")
     return 0 < token.line <= len(lines) and not lines[token.line - 1][:token.column - 1].strip()
 
 
