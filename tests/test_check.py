@@ -506,6 +506,24 @@ def test_sampling_reports_ill_conditioned_states(tmp_path):
 
 # ------------------------------------------------------------------------------------------ hygiene
 
+def test_weights_of_one_level_beyond_the_solvers_resolution_are_warned_of(tmp_path):
+    """VF805: weights 1e-9 (track) and 1e9 (a soft target) in level 1 span 1e18, beyond the 1e10 the solver resolves
+    in one level (two soft targets 10 mm apart weighted 1e9 and 1e-9 pulled the tip halfway, as if equal). Not for
+    paper B's 1e6 (damping at 1e-6 of track), nor for terms the same span apart in different levels."""
+    soft = ("require tip stays_at([0, 0, 290]) within 1 um soft weight 1e9\n"
+            "require tip stays_at([0, 10, 290]) within 1 um soft weight {light}\n")
+    far = PROBE.replace("minimize track(tip, f, gain = 1 mm/s/N)", "minimize track(tip, f, gain = 1 mm/s/N) weight 1e-9")
+    found = codes(probe(tmp_path, far.replace(STAYS_AT, soft.format(light="1e-9"))), samples=0)
+    [warning] = found["weights-span"]
+    assert warning.severity == Severity.WARNING and warning.code == "VF805"
+    assert warning.data == {"level": 1, "light": 1e-9, "heavy": 1e9, "phase": None}
+    assert "minimize track" in warning.message and "1e+09" in warning.message and warning.span.line == 7
+    assert "priority 2" in warning.suggestion
+    assert "weights-span" not in codes(probe(tmp_path), samples=0)
+    later = soft.format(light="1e-9 priority 2").replace("weight 1e9\n", "weight 1e9 priority 3\n")
+    assert "weights-span" not in codes(probe(tmp_path, PROBE.replace(STAYS_AT, later)), samples=0)
+
+
 def test_unused_declarations(tmp_path):
     text = PROBE.replace("input f : force", "input f : force\ninput spare : torque\nparam p2 : point = [0, 0, 0]")
     found = codes(probe(tmp_path, text))["unused-declaration"]

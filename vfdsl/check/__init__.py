@@ -55,6 +55,7 @@ def check(task: ir.Task, *, overshoot: float = DEFAULT_OVERSHOOT, samples: int =
     run("polytope", polytope.analyse, statements, overshoot)
     run("tolerance", tolerance.analyse_values, statements)
     run("tolerance", tolerance.analyse_speeds, statements)
+    run("hygiene", hygiene.weight_span, task)
     if procedure.is_procedure(task):
         run("hygiene", procedure.unused, task)
         run("procedure", procedure.analyse, task)

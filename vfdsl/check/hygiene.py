@@ -15,6 +15,10 @@
 - **Contradictory tolerances** (VF803): two hard geometric constraints whose rows alone, without any
   joint limit or speed, have no common motion (their margin LP is negative): e.g. two points to stay at,
   farther apart than the sum of their tolerances.
+- **Weights beyond resolution** (VF805): the terms of one priority level (objectives, soft constraints' slacks),
+  in one phase with the phase-less ones, whose weights span more than WEIGHT_SPAN: the level's cost sums them, and
+  the solver, whose tolerances are ~1e-10 of the level's scale, no longer resolves the lighter one (weights 1e-9 and
+  1e9 in one level: the lighter soft target pulled the tool as if its weight were the heavier's).
 """
 
 from __future__ import annotations
@@ -34,6 +38,39 @@ from vfdsl.primitives import CONSTRAINTS
 DEGENERATE = 1e-9               # a row whose gradient is this small (relative) measures nothing about dq
 REDUNDANCY_STATES = 20          # reached states (besides the start) at which a redundancy is confirmed
 IMPLIED = 1e-10                  # a row is implied when the others keep it satisfied to this much (m or rad)
+WEIGHT_SPAN = 1e10               # the largest ratio of two weights in one priority level the solver resolves
+
+
+def weight_span(task: ir.Task) -> list[Finding]:
+    """VF805 for each priority level (each phase's with the phase-less terms) whose weights span more than
+    WEIGHT_SPAN: naming the lightest and the heaviest term."""
+    views = [(None, task.constraints, task.objectives)]
+    views += [(p.name, [*task.constraints, *p.constraints], [*task.objectives, *p.objectives]) for p in task.phases]
+    findings, seen = [], set()
+    for phase, constraints, objectives in views:
+        levels: dict[int, list] = {}
+        for o in objectives:
+            levels.setdefault(o.priority, []).append((o.weight, f"minimize {o.term}", o.span))
+        for c in constraints:
+            if c.soft:
+                levels.setdefault(c.priority or 1, []).append((c.weight or 1.0, describe(c), c.span))
+        for level, terms in sorted(levels.items()):
+            light = min(terms, key=lambda term: term[0])
+            heavy = max(terms, key=lambda term: term[0])
+            key = (level, light[2], heavy[2])
+            if heavy[0] <= WEIGHT_SPAN * light[0] or key in seen:
+                continue
+            seen.add(key)
+            in_phase = f" (phase {phase})" if phase else ""
+            findings.append(Finding(
+                "weights-span", Severity.WARNING,
+                f"priority level {level}{in_phase} weighs {light[1]} by {light[0]:g} and {heavy[1]} by "
+                f"{heavy[0]:g}, {heavy[0] / light[0]:.1e} times more: beyond the {WEIGHT_SPAN:.0e} the solver "
+                "resolves in one level, the lighter term no longer acts with the weight it states", light[2],
+                "give the lighter term its own later level (`priority 2`) instead of a tiny weight, or bring the "
+                "weights closer", f"priority level {level}",
+                {"level": level, "light": light[0], "heavy": heavy[0], "phase": phase}))
+    return findings
 
 
 def unused(task: ir.Task) -> list[Finding]:

@@ -47,6 +47,7 @@ CODES: dict[str, str] = {
     "redundant-constraint": "VF802",
     "contradictory-tolerances": "VF803",
     "inactive-constraint": "VF804",
+    "weights-span": "VF805",
     "mesh-start-clearance": "VF901",
     "mesh-open": "VF902",
     "mesh-degenerate": "VF903",
