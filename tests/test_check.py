@@ -512,7 +512,8 @@ def test_weights_of_one_level_beyond_the_solvers_resolution_are_warned_of(tmp_pa
     paper B's 1e6 (damping at 1e-6 of track), nor for terms the same span apart in different levels."""
     soft = ("require tip stays_at([0, 0, 290]) within 1 um soft weight 1e9\n"
             "require tip stays_at([0, 10, 290]) within 1 um soft weight {light}\n")
-    far = PROBE.replace("minimize track(tip, f, gain = 1 mm/s/N)", "minimize track(tip, f, gain = 1 mm/s/N) weight 1e-9")
+    track = "minimize track(tip, f, gain = 1 mm/s/N)"
+    far = PROBE.replace(track, track + " weight 1e-9")
     found = codes(probe(tmp_path, far.replace(STAYS_AT, soft.format(light="1e-9"))), samples=0)
     [warning] = found["weights-span"]
     assert warning.severity == Severity.WARNING and warning.code == "VF805"

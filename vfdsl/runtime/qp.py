@@ -45,21 +45,20 @@ per-group violation.
                            S = {x in B : max(lba - E t', min(lba, A x_0)) <= A x <= min(uba + E t', max(uba, A x_0))}
                            t'_g = t*_g + LEAST_VIOLATION_MARGIN feas_tol where t*_g > 0 (else 0)
 
-v_g is group g's largest violation at rest (its rows at x_0). (A) is always feasible (x_0 with t large enough). Its last rows say that no row ends worse than at rest: a
-least-violation tick never trades one fixture's excess for another's (without them, paper A's plate moved 10 mm
-gave a step that took the shaft further off its curve to bring the tip nearer its own). Its measure
-sum_g (rho t_g / w_g + t_g^2/2) is strictly increasing and strictly convex in t, so the least violation t* is unique.
-Each group's penalty is weighed against the group's own violation at rest: a fixture a little off (a held one taken
-out by a step's second-order remainder) comes back first; with one weight for all, a millimetre weighing as much as
-a radian, a port held within 0.5 mm was pushed 4.8 mm off while a cone 30 deg away came back, each tick's remainder
-adding up (docs/runtime.md, Phase 2). With one group
-per row it sums over rows; with coarser groups each group counts its worst row (an L-infinity
-measure inside one polytope). The linear term makes the penalty exact at t = 0: a group that can
-be satisfied is satisfied exactly, since the tie-breaker mu (smallest motion among least-violating
-points) has a marginal cost far below rho / w_g (such a group is off by at most one tick's motion). The tie-breaker is mu I, not a multiple of H: H's
-eigenvalues span ~1e-6..10 on the example tasks, and mu H / trace(H) next to the identity on t made
-(A) so ill-conditioned that CasADi's DAQP returned rows violated by up to 2e-7 while reporting
-success; with mu I (A) is solved to ~1e-13 (measured).
+v_g is group g's largest violation at rest (its rows at x_0). (A) is always feasible (x_0 with t large enough). Its
+last rows say that no row ends worse than at rest: a least-violation tick never trades one fixture's excess for
+another's (without them, paper A's plate moved 10 mm gave a step that took the shaft further off its curve to bring
+the tip nearer its own). Its measure sum_g (rho t_g / w_g + t_g^2/2) is strictly increasing and strictly convex in
+t, so the least violation t* is unique. Each group's penalty is weighed against the group's own violation at rest: a
+fixture a little off (a held one taken out by a step's second-order remainder) comes back first; with one weight for
+all, a millimetre weighing as much as a radian, a port held within 0.5 mm was pushed 4.8 mm off while a cone 30 deg
+away came back, each tick's remainder adding up (docs/runtime.md, Phase 2). With one group per row it sums over
+rows; with coarser groups each group counts its worst row (an L-infinity measure inside one polytope). The linear
+term makes the penalty exact at t = 0: a group that can be satisfied is satisfied exactly, since the tie-breaker mu
+(smallest motion among least-violating points) has a marginal cost far below rho / w_g (such a group is off by at
+most one tick's motion). The tie-breaker is mu I, not a multiple of H: H's eigenvalues span ~1e-6..10 on the example
+tasks, and mu H / trace(H) next to the identity on t made (A) so ill-conditioned that CasADi's DAQP returned rows
+violated by up to 2e-7 while reporting success; with mu I (A) is solved to ~1e-13 (measured).
 
 (B) keeps every row of a satisfied group hard and lets each violated one go out by its group's least violation
 (and the margin), no further than at rest: x_A lies in S, the user's levels act only inside it, so no row that
