@@ -258,6 +258,15 @@ def test_scene_units_with_two_length_units(tmp_path):
     load(tmp_path, 'scene "s.yaml"\n', {"s.yaml": "units: cm, deg\n"})
 
 
+@pytest.mark.parametrize("value, shown", [("null", "got the text 'null'"), ("nowhere", "got the text 'nowhere'"),
+                                          ("{x: 0, y: 0, z: 290}", "got a mapping of x, y, z")])
+def test_a_scene_value_of_the_wrong_shape_is_shown_as_written(tmp_path, value, shown):
+    """A point set to YAML null, a word, or a mapping of x, y, z (not [x, y, z]) was 'got a string' or, for the
+    mapping, 'got point(...)': a call the user never wrote."""
+    fails(tmp_path, 'scene "s.yaml"\nparam p : point = [0, 0, 290]\n', f"expected a point, {shown}", 2, 6,
+          {"s.yaml": f"params:\n  p: {value}\n"}, file="s.yaml")
+
+
 # -------------------------------------------------------------------------------------------- diagnostics
 
 def test_source_line_is_the_line_the_parser_counted(tmp_path):

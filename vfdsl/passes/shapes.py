@@ -200,17 +200,23 @@ def _check_sampling(points: list[list[float]], value: ast.Vector, units: u.Defau
                                "(drop points, or space them out)", code="E402")
 
 
+_FROM_MAPPING = ("point", "direction", "vector")
+"""Kinds whose values no call writes: a call of that name is a scene's mapping, read as the param's kind."""
+
+
 def _what(value: ast.Value) -> str:
     if isinstance(value, ast.Quantity):
         return f"the number {value.number:g}" + (f" {value.unit}" if value.unit else "")
     if isinstance(value, ast.Vector):
         return f"a list of {len(value.items)}"
+    if isinstance(value, ast.Call) and not value.args and value.name.text in ("{mapping}", *_FROM_MAPPING):
+        return "a mapping of " + ", ".join(k.name.text for k in value.kwargs)     # a scene's {x: .., y: ..}
     if isinstance(value, ast.Call):
         return f"{value.name.text}(...)"
     if isinstance(value, ast.NameRef):
         return f"the name '{value.name}'"
     if isinstance(value, ast.String):
-        return "a string"
+        return f"the text {value.text!r}"
     if isinstance(value, (ast.BinOp, ast.Neg)):
         return "an expression"
     return "true/false"
