@@ -19,9 +19,9 @@ PAPER_B = TASKS_DIR / "paper_b_virtual_rcm.vf"
 
 
 def write_bag(path: Path, *, rate=1000.0, seconds=1.0, jitter=0.05, torque_type="geometry_msgs/msg/WrenchStamped",
-              joints=None, shuffle_at=None, seed=0, storage="mcap", topic="/ft/wrench"):
-    """A rosbag2 (MCAP or sqlite3 storage) with ``topic`` (the torque a slow sine, N m) and /joint_states (one
-    message: ``joints`` {name: position}). Returns the wrench messages' (stamps, torques)."""
+              joints=None, shuffle_at=None, seed=0, storage="mcap", topic="/ft/wrench", frame_id="world"):
+    """A rosbag2 (MCAP or sqlite3 storage) with ``topic`` (the torque a slow sine, N m, in ``frame_id``) and
+    /joint_states (one message: ``joints`` {name: position}). Returns the wrench messages' (stamps, torques)."""
     from rosbags.rosbag2 import StoragePlugin, Writer
     from rosbags.typesys import Stores, get_typestore
     store = get_typestore(Stores.ROS2_HUMBLE)
@@ -36,7 +36,7 @@ def write_bag(path: Path, *, rate=1000.0, seconds=1.0, jitter=0.05, torque_type=
 
     def header(t):
         return T["std_msgs/msg/Header"](stamp=T["builtin_interfaces/msg/Time"](sec=int(t), nanosec=int(round(
-            (t - int(t)) * 1e9)) % 1_000_000_000), frame_id="ft")
+            (t - int(t)) * 1e9)) % 1_000_000_000), frame_id=frame_id)
 
     plugin = StoragePlugin.MCAP if storage == "mcap" else StoragePlugin.SQLITE3
     with Writer(path, version=9, storage_plugin=plugin) as writer:
@@ -387,6 +387,23 @@ def test_a_sensor_on_the_tool_in_its_own_units_is_turned_into_the_world(tmp_path
         assert np.allclose(got, R @ (torques[k] * 1e-3), rtol=0, atol=1e-15)
         turned = max(turned, float(np.abs(got - torques[k] * 1e-3).max()))
     assert turned > 1e-6                                          # the tool turned: the frame mattered
+
+
+def test_a_wrench_in_a_sensor_frame_is_not_taken_as_the_worlds(tmp_path, capsys):
+    """A WrenchStamped whose header names the sensor's frame ('ft'), mapped without `in:`: its vectors would be read
+    as the world's axes, a torque about the sensor's x pushing about the world's. Refused when the bag is read,
+    naming bag, topic, message and frame; `in: tip` (the sensor on the tool) or `in: world` (its axes are the world's)
+    says which frame it is, and runs. (It ran silently with the sensor's axes as the world's.)"""
+    write_bag(tmp_path / "lab", frame_id="ft")
+    refused = _scene(tmp_path, "recording:\n  bag: lab\n  inputs:\n    tau: /ft/wrench\n")
+    assert main(["simulate", str(PAPER_B), "--scene", str(refused), "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert ("bag lab, topic /ft/wrench, message 0 is expressed in frame 'ft' (its header's frame_id), but input 'tau' "
+            "is read in the world ('base', the robot's base)") in err and "in: FRAME" in err, err
+    assert "Traceback" not in err
+    for stated in ("tip", "world"):
+        scene = _scene(tmp_path, f"recording:\n  bag: lab\n  inputs:\n    tau: {{topic: /ft/wrench, in: {stated}}}\n")
+        assert main(["simulate", str(PAPER_B), "--scene", str(scene), "--quiet"]) == 0, capsys.readouterr().err
 
 
 @pytest.mark.parametrize("mapping, message", [

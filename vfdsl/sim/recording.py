@@ -89,6 +89,7 @@ class Source:
     frame: str | None = None
     expressed_in: str | None = None
     factors: tuple[float, ...] = ()
+    in_stated: bool = False          # the mapping says `in:` (world included): the messages' frame_id is not read
 
 
 @dataclass(frozen=True)
@@ -193,7 +194,7 @@ def _input_source(reader, key: str, kind: str, node: yaml.Node) -> Source:
                               f"here", reader.pos(unit_node), hint=f"write {u.example(part.dimension)}", code="E602")
             converted.append(factor)
         factors = tuple(converted)
-    return Source(topic, span, expressed_in=expressed_in, factors=factors)
+    return Source(topic, span, expressed_in=expressed_in, factors=factors, in_stated="in" in fields)
 
 
 def load(bag: Path, task, mapping: dict[str, Source], start: tuple[str, Span] | None,
@@ -243,6 +244,8 @@ def load(bag: Path, task, mapping: dict[str, Source], start: tuple[str, Span] | 
             continue
         source = mapping[name]
         if source.frame is None:
+            if not source.in_stated:
+                _in_the_world(name, robot, (bag.name, wanted[name], span), messages)
             values = np.array([_value(task.input(name).type, m, (bag.name, wanted[name], span, k))
                                for k, (_, m) in enumerate(messages)]).reshape(len(messages), -1)
             for k, factor in enumerate(source.factors):           # each part's units to SI
@@ -334,6 +337,21 @@ def _value(type_name: str, message, where: tuple) -> np.ndarray:
     f, t = message.wrench.force, message.wrench.torque
     parts = {"force": [f.x, f.y, f.z], "torque": [t.x, t.y, t.z], "wrench": [f.x, f.y, f.z, t.x, t.y, t.z]}
     return _finite(where, type_name, parts[type_name])
+
+
+def _in_the_world(name: str, robot, where: tuple, messages: list) -> None:
+    """An input mapped without `in:` is read in the world: refused when a message's header names another frame
+    (frame_id neither empty, 'world' nor the robot's base link), a sensor's own frame, which would be taken as the
+    world's axes."""
+    world = ("", "world", robot.link_names()[0])
+    for k, (_, message) in enumerate(messages):
+        frame_id = str(getattr(getattr(message, "header", None), "frame_id", "") or "")
+        if frame_id not in world:
+            raise _message_error((*where, k), f"is expressed in frame '{frame_id}' (its header's frame_id), but input "
+                                 f"'{name}' is read in the world ('{robot.link_names()[0]}', the robot's base)",
+                                 hint=f"say which task frame '{frame_id}' is: `{{topic: ..., in: FRAME}}` (its vectors "
+                                      "are then turned into the world each tick), or `in: world` if its axes are the "
+                                      "world's")
 
 
 def _joints(bag: str, topic: str, span: Span, message, robot, index: int = 0) -> np.ndarray:
