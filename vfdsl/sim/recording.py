@@ -29,7 +29,8 @@ would have commanded, and the rows it would have found violated.
 Refused, each with the bag, the topic and the message's index: a topic the bag lacks (its topics listed) or that has
 no message, a message type the input cannot take, stamps that go back in time or mix header stamps with zero ones, a
 value that is NaN or inf (or a pose's zero quaternion) or that the input type's checks refuse (a pose 10 m away:
-millimetres as metres), a JointState naming a joint the robot lacks, missing one it has, naming one twice, with
+millimetres as metres), a vector input mapped without ``in:`` whose header names a frame other than the world's (a
+sensor's own frame), a JointState naming a joint the robot lacks, missing one it has, naming one twice, with
 another number of positions than names, or a position far outside its joint's limits (degrees recorded as radians).
 """
 
