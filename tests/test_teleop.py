@@ -105,6 +105,24 @@ def test_a_wall_feels_k_times_the_masters_depth_along_its_normal(wall, depth):
     assert run[-1][1][2] == pytest.approx(-0.120, abs=1e-6)   # the slave on the floor
 
 
+def test_a_wall_pushes_the_master_out_and_never_pulls_it_in(wall):
+    """Withdrawing from the floor at 20 mm/s, the damping's -b d(depth)/dt pointed into the floor: the master was
+    pulled in while still past it (down to -0.01 N) and at the tick contact ended. Now the force is never along the
+    depth, and once no row acts it only decays to 0 (the rate limit)."""
+    task, ctrl = wall
+    reach = 0.0163 / SCALE
+    down = list(np.linspace(0.0, -(reach + 0.0005), 700)) + [-(reach + 0.0005)] * 300
+    up = [-(reach + 0.0005) + 0.00002 * k for k in range(1, 200)]
+    masters = np.zeros((len(down) + len(up), 6))
+    masters[:, 2] = down + up
+    out = drive(ctrl, task, masters)
+    force = np.array([t.force for t, _, _ in out])
+    assert force[999, 2] == pytest.approx(STIFFNESS * 0.0005, rel=1e-3)     # pressed 0.5 mm past: 0.1 N up
+    assert np.all(force[:, 2] >= -1e-12)                                     # never down, into the floor
+    released = next(k for k in range(1000, len(out)) if not out[k][0].acting)
+    assert np.all(np.diff(force[released - 1:released + 5, 2]) <= 1e-15)    # decays once nothing acts
+
+
 def test_sliding_along_the_wall_feels_only_the_depth(wall):
     """Pressed 5 mm into the floor and moved along it: the force stays k x 5 mm, normal, while the slave slides."""
     task, ctrl = wall
@@ -398,8 +416,8 @@ def test_the_readout_equals_an_independent_computation(wall):
     computation from the tick's own QP (Controller.problem), Pinocchio's Jacobian, SciPy's rotation vector and the
     previous tick's readout: the rows within 1e-9 of a bound act; their normals (J J' + 1e-10 I)^-1 J a_i; the
     removed rate r = [v_c; w_c] - J dq / dt, v_c = (g - p) / tau, w_c = rotvec(R_g R') / tau; the master's depth
-    d = R_c' tau [M (M + 1e-6 I)^-1 r]_linear / scale; the force F_prev + clip(ramp sat(-(k d + b (d - d_prev) / dt))
-    - F_prev, rate dt)."""
+    d = R_c' tau [M (M + 1e-6 I)^-1 r]_linear / scale; s = -(k d + b (d - d_prev) / dt) without its part along d
+    (0 at d = 0); the force F_prev + clip(ramp sat(s) - F_prev, rate dt)."""
     from scipy.spatial.transform import Rotation
     from vfdsl.kinematics.robot import Robot
     task, ctrl = wall
@@ -436,6 +454,7 @@ def test_the_readout_equals_an_independent_computation(wall):
         depth = CAMERA.T @ (TAU * (M @ np.linalg.solve(M + 1e-6 * np.eye(6), removed))[:3]) / SCALE
         engaged += dt
         spring = -(STIFFNESS * depth + (damping * (depth - previous) / dt if k else 0.0))
+        spring = spring - max(0.0, spring @ depth) * depth / (depth @ depth) if depth @ depth > 0 else 0 * spring
         target = min(1.0, engaged / ramp) * spring * min(1.0, SATURATION / max(np.linalg.norm(spring), 1e-300))
         step = target - F_prev
         force = F_prev + step * min(1.0, rate * dt / max(np.linalg.norm(step), 1e-300))

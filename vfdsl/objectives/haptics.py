@@ -15,8 +15,10 @@ Jacobian J (6 x n), the rates it commands c = [v_c; w_c], its tau and its phase 
                                                              along their normals only
     on the master    d_m = R_c' d_s / scale                   (m) the master's motion those rows stopped
     engaged          t_e = t_e + dt while w > 1/2, else 0     (s) how long the master has been followed
-    target           F* = min(1, t_e / ramp) sat(-(k d_m + b (d_m - d_prev) / dt), F_max)   (no damping at the
-                                                             first tick)
+    spring-damper    s = -(k d_m + b (d_m - d_prev) / dt)   (no damping at the first tick)
+    one-sided        s' = s - max(0, s.d_m) d_m / |d_m|^2,  0 where d_m = 0   a wall pushes the master out, never
+                                                             pulls it in (withdrawing, or at the tick contact ends)
+    target           F* = min(1, t_e / ramp) sat(s', F_max)
     force            F = F_prev + clip(F* - F_prev, rate dt)  (N, in the master's base frame)
 
 so free motion (no acting row) feels nothing, whatever the tracking lag, and a wall feels k times the master's
@@ -89,7 +91,8 @@ def readout_function(task: ir.Task, problem: AssembledProblem) -> ca.Function | 
         own = state[STATE * k:STATE * (k + 1)]
         previous, F_prev, warm, engaged = own[0:3], own[3:6], own[6], own[7]
         rate = (depth - previous) / dt
-        spring = -(ctx.scalar(o.args["stiffness"]) * depth + warm * ctx.scalar(o.args["damping"]) * rate)
+        spring = _one_sided(-(ctx.scalar(o.args["stiffness"]) * depth + warm * ctx.scalar(o.args["damping"]) * rate),
+                            depth)
         weight = 1 if gate.weight is None else gate.weight
         engaged = ca.if_else(weight > 0.5, engaged + dt, 0)
         target = ca.fmin(1, engaged / ctx.scalar(o.args["ramp"])) * _saturated(spring, ctx.scalar(o.args["saturation"]))
@@ -104,6 +107,13 @@ def readout_function(task: ir.Task, problem: AssembledProblem) -> ca.Function | 
                        [force, setpoint, g, new_state[0], ca.mmax(ca.vertcat(*weights)), acting,
                         ca.vertcat(*new_state)],
                        [*tick_buffers.data_arguments(bool(task.phases)), "x", "state"], list(READOUT))
+
+
+def _one_sided(force, depth):
+    """The force without its part along the depth (toward the wall), 0 at depth 0 (no row acts)."""
+    squared = ca.dot(depth, depth)
+    pull = ca.fmax(0, ca.dot(force, depth)) / ca.fmax(squared, 1e-300)
+    return ca.if_else(squared > 0, force - pull * depth, 0)
 
 
 def _saturated(v, limit):
