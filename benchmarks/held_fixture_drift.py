@@ -20,41 +20,24 @@ from pathlib import Path
 
 import numpy as np
 
-import vfdsl
-from vfdsl.kinematics.robot import Robot
-
 ROOT = Path(__file__).resolve().parent.parent
-TASK = ROOT / "tasks" / "lecture_remote_center.vf"
-PORT = np.array([306.890567, 0, 546.882052]) * 1e-3        # the scene's port (tasks/lecture_remote_center.yaml)
-ROBOT = Robot.load("panda7")
+sys.path.insert(0, str(ROOT / "tests"))
+from test_held_fixture import cone_task, errors  # noqa: E402
+
+import vfdsl  # noqa: E402
+
 TICKS = 400
 
 
-def _errors(q, axis):
-    """(the port's distance to the tool axis in mm, the tool's angle to ``axis`` in deg)."""
-    p, R = ROBOT.frame_pose(q, "tool_tip")
-    z, v = R[:, 2], PORT - p
-    port = np.linalg.norm(v - (v @ z) * z) * 1e3
-    return port, np.degrees(np.arccos(np.clip(z @ axis, -1.0, 1.0))) if axis is not None else float("nan")
-
-
 def _run(folder: Path, backend: str, cone_deg: float | None, stick) -> str:
-    source = TASK.read_text()
-    axis = None
-    if cone_deg is not None:
-        a = np.radians(cone_deg)
-        axis = np.array([np.sin(a), 0.0, -np.cos(a)])      # the tool points down at the start
-        source += f"require tip cone([{axis[0]:.9f}, 0, {axis[2]:.9f}], 15)\n"
-    (folder / "t.vf").write_text(source)
-    (folder / "t.yaml").write_text(TASK.with_suffix(".yaml").read_text())
-    task = vfdsl.load(folder / "t.vf")
+    task, axis = cone_task(folder, cone_deg)
     ctrl = vfdsl.compile(task, backend=backend)
     q = np.array(task.start, dtype=float)
     worst, least = 0.0, 0
     for _ in range(TICKS):
         q = q + ctrl.step(q, {"stick": stick})
         least += int(ctrl.status) & 1
-        port, angle = _errors(q, axis)
+        port, angle = errors(q, axis)
         worst = max(worst, port)
     where = f"cone axis {cone_deg:5.0f} deg from the tool" if cone_deg is not None else "no cone, fast joystick    "
     return (f"{where}  port error max {worst:6.3f} mm  least-violation ticks {least:3d}/{TICKS}  "

@@ -24,36 +24,46 @@ from vfdsl.kinematics.robot import Robot
 PORT = np.array([306.890567, 0, 546.882052]) * 1e-3        # tasks/lecture_remote_center.yaml's port
 ROBOT = Robot.load("panda7")
 POLYTOPE = 0.5 / np.cos(np.pi / 8)                         # the port's octagon (resolution 8) reaches 0.541 mm
+TASK = TASKS_DIR / "lecture_remote_center.vf"
 
 
-def _errors(q, axis):
+def cone_task(folder, cone_deg: float | None):
+    """(task, cone axis): lecture_remote_center with ``require tip cone(axis, 15)`` added, its axis ``cone_deg``
+    from the tool at the start (the tool points down); None: the task alone (axis None)."""
+    source, axis = TASK.read_text(), None
+    if cone_deg is not None:
+        a = np.radians(cone_deg)
+        axis = np.array([np.sin(a), 0.0, -np.cos(a)])
+        source += f"require tip cone([{axis[0]:.9f}, 0, {axis[2]:.9f}], 15)\n"
+    (folder / "t.vf").write_text(source)
+    (folder / "t.yaml").write_text(TASK.with_suffix(".yaml").read_text())
+    return vfdsl.load(folder / "t.vf"), axis
+
+
+def errors(q, axis):
+    """(the port's distance to the tool axis in mm, the tool's angle to ``axis`` in deg, NaN without an axis)."""
     p, R = ROBOT.frame_pose(q, "tool_tip")
     z, v = R[:, 2], PORT - p
-    return np.linalg.norm(v - (v @ z) * z) * 1e3, np.degrees(np.arccos(np.clip(z @ axis, -1.0, 1.0)))
+    port = np.linalg.norm(v - (v @ z) * z) * 1e3
+    return port, np.degrees(np.arccos(np.clip(z @ axis, -1.0, 1.0))) if axis is not None else float("nan")
 
 
 @pytest.mark.parametrize("backend", ["native", "interpreted"])
 @pytest.mark.parametrize("cone_deg", [20, 45, 90])
 def test_a_held_port_is_not_pushed_off_while_a_cone_comes_back(tmp_path, cone_deg, backend):
-    a = np.radians(cone_deg)
-    axis = np.array([np.sin(a), 0.0, -np.cos(a)])          # the tool points down at the start
-    task_file = TASKS_DIR / "lecture_remote_center.vf"
-    (tmp_path / "t.vf").write_text(task_file.read_text()
-                                   + f"require tip cone([{axis[0]:.9f}, 0, {axis[2]:.9f}], 15)\n")
-    (tmp_path / "t.yaml").write_text(task_file.with_suffix(".yaml").read_text())
-    task = vfdsl.load(tmp_path / "t.vf")
+    task, axis = cone_task(tmp_path, cone_deg)
     ctrl = vfdsl.compile(task, backend=backend)
     q = np.array(task.start, dtype=float)
-    assert _errors(q, axis)[0] < 1e-3
+    assert errors(q, axis)[0] < 1e-3
     ports, least = [], 0
     for _ in range(150):
         q = q + ctrl.step(q, {"stick": np.zeros(6)})
         least += int(ctrl.status) & 1
-        ports.append(_errors(q, axis)[0])
+        ports.append(errors(q, axis)[0])
     ports = np.array(ports)
     assert least >= 1                                        # the cone was out of reach in one tick
     assert ports.max() < 1.3, ports.max()                   # the first tick's second-order remainder, and no more
     outside = ports[:-1] > POLYTOPE + 1e-6
     assert np.all(ports[1:][outside] <= ports[:-1][outside] + 1e-6), "the port's error grew while it was off"
-    port, cone = _errors(q, axis)
+    port, cone = errors(q, axis)
     assert port <= POLYTOPE + 1e-6 and cone <= 15.1, (port, cone)   # both hold at the end

@@ -53,7 +53,7 @@ def weight_span(task: ir.Task) -> list[Finding]:
             levels.setdefault(o.priority, []).append((o.weight, f"minimize {o.term}", o.span))
         for c in constraints:
             if c.soft:
-                levels.setdefault(c.priority or 1, []).append((c.weight or 1.0, describe(c), c.span))
+                levels.setdefault(c.priority, []).append((c.weight, describe(c), c.span))
         for level, terms in sorted(levels.items()):
             light = min(terms, key=lambda term: term[0])
             heavy = max(terms, key=lambda term: term[0])

@@ -108,9 +108,7 @@ class Admissible:
         if not isinstance(arg, ir.Const):
             return
         value = arg.value
-        points = {"point": lambda: [value.xyz], "line": lambda: [value.point], "plane": lambda: [value.point],
-                  "curve": lambda: value.points}.get(value.kind, lambda: [])()
-        for k, xyz in enumerate(points):
+        for k, xyz in enumerate(_written_points(value)):
             if np.max(np.abs(xyz)) > self.distance:
                 part = f"'s point {k + 1}" if value.kind == "curve" else "" if value.kind == "point" else "'s point"
                 yield span, notes, f"{what}{part} is {show_vector(xyz)} m: beyond {self._bound_words()}"
@@ -194,6 +192,15 @@ class Admissible:
     def _bound_words(self) -> str:
         return (f"{self.distance:.3g} m, the largest coordinate plausible for this task ({REACH_FACTOR:g} x its "
                 f"reach of {self.reach:.3g} m, at most {MAX_DISTANCE:g} m)")
+
+
+def _written_points(value: ir.Value) -> list:
+    """The points a constant value is written with: a point's, a line's or a plane's point, a curve's (none else)."""
+    if value.kind == "point":
+        return [value.xyz]
+    if value.kind in ("line", "plane"):
+        return [value.point]
+    return value.points if value.kind == "curve" else []
 
 
 def _derived_args(task: ir.Task):

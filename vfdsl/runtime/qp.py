@@ -479,9 +479,9 @@ def _penalty_scales(E: ca.DM, lba, uba, at_rest) -> ca.MX:
     """w_g = max(v_g, REST_VIOLATION_FLOOR), v_g the largest violation at rest of group g's rows (a group that holds
     at rest gets the floor: (A) keeps its rows hard anyway)."""
     at_rest_violation = ca.fmax(ca.fmax(lba - at_rest, at_rest - uba), 0)
-    rows = [np.flatnonzero(np.array(ca.DM(E[:, g])).ravel()) for g in range(E.size2())]
-    return ca.vertcat(*(ca.fmax(ca.mmax(at_rest_violation[[int(i) for i in r]]), REST_VIOLATION_FLOOR)
-                        for r in rows))
+    incidence = np.array(E)
+    return ca.vertcat(*(ca.fmax(ca.mmax(at_rest_violation[np.flatnonzero(column).tolist()]), REST_VIOLATION_FLOOR)
+                        for column in incidence.T))
 
 
 def _least_violation_set(lba, uba, at_rest, relaxed, tol) -> tuple[ca.MX, ca.MX]:

@@ -344,12 +344,12 @@ def _in_the_world(name: str, robot, where: tuple, messages: list) -> None:
     """An input mapped without `in:` is read in the world: refused when a message's header names another frame
     (frame_id neither empty, 'world' nor the robot's base link), a sensor's own frame, which would be taken as the
     world's axes."""
-    world = ("", "world", robot.link_names()[0])
+    base = robot.link_names()[0]
     for k, (_, message) in enumerate(messages):
         frame_id = str(getattr(getattr(message, "header", None), "frame_id", "") or "")
-        if frame_id not in world:
+        if frame_id not in ("", "world", base):
             raise _message_error((*where, k), f"is expressed in frame '{frame_id}' (its header's frame_id), but input "
-                                 f"'{name}' is read in the world ('{robot.link_names()[0]}', the robot's base)",
+                                 f"'{name}' is read in the world ('{base}', the robot's base)",
                                  hint=f"say which task frame '{frame_id}' is: `{{topic: ..., in: FRAME}}` (its vectors "
                                       "are then turned into the world each tick), or `in: world` if its axes are the "
                                       "world's")

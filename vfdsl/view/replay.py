@@ -148,11 +148,13 @@ def read_mcap(path: Path, joint_names: list[str], trial: str | None = None, para
         if not states:
             raise VfError(f"{path}: its {prefix}/joint_states topic has no message")
         origin = min(states)
-        q = np.array([_positions(path, k, states[s], joint_names) for k, s in enumerate(sorted(states))])
-        stamps = np.array(sorted(states))[np.all(np.isfinite(q), axis=1)]     # as the CSV: a NaN joint drops its row
-        if not len(stamps):
+        order = sorted(states)
+        stamps = np.array(order)
+        q = np.array([_positions(path, k, states[s], joint_names) for k, s in enumerate(order)])
+        finite = np.all(np.isfinite(q), axis=1)           # as the CSV: a NaN joint drops its row
+        if not finite.any():
             raise VfError(f"{path}: no joint state with every joint finite")
-        q = q[np.all(np.isfinite(q), axis=1)]
+        stamps, q = stamps[finite], q[finite]
         status = read("/vfdsl/status")
         metrics = sorted(t[len(prefix) + len("/vfdsl/metric/"):] for t in topics
                          if t.startswith(prefix + "/vfdsl/metric/") and "error" in t)
