@@ -12,6 +12,7 @@ import pytest
 import vfdsl
 from vfdsl.codegen import tick_buffers
 from vfdsl.compiler.phases import monitor_values
+from vfdsl.kinematics.robot import Robot
 from vfdsl.runtime import phase_machine as pm
 from vfdsl.runtime.procedure import machine_table
 from vfdsl.runtime.qp import StepStatus
@@ -178,6 +179,67 @@ def test_blend_weights_are_in_the_qp(task):
     assert np.allclose(R[:3], np.sqrt(w[0]) * R1[:3], rtol=1e-12, atol=1e-15)     # approach's track, scaled
     assert np.all(R[3:] == 0) and np.all(R1[3:] == 0)                               # insert's, retract's: off
     assert blended.levels[0].terms == unblended.levels[0].terms
+    r, r1 = blended.levels[0].r, unblended.levels[0].r          # align has no term there: the target ramps too
+    assert np.abs(r1[:3]).max() > 0
+    assert np.allclose(r[:3], np.sqrt(w[0]) * w[0] * r1[:3], rtol=1e-12, atol=1e-18)
+
+
+CLUTCH = """\
+task clutch_blend
+units mm, deg
+robot shr = urdf "shr7"
+frame tip = shr.link("tool_tip")
+input hand : force
+input clutch : button
+monitor pressed = clutch
+monitor released = not clutch
+minimize damping() weight 1e-6
+phase drive initial {{ minimize track(tip, hand, gain = 2 mm/s/N){other} }}
+phase held {{{held} }}
+transition drive -> held when pressed blend 100 ms
+transition held -> drive when released blend 100 ms
+"""
+"""A hand drives the tip at 10 mm/s (5 N); the clutch enters ``held``, which has no term on drive's level (or, with
+``held`` set, a term there of its own), blending over 10 ticks of 10 ms; releasing it blends back."""
+
+
+def tip_speeds(tmp_path, backend, presses, other="", held=""):
+    """The tip's speed (mm/s, by Pinocchio's kinematics) at each tick, the clutch pressed where ``presses`` is 1."""
+    path = tmp_path / f"clutch_{backend}.vf"
+    path.write_text(CLUTCH.format(other=other, held=held))
+    task = vfdsl.load(path)
+    ctrl = vfdsl.compile(task, backend=backend)
+    robot = Robot.load(task.robots[0].urdf)
+    q = 0.5 * (robot.lower + robot.upper)
+    speeds = []
+    for press in presses:
+        before = robot.frame_pose(q, "tool_tip")[0]
+        q = q + ctrl.step(q, {"hand": [5.0, 0.0, 0.0], "clutch": [press]}, dt=0.01)
+        speeds.append(np.linalg.norm(robot.frame_pose(q, "tool_tip")[0] - before) * 1e3 / 0.01)
+    return np.array(speeds)
+
+
+@pytest.mark.parametrize("backend", ["interpreted", "native"])
+def test_a_blend_into_a_phase_without_terms_on_the_level_ramps_the_motion(tmp_path, backend):
+    """Out of drive's level (held has nothing there) the motion ramps down with the weight, 9, 8, ..., 1 mm/s over
+    the blend's 10 ticks, 0.45 mm in all (before: 10 mm/s until the blend's end, then 0 at once: 0.9 mm); back
+    into it, up from 1 mm/s to 10, not 10 at once."""
+    speeds = tip_speeds(tmp_path, backend, [0] * 20 + [1] * 20 + [0] * 20)
+    assert np.allclose(speeds[15:20], 10.0, rtol=1e-3)
+    assert np.allclose(speeds[20:30], np.arange(9, -1, -1), atol=0.02)
+    assert np.all(speeds[30:40] < 1e-6)
+    assert np.allclose(speeds[40:50], np.arange(1, 11), atol=0.02)
+    assert np.allclose(speeds[50:], 10.0, rtol=1e-3)
+
+
+def test_a_blend_between_terms_on_one_level_blends_their_weights_alone(tmp_path):
+    """held with a term of its own on drive's level (tracking half as fast): the weights alone blend, the level
+    keeps its full target (coverage 1), and the speed moves from 10 to 5 mm/s without a dip."""
+    speeds = tip_speeds(tmp_path, "interpreted", [0] * 20 + [1] * 20,
+                        held="\n    minimize track(tip, hand, gain = 1 mm/s/N)")
+    assert np.allclose(speeds[15:20], 10.0, rtol=1e-3) and np.allclose(speeds[31:], 5.0, rtol=1e-3)
+    blend = speeds[20:30]
+    assert np.allclose(blend, 10 - 5 * np.arange(1, 11) / 10, atol=0.02)
 
 
 FAR_PHASE = """\

@@ -141,31 +141,53 @@ class _Level:
 def _objective_levels(objectives: list[tuple[ir.Objective, Gate]], ctx: Context,
                       soft: list[tuple[ir.Constraint, Gate]], n: int) -> list[_Level]:
     """Each priority level's cost over x = [dq; s] (n entries), levels in the order they are solved; each weight
-    as its statement's gate scales it."""
+    as its statement's gate scales it, each target by its level's coverage (:func:`_coverage`)."""
+    terms = []                                            # (level, gate, weight, E, f dt, name, term)
+    for objective, gate in objectives:
+        for term in registry.objective(objective.term).lower(objective, ctx):
+            E = ca.horzcat(term.E, ca.SX.zeros(term.E.shape[0], n - ctx.nq))
+            name = f"{objective.term}{_frame_of(objective)}{' ' + term.part if term.part else ''}"
+            terms.append(((objective.priority, term.after), gate, objective.weight, E, term.f * ctx.dt, name,
+                          objective.term))
+    for index, (c, gate) in enumerate(soft):
+        E = ca.SX(1, n)
+        E[ctx.nq + index] = 1
+        terms.append(((c.priority, 0), gate, c.weight, E, ca.SX.zeros(1),
+                      f"soft {c.primitive}({c.frame or ''}) slack", "soft"))
+    coverage = _coverage([(key, gate) for key, gate, *_ in terms])
     levels: dict[tuple[int, int], _Level] = {}
-
-    def add(key, weight, E, f, name, term):
+    for key, gate, weight, E, f, name, term in terms:
         level = levels.setdefault(key, _Level(ca.SX.zeros(n, n), ca.SX.zeros(n), [], [], [], set()))
-        R, r = ca.sqrt(2 * weight) * E, ca.sqrt(2 * weight) * f
+        w = gate.scaled(weight)
+        R, r = ca.sqrt(2 * w) * E, ca.sqrt(2 * w) * coverage[key] * f
         level.H += R.T @ R
         level.g -= R.T @ r
         level.R.append(R)
         level.r.append(r)
         level.names.append(name)
         level.terms.add(term)
-
-    for objective, gate in objectives:
-        for term in registry.objective(objective.term).lower(objective, ctx):
-            E = ca.horzcat(term.E, ca.SX.zeros(term.E.shape[0], n - ctx.nq))
-            name = f"{objective.term}{_frame_of(objective)}{' ' + term.part if term.part else ''}"
-            add((objective.priority, term.after), gate.scaled(objective.weight), E, term.f * ctx.dt, name,
-                objective.term)
-    for index, (c, gate) in enumerate(soft):
-        E = ca.SX(1, n)
-        E[ctx.nq + index] = 1
-        add((c.priority, 0), gate.scaled(c.weight), E, ca.SX.zeros(1), f"soft {c.primitive}({c.frame or ''}) slack",
-            "soft")
     return [levels[key] for key in sorted(levels)]
+
+
+def _coverage(placed: list[tuple[tuple[int, int], Gate]]) -> dict[tuple[int, int], ca.SX]:
+    """c_L per level L: 1 where a statement outside the phases has a term on L, else the summed activity of the
+    phases with terms on L (at most 1). Every target on L is scaled by c_L: in a steady phase c_L is 1 wherever
+    the phase has terms; during a blend from a phase with terms on L to one without (a clutch phase with only
+    damping), c_L = 1 - s and the old terms' motion ramps down with their weights instead of running in full
+    until s = 1 (a weight alone on its level sets no trade-off, only the target does); into such a level it ramps
+    up from 0. Where both phases have terms on L, c_L = 1 and the weights alone blend."""
+    phases: dict[tuple[int, int], dict[str, ca.SX]] = {}
+    outside: set[tuple[int, int]] = set()
+    for key, gate in placed:
+        if gate.weight is None:
+            outside.add(key)
+        else:
+            phases.setdefault(key, {})[gate.phase] = gate.weight
+    coverage = {key: ca.SX(1) for key in outside}
+    for key, activity in phases.items():
+        if key not in outside:
+            coverage[key] = ca.fmin(1, sum(activity.values(), ca.SX(0)))
+    return coverage
 
 
 def _frame_of(objective: ir.Objective) -> str:

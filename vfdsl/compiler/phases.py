@@ -3,8 +3,10 @@
 **Activity.** The QP data of a task with P phases take one more argument, ``activity`` (2P numbers,
 :data:`vfdsl.codegen.tick_buffers.PHASE_ARGUMENTS`): a_k in [0, 1], phase k's weight, then h_k in {0, 1}, its hard
 rows on. Phase k's statements are gated (:class:`Gate`): an objective term's weight w becomes a_k w, a soft
-constraint's slack weight too; a hard row's bounds become (lb, ub) where h_k > 1/2, else (-inf, +inf) (DAQP treats
-an infinite bound as inactive, and the violation output and the least-violation phase count such a row as met).
+constraint's slack weight too (and each target is scaled by its level's coverage, the summed a_k of the phases
+with terms on the level: :func:`vfdsl.compiler.assemble._coverage`); a hard row's bounds become (lb, ub) where
+h_k > 1/2, else (-inf, +inf) (DAQP treats an infinite bound as inactive, and the violation output and the
+least-violation phase count such a row as met).
 The task's phase-less statements are not gated: a task without phases compiles to the same graph as before
 procedures. Values, not structure: a transition changes no sparsity. (The step solves, per phase, only the rows
 that phase can hold: :mod:`vfdsl.compiler.cases`.)
