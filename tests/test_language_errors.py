@@ -220,6 +220,12 @@ CASES = [
     Case("robot-primitive-with-subject", BASE + "require tip joint_limits()\n", 9, 9,
          "joint_limits applies to the whole robot, not to a frame", hint="write `require joint_limits(...)`"),
     Case("library-loaded-as-task", edit("task t", "library t"), 1, 9, "is a library; load a task file"),
+    # ---------------------------------- non-finite numbers spelled as names (were "unknown length 'nan'", E201)
+    Case("tolerance-nan", edit("within 1 um", "within nan"), 8, 32, "'nan' is not a number: numbers must be finite",
+         hint="write a finite number"),
+    Case("weight-inf", BASE + "minimize damping() weight inf\n", 9, 27, "'inf' is not a number"),
+    Case("point-item-nan", edit("[0, 0, 290]", "[0, 0, NaN]"), 6, 26, "'NaN' is not a number"),
+    Case("param-value-infinity", BASE + "param r : length = Infinity\n", 9, 20, "'Infinity' is not a number"),
 ]
 
 

@@ -16,7 +16,7 @@ from vfdsl import limits
 from vfdsl import units as u
 from vfdsl.compiler.admissible import Admissible
 from vfdsl.compiler.geometry import compose, rotation
-from vfdsl.errors import VfError, combined, suggest
+from vfdsl.errors import VfError, combined, non_finite_name, suggest
 from vfdsl.inputs import INPUT_TYPES
 from vfdsl.ir import model as ir
 from vfdsl.kinematics.robot import ROBOTS_DIR, Robot
@@ -398,7 +398,8 @@ class Declarations:
         return q
 
     def no_names(self, ref: ast.NameRef, kind: str) -> ir.Value:
-        raise VfError(f"a name ('{ref.name}') cannot stand here; write the value itself", ref.span, code="E206")
+        raise non_finite_name(ref.name, ref.span) or VfError(f"a name ('{ref.name}') cannot stand here; write the value "
+                                                             "itself", ref.span, code="E206")
 
 
 def _named_mapping(value: ast.Value, kind: str) -> ast.Value:
