@@ -203,6 +203,12 @@ CASES = [
     Case("start-outside-joint-limits", BASE + 'scene "s.yaml"\n', 2, 18,
          "joint rcm_a starts outside its limits",
          files={"s.yaml": "units: mm, deg\nstart: [0, 0, 0, 90, 0, 0, 10]\n"}, where="s.yaml"),
+    Case("start-outside-joint-limits-bare-si", BASE.replace("units mm, deg\n", "") + 'scene "s.yaml"\n', 1, 64,
+         "joint insert starts outside its limits", hint="20 mm is within the limits: write `20 mm`",
+         files={"s.yaml": "start: {x: 0, y: 0, z: 0, rcm_a: 0, rcm_b: 0, roll: 0, insert: 20}\n"}, where="s.yaml"),
+    Case("start-outside-joint-limits-bare-rad", edit("units mm, deg", "units mm") + 'scene "s.yaml"\n', 1, 18,
+         "joint rcm_a starts outside its limits", hint="a bare angle here is in rad",
+         files={"s.yaml": "start: [0, 0, 0, 30, 0, 0, 10]\n"}, where="s.yaml"),
     Case("start-wrong-length", BASE + 'scene "s.yaml"\n', 2, 8, "the start configuration needs 7 joint values",
          files={"s.yaml": "units: mm, deg\nstart: [0, 0, 0, 0, 0, 10]\n"}, where="s.yaml"),
     Case("malformed-yaml", BASE + 'scene "s.yaml"\n', 3, 7, "malformed YAML",
@@ -220,6 +226,12 @@ CASES = [
     Case("robot-primitive-with-subject", BASE + "require tip joint_limits()\n", 9, 9,
          "joint_limits applies to the whole robot, not to a frame", hint="write `require joint_limits(...)`"),
     Case("library-loaded-as-task", edit("task t", "library t"), 1, 9, "is a library; load a task file"),
+    # ---------------------------------- non-finite numbers spelled as names (were "unknown length 'nan'", E201)
+    Case("tolerance-nan", edit("within 1 um", "within nan"), 8, 32, "'nan' is not a number: numbers must be finite",
+         hint="write a finite number"),
+    Case("weight-inf", BASE + "minimize damping() weight inf\n", 9, 27, "'inf' is not a number"),
+    Case("point-item-nan", edit("[0, 0, 290]", "[0, 0, NaN]"), 6, 26, "'NaN' is not a number"),
+    Case("param-value-infinity", BASE + "param r : length = Infinity\n", 9, 20, "'Infinity' is not a number"),
 ]
 
 

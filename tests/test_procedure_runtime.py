@@ -435,3 +435,38 @@ def test_a_direction_from_captures_that_coincide_holds_the_tool_and_says_so(tmp_
         else:
             assert not ctrl.status & StepStatus.FALLBACK and np.abs(dq).max() > 0
             assert all(np.isfinite(v.amount) for v in named)
+
+
+AT_EQUALITY = """task at_equality
+units mm, deg
+robot shr = urdf "shr7"
+frame tip = shr.link("tool_tip")
+input hand : force
+param here : point = [0, 0, 280]
+monitor idle = norm(hand) <= 0 N
+monitor busy = norm(hand) > 0 N
+monitor anywhere = distance(tip, here) >= 0 mm
+monitor away = distance(tip, here) > 0 mm
+monitor upright = angle(tip, [0, 0, 1]) <= 0 deg
+minimize track(tip, hand, gain = 1 mm/s/N)
+phase rest initial { }
+phase done final { }
+transition rest -> done when idle and anywhere and upright
+"""
+
+
+@pytest.mark.parametrize("backend", ["native", "interpreted"])
+def test_a_non_strict_comparison_holds_at_equality(tmp_path, backend):
+    """`<=` and `>=` hold where the measure equals the threshold, `<` and `>` do not. Before, both compiled to the
+    same strict margin: `norm(hand) <= 0 N` never held with the hands exactly off, and `distance(tip, here) >= 0 mm`,
+    which `vfdsl check` calls always true (VF955), never held with the tip on the point: the transition never fired."""
+    (tmp_path / "eq.vf").write_text(AT_EQUALITY)
+    (tmp_path / "eq.yaml").write_text("units: mm, deg\nperiod: 10 ms\nstart: [0, 0, 0, 0, 0, 0, 20]\n")
+    task = vfdsl.load(tmp_path / "eq.vf")              # the tip at (0, 0, 280) mm, its axis along z
+    ctrl = vfdsl.compile(task, backend=backend)
+    ctrl.step(task.start, {"hand": [0.0, 0.0, 0.0]}, dt=0.01)
+    assert ctrl.monitors == {"idle": True, "busy": False, "anywhere": True, "away": False, "upright": True}
+    assert ctrl.phase == "done"
+    ctrl.reset()
+    ctrl.step(task.start, {"hand": [0.0, 0.0, 1e-3]}, dt=0.01)
+    assert ctrl.monitors["idle"] is False and ctrl.monitors["busy"] is True and ctrl.phase == "rest"

@@ -83,6 +83,23 @@ def test_free_motion_feels_nothing(wall):
     assert lag > 1e-5                      # the slave lagged behind its goal: the force ignores the lag
 
 
+@pytest.mark.parametrize("backend", ["interpreted", "native"])
+def test_a_teleop_task_without_a_constraint_row_compiles_and_feels_nothing(tmp_path, backend):
+    """Only joint bounds (no fixture row): the readout's depth and force are structural zeros; they compiled to a
+    sparse output and every command (check, compile, simulate, export) stopped with a Python traceback."""
+    free = WALL.replace("param floor : plane = plane(point = [0, 0, -120], normal = [0, 0, 1])\n", "")
+    free = free.replace("require tip above(floor)", "require joint_limits()")
+    (tmp_path / "free.vf").write_text(free)
+    (tmp_path / "free.yaml").write_text(START)
+    task = vfdsl.load(tmp_path / "free.vf")
+    ctrl = vfdsl.compile(task, backend=backend)
+    run = drive(ctrl, task, master_path([0.01, 0.0, -0.05], ticks_per_leg=200, hold=50))
+    assert np.abs(np.array([r.force for r, _, _ in run])).max() == 0.0
+    assert np.array([r.depth for r, _, _ in run]).shape == (250, 3)
+    assert not any(len(r.acting) for r, _, _ in run)
+    assert np.linalg.norm(run[-1][0].goal - run[-1][1]) < 1e-3      # followed the scaled master, unhindered
+
+
 @pytest.mark.parametrize("depth", [0.005, 0.010])
 def test_a_wall_feels_k_times_the_masters_depth_along_its_normal(wall, depth):
     """The master pushed `depth` past where the scaled command meets the floor: F = k depth along the floor's normal

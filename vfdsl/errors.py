@@ -219,6 +219,18 @@ def _printable(line: str) -> str:
     return "".join("?" if ch != "\t" and (unicodedata.category(ch) in ("Cc", "Zl", "Zp")) else ch for ch in line)
 
 
+NON_FINITE_NAMES = ("nan", "inf", "infinity")
+
+
+def non_finite_name(name: str, span: Span | None) -> VfError | None:
+    """The error for a name that spells a non-finite number (``within nan``, ``weight inf``), where a value stands
+    and no declaration has that name; None for any other name. The language has no such numbers (E304)."""
+    if name.lower() not in NON_FINITE_NAMES:
+        return None
+    return VfError(f"'{name}' is not a number: numbers must be finite", span,
+                   hint="write a finite number, with its unit where the value has one (e.g. 0.5 mm)", code="E304")
+
+
 def suggest(name: str, known: Iterable[str], what: str) -> str:
     """A hint for an unknown ``name``: the closest known names, then the full list."""
     known = sorted(set(known))

@@ -28,8 +28,10 @@ phase, its funnelled constraints' entry errors e_j at (q, u, p), which the run t
 captures just taken.
 
 **Monitors.** ``monitor_values(q, u, p) -> raw`` gives each compiled comparison's signed margin (true when > 0):
-``m < t`` and ``m <= t`` give t - m, ``m > t`` and ``m >= t`` give m - t (at equality both are false: 0 is not
-> 0); ``release r`` adds a second value, r - m for ``<`` (m - r for ``>``), which switches the latch off when
+``m < t`` gives t - m, ``m > t`` gives m - t (at equality false: 0 is not > 0); ``m <= t`` and ``m >= t`` give the
+same margin raised to the smallest positive double where it is 0 (:func:`_inclusive`), so that they hold at equality, as
+``vfdsl check`` reads them (``norm(hand) <= 0 N`` with the hands exactly off, ``distance(tip, p) >= 0 mm`` at p);
+``release r`` adds a second value, r - m for ``<`` (m - r for ``>``), which switches the latch off when
 <= 0 (:mod:`vfdsl.runtime.phase_machine`); a button gives u - 1/2 (pressed above one half). The measures:
 ``distance`` to a point |x - c|, to a line |(I - d d')(x - c)|, to a plane n'(x - c) (signed); ``angle`` between
 the tool axis a and a direction d, atan2(|a x d|, a'd) in [0, pi]; ``norm`` of an input or its part.
@@ -204,7 +206,8 @@ def monitor_values(task: ir.Task, ctx: Context) -> MonitorValues:
             margins = [measure - 0.5]
         else:
             sign = 1 if node.op in ("<", "<=") else -1
-            margins = [sign * (node.threshold - measure)]
+            margin = sign * (node.threshold - measure)
+            margins = [_inclusive(margin) if node.op in ("<=", ">=") else margin]
             if node.release is not None:
                 margins.append(sign * (node.release - measure))
         index[leaf_key(node)] = (len(raw), len(raw) + 1 if len(margins) > 1 else -1)
@@ -212,6 +215,12 @@ def monitor_values(task: ir.Task, ctx: Context) -> MonitorValues:
     values = ca.vertcat(*raw) if raw else ca.SX(0, 1)
     return MonitorValues(ca.Function("monitor_values", [ctx.q, ctx.u, ctx.p], [values], ["q", "u", "p"], ["raw"]),
                          index)
+
+
+def _inclusive(margin: ca.SX) -> ca.SX:
+    """A non-strict comparison's margin, true (> 0) where the margin is >= 0: 0 becomes the smallest positive
+    double; NaN stays NaN (unknown)."""
+    return ca.if_else(margin >= 0, ca.fmax(margin, np.finfo(float).tiny), margin)
 
 
 def _measure(measure, ctx: Context) -> ca.SX:

@@ -103,9 +103,9 @@ def readout_function(task: ir.Task, problem: AssembledProblem) -> ca.Function | 
     g, _ = teleop.goal(terms[0][0], ctx)
     frame = ctx.frame(terms[0][0].args["frame"].name)
     setpoint = ca.Function("pose", [ctx.q], [ca.vertcat(frame.p, rpy_of(frame.R))])(ctx.q + dq)
-    return ca.Function("teleop_readout", [*arguments, x, state],
-                       [force, setpoint, g, new_state[0], ca.mmax(ca.vertcat(*weights)), acting,
-                        ca.vertcat(*new_state)],
+    outputs = [force, setpoint, g, new_state[0], ca.mmax(ca.vertcat(*weights)), acting, ca.vertcat(*new_state)]
+    # dense: without a constraint row (a teleop task with only joint bounds) the depth and force are structural zeros
+    return ca.Function("teleop_readout", [*arguments, x, state], [ca.densify(ca.SX(v)) for v in outputs],
                        [*tick_buffers.data_arguments(bool(task.phases)), "x", "state"], list(READOUT))
 
 

@@ -16,7 +16,7 @@ from vfdsl import limits
 from vfdsl import units as u
 from vfdsl.compiler.admissible import Admissible
 from vfdsl.compiler.geometry import compose, rotation
-from vfdsl.errors import VfError, combined, suggest
+from vfdsl.errors import VfError, combined, non_finite_name, suggest
 from vfdsl.inputs import INPUT_TYPES
 from vfdsl.ir import model as ir
 from vfdsl.kinematics.robot import ROBOTS_DIR, Robot
@@ -391,14 +391,30 @@ class Declarations:
                               f"({', '.join(robot.joint_names)})", span, code="E401")
             values = value.items
         q = [reader.scalar(v, d, "joint value") for v, d in zip(values, dims)]
-        for name, x, lo, hi, v in zip(robot.joint_names, q, robot.lower, robot.upper, values):
+        for name, x, lo, hi, v, d in zip(robot.joint_names, q, robot.lower, robot.upper, values, dims):
             if not lo - 1e-12 <= x <= hi + 1e-12:
                 raise VfError(f"joint {name} starts outside its limits [{lo:g}, {hi:g}] (SI units)", v.span,
-                              code="E402")
+                              hint=_bare_unit_slip(v, x, lo, hi, d, reader.units), code="E402")
         return q
 
     def no_names(self, ref: ast.NameRef, kind: str) -> ir.Value:
-        raise VfError(f"a name ('{ref.name}') cannot stand here; write the value itself", ref.span, code="E206")
+        raise non_finite_name(ref.name, ref.span) or VfError(f"a name ('{ref.name}') cannot stand here; write the value "
+                                                             "itself", ref.span, code="E206")
+
+
+def _bare_unit_slip(value: ast.Value, x: float, lo: float, hi: float, dim: u.Dim,
+                    units: u.DefaultUnits) -> str | None:
+    """A hint for a start value written without a unit and read in SI (no `units` names its dimension's unit) that
+    in mm (a length) or deg (an angle) would lie within the joint's limits."""
+    if not isinstance(value, ast.Quantity) or value.unit is not None or units.factor(dim) != 1.0:
+        return None
+    unit, factor = ("mm", 1e-3) if dim == u.LENGTH else ("deg", math.pi / 180)
+    if not lo - 1e-12 <= x * factor <= hi + 1e-12:
+        return None
+    what, si = ("length", "m") if unit == "mm" else ("angle", "rad")
+    return (f"a bare {what} here is in {si} (neither the scene's nor the task's `units` names a {what} unit); "
+            f"{value.number:g} {unit} is within the limits: write `{value.number:g} {unit}`, or give the scene "
+            "`units: mm, deg`")
 
 
 def _named_mapping(value: ast.Value, kind: str) -> ast.Value:

@@ -17,7 +17,7 @@ from pathlib import Path
 
 from vfdsl import limits
 from vfdsl import units as u
-from vfdsl.errors import VfError, suggest
+from vfdsl.errors import VfError, non_finite_name, suggest
 from vfdsl.inputs import INPUT_TYPES, described
 from vfdsl.ir import model as ir
 from vfdsl.objectives import OBJECTIVES
@@ -182,9 +182,9 @@ class Resolver(Declarations):
         elif ref.name in self.failed:
             raise Dependent
         else:
-            raise VfError(f"unknown {kind.replace('_', ' ')} '{ref.name}'", ref.span,
-                          hint=suggest(ref.name, self._names_of(kind, scope), f"{kind.replace('_', ' ')}s"),
-                          code="E201")
+            raise non_finite_name(ref.name, ref.span) or VfError(
+                f"unknown {kind.replace('_', ' ')} '{ref.name}'", ref.span,
+                hint=suggest(ref.name, self._names_of(kind, scope), f"{kind.replace('_', ' ')}s"), code="E201")
         return arg
 
     def _scoped_reader(self, scope: fx.Scope) -> LiteralReader:

@@ -16,7 +16,7 @@ from typing import Callable
 
 from vfdsl.compiler.admissible import MIN_DIRECTION_NORM
 from vfdsl.compiler.curve import MIN_SAMPLES, SAMPLE_SPACING
-from vfdsl.errors import VfError
+from vfdsl.errors import VfError, non_finite_name
 from vfdsl.ir import model as ir
 from vfdsl import limits
 from vfdsl import units as u
@@ -102,7 +102,8 @@ class LiteralReader:
         out = []
         for item in value.items:
             if not isinstance(item, ast.Quantity):
-                raise VfError(f"expected a number, got {_what(item)}", item.span, code="E401")
+                raise (isinstance(item, ast.NameRef) and non_finite_name(item.name, item.span)
+                       or VfError(f"expected a number, got {_what(item)}", item.span, code="E401"))
             unit = item.unit if item.unit is not None else value.unit
             out.append(u.to_si(item.number, unit, dim, self.units, item.span))
         return out

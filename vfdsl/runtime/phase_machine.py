@@ -6,7 +6,8 @@ the same order, so both give the same phases, transitions and weights to the las
 ``-ffp-contract=off``, every operation here is one IEEE double operation).
 
 **Inputs of a tick.** ``raw``: the tick's compiled comparison values, from this tick's q and inputs (``a < t``
-compiles to t - a, ``a > t`` to a - t: true when > 0; a ``release r`` compiles a second value, r - a for ``<``,
+compiles to t - a, ``a > t`` to a - t: true when > 0; ``a <= t`` and ``a >= t`` to the same, but > 0 at equality too,
+:func:`vfdsl.compiler.phases._inclusive`; a ``release r`` compiles a second value, r - a for ``<``,
 that must go <= 0 to switch the monitor off); ``u``: the inputs; ``dt``: the tick's period (a value that is not
 a finite number >= 0 counts as 0); ``last_status``: the previous tick's StepStatus bits.
 
