@@ -68,6 +68,7 @@ def test_pose_params_take_a_mapping():
     (lambda c, q: c.step(q, {"tau": [0, 0]}), "must have 3 numbers"),
     (lambda c, q: c.step(q, {"tau": [0.0]}), "must have 3 numbers"),            # no broadcasting
     (lambda c, q: c.step(q, {"tau": 0.0}), "must have 3 numbers"),
+    (lambda c, q: c.step(q, {"tau": 1}), "must have 3 numbers (a list or array), got an int"),
     (lambda c, q: c.step(0.1, {"tau": [0, 0, 0]}), "q (joint coordinates) must have 7 numbers"),
     (lambda c, q: c.step(q, [0, 0, 0]), "inputs must be a mapping"),
     (lambda c, q: c.step(q, {"torque": [0, 0, 0]}), "unknown input 'torque'"),

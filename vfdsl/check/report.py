@@ -222,7 +222,7 @@ def _measured(figures: dict) -> list[str]:
     lever and sideways speed, the hands-off motion, the time the check took."""
     lines = []
     if "start_margin" in figures:
-        lines.append(f"  feasibility margin at the start: {figures['start_margin']:.3g} (m or rad)")
+        lines.append(f"  feasibility margin at the start: {figures['start_margin'] + 0.0:.3g} (m or rad)")   # -0 as 0
     for name, f in figures.get("frames", {}).items():
         lines.append(f"  frame {name}: Jacobian rank {f['rank']}, smallest singular value {f['sigma_min_v']:.3g} "
                      f"(J_v, ratio {f['conditioning_v']:.3g}), {f['sigma_min_w']:.3g} (J_w, ratio "

@@ -57,7 +57,8 @@ def analyse_values(task: ir.Task) -> list[Finding]:
             findings.append(Finding(
                 "tolerance-implausible", Severity.WARNING,
                 f"a tolerance of {quantity(eps, kind)} is {side} the plausible range "
-                f"[{quantity(low, kind)}, {quantity(high, kind)}] for a {kind}: a unit slip?", c.span,
+                f"[{quantity(low, kind)}, {quantity(high, kind)}] for {'an' if kind[:1] in 'aeiou' else 'a'} {kind}: "
+                "a unit slip?", c.span,
                 "give the unit explicitly, e.g. `within 0.5 mm` or `within 1 deg`", heading,
                 {"tolerance": eps, "range": [low, high]}))
     return findings

@@ -138,7 +138,7 @@ def _describe(x) -> str:
         return f"the boolean {x}"
     if isinstance(x, numbers.Complex) and not isinstance(x, numbers.Real):
         return f"the complex number {x}"
-    return f"a {type(x).__name__}"
+    return _article(type(x).__name__)
 
 
 def input_checks(types: Mapping, offsets: Mapping[str, tuple[int, int]], n: int) -> ca.Function:
@@ -209,7 +209,7 @@ class RuntimeValues:
         u = np.empty(self.n_inputs)
         for name, (offset, size) in self.input_offsets.items():
             if name not in value:
-                raise VfError(f"missing input '{name}' ({size} numbers)",
+                raise VfError(f"missing input '{name}' ({_count(size)})",
                               hint="pass every declared input each tick, zeros when idle")
             x = real_vector(value[name], size, f"input '{name}'", finite=False)
             failed = self.input_types[name].first_failure(x)
