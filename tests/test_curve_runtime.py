@@ -102,6 +102,27 @@ def test_polyline_vertex_takes_the_next_segment():
         assert behind[0] == pytest.approx(0.0, abs=1e-15)
 
 
+def test_outside_a_corner_the_vertex_takes_the_next_segment():
+    """Off the polyline, in the wedge outside a corner, the vertex is the closest point of both its segments: a tie,
+    which goes to the later segment as on the vertex. (The earlier segment's end was P_k + L_k d_k, a rounding off
+    the vertex, so the tie was decided by the last bit: the earlier segment's tangent at 14 of these 722 queries.)"""
+    f = locate_function(SplineCurve.interpolate(CUT, 1))
+    rng = np.random.default_rng(5)
+    ties = 0
+    for k in range(1, len(CUT) - 1):
+        before, after = unit(CUT[k] - CUT[k - 1]), unit(CUT[k + 1] - CUT[k])
+        for v in rng.normal(size=(1200, 3)):
+            x = CUT[k] + rng.uniform(1e-4, 0.05) * unit(v)
+            if v @ before < 0 or v @ after > 0 or np.linalg.norm(brute_force_segments(CUT, x)[0] - CUT[k]) > 1e-15:
+                continue                    # not in the wedge, or another segment is nearer
+            ties += 1
+            point, tangent, behind, _ = (np.array(z).ravel() for z in f(x))
+            np.testing.assert_allclose(point, CUT[k], atol=1e-15)
+            np.testing.assert_allclose(tangent, after, atol=1e-12)
+            assert behind[0] == 0.0
+    assert ties > 700
+
+
 def test_one_segment_is_a_line():
     """Two points: no corner, so no room to report (follows adds no segment row), the tangent is the segment's."""
     found = SplineCurve.interpolate(CUT[:2], 1).locate(ca.SX.sym("x", 3))

@@ -382,3 +382,25 @@ def test_a_reversed_axis_comes_back_steadily_in_closed_loop(tmp_path, primitive,
     assert errors[0] - errors[-1] > 100 * 0.2 * DT, (errors[0], errors[-1])     # >= half the angular speed limit
     signs = np.sign(np.round(np.array(steps), 9))
     assert not np.any(signs[1:] * signs[:-1] < 0), "a joint turned back"
+
+
+@pytest.mark.parametrize("backend", ["native", "interpreted"])
+def test_rotates_around_with_the_tool_along_its_axis(tmp_path, backend):
+    """The tool exactly along w_d, 90 deg out of the plane it should sweep (shr7's home pose under
+    `rotates_around([0, 0, 1])`): the projection l_Pi of the tool on the plane has no direction. It was normalized to
+    0, and so was delta_r = l_Pi x l_t: every row held at dq = 0, the tick OPTIMAL with nothing named, the tool left
+    where it was. Now l_Pi is a fixed normal to w_d: the rows ask the whole sine back, the ticks are least violation
+    with the fixture named, and the angle out of the plane falls steadily."""
+    ctrl = _task(tmp_path, "rotates_around", backend)
+    params = {"ax": L0}                                   # Q0's tool axis, to the bit
+    _, lb, _ = _rows_of(ctrl, Q0, params, "rotates_around")
+    assert lb.max() > 0.9
+    q, angles = Q0.copy(), []
+    for _ in range(50):
+        angles.append(math.asin(min(1.0, abs(_pose(q)[1] @ L0))))
+        dq = ctrl.step(q, None, params, DT)
+        assert ctrl.status & StepStatus.LEAST_VIOLATION and np.all(np.isfinite(dq))
+        assert any(v.label.primitive == "rotates_around" for v in ctrl.violations())
+        q = q + dq
+    assert angles[0] == pytest.approx(math.pi / 2)
+    assert np.all(np.diff(angles) <= 1e-12) and angles[0] - angles[-1] > 50 * 0.2 * DT / 2

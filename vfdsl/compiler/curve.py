@@ -17,7 +17,10 @@ brute-force search).
 
 A polyline (degree 1) is searched exactly instead: on each segment P_k + t d_k (t in [0, L_k]) the closest
 point is at t = clamp((x - P_k) . d_k, 0, L_k); the nearest of those wins, a later segment on a tie, so at a
-vertex the tangent is the next segment's (never the zero vector). ``locate`` also gives how far the segment
+vertex the tangent is the next segment's (never the zero vector). A segment clamped at its end takes the vertex
+P_(k+1) itself, not P_k + L_k d_k (which rounds off it), so wherever a vertex is the closest point of both its
+segments (on it, or anywhere in the wedge outside its corner) the two distances are equal to the bit and the tie
+is one. ``locate`` also gives how far the segment
 runs behind and ahead of the closest point (infinite past the polyline's ends), so a lowering can keep a
 frame from overshooting a corner.
 
@@ -150,7 +153,7 @@ class SplineCurve:
             d = normalize(b - a)
             length = ca.dot(b - a, d)
             t = ca.fmin(ca.fmax(ca.dot(x - a, d), 0.0), length)
-            point = a + t * d
+            point = ca.if_else(t < length, a + t * d, b)    # the end vertex exactly: a tie there is a tie in bits
             found = (ca.sumsqr(x - point), point, d, ca.inf if k == 0 else t, ca.inf if k == last else length - t)
             if best is None:
                 best = found

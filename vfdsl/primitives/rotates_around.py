@@ -3,6 +3,8 @@
 Keep the tool axis l_t perpendicular to a direction w_d (the tool sweeps the plane Pi normal to w_d):
 l_Pi = normalized projection of l_t on Pi,  delta_r = l_Pi x l_t,  u_r = projection of (delta_r + dx_r) on Pi,
 || u_r || <= eps with the n-gon of R4 = [v1 v2 w_d]. Erratum 2: the rows act on (delta_r + dx_r).
+With the tool along w_d (|l_t x w_d| <= PARALLEL) the projection has no direction: l_Pi is then the fixed normal
+v1 of w_d, and |delta_r| = 1 (before, l_Pi and delta_r were 0: every row held at dq = 0, the fixture off).
 """
 
 from __future__ import annotations
@@ -11,7 +13,7 @@ from typing import TYPE_CHECKING
 
 import casadi as ca
 
-from vfdsl.compiler.geometry import normalize, polygon_directions
+from vfdsl.compiler.geometry import plane_basis, polygon_directions, turn_axis
 from vfdsl.compiler.rows import Rows, facets
 from vfdsl.ir import model as ir
 from vfdsl.primitives.spec import ArgSpec, ConstraintSpec
@@ -43,7 +45,7 @@ def lower(c: ir.Constraint, ctx: Context) -> Rows:
 
 def around_axis(frame, w, eps, n, delta_r=None) -> Rows:
     """Polygon rows (normal to w) on delta_r + dx_r; delta_r defaults to l_Pi x l_t (eq. 11)."""
-    if delta_r is None:
-        l_pi = normalize(frame.axis - ca.dot(frame.axis, w) * w)
+    if delta_r is None:      # the projection's length is |l_t x w|: none along w, where a fixed normal turns the tool
+        l_pi = turn_axis(frame.axis - ca.dot(frame.axis, w) * w, plane_basis(w)[0])
         delta_r = ca.cross(l_pi, frame.axis)
     return facets(polygon_directions(w, n), delta_r, eps, frame.Jw)
