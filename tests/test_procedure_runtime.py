@@ -12,6 +12,7 @@ import pytest
 import vfdsl
 from vfdsl.codegen import tick_buffers
 from vfdsl.compiler.phases import monitor_values
+from vfdsl.errors import VfError
 from vfdsl.kinematics.robot import Robot
 from vfdsl.runtime import phase_machine as pm
 from vfdsl.runtime.procedure import machine_table
@@ -435,6 +436,21 @@ def test_a_direction_from_captures_that_coincide_holds_the_tool_and_says_so(tmp_
         else:
             assert not ctrl.status & StepStatus.FALLBACK and np.abs(dq).max() > 0
             assert all(np.isfinite(v.amount) for v in named)
+
+
+@pytest.mark.parametrize("written", ["keeps_direction(normalize(a - a)) within 2 deg",
+                                     "along(line(a, a)) within 0.5 mm"])
+def test_a_direction_from_one_capture_minus_itself_is_refused(tmp_path, written):
+    """`normalize(a - a)` is zero at every tick. CasADi folds a - a to 0 and the NaN that stands for "no direction" to a
+    constant, which later folds on (nan / nan is 1): keeps_direction read the direction [1, 1, 1] / 1, and shr7 turned
+    at its speed limit toward it, violated by 0.985 rad, not the documented hold-still. Refused when compiled, at the
+    expression (E402), as a zero direction of params is when the task loads."""
+    text = CAPTURED_DIRECTION.replace("keeps_direction(normalize(b - a)) within 2 deg", written)
+    (tmp_path / "self.vf").write_text(text)
+    with pytest.raises(VfError) as caught:
+        vfdsl.compile(vfdsl.load(tmp_path / "self.vf"), backend="interpreted")
+    assert caught.value.code == "E402" and "whatever the captures hold" in caught.value.message
+    assert caught.value.pos.line == 18
 
 
 AT_EQUALITY = """task at_equality

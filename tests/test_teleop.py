@@ -356,6 +356,26 @@ def test_each_rotation_mode_turns_the_tool_as_documented(tmp_path, rotation):
     assert np.linalg.norm(tip.rotation - expected) < 1e-6
 
 
+@pytest.mark.parametrize("backend", ["interpreted", "native"])
+def test_a_master_turned_half_a_turn_turns_the_tool_half_a_turn(tmp_path, backend):
+    """The master turned by yaw = pi since engage asks the tool half a turn about world z (R_c Rz(pi) R_c' = Rz(pi)): the
+    error R_g R' is then a rotation by 180 deg - 1.2e-16 (sin(pi) in rpy_matrix), whose vee(R - R') is 1e-16 and whose
+    rotation vector was 0: the tool stayed where it was, every tick OPTIMAL. It now rolls the shaft and arrives."""
+    task, ctrl = _rotated("relative", tmp_path)
+    if backend == "native":
+        ctrl = vfdsl.compile(task, backend="native")
+    start = ctrl.frames(np.array(task.start))["tip"].rotation
+    q = np.array(task.start, dtype=float)
+    master = np.zeros(6)
+    q = q + ctrl.step(q, {"master": master, "clutch": [0.0]})        # engage: the anchors are captured
+    master[5] = np.pi
+    dq = ctrl.step(q, {"master": master, "clutch": [0.0]})
+    assert np.abs(dq).max() > 1e-3, "the tool does not turn toward a goal half a turn away"
+    ctrl.reset()
+    _, tip = _turned(ctrl, task, [0.0, 0.0, np.pi], ticks=1000, ramp=1)
+    assert np.linalg.norm(tip.rotation - _rot([0.0, 0.0, np.pi]) @ start) < 1e-6
+
+
 def test_a_captured_scale_changes_only_across_a_clutch(tmp_path):
     """scale = k, k captured from the run-time param `gain` on engage: changing gain while following changes
     nothing; after a clutch and a release the new gain scales the master's motion."""

@@ -335,5 +335,11 @@ def capture_slots(task: ir.Task) -> tuple[ParamSlot, ...]:
 
 
 def _unit_or_nan(v, node: ir.Derived):
-    """v / |v|, NaN where |v| < derived.MIN_NORM (no direction)."""
+    """v / |v|, NaN where |v| < derived.MIN_NORM (no direction). A v that reads no symbol after CasADi's folding
+    (``normalize(p0 - p0)``: p0 - p0 is 0) is zero at every tick: an error here, since its constant NaN would be folded
+    on (nan / nan is 1 to CasADi: a direction [1, 1, 1] the rows then held, the fixture steering at full speed)."""
+    v = ca.SX(v)
+    if v.is_constant() and float(ca.norm_2(ca.DM(v))) < derived.MIN_NORM:
+        raise VfError("this vector is zero whatever the captures hold: it has no direction", node.span,
+                      hint=derived.ZERO_HINT, code="E402")
     return ca.if_else(ca.norm_2(v) >= derived.MIN_NORM, normalize(v), ca.DM.nan(v.numel(), 1))

@@ -63,7 +63,7 @@ def add_checks(margins: Margins, arg: ir.Derived, read: Read, notes: tuple[str, 
     def unit(v, node: ir.Derived):
         margins.add(ca.norm_2(v) - MIN_NORM,
                     Check(partial(_zero_message, node), _ZERO_MEANING.get(node.op, _ZERO_MEANING["direction"]),
-                          node.span, _ZERO_HINT, notes=notes))
+                          node.span, ZERO_HINT, notes=notes))
         return normalize(v)
     value = evaluate(arg, read, unit)
     numbers = ca.vertcat(*value) if isinstance(value, tuple) else value
@@ -82,7 +82,7 @@ def check(arg: ir.Derived, read: Read, when: str = "") -> None:
 _ZERO_MEANING = {"line2": "the two points of a derived line must be distinct",
                  "normalize": "a normalized derived vector must not be zero",
                  "direction": "a derived direction must not be zero"}
-_ZERO_HINT = ("a derived direction needs two distinct points, or a non-zero, non-parallel vector "
+ZERO_HINT = ("a derived direction needs two distinct points, or a non-zero, non-parallel vector "
               f"(at least {MIN_NORM:g} SI)")
 
 

@@ -130,13 +130,25 @@ def rpy_of(R):
 
 
 def rotation_vector(R):
-    """The rotation vector theta * axis of a rotation matrix (CasADi): theta = atan2(|s|, (trace R - 1) / 2) with
-    s = vee(R - R') / 2 = sin(theta) axis, scaled by theta / sin(theta) (1 below sin theta = 1e-12). Exact up to
-    about 179.9 deg; at 180 deg s vanishes and the axis is lost (the vector is then 0)."""
+    """The rotation vector theta * axis of a rotation matrix (CasADi): theta = atan2(|s|, c) with
+    s = vee(R - R') / 2 = sin(theta) axis and c = (trace R - 1) / 2 = cos(theta).
+
+    Up to 90 deg (c >= 0) the axis is s / sin(theta) (s itself below sin theta = 1e-12). Past 90 deg sin(theta) falls
+    back to 0 (at 180 deg s is 0 and the axis would be lost: a goal half a turn away asked for no rotation), so there
+    the axis comes from the symmetric part, (R + R') / 2 - c I = (1 - c) axis axis' (its column of largest diagonal,
+    normalized; each diagonal entry is at least 1/3 of 1 - c >= 1 in one column), signed to agree with s (either sign
+    at exactly 180 deg: the same rotation)."""
     s = 0.5 * ca.vertcat(R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1])
     sin_theta = ca.norm_2(s)
-    theta = ca.atan2(sin_theta, 0.5 * (R[0, 0] + R[1, 1] + R[2, 2] - 1))
-    return s * ca.if_else(sin_theta > 1e-12, theta / ca.fmax(sin_theta, 1e-12), 1)
+    c = 0.5 * (R[0, 0] + R[1, 1] + R[2, 2] - 1)
+    theta = ca.atan2(sin_theta, c)
+    near = s * ca.if_else(sin_theta > 1e-12, theta / ca.fmax(sin_theta, 1e-12), 1)
+    B = 0.5 * (R + R.T) - c * ca.DM.eye(3)
+    column = ca.if_else(ca.logic_and(B[0, 0] >= B[1, 1], B[0, 0] >= B[2, 2]), B[:, 0],
+                        ca.if_else(B[1, 1] >= B[2, 2], B[:, 1], B[:, 2]))
+    axis = normalize(column)
+    far = theta * ca.if_else(ca.dot(axis, s) >= 0, axis, -axis)
+    return ca.if_else(c >= 0, near, far)
 
 
 def compose(offset_a, rpy_a, offset_b, rpy_b) -> tuple[list[float], list[float]]:
