@@ -81,6 +81,9 @@ def test_the_example_is_sound_and_its_findings_are_the_procedures():
         Severity.NOTE, later[0], f"needle_procedure.vf:{line(TEXT, 'require tip stays_at(entry)')}")
     assert "violated by up to 1 mm" in distance.message and "200 ms" in distance.message
     assert math.isclose(distance.data["worst"], 1.5e-3) and angle.severity == Severity.NOTE
+    # nothing states how far approach turns the needle: the note says from how far the funnel can bring it in
+    # (0.29 deg a tick at the speed limits, 20 ticks), not that it brings in any angle in 200 ms
+    assert "violated by up to 179 deg" in angle.message and "beyond it (at the speed limits)" in angle.message
     # insert and retract fix lines through points captured on entry: no entry finding for them
     captured = [f":{line(TEXT, r)}" for r in ("along(line(start", "keeps_direction(axis0)", "along(line(stop")]
     assert not any(f.data["where"].endswith(tuple(captured)) for f in by_code["VF956"])
@@ -257,6 +260,41 @@ def test_a_per_transition_blend_funnels_only_its_transition(variant):
     task, text = variant("blend 200 ms\n", "", "when near_entry and pressed", "when near_entry and pressed blend 50 ms")
     [f] = [f for f in found(task, "VF956") if f.data["where"].endswith(":37")]
     assert f.severity == Severity.NOTE and "50 ms" in f.message
+
+
+def test_a_funnel_faster_than_the_speed_limits_is_a_warning(variant):
+    """near_entry up to 10 mm into align's 0.5 mm: the 200 ms funnel asks for 47.5 mm/s, the joints move the tip at
+    most 26.4 mm/s along the worst facet (VF204's reach): check said "its blend's funnel brings it within 500 um in
+    200 ms" while the run entered at 9.8 mm was 4.8 mm off at 200 ms, least violation for 39 ticks."""
+    task, text = variant("distance(tip, entry) < 1 mm release 1.5 mm", "distance(tip, entry) < 10 mm",
+                         "< 2 deg for 100 ms", "< 2 deg for 2 s")         # (the run stays in align)
+    [f] = [f for f in found(task, "VF956") if f.data["where"].endswith(":37")]
+    assert (f.severity, f.span.line) == (Severity.WARNING, line(text, "transition approach -> align"))
+    assert "cannot bring it in" in f.message and "200 ms" in f.message
+    reach = f.data["reach_per_tick"]
+    assert 2e-4 < reach < 3e-4 and f.data["ticks"] == math.ceil(9.5e-3 / reach)
+    # the run: pushed to 9.8 mm, then the button: the tool lags its funnel (least violation) for about that long (the
+    # hand's force changes every tick: an unchanged one would be the stale sensor)
+    controller = vfdsl.compile(task)
+    entry = np.array([10, 5, 285]) * 1e-3
+    q = np.array(task.start, dtype=float)
+    for k in range(200):
+        if np.linalg.norm(controller.frames(q)["tip"].position - entry) >= 9.8e-3:
+            break
+        q = q + controller.step(q, {"hand": np.array([5.0 + 0.01 * (k % 2), 0, 0]), "go": np.zeros(1)})
+    assert controller.phase == "approach"
+    late = []
+    for k in range(60):
+        q = q + controller.step(q, {"hand": np.array([0.01 * (k % 2), 0, 0]), "go": np.ones(1)})
+        late += [k + 1] if controller.status & 1 else []
+    assert controller.phase == "align" and 20 < len(late) and abs(max(late) - f.data["ticks"]) <= 0.2 * f.data["ticks"]
+
+
+def test_a_funnel_within_the_speed_limits_stays_a_note(variant):
+    task, text = variant("distance(tip, entry) < 1 mm release 1.5 mm", "distance(tip, entry) < 10 mm",
+                         "blend 200 ms\n", "blend 500 ms\n")
+    [f] = [f for f in found(task, "VF956") if f.data["where"].endswith(":37")]
+    assert f.severity == Severity.NOTE and "brings it within 500 um in 500 ms" in f.message
 
 
 def test_the_source_phase_fixture_bounds_the_entry(variant):

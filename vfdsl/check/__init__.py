@@ -79,6 +79,8 @@ def check(task: ir.Task, *, overshoot: float = DEFAULT_OVERSHOOT, samples: int =
             found[phase] = ([procedure.not_compiled(task, phase)] if one is None
                             else _compiled(one, samples, seed, backend, figures, timings))
         report.add(found[""] if not task.phases else procedure.per_phase(found, report.findings))
+    if procedure.is_procedure(task):          # after the phases' analyses: their reach per tick bounds the funnels
+        run("procedure", procedure.entries, task, report.figures.get("phases", {}))
     report.figures["seconds"] = time.perf_counter() - started
     report.findings = [_with_param_sources(finding, statements) for finding in report.findings]
     return report
@@ -108,7 +110,7 @@ def _compiled(task: ir.Task, samples: int, seed: int, backend: str, figures: dic
     rows = linear.rows(task.start)
     _check_magnitudes(rows)
     timings["compile"] = timings.get("compile", 0.0) + time.perf_counter() - begin
-    run("tolerance", tolerance.analyse_at_start, rows, robot.resolution, robot.nq, linear.period)
+    run("tolerance", tolerance.analyse_at_start, rows, robot.resolution, robot.nq, linear.period, figures)
     run("feasibility", feasibility.analyse, rows, robot.nq, figures)
     run("residuals", residuals.analyse, task, linear, rows, task.start)
     run("residuals", residuals.soft_at_start, task, linear, rows, task.start, robot.nq, figures)

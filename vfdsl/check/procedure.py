@@ -8,8 +8,9 @@
   where the guard holds, :func:`.monitors.bounds`) and by the source phase's hard fixtures on the same measure
   (their stated size); it is 0 when the fixture's geometry is captured on entry from the same frame (a point of
   its origin, a line through it, its tool axis). Past the fixture's size, the entry is violated by up to the
-  excess: with a blend the funnel brings it in over the blend (a note), without one the rows snap it in one tick
-  (a warning). A guard that keeps the measure beyond the size violates every entry (a warning);
+  excess: with a blend the funnel brings it in over the blend (a note), unless the excess is more than the
+  fixture's one-tick reach at the rate limits (VF204, in the phase entered) times the blend's ticks: then the tool
+  lags its funnel at the speed limits (a warning); without a blend the rows snap it in one tick (a warning). A guard that keeps the measure beyond the size violates every entry (a warning);
 - **fixtures of every phase** (VF958, VF959): the statements outside the phases hold in every phase (one note lists
   them); a phase that states the same primitive on the same frame and geometry with a looser tolerance cannot
   loosen it (an error).
@@ -34,6 +35,7 @@ from vfdsl.compiler import derived
 from vfdsl.ir import captures
 from vfdsl.ir import model as ir
 from vfdsl.primitives import CONSTRAINTS
+from vfdsl.runtime.values import ASSUMED_PERIOD
 
 COMPILED = ("feasibility at the start", "residuals", "kinematics", "ports' levers", "meshes", "hands off",
             "the random walk", "redundancy and contradiction")
@@ -50,8 +52,8 @@ def every_statement(task: ir.Task) -> ir.Task:
 
 
 def analyse(task: ir.Task) -> list[Finding]:
-    return [*statechart.analyse(task), *monitors.analyse(task), *_entries(task), *_every_phase(task),
-            *_captured_directions(task)]
+    """What the IR decides, but the entries (:func:`entries`: they are measured against the phases' analyses)."""
+    return [*statechart.analyse(task), *monitors.analyse(task), *_every_phase(task), *_captured_directions(task)]
 
 
 def phase_tasks(task: ir.Task, backend: str) -> dict[str, ir.Task | None]:
@@ -174,8 +176,12 @@ def _captured_on_entry(task: ir.Task, phase: ir.Phase, m: ir.Measure) -> bool:
     return any(taken(arg, "position", origin) for arg in points)
 
 
-def _entries(task: ir.Task) -> list[Finding]:
+def entries(task: ir.Task, figures: dict) -> list[Finding]:
+    """VF956 and VF957 for every transition and fixture of the phase it enters. ``figures``: the phases' figures
+    (``figures.phases``), whose ``reach_per_tick`` (VF204's one-tick reach at the rate limits, by the constraint's
+    line) tells whether a blend's funnel can be followed; without them (no start) the funnel is taken to be."""
     phases = {p.name: p for p in task.phases}
+    period = task.scene.period or ASSUMED_PERIOD
     findings = []
     for t in task.transitions:
         target = phases[t.target]
@@ -191,7 +197,8 @@ def _entries(task: ir.Task) -> list[Finding]:
             if not entries:
                 continue                                    # a `*` that leaves no phase
             worst, source = max(entries)
-            findings += _entry(task, t, c, measure, size, guard.lo, worst, source)
+            reach = figures.get(t.target, {}).get("reach_per_tick", {}).get(where(c))
+            findings += _entry(task, t, c, measure, size, guard.lo, worst, source, reach, period)
     return findings
 
 
@@ -204,7 +211,7 @@ def _held(task: ir.Task, phase: ir.Phase, m: ir.Measure) -> float:
 
 
 def _entry(task, t: ir.Transition, c: ir.Constraint, m: ir.Measure, size: float, least: float, worst: float,
-           source: str) -> list[Finding]:
+           source: str, reach: float | None, period: float) -> list[Finding]:
     kind = "angle" if isinstance(m, ir.Angle) else "length"
     fixture = f"{describe(c)} within {quantity(size, kind)} at {where(c)}"
     subject = f"transition {arrow(t)}"
@@ -222,13 +229,32 @@ def _entry(task, t: ir.Transition, c: ir.Constraint, m: ir.Measure, size: float,
     if worst <= size:
         return []
     excess = "any amount" if math.isinf(worst) else f"up to {quantity(worst - size, kind)}"
-    bound = f"its guard lets {measured} reach {quantity(worst, kind)}" \
-        if worst < monitors.measure_range(task, m).hi else f"neither its guard nor '{source}' bounds {measured}"
+    unbounded = not worst < monitors.measure_range(task, m).hi
+    bound = f"neither its guard nor '{source}' bounds {measured}" if unbounded else \
+        f"its guard lets {measured} reach {quantity(worst, kind)}"
     if t.blend:
-        return [Finding("entry-unfunnelled", Severity.NOTE,
-                        f"{arrow(t)}: {bound}, so it can enter '{t.target}' with {fixture} violated by {excess}; "
-                        f"its blend's funnel brings it within {quantity(size, kind)} in "
-                        f"{quantity(t.blend, 'time')}", t.span, None, subject, data)]
+        # the funnel shrinks the excess e to 0 over the blend: e dt / B per tick, which the rate limits allow only
+        # up to the fixture's one-tick reach r (VF204); beyond e = r B / dt the tool lags its funnel at the speed
+        # limits, every tick a least-violation one, until it is within the fixture
+        funnelled = math.inf if not reach or not reach > 0 else reach * max(1, math.ceil(t.blend / period - 1e-9))
+        if unbounded or worst - size <= funnelled:         # unbounded: the kinematics may bound it, not stated
+            within = "" if math.isinf(funnelled) or worst - size <= funnelled else \
+                f" from up to {quantity(funnelled, kind)} beyond it (at the speed limits)"
+            return [Finding("entry-unfunnelled", Severity.NOTE,
+                            f"{arrow(t)}: {bound}, so it can enter '{t.target}' with {fixture} violated by {excess}; "
+                            f"its blend's funnel brings it within {quantity(size, kind)} in "
+                            f"{quantity(t.blend, 'time')}{within}", t.span, None, subject, data)]
+        ticks = math.ceil((worst - size) / reach)
+        return [Finding("entry-unfunnelled", Severity.WARNING,
+                        f"{arrow(t)}: {bound}, so it can enter '{t.target}' with {fixture} violated by {excess}; its "
+                        f"blend's funnel ({quantity(t.blend, 'time')}) cannot bring it in: at the speed limits one "
+                        f"tick ({quantity(period, 'time')}) moves only {quantity(reach, kind)} along its worst facet, "
+                        f"{quantity(funnelled, kind)} over the blend, so the tool lags the funnel at its speed limits "
+                        f"(least violation) for about {ticks} ticks ({ticks * period:.3g} s)", t.span,
+                        f"a blend of more than {quantity(ticks * period, 'time')} (the reach is the start's: leave a "
+                        f"margin), a guard within "
+                        f"{quantity(size + funnelled, kind)}, or higher speed limits", subject,
+                        {**data, "reach_per_tick": reach, "ticks": ticks})]
     return [Finding("entry-unfunnelled", Severity.WARNING,
                     f"{arrow(t)}: {bound}, so it can enter '{t.target}' with {fixture} violated by {excess}, and "
                     f"with no blend its rows snap it in one tick", t.span,

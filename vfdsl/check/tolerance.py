@@ -143,8 +143,10 @@ def _number(arg) -> str:
     return f"{float(arg.value.value):g}" if isinstance(arg, ir.Const) else arg.name
 
 
-def analyse_at_start(rows: list[ConstraintRows], resolution: np.ndarray | None, nq: int, period: float
-                     ) -> list[Finding]:
+def analyse_at_start(rows: list[ConstraintRows], resolution: np.ndarray | None, nq: int, period: float,
+                     figures: dict | None = None) -> list[Finding]:
+    """VF203 and VF204 at the start; ``figures["reach_per_tick"]`` gets each constraint's one-tick reach (by its
+    line, :func:`where`), which a procedure's entry funnels (VF956) are measured against."""
     findings = []
     rate_rows = [r for r in rows if CONSTRAINTS[r.constraint.primitive].rate and not r.constraint.soft]
     rates = LinearSystem.from_rows(rate_rows, nq) if rate_rows else None
@@ -167,6 +169,8 @@ def analyse_at_start(rows: list[ConstraintRows], resolution: np.ndarray | None, 
                     heading, {"tolerance": eps, "realizable": finest}))
         if rates is not None:
             reach = one_tick_reach(r, rates)
+            if figures is not None:
+                figures.setdefault("reach_per_tick", {})[where(c)] = reach
             if 0 < reach < eps:
                 ticks = math.ceil(eps / reach)
                 limits = limiting_rates(r, rate_rows, nq, reach)
