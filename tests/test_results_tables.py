@@ -14,6 +14,12 @@ from conftest import TASKS_DIR
 
 ROOT = TASKS_DIR.parent
 MAX_TICKS = 6000                 # reruns trial 0 of every run but the 1 ms ones (24,000 ticks a trial)
+ACROSS_MACHINES = {"tasks/paper_a_follow_curve.vf": (0.1, 1e-6)}
+"""(rel_tol, abs_tol) of a task whose closed loop parts in its last bits from one CPU to another: paper A's (its
+tip and shaft at one corner of their octagons, a degenerate vertex; numpy's and libm's kernels differ by CPU). The
+JSON generated on two machines (the second an AMD EPYC), same code and packages: its runs' trial-0 statistics up
+to 2.9 % apart (6.7 % on tilts of 1e-7 deg, i.e. rounding), every tick count equal; the other tasks' equal to
+1e-9. Every other task is held to (1e-9, 1e-15)."""
 
 
 def _script():
@@ -69,9 +75,10 @@ def test_the_json_is_what_the_code_gives_now(script, data):
         now = script.trial_record(result)
         assert now["ticks"] == recorded["ticks"] and now["fallback_ticks"] == recorded["fallback_ticks"], name
         assert set(now["stats"]) == set(recorded["stats"]), name
+        rel_tol, abs_tol = ACROSS_MACHINES.get(run.task, (1e-9, 1e-15))
         for metric, values in now["stats"].items():
             for a, b in zip(values, recorded["stats"][metric]):
-                assert math.isclose(a, b, rel_tol=1e-9, abs_tol=1e-15), (name, metric, values,
-                                                                          recorded["stats"][metric])
+                assert math.isclose(a, b, rel_tol=rel_tol, abs_tol=abs_tol), (name, metric, values,
+                                                                               recorded["stats"][metric])
         checked += 1
     assert checked >= len(script.runs()) - 2
