@@ -10,7 +10,8 @@
   its origin, a line through it, its tool axis). Past the fixture's size, the entry is violated by up to the
   excess: with a blend the funnel brings it in over the blend (a note), unless the excess is more than the
   fixture's one-tick reach at the rate limits (VF204, in the phase entered) times the blend's ticks: then the tool
-  lags its funnel at the speed limits (a warning); without a blend the rows snap it in one tick (a warning). A guard that keeps the measure beyond the size violates every entry (a warning);
+  lags its funnel at the speed limits (a warning); without a blend the rows snap it in one tick (a warning). A
+  guard that keeps the measure beyond the size violates every entry (a warning);
 - **fixtures of every phase** (VF958, VF959): the statements outside the phases hold in every phase (one note lists
   them); a phase that states the same primitive on the same frame and geometry with a looser tolerance cannot
   loosen it (an error).
