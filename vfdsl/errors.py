@@ -219,6 +219,11 @@ def _printable(line: str) -> str:
     return "".join("?" if ch != "\t" and (unicodedata.category(ch) in ("Cc", "Zl", "Zp")) else ch for ch in line)
 
 
+def a_or_an(word: str) -> str:
+    """The word with its indefinite article: 'a length', 'an angle', 'an int'."""
+    return ("an " if word[:1] in "aeiou" else "a ") + word
+
+
 NON_FINITE_NAMES = ("nan", "inf", "infinity")
 
 

@@ -237,7 +237,7 @@ def _entry(task, t: ir.Transition, c: ir.Constraint, m: ir.Measure, size: float,
         # the funnel shrinks the excess e to 0 over the blend: e dt / B per tick, which the rate limits allow only
         # up to the fixture's one-tick reach r (VF204); beyond e = r B / dt the tool lags its funnel at the speed
         # limits, every tick a least-violation one, until it is within the fixture
-        funnelled = math.inf if not reach or not reach > 0 else reach * max(1, math.ceil(t.blend / period - 1e-9))
+        funnelled = math.inf if reach is None or not reach > 0 else reach * max(1, math.ceil(t.blend / period - 1e-9))
         if unbounded or worst - size <= funnelled:         # unbounded: the kinematics may bound it, not stated
             within = "" if math.isinf(funnelled) or worst - size <= funnelled else \
                 f" from up to {quantity(funnelled, kind)} beyond it (at the speed limits)"

@@ -25,6 +25,7 @@ from vfdsl.check.linearized import ConstraintRows
 from vfdsl.ir.constraints import subject, value_of, where
 from vfdsl.check.lp import LinearSystem
 from vfdsl.check.report import Finding, Severity, quantity
+from vfdsl.errors import a_or_an
 from vfdsl.ir import model as ir
 from vfdsl.primitives import CONSTRAINTS
 
@@ -57,7 +58,7 @@ def analyse_values(task: ir.Task) -> list[Finding]:
             findings.append(Finding(
                 "tolerance-implausible", Severity.WARNING,
                 f"a tolerance of {quantity(eps, kind)} is {side} the plausible range "
-                f"[{quantity(low, kind)}, {quantity(high, kind)}] for {'an' if kind[:1] in 'aeiou' else 'a'} {kind}: "
+                f"[{quantity(low, kind)}, {quantity(high, kind)}] for {a_or_an(kind)}: "
                 "a unit slip?", c.span,
                 "give the unit explicitly, e.g. `within 0.5 mm` or `within 1 deg`", heading,
                 {"tolerance": eps, "range": [low, high]}))

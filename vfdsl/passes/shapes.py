@@ -16,7 +16,7 @@ from typing import Callable
 
 from vfdsl.compiler.admissible import MIN_DIRECTION_NORM
 from vfdsl.compiler.curve import MIN_SAMPLES, SAMPLE_SPACING
-from vfdsl.errors import VfError, non_finite_name
+from vfdsl.errors import VfError, a_or_an, non_finite_name
 from vfdsl.ir import model as ir
 from vfdsl import limits
 from vfdsl import units as u
@@ -45,8 +45,7 @@ _WRITE_AS = {
 
 
 def describe_kind(kind: str) -> str:
-    article = "an" if kind[0] in "aeiou" else "a"
-    return f"{article} {kind.replace('_', ' ')}"
+    return a_or_an(kind.replace("_", " "))
 
 
 class LiteralReader:

@@ -28,7 +28,7 @@ from pydantic import BaseModel
 
 from vfdsl.compiler.admissible import Admissible
 from vfdsl.compiler.context import flatten
-from vfdsl.errors import VfError, show_vector, suggest
+from vfdsl.errors import VfError, a_or_an, show_vector, suggest
 from vfdsl.inputs import INPUT_TYPES
 from vfdsl.inputs.base import FINITE
 from vfdsl.ir import model as ir
@@ -138,7 +138,7 @@ def _describe(x) -> str:
         return f"the boolean {x}"
     if isinstance(x, numbers.Complex) and not isinstance(x, numbers.Real):
         return f"the complex number {x}"
-    return _article(type(x).__name__)
+    return a_or_an(type(x).__name__)
 
 
 def input_checks(types: Mapping, offsets: Mapping[str, tuple[int, int]], n: int) -> ca.Function:
@@ -251,7 +251,7 @@ class RuntimeValues:
             return self._curve(what, self.task.param(name).value, value)
         if isinstance(value, BaseModel):
             if getattr(value, "kind", None) != _ir_kind(kind):
-                raise VfError(f"{what} is {_article(kind)}, got {_article(getattr(value, 'kind', '?'))} value")
+                raise VfError(f"{what} is {a_or_an(kind)}, got {a_or_an(getattr(value, 'kind', '?'))} value")
             value = flatten(value)
         elif isinstance(value, Mapping):
             value = self._from_mapping(what, kind, plain_mapping(value, what))
@@ -286,7 +286,7 @@ class RuntimeValues:
     def _from_mapping(self, what: str, kind: str, value: Mapping) -> list:
         fields = _FIELDS.get(kind)
         if fields is None or set(value) != set(fields):
-            raise VfError(f"{what} is {_article(kind)}: " + (f"a mapping with keys {', '.join(fields)}" if fields
+            raise VfError(f"{what} is {a_or_an(kind)}: " + (f"a mapping with keys {', '.join(fields)}" if fields
                                                               else "a list of numbers"))
         return [x for f in fields for x in real_vector(value[f], 3, f"{what}'s {f}")]
 
@@ -330,10 +330,6 @@ def _time(seconds: float) -> str:
 
 def _ir_kind(kind: str) -> str:
     return "scalar" if kind not in ("point", "vector", "direction", "line", "plane", "pose", "curve") else kind
-
-
-def _article(kind: str) -> str:
-    return ("an " if kind[:1] in "aeiou" else "a ") + kind
 
 
 def _count(size: int) -> str:
