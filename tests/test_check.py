@@ -249,9 +249,34 @@ def test_infeasible_start_names_an_irreducible_subset(tmp_path):
     ctrl = vfdsl.compile(probe(tmp_path, far), backend="interpreted")
     ctrl.step(ctrl.task.start, {"f": [0, 0, 0]})
     assert ctrl.violations() and ctrl.status & StepStatus.LEAST_VIOLATION
-    # and without the speed limit the same target is reachable in one tick
-    assert "start-infeasible" not in codes(probe(tmp_path, far.replace("require joint_speed()\n", "")))
     assert "start-infeasible" not in codes(probe(tmp_path))
+
+
+def test_without_joint_speed_the_start_is_judged_within_the_urdf_velocity_limits(tmp_path):
+    """Without ``require joint_speed()`` the controller still holds every tick to the URDF's velocity limits
+    (joint_speed()'s own bound, fraction 1), so the target 10 mm away is as unreachable in one tick: the same margin,
+    the conflict now stays_at alone, said to be within those limits; the compiled controller agrees (least
+    violation), and so do the sampled states' margins."""
+    far = PROBE.replace("param target : point = [0, 0, 290]", "param target : point = [0, 0, 280]")
+    stated = codes(probe(tmp_path, far))["start-infeasible"][0]
+    implicit_task = probe(tmp_path, far.replace("require joint_speed()\n", ""))
+    found = codes(implicit_task, samples=3)
+    implicit = found["start-infeasible"][0]
+    assert implicit.data["margin"] == pytest.approx(stated.data["margin"], rel=1e-9)
+    assert [c["line"] for c in implicit.data["conflict"]] == [9]
+    assert "within the URDF's velocity limits (the task states no joint_speed)" in implicit.message
+    assert "URDF velocity limit times the period" in implicit.suggestion
+    assert "URDF" not in stated.message
+    assert "within the URDF's velocity limits" in found["sampled-infeasible"][0].message
+    ctrl = vfdsl.compile(implicit_task, backend="interpreted")
+    ctrl.step(implicit_task.start, {"f": [0, 0, 0]})
+    assert ctrl.violations() and ctrl.status & StepStatus.LEAST_VIOLATION
+    # a period 50 times longer lets the joints reach it in one tick, as the controller does
+    slow = probe(tmp_path, far.replace("require joint_speed()\n", ""), SCENE.replace("10 ms", "500 ms"))
+    assert "start-infeasible" not in codes(slow, samples=0)
+    ctrl = vfdsl.compile(slow, backend="interpreted")
+    ctrl.step(slow.start, {"f": [0, 0, 0]})
+    assert not ctrl.violations() and not ctrl.status & StepStatus.LEAST_VIOLATION
 
 
 # ------------------------------------------------------------------------------------------ the command

@@ -111,7 +111,7 @@ def _compiled(task: ir.Task, samples: int, seed: int, backend: str, figures: dic
     _check_magnitudes(rows)
     timings["compile"] = timings.get("compile", 0.0) + time.perf_counter() - begin
     run("tolerance", tolerance.analyse_at_start, rows, robot.resolution, robot.nq, linear.period, figures)
-    run("feasibility", feasibility.analyse, rows, robot.nq, figures)
+    run("feasibility", feasibility.analyse, rows, robot.nq, figures, linear.speed_bound())
     run("residuals", residuals.analyse, task, linear, rows, task.start)
     run("residuals", residuals.soft_at_start, task, linear, rows, task.start, robot.nq, figures)
     walked = None

@@ -20,6 +20,7 @@ import casadi as ca
 import numpy as np
 
 from vfdsl.compiler import registry
+from vfdsl.compiler.assemble import urdf_speed_limits
 from vfdsl.compiler.context import Context
 from vfdsl.ir import model as ir
 from vfdsl.runtime.values import ASSUMED_PERIOD
@@ -82,6 +83,13 @@ class Linearization:
         self.default_params = context.layout.defaults.copy()
         self.period = task.scene.period or ASSUMED_PERIOD
         self.n_inputs = context.u.shape[0]
+        self.speed_limits = urdf_speed_limits(task, self.robot)
+
+    def speed_bound(self, dt=None) -> np.ndarray | None:
+        """|dq| per joint in one tick under the URDF's velocity limits, which the controller holds every tick to
+        when the task states no ``joint_speed()`` (:func:`~vfdsl.compiler.assemble.urdf_speed_limits`); None when
+        it states its own, whose rows are among :meth:`rows`."""
+        return None if self.speed_limits is None else self.speed_limits * (self.period if dt is None else dt)
 
     def _args(self, q, u, p, dt):
         u = np.zeros(self.n_inputs) if u is None else u

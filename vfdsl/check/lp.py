@@ -33,9 +33,12 @@ class LinearSystem:
     hi: np.ndarray
 
     @classmethod
-    def from_rows(cls, rows: list[ConstraintRows], nq: int) -> "LinearSystem":
-        """General rows from the geometric constraints; per-joint bounds intersected into the box."""
+    def from_rows(cls, rows: list[ConstraintRows], nq: int, speed: np.ndarray | None = None) -> "LinearSystem":
+        """General rows from the geometric constraints; per-joint bounds intersected into the box, with
+        |dq| <= ``speed`` (the URDF's velocity limits over one tick, when the task states no joint_speed)."""
         lo, hi = np.full(nq, -np.inf), np.full(nq, np.inf)
+        if speed is not None:
+            lo, hi = -np.asarray(speed, dtype=float), np.asarray(speed, dtype=float)
         A, lb, ub = [np.zeros((0, nq))], [np.zeros(0)], [np.zeros(0)]
         for r in rows:
             if r.bounds:

@@ -107,14 +107,27 @@ class AssembledProblem:
         return len(self.levels) > 1 and all(name.startswith("damping(") for name in self.levels[-1])
 
 
+def urdf_speed_limits(task: ir.Task, robot: Robot) -> np.ndarray | None:
+    """The joint speeds (rad/s or m/s) every tick is held to when ``task`` states no hard ``joint_speed()`` outside
+    its phases: the URDF's velocity limits, +inf for a joint without a positive, finite one; None when the task
+    states its own (its rows replace them). Its rows are linearized, right only for small motions, and a step
+    beyond what the joints can do in one tick is not a motion the robot can make (without it a tool placed 1 m
+    from lecture_stay_near_goal's goal got a 1.25 rad joint step, reported OPTIMAL, that took the tip 145 mm
+    further away)."""
+    if any(c.primitive == "joint_speed" and not c.soft for c in task.constraints):
+        return None
+    limits = np.asarray(robot.velocity_limit, dtype=float)
+    return np.where(np.isfinite(limits) & (limits > 0), limits, np.inf)
+
+
 def _velocity_limits(task: ir.Task, ctx: Context, lbx: list, ubx: list, labels: list[list[RowLabel]]) -> None:
-    """|dq_i| <= qdot_max_i dt, the URDF's velocity limits, for a task without ``require joint_speed()``: its rows are
-    linearized, right only for small motions, and a step beyond what the joints can do in one tick is not a motion
-    the robot can make (without it a tool placed 1 m from lecture_stay_near_goal's goal got a 1.25 rad joint step,
-    reported OPTIMAL, that took the tip 145 mm further away). A joint without a positive, finite limit is not bounded."""
+    """|dq_i| <= qdot_max_i dt for the joints :func:`urdf_speed_limits` bounds."""
     robot = ctx.robot
-    for i, limit in enumerate(robot.velocity_limit):
-        if np.isfinite(limit) and limit > 0:
+    limits = urdf_speed_limits(task, robot)
+    if limits is None:
+        return
+    for i, limit in enumerate(limits):
+        if np.isfinite(limit):
             lbx[i] = ca.fmax(lbx[i], -limit * ctx.dt)
             ubx[i] = ca.fmin(ubx[i], limit * ctx.dt)
             labels[i].append(RowLabel("joint_speed", None, f"{robot.joint_names[i]} (the URDF's velocity limit)",
@@ -233,8 +246,7 @@ def assemble(task: ir.Task, robot: Robot) -> AssembledProblem:
             labels += [_label(c, f, gate) for f in rows.facets]
             groups += [number] * len(rows.facets)
 
-    if not any(c.primitive == "joint_speed" and not c.soft for c in task.constraints):
-        _velocity_limits(task, ctx, lbx, ubx, bound_labels)
+    _velocity_limits(task, ctx, lbx, ubx, bound_labels)
 
     # soft constraints: one slack each, appended after dq
     n_slack = len(soft_rows)
