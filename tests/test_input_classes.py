@@ -347,6 +347,9 @@ def test_hints_fit_the_mistake(tmp_path):
     assert "um" in fails(tmp_path, "param d : length = 5 \u00b5m\n", "unexpected character").hint
     assert "5 mm + 3 mm" in fails(tmp_path, "param d : length = 5 + 3\n", "expected a length, got a plain number").hint
     assert "plain number" in fails(tmp_path, "minimize damping() weight 2 mm\n", "expected a plain number").hint
+    for name in ("spitze_\u00e4", "\u00e9cart", "\u5c16\u7aef", "tip\u0661"):   # a letter or digit not ASCII
+        assert "names are ASCII" in fails(tmp_path, f"param {name} : length = 5 mm\n", "unexpected character").hint
+    assert fails(tmp_path, "param d : length = 5 mm \u2014 five\n", "unexpected character").hint is None
 
 
 def test_cli_exits_2_on_a_resource_limit(tmp_path):

@@ -75,6 +75,8 @@ def syntax_error(exc: UnexpectedInput, text: str, file: str, parser: Lark) -> Vf
         char = text[exc.pos_in_stream] if 0 <= exc.pos_in_stream < len(text) else "?"
         message = f"unexpected character {char!r}"
         hint = _HINTS_FOR_CHARACTERS.get(char)
+        if hint is None and not char.isascii() and char.isalnum():
+            hint = "names are ASCII: the letters a-z and A-Z, digits and _ (a name such as 'tip_2')"
     else:  # pragma: no cover - lark has no other UnexpectedInput kinds
         message = "syntax error"
     if words:
