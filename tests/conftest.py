@@ -30,8 +30,13 @@ def tasks_copy(tmp_path: Path) -> Path:
 
 @pytest.fixture(scope="session", autouse=True)
 def private_cache(tmp_path_factory) -> Path:
-    """Generated libraries go to a cache of this test session, never the user's ~/.cache/vfdsl."""
-    cache = tmp_path_factory.mktemp("vfdsl-cache")
+    """Generated libraries go to a cache of this test session, never the user's ~/.cache/vfdsl: one for all the
+    session's worker processes (pytest-xdist), beside their own temporary folders, so that a task compiled in one
+    is not compiled again in the other (the cache publishes each entry with one rename: processes racing on one
+    each publish a whole one, tests/test_codegen.py)."""
+    base = tmp_path_factory.getbasetemp()
+    cache = (base.parent if os.environ.get("PYTEST_XDIST_WORKER") else base) / "vfdsl-cache"
+    cache.mkdir(exist_ok=True)
     previous = os.environ.get("VFDSL_CACHE")
     os.environ["VFDSL_CACHE"] = str(cache)
     yield cache

@@ -10,11 +10,11 @@ reads the registry's checks rather than a copy of "finite".
 from __future__ import annotations
 
 import dataclasses
-import subprocess
 
 import numpy as np
 import pytest
 from conftest import TASKS_DIR
+from test_export import make
 
 import vfdsl
 from vfdsl import inputs as input_registry
@@ -57,10 +57,16 @@ def bounded_task(monkeypatch):
     return vfdsl.load(TASKS_DIR / "paper_b_virtual_rcm.vf")
 
 
-def test_the_generated_check_refuses_on_the_fast_path(bounded_task, tmp_path):
+@pytest.fixture(scope="module")
+def bounded_cache(tmp_path_factory):
+    """A library cache of this module's own: the bounded type changes the generated code, not the task's digest."""
+    return tmp_path_factory.mktemp("bounded-cache")
+
+
+def test_the_generated_check_refuses_on_the_fast_path(bounded_task, bounded_cache):
     """Paper B's torque input over the added bound: the native step refuses it (the C fast path sends it to Python,
     which says which check failed); within the bound it steps as the interpreted path does."""
-    native = vfdsl.pipeline.build(bounded_task, backend="native", cache_dir=tmp_path)[0]
+    native = vfdsl.pipeline.build(bounded_task, backend="native", cache_dir=bounded_cache)[0]
     interpreted = vfdsl.pipeline.build(bounded_task, backend="interpreted")[0]
     q = np.array(bounded_task.start, dtype=float)
     for tau in ([60.0, 0.0, 0.0], [0.0, 0.0, -50.5], np.array([0.0, 51.0, 0.0])):
@@ -71,10 +77,10 @@ def test_the_generated_check_refuses_on_the_fast_path(bounded_task, tmp_path):
     np.testing.assert_allclose(native.step(q, ok), interpreted.step(q, ok), atol=1e-9)
 
 
-def test_the_exported_library_refuses_an_input_its_type_refuses(bounded_task, tmp_path):
-    exported = export(bounded_task, tmp_path / "b", cache_dir=tmp_path / "cache")
-    subprocess.run(["make", "-s"], cwd=exported.directory, check=True, capture_output=True)
-    tick = record(vfdsl.pipeline.build(bounded_task, backend="native", cache_dir=tmp_path / "cache")[0], 1)[0]
+def test_the_exported_library_refuses_an_input_its_type_refuses(bounded_task, bounded_cache, tmp_path):
+    exported = export(bounded_task, tmp_path / "b", cache_dir=bounded_cache)
+    make(exported.directory)
+    tick = record(vfdsl.pipeline.build(bounded_task, backend="native", cache_dir=bounded_cache)[0], 1)[0]
     lines = []
     for k, value in ((0, 49.0), (2, -60.0), (1, np.inf)):
         u = np.zeros(3)

@@ -333,13 +333,13 @@ def test_far_on_the_wrong_side_in_an_exported_build(name, tmp_path):
     """The exported C library (its `replay`) answers as Controller.step() far on the wrong side: the placements of
     the example test, each tick carrying its params; every state that violates a fixture is LEAST_VIOLATION there
     too, with the same dq to 1e-12."""
-    import subprocess
+    from test_export import make
+
     from vfdsl.export import export
     from vfdsl.export.selftest import replay
     task = vfdsl.load(ROOT / "tasks" / f"{name}.vf")
     export(task, tmp_path / name)
-    subprocess.run(["make", "-s", "-j2"], cwd=tmp_path / name, check=True, capture_output=True,
-                   env={"PATH": __import__("os").environ.get("PATH", "/usr/bin:/bin"), "LANG": "C"})
+    make(tmp_path / name)
     ctrl = vfdsl.compile(task, backend="native")
     robot = Robot.load(task.robots[0].urdf, Path(task.file).parent)
     q0 = task.start
