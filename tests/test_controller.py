@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
 import pytest
 from conftest import TASKS_DIR
@@ -154,3 +156,22 @@ def test_entry_points_refuse_what_is_not_a_loaded_task(tmp_path, entry, given):
 def test_load_refuses_what_is_not_a_path(given):
     with pytest.raises(vfdsl.VfError, match="load\\(\\) takes the path of a .vf task file"):
         vfdsl.load(given)
+
+
+@pytest.mark.parametrize("entry", ["load", "compile", "export", "export cache"])
+@pytest.mark.parametrize("given", [None, 3, b"build", ""])
+def test_the_api_refuses_a_path_that_is_not_one(tmp_path, monkeypatch, entry, given):
+    """Every path of the Python API is checked as the command line's: a number or None raised TypeError from deep
+    inside (compile(task, cache_dir=3), export(task, None)); an empty cache_dir was taken as not given, an empty
+    path to load as the current directory ('cannot read file .')."""
+    if given is None and entry in ("compile", "export cache"):
+        pytest.skip("cache_dir=None is the default cache")
+    monkeypatch.chdir(tmp_path)
+    task = vfdsl.load(TASKS_DIR / "paper_b_virtual_rcm.vf")
+    calls = {"load": lambda: vfdsl.load(given), "compile": lambda: vfdsl.compile(task, cache_dir=given),
+             "export": lambda: export(task, given), "export cache": lambda: export(task, "out", cache_dir=given)}
+    caller = entry.split()[0]
+    said = f"{caller}(): an empty path names no" if given == "" else f"{caller}() takes the path of a"
+    with pytest.raises(vfdsl.VfError, match=re.escape(said)):
+        calls[entry]()
+    assert list(tmp_path.iterdir()) == []
