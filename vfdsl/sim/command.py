@@ -80,7 +80,8 @@ def add_parser(commands) -> None:
     p.add_argument("--workers", type=int, metavar="N",
                    help="local processes (default: all cores for long runs, else 1; at most one per trial "
                         "and per core)")
-    p.add_argument("--cluster", metavar="ADDRESS", help="run the trials on the Dask distributed scheduler at this address (e.g. tcp://host:8786)")
+    p.add_argument("--cluster", metavar="ADDRESS",
+                   help="run the trials on the Dask distributed scheduler at this address (e.g. tcp://host:8786)")
     p.add_argument("--json", metavar="OUT.json", type=path_argument,
                    help="write every metric, the settings and the seeds")
     p.add_argument("--csv", metavar="OUT.csv", type=path_argument,
