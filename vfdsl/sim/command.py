@@ -50,8 +50,8 @@ limits (exit status 2 before any work; docs/language.md, "Limits"): at most 1,00
 (duration / period) and 20,000,000 in a run, a period of 0.01 ms at least and within [P / 100, 10 x P] of
 the task scene's period P (the controller's dt range), 100,000 trials, 1,000 grid
 points; --workers is capped at the trials and the cores; --cluster must be an address (tcp://host:8786) and
-answer as a Dask scheduler within 10 s; the output files are checked writable before the run, and refused when one is a file the
-run reads (the task, its scenes, its imports) or two name the same file.
+answer as a Dask scheduler within 10 s; the output files are checked writable before the run, and refused
+when one is a file the run reads (the task, its scenes, its imports) or two name the same file.
 
 Values take units (10ms, 0.2mm); bare numbers are SI. --json writes every metric by name
 (metrics.<name>.mean / std / max) with the settings and the seed; --csv one row per trial; --trace
