@@ -55,6 +55,19 @@ def test_a_run_time_param_moves_the_constraint(task_b, ctrl_b):
     np.testing.assert_allclose(moved.lb[rows] - base.lb[rows], U @ np.array([-1e-4, 0, 0]), atol=1e-12)
 
 
+def test_a_scalar_param_takes_a_number_in_every_form_and_a_too_large_one_is_said_so():
+    """A 0-D array (np.asarray(0.005)) is a number: it was refused as 'a vector of 1 numbers'. An int too large for a
+    float was said to hold NaN or inf ([inf])."""
+    task = vfdsl.load(TASKS_DIR / "keep_out.vf")
+    ctrl = vfdsl.compile(task)
+    q, u = task.start, {d.name: np.zeros(d.size) for d in task.inputs}
+    base = ctrl.problem(q, u, params={"margin": 0.004}).lb
+    for value in (np.asarray(0.004), np.float64(0.004), [0.004], np.array([0.004])):
+        np.testing.assert_array_equal(ctrl.problem(q, u, params={"margin": value}).lb, base)
+    with pytest.raises(vfdsl.VfError, match="param 'margin' is a number too large for a float"):
+        ctrl.step(q, u, params={"margin": 10 ** 400})
+
+
 def test_pose_params_take_a_mapping():
     task = vfdsl.load(TASKS_DIR / "paper_a_follow_curve.vf")
     ctrl = vfdsl.compile(task)
@@ -81,6 +94,11 @@ def test_pose_params_take_a_mapping():
     (lambda c, q: c.step(q, {"tau": [0, 0, 0]}, params={"pivot": [0, 0]}), "must have 3 numbers"),
     (lambda c, q: c.step(q, {"tau": [0, 0, 0]}, dt=-0.01), "dt must be a positive number"),
     (lambda c, q: c.step(q, {"tau": [0, 0, 0]}, dt=float("nan")), "dt must be a positive number"),
+    (lambda c, q: c.step(q, {"tau": [0, 0, 0]}, dt=10 ** 400), "dt (the control period, s) is a number too large for "
+                                                                 "a float"),           # was 'got inf'
+    (lambda c, q: c.step(q, {"tau": np.zeros(())}), "must be a vector of 3 numbers, got an array of shape ()"),
+    (lambda c, q: c.step(q, {"tau": [0, 0, 0]}, params={"pivot": np.zeros((3, 3))}),
+     "must be a vector of 3 numbers, got an array of shape (3, 3)"),
 ])
 def test_bad_inputs_raise_before_solving(task_b, ctrl_b, call, message):
     with pytest.raises(vfdsl.VfError) as info:
