@@ -210,3 +210,5 @@ def test_primitives_lists_every_argument_with_its_allowed_range(capsys):
     assert main(["primitives", "cone"]) == 0 and "allowed (0, 90) deg" in capsys.readouterr().out
     assert main(["primitives", "cnoe"]) == 2
     assert "did you mean 'cone'" in capsys.readouterr().err
+    assert main(["primitives", ""]) == 2                 # an empty name listed every primitive, as if not given
+    assert "no primitive or objective term ''" in capsys.readouterr().err

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
 import pytest
 from conftest import TASKS_DIR
@@ -53,6 +55,19 @@ def test_a_run_time_param_moves_the_constraint(task_b, ctrl_b):
     np.testing.assert_allclose(moved.lb[rows] - base.lb[rows], U @ np.array([-1e-4, 0, 0]), atol=1e-12)
 
 
+def test_a_scalar_param_takes_a_number_in_every_form_and_a_too_large_one_is_said_so():
+    """A 0-D array (np.asarray(0.005)) is a number: it was refused as 'a vector of 1 numbers'. An int too large for a
+    float was said to hold NaN or inf ([inf])."""
+    task = vfdsl.load(TASKS_DIR / "keep_out.vf")
+    ctrl = vfdsl.compile(task)
+    q, u = task.start, {d.name: np.zeros(d.size) for d in task.inputs}
+    base = ctrl.problem(q, u, params={"margin": 0.004}).lb
+    for value in (np.asarray(0.004), np.float64(0.004), [0.004], np.array([0.004])):
+        np.testing.assert_array_equal(ctrl.problem(q, u, params={"margin": value}).lb, base)
+    with pytest.raises(vfdsl.VfError, match="param 'margin' is a number too large for a float"):
+        ctrl.step(q, u, params={"margin": 10 ** 400})
+
+
 def test_pose_params_take_a_mapping():
     task = vfdsl.load(TASKS_DIR / "paper_a_follow_curve.vf")
     ctrl = vfdsl.compile(task)
@@ -79,6 +94,11 @@ def test_pose_params_take_a_mapping():
     (lambda c, q: c.step(q, {"tau": [0, 0, 0]}, params={"pivot": [0, 0]}), "must have 3 numbers"),
     (lambda c, q: c.step(q, {"tau": [0, 0, 0]}, dt=-0.01), "dt must be a positive number"),
     (lambda c, q: c.step(q, {"tau": [0, 0, 0]}, dt=float("nan")), "dt must be a positive number"),
+    (lambda c, q: c.step(q, {"tau": [0, 0, 0]}, dt=10 ** 400), "dt (the control period, s) is a number too large for "
+                                                                 "a float"),           # was 'got inf'
+    (lambda c, q: c.step(q, {"tau": np.zeros(())}), "must be a vector of 3 numbers, got an array of shape ()"),
+    (lambda c, q: c.step(q, {"tau": [0, 0, 0]}, params={"pivot": np.zeros((3, 3))}),
+     "must be a vector of 3 numbers, got an array of shape (3, 3)"),
 ])
 def test_bad_inputs_raise_before_solving(task_b, ctrl_b, call, message):
     with pytest.raises(vfdsl.VfError) as info:
@@ -154,3 +174,22 @@ def test_entry_points_refuse_what_is_not_a_loaded_task(tmp_path, entry, given):
 def test_load_refuses_what_is_not_a_path(given):
     with pytest.raises(vfdsl.VfError, match="load\\(\\) takes the path of a .vf task file"):
         vfdsl.load(given)
+
+
+@pytest.mark.parametrize("entry", ["load", "compile", "export", "export cache"])
+@pytest.mark.parametrize("given", [None, 3, b"build", ""])
+def test_the_api_refuses_a_path_that_is_not_one(tmp_path, monkeypatch, entry, given):
+    """Every path of the Python API is checked as the command line's: a number or None raised TypeError from deep
+    inside (compile(task, cache_dir=3), export(task, None)); an empty cache_dir was taken as not given, an empty
+    path to load as the current directory ('cannot read file .')."""
+    if given is None and entry in ("compile", "export cache"):
+        pytest.skip("cache_dir=None is the default cache")
+    monkeypatch.chdir(tmp_path)
+    task = vfdsl.load(TASKS_DIR / "paper_b_virtual_rcm.vf")
+    calls = {"load": lambda: vfdsl.load(given), "compile": lambda: vfdsl.compile(task, cache_dir=given),
+             "export": lambda: export(task, given), "export cache": lambda: export(task, "out", cache_dir=given)}
+    caller = entry.split()[0]
+    said = f"{caller}(): an empty path names no" if given == "" else f"{caller}() takes the path of a"
+    with pytest.raises(vfdsl.VfError, match=re.escape(said)):
+        calls[entry]()
+    assert list(tmp_path.iterdir()) == []

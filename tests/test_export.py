@@ -753,6 +753,19 @@ def test_a_task_without_teleop_has_no_readout(exports):
         getattr(lib, f"{api}_free")(ctrl)
 
 
+def test_an_export_that_fails_before_writing_leaves_no_folder(tmp_path, capsys):
+    """The folder is made when the files are written: an export refused at its build (a build cache that is a file)
+    left an empty folder and its missing parents behind; a folder under a file is refused before the build."""
+    (tmp_path / "cache").write_text("a file")
+    task = str(TASKS_DIR / "paper_b_virtual_rcm.vf")
+    assert main(["export", task, "-o", str(tmp_path / "out" / "vf"), "--cache", str(tmp_path / "cache")]) == 2
+    assert "the build directory" in capsys.readouterr().err and not (tmp_path / "out").exists()
+    assert main(["export", task, "-o", str(tmp_path / "cache" / "vf")]) == 2
+    err = capsys.readouterr().err
+    assert f"cannot create the export directory {tmp_path / 'cache' / 'vf'}: {tmp_path / 'cache'} is not a directory" \
+        in err, err
+
+
 def test_an_empty_folder_is_refused_by_the_python_api_too(tmp_path, monkeypatch):
     """`vfdsl export -o ""` is a usage error; export(task, "") wrote into the current directory (Path("") is ".")."""
     monkeypatch.chdir(tmp_path)

@@ -232,6 +232,11 @@ CASES = [
     Case("weight-inf", BASE + "minimize damping() weight inf\n", 9, 27, "'inf' is not a number"),
     Case("point-item-nan", edit("[0, 0, 290]", "[0, 0, NaN]"), 6, 26, "'NaN' is not a number"),
     Case("param-value-infinity", BASE + "param r : length = Infinity\n", 9, 20, "'Infinity' is not a number"),
+    # with a unit after it (was E101 "unexpected name 'um'" at the unit)
+    Case("tolerance-nan-unit", edit("within 1 um", "within nan um"), 8, 32, "'nan' is not a number",
+         hint="write a finite number"),
+    Case("param-value-inf-unit", BASE + "param r : angle = -inf deg\n", 9, 20, "'inf' is not a number"),
+    Case("point-item-nan-unit", edit("[0, 0, 290]", "[NaN, 0, 0] mm"), 6, 20, "'NaN' is not a number"),
 ]
 
 
@@ -311,6 +316,7 @@ def test_render_shows_line_and_caret(tmp_path):
     ("stray-character", "$"),
     ("unknown-joint-in-start", "rol"),
     ("malformed-yaml", ":"),
+    ("tolerance-nan-unit", "nan"),
 ])
 def test_caret_underlines_the_mistake(tmp_path, case_id, underlined):
     case = next(c for c in CASES if c.id == case_id)

@@ -61,6 +61,14 @@ def test_params_the_replay_refused_are_not_the_traces_params(tmp_path):
     (f"{Q} 0 0 0\n{Q} 0 0 0\n", "0 0 0 0 0 0 0 0\n", [], "1 lines for the 2 ticks"),
     (f"{Q} 0 0 0\n", "0 0 0\n", [], "replayed.txt:1:1: error: a tick's answer reads `STATUS` and 7 dq"),
     (f"{Q} 0 0 0\n", "0 0 0 0 0 0 0 0\n", ["--dt", "nan"], "--dt nan: a period in seconds"),
+    (f"{Q} 0 0 0\n", "0 0 0 0 0 0 0 0\n", ["--dt", "1e308"], "--dt 1e+308: the exported controller steps at 0.0001 s"),
+    (f"{Q} 0 0 0\n", "0 0 0 0 0 0 0 0\n", ["--dt", "1e-320"], "--dt 9.99989e-321: the exported controller steps"),
+    (f"{Q} 0 0 0\n", "99999999999999999999 0 0 0 0 0 0 0\n", [], "a status is 0 to 15 (its bits), not 999"),
+    (f"{Q} 0 0 0\n", "-7 0 0 0 0 0 0 0\n", [], ("replayed.txt:1:1: error: a tick's answer reads `STATUS` and 7 dq, "
+                                                "or `error CODE MESSAGE`; a status is 0 to 15 (its bits), not -7")),
+    (f"{Q} 0 0 0\n", "error 99999999999999999999 x\n", [], "an error code is -1 to -11, not 999"),
+    (f"{Q} 0 0 0\n", "error 3 x\n", [], "an error code is -1 to -11, not 3"),
+    (f"{Q} 0 0 0\n", "0 nan 0 0 0 0 0 inf\n", [], "replayed.txt:1:1: error: a tick's answer holds NaN or inf"),
     (f"{Q} 0 0 0\n", "0 0 0 0 0 0 0 0\n", ["--params", "PARAMS"], "--params: 2 numbers, expected 6"),
     (f"{Q} 0 0 0\n", "0 0 0 0 0 0 0 0\n", ["--params", "missing.txt"], "cannot read missing.txt"),
     (f"{Q} 0 0 0\n", "0 0 0 0 0 0 0 0\n", ["-o", "/nonexistent/run.csv"], "cannot write /nonexistent/run.csv"),
@@ -82,6 +90,20 @@ def test_mistaken_input_is_refused_without_a_traceback(tmp_path, capsys, monkeyp
     err = capsys.readouterr().err
     assert message in err and "Traceback" not in err, err
     assert (tmp_path / "PARAMS.csv").read_text() == "1 2\n"
+
+
+@pytest.mark.parametrize("answer, message", [
+    ("0 0 0 0 0 0 0 0 | nowhere", "a tick's answer names phase 'nowhere', which the task lacks"),
+    ("0 0 0 0 0 0 0 0 | ", "a tick's answer names phase '', which the task lacks"),
+])
+def test_a_phase_the_task_lacks_is_refused(tmp_path, capsys, answer, message):
+    """A procedure's answer names one of its phases (an answer of another task's replay named any word)."""
+    ticks, answers = _files(tmp_path, "0 0 0 0 0 0 0.005 0 0 0 0\n", answer + "\n")
+    task = TASKS_DIR / "procedures" / "needle_procedure.vf"
+    assert main(["replay-trace", str(task), str(ticks), str(answers), "-o", str(tmp_path / "run.csv")]) == 2
+    err = capsys.readouterr().err
+    assert message in err and "replayed.txt:1:1" in err and "Traceback" not in err, err
+    assert not (tmp_path / "run.csv").exists()
 
 
 def test_an_output_that_is_an_input_is_refused_and_the_file_kept(tmp_path, capsys):

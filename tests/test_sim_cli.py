@@ -285,6 +285,18 @@ def test_unreachable_cluster_is_a_clear_error(capsys, monkeypatch):
     assert "cannot reach a Dask scheduler at 'tcp://127.0.0.1:9'" in err and "Traceback" not in err
 
 
+@pytest.mark.parametrize("address, said", [
+    ("", "'' is not the address of a Dask scheduler: it is empty"),                     # ran locally, as if not given
+    ("foo", "'foo' is not the address of a Dask scheduler (missing port number"),        # 'foo' answers, but not as ...
+    ("tcp://127.0.0.1:99999", "(port 99999: a port is 1 to 65535)"),
+    ("xyz://host:8786", "unknown address scheme 'xyz'"),
+])
+def test_a_cluster_address_that_is_not_one_is_refused_before_connecting(capsys, address, said):
+    assert main(["simulate", B, "--quiet", "--duration", "0.1s", "--cluster", address]) == 2
+    err = capsys.readouterr().err
+    assert said in err and "hint: an address like tcp://host:8786" in err and "Traceback" not in err, err
+
+
 def test_experiment_a_is_scored_by_the_distance_to_the_curve_and_the_hand_stops_at_its_end():
     """Experiment A's full trial (24 s at 150 ms, the scene's hand with tremor and drift): the tip error is the
     distance to the curve itself, recomputed here by a dense search of the curve mapped to the world by the plate

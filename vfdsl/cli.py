@@ -220,7 +220,7 @@ def _primitives(args: argparse.Namespace) -> int:
     from vfdsl.primitives.spec import REQUIRED
     from vfdsl.errors import suggest
     specs = [("require", s) for s in CONSTRAINTS.values()] + [("minimize", s) for s in OBJECTIVES.values()]
-    if args.name:
+    if args.name is not None:
         specs = [(k, s) for k, s in specs if s.name == args.name]
         if not specs:
             known = [*CONSTRAINTS, *OBJECTIVES]

@@ -16,7 +16,7 @@ from pathlib import Path
 
 import yaml
 
-from vfdsl.errors import Span, VfError
+from vfdsl.errors import Span, VfError, a_or_an
 from vfdsl import limits
 
 
@@ -73,6 +73,22 @@ def path_argument(text: str) -> str:
     if not text:
         raise argparse.ArgumentTypeError("an empty path names no file or folder")
     return text
+
+
+def path_value(value, caller: str, what: str, example: str) -> Path:
+    """``value`` as a Path when it is one (a str or os.PathLike, not empty), else VfError: the path of ``what`` that
+    the Python API's ``caller`` takes, checked as :func:`path_argument` checks the command line's (a number or None
+    raised TypeError from deep inside; an empty path was taken as the current directory, or as not given)."""
+    try:
+        text = os.fspath(value) if isinstance(value, (str, os.PathLike)) else None
+    except TypeError:
+        text = None
+    if not isinstance(text, str):
+        raise VfError(f"{caller}() takes the path of {a_or_an(what)}, got {a_or_an(type(value).__name__)}",
+                      hint=f"e.g. {example}")
+    if not text:
+        raise VfError(f"{caller}(): an empty path names no {what}", hint=f"e.g. {example}")
+    return Path(text)
 
 
 def check_writable(name: str | Path) -> None:

@@ -31,6 +31,7 @@ from vfdsl.compiler.cases import case_index, phase_cases
 from vfdsl.compiler.phases import captures_function, monitor_values
 from vfdsl.objectives.haptics import readout_function, teleop_terms
 from vfdsl.errors import VfError
+from vfdsl.files import path_value
 from vfdsl.ir import model as ir
 from vfdsl.kinematics.robot import Robot
 from vfdsl.runtime.controller import Controller, row_unit
@@ -80,6 +81,8 @@ def build(task: ir.Task, *, backend: str = "auto",
     """As :func:`compile`, also returning the generated library (None on the interpreted path)."""
     global _warned
     task = ir.checked_task(task, "compile")
+    if cache_dir is not None:
+        cache_dir = path_value(cache_dir, "compile", "build cache folder (cache_dir)", "cache_dir='build/'")
     if backend not in BACKENDS:
         raise VfError(f"unknown backend '{backend}'; use one of {', '.join(BACKENDS)}")
     robot = Robot.load(task.robots[0].urdf)

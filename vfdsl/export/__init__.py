@@ -8,9 +8,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from vfdsl.errors import VfError
 from vfdsl.export.writer import Export, api_name, portable, prepare_directory, write_export
-from vfdsl.files import task_sources
+from vfdsl.files import path_value, task_sources
 from vfdsl.ir import model as ir
 
 
@@ -23,9 +22,10 @@ def export(task: ir.Task, directory: str | Path, *, cache_dir: str | Path | None
     from vfdsl.codegen.build import daqp_home
     from vfdsl.codegen.daqp_sources import daqp_sources
     task = ir.checked_task(task, "export")
-    if not str(directory):
-        raise VfError("an empty path names no folder to export into", hint="give the folder, e.g. 'build/vf_task'")
-    directory = prepare_directory(Path(directory))
+    directory = path_value(directory, "export", "folder to export into", "export(task, 'build/vf_task')")
+    if cache_dir is not None:
+        cache_dir = path_value(cache_dir, "export", "build cache folder (cache_dir)", "cache_dir='build/'")
+    directory = prepare_directory(directory)
     _, library = pipeline.build(portable(task), backend="native", cache_dir=cache_dir)
     return write_export(library, daqp_sources(daqp_home()), directory, task_sources(task))
 

@@ -174,18 +174,22 @@ def _replace(path: Path, data: bytes) -> None:
 
 
 def prepare_directory(directory: Path) -> Path:
-    """``directory``, created if missing; VfError when it is not a directory or cannot be written (checked before
-    anything is generated)."""
+    """``directory`` when the export can be written there (checked before anything is generated): a writable
+    directory, or a missing one whose nearest existing folder is writable; VfError otherwise. A missing one is
+    created by :func:`write_export`, after the build: an export that fails before (no C compiler, a build cache
+    that is a file) leaves no empty folder behind."""
     directory = Path(directory)
     if directory.exists() and not directory.is_dir():
         raise VfError(f"the export directory {directory} is not a directory", hint="choose a folder with -o")
-    try:
-        directory.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise VfError(f"cannot create the export directory {directory}: {exc.strerror or exc}",
-                      hint="choose a writable folder with -o") from None
-    if not os.access(directory, os.W_OK | os.X_OK):
-        raise VfError(f"the export directory {directory} is not writable", hint="choose a writable folder with -o")
+    existing = directory
+    while not existing.exists() and existing != existing.parent:
+        existing = existing.parent
+    if not existing.is_dir():
+        raise VfError(f"cannot create the export directory {directory}: {existing} is not a directory",
+                      hint="choose a writable folder with -o")
+    if not os.access(existing, os.W_OK | os.X_OK):
+        what = "the export directory" if existing == directory else f"the export directory {directory}: its folder"
+        raise VfError(f"{what} {existing} is not writable", hint="choose a writable folder with -o")
     return directory
 
 

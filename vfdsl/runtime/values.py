@@ -64,13 +64,13 @@ def dt_range(period: float | None) -> tuple[float, float]:
 
 def real_vector(value, size: int, what: str, finite: bool = True) -> np.ndarray:
     """``value`` as ``size`` float64 numbers, finite unless ``finite`` is False (the caller checks them): a list
-    or tuple of real numbers, or a real NumPy array (1-D, or 2-D with one row or one column)."""
+    or tuple of real numbers, or a real NumPy array (1-D, or 2-D with one row or one column; 0-D for one number)."""
     if isinstance(value, np.ndarray):
         value = plain_array(value, what)
         if value.dtype.kind not in "fiu":
             raise VfError(f"{what} must be real numbers, got an array of {value.dtype}")
-        if value.ndim > 2 or (value.ndim == 2 and 1 not in value.shape) or value.ndim == 0:
-            raise VfError(f"{what} must be a vector of {size} numbers, got an array of shape {value.shape}")
+        if value.ndim > 2 or (value.ndim == 2 and 1 not in value.shape) or (value.ndim == 0 and size != 1):
+            raise VfError(f"{what} must be a vector of {_count(size)}, got an array of shape {value.shape}")
         arr = value.astype(float).reshape(-1)
     elif isinstance(value, (list, tuple)):
         for i, item in enumerate(value):
@@ -90,10 +90,10 @@ def real_vector(value, size: int, what: str, finite: bool = True) -> np.ndarray:
 
 def real_scalar(value, what: str) -> float:
     """``value`` as a float: a real number, not a list, string or boolean (finiteness is the caller's
-    range check)."""
+    range check; an int too large for a float is refused here, not read as inf)."""
     if not _is_real(value):
         raise VfError(f"{what} must be a real number, got {_describe(value)}")
-    return _as_float(value, what)
+    return _as_float(value, what, too_large=f"{what} is a number too large for a float")
 
 
 def _as_float(x, what: str, too_large: str | None = None) -> float:

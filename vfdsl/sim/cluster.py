@@ -16,6 +16,7 @@ from vfdsl.errors import VfError
 from vfdsl import limits
 
 _HINT = "start one (`dask scheduler`, then `dask worker ADDRESS`) or run without --cluster"
+_ADDRESS = "an address like tcp://host:8786, as `dask scheduler` prints it"
 
 
 async def _identity(address: str, timeout: float) -> object:
@@ -39,10 +40,29 @@ def _run_to_end(coroutine):
         return pool.submit(asyncio.run, coroutine).result()
 
 
+def checked_address(address: str) -> str:
+    """``address`` when it is one (``[scheme://]host:port``, a port from 1 to 65535, or a scheduler's inproc:// in this
+    process), else VfError: an empty, portless or misspelt address was taken as not given (''), or said to answer but
+    not as a scheduler ('foo')."""
+    from distributed.comm.addressing import get_address_host_port, normalize_address, parse_address
+
+    try:
+        normalize_address(address)
+        inproc = parse_address(address)[0] == "inproc"          # a scheduler in this process: no port
+        port = 1 if inproc else get_address_host_port(address)[1] if address else 0
+    except ValueError as exc:
+        raise VfError(f"{address!r} is not the address of a Dask scheduler ({exc})", hint=_ADDRESS) from None
+    if not 1 <= port <= 65535:
+        raise VfError(f"{address!r} is not the address of a Dask scheduler"
+                      + (": it is empty" if not address else f" (port {port}: a port is 1 to 65535)"), hint=_ADDRESS)
+    return address
+
+
 def probe(address: str, timeout: float | None = None) -> None:
-    """Raise a :class:`VfError` unless a Dask scheduler answers at ``address`` within ``timeout`` seconds
-    (default ``limits.CONNECT_TIMEOUT``)."""
+    """Raise a :class:`VfError` unless ``address`` is one (:func:`checked_address`) and a Dask scheduler answers
+    there within ``timeout`` seconds (default ``limits.CONNECT_TIMEOUT``)."""
     timeout = limits.CONNECT_TIMEOUT if timeout is None else timeout
+    checked_address(address)
     try:
         reply = _run_to_end(asyncio.wait_for(_identity(address, timeout), timeout))
     except (asyncio.TimeoutError, TimeoutError):

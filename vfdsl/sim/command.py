@@ -49,9 +49,9 @@ examples:
 limits (exit status 2 before any work; docs/language.md, "Limits"): at most 1,000,000 ticks per trial
 (duration / period) and 20,000,000 in a run, a period of 0.01 ms at least and within [P / 100, 10 x P] of
 the task scene's period P (the controller's dt range), 100,000 trials, 1,000 grid
-points; --workers is capped at the trials and the cores; --cluster must answer as a Dask scheduler
-within 10 s; the output files are checked writable before the run, and refused when one is a file the
-run reads (the task, its scenes, its imports) or two name the same file.
+points; --workers is capped at the trials and the cores; --cluster must be an address (tcp://host:8786) and
+answer as a Dask scheduler within 10 s; the output files are checked writable before the run, and refused
+when one is a file the run reads (the task, its scenes, its imports) or two name the same file.
 
 Values take units (10ms, 0.2mm); bare numbers are SI. --json writes every metric by name
 (metrics.<name>.mean / std / max) with the settings and the seed; --csv one row per trial; --trace
@@ -80,7 +80,8 @@ def add_parser(commands) -> None:
     p.add_argument("--workers", type=int, metavar="N",
                    help="local processes (default: all cores for long runs, else 1; at most one per trial "
                         "and per core)")
-    p.add_argument("--cluster", metavar="ADDRESS", help="run the trials on this Dask distributed scheduler")
+    p.add_argument("--cluster", metavar="ADDRESS",
+                   help="run the trials on the Dask distributed scheduler at this address (e.g. tcp://host:8786)")
     p.add_argument("--json", metavar="OUT.json", type=path_argument,
                    help="write every metric, the settings and the seeds")
     p.add_argument("--csv", metavar="OUT.csv", type=path_argument,
@@ -153,7 +154,7 @@ def main(args: argparse.Namespace) -> int:
             _check_writable(name)
     if args.plot:
         _check_writable(args.plot, plot=True)
-    client = connect(args.cluster) if args.cluster else None   # before any work: a wrong address fails fast
+    client = connect(args.cluster) if args.cluster is not None else None   # before any work: a wrong address fails
     try:
         jobs = make_jobs(args.file, settings, grid, keep_series=bool(args.plot), keep_trace=bool(args.trace))
         ctx = loaded(args.file)                 # compile (or load from the cache) once, here, before workers

@@ -26,11 +26,16 @@ from vfdsl.files import check_outputs, check_writable, path_argument, task_sourc
 from vfdsl.ir import model as ir
 from vfdsl.kinematics.robot import Robot
 from vfdsl.objectives.haptics import teleop_terms
-from vfdsl.runtime.values import ASSUMED_PERIOD
+from vfdsl.runtime.qp import StepStatus
+from vfdsl.runtime.values import ASSUMED_PERIOD, dt_range
 from vfdsl.sim import trace as tr
 
 PARAMS_REFUSED = -7
 """VF_ERR_PARAM: the replay refused the line's params and ran no tick; the controller kept the ones before."""
+ERROR_CODES = range(-11, 0)
+"""The exported API's VF_ERR_* codes (api.h): an ``error CODE`` line's code is one of them."""
+STATUSES = range(int(StepStatus(sum(StepStatus))) + 1)
+"""A tick's status: its StepStatus bits (api.h's VF_OPTIMAL ... VF_UNCERTIFIED)."""
 
 DESCRIPTION = """\
 Turn a run of an exported C controller into a trace: the ticks its replay program was fed (./replay < ticks.txt)
@@ -54,7 +59,8 @@ def add_parser(commands) -> None:
     p.add_argument("replayed", type=path_argument, help="the replay's output: one line a tick")
     p.add_argument("-o", "--output", metavar="OUT.csv|OUT.parquet|OUT.mcap", required=True, type=path_argument,
                    help="the trace to write")
-    p.add_argument("--dt", metavar="SECONDS", type=float, help="the replay's dt (default: the task's scene period)")
+    p.add_argument("--dt", metavar="SECONDS", type=float,
+                   help="the replay's dt (default: the task's scene period; 1/100 to 10 times it, as the controller)")
     p.add_argument("--params", metavar="FILE", type=path_argument,
                    help="the replay's --params FILE: the params at the start")
     p.set_defaults(run=main)
@@ -70,8 +76,13 @@ def main(args: argparse.Namespace) -> int:
     check_outputs({"-o": args.output}, [*task_sources(task), ("the ticks file", args.ticks),
                                         ("the replayed file", args.replayed), ("the params file", args.params)])
     dt = args.dt if args.dt is not None else (task.scene.period or ASSUMED_PERIOD)
+    low, high = dt_range(task.scene.period)
     if not (np.isfinite(dt) and dt > 0):
         raise VfError(f"--dt {args.dt}: a period in seconds, more than 0")
+    if not low <= dt <= high:
+        raise VfError(f"--dt {args.dt:g}: the exported controller steps at {low:g} s to {high:g} s (1/100 to 10 times "
+                      f"its scene's period, {task.scene.period or ASSUMED_PERIOD:g} s); it refuses every other dt",
+                      hint="give the --dt the replay ran with, in seconds (e.g. 0.001 for a 1 kHz loop)")
     start = _numbers(Path(args.params), 1, " ".join(_lines(Path(args.params)))) if args.params else None
     trace = read(task, Path(args.ticks), Path(args.replayed), dt, start)
     result = SimpleNamespace(trace=trace, trial=0, seed=0, grid=[])
@@ -113,7 +124,7 @@ def read(task: ir.Task, ticks: Path, replayed: Path, dt: float, start_params=Non
             raise VfError(f"{len(values)} numbers, expected {nq + nu} (q, then every input)"
                           + (f" or {nq + nu + len(current)} (then every param)" if len(current) else ""),
                           _at(ticks, n))
-        _answer(rows, replayed, m, answer, nq, teleop, bool(task.phases))
+        _answer(rows, replayed, m, answer, nq, teleop, [phase.name for phase in task.phases])
         if len(values) > nq + nu and rows["status"][-1] != PARAMS_REFUSED:     # refused params were not set
             current = values[nq + nu:]
         rows["q"].append(values[:nq])
@@ -142,14 +153,22 @@ def read(task: ir.Task, ticks: Path, replayed: Path, dt: float, start_params=Non
     return trace
 
 
-def _answer(rows: dict, path: Path, n: int, line: str, nq: int, teleop: bool, procedure: bool) -> None:
-    """One line of the replay's output (:func:`vfdsl.export.selftest.parse_answer`) into ``rows``."""
+def _answer(rows: dict, path: Path, n: int, line: str, nq: int, teleop: bool, phases: list[str]) -> None:
+    """One line of the replay's output (:func:`vfdsl.export.selftest.parse_answer`) into ``rows``; ``phases``: the
+    task's phase names (none without a procedure)."""
+    procedure = bool(phases)
     expected = (f"`STATUS` and {nq} dq{' | PHASE' if procedure else ''}"
                 f"{f' # and {READOUT_NUMBERS} numbers of readout' if teleop else ''}, or `error CODE MESSAGE`")
     try:
         answer = parse_answer(line)
     except (ValueError, IndexError):
         raise VfError(f"a tick's answer reads {expected}: this line does not", _at(path, n)) from None
+    if answer[0] not in (ERROR_CODES if isinstance(answer[1], str) else STATUSES):
+        what = (f"an error code is {ERROR_CODES[-1]} to {ERROR_CODES[0]}" if isinstance(answer[1], str)
+                else f"a status is {STATUSES[0]} to {STATUSES[-1]} (its bits)")
+        raise VfError(f"a tick's answer reads {expected}; {what}, not {answer[0]}", _at(path, n))
+    if not all(np.isfinite(part).all() for part in answer[1:] if not isinstance(part, str)):
+        raise VfError("a tick's answer holds NaN or inf: the replay writes finite numbers", _at(path, n))
     if isinstance(answer[1], str):                    # a refused tick
         rows["dq"].append(np.full(nq, np.nan))
         rows["status"].append(answer[0])
@@ -159,15 +178,18 @@ def _answer(rows: dict, path: Path, n: int, line: str, nq: int, teleop: bool, pr
         rows["following"].append(0)
         return
     extra = list(answer[2:])
-    phase = extra.pop(0) if procedure and extra and isinstance(extra[0], str) else None
+    phase = extra.pop(0).strip() if procedure and extra and isinstance(extra[0], str) else None
     readout = extra.pop(0) if teleop and extra else None
     if len(answer[1]) != nq or extra or (procedure and phase is None) or (teleop and (
-            readout is None or len(readout) != READOUT_NUMBERS)):
+            readout is None or len(readout) != READOUT_NUMBERS or readout[-1] not in (0, 1))):
         raise VfError(f"a tick's answer reads {expected}: this line does not", _at(path, n))
+    if procedure and phase not in phases:
+        raise VfError(f"a tick's answer names phase {phase!r}, which the task lacks: the replay of another task?",
+                      _at(path, n), hint=f"its phases: {', '.join(phases)}")
     rows["status"].append(answer[0])
     rows["dq"].append(answer[1])
     rows["violations"].append("")
-    rows["phase"].append((phase or "").strip())
+    rows["phase"].append(phase or "")
     if teleop:
         rows["haptic"].append(readout[:3])
         rows["following"].append(int(readout[-1]))

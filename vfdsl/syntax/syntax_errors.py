@@ -9,7 +9,7 @@ import difflib
 from lark import Lark, Token
 from lark.exceptions import UnexpectedCharacters, UnexpectedEOF, UnexpectedInput, UnexpectedToken
 
-from vfdsl.errors import Span, VfError
+from vfdsl.errors import Span, VfError, non_finite_name
 
 KEYWORDS = ("task", "library", "units", "import", "scene", "robot", "frame", "input", "param",
             "fixture", "minimize", "require", "use", "monitor", "phase", "transition", "blend")
@@ -53,6 +53,8 @@ def syntax_error(exc: UnexpectedInput, text: str, file: str, parser: Lark) -> Vf
         message = "unexpected end of file"
         lines = text.rstrip().split("\n")             # lines as the parser counts them
         line, column = len(lines), len(lines[-1]) + 1
+    elif isinstance(exc, UnexpectedToken) and (spelt := _non_finite_before(exc, file)) is not None:
+        return spelt.with_source(text)            # `within nan mm`: the unit after a non-finite number
     elif isinstance(exc, UnexpectedToken):
         found = str(exc.token)
         width = max(1, len(found))
@@ -86,6 +88,17 @@ def syntax_error(exc: UnexpectedInput, text: str, file: str, parser: Lark) -> Vf
 
 
 _CLAUSE_WORDS = ("within", "resolution", "weight", "priority", "soft")
+
+
+def _non_finite_before(exc: UnexpectedToken, file: str) -> VfError | None:
+    """E304 when the unexpected token follows a name that spells a non-finite number (``nan mm``, ``inf deg``): the
+    parser read it as a name, after which a unit cannot stand; None otherwise."""
+    previous = (exc.token_history or [None])[-1]
+    if previous is None or previous.type != "NAME" or exc.token.type != "NAME":
+        return None
+    end = previous.column + len(previous)
+    return non_finite_name(str(previous), Span(file=file, line=previous.line, column=previous.column,
+                                               end_line=previous.line, end_column=end))
 
 
 def _starts_line(text: str, token: Token) -> bool:
