@@ -92,6 +92,22 @@ def test_one_controller_from_two_threads_is_serialised(task_b, backend):
         np.testing.assert_allclose(np.array(got[k]), np.array(expected), atol=1e-5)
 
 
+@pytest.mark.parametrize("example", ["procedures/needle_procedure.vf", "teleop/teleop_guide_line.vf"])
+def test_reset_waits_for_a_tick_in_another_thread(example, monkeypatch):
+    """reset() takes the ticks' locks (the procedure's, the teleoperation readout's): a tick in another thread runs
+    before or after it, never on a machine or a readout half reset (the interpreted path's reset did not)."""
+    ctrl = vfdsl.compile(vfdsl.load(TASKS_DIR / example), backend="interpreted")
+    ctrl.step(ctrl.task.start, {d.name: np.zeros(d.size) for d in ctrl.task.inputs})
+    held = []
+    for part, lock in ((ctrl._procedure, ctrl._procedure and ctrl._procedure.lock),
+                       (ctrl._teleoperation, ctrl._teleop_lock)):
+        if part is not None:
+            reset = part.reset
+            monkeypatch.setattr(part, "reset", lambda reset=reset, lock=lock: (held.append(lock.locked()), reset()))
+    ctrl.reset()
+    assert held and all(held), held
+
+
 def test_a_dropped_controller_frees_its_memory_slot_at_once(task_b):
     """step is the task's C method, whose detailed checks do not hold the controller: no reference cycle, so a
     controller no longer referenced gives its memory slot back at once (not at the next garbage collection); a

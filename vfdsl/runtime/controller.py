@@ -181,12 +181,15 @@ class Controller:
 
     def reset(self) -> None:
         """A procedure back to its initial phase, its captures retaken at the next tick (the solver's warm start
-        is kept), the teleoperation readout to its first tick; nothing to do for a task without either."""
+        is kept), the teleoperation readout to its first tick; nothing to do for a task without either. Under the
+        ticks' locks: a tick in another thread runs before or after it, never on a machine half reset."""
         if self._procedure is not None:
-            self._procedure.reset()
+            with self._procedure.lock:
+                self._procedure.reset()
         if self._teleoperation is not None:
-            self._teleoperation.reset()
-            self._teleop = None
+            with self._teleop_lock:
+                self._teleoperation.reset()
+                self._teleop = None
 
     def param_vector(self, params=None) -> np.ndarray | None:
         """The flat run-time param vector the step is given for ``params`` (checked as :meth:`step` checks them),
