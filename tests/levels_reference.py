@@ -161,8 +161,9 @@ def least_violation_set(qp, groups):
     """(x_A, qp over S): phase 2's least violation solved here, and the tick's QP with its general rows' bounds those
     of the least-violation set S over which the levels act (docs/runtime.md, Phase 2), from their definitions: (A)
     stacked here and solved by DAQP's Python package directly (tight tolerance, no scaling); each row of a violated
-    group relaxed by the group's least violation and the margin, none worse than at rest (x_0: the point of the box
-    nearest 0); each group's penalty rho t_g / max(v_g, FLOOR), v_g its largest violation at rest."""
+    group relaxed by the group's least violation and the margin; in (A) no row worse than at rest by more than its
+    group's worst comes back (v_g - t_g, v_g the group's largest violation at rest, x_0 the point of the box nearest
+    0), in S no row worse than at rest or at x_A; each group's penalty rho t_g / max(v_g, FLOOR)."""
     n = qp.P.shape[0]
     A, lb, ub = qp.A[n:], qp.lb[n:], qp.ub[n:]
     lo, hi = box(qp.lb[:n], qp.ub[:n])
@@ -175,14 +176,17 @@ def least_violation_set(qp, groups):
     np.maximum.at(worst_at_rest, [ids[g] for g in groups], np.maximum(np.maximum(lb - at_rest, at_rest - ub), 0))
     H = np.diag(np.r_[np.full(n, LEAST_VIOLATION_TIE_BREAK), np.ones(G)])
     f = np.r_[np.zeros(n), PENALTY / np.maximum(worst_at_rest, FLOOR)]
-    rows = np.vstack([np.hstack([A, E]), np.hstack([A, -E]), np.hstack([A, 0 * E])])
-    lower = np.r_[lo, np.zeros(G), lb, np.full(m, -BIG), np.minimum(lb, at_rest)]
-    upper = np.r_[hi, np.full(G, BIG), np.full(m, BIG), ub, np.maximum(ub, at_rest)]
+    held = worst_at_rest[[ids[g] for g in groups]]
+    rows = np.vstack([np.hstack([A, E]), np.hstack([A, -E])])
+    lower = np.r_[lo, np.zeros(G), lb, np.minimum(lb, at_rest) - held]
+    upper = np.r_[hi, np.full(G, BIG), np.maximum(ub, at_rest) + held, ub]
     z, _, flag, _ = daqp.solve(H, f, rows, np.minimum(upper, BIG), np.maximum(lower, -BIG),
-                               np.zeros(n + G + 3 * m, dtype=np.intc), primal_tol=1e-13, iter_limit=100000)
+                               np.zeros(n + G + 2 * m, dtype=np.intc), primal_tol=1e-13, iter_limit=100000)
     assert flag >= 1, flag
     z = np.array(z)
     relaxed = E @ z[n:]
     widened = np.where(relaxed > RELAXED, relaxed + MARGIN, 0.0)
-    lower, upper = np.maximum(lb - widened, np.minimum(lb, at_rest)), np.minimum(ub + widened, np.maximum(ub, at_rest))
+    at_a = A @ np.clip(z[:n], lo, hi)
+    lower = np.maximum(lb - widened, np.minimum(lb, np.minimum(at_rest, at_a)))
+    upper = np.minimum(ub + widened, np.maximum(ub, np.maximum(at_rest, at_a)))
     return z[:n], dataclasses.replace(qp, lb=np.r_[qp.lb[:n], lower], ub=np.r_[qp.ub[:n], upper])

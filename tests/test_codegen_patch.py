@@ -108,6 +108,22 @@ def test_a_conic_without_a_plan_is_refused():
         patched(golden("one_level", "casadi"), "one_level", plans)
 
 
+def test_a_one_variable_conic_gets_its_plan():
+    """A step of one variable: CasADi names its 1 x 1 Hessian "h", not "h[1x1]", in a conic's comment, where the patch
+    looked for "h[": those conics kept CasADi's plain DAQP call without their plans (phase 2's (B) not solved from
+    x_A, its certificate output the cost: a least-violation tick's status 1.04 in the generated C, 1 interpreted)."""
+    q, u, p, dt = ca.SX.sym("q", 1), ca.SX.sym("u", 1), ca.SX.sym("p", 1), ca.SX.sym("dt")
+    qp_data = ca.Function("qp", [q, u, p, dt], [ca.SX.eye(1), -u, ca.DM([[1]]), -ca.inf, p,
+                                                 -10 * dt * ca.DM.ones(1), 10 * dt * ca.DM.ones(1)])
+    step = build_step_function(qp_data, PREFIX, native=True)
+    checks = ca.Function("checks", [ca.SX.sym("p", 1)], [ca.SX.zeros(0, 1)])
+    with tempfile.TemporaryDirectory() as work:
+        source = casadi_c(step, PREFIX, Path(work), checks)[0]
+    assert "/* phase2b:(h," in source
+    output = patch.patch_generated_c(source, PREFIX, plans_of(step))
+    assert "casadi_daqp_solve(d, arg, res, iw, w);" not in output
+
+
 @pytest.mark.parametrize("edit, message", [
     (("#include <math.h>\n", ""), "no single <math.h>"),
     (("void casadi_daqp_free_mem(struct casadi_daqp_data* d) {\n}\n", ""), "a DAQP interface this vfdsl does not"),

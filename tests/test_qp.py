@@ -273,6 +273,31 @@ def test_a_row_a_little_off_is_brought_back_before_one_far_off(tmp_path):
     assert violation[1] == 0 and x[1] - x[0] >= 0.001 - 1e-12
 
 
+def test_a_group_trades_its_own_rows_to_come_back(tmp_path):
+    """Two rows of one group (two facets of one polytope), both violated at rest: x0 >= 0.3 (by 0.3) and x0 <= -0.1 (by
+    0.1), the box |x| <= 0.1. The group counts its worst row, which falls only if the other grows: x0 = 0.1 leaves
+    both at 0.2. When (A) kept every row no worse than at rest, x stayed 0 and the group at 0.3, tick after tick (a
+    tip 10 mm off its stays_at point along x and 20 mm along y, held on a diagonal line, never moved; a tip dragged
+    by two joints back from beyond their limits stopped 346 mm from its point). A row may now go out by what its group's
+    worst comes back; one group per row keeps each row."""
+    q, u, p, dt = ca.SX.sym("q", 2), ca.SX.sym("u", 2), ca.SX.sym("p", 0), ca.SX.sym("dt")
+    qp_data = ca.Function("facets", [q, u, p, dt],
+                          [ca.SX.eye(2), -u, ca.DM([[1, 0], [-1, 0]]), ca.DM([0.3, 0.1]), ca.DM.inf(2),
+                           -SPEED * dt * ca.DM.ones(2), SPEED * dt * ca.DM.ones(2)])
+    name = "vf_test_facets"
+    library = build_library(build_step_function(qp_data, name, native=True, row_groups=["g", "g"]), name,
+                            tmp_path, {}, NO_CHECKS)
+    paths = (BufferedFunction.native(library.so_path, name),
+             BufferedFunction.interpreted(build_step_function(qp_data, name, row_groups=["g", "g"])))
+    args = (np.zeros(2), np.zeros(2), np.zeros(0), np.array([DT]))
+    x, status, violation = solve_both(paths, args)
+    assert status == StepStatus.LEAST_VIOLATION
+    np.testing.assert_allclose(x, [0.1, 0], atol=2e-5)          # (B): the smallest motion in S, within its margin
+    np.testing.assert_allclose(violation, [0.2, 0.2], atol=2e-5)
+    per_row = BufferedFunction.interpreted(build_step_function(qp_data, "per_row"))(*args, 0.0)
+    np.testing.assert_allclose(per_row[0], [0, 0], atol=1e-9)  # one group per row: neither row may grow
+
+
 def test_many_rows_without_groups_warn():
     q, u, p, dt = ca.SX.sym("q", 2), ca.SX.sym("u", 2), ca.SX.sym("p", 0), ca.SX.sym("dt")
     m = PER_ROW_GROUPS_LIMIT + 1

@@ -51,9 +51,12 @@ _DAQP_SOLVE = re.compile(r"^int casadi_daqp_solve\(struct casadi_daqp_data\* d, 
                          re.MULTILINE | re.DOTALL)
 _DAQP_FREE_MEM = re.compile(r"^void casadi_daqp_free_mem\(struct casadi_daqp_data\* d\) \{\n\}\n",
                             re.MULTILINE)
-_CONIC_CALL = re.compile(r"(/\* (\w+):\(h\[[^\n]*\*/\nstatic int \w+\([^\n]*\{\n(?:(?!\n\}\n).)*?)"
+_H = r"\(h(?:\[\d+x\d+\])?,"
+"""A conic's first argument in CasADi's comment: h[nxn], or h alone for a 1 x 1 (one variable), which was missed: that
+conic kept CasADi's plain DAQP call, without its plan, and the certificate output gave the cost (status 1.04, not 1)."""
+_CONIC_CALL = re.compile(r"(/\* (\w+):" + _H + r"[^\n]*\*/\nstatic int \w+\([^\n]*\{\n(?:(?!\n\}\n).)*?)"
                          r"casadi_daqp_solve\(d, arg, res, iw, w\);", re.DOTALL)
-_CONIC = re.compile(r"/\* \w+:\(h\[")
+_CONIC = re.compile(r"/\* \w+:" + _H)
 _DAQP_DATA_END = "  int bnb_itercount;\n};\n"
 _MAX_THREADS = "#ifndef CASADI_MAX_NUM_THREADS\n#define CASADI_MAX_NUM_THREADS 1\n#endif\n"
 _POOL_CHECKOUT = re.compile(r"^int (casadi_f\d+)_checkout\(void\) \{\n.*?^\}\n", re.MULTILINE | re.DOTALL)

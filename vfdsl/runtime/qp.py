@@ -39,16 +39,23 @@ per-group violation.
 
     (A) least violation:   minimize   1/2 |t|^2 + rho sum_g t_g / w_g + mu/2 |x|^2,   w_g = max(v_g, 1e-4)
                            subject to  lba - E t <= A x <= uba + E t,   x in B,   t >= 0,
-                                       min(lba, A x_0) <= A x <= max(uba, A x_0)   (x_0: the rest motion in B)
+                                       min(lba, A x_0) - E (v - t) <= A x <= max(uba, A x_0) + E (v - t)
+                                       (x_0: the rest motion in B)
 
     (B) the levels:        phase 1's levels (or its one cost), lexicographically, over the least-violation set
-                           S = {x in B : max(lba - E t', min(lba, A x_0)) <= A x <= min(uba + E t', max(uba, A x_0))}
+                           S = {x in B : max(lba - E t', min(lba, A x_0, A x_A)) <= A x
+                                         <= min(uba + E t', max(uba, A x_0, A x_A))}
                            t'_g = t*_g + LEAST_VIOLATION_MARGIN feas_tol where t*_g > 0 (else 0)
 
-v_g is group g's largest violation at rest (its rows at x_0). (A) is always feasible (x_0 with t large enough). Its
-last rows say that no row ends worse than at rest: a least-violation tick never trades one fixture's excess for
-another's (without them, paper A's plate moved 10 mm gave a step that took the shaft further off its curve to bring
-the tip nearer its own). Its measure sum_g (rho t_g / w_g + t_g^2/2) is strictly increasing and strictly convex in
+v_g is group g's largest violation at rest (its rows at x_0). (A) is always feasible (x_0 with t = v). Its last
+rows say that no row ends worse than at rest by more than its group's worst comes back (v_g - t_g): a least-violation
+tick never trades one fixture's excess for another's (without them, paper A's plate moved 10 mm gave a step that
+took the shaft further off its curve to bring the tip nearer its own; with every row of a group allowed to its worst
+at rest, the shaft's other facets went out 0.21 mm for the tip), while a group trades its own rows to bring its worst
+back (with every row kept no worse than at rest, a tip 10 mm off its stays_at point along x and 20 mm along y, held
+on a diagonal line, never moved: the x facet had to grow for the y facet to fall). They are the other sides of the
+relaxed rows: (A) has 2m rows. S keeps every row no worse than at rest or at x_A: the levels take no row further
+out than (A) did. Its measure sum_g (rho t_g / w_g + t_g^2/2) is strictly increasing and strictly convex in
 t, so the least violation t* is unique. Each group's penalty is weighed against the group's own violation at rest: a
 fixture a little off (a held one taken out by a step's second-order remainder) comes back first; with one weight for
 all, a millimetre weighing as much as a radian, a port held within 0.5 mm was pushed 4.8 mm off while a cone 30 deg
@@ -61,12 +68,12 @@ tasks, and mu H / trace(H) next to the identity on t made (A) so ill-conditioned
 violated by up to 2e-7 while reporting success; with mu I (A) is solved to ~1e-13 (measured).
 
 (B) keeps every row of a satisfied group hard and lets each violated one go out by its group's least violation
-(and the margin), no further than at rest: x_A lies in S, the user's levels act only inside it, so no row that
+(and the margin), no further than at rest or at x_A: x_A lies in S, the user's levels act only inside it, so no row that
 could hold is traded for tracking, and the priorities stay lexicographic. S is a sliver (at the least violation the
 relaxed rows nearly depend on the rows that stop them, the box at a speed limit), where DAQP's dual iterates failed
 a level at most least-violation states of paper B; so (B) is solved from x_A by the primal active-set method of
 :func:`vfdsl.runtime.lexls.from_feasible` (the generated C runs its twin), whose certified answer is the levels'
-unique optimum over S, on both paths alike; where none is certified, x = x_A. (A) has n + G variables and 3m rows;
+unique optimum over S, on both paths alike; where none is certified, x = x_A. (A) has n + G variables and 2m rows;
 DAQP is dense, so G = m costs O((n + m)^3) per solve: pass coarse groups for large m (docs/runtime.md: timings).
 
 (A) is feasible by construction, so its answer is taken unless the solve failed outright (rows or
@@ -448,22 +455,25 @@ def _least_violation(A, lba, uba, lo, hi, solve_args, E: ca.DM, tol, rho, mu, so
     """Phase 2 (A then B), returning [x; status]. (A) is solved at primal tolerance 1e-3 tol, and where DAQP fails
     there, once more at tol (seen: a weighted (A) that DAQP called infeasible at 1e-12 and solved at 1e-9)."""
     n, m, G = lo.size1(), A.size1(), E.size2()
-    at_rest = A @ _rest(lo, hi)                   # no row ends worse than at rest: nothing goes further the wrong way
+    at_rest = A @ _rest(lo, hi)
+    v = _rest_violations(E, lba, uba, at_rest)
     H_a = ca.diagcat(mu * ca.DM.eye(n), ca.DM.eye(G))
-    g_a = ca.vertcat(ca.DM.zeros(n), rho / _penalty_scales(E, lba, uba, at_rest))
-    A_a = ca.vertcat(ca.horzcat(A, E), ca.horzcat(A, -E), ca.horzcat(A, ca.DM.zeros(m, G)))
-    inf_m, inf_G = ca.inf * ca.DM.ones(m), ca.inf * ca.DM.ones(G)
-    lba_a = ca.vertcat(lba, -inf_m, ca.fmin(lba, at_rest))
-    uba_a = ca.vertcat(inf_m, uba, ca.fmax(uba, at_rest))
-    lbz, ubz = ca.vertcat(lo, ca.DM.zeros(G)), ca.vertcat(hi, inf_G)
+    g_a = ca.vertcat(ca.DM.zeros(n), rho / ca.fmax(v, REST_VIOLATION_FLOOR))
+    A_a = ca.vertcat(ca.horzcat(A, E), ca.horzcat(A, -E))
+    # each row's other side: no worse than at rest, but by what its group's worst comes back (v_g - t_g)
+    lba_a = ca.vertcat(lba, ca.fmin(lba, at_rest) - E @ v)
+    uba_a = ca.vertcat(ca.fmax(uba, at_rest) + E @ v, uba)
+    lbz, ubz = ca.vertcat(lo, ca.DM.zeros(G)), ca.vertcat(hi, ca.inf * ca.DM.ones(G))
     rows_a = [H_a, g_a, *daqp_rows(A_a, lba_a, uba_a, lbz, ubz)]
-    z = _retried(daqp_solver(n + G, 3 * m, tol * 1e-3, f"{scope}phase2a", native, plans)(*rows_a), recover,
-                 daqp_solver(n + G, 3 * m, tol, f"{scope}phase2a_again", native, plans), rows_a)
+    z = _retried(daqp_solver(n + G, 2 * m, tol * 1e-3, f"{scope}phase2a", native, plans)(*rows_a), recover,
+                 daqp_solver(n + G, 2 * m, tol, f"{scope}phase2a_again", native, plans), rows_a)
     # Acceptance is decided on the solver's own answer, before any clipping: clipping a failed solve's NaN into B
     # would turn it into a full-speed motion that looks feasible.
     ok_a = _acceptable(z, A_a @ z, lba_a, uba_a, lbz, ubz, _GROSS_FAILURE)
     x_a = _clip(z[:n], lo, hi)      # used only when (A) is acceptable, i.e. z is finite
-    lower, upper = _least_violation_set(lba, uba, at_rest, E @ ca.if_else(ok_a, ca.fmax(z[n:], 0), 0), tol)
+    kept = ca.if_else(ok_a, A @ x_a, at_rest)       # rows (A) took out beyond their rest value, to bring its group back
+    lower, upper = _least_violation_set(lba, uba, ca.fmin(at_rest, kept), ca.fmax(at_rest, kept),
+                                        E @ ca.if_else(ok_a, ca.fmax(z[n:], 0), 0), tol)
     H_s, g_s, a_s, lower_s, upper_s = solve_args
     answer = solve_from(H_s, g_s, a_s, ca.vertcat(lower, lower_s[m:]), ca.vertcat(upper, upper_s[m:]), x_a)
     x_b = answer[:n]
@@ -475,18 +485,16 @@ def _least_violation(A, lba, uba, lo, hi, solve_args, E: ca.DM, tol, rho, mu, so
     return ca.vertcat(x, status)
 
 
-def _penalty_scales(E: ca.DM, lba, uba, at_rest) -> ca.MX:
-    """w_g = max(v_g, REST_VIOLATION_FLOOR), v_g the largest violation at rest of group g's rows (a group that holds
-    at rest gets the floor: (A) keeps its rows hard anyway)."""
+def _rest_violations(E: ca.DM, lba, uba, at_rest) -> ca.MX:
+    """v_g: the largest violation at rest of group g's rows (0 for a group that holds at rest)."""
     at_rest_violation = ca.fmax(ca.fmax(lba - at_rest, at_rest - uba), 0)
     incidence = np.array(E)
-    return ca.vertcat(*(ca.fmax(ca.mmax(at_rest_violation[np.flatnonzero(column).tolist()]), REST_VIOLATION_FLOOR)
-                        for column in incidence.T))
+    return ca.vertcat(*(ca.mmax(at_rest_violation[np.flatnonzero(column).tolist()]) for column in incidence.T))
 
 
-def _least_violation_set(lba, uba, at_rest, relaxed, tol) -> tuple[ca.MX, ca.MX]:
+def _least_violation_set(lba, uba, low, high, relaxed, tol) -> tuple[ca.MX, ca.MX]:
     """The rows' bounds of the least-violation set S: each row of a violated group (``relaxed``: E t*, above
-    1e-3 tol) relaxed by the group's least violation and LEAST_VIOLATION_MARGIN tol, and no row worse than at
-    rest."""
+    1e-3 tol) relaxed by the group's least violation and LEAST_VIOLATION_MARGIN tol, and no row worse than both at
+    rest and at (A)'s answer (``low``, ``high``: the lesser and the greater of A x_0 and A x_A)."""
     widened = ca.if_else(relaxed > 1e-3 * tol, relaxed + LEAST_VIOLATION_MARGIN * tol, 0)
-    return ca.fmax(lba - widened, ca.fmin(lba, at_rest)), ca.fmin(uba + widened, ca.fmax(uba, at_rest))
+    return ca.fmax(lba - widened, ca.fmin(lba, low)), ca.fmin(uba + widened, ca.fmax(uba, high))

@@ -484,31 +484,30 @@ static const casadi_int casadi_s0[11] =
 static const casadi_int casadi_s1[9] = 
   {2, 2, 0, 2, 4, 0, 1, 0,
   1};
-static const casadi_int casadi_s2[24] = 
-  {6, 3, 0, 6, 12, 18, 0, 1,
-  2, 3, 4, 5, 0, 1, 2, 3,
-  4, 5, 0, 1, 2, 3, 4, 5};
+static const casadi_int casadi_s2[21] = 
+  {5, 3, 0, 5, 10, 15, 0, 1,
+  2, 3, 4, 0, 1, 2, 3, 4,
+  0, 1, 2, 3, 4};
 static const casadi_int casadi_s3[15] = 
   {3, 3, 0, 3, 6, 9, 0, 1,
   2, 0, 1, 2, 0, 1, 2};
 static const casadi_int casadi_s4[9] = 
   {3, 3, 0, 1, 2, 3, 0, 1,
   2};
-static const casadi_int casadi_s5[18] = 
-  {6, 3, 0, 4, 8, 12, 0, 1,
-  2, 3, 0, 1, 2, 4, 0, 1,
-  2, 5};
-static const casadi_int casadi_s6[21] = 
-  {3, 6, 0, 3, 6, 9, 10, 11,
-  12, 0, 1, 2, 0, 1, 2, 0,
-  1, 2, 0, 1, 2};
+static const casadi_int casadi_s5[15] = 
+  {5, 3, 0, 3, 6, 9, 0, 1,
+  2, 0, 1, 3, 0, 1, 4};
+static const casadi_int casadi_s6[17] = 
+  {3, 5, 0, 3, 6, 7, 8, 9,
+  0, 1, 2, 0, 1, 2, 0, 1,
+  2};
 static const casadi_int casadi_s7[3] = {2, 1, 1};
 static const casadi_int casadi_s8[3] = {1, 1, 1};
 static const casadi_int casadi_s9[3] = {0, 1, 1};
 
 static const casadi_real casadi_c0[3] = {1.0000000000000000e-03, 1.0000000000000000e-03, 1.};
 
-static const casadi_real casadi_zeros[18] = 
+static const casadi_real casadi_zeros[15] = 
   {0.};
 
 /* vf_golden_prepare:(i0[2],i1[2],i2,i3)->(o0[1x2],o1,o2,o3[2],o4[2],o5,o6[2x2],o7[2],o8[3x2],o9[3],o10[3]) */
@@ -774,7 +773,7 @@ static int casadi_f3(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   return 0;
 }
 
-/* phase2a:(h[3x3],g[3],a[6x3],lba[6],uba[6],lbx[3],ubx[3],x0[3],lam_x0[3],lam_a0[6],q[],p[])->(x[3],cost,lam_a[6],lam_x[3]) */
+/* phase2a:(h[3x3],g[3],a[5x3],lba[5],uba[5],lbx[3],ubx[3],x0[3],lam_x0[3],lam_a0[5],q[],p[])->(x[3],cost,lam_a[5],lam_x[3]) */
 static int casadi_f6(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   struct casadi_daqp_data* d=&casadi_f6_mem[mem];
   struct casadi_daqp_prob p;
@@ -865,7 +864,7 @@ void casadi_f6_decref(void) {
   }
 }
 
-/* phase2a_again:(h[3x3],g[3],a[6x3],lba[6],uba[6],lbx[3],ubx[3],x0[3],lam_x0[3],lam_a0[6],q[],p[])->(x[3],cost,lam_a[6],lam_x[3]) */
+/* phase2a_again:(h[3x3],g[3],a[5x3],lba[5],uba[5],lbx[3],ubx[3],x0[3],lam_x0[3],lam_a0[5],q[],p[])->(x[3],cost,lam_a[5],lam_x[3]) */
 static int casadi_f9(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   struct casadi_daqp_data* d=&casadi_f9_mem[mem];
   struct casadi_daqp_prob p;
@@ -956,9 +955,9 @@ void casadi_f9_decref(void) {
   }
 }
 
-/* solve_again:(i0[3],i1[3x3,3nz],i2[3],i3[6x3],i4[6],i5[6])->(o0[3]) */
+/* solve_again:(i0[3],i1[3x3,3nz],i2[3],i3[5x3],i4[5],i5[5])->(o0[3]) */
 static int casadi_f8(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
-  casadi_real **res1=res+1, *w00=w+54, *w01=w+57, *w03=w+66, *w04=w+72, *w05=w+78, *w06=w+81, *w07=w+84, *w08=w+87, *w09=w+90, *w11=w+96;
+  casadi_real **res1=res+1, *w00=w+48, *w01=w+51, *w03=w+60, *w04=w+65, *w05=w+70, *w06=w+73, *w07=w+76, *w08=w+79, *w09=w+82, *w11=w+87;
   const casadi_real **arg1=arg+6, *wr02;
   int flag, mid;
   /* #0: @0 = input[1][0] */
@@ -970,9 +969,9 @@ static int casadi_f8(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   /* #3: @2 = input[3][0] */
   wr02 = arg[3] ? arg[3] : casadi_zeros;
   /* #4: @3 = input[4][0] */
-  casadi_copy(arg[4], 6, w03);
+  casadi_copy(arg[4], 5, w03);
   /* #5: @4 = input[5][0] */
-  casadi_copy(arg[5], 6, w04);
+  casadi_copy(arg[5], 5, w04);
   /* #6: @5 = -inf(3x1) */
   casadi_fill(w05, 3, -casadi_inf);
   /* #7: @6 = inf(3x1) */
@@ -981,8 +980,8 @@ static int casadi_f8(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   casadi_clear(w07, 3);
   /* #9: @8 = zeros(3x1) */
   casadi_clear(w08, 3);
-  /* #10: @9 = zeros(6x1) */
-  casadi_clear(w09, 6);
+  /* #10: @9 = zeros(5x1) */
+  casadi_clear(w09, 5);
   /* #11: @10 = 0x0 */
   /* #12: {@11, NULL, NULL, NULL} = phase2a_again(@1, @0, @2, @3, @4, @5, @6, @7, @8, @9, @10, @10) */
   arg1[0]=w01;
@@ -1019,7 +1018,7 @@ void casadi_f8_decref(void) {
   casadi_f9_decref();
 }
 
-/* keep_first:(i0[3],i1[3x3,3nz],i2[3],i3[6x3],i4[6],i5[6])->(o0[3]) */
+/* keep_first:(i0[3],i1[3x3,3nz],i2[3],i3[5x3],i4[5],i5[5])->(o0[3]) */
 static int casadi_f10(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real *w0=w+0;
   /* #0: @0 = input[0][0] */
@@ -1029,7 +1028,7 @@ static int casadi_f10(const casadi_real** arg, casadi_real** res, casadi_int* iw
   return 0;
 }
 
-/* retry_if_failed:(i0,i1[3],i2[3x3,3nz],i3[3],i4[6x3],i5[6],i6[6])->(o0[3]) */
+/* retry_if_failed:(i0,i1[3],i2[3x3,3nz],i3[3],i4[5x3],i5[5],i6[5])->(o0[3]) */
 static int casadi_f7(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   if (arg[0] ? casadi_to_int(*arg[0]) : 0) {
     if (casadi_f10(arg+1, res, iw, w, 0)) return 1;
@@ -1141,10 +1140,10 @@ void casadi_f11_decref(void) {
 /* recover:(i0[1x2],i1,i2,i3[2],i4[2],i5[2],i6,i7,i8[2x2],i9[2],i10[3x2],i11[3],i12[3])->(o0[3]) */
 static int casadi_f5(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_int i, j;
-  casadi_real **res1=res+1, *rr, *w00=w+117, *w01=w+120, *w02=w+129, w03, w04, w05, w06, *w07=w+131, *w08=w+133, *w09=w+135;
-  casadi_real *w10=w+137, w11, w12, w13, *w14=w+139, *w15=w+142, *w16=w+145, *w17=w+148, *w18=w+151, *w19=w+163, *w20=w+175, *w21=w+193;
-  casadi_real w22, w23, *w24=w+199, *w25=w+205, *w26=w+208, *w27=w+211, *w28=w+214, *w30=w+220, w31, w32, w33, *w34=w+223;
-  casadi_real *w35=w+232, *w36=w+236, *w37=w+238, *w38=w+240, *w39=w+242;
+  casadi_real **res1=res+1, *rr, *w00=w+105, *w01=w+108, *w02=w+117, w03, w04, w05, w06, *w07=w+119, *w08=w+121, *w09=w+123;
+  casadi_real *w10=w+125, w11, w12, w13, *w14=w+127, *w15=w+130, *w16=w+133, *w17=w+136, *w18=w+145, *w19=w+154, *w20=w+169, *w21=w+174;
+  casadi_real *w22=w+179, *w23=w+182, *w24=w+185, *w25=w+188, *w27=w+193, w28, w29, w30, *w31=w+196, *w32=w+202, *w33=w+208, *w34=w+210;
+  casadi_real *w35=w+214, *w36=w+216, *w37=w+218;
   const casadi_real **arg1=arg+13, *cr, *cs;
   int flag, mid;
   /* #0: @0 = 
@@ -1212,76 +1211,66 @@ static int casadi_f5(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   for (i=0, cs=w07; i<2; ++i) *rr++ = *cs++;
   *rr++ = w03;
   /* #28: @15 = @15' */
-  /* #29: @3 = 0 */
-  w03 = 0.;
-  /* #30: @16 = horzcat(@7, @3) */
-  rr=w16;
-  for (i=0, cs=w07; i<2; ++i) *rr++ = *cs++;
-  *rr++ = w03;
-  /* #31: @16 = @16' */
-  /* #32: @17 = ones(3x3,3nz) */
-  casadi_fill(w17, 3, 1.);
-  /* #33: @18 = horzcat(@14, @15, @16, @17) */
-  rr=w18;
+  /* #29: @16 = ones(3x3,3nz) */
+  casadi_fill(w16, 3, 1.);
+  /* #30: @17 = horzcat(@14, @15, @16) */
+  rr=w17;
   for (i=0, cs=w14; i<3; ++i) *rr++ = *cs++;
   for (i=0, cs=w15; i<3; ++i) *rr++ = *cs++;
   for (i=0, cs=w16; i<3; ++i) *rr++ = *cs++;
-  for (i=0, cs=w17; i<3; ++i) *rr++ = *cs++;
-  /* #34: @19 = @18' */
-  casadi_trans(w18,casadi_s6, w19, casadi_s5, iw);
-  /* #35: @20 = dense(@19) */
-  casadi_densify(w19, casadi_s5, w20, 0);
-  /* #36: @3 = -inf */
-  w03 = -casadi_inf;
-  /* #37: @11 = fmin(@5,@6) */
-  w11  = casadi_fmin(w05,w06);
-  /* #38: @4 = 0 */
+  /* #31: @18 = @17' */
+  casadi_trans(w17,casadi_s6, w18, casadi_s5, iw);
+  /* #32: @19 = dense(@18) */
+  casadi_densify(w18, casadi_s5, w19, 0);
+  /* #33: @3 = fmin(@5,@6) */
+  w03  = casadi_fmin(w05,w06);
+  /* #34: @3 = (@3-@11) */
+  w03 -= w11;
+  /* #35: @4 = 0 */
   w04 = 0.;
-  /* #39: @21 = vertcat(@5, @3, @11, @9, @4) */
-  rr=w21;
+  /* #36: @20 = vertcat(@5, @3, @9, @4) */
+  rr=w20;
   *rr++ = w05;
   *rr++ = w03;
-  *rr++ = w11;
   for (i=0, cs=w09; i<2; ++i) *rr++ = *cs++;
   *rr++ = w04;
-  /* #40: @13 = inf */
-  w13 = casadi_inf;
-  /* #41: @22 = fmax(@12,@6) */
-  w22  = casadi_fmax(w12,w06);
-  /* #42: @23 = inf */
-  w23 = casadi_inf;
-  /* #43: @24 = vertcat(@13, @12, @22, @10, @23) */
-  rr=w24;
+  /* #37: @13 = fmax(@12,@6) */
+  w13  = casadi_fmax(w12,w06);
+  /* #38: @13 = (@13+@11) */
+  w13 += w11;
+  /* #39: @11 = inf */
+  w11 = casadi_inf;
+  /* #40: @21 = vertcat(@13, @12, @10, @11) */
+  rr=w21;
   *rr++ = w13;
   *rr++ = w12;
-  *rr++ = w22;
   for (i=0, cs=w10; i<2; ++i) *rr++ = *cs++;
-  *rr++ = w23;
-  /* #44: @17 = -inf(3x1) */
-  casadi_fill(w17, 3, -casadi_inf);
-  /* #45: @25 = inf(3x1) */
-  casadi_fill(w25, 3, casadi_inf);
-  /* #46: @26 = zeros(3x1) */
-  casadi_clear(w26, 3);
-  /* #47: @27 = zeros(3x1) */
-  casadi_clear(w27, 3);
-  /* #48: @28 = zeros(6x1) */
-  casadi_clear(w28, 6);
-  /* #49: @29 = 0x0 */
-  /* #50: {@30, NULL, NULL, NULL} = phase2a(@1, @0, @20, @21, @24, @17, @25, @26, @27, @28, @29, @29) */
+  *rr++ = w11;
+  /* #41: @16 = -inf(3x1) */
+  casadi_fill(w16, 3, -casadi_inf);
+  /* #42: @22 = inf(3x1) */
+  casadi_fill(w22, 3, casadi_inf);
+  /* #43: @23 = zeros(3x1) */
+  casadi_clear(w23, 3);
+  /* #44: @24 = zeros(3x1) */
+  casadi_clear(w24, 3);
+  /* #45: @25 = zeros(5x1) */
+  casadi_clear(w25, 5);
+  /* #46: @26 = 0x0 */
+  /* #47: {@27, NULL, NULL, NULL} = phase2a(@1, @0, @19, @20, @21, @16, @22, @23, @24, @25, @26, @26) */
   arg1[0]=w01;
   arg1[1]=w00;
-  arg1[2]=w20;
-  arg1[3]=w21;
-  arg1[4]=w24;
-  arg1[5]=w17;
-  arg1[6]=w25;
-  arg1[7]=w26;
-  arg1[8]=w27;
-  arg1[9]=w28;
+  arg1[2]=w19;
+  arg1[3]=w20;
+  arg1[4]=w21;
+  arg1[5]=w16;
+  arg1[6]=w22;
+  arg1[7]=w23;
+  arg1[8]=w24;
+  arg1[9]=w25;
   arg1[10]=0;
   arg1[11]=0;
-  res1[0]=w30;
+  res1[0]=w27;
   res1[1]=0;
   res1[2]=0;
   res1[3]=0;
@@ -1290,190 +1279,203 @@ static int casadi_f5(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   flag = casadi_f6(arg1, res1, iw, w, mid);
   casadi_f6_release(mid);
   if (flag) return 1;
-  /* #51: @17 = fabs(@30) */
-  for (i=0, rr=w17, cs=w30; i<3; ++i) *rr++ = casadi_fabs( *cs++ );
-  /* #52: @31 = inf */
-  w31 = casadi_inf;
-  /* #53: @17 = (@17<@31) */
-  for (i=0, rr=w17, cr=w17; i<3; ++i) (*rr++)  = ((*cr++)<w31);
-  /* #54: @31 = min(@17) */
-  w31 = casadi_mmin(w17, 3, 1);
-  /* #55: @32 = 0 */
-  w32 = 0.;
-  /* #56: @33 = input[7][0] */
-  w33 = arg[7] ? arg[7][0] : 0;
-  /* #57: @32 = (@32==@33) */
-  w32  = (w32==w33);
-  /* #58: @31 = (@31&&@32) */
-  w31  = (w31&&w32);
-  /* #59: @17 = 
+  /* #48: @16 = fabs(@27) */
+  for (i=0, rr=w16, cs=w27; i<3; ++i) *rr++ = casadi_fabs( *cs++ );
+  /* #49: @28 = inf */
+  w28 = casadi_inf;
+  /* #50: @16 = (@16<@28) */
+  for (i=0, rr=w16, cr=w16; i<3; ++i) (*rr++)  = ((*cr++)<w28);
+  /* #51: @28 = min(@16) */
+  w28 = casadi_mmin(w16, 3, 1);
+  /* #52: @29 = 0 */
+  w29 = 0.;
+  /* #53: @30 = input[7][0] */
+  w30 = arg[7] ? arg[7][0] : 0;
+  /* #54: @29 = (@29==@30) */
+  w29  = (w29==w30);
+  /* #55: @28 = (@28&&@29) */
+  w28  = (w28&&w29);
+  /* #56: @16 = 
   [[0.001, 00, 00], 
    [00, 0.001, 00], 
    [00, 00, 1]] */
-  casadi_copy(casadi_c0, 3, w17);
-  /* #60: @25 = retry_if_failed(@31, @30, @17, @0, @20, @21, @24) */
-  arg1[0]=(&w31);
-  arg1[1]=w30;
-  arg1[2]=w17;
+  casadi_copy(casadi_c0, 3, w16);
+  /* #57: @22 = retry_if_failed(@28, @27, @16, @0, @19, @20, @21) */
+  arg1[0]=(&w28);
+  arg1[1]=w27;
+  arg1[2]=w16;
   arg1[3]=w00;
-  arg1[4]=w20;
-  arg1[5]=w21;
-  arg1[6]=w24;
-  res1[0]=w25;
+  arg1[4]=w19;
+  arg1[5]=w20;
+  arg1[6]=w21;
+  res1[0]=w22;
   if (casadi_f7(arg1, res1, iw, w, 0)) return 1;
-  /* #61: @30 = fabs(@25) */
-  for (i=0, rr=w30, cs=w25; i<3; ++i) *rr++ = casadi_fabs( *cs++ );
-  /* #62: @31 = inf */
-  w31 = casadi_inf;
-  /* #63: @30 = (@30<@31) */
-  for (i=0, rr=w30, cr=w30; i<3; ++i) (*rr++)  = ((*cr++)<w31);
-  /* #64: @31 = min(@30) */
-  w31 = casadi_mmin(w30, 3, 1);
-  /* #65: @32 = 0 */
-  w32 = 0.;
-  /* #66: @30 = vertcat(@9, @4) */
-  rr=w30;
+  /* #58: @27 = fabs(@22) */
+  for (i=0, rr=w27, cs=w22; i<3; ++i) *rr++ = casadi_fabs( *cs++ );
+  /* #59: @28 = inf */
+  w28 = casadi_inf;
+  /* #60: @27 = (@27<@28) */
+  for (i=0, rr=w27, cr=w27; i<3; ++i) (*rr++)  = ((*cr++)<w28);
+  /* #61: @28 = min(@27) */
+  w28 = casadi_mmin(w27, 3, 1);
+  /* #62: @29 = 0 */
+  w29 = 0.;
+  /* #63: @27 = vertcat(@9, @4) */
+  rr=w27;
   for (i=0, cs=w09; i<2; ++i) *rr++ = *cs++;
   *rr++ = w04;
-  /* #67: @30 = (@30-@25) */
-  for (i=0, rr=w30, cs=w25; i<3; ++i) (*rr++) -= (*cs++);
-  /* #68: @17 = vertcat(@10, @23) */
-  rr=w17;
+  /* #64: @27 = (@27-@22) */
+  for (i=0, rr=w27, cs=w22; i<3; ++i) (*rr++) -= (*cs++);
+  /* #65: @16 = vertcat(@10, @11) */
+  rr=w16;
   for (i=0, cs=w10; i<2; ++i) *rr++ = *cs++;
-  *rr++ = w23;
-  /* #69: @17 = (@25-@17) */
-  for (i=0, rr=w17, cr=w25, cs=w17; i<3; ++i) (*rr++)  = ((*cr++)-(*cs++));
-  /* #70: @30 = fmax(@30,@17) */
-  for (i=0, rr=w30, cr=w30, cs=w17; i<3; ++i) (*rr++)  = casadi_fmax((*cr++),(*cs++));
-  /* #71: @30 = fmax(@32,@30) */
-  for (i=0, rr=w30, cs=w30; i<3; ++i) (*rr++)  = casadi_fmax(w32,(*cs++));
-  /* #72: @32 = max(@30) */
-  w32 = casadi_mmax(w30, 3, 1);
-  /* #73: @23 = 1e-06 */
-  w23 = 9.9999999999999995e-07;
-  /* #74: @32 = (@32<=@23) */
-  w32  = (w32<=w23);
-  /* #75: @31 = (@31&&@32) */
-  w31  = (w31&&w32);
-  /* #76: @32 = 0 */
-  w32 = 0.;
-  /* #77: @30 = vertcat(@5, @3, @11) */
-  rr=w30;
+  *rr++ = w11;
+  /* #66: @16 = (@22-@16) */
+  for (i=0, rr=w16, cr=w22, cs=w16; i<3; ++i) (*rr++)  = ((*cr++)-(*cs++));
+  /* #67: @27 = fmax(@27,@16) */
+  for (i=0, rr=w27, cr=w27, cs=w16; i<3; ++i) (*rr++)  = casadi_fmax((*cr++),(*cs++));
+  /* #68: @27 = fmax(@29,@27) */
+  for (i=0, rr=w27, cs=w27; i<3; ++i) (*rr++)  = casadi_fmax(w29,(*cs++));
+  /* #69: @29 = max(@27) */
+  w29 = casadi_mmax(w27, 3, 1);
+  /* #70: @11 = 1e-06 */
+  w11 = 9.9999999999999995e-07;
+  /* #71: @29 = (@29<=@11) */
+  w29  = (w29<=w11);
+  /* #72: @28 = (@28&&@29) */
+  w28  = (w28&&w29);
+  /* #73: @29 = 0 */
+  w29 = 0.;
+  /* #74: @2 = vertcat(@5, @3) */
+  rr=w02;
   *rr++ = w05;
   *rr++ = w03;
-  *rr++ = w11;
-  /* #78: @17 = zeros(3x1) */
-  casadi_clear(w17, 3);
-  /* #79: @1 = horzcat(@14, @15, @16) */
-  rr=w01;
+  /* #75: @8 = zeros(2x1) */
+  casadi_clear(w08, 2);
+  /* #76: @31 = horzcat(@14, @15) */
+  rr=w31;
   for (i=0, cs=w14; i<3; ++i) *rr++ = *cs++;
   for (i=0, cs=w15; i<3; ++i) *rr++ = *cs++;
-  for (i=0, cs=w16; i<3; ++i) *rr++ = *cs++;
-  /* #80: @34 = @1' */
-  for (i=0, rr=w34, cs=w01; i<3; ++i) for (j=0; j<3; ++j) rr[i+j*3] = *cs++;
-  /* #81: @17 = mac(@34,@25,@17) */
-  casadi_mtimes_dense(w34, 3, 3, w25, 1, w17, 0);
-  /* #82: @30 = (@30-@17) */
-  for (i=0, rr=w30, cs=w17; i<3; ++i) (*rr++) -= (*cs++);
-  /* #83: @14 = vertcat(@13, @12, @22) */
-  rr=w14;
+  /* #77: @32 = @31' */
+  for (i=0, rr=w32, cs=w31; i<2; ++i) for (j=0; j<3; ++j) rr[i+j*2] = *cs++;
+  /* #78: @8 = mac(@32,@22,@8) */
+  casadi_mtimes_dense(w32, 2, 3, w22, 1, w08, 0);
+  /* #79: @2 = (@2-@8) */
+  for (i=0, rr=w02, cs=w08; i<2; ++i) (*rr++) -= (*cs++);
+  /* #80: @33 = vertcat(@13, @12) */
+  rr=w33;
   *rr++ = w13;
   *rr++ = w12;
-  *rr++ = w22;
-  /* #84: @17 = (@17-@14) */
-  for (i=0, rr=w17, cs=w14; i<3; ++i) (*rr++) -= (*cs++);
-  /* #85: @30 = fmax(@30,@17) */
-  for (i=0, rr=w30, cr=w30, cs=w17; i<3; ++i) (*rr++)  = casadi_fmax((*cr++),(*cs++));
-  /* #86: @30 = fmax(@32,@30) */
-  for (i=0, rr=w30, cs=w30; i<3; ++i) (*rr++)  = casadi_fmax(w32,(*cs++));
-  /* #87: @32 = max(@30) */
-  w32 = casadi_mmax(w30, 3, 1);
-  /* #88: @13 = 1e-06 */
+  /* #81: @8 = (@8-@33) */
+  for (i=0, rr=w08, cs=w33; i<2; ++i) (*rr++) -= (*cs++);
+  /* #82: @2 = fmax(@2,@8) */
+  for (i=0, rr=w02, cr=w02, cs=w08; i<2; ++i) (*rr++)  = casadi_fmax((*cr++),(*cs++));
+  /* #83: @2 = fmax(@29,@2) */
+  for (i=0, rr=w02, cs=w02; i<2; ++i) (*rr++)  = casadi_fmax(w29,(*cs++));
+  /* #84: @29 = max(@2) */
+  w29 = casadi_mmax(w02, 2, 1);
+  /* #85: @13 = 1e-06 */
   w13 = 9.9999999999999995e-07;
-  /* #89: @32 = (@32<=@13) */
-  w32  = (w32<=w13);
-  /* #90: @31 = (@31&&@32) */
-  w31  = (w31&&w32);
-  /* #91: @35 = input[8][0] */
-  casadi_copy(arg[8], 4, w35);
-  /* #92: @2 = input[9][0] */
+  /* #86: @29 = (@29<=@13) */
+  w29  = (w29<=w13);
+  /* #87: @28 = (@28&&@29) */
+  w28  = (w28&&w29);
+  /* #88: @34 = input[8][0] */
+  casadi_copy(arg[8], 4, w34);
+  /* #89: @2 = input[9][0] */
   casadi_copy(arg[9], 2, w02);
-  /* #93: @21 = input[10][0] */
-  casadi_copy(arg[10], 6, w21);
-  /* #94: @32 = 1e-09 */
-  w32 = 1.0000000000000001e-09;
-  /* #95: @13 = 0 */
+  /* #90: @32 = input[10][0] */
+  casadi_copy(arg[10], 6, w32);
+  /* #91: @29 = 1e-09 */
+  w29 = 1.0000000000000001e-09;
+  /* #92: @13 = 0 */
   w13 = 0.;
-  /* #96: @22 = @25[2] */
-  for (rr=(&w22), cs=w25+2; cs!=w25+3; cs+=1) *rr++ = *cs;
-  /* #97: @13 = fmax(@13,@22) */
-  w13  = casadi_fmax(w13,w22);
-  /* #98: @13 = (@31?@13:0) */
-  w13  = (w31?w13:0);
-  /* #99: @32 = (@32<@13) */
-  w32  = (w32<w13);
-  /* #100: @22 = 1e-05 */
-  w22 = 9.9999999999999991e-06;
-  /* #101: @22 = (@22+@13) */
-  w22 += w13;
-  /* #102: @32 = (@32?@22:0) */
-  w32  = (w32?w22:0);
-  /* #103: @22 = (@5-@32) */
-  w22  = (w05-w32);
-  /* #104: @5 = fmin(@5,@6) */
-  w05  = casadi_fmin(w05,w06);
-  /* #105: @22 = fmax(@22,@5) */
-  w22  = casadi_fmax(w22,w05);
-  /* #106: @30 = input[11][0] */
-  casadi_copy(arg[11], 3, w30);
-  /* #107: @8 = @30[1:3] */
-  for (rr=w08, cs=w30+1; cs!=w30+3; cs+=1) *rr++ = *cs;
-  /* #108: @30 = vertcat(@22, @8) */
-  rr=w30;
-  *rr++ = w22;
-  for (i=0, cs=w08; i<2; ++i) *rr++ = *cs++;
-  /* #109: @32 = (@12+@32) */
-  w32  = (w12+w32);
-  /* #110: @12 = fmax(@12,@6) */
+  /* #93: @3 = @22[2] */
+  for (rr=(&w03), cs=w22+2; cs!=w22+3; cs+=1) *rr++ = *cs;
+  /* #94: @13 = fmax(@13,@3) */
+  w13  = casadi_fmax(w13,w03);
+  /* #95: @13 = (@28?@13:0) */
+  w13  = (w28?w13:0);
+  /* #96: @29 = (@29<@13) */
+  w29  = (w29<w13);
+  /* #97: @3 = 1e-05 */
+  w03 = 9.9999999999999991e-06;
+  /* #98: @3 = (@3+@13) */
+  w03 += w13;
+  /* #99: @29 = (@29?@3:0) */
+  w29  = (w29?w03:0);
+  /* #100: @3 = (@5-@29) */
+  w03  = (w05-w29);
+  /* #101: @13 = 0 */
+  w13 = 0.;
+  /* #102: @8 = @22[:2] */
+  for (rr=w08, cs=w22+0; cs!=w22+2; cs+=1) *rr++ = *cs;
+  /* #103: @8 = fmax(@8,@9) */
+  for (i=0, rr=w08, cr=w08, cs=w09; i<2; ++i) (*rr++)  = casadi_fmax((*cr++),(*cs++));
+  /* #104: @8 = fmin(@8,@10) */
+  for (i=0, rr=w08, cr=w08, cs=w10; i<2; ++i) (*rr++)  = casadi_fmin((*cr++),(*cs++));
+  /* #105: @13 = mac(@7,@8,@13) */
+  casadi_mtimes_dense(w07, 1, 2, w08, 1, (&w13), 0);
+  /* #106: @13 = (@28?@13:0) */
+  w13  = (w28?w13:0);
+  /* #107: @11 = (!@28) */
+  w11 = (! w28 );
+  /* #108: @11 = (@11?@6:0) */
+  w11  = (w11?w06:0);
+  /* #109: @13 = (@13+@11) */
+  w13 += w11;
+  /* #110: @11 = fmin(@6,@13) */
+  w11  = casadi_fmin(w06,w13);
+  /* #111: @5 = fmin(@5,@11) */
+  w05  = casadi_fmin(w05,w11);
+  /* #112: @3 = fmax(@3,@5) */
+  w03  = casadi_fmax(w03,w05);
+  /* #113: @22 = input[11][0] */
+  casadi_copy(arg[11], 3, w22);
+  /* #114: @33 = @22[1:3] */
+  for (rr=w33, cs=w22+1; cs!=w22+3; cs+=1) *rr++ = *cs;
+  /* #115: @22 = vertcat(@3, @33) */
+  rr=w22;
+  *rr++ = w03;
+  for (i=0, cs=w33; i<2; ++i) *rr++ = *cs++;
+  /* #116: @29 = (@12+@29) */
+  w29  = (w12+w29);
+  /* #117: @6 = fmax(@6,@13) */
+  w06  = casadi_fmax(w06,w13);
+  /* #118: @12 = fmax(@12,@6) */
   w12  = casadi_fmax(w12,w06);
-  /* #111: @32 = fmin(@32,@12) */
-  w32  = casadi_fmin(w32,w12);
-  /* #112: @17 = input[12][0] */
-  casadi_copy(arg[12], 3, w17);
-  /* #113: @8 = @17[1:3] */
-  for (rr=w08, cs=w17+1; cs!=w17+3; cs+=1) *rr++ = *cs;
-  /* #114: @17 = vertcat(@32, @8) */
-  rr=w17;
-  *rr++ = w32;
-  for (i=0, cs=w08; i<2; ++i) *rr++ = *cs++;
-  /* #115: @8 = -inf(2x1) */
-  casadi_fill(w08, 2, -casadi_inf);
-  /* #116: @36 = inf(2x1) */
-  casadi_fill(w36, 2, casadi_inf);
-  /* #117: @37 = @25[:2] */
-  for (rr=w37, cs=w25+0; cs!=w25+2; cs+=1) *rr++ = *cs;
-  /* #118: @37 = fmax(@37,@9) */
-  for (i=0, rr=w37, cr=w37, cs=w09; i<2; ++i) (*rr++)  = casadi_fmax((*cr++),(*cs++));
-  /* #119: @37 = fmin(@37,@10) */
-  for (i=0, rr=w37, cr=w37, cs=w10; i<2; ++i) (*rr++)  = casadi_fmin((*cr++),(*cs++));
-  /* #120: @38 = zeros(2x1) */
-  casadi_clear(w38, 2);
-  /* #121: @25 = zeros(3x1) */
-  casadi_clear(w25, 3);
-  /* #122: {@39, @12, NULL, NULL} = phase2b(@35, @2, @21, @30, @17, @8, @36, @37, @38, @25, @29, @29) */
-  arg1[0]=w35;
+  /* #119: @29 = fmin(@29,@12) */
+  w29  = casadi_fmin(w29,w12);
+  /* #120: @14 = input[12][0] */
+  casadi_copy(arg[12], 3, w14);
+  /* #121: @33 = @14[1:3] */
+  for (rr=w33, cs=w14+1; cs!=w14+3; cs+=1) *rr++ = *cs;
+  /* #122: @14 = vertcat(@29, @33) */
+  rr=w14;
+  *rr++ = w29;
+  for (i=0, cs=w33; i<2; ++i) *rr++ = *cs++;
+  /* #123: @33 = -inf(2x1) */
+  casadi_fill(w33, 2, -casadi_inf);
+  /* #124: @35 = inf(2x1) */
+  casadi_fill(w35, 2, casadi_inf);
+  /* #125: @36 = zeros(2x1) */
+  casadi_clear(w36, 2);
+  /* #126: @15 = zeros(3x1) */
+  casadi_clear(w15, 3);
+  /* #127: {@37, @12, NULL, NULL} = phase2b(@34, @2, @32, @22, @14, @33, @35, @8, @36, @15, @26, @26) */
+  arg1[0]=w34;
   arg1[1]=w02;
-  arg1[2]=w21;
-  arg1[3]=w30;
-  arg1[4]=w17;
-  arg1[5]=w08;
-  arg1[6]=w36;
-  arg1[7]=w37;
-  arg1[8]=w38;
-  arg1[9]=w25;
+  arg1[2]=w32;
+  arg1[3]=w22;
+  arg1[4]=w14;
+  arg1[5]=w33;
+  arg1[6]=w35;
+  arg1[7]=w08;
+  arg1[8]=w36;
+  arg1[9]=w15;
   arg1[10]=0;
   arg1[11]=0;
-  res1[0]=w39;
+  res1[0]=w37;
   res1[1]=(&w12);
   res1[2]=0;
   res1[3]=0;
@@ -1482,114 +1484,114 @@ static int casadi_f5(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   flag = casadi_f11(arg1, res1, iw, w, mid);
   casadi_f11_release(mid);
   if (flag) return 1;
-  /* #123: @2 = fabs(@39) */
-  for (i=0, rr=w02, cs=w39; i<2; ++i) *rr++ = casadi_fabs( *cs++ );
-  /* #124: @6 = inf */
+  /* #128: @2 = fabs(@37) */
+  for (i=0, rr=w02, cs=w37; i<2; ++i) *rr++ = casadi_fabs( *cs++ );
+  /* #129: @6 = inf */
   w06 = casadi_inf;
-  /* #125: @2 = (@2<@6) */
+  /* #130: @2 = (@2<@6) */
   for (i=0, rr=w02, cr=w02; i<2; ++i) (*rr++)  = ((*cr++)<w06);
-  /* #126: @6 = min(@2) */
+  /* #131: @6 = min(@2) */
   w06 = casadi_mmin(w02, 2, 1);
-  /* #127: @5 = 0 */
-  w05 = 0.;
-  /* #128: @2 = (@9-@39) */
-  for (i=0, rr=w02, cr=w09, cs=w39; i<2; ++i) (*rr++)  = ((*cr++)-(*cs++));
-  /* #129: @8 = (@39-@10) */
-  for (i=0, rr=w08, cr=w39, cs=w10; i<2; ++i) (*rr++)  = ((*cr++)-(*cs++));
-  /* #130: @2 = fmax(@2,@8) */
-  for (i=0, rr=w02, cr=w02, cs=w08; i<2; ++i) (*rr++)  = casadi_fmax((*cr++),(*cs++));
-  /* #131: @2 = fmax(@5,@2) */
-  for (i=0, rr=w02, cs=w02; i<2; ++i) (*rr++)  = casadi_fmax(w05,(*cs++));
-  /* #132: @5 = max(@2) */
-  w05 = casadi_mmax(w02, 2, 1);
-  /* #133: @13 = 1e-06 */
-  w13 = 9.9999999999999995e-07;
-  /* #134: @5 = (@5<=@13) */
-  w05  = (w05<=w13);
-  /* #135: @6 = (@6&&@5) */
-  w06  = (w06&&w05);
-  /* #136: @5 = 0 */
-  w05 = 0.;
-  /* #137: @13 = 0 */
+  /* #132: @13 = 0 */
   w13 = 0.;
-  /* #138: @13 = mac(@7,@39,@13) */
-  casadi_mtimes_dense(w07, 1, 2, w39, 1, (&w13), 0);
-  /* #139: @22 = (@22-@13) */
-  w22 -= w13;
-  /* #140: @13 = (@13-@32) */
-  w13 -= w32;
-  /* #141: @22 = fmax(@22,@13) */
-  w22  = casadi_fmax(w22,w13);
-  /* #142: @5 = fmax(@5,@22) */
-  w05  = casadi_fmax(w05,w22);
-  /* #143: @22 = max(@5) */
-  w22 = casadi_mmax((&w05), 1, 1);
-  /* #144: @5 = 1e-06 */
+  /* #133: @2 = (@9-@37) */
+  for (i=0, rr=w02, cr=w09, cs=w37; i<2; ++i) (*rr++)  = ((*cr++)-(*cs++));
+  /* #134: @33 = (@37-@10) */
+  for (i=0, rr=w33, cr=w37, cs=w10; i<2; ++i) (*rr++)  = ((*cr++)-(*cs++));
+  /* #135: @2 = fmax(@2,@33) */
+  for (i=0, rr=w02, cr=w02, cs=w33; i<2; ++i) (*rr++)  = casadi_fmax((*cr++),(*cs++));
+  /* #136: @2 = fmax(@13,@2) */
+  for (i=0, rr=w02, cs=w02; i<2; ++i) (*rr++)  = casadi_fmax(w13,(*cs++));
+  /* #137: @13 = max(@2) */
+  w13 = casadi_mmax(w02, 2, 1);
+  /* #138: @5 = 1e-06 */
   w05 = 9.9999999999999995e-07;
-  /* #145: @22 = (@22<=@5) */
-  w22  = (w22<=w05);
-  /* #146: @6 = (@6&&@22) */
-  w06  = (w06&&w22);
-  /* #147: @39 = fmax(@39,@9) */
-  for (i=0, rr=w39, cr=w39, cs=w09; i<2; ++i) (*rr++)  = casadi_fmax((*cr++),(*cs++));
-  /* #148: @39 = fmin(@39,@10) */
-  for (i=0, rr=w39, cr=w39, cs=w10; i<2; ++i) (*rr++)  = casadi_fmin((*cr++),(*cs++));
-  /* #149: @39 = (@6?@39:0) */
-  for (i=0, rr=w39, cs=w39; i<2; ++i) (*rr++)  = (w06?cs[i]:0);
-  /* #150: @22 = (!@6) */
-  w22 = (! w06 );
-  /* #151: @37 = (@22?@37:0) */
-  for (i=0, rr=w37, cs=w37; i<2; ++i) (*rr++)  = (w22?cs[i]:0);
-  /* #152: @39 = (@39+@37) */
-  for (i=0, rr=w39, cs=w37; i<2; ++i) (*rr++) += (*cs++);
-  /* #153: @39 = (@31?@39:0) */
-  for (i=0, rr=w39, cs=w39; i<2; ++i) (*rr++)  = (w31?cs[i]:0);
-  /* #154: @22 = (!@31) */
-  w22 = (! w31 );
-  /* #155: @37 = zeros(2x1) */
-  casadi_clear(w37, 2);
-  /* #156: @37 = fmax(@37,@9) */
+  /* #139: @13 = (@13<=@5) */
+  w13  = (w13<=w05);
+  /* #140: @6 = (@6&&@13) */
+  w06  = (w06&&w13);
+  /* #141: @13 = 0 */
+  w13 = 0.;
+  /* #142: @5 = 0 */
+  w05 = 0.;
+  /* #143: @5 = mac(@7,@37,@5) */
+  casadi_mtimes_dense(w07, 1, 2, w37, 1, (&w05), 0);
+  /* #144: @3 = (@3-@5) */
+  w03 -= w05;
+  /* #145: @5 = (@5-@29) */
+  w05 -= w29;
+  /* #146: @3 = fmax(@3,@5) */
+  w03  = casadi_fmax(w03,w05);
+  /* #147: @13 = fmax(@13,@3) */
+  w13  = casadi_fmax(w13,w03);
+  /* #148: @3 = max(@13) */
+  w03 = casadi_mmax((&w13), 1, 1);
+  /* #149: @13 = 1e-06 */
+  w13 = 9.9999999999999995e-07;
+  /* #150: @3 = (@3<=@13) */
+  w03  = (w03<=w13);
+  /* #151: @6 = (@6&&@3) */
+  w06  = (w06&&w03);
+  /* #152: @37 = fmax(@37,@9) */
   for (i=0, rr=w37, cr=w37, cs=w09; i<2; ++i) (*rr++)  = casadi_fmax((*cr++),(*cs++));
-  /* #157: @37 = fmin(@37,@10) */
+  /* #153: @37 = fmin(@37,@10) */
   for (i=0, rr=w37, cr=w37, cs=w10; i<2; ++i) (*rr++)  = casadi_fmin((*cr++),(*cs++));
-  /* #158: @37 = (@22?@37:0) */
-  for (i=0, rr=w37, cs=w37; i<2; ++i) (*rr++)  = (w22?cs[i]:0);
-  /* #159: @39 = (@39+@37) */
-  for (i=0, rr=w39, cs=w37; i<2; ++i) (*rr++) += (*cs++);
-  /* #160: output[0][0] = @39 */
-  casadi_copy(w39, 2, res[0]);
-  /* #161: @22 = 1 */
-  w22 = 1.;
-  /* #162: @5 = 4 */
-  w05 = 4.;
-  /* #163: @13 = 1 */
-  w13 = 1.;
-  /* #164: @13 = (@13-@31) */
-  w13 -= w31;
-  /* #165: @5 = (@5*@13) */
-  w05 *= w13;
-  /* #166: @22 = (@22+@5) */
-  w22 += w05;
-  /* #167: @5 = 8 */
-  w05 = 8.;
-  /* #168: @12 = (@6?@12:0) */
+  /* #154: @37 = (@6?@37:0) */
+  for (i=0, rr=w37, cs=w37; i<2; ++i) (*rr++)  = (w06?cs[i]:0);
+  /* #155: @3 = (!@6) */
+  w03 = (! w06 );
+  /* #156: @8 = (@3?@8:0) */
+  for (i=0, rr=w08, cs=w08; i<2; ++i) (*rr++)  = (w03?cs[i]:0);
+  /* #157: @37 = (@37+@8) */
+  for (i=0, rr=w37, cs=w08; i<2; ++i) (*rr++) += (*cs++);
+  /* #158: @37 = (@28?@37:0) */
+  for (i=0, rr=w37, cs=w37; i<2; ++i) (*rr++)  = (w28?cs[i]:0);
+  /* #159: @3 = (!@28) */
+  w03 = (! w28 );
+  /* #160: @8 = zeros(2x1) */
+  casadi_clear(w08, 2);
+  /* #161: @8 = fmax(@8,@9) */
+  for (i=0, rr=w08, cr=w08, cs=w09; i<2; ++i) (*rr++)  = casadi_fmax((*cr++),(*cs++));
+  /* #162: @8 = fmin(@8,@10) */
+  for (i=0, rr=w08, cr=w08, cs=w10; i<2; ++i) (*rr++)  = casadi_fmin((*cr++),(*cs++));
+  /* #163: @8 = (@3?@8:0) */
+  for (i=0, rr=w08, cs=w08; i<2; ++i) (*rr++)  = (w03?cs[i]:0);
+  /* #164: @37 = (@37+@8) */
+  for (i=0, rr=w37, cs=w08; i<2; ++i) (*rr++) += (*cs++);
+  /* #165: output[0][0] = @37 */
+  casadi_copy(w37, 2, res[0]);
+  /* #166: @3 = 1 */
+  w03 = 1.;
+  /* #167: @13 = 4 */
+  w13 = 4.;
+  /* #168: @5 = 1 */
+  w05 = 1.;
+  /* #169: @5 = (@5-@28) */
+  w05 -= w28;
+  /* #170: @13 = (@13*@5) */
+  w13 *= w05;
+  /* #171: @3 = (@3+@13) */
+  w03 += w13;
+  /* #172: @13 = 8 */
+  w13 = 8.;
+  /* #173: @12 = (@6?@12:0) */
   w12  = (w06?w12:0);
-  /* #169: @6 = (!@6) */
+  /* #174: @6 = (!@6) */
   w06 = (! w06 );
-  /* #170: @13 = 1 */
-  w13 = 1.;
-  /* #171: @6 = (@6?@13:0) */
-  w06  = (w06?w13:0);
-  /* #172: @12 = (@12+@6) */
+  /* #175: @5 = 1 */
+  w05 = 1.;
+  /* #176: @6 = (@6?@5:0) */
+  w06  = (w06?w05:0);
+  /* #177: @12 = (@12+@6) */
   w12 += w06;
-  /* #173: @5 = (@5*@12) */
-  w05 *= w12;
-  /* #174: @31 = (@31?@5:0) */
-  w31  = (w31?w05:0);
-  /* #175: @22 = (@22+@31) */
-  w22 += w31;
-  /* #176: output[0][1] = @22 */
-  if (res[0]) res[0][2] = w22;
+  /* #178: @13 = (@13*@12) */
+  w13 *= w12;
+  /* #179: @28 = (@28?@13:0) */
+  w28  = (w28?w13:0);
+  /* #180: @3 = (@3+@28) */
+  w03 += w28;
+  /* #181: output[0][1] = @3 */
+  if (res[0]) res[0][2] = w03;
   return 0;
 }
 
@@ -1728,8 +1730,8 @@ static int casadi_f13(const casadi_real** arg, casadi_real** res, casadi_int* iw
 
 /* vf_golden:(q[2],u[2],p,dt,recover)->(x[2],status,violation) */
 static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
-  casadi_real **res1=res+3, *w00=w+256, *w01=w+258, w02, w03, *w04=w+260, w05, w06, *w07=w+262, *w08=w+264, w09, *w10=w+266;
-  casadi_real *w11=w+270, *w12=w+272, *w13=w+278, *w14=w+281, *w15=w+284, *w16=w+286, *w17=w+288, *w19=w+291, w20;
+  casadi_real **res1=res+3, *w00=w+230, *w01=w+232, w02, w03, *w04=w+234, w05, w06, *w07=w+236, *w08=w+238, w09, *w10=w+240;
+  casadi_real *w11=w+244, *w12=w+246, *w13=w+252, *w14=w+255, *w15=w+258, *w16=w+260, *w17=w+262, *w19=w+265, w20;
   const casadi_real **arg1=arg+5;
   int flag, mid;
   /* #0: @0 = input[0][0] */
@@ -1929,16 +1931,16 @@ CASADI_SYMBOL_EXPORT const casadi_int* vf_golden_sparsity_out(casadi_int i) {
 CASADI_SYMBOL_EXPORT int vf_golden_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
   if (sz_arg) *sz_arg = 57;
   if (sz_res) *sz_res = 14;
-  if (sz_iw) *sz_iw = 9;
-  if (sz_w) *sz_w = 293;
+  if (sz_iw) *sz_iw = 8;
+  if (sz_w) *sz_w = 267;
   return 0;
 }
 
 CASADI_SYMBOL_EXPORT int vf_golden_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
   if (sz_arg) *sz_arg = 57*sizeof(const casadi_real*);
   if (sz_res) *sz_res = 14*sizeof(casadi_real*);
-  if (sz_iw) *sz_iw = 9*sizeof(casadi_int);
-  if (sz_w) *sz_w = 293*sizeof(casadi_real);
+  if (sz_iw) *sz_iw = 8*sizeof(casadi_int);
+  if (sz_w) *sz_w = 267*sizeof(casadi_real);
   return 0;
 }
 
