@@ -430,6 +430,50 @@ def test_cone_axis_reversed(tmp_path):
     assert "residual-far" not in codes(probe(tmp_path, text.replace("[0, 0, -1]", "[0, 0, 1]"), TILTED))
 
 
+@pytest.mark.parametrize("gamma_deg", [15.0, 80.0, 89.99])
+def test_a_cone_s_bound_is_what_its_sine_rows_admit(tmp_path, gamma_deg):
+    """A cone's octagon bounds sin(gamma) - sin(theta), not the angle: the table's worst admitted error is the
+    largest |theta - gamma| whose continued sine stays within 1.082 eps (a brute-force scan of theta here). The
+    controller's own rows hold at rest (dq = 0, OPTIMAL: nothing brings the tool back) with the tool off the cone
+    by the angle whose sine error is 0.98 eps (inside the octagon whatever its orientation: 5.6 mrad at 80 deg,
+    where the table said 1.08 mrad), and are violated 5 % beyond the bound."""
+    from scipy.spatial.transform import Rotation
+
+    from vfdsl.check.polytope import bounds_table
+    from vfdsl.kinematics.robot import Robot
+    gamma, eps, rho = math.radians(gamma_deg), 1e-3, 1 / math.cos(math.pi / 8)
+    theta = np.linspace(0, math.pi, 4_000_001)
+    sine = np.where(theta <= math.pi / 2, np.sin(theta), 2 - np.sin(theta))
+    def scan(e):
+        return np.max(np.abs(theta - gamma)[np.abs(sine - math.sin(gamma)) <= e])
+    scanned = scan(rho * eps)
+    robot = Robot.load("panda7")
+    q0 = np.radians([0, -45, 0, -135, 0, 90, 45])
+    l_t = robot.frame_pose(q0, "tool_tip")[1][:, 2]
+    k = np.cross(l_t, [1.0, 0, 0])
+    k /= np.linalg.norm(k)
+
+    def task_with(delta):
+        """The cone's axis at gamma + delta from the tool axis at the start (the tool delta outside the cone)."""
+        a = [float(x) for x in Rotation.from_rotvec((gamma + delta) * k).apply(l_t)]
+        (tmp_path / "cone.vf").write_text(
+            f"task cone\nunits mm, deg\nrobot arm = urdf \"panda7\"\nframe tip = arm.link(\"tool_tip\")\n"
+            f"param axis : direction = [{a[0]!r}, {a[1]!r}, {a[2]!r}]\n"
+            f"require tip cone(axis, {gamma_deg} deg) within 1 mrad resolution 8\n")
+        (tmp_path / "cone.yaml").write_text("units: mm, deg\nperiod: 10 ms\nstart: [0, -45, 0, -135, 0, 90, 45]\n")
+        return vfdsl.load(tmp_path / "cone.vf")
+
+    task = task_with(0.0)
+    [bound] = bounds_table(task)
+    assert bound.worst == pytest.approx(scanned, abs=1e-6)                 # the scan's step: 7.9e-7 rad
+    found = codes(task, samples=0).get("polytope-overshoot", [])
+    assert bool(found) == (scanned > 1.1 * eps)
+    for delta, holds in ((scan(0.98 * eps), True), (1.05 * scanned, False)):
+        ctrl = vfdsl.compile(task_with(delta), backend="interpreted")
+        dq = ctrl.step(ctrl.task.start, {})
+        assert (ctrl.status == StepStatus.OPTIMAL and np.abs(dq).max() < 1e-12) == holds, (delta, dq)
+
+
 # ------------------------------------------------------------------------------------------ kinematics
 
 def test_frame_on_the_base_is_an_error(tmp_path):

@@ -9,7 +9,7 @@ from functools import lru_cache
 from vfdsl.check.report import Bound, Finding, Severity, quantity
 from vfdsl.compiler.geometry import sphere_directions
 from vfdsl.compiler.polytope import PolytopeGeometry, geometry
-from vfdsl.primitives.bounds import constraint_geometry, stated_size
+from vfdsl.primitives.bounds import admitted, constraint_geometry, guaranteeing, stated_size
 from vfdsl.ir import model as ir
 from vfdsl.ir.constraints import describe, subject, where
 from vfdsl.primitives import CONSTRAINTS
@@ -49,7 +49,8 @@ def bounds_table(task: ir.Task) -> list[Bound]:
         if g is None:
             table.append(Bound(describe(c), where(c), kind, size, CONSTRAINTS[c.primitive].exact_rows, None, size))
         else:
-            table.append(Bound(describe(c), where(c), kind, size, g.label, g.unique, g.circumradius * size))
+            table.append(Bound(describe(c), where(c), kind, size, g.label, g.unique,
+                               admitted(c, task, g.circumradius * size)))
     return table
 
 
@@ -64,8 +65,9 @@ def analyse(task: ir.Task, overshoot: float) -> list[Finding]:
         kind, size = stated
         heading = subject(c)
         shape_words = "sphere polytope" if g.shape == "sphere" else "polygon"
+        worst = admitted(c, task, g.circumradius * size)
         data = {"resolution": list(g.resolution), "listed": g.listed, "facets": g.unique,
-                "circumradius_factor": g.circumradius, "stated": size, "worst": g.circumradius * size}
+                "circumradius_factor": g.circumradius, "stated": size, "worst": worst}
         if not g.bounded:
             findings.append(Finding(
                 "polytope-unbounded", Severity.ERROR,
@@ -73,7 +75,16 @@ def analyse(task: ir.Task, overshoot: float) -> list[Finding]:
                 f"the origin: its rows leave the error unbounded in some direction", c.span,
                 _suggest(g.shape, overshoot), heading, data))
             continue
-        if g.overshoot > overshoot + 1e-12:
+        if worst > (1 + overshoot) * size * (1 + 1e-9) and worst > g.circumradius * size * (1 + 1e-9):
+            fit = guaranteeing(c, task, g.circumradius, size)
+            findings.append(Finding(
+                "polytope-overshoot", Severity.WARNING,
+                f"the {g.label} {shape_words} bounds a sine of the angle, not the angle (docs/primitives.md, note 8): "
+                f"at this half-angle its rows admit errors up to {quantity(worst, kind)}, {worst / size - 1:.0%} over "
+                f"the stated {quantity(size, kind)} (limit {overshoot:.0%})", c.span,
+                f"state {quantity(fit, kind)} to guarantee {quantity(size, kind)} (a finer resolution cannot: the "
+                f"sine's slope at the half-angle is the cause)", heading, data))
+        elif g.overshoot > overshoot + 1e-12:
             findings.append(Finding(
                 "polytope-overshoot", Severity.WARNING,
                 f"the {g.label} {shape_words} ({g.unique} facets) admits errors up to "

@@ -4,6 +4,7 @@ its rows (:mod:`vfdsl.compiler.polytope`), whose circumradius times the size is 
 from __future__ import annotations
 
 from vfdsl.compiler.polytope import PolytopeGeometry, geometry
+from vfdsl.errors import VfError
 from vfdsl.ir import model as ir
 from vfdsl.ir.constraints import value_of
 from vfdsl.primitives import CONSTRAINTS
@@ -15,6 +16,29 @@ def constraint_geometry(c: ir.Constraint) -> PolytopeGeometry | None:
     if shape is None or c.resolution is None:
         return None
     return geometry(shape, tuple(c.resolution))
+
+
+def admitted(c: ir.Constraint, task: ir.Task, e: float) -> float:
+    """The largest true error the constraint's rows admit when they hold within e (``ConstraintSpec.admitted``:
+    a cone's rows bound a sine), e itself when they measure the error; e where the value it needs is not known
+    before the controller runs (a capture of a frame)."""
+    rule = CONSTRAINTS[c.primitive].admitted
+    if rule is None:
+        return e
+    try:
+        return rule(c, task, e)
+    except VfError:
+        return e
+
+
+def guaranteeing(c: ir.Constraint, task: ir.Task, factor: float, size: float) -> float:
+    """The stated size s whose rows (their polytope's circumradius ``factor``) admit at most ``size``:
+    admitted(factor s) = size, by bisection (admitted grows with its argument)."""
+    low, high = 0.0, size / factor
+    for _ in range(60):
+        mid = 0.5 * (low + high)
+        low, high = (mid, high) if admitted(c, task, factor * mid) <= size else (low, mid)
+    return low
 
 
 def stated_size(c: ir.Constraint, task: ir.Task) -> tuple[str, float] | None:

@@ -19,6 +19,7 @@ import casadi as ca
 from vfdsl.compiler.geometry import continued_sine, normalize, plane_basis, turn_axis
 from vfdsl.compiler.rows import Rows
 from vfdsl.ir import model as ir
+from vfdsl.ir.constraints import value_of
 from vfdsl.primitives.keeps_direction import angle_between
 from vfdsl.primitives.rotates_around import around_axis
 from vfdsl.primitives.spec import ArgSpec, ConstraintSpec, Range
@@ -32,6 +33,21 @@ def true_angle(c: ir.Constraint, ctx: Context):
     return ca.fabs(angle_between(ctx.frame(c.frame).axis, ctx.direction(c.args["axis"])) - ctx.scalar(c.args["angle"]))
 
 
+def sine_admitted(gamma: float, e: float) -> float:
+    """The largest |theta - gamma| with |s(theta) - sin gamma| <= e, s the continued sine (sin theta up to 90 deg,
+    2 - sin theta beyond): what rows that hold (sin gamma - s(theta)) d1 within e admit of the angle. ~ e / cos gamma
+    for small e, and ~ sqrt(2 e) at gamma = 90 deg (docs/primitives.md, note 8)."""
+    high = math.sin(gamma) + e
+    theta_max = math.asin(high) if high <= 1 else math.pi - math.asin(max(2 - high, -1.0))
+    theta_min = math.asin(min(max(math.sin(gamma) - e, 0.0), 1.0))
+    return max(theta_max - gamma, gamma - theta_min)
+
+
+def admitted(c: ir.Constraint, task: ir.Task, e: float) -> float:
+    """The angle error the rows admit at the cone's half-angle (its param's default for a param)."""
+    return sine_admitted(float(value_of(c.args["angle"], task).value), e)
+
+
 SPEC = ConstraintSpec(
     name="cone",
     summary="keep the tool axis at a fixed angle from an axis",
@@ -42,7 +58,7 @@ SPEC = ConstraintSpec(
     tolerance="angle", default_tolerance=1e-3,
     resolution="polygon",
     source="Li, Kapoor & Taylor 2005, III-B, eqs. (22)-(23)",
-    metric="angle", true_angle=true_angle, kept_angle="angle", drawn_around_frame=True,
+    metric="angle", true_angle=true_angle, kept_angle="angle", drawn_around_frame=True, admitted=admitted,
 )
 
 

@@ -132,7 +132,10 @@ class ConstraintSpec:
       direction is the opposite one), the argument stating it (a cone's half-angle gamma: nearer pi - gamma
       the axis is reversed, at gamma read in deg a unit slip), or None;
     - ``angle_rows``: with ``true_angle``, what its rows measure of the angle, for ``check``'s messages:
-      "sin" (a cross product) or "cos" (one row, cos gamma - cos of the angle, unitless).
+      "sin" (a cross product) or "cos" (one row, cos gamma - cos of the angle, unitless);
+    - ``admitted``: for rows that bound another measure of the error than the error itself, the largest true error
+      they admit when they hold within e (the polytope's circumradius times the stated size), a function of
+      (constraint, task, e); None: e itself.
     """
 
     name: str
@@ -155,6 +158,7 @@ class ConstraintSpec:
     drawn_around_frame: bool = False
     kept_angle: float | str | None = None
     angle_rows: Literal["sin", "cos"] = "sin"
+    admitted: Callable[[ir.Constraint, ir.Task, float], float] | None = None
 
     @property
     def reads_mesh(self) -> bool:
