@@ -231,7 +231,7 @@ CASES = [   # id, body after the prelude, (line after the prelude, column), code
     ("a star as a target", TWO_PHASES + "transition a -> * when go\n", (2, 17), "E101", "unexpected '*'"),
     ("a for in a guard", TWO_PHASES + "transition a -> b when go for 1 s\n", (2, 27), "E101", "unexpected"),
     ("a capture outside a phase", "capture s = tip.position\n", (0, 1), "E101", "unexpected"),
-    ("nan as a threshold", "monitor m = norm(f) > nan N\n", (0, 27), "E101", "unexpected name 'N'"),
+    ("nan as a threshold", "monitor m = norm(f) > nan N\n", (0, 23), "E304", "'nan' is not a number"),
 ]
 
 
