@@ -3,8 +3,8 @@
 The hard rows of every constraint, linearized at the scene's start configuration (zero input, default
 params, the scene's period), form a :class:`~vfdsl.check.lp.LinearSystem`, within the URDF's velocity limits
 over one tick when the task states no joint_speed (the controller holds every tick to them: ``speed``); its
-margin LP (HiGHS) says whether one tick can satisfy them all. When it cannot, a deletion filter over constraint groups (one
-group per source constraint) finds an irreducible infeasible subset: drop each group in turn, keep it
+margin LP (HiGHS) says whether one tick can satisfy them all. When it cannot, a deletion filter over constraint
+groups (one group per source constraint) finds an irreducible infeasible subset: drop each group in turn, keep it
 dropped when the rest stays infeasible; what remains conflicts, and removing any one of it resolves it.
 """
 

@@ -86,8 +86,9 @@ def analyse(controller, task: ir.Task, linear: Linearization, samples: int, seed
     robot = linear.robot
     trajectory, statuses = walked or walk(controller, task, linear, samples, seed)
     margins, conditioning = [], []
+    speed = linear.speed_bound()
     for q in trajectory[1:]:
-        margins.append(feasibility.margin(linear.rows(q), robot.nq, linear.speed_bound()))
+        margins.append(feasibility.margin(linear.rows(q), robot.nq, speed))
         conditioning.append(worst_conditioning(robot, task, q))
     worst_margin = int(np.argmin(margins))
     worst_conditioned = int(np.argmin([c for c, _ in conditioning]))
@@ -110,12 +111,12 @@ def analyse(controller, task: ir.Task, linear: Linearization, samples: int, seed
         f"{worst_conditioned + 1}; {least_violation} least-violation ticks", None, None, "sampled states", summary)]
     if margins[worst_margin] < FEASIBLE:
         q = trajectory[worst_margin + 1]
-        conflict = feasibility.irreducible_infeasible_subset(linear.rows(q), robot.nq, linear.speed_bound())
+        conflict = feasibility.irreducible_infeasible_subset(linear.rows(q), robot.nq, speed)
         names = "; ".join(f"{describe(r.constraint)} at {where(r.constraint)}" for r in conflict)
         findings.append(Finding(
             "sampled-infeasible", Severity.ERROR,
             f"after {worst_margin + 1} tick{'s' * (worst_margin > 0)} of random input the hard rows cannot all hold"
-            f"{feasibility.within(linear.speed_bound())} (margin "
+            f"{feasibility.within(speed)} (margin "
             f"{margins[worst_margin]:.3g}) at q = {q_text}; conflicting: {names}",
             conflict[0].constraint.span if conflict else None,
             "relax one of the conflicting constraints, or limit the motion that leads there", "sampled states",
@@ -123,7 +124,8 @@ def analyse(controller, task: ir.Task, linear: Linearization, samples: int, seed
     if conditioning[worst_conditioned][0] < NEAR_SINGULAR:
         findings.append(Finding(
             "sampled-ill-conditioned", Severity.WARNING,
-            f"after {worst_conditioned + 1} tick{'s' * (worst_conditioned > 0)} of random input {conditioning[worst_conditioned][1]} has a "
+            f"after {worst_conditioned + 1} tick{'s' * (worst_conditioned > 0)} of random input "
+            f"{conditioning[worst_conditioned][1]} has a "
             f"singular value ratio of {conditioning[worst_conditioned][0]:.3g} at q = "
             f"{_q_text(robot, trajectory[worst_conditioned + 1])}: near a singularity",
             task.frame(conditioning[worst_conditioned][1].split(".")[0]).span,

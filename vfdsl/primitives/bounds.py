@@ -3,6 +3,8 @@ its rows (:mod:`vfdsl.compiler.polytope`), whose circumradius times the size is 
 
 from __future__ import annotations
 
+import math
+
 from vfdsl.compiler.polytope import PolytopeGeometry, geometry
 from vfdsl.errors import VfError
 from vfdsl.ir import model as ir
@@ -21,9 +23,9 @@ def constraint_geometry(c: ir.Constraint) -> PolytopeGeometry | None:
 def admitted(c: ir.Constraint, task: ir.Task, e: float) -> float:
     """The largest true error the constraint's rows admit when they hold within e (``ConstraintSpec.admitted``:
     a cone's rows bound a sine), e itself when they measure the error; e where the value it needs is not known
-    before the controller runs (a capture of a frame)."""
+    before the controller runs (a capture of a frame), and e unbounded (a polytope that does not enclose the origin)."""
     rule = CONSTRAINTS[c.primitive].admitted
-    if rule is None:
+    if rule is None or not math.isfinite(e):
         return e
     try:
         return rule(c, task, e)
