@@ -21,6 +21,11 @@ SPEED = 10.0  # |dq| <= SPEED * dt = 0.1
 FEAS_TOL = 1e-6
 
 
+def step_function(qp_data, prefix, **options):
+    """The step of a QP stated directly (its bounds do not follow q as a fixture's do): phase 2's step whole."""
+    return build_step_function(qp_data, prefix, backtrack=False, **options)
+
+
 def random_qp_data(seed: int) -> ca.Function:
     """H = J'J + 0.01 I with J(q) through sin/cos; rows A(q) through sin; p sets the lower bounds.
 
@@ -102,18 +107,18 @@ def instance(seed: int, infeasible: bool):
 @pytest.fixture(scope="module")
 def random_paths(tmp_path_factory):
     qp_data = random_qp_data(7)
-    step = build_step_function(qp_data, "vf_test_random", native=True)
+    step = step_function(qp_data, "vf_test_random", native=True)
     library = build_library(step, "vf_test_random", tmp_path_factory.mktemp("cache"), {}, NO_CHECKS)
     return (qp_data, BufferedFunction.native(library.so_path, "vf_test_random"),
-            BufferedFunction.interpreted(build_step_function(qp_data, "vf_test_random")))
+            BufferedFunction.interpreted(step_function(qp_data, "vf_test_random")))
 
 
 @pytest.fixture(scope="module")
 def conflict_paths(tmp_path_factory):
-    step = build_step_function(conflict_qp_data(), "vf_test_conflict", native=True)
+    step = step_function(conflict_qp_data(), "vf_test_conflict", native=True)
     library = build_library(step, "vf_test_conflict", tmp_path_factory.mktemp("cache"), {}, NO_CHECKS)
     native = BufferedFunction.native(library.so_path, "vf_test_conflict")
-    return native, BufferedFunction.interpreted(build_step_function(conflict_qp_data(), "vf_test_conflict"))
+    return native, BufferedFunction.interpreted(step_function(conflict_qp_data(), "vf_test_conflict"))
 
 
 def solve_both(paths, args):
@@ -135,11 +140,11 @@ def test_straight_line_and_looped_steps_agree(random_paths, tmp_path, monkeypatc
     not."""
     qp_data, *expanded = random_paths
     monkeypatch.setattr(qp_module, "STRAIGHT_LINE_ENTRIES", 0)
-    step = build_step_function(qp_data, "vf_test_loops", native=True)
-    interpreted = build_step_function(qp_data, "vf_test_loops")
+    step = step_function(qp_data, "vf_test_loops", native=True)
+    interpreted = step_function(qp_data, "vf_test_loops")
     monkeypatch.undo()
     assert not step.find_function("vf_test_loops_prepare").is_a("SXFunction")
-    assert build_step_function(qp_data, "vf_test_sx").find_function("vf_test_sx_prepare").is_a("SXFunction")
+    assert step_function(qp_data, "vf_test_sx").find_function("vf_test_sx_prepare").is_a("SXFunction")
     library = build_library(step, "vf_test_loops", tmp_path, {}, NO_CHECKS)
     looped = (BufferedFunction.native(library.so_path, "vf_test_loops"), BufferedFunction.interpreted(interpreted))
     statuses = set()
@@ -243,12 +248,12 @@ def test_crossed_bounds_pinned_toward_the_limits(conflict_paths):
 
 def test_row_groups_share_one_violation():
     groups = ["r0", "pair", "pair", "rest", "rest", "rest"]
-    step = build_step_function(conflict_qp_data(), "grouped", row_groups=groups)
+    step = step_function(conflict_qp_data(), "grouped", row_groups=groups)
     x, status, violation = step(np.zeros(4), [1.0, 0.0, 1.0, 0.0], np.zeros(0), DT, 0)
     assert int(status) == StepStatus.LEAST_VIOLATION
     np.testing.assert_allclose(np.array(violation).ravel(), [0.9, 0.05, 0.05, 0, 0, 0], atol=1e-8)
     with pytest.raises(ValueError, match="row_groups"):
-        build_step_function(conflict_qp_data(), "grouped", row_groups=[0, 1])
+        step_function(conflict_qp_data(), "grouped", row_groups=[0, 1])
 
 
 def test_a_row_a_little_off_is_brought_back_before_one_far_off(tmp_path):
@@ -261,10 +266,10 @@ def test_a_row_a_little_off_is_brought_back_before_one_far_off(tmp_path):
     qp_data = ca.Function("near_far", [q, u, p, dt],
                           [ca.SX.eye(2), -u, ca.DM([[1, 0], [-1, 1]]), ca.DM([1, 0.001]), ca.DM.inf(2),
                            -SPEED * dt * ca.DM.ones(2), SPEED * dt * ca.DM.ones(2)])
-    library = build_library(build_step_function(qp_data, "vf_test_near_far", native=True), "vf_test_near_far",
+    library = build_library(step_function(qp_data, "vf_test_near_far", native=True), "vf_test_near_far",
                             tmp_path, {}, NO_CHECKS)
     paths = (BufferedFunction.native(library.so_path, "vf_test_near_far"),
-             BufferedFunction.interpreted(build_step_function(qp_data, "vf_test_near_far")))
+             BufferedFunction.interpreted(step_function(qp_data, "vf_test_near_far")))
     x, status, violation = solve_both(paths, (np.zeros(2), np.zeros(2), np.zeros(0), np.array([DT])))
     assert status == StepStatus.LEAST_VIOLATION
     # (B) takes the far row out by LEAST_VIOLATION_MARGIN feas_tol (1e-5 here) more, for the smaller motion
@@ -285,16 +290,16 @@ def test_a_group_trades_its_own_rows_to_come_back(tmp_path):
                           [ca.SX.eye(2), -u, ca.DM([[1, 0], [-1, 0]]), ca.DM([0.3, 0.1]), ca.DM.inf(2),
                            -SPEED * dt * ca.DM.ones(2), SPEED * dt * ca.DM.ones(2)])
     name = "vf_test_facets"
-    library = build_library(build_step_function(qp_data, name, native=True, row_groups=["g", "g"]), name,
+    library = build_library(step_function(qp_data, name, native=True, row_groups=["g", "g"]), name,
                             tmp_path, {}, NO_CHECKS)
     paths = (BufferedFunction.native(library.so_path, name),
-             BufferedFunction.interpreted(build_step_function(qp_data, name, row_groups=["g", "g"])))
+             BufferedFunction.interpreted(step_function(qp_data, name, row_groups=["g", "g"])))
     args = (np.zeros(2), np.zeros(2), np.zeros(0), np.array([DT]))
     x, status, violation = solve_both(paths, args)
     assert status == StepStatus.LEAST_VIOLATION
     np.testing.assert_allclose(x, [0.1, 0], atol=2e-5)          # (B): the smallest motion in S, within its margin
     np.testing.assert_allclose(violation, [0.2, 0.2], atol=2e-5)
-    per_row = BufferedFunction.interpreted(build_step_function(qp_data, "per_row"))(*args, 0.0)
+    per_row = BufferedFunction.interpreted(step_function(qp_data, "per_row"))(*args, 0.0)
     np.testing.assert_allclose(per_row[0], [0, 0], atol=1e-9)  # one group per row: neither row may grow
 
 
@@ -305,8 +310,8 @@ def test_many_rows_without_groups_warn():
     qp_data = ca.Function("many", [q, u, p, dt],
                           [ca.SX.eye(2), -u, *rows, -dt * ca.DM.ones(2), dt * ca.DM.ones(2)])
     with pytest.warns(UserWarning, match="pass one group per source constraint"):
-        build_step_function(qp_data, "many")
-    build_step_function(qp_data, "many", row_groups=[i % 4 for i in range(m)])  # no warning
+        step_function(qp_data, "many")
+    step_function(qp_data, "many", row_groups=[i % 4 for i in range(m)])  # no warning
 
 
 def test_no_general_rows():
@@ -314,7 +319,7 @@ def test_no_general_rows():
     empty_rows = [ca.SX(0, 2), ca.SX(0, 1), ca.SX(0, 1)]
     qp_data = ca.Function("box_only", [q, u, p, dt],
                           [ca.SX.eye(2), -u, *empty_rows, -dt * ca.DM.ones(2), dt * ca.DM.ones(2)])
-    x, status, violation = BufferedFunction.interpreted(build_step_function(qp_data, "box"))(
+    x, status, violation = BufferedFunction.interpreted(step_function(qp_data, "box"))(
         np.zeros(2), np.array([5.0, -0.001]), np.zeros(0), np.array([0.01]), 0.0)
     np.testing.assert_allclose(x, [0.01, -0.001])
     assert status[0] == 0 and violation.size == 0

@@ -76,6 +76,10 @@ a level at most least-violation states of paper B; so (B) is solved from x_A by 
 unique optimum over S, on both paths alike; where none is certified, x = x_A. (A) has n + G variables and 2m rows;
 DAQP is dense, so G = m costs O((n + m)^3) per solve: pass coarse groups for large m (docs/runtime.md: timings).
 
+(C) The step x (x_B, else x_A) is then taken only as far as the fixtures truly come back, their rows' bounds
+evaluated where it ends (:mod:`vfdsl.runtime.line_search`): a x, a in {1, 1/2, ..., 1/32, 0}; without it a step
+whose rows promised progress its second-order remainder took back made the joints alternate at their speed limits.
+
 (A) is feasible by construction, so its answer is taken unless the solve failed outright (rows or
 bounds off by more than 1e-6: a failed solve is off by orders of magnitude), clipped into B (the
 solver's bound noise). If (B) fails, x is x_A, a least-violation move without the levels; if (A)
@@ -98,6 +102,7 @@ import numpy as np
 from vfdsl.codegen import tick_buffers
 from vfdsl.codegen.solve_plan import PlannedFunction, SolvePlan, record
 from vfdsl.runtime.daqp_solve import daqp_rows, daqp_solver
+from vfdsl.runtime.line_search import group_worst, line_search, measure, worst_counted
 
 QP_DATA_OUTPUTS = ("H", "g", "A", "lba", "uba", "lbx", "ubx")
 GRADIENT_SATURATION = 1e3
@@ -144,7 +149,7 @@ def build_step_function(qp_data: ca.Function, prefix: str, *,
                         feas_tol: float = 1e-6,
                         penalty: float = 1.0,
                         tie_break: float = 1e-3, native: bool = False,
-                        last_level_is_cost: bool = False, scope: str = "") -> PlannedFunction:
+                        last_level_is_cost: bool = False, scope: str = "", backtrack: bool = True) -> PlannedFunction:
     """``prefix(q, u, p, dt, recover) -> (x[n], status, violation[m])`` solving ``qp_data``'s QP, with the solve
     plan of each of its DAQP conics (for the build).
 
@@ -158,7 +163,10 @@ def build_step_function(qp_data: ca.Function, prefix: str, *,
     sources); else CasADi evaluates it, DAQP solving through the ``daqp`` package. ``last_level_is_cost``: the last
     priority level (damping alone, positive definite on dq) is DAQP's own cost rather than a soft level (2.5 times
     faster on experiment B, measured with the daqp package: 7.3 against 18 us). ``scope`` starts the name of each
-    of its solvers (unique in a step made of several, :func:`build_procedure_step`).
+    of its solvers (unique in a step made of several, :func:`build_procedure_step`). ``backtrack``: phase 2's step
+    goes only as far as it truly brings the rows back, their bounds evaluated where it ends
+    (:mod:`vfdsl.runtime.line_search`), which presumes what the compiler's rows are, the fixtures linearized at q;
+    False for a QP stated directly, whose bounds do not follow q so: the step is then taken whole.
     """
     levels = _check_qp_data(qp_data)
     n, m = qp_data.size1_out(0), qp_data.size1_out(2)
@@ -188,9 +196,12 @@ def build_step_function(qp_data: ca.Function, prefix: str, *,
         ok1 = _straight_line(f"{prefix}_accept", lambda x, A, *box: [_acceptable(x, A @ x, *box, accept_tol)],
                              [x1, A, lba, uba, lo, hi], expand)
         solve_from = daqp_solver(n, m, feas_tol * 1e-3, f"{scope}phase2b", native, plans, sizes, start=True)
-        switch = _phase2_switch([A, lba, uba, lo, hi, x1, uncertified, recover, *args], _incidence(m, row_groups),
-                                feas_tol, penalty, tie_break, solve_from, accept_tol, native, plans, scope)
-        picked = switch(ca.logic_and(ok1, recover == 0), A, lba, uba, lo, hi, x1, uncertified, recover, *args)
+        E = _incidence(m, row_groups)
+        search = line_search(qp_data, inputs, E, feas_tol, penalty, f"{prefix}_search") if backtrack else None
+        switch = _phase2_switch([A, lba, uba, lo, hi, x1, uncertified, recover, *args, *inputs], E, feas_tol,
+                                penalty, tie_break, solve_from, search, accept_tol, native, plans, scope)
+        picked = switch(ca.logic_and(ok1, recover == 0), A, lba, uba, lo, hi, x1, uncertified, recover, *args,
+                        *inputs)
     x, status, violation = _straight_line(f"{prefix}_finish", lambda *v: _finish(*v, m, feas_tol),
                                           [picked, A, lba, uba, lo, hi, clipped], expand)
     return PlannedFunction(ca.Function(prefix, [*inputs, recover], [x, status, violation],
@@ -426,21 +437,25 @@ def _incidence(m: int, row_groups: Sequence[Hashable] | None) -> ca.DM:
     return ca.sparsify(ca.DM(E))
 
 
-def _phase2_switch(values: list[ca.MX], E: ca.DM, tol, rho, mu, solve_from, accept_tol, native, plans,
+def _phase2_switch(values: list[ca.MX], E: ca.DM, tol, rho, mu, solve_from, search, accept_tol, native, plans,
                    scope: str) -> ca.Function:
-    """switch(ok, A, lba, uba, lo, hi, x1, uncertified, recover, *args) -> [x1; status] when ok (phase 1's answer:
-    OPTIMAL, or UNCERTIFIED where phase 1's ``uncertified`` is 1), else phase 2's [x; status] (args: phase 1's solve,
-    [H, g, a, lower, upper]; ``solve_from``: (B)'s solve, from a point; ``recover``: the priming tick).
+    """switch(ok, A, lba, uba, lo, hi, x1, uncertified, recover, *args, *data) -> [x1; status] when ok (phase 1's
+    answer: OPTIMAL, or UNCERTIFIED where phase 1's ``uncertified`` is 1), else phase 2's [x; status] (args: phase 1's
+    solve, [H, g, a, lower, upper]; data: the step's data arguments, q first; ``solve_from``: (B)'s solve, from a
+    point; ``search``: the step's length, :func:`~vfdsl.runtime.line_search.line_search`; ``recover``: the priming
+    tick).
 
     The branches are Functions of values already computed: a short-circuit ``if_else`` on
     expressions would make each branch recompute them (QP data and phase 1) from the inputs.
     """
     names = ("A", "lba", "uba", "lo", "hi", "x1", "uncertified", "recover", "H_s", "g_s", "a_s", "lower_s", "upper_s")
+    names += tuple(f"data{k}" for k in range(len(values) - len(names)))
     args = [ca.MX.sym(name, v.sparsity()) for name, v in zip(names, values)]
     x1, uncertified = args[5], args[6]
     keep = ca.Function("keep", args, [ca.vertcat(x1, int(StepStatus.UNCERTIFIED) * uncertified)])
-    recover = ca.Function("recover", args, [_least_violation(*args[:5], args[8:], E, tol, rho, mu, solve_from,
-                                                             accept_tol, native, plans, scope, args[7])])
+    recover = ca.Function("recover", args, [_least_violation(*args[:5], args[8:13], args[13:], E, tol, rho, mu,
+                                                             solve_from, search, accept_tol, native, plans, scope,
+                                                             args[7])])
     return ca.Function.if_else("phase2_if_needed", keep, recover)
 
 
@@ -450,15 +465,18 @@ def _phase2_switch(values: list[ca.MX], E: ca.DM, tol, rho, mu, solve_from, acce
 _GROSS_FAILURE = 1e-6
 
 
-def _least_violation(A, lba, uba, lo, hi, solve_args, E: ca.DM, tol, rho, mu, solve_from, accept_tol, native,
-                     plans, scope: str, recover: ca.MX) -> ca.MX:
-    """Phase 2 (A then B), returning [x; status]. (A) is solved at primal tolerance 1e-3 tol, and where DAQP fails
-    there, once more at tol (seen: a weighted (A) that DAQP called infeasible at 1e-12 and solved at 1e-9)."""
+def _least_violation(A, lba, uba, lo, hi, solve_args, data, E: ca.DM, tol, rho, mu, solve_from, search, accept_tol,
+                     native, plans, scope: str, recover: ca.MX) -> ca.MX:
+    """Phase 2 (A then B, then the step's length), returning [x; status]. (A) is solved at primal tolerance 1e-3
+    tol, and where DAQP fails there, once more at tol (seen: a weighted (A) that DAQP called infeasible at 1e-12 and
+    solved at 1e-9)."""
     n, m, G = lo.size1(), A.size1(), E.size2()
-    at_rest = A @ _rest(lo, hi)
+    x_0 = _rest(lo, hi)
+    at_rest = A @ x_0
     v = _rest_violations(E, lba, uba, at_rest)
+    w = ca.fmax(v, REST_VIOLATION_FLOOR)
     H_a = ca.diagcat(mu * ca.DM.eye(n), ca.DM.eye(G))
-    g_a = ca.vertcat(ca.DM.zeros(n), rho / ca.fmax(v, REST_VIOLATION_FLOOR))
+    g_a = ca.vertcat(ca.DM.zeros(n), rho / w)
     A_a = ca.vertcat(ca.horzcat(A, E), ca.horzcat(A, -E))
     # each row's other side: no worse than at rest, but by what its group's worst comes back (v_g - t_g)
     lba_a = ca.vertcat(lba, ca.fmin(lba, at_rest) - E @ v)
@@ -478,7 +496,8 @@ def _least_violation(A, lba, uba, lo, hi, solve_args, E: ca.DM, tol, rho, mu, so
     answer = solve_from(H_s, g_s, a_s, ca.vertcat(lower, lower_s[m:]), ca.vertcat(upper, upper_s[m:]), x_a)
     x_b = answer[:n]
     ok_b = _acceptable(x_b, A @ x_b, lower, upper, lo, hi, accept_tol)
-    x = ca.if_else(ok_a, ca.if_else(ok_b, _clip(x_b, lo, hi), x_a), _rest(lo, hi))
+    x = ca.if_else(ok_a, ca.if_else(ok_b, _clip(x_b, lo, hi), x_a), x_0)
+    x = x_0 + _step_length(A, lba, uba, x_0, x, data, E, v, w, tol, rho, search, ca.logic_not(ok_a)) * (x - x_0)
     uncertified = ca.if_else(ok_a, ca.if_else(ok_b, answer[n], 1), 0)     # (A) failed: FALLBACK says it
     status = (int(StepStatus.LEAST_VIOLATION) + int(StepStatus.FALLBACK) * (1 - ok_a)
               + int(StepStatus.UNCERTIFIED) * uncertified)
@@ -487,9 +506,22 @@ def _least_violation(A, lba, uba, lo, hi, solve_args, E: ca.DM, tol, rho, mu, so
 
 def _rest_violations(E: ca.DM, lba, uba, at_rest) -> ca.MX:
     """v_g: the largest violation at rest of group g's rows (0 for a group that holds at rest)."""
-    at_rest_violation = ca.fmax(ca.fmax(lba - at_rest, at_rest - uba), 0)
-    incidence = np.array(E)
-    return ca.vertcat(*(ca.mmax(at_rest_violation[np.flatnonzero(column).tolist()]) for column in incidence.T))
+    return group_worst(E, _row_violation(at_rest, lba, uba))
+
+
+def _step_length(A, lba, uba, x_0, x, data, E: ca.DM, v, w, tol, rho, search, failed) -> ca.MX:
+    """a in [0, 1]: how far along x_0 -> x phase 2's step goes (:mod:`vfdsl.runtime.line_search`), its measure
+    counting the hard rows (no slack column) of the groups off at rest (v_g > tol); 1 where (A) ``failed`` (x is
+    x_0), where the box forces a motion (x_0 != 0) and where no hard group is off at rest."""
+    if search is None:
+        return ca.MX(1)
+    nq = data[0].size1()
+    hard = ca.sum2(ca.fabs(A[:, nq:])) == 0 if A.size2() > nq else ca.MX.ones(A.size1())    # no slack column
+    counted = hard * (E @ (v > tol))
+    phi_0 = measure(worst_counted(E, _row_violation(0, lba, uba), counted, tol), w, rho)
+    whole = ca.Function("whole_step", search.mx_in(), [ca.MX(1)])
+    skip = ca.logic_or(ca.logic_or(failed, ca.mmax(ca.fabs(x_0)) > 0), phi_0 == 0)
+    return ca.Function.if_else("search_if_off", whole, search)(skip, *data, x, w, counted, phi_0)
 
 
 def _least_violation_set(lba, uba, low, high, relaxed, tol) -> tuple[ca.MX, ca.MX]:

@@ -67,7 +67,22 @@ extern "C" {
 #define casadi_f12 CASADI_PREFIX(f12)
 #define casadi_f13 CASADI_PREFIX(f13)
 #define casadi_f14 CASADI_PREFIX(f14)
+#define casadi_f15 CASADI_PREFIX(f15)
+#define casadi_f16 CASADI_PREFIX(f16)
+#define casadi_f17 CASADI_PREFIX(f17)
+#define casadi_f18 CASADI_PREFIX(f18)
+#define casadi_f19 CASADI_PREFIX(f19)
 #define casadi_f2 CASADI_PREFIX(f2)
+#define casadi_f20 CASADI_PREFIX(f20)
+#define casadi_f21 CASADI_PREFIX(f21)
+#define casadi_f22 CASADI_PREFIX(f22)
+#define casadi_f23 CASADI_PREFIX(f23)
+#define casadi_f24 CASADI_PREFIX(f24)
+#define casadi_f25 CASADI_PREFIX(f25)
+#define casadi_f26 CASADI_PREFIX(f26)
+#define casadi_f27 CASADI_PREFIX(f27)
+#define casadi_f28 CASADI_PREFIX(f28)
+#define casadi_f29 CASADI_PREFIX(f29)
 #define casadi_f2_alloc_mem CASADI_PREFIX(f2_alloc_mem)
 #define casadi_f2_checkout CASADI_PREFIX(f2_checkout)
 #define casadi_f2_decref CASADI_PREFIX(f2_decref)
@@ -81,6 +96,14 @@ extern "C" {
 #define casadi_f2_unused_stack CASADI_PREFIX(f2_unused_stack)
 #define casadi_f2_unused_stack_counter CASADI_PREFIX(f2_unused_stack_counter)
 #define casadi_f3 CASADI_PREFIX(f3)
+#define casadi_f30 CASADI_PREFIX(f30)
+#define casadi_f31 CASADI_PREFIX(f31)
+#define casadi_f32 CASADI_PREFIX(f32)
+#define casadi_f33 CASADI_PREFIX(f33)
+#define casadi_f34 CASADI_PREFIX(f34)
+#define casadi_f35 CASADI_PREFIX(f35)
+#define casadi_f36 CASADI_PREFIX(f36)
+#define casadi_f37 CASADI_PREFIX(f37)
 #define casadi_f4 CASADI_PREFIX(f4)
 #define casadi_f4_decref CASADI_PREFIX(f4_decref)
 #define casadi_f4_incref CASADI_PREFIX(f4_incref)
@@ -141,6 +164,7 @@ extern "C" {
 #define casadi_s7 CASADI_PREFIX(s7)
 #define casadi_s8 CASADI_PREFIX(s8)
 #define casadi_s9 CASADI_PREFIX(s9)
+#define casadi_sq CASADI_PREFIX(sq)
 #define casadi_trans CASADI_PREFIX(trans)
 #define casadi_vfmax CASADI_PREFIX(vfmax)
 #define casadi_vfmin CASADI_PREFIX(vfmin)
@@ -407,6 +431,8 @@ static int casadi_f11_unused_stack[CASADI_MAX_NUM_THREADS];
 static struct casadi_daqp_data casadi_f11_mem[CASADI_MAX_NUM_THREADS];
 
 static int casadi_f11_ref_counter = 0;
+casadi_real casadi_sq(casadi_real x) { return x*x;}
+
 void casadi_mtimes_dense(const casadi_real* x, casadi_int nrow_x, casadi_int ncol_x,
     const casadi_real* y, casadi_int ncol_y, casadi_real* z, casadi_int tr) {
   casadi_int i, j, k;
@@ -1137,79 +1163,732 @@ void casadi_f11_decref(void) {
   }
 }
 
-/* recover:(i0[1x2],i1,i2,i3[2],i4[2],i5[2],i6,i7,i8[2x2],i9[2],i10[3x2],i11[3],i12[3])->(o0[3]) */
+/* vf_golden_search_measure:(i0[2],i1[2],i2,i3,i4,i5)->(o0) */
+static int casadi_f14(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+  casadi_real a0, a1, a2, a3, a4;
+  a0=1.;
+  a1=-casadi_inf;
+  a2=arg[2]? arg[2][0] : 0;
+  a1=(a1<=a2);
+  a0=(a0&&a1);
+  a1=9.9999999999999995e-07;
+  a3=arg[5]? arg[5][0] : 0;
+  a2=(-a2);
+  a4=0.;
+  a2=casadi_fmax(a2,a4);
+  a3=(a3*a2);
+  a1=(a1<a3);
+  a2=(a1?a3:0);
+  a4=arg[4]? arg[4][0] : 0;
+  a2=(a2/a4);
+  a3=casadi_sq(a3);
+  a3=(a1?a3:0);
+  a1=(a1?a3:0);
+  a3=2.;
+  a1=(a1/a3);
+  a2=(a2+a1);
+  a2=(a0?a2:0);
+  a0=(!a0);
+  a1=casadi_inf;
+  a0=(a0?a1:0);
+  a2=(a2+a0);
+  if (res[0]!=0) res[0][0]=a2;
+  return 0;
+}
+
+/* vf_golden_search_none:(i0[2],i1[2],i2,i3,i4[2],i5,i6,i7,i8)->(o0) */
+static int casadi_f27(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+  casadi_real w0;
+  /* #0: @0 = 0 */
+  w0 = 0.;
+  /* #1: output[0][0] = @0 */
+  if (res[0]) res[0][0] = w0;
+  return 0;
+}
+
+/* vf_golden_search_take5:(i0[2],i1[2],i2,i3,i4[2],i5,i6,i7,i8)->(o0) */
+static int casadi_f28(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+  casadi_real w0;
+  /* #0: @0 = 0.03125 */
+  w0 = 3.1250000000000000e-02;
+  /* #1: output[0][0] = @0 */
+  if (res[0]) res[0][0] = w0;
+  return 0;
+}
+
+/* vf_golden_search_pick5:(i0,i1[2],i2[2],i3,i4,i5[2],i6,i7,i8,i9)->(o0) */
+static int casadi_f26(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+  if (arg[0] ? casadi_to_int(*arg[0]) : 0) {
+    if (casadi_f28(arg+1, res, iw, w, 0)) return 1;
+  } else {
+    if (casadi_f27(arg+1, res, iw, w, 0)) return 1;
+  }
+  return 0;
+}
+
+/* vf_golden_search_try5:(i0[2],i1[2],i2,i3,i4[2],i5,i6,i7,i8)->(o0) */
+static int casadi_f25(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+  casadi_int i;
+  casadi_real **res1=res+1, *rr, *w00=w+5, w01, *w02=w+7, *w03=w+9, *w04=w+11, w05, w06, w07, w08, w09;
+  casadi_real w10, w11, w12;
+  const casadi_real **arg1=arg+9, *cr, *cs;
+  /* #0: @0 = input[0][0] */
+  casadi_copy(arg[0], 2, w00);
+  /* #1: @1 = 0.03125 */
+  w01 = 3.1250000000000000e-02;
+  /* #2: @2 = input[4][0] */
+  casadi_copy(arg[4], 2, w02);
+  /* #3: @3 = (@1*@2) */
+  for (i=0, rr=w03, cs=w02; i<2; ++i) (*rr++)  = (w01*(*cs++));
+  /* #4: @3 = (@0+@3) */
+  for (i=0, rr=w03, cr=w00, cs=w03; i<2; ++i) (*rr++)  = ((*cr++)+(*cs++));
+  /* #5: @4 = input[1][0] */
+  casadi_copy(arg[1], 2, w04);
+  /* #6: @1 = input[2][0] */
+  w01 = arg[2] ? arg[2][0] : 0;
+  /* #7: @5 = input[3][0] */
+  w05 = arg[3] ? arg[3][0] : 0;
+  /* #8: @6 = input[5][0] */
+  w06 = arg[5] ? arg[5][0] : 0;
+  /* #9: @7 = input[6][0] */
+  w07 = arg[6] ? arg[6][0] : 0;
+  /* #10: @8 = vf_golden_search_measure(@3, @4, @1, @5, @6, @7) */
+  arg1[0]=w03;
+  arg1[1]=w04;
+  arg1[2]=(&w01);
+  arg1[3]=(&w05);
+  arg1[4]=(&w06);
+  arg1[5]=(&w07);
+  res1[0]=(&w08);
+  if (casadi_f14(arg1, res1, iw, w, 0)) return 1;
+  /* #11: @9 = input[7][0] */
+  w09 = arg[7] ? arg[7][0] : 0;
+  /* #12: @10 = 0.003125 */
+  w10 = 3.1250000000000002e-03;
+  /* #13: @11 = 0 */
+  w11 = 0.;
+  /* #14: @12 = input[8][0] */
+  w12 = arg[8] ? arg[8][0] : 0;
+  /* #15: @11 = fmin(@11,@12) */
+  w11  = casadi_fmin(w11,w12);
+  /* #16: @10 = (@10*@11) */
+  w10 *= w11;
+  /* #17: @10 = (@9+@10) */
+  w10  = (w09+w10);
+  /* #18: @8 = (@8<@10) */
+  w08  = (w08<w10);
+  /* #19: @10 = vf_golden_search_pick5(@8, @0, @4, @1, @5, @2, @6, @7, @9, @12) */
+  arg1[0]=(&w08);
+  arg1[1]=w00;
+  arg1[2]=w04;
+  arg1[3]=(&w01);
+  arg1[4]=(&w05);
+  arg1[5]=w02;
+  arg1[6]=(&w06);
+  arg1[7]=(&w07);
+  arg1[8]=(&w09);
+  arg1[9]=(&w12);
+  res1[0]=(&w10);
+  if (casadi_f26(arg1, res1, iw, w, 0)) return 1;
+  /* #20: output[0][0] = @10 */
+  if (res[0]) res[0][0] = w10;
+  return 0;
+}
+
+/* vf_golden_search_take4:(i0[2],i1[2],i2,i3,i4[2],i5,i6,i7,i8)->(o0) */
+static int casadi_f29(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+  casadi_real w0;
+  /* #0: @0 = 0.0625 */
+  w0 = 6.2500000000000000e-02;
+  /* #1: output[0][0] = @0 */
+  if (res[0]) res[0][0] = w0;
+  return 0;
+}
+
+/* vf_golden_search_pick4:(i0,i1[2],i2[2],i3,i4,i5[2],i6,i7,i8,i9)->(o0) */
+static int casadi_f24(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+  if (arg[0] ? casadi_to_int(*arg[0]) : 0) {
+    if (casadi_f29(arg+1, res, iw, w, 0)) return 1;
+  } else {
+    if (casadi_f25(arg+1, res, iw, w, 0)) return 1;
+  }
+  return 0;
+}
+
+/* vf_golden_search_try4:(i0[2],i1[2],i2,i3,i4[2],i5,i6,i7,i8)->(o0) */
+static int casadi_f23(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+  casadi_int i;
+  casadi_real **res1=res+1, *rr, *w00=w+22, w01, *w02=w+24, *w03=w+26, *w04=w+28, w05, w06, w07, w08, w09;
+  casadi_real w10, w11, w12;
+  const casadi_real **arg1=arg+9, *cr, *cs;
+  /* #0: @0 = input[0][0] */
+  casadi_copy(arg[0], 2, w00);
+  /* #1: @1 = 0.0625 */
+  w01 = 6.2500000000000000e-02;
+  /* #2: @2 = input[4][0] */
+  casadi_copy(arg[4], 2, w02);
+  /* #3: @3 = (@1*@2) */
+  for (i=0, rr=w03, cs=w02; i<2; ++i) (*rr++)  = (w01*(*cs++));
+  /* #4: @3 = (@0+@3) */
+  for (i=0, rr=w03, cr=w00, cs=w03; i<2; ++i) (*rr++)  = ((*cr++)+(*cs++));
+  /* #5: @4 = input[1][0] */
+  casadi_copy(arg[1], 2, w04);
+  /* #6: @1 = input[2][0] */
+  w01 = arg[2] ? arg[2][0] : 0;
+  /* #7: @5 = input[3][0] */
+  w05 = arg[3] ? arg[3][0] : 0;
+  /* #8: @6 = input[5][0] */
+  w06 = arg[5] ? arg[5][0] : 0;
+  /* #9: @7 = input[6][0] */
+  w07 = arg[6] ? arg[6][0] : 0;
+  /* #10: @8 = vf_golden_search_measure(@3, @4, @1, @5, @6, @7) */
+  arg1[0]=w03;
+  arg1[1]=w04;
+  arg1[2]=(&w01);
+  arg1[3]=(&w05);
+  arg1[4]=(&w06);
+  arg1[5]=(&w07);
+  res1[0]=(&w08);
+  if (casadi_f14(arg1, res1, iw, w, 0)) return 1;
+  /* #11: @9 = input[7][0] */
+  w09 = arg[7] ? arg[7][0] : 0;
+  /* #12: @10 = 0.00625 */
+  w10 = 6.2500000000000003e-03;
+  /* #13: @11 = 0 */
+  w11 = 0.;
+  /* #14: @12 = input[8][0] */
+  w12 = arg[8] ? arg[8][0] : 0;
+  /* #15: @11 = fmin(@11,@12) */
+  w11  = casadi_fmin(w11,w12);
+  /* #16: @10 = (@10*@11) */
+  w10 *= w11;
+  /* #17: @10 = (@9+@10) */
+  w10  = (w09+w10);
+  /* #18: @8 = (@8<@10) */
+  w08  = (w08<w10);
+  /* #19: @10 = vf_golden_search_pick4(@8, @0, @4, @1, @5, @2, @6, @7, @9, @12) */
+  arg1[0]=(&w08);
+  arg1[1]=w00;
+  arg1[2]=w04;
+  arg1[3]=(&w01);
+  arg1[4]=(&w05);
+  arg1[5]=w02;
+  arg1[6]=(&w06);
+  arg1[7]=(&w07);
+  arg1[8]=(&w09);
+  arg1[9]=(&w12);
+  res1[0]=(&w10);
+  if (casadi_f24(arg1, res1, iw, w, 0)) return 1;
+  /* #20: output[0][0] = @10 */
+  if (res[0]) res[0][0] = w10;
+  return 0;
+}
+
+/* vf_golden_search_take3:(i0[2],i1[2],i2,i3,i4[2],i5,i6,i7,i8)->(o0) */
+static int casadi_f30(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+  casadi_real w0;
+  /* #0: @0 = 0.125 */
+  w0 = 1.2500000000000000e-01;
+  /* #1: output[0][0] = @0 */
+  if (res[0]) res[0][0] = w0;
+  return 0;
+}
+
+/* vf_golden_search_pick3:(i0,i1[2],i2[2],i3,i4,i5[2],i6,i7,i8,i9)->(o0) */
+static int casadi_f22(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+  if (arg[0] ? casadi_to_int(*arg[0]) : 0) {
+    if (casadi_f30(arg+1, res, iw, w, 0)) return 1;
+  } else {
+    if (casadi_f23(arg+1, res, iw, w, 0)) return 1;
+  }
+  return 0;
+}
+
+/* vf_golden_search_try3:(i0[2],i1[2],i2,i3,i4[2],i5,i6,i7,i8)->(o0) */
+static int casadi_f21(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+  casadi_int i;
+  casadi_real **res1=res+1, *rr, *w00=w+39, w01, *w02=w+41, *w03=w+43, *w04=w+45, w05, w06, w07, w08, w09;
+  casadi_real w10, w11, w12;
+  const casadi_real **arg1=arg+9, *cr, *cs;
+  /* #0: @0 = input[0][0] */
+  casadi_copy(arg[0], 2, w00);
+  /* #1: @1 = 0.125 */
+  w01 = 1.2500000000000000e-01;
+  /* #2: @2 = input[4][0] */
+  casadi_copy(arg[4], 2, w02);
+  /* #3: @3 = (@1*@2) */
+  for (i=0, rr=w03, cs=w02; i<2; ++i) (*rr++)  = (w01*(*cs++));
+  /* #4: @3 = (@0+@3) */
+  for (i=0, rr=w03, cr=w00, cs=w03; i<2; ++i) (*rr++)  = ((*cr++)+(*cs++));
+  /* #5: @4 = input[1][0] */
+  casadi_copy(arg[1], 2, w04);
+  /* #6: @1 = input[2][0] */
+  w01 = arg[2] ? arg[2][0] : 0;
+  /* #7: @5 = input[3][0] */
+  w05 = arg[3] ? arg[3][0] : 0;
+  /* #8: @6 = input[5][0] */
+  w06 = arg[5] ? arg[5][0] : 0;
+  /* #9: @7 = input[6][0] */
+  w07 = arg[6] ? arg[6][0] : 0;
+  /* #10: @8 = vf_golden_search_measure(@3, @4, @1, @5, @6, @7) */
+  arg1[0]=w03;
+  arg1[1]=w04;
+  arg1[2]=(&w01);
+  arg1[3]=(&w05);
+  arg1[4]=(&w06);
+  arg1[5]=(&w07);
+  res1[0]=(&w08);
+  if (casadi_f14(arg1, res1, iw, w, 0)) return 1;
+  /* #11: @9 = input[7][0] */
+  w09 = arg[7] ? arg[7][0] : 0;
+  /* #12: @10 = 0.0125 */
+  w10 = 1.2500000000000001e-02;
+  /* #13: @11 = 0 */
+  w11 = 0.;
+  /* #14: @12 = input[8][0] */
+  w12 = arg[8] ? arg[8][0] : 0;
+  /* #15: @11 = fmin(@11,@12) */
+  w11  = casadi_fmin(w11,w12);
+  /* #16: @10 = (@10*@11) */
+  w10 *= w11;
+  /* #17: @10 = (@9+@10) */
+  w10  = (w09+w10);
+  /* #18: @8 = (@8<@10) */
+  w08  = (w08<w10);
+  /* #19: @10 = vf_golden_search_pick3(@8, @0, @4, @1, @5, @2, @6, @7, @9, @12) */
+  arg1[0]=(&w08);
+  arg1[1]=w00;
+  arg1[2]=w04;
+  arg1[3]=(&w01);
+  arg1[4]=(&w05);
+  arg1[5]=w02;
+  arg1[6]=(&w06);
+  arg1[7]=(&w07);
+  arg1[8]=(&w09);
+  arg1[9]=(&w12);
+  res1[0]=(&w10);
+  if (casadi_f22(arg1, res1, iw, w, 0)) return 1;
+  /* #20: output[0][0] = @10 */
+  if (res[0]) res[0][0] = w10;
+  return 0;
+}
+
+/* vf_golden_search_take2:(i0[2],i1[2],i2,i3,i4[2],i5,i6,i7,i8)->(o0) */
+static int casadi_f31(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+  casadi_real w0;
+  /* #0: @0 = 0.25 */
+  w0 = 2.5000000000000000e-01;
+  /* #1: output[0][0] = @0 */
+  if (res[0]) res[0][0] = w0;
+  return 0;
+}
+
+/* vf_golden_search_pick2:(i0,i1[2],i2[2],i3,i4,i5[2],i6,i7,i8,i9)->(o0) */
+static int casadi_f20(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+  if (arg[0] ? casadi_to_int(*arg[0]) : 0) {
+    if (casadi_f31(arg+1, res, iw, w, 0)) return 1;
+  } else {
+    if (casadi_f21(arg+1, res, iw, w, 0)) return 1;
+  }
+  return 0;
+}
+
+/* vf_golden_search_try2:(i0[2],i1[2],i2,i3,i4[2],i5,i6,i7,i8)->(o0) */
+static int casadi_f19(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+  casadi_int i;
+  casadi_real **res1=res+1, *rr, *w00=w+56, w01, *w02=w+58, *w03=w+60, *w04=w+62, w05, w06, w07, w08, w09;
+  casadi_real w10, w11, w12;
+  const casadi_real **arg1=arg+9, *cr, *cs;
+  /* #0: @0 = input[0][0] */
+  casadi_copy(arg[0], 2, w00);
+  /* #1: @1 = 0.25 */
+  w01 = 2.5000000000000000e-01;
+  /* #2: @2 = input[4][0] */
+  casadi_copy(arg[4], 2, w02);
+  /* #3: @3 = (@1*@2) */
+  for (i=0, rr=w03, cs=w02; i<2; ++i) (*rr++)  = (w01*(*cs++));
+  /* #4: @3 = (@0+@3) */
+  for (i=0, rr=w03, cr=w00, cs=w03; i<2; ++i) (*rr++)  = ((*cr++)+(*cs++));
+  /* #5: @4 = input[1][0] */
+  casadi_copy(arg[1], 2, w04);
+  /* #6: @1 = input[2][0] */
+  w01 = arg[2] ? arg[2][0] : 0;
+  /* #7: @5 = input[3][0] */
+  w05 = arg[3] ? arg[3][0] : 0;
+  /* #8: @6 = input[5][0] */
+  w06 = arg[5] ? arg[5][0] : 0;
+  /* #9: @7 = input[6][0] */
+  w07 = arg[6] ? arg[6][0] : 0;
+  /* #10: @8 = vf_golden_search_measure(@3, @4, @1, @5, @6, @7) */
+  arg1[0]=w03;
+  arg1[1]=w04;
+  arg1[2]=(&w01);
+  arg1[3]=(&w05);
+  arg1[4]=(&w06);
+  arg1[5]=(&w07);
+  res1[0]=(&w08);
+  if (casadi_f14(arg1, res1, iw, w, 0)) return 1;
+  /* #11: @9 = input[7][0] */
+  w09 = arg[7] ? arg[7][0] : 0;
+  /* #12: @10 = 0.025 */
+  w10 = 2.5000000000000001e-02;
+  /* #13: @11 = 0 */
+  w11 = 0.;
+  /* #14: @12 = input[8][0] */
+  w12 = arg[8] ? arg[8][0] : 0;
+  /* #15: @11 = fmin(@11,@12) */
+  w11  = casadi_fmin(w11,w12);
+  /* #16: @10 = (@10*@11) */
+  w10 *= w11;
+  /* #17: @10 = (@9+@10) */
+  w10  = (w09+w10);
+  /* #18: @8 = (@8<@10) */
+  w08  = (w08<w10);
+  /* #19: @10 = vf_golden_search_pick2(@8, @0, @4, @1, @5, @2, @6, @7, @9, @12) */
+  arg1[0]=(&w08);
+  arg1[1]=w00;
+  arg1[2]=w04;
+  arg1[3]=(&w01);
+  arg1[4]=(&w05);
+  arg1[5]=w02;
+  arg1[6]=(&w06);
+  arg1[7]=(&w07);
+  arg1[8]=(&w09);
+  arg1[9]=(&w12);
+  res1[0]=(&w10);
+  if (casadi_f20(arg1, res1, iw, w, 0)) return 1;
+  /* #20: output[0][0] = @10 */
+  if (res[0]) res[0][0] = w10;
+  return 0;
+}
+
+/* vf_golden_search_take1:(i0[2],i1[2],i2,i3,i4[2],i5,i6,i7,i8)->(o0) */
+static int casadi_f32(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+  casadi_real w0;
+  /* #0: @0 = 0.5 */
+  w0 = 5.0000000000000000e-01;
+  /* #1: output[0][0] = @0 */
+  if (res[0]) res[0][0] = w0;
+  return 0;
+}
+
+/* vf_golden_search_pick1:(i0,i1[2],i2[2],i3,i4,i5[2],i6,i7,i8,i9)->(o0) */
+static int casadi_f18(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+  if (arg[0] ? casadi_to_int(*arg[0]) : 0) {
+    if (casadi_f32(arg+1, res, iw, w, 0)) return 1;
+  } else {
+    if (casadi_f19(arg+1, res, iw, w, 0)) return 1;
+  }
+  return 0;
+}
+
+/* vf_golden_search_try1:(i0[2],i1[2],i2,i3,i4[2],i5,i6,i7,i8)->(o0) */
+static int casadi_f17(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+  casadi_int i;
+  casadi_real **res1=res+1, *rr, *w00=w+73, w01, *w02=w+75, *w03=w+77, *w04=w+79, w05, w06, w07, w08, w09;
+  casadi_real w10, w11, w12;
+  const casadi_real **arg1=arg+9, *cr, *cs;
+  /* #0: @0 = input[0][0] */
+  casadi_copy(arg[0], 2, w00);
+  /* #1: @1 = 0.5 */
+  w01 = 5.0000000000000000e-01;
+  /* #2: @2 = input[4][0] */
+  casadi_copy(arg[4], 2, w02);
+  /* #3: @3 = (@1*@2) */
+  for (i=0, rr=w03, cs=w02; i<2; ++i) (*rr++)  = (w01*(*cs++));
+  /* #4: @3 = (@0+@3) */
+  for (i=0, rr=w03, cr=w00, cs=w03; i<2; ++i) (*rr++)  = ((*cr++)+(*cs++));
+  /* #5: @4 = input[1][0] */
+  casadi_copy(arg[1], 2, w04);
+  /* #6: @1 = input[2][0] */
+  w01 = arg[2] ? arg[2][0] : 0;
+  /* #7: @5 = input[3][0] */
+  w05 = arg[3] ? arg[3][0] : 0;
+  /* #8: @6 = input[5][0] */
+  w06 = arg[5] ? arg[5][0] : 0;
+  /* #9: @7 = input[6][0] */
+  w07 = arg[6] ? arg[6][0] : 0;
+  /* #10: @8 = vf_golden_search_measure(@3, @4, @1, @5, @6, @7) */
+  arg1[0]=w03;
+  arg1[1]=w04;
+  arg1[2]=(&w01);
+  arg1[3]=(&w05);
+  arg1[4]=(&w06);
+  arg1[5]=(&w07);
+  res1[0]=(&w08);
+  if (casadi_f14(arg1, res1, iw, w, 0)) return 1;
+  /* #11: @9 = input[7][0] */
+  w09 = arg[7] ? arg[7][0] : 0;
+  /* #12: @10 = 0.05 */
+  w10 = 5.0000000000000003e-02;
+  /* #13: @11 = 0 */
+  w11 = 0.;
+  /* #14: @12 = input[8][0] */
+  w12 = arg[8] ? arg[8][0] : 0;
+  /* #15: @11 = fmin(@11,@12) */
+  w11  = casadi_fmin(w11,w12);
+  /* #16: @10 = (@10*@11) */
+  w10 *= w11;
+  /* #17: @10 = (@9+@10) */
+  w10  = (w09+w10);
+  /* #18: @8 = (@8<@10) */
+  w08  = (w08<w10);
+  /* #19: @10 = vf_golden_search_pick1(@8, @0, @4, @1, @5, @2, @6, @7, @9, @12) */
+  arg1[0]=(&w08);
+  arg1[1]=w00;
+  arg1[2]=w04;
+  arg1[3]=(&w01);
+  arg1[4]=(&w05);
+  arg1[5]=w02;
+  arg1[6]=(&w06);
+  arg1[7]=(&w07);
+  arg1[8]=(&w09);
+  arg1[9]=(&w12);
+  res1[0]=(&w10);
+  if (casadi_f18(arg1, res1, iw, w, 0)) return 1;
+  /* #20: output[0][0] = @10 */
+  if (res[0]) res[0][0] = w10;
+  return 0;
+}
+
+/* vf_golden_search_take0:(i0[2],i1[2],i2,i3,i4[2],i5,i6,i7,i8)->(o0) */
+static int casadi_f33(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+  casadi_real w0;
+  /* #0: @0 = 1 */
+  w0 = 1.;
+  /* #1: output[0][0] = @0 */
+  if (res[0]) res[0][0] = w0;
+  return 0;
+}
+
+/* vf_golden_search_pick0:(i0,i1[2],i2[2],i3,i4,i5[2],i6,i7,i8,i9)->(o0) */
+static int casadi_f16(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+  if (arg[0] ? casadi_to_int(*arg[0]) : 0) {
+    if (casadi_f33(arg+1, res, iw, w, 0)) return 1;
+  } else {
+    if (casadi_f17(arg+1, res, iw, w, 0)) return 1;
+  }
+  return 0;
+}
+
+/* vf_golden_search_try0:(i0[2],i1[2],i2,i3,i4[2],i5,i6,i7,i8)->(o0) */
+static int casadi_f15(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+  casadi_int i;
+  casadi_real **res1=res+1, *rr, *w00=w+90, *w01=w+92, *w02=w+94, *w03=w+96, w04, w05, w06, w07, w08, w09;
+  casadi_real w10, w11, w12;
+  const casadi_real **arg1=arg+9, *cr, *cs;
+  /* #0: @0 = input[0][0] */
+  casadi_copy(arg[0], 2, w00);
+  /* #1: @1 = input[4][0] */
+  casadi_copy(arg[4], 2, w01);
+  /* #2: @2 = (@0+@1) */
+  for (i=0, rr=w02, cr=w00, cs=w01; i<2; ++i) (*rr++)  = ((*cr++)+(*cs++));
+  /* #3: @3 = input[1][0] */
+  casadi_copy(arg[1], 2, w03);
+  /* #4: @4 = input[2][0] */
+  w04 = arg[2] ? arg[2][0] : 0;
+  /* #5: @5 = input[3][0] */
+  w05 = arg[3] ? arg[3][0] : 0;
+  /* #6: @6 = input[5][0] */
+  w06 = arg[5] ? arg[5][0] : 0;
+  /* #7: @7 = input[6][0] */
+  w07 = arg[6] ? arg[6][0] : 0;
+  /* #8: @8 = vf_golden_search_measure(@2, @3, @4, @5, @6, @7) */
+  arg1[0]=w02;
+  arg1[1]=w03;
+  arg1[2]=(&w04);
+  arg1[3]=(&w05);
+  arg1[4]=(&w06);
+  arg1[5]=(&w07);
+  res1[0]=(&w08);
+  if (casadi_f14(arg1, res1, iw, w, 0)) return 1;
+  /* #9: @9 = input[7][0] */
+  w09 = arg[7] ? arg[7][0] : 0;
+  /* #10: @10 = 0.1 */
+  w10 = 1.0000000000000001e-01;
+  /* #11: @11 = 0 */
+  w11 = 0.;
+  /* #12: @12 = input[8][0] */
+  w12 = arg[8] ? arg[8][0] : 0;
+  /* #13: @11 = fmin(@11,@12) */
+  w11  = casadi_fmin(w11,w12);
+  /* #14: @10 = (@10*@11) */
+  w10 *= w11;
+  /* #15: @10 = (@9+@10) */
+  w10  = (w09+w10);
+  /* #16: @8 = (@8<@10) */
+  w08  = (w08<w10);
+  /* #17: @10 = vf_golden_search_pick0(@8, @0, @3, @4, @5, @1, @6, @7, @9, @12) */
+  arg1[0]=(&w08);
+  arg1[1]=w00;
+  arg1[2]=w03;
+  arg1[3]=(&w04);
+  arg1[4]=(&w05);
+  arg1[5]=w01;
+  arg1[6]=(&w06);
+  arg1[7]=(&w07);
+  arg1[8]=(&w09);
+  arg1[9]=(&w12);
+  res1[0]=(&w10);
+  if (casadi_f16(arg1, res1, iw, w, 0)) return 1;
+  /* #18: output[0][0] = @10 */
+  if (res[0]) res[0][0] = w10;
+  return 0;
+}
+
+/* vf_golden_search:(i0[2],i1[2],i2,i3,i4[2],i5,i6,i7)->(o0) */
+static int casadi_f13(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+  casadi_int i;
+  casadi_real **res1=res+1, *rr, *w00=w+107, *w01=w+109, w02, w03, *w04=w+111, w05, w06, w07, w08, *w09=w+113;
+  casadi_real w10;
+  const casadi_real **arg1=arg+8, *cr, *cs;
+  /* #0: @0 = input[0][0] */
+  casadi_copy(arg[0], 2, w00);
+  /* #1: @1 = input[1][0] */
+  casadi_copy(arg[1], 2, w01);
+  /* #2: @2 = input[2][0] */
+  w02 = arg[2] ? arg[2][0] : 0;
+  /* #3: @3 = input[3][0] */
+  w03 = arg[3] ? arg[3][0] : 0;
+  /* #4: @4 = input[4][0] */
+  casadi_copy(arg[4], 2, w04);
+  /* #5: @5 = input[5][0] */
+  w05 = arg[5] ? arg[5][0] : 0;
+  /* #6: @6 = input[6][0] */
+  w06 = arg[6] ? arg[6][0] : 0;
+  /* #7: @7 = input[7][0] */
+  w07 = arg[7] ? arg[7][0] : 0;
+  /* #8: @8 = 0.0001 */
+  w08 = 1.0000000000000000e-04;
+  /* #9: @9 = (@8*@4) */
+  for (i=0, rr=w09, cs=w04; i<2; ++i) (*rr++)  = (w08*(*cs++));
+  /* #10: @9 = (@0+@9) */
+  for (i=0, rr=w09, cr=w00, cs=w09; i<2; ++i) (*rr++)  = ((*cr++)+(*cs++));
+  /* #11: @8 = vf_golden_search_measure(@9, @1, @2, @3, @5, @6) */
+  arg1[0]=w09;
+  arg1[1]=w01;
+  arg1[2]=(&w02);
+  arg1[3]=(&w03);
+  arg1[4]=(&w05);
+  arg1[5]=(&w06);
+  res1[0]=(&w08);
+  if (casadi_f14(arg1, res1, iw, w, 0)) return 1;
+  /* #12: @8 = (@8-@7) */
+  w08 -= w07;
+  /* #13: @10 = 0.0001 */
+  w10 = 1.0000000000000000e-04;
+  /* #14: @8 = (@8/@10) */
+  w08 /= w10;
+  /* #15: @10 = vf_golden_search_try0(@0, @1, @2, @3, @4, @5, @6, @7, @8) */
+  arg1[0]=w00;
+  arg1[1]=w01;
+  arg1[2]=(&w02);
+  arg1[3]=(&w03);
+  arg1[4]=w04;
+  arg1[5]=(&w05);
+  arg1[6]=(&w06);
+  arg1[7]=(&w07);
+  arg1[8]=(&w08);
+  res1[0]=(&w10);
+  if (casadi_f15(arg1, res1, iw, w, 0)) return 1;
+  /* #16: output[0][0] = @10 */
+  if (res[0]) res[0][0] = w10;
+  return 0;
+}
+
+/* whole_step:(i0[2],i1[2],i2,i3,i4[2],i5,i6,i7)->(o0) */
+static int casadi_f34(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+  casadi_real w0;
+  /* #0: @0 = 1 */
+  w0 = 1.;
+  /* #1: output[0][0] = @0 */
+  if (res[0]) res[0][0] = w0;
+  return 0;
+}
+
+/* search_if_off:(i0,i1[2],i2[2],i3,i4,i5[2],i6,i7,i8)->(o0) */
+static int casadi_f12(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+  if (arg[0] ? casadi_to_int(*arg[0]) : 0) {
+    if (casadi_f34(arg+1, res, iw, w, 0)) return 1;
+  } else {
+    if (casadi_f13(arg+1, res, iw, w, 0)) return 1;
+  }
+  return 0;
+}
+
+/* recover:(i0[1x2],i1,i2,i3[2],i4[2],i5[2],i6,i7,i8[2x2],i9[2],i10[3x2],i11[3],i12[3],i13[2],i14[2],i15,i16)->(o0[3]) */
 static int casadi_f5(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_int i, j;
-  casadi_real **res1=res+1, *rr, *w00=w+105, *w01=w+108, *w02=w+117, w03, w04, w05, w06, *w07=w+119, *w08=w+121, *w09=w+123;
-  casadi_real *w10=w+125, w11, w12, w13, *w14=w+127, *w15=w+130, *w16=w+133, *w17=w+136, *w18=w+145, *w19=w+154, *w20=w+169, *w21=w+174;
-  casadi_real *w22=w+179, *w23=w+182, *w24=w+185, *w25=w+188, *w27=w+193, w28, w29, w30, *w31=w+196, *w32=w+202, *w33=w+208, *w34=w+210;
-  casadi_real *w35=w+214, *w36=w+216, *w37=w+218;
-  const casadi_real **arg1=arg+13, *cr, *cs;
+  casadi_real **res1=res+1, *rr, *w00=w+122, *w01=w+124, *w02=w+126, *w03=w+128, *w04=w+131, *w05=w+140, w06, w07, w08, w09;
+  casadi_real *w10=w+142, w11, w12, w13, *w14=w+144, *w15=w+147, *w16=w+150, *w17=w+153, *w18=w+162, *w19=w+171, *w20=w+186, w21;
+  casadi_real w22, *w23=w+191, *w24=w+196, *w25=w+199, *w26=w+202, *w27=w+205, *w29=w+210, w30, w31, w32, *w33=w+213, *w34=w+215;
+  casadi_real *w35=w+221, *w36=w+227, *w37=w+229, w38, *w39=w+233, w40, *w41=w+235, *w42=w+237, *w43=w+239, *w44=w+241;
+  const casadi_real **arg1=arg+17, *cr, *cs;
   int flag, mid;
-  /* #0: @0 = 
+  /* #0: @0 = zeros(2x1) */
+  casadi_clear(w00, 2);
+  /* #1: @1 = input[3][0] */
+  casadi_copy(arg[3], 2, w01);
+  /* #2: @0 = fmax(@0,@1) */
+  for (i=0, rr=w00, cr=w00, cs=w01; i<2; ++i) (*rr++)  = casadi_fmax((*cr++),(*cs++));
+  /* #3: @2 = input[4][0] */
+  casadi_copy(arg[4], 2, w02);
+  /* #4: @0 = fmin(@0,@2) */
+  for (i=0, rr=w00, cr=w00, cs=w02; i<2; ++i) (*rr++)  = casadi_fmin((*cr++),(*cs++));
+  /* #5: @3 = 
   [[0.001, 00, 00], 
    [00, 0.001, 00], 
    [00, 00, 1]] */
-  casadi_copy(casadi_c0, 3, w00);
-  /* #1: @1 = dense(@0) */
-  casadi_densify(w00, casadi_s4, w01, 0);
-  /* #2: @2 = zeros(2x1) */
-  casadi_clear(w02, 2);
-  /* #3: @3 = 0.0001 */
-  w03 = 1.0000000000000000e-04;
-  /* #4: @4 = 0 */
-  w04 = 0.;
-  /* #5: @5 = input[1][0] */
-  w05 = arg[1] ? arg[1][0] : 0;
-  /* #6: @6 = 0 */
-  w06 = 0.;
-  /* #7: @7 = input[0][0] */
-  casadi_copy(arg[0], 2, w07);
-  /* #8: @8 = zeros(2x1) */
-  casadi_clear(w08, 2);
-  /* #9: @9 = input[3][0] */
-  casadi_copy(arg[3], 2, w09);
-  /* #10: @8 = fmax(@8,@9) */
-  for (i=0, rr=w08, cr=w08, cs=w09; i<2; ++i) (*rr++)  = casadi_fmax((*cr++),(*cs++));
-  /* #11: @10 = input[4][0] */
-  casadi_copy(arg[4], 2, w10);
-  /* #12: @8 = fmin(@8,@10) */
-  for (i=0, rr=w08, cr=w08, cs=w10; i<2; ++i) (*rr++)  = casadi_fmin((*cr++),(*cs++));
-  /* #13: @6 = mac(@7,@8,@6) */
-  casadi_mtimes_dense(w07, 1, 2, w08, 1, (&w06), 0);
-  /* #14: @11 = (@5-@6) */
-  w11  = (w05-w06);
+  casadi_copy(casadi_c0, 3, w03);
+  /* #6: @4 = dense(@3) */
+  casadi_densify(w03, casadi_s4, w04, 0);
+  /* #7: @5 = zeros(2x1) */
+  casadi_clear(w05, 2);
+  /* #8: @6 = 0.0001 */
+  w06 = 1.0000000000000000e-04;
+  /* #9: @7 = 0 */
+  w07 = 0.;
+  /* #10: @8 = input[1][0] */
+  w08 = arg[1] ? arg[1][0] : 0;
+  /* #11: @9 = 0 */
+  w09 = 0.;
+  /* #12: @10 = input[0][0] */
+  casadi_copy(arg[0], 2, w10);
+  /* #13: @9 = mac(@10,@0,@9) */
+  casadi_mtimes_dense(w10, 1, 2, w00, 1, (&w09), 0);
+  /* #14: @11 = (@8-@9) */
+  w11  = (w08-w09);
   /* #15: @12 = input[2][0] */
   w12 = arg[2] ? arg[2][0] : 0;
-  /* #16: @13 = (@6-@12) */
-  w13  = (w06-w12);
+  /* #16: @13 = (@9-@12) */
+  w13  = (w09-w12);
   /* #17: @11 = fmax(@11,@13) */
   w11  = casadi_fmax(w11,w13);
-  /* #18: @4 = fmax(@4,@11) */
-  w04  = casadi_fmax(w04,w11);
-  /* #19: @11 = max(@4) */
-  w11 = casadi_mmax((&w04), 1, 1);
-  /* #20: @3 = fmax(@3,@11) */
-  w03  = casadi_fmax(w03,w11);
-  /* #21: @3 = (1./@3) */
-  w03 = (1./ w03 );
-  /* #22: @0 = vertcat(@2, @3) */
-  rr=w00;
-  for (i=0, cs=w02; i<2; ++i) *rr++ = *cs++;
-  *rr++ = w03;
-  /* #23: @3 = 1 */
-  w03 = 1.;
-  /* #24: @14 = horzcat(@7, @3) */
+  /* #18: @7 = fmax(@7,@11) */
+  w07  = casadi_fmax(w07,w11);
+  /* #19: @11 = max(@7) */
+  w11 = casadi_mmax((&w07), 1, 1);
+  /* #20: @6 = fmax(@6,@11) */
+  w06  = casadi_fmax(w06,w11);
+  /* #21: @7 = (1./@6) */
+  w07 = (1./ w06 );
+  /* #22: @3 = vertcat(@5, @7) */
+  rr=w03;
+  for (i=0, cs=w05; i<2; ++i) *rr++ = *cs++;
+  *rr++ = w07;
+  /* #23: @7 = 1 */
+  w07 = 1.;
+  /* #24: @14 = horzcat(@10, @7) */
   rr=w14;
-  for (i=0, cs=w07; i<2; ++i) *rr++ = *cs++;
-  *rr++ = w03;
+  for (i=0, cs=w10; i<2; ++i) *rr++ = *cs++;
+  *rr++ = w07;
   /* #25: @14 = @14' */
-  /* #26: @3 = -1 */
-  w03 = -1.;
-  /* #27: @15 = horzcat(@7, @3) */
+  /* #26: @7 = -1 */
+  w07 = -1.;
+  /* #27: @15 = horzcat(@10, @7) */
   rr=w15;
-  for (i=0, cs=w07; i<2; ++i) *rr++ = *cs++;
-  *rr++ = w03;
+  for (i=0, cs=w10; i<2; ++i) *rr++ = *cs++;
+  *rr++ = w07;
   /* #28: @15 = @15' */
   /* #29: @16 = ones(3x3,3nz) */
   casadi_fill(w16, 3, 1.);
@@ -1222,55 +1901,55 @@ static int casadi_f5(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   casadi_trans(w17,casadi_s6, w18, casadi_s5, iw);
   /* #32: @19 = dense(@18) */
   casadi_densify(w18, casadi_s5, w19, 0);
-  /* #33: @3 = fmin(@5,@6) */
-  w03  = casadi_fmin(w05,w06);
-  /* #34: @3 = (@3-@11) */
-  w03 -= w11;
-  /* #35: @4 = 0 */
-  w04 = 0.;
-  /* #36: @20 = vertcat(@5, @3, @9, @4) */
+  /* #33: @7 = fmin(@8,@9) */
+  w07  = casadi_fmin(w08,w09);
+  /* #34: @7 = (@7-@11) */
+  w07 -= w11;
+  /* #35: @13 = 0 */
+  w13 = 0.;
+  /* #36: @20 = vertcat(@8, @7, @1, @13) */
   rr=w20;
-  *rr++ = w05;
-  *rr++ = w03;
-  for (i=0, cs=w09; i<2; ++i) *rr++ = *cs++;
-  *rr++ = w04;
-  /* #37: @13 = fmax(@12,@6) */
-  w13  = casadi_fmax(w12,w06);
-  /* #38: @13 = (@13+@11) */
-  w13 += w11;
-  /* #39: @11 = inf */
-  w11 = casadi_inf;
-  /* #40: @21 = vertcat(@13, @12, @10, @11) */
-  rr=w21;
+  *rr++ = w08;
+  *rr++ = w07;
+  for (i=0, cs=w01; i<2; ++i) *rr++ = *cs++;
   *rr++ = w13;
+  /* #37: @21 = fmax(@12,@9) */
+  w21  = casadi_fmax(w12,w09);
+  /* #38: @21 = (@21+@11) */
+  w21 += w11;
+  /* #39: @22 = inf */
+  w22 = casadi_inf;
+  /* #40: @23 = vertcat(@21, @12, @2, @22) */
+  rr=w23;
+  *rr++ = w21;
   *rr++ = w12;
-  for (i=0, cs=w10; i<2; ++i) *rr++ = *cs++;
-  *rr++ = w11;
+  for (i=0, cs=w02; i<2; ++i) *rr++ = *cs++;
+  *rr++ = w22;
   /* #41: @16 = -inf(3x1) */
   casadi_fill(w16, 3, -casadi_inf);
-  /* #42: @22 = inf(3x1) */
-  casadi_fill(w22, 3, casadi_inf);
-  /* #43: @23 = zeros(3x1) */
-  casadi_clear(w23, 3);
-  /* #44: @24 = zeros(3x1) */
-  casadi_clear(w24, 3);
-  /* #45: @25 = zeros(5x1) */
-  casadi_clear(w25, 5);
-  /* #46: @26 = 0x0 */
-  /* #47: {@27, NULL, NULL, NULL} = phase2a(@1, @0, @19, @20, @21, @16, @22, @23, @24, @25, @26, @26) */
-  arg1[0]=w01;
-  arg1[1]=w00;
+  /* #42: @24 = inf(3x1) */
+  casadi_fill(w24, 3, casadi_inf);
+  /* #43: @25 = zeros(3x1) */
+  casadi_clear(w25, 3);
+  /* #44: @26 = zeros(3x1) */
+  casadi_clear(w26, 3);
+  /* #45: @27 = zeros(5x1) */
+  casadi_clear(w27, 5);
+  /* #46: @28 = 0x0 */
+  /* #47: {@29, NULL, NULL, NULL} = phase2a(@4, @3, @19, @20, @23, @16, @24, @25, @26, @27, @28, @28) */
+  arg1[0]=w04;
+  arg1[1]=w03;
   arg1[2]=w19;
   arg1[3]=w20;
-  arg1[4]=w21;
+  arg1[4]=w23;
   arg1[5]=w16;
-  arg1[6]=w22;
-  arg1[7]=w23;
-  arg1[8]=w24;
-  arg1[9]=w25;
+  arg1[6]=w24;
+  arg1[7]=w25;
+  arg1[8]=w26;
+  arg1[9]=w27;
   arg1[10]=0;
   arg1[11]=0;
-  res1[0]=w27;
+  res1[0]=w29;
   res1[1]=0;
   res1[2]=0;
   res1[3]=0;
@@ -1279,203 +1958,265 @@ static int casadi_f5(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   flag = casadi_f6(arg1, res1, iw, w, mid);
   casadi_f6_release(mid);
   if (flag) return 1;
-  /* #48: @16 = fabs(@27) */
-  for (i=0, rr=w16, cs=w27; i<3; ++i) *rr++ = casadi_fabs( *cs++ );
-  /* #49: @28 = inf */
-  w28 = casadi_inf;
-  /* #50: @16 = (@16<@28) */
-  for (i=0, rr=w16, cr=w16; i<3; ++i) (*rr++)  = ((*cr++)<w28);
-  /* #51: @28 = min(@16) */
-  w28 = casadi_mmin(w16, 3, 1);
-  /* #52: @29 = 0 */
-  w29 = 0.;
-  /* #53: @30 = input[7][0] */
-  w30 = arg[7] ? arg[7][0] : 0;
-  /* #54: @29 = (@29==@30) */
-  w29  = (w29==w30);
-  /* #55: @28 = (@28&&@29) */
-  w28  = (w28&&w29);
+  /* #48: @16 = fabs(@29) */
+  for (i=0, rr=w16, cs=w29; i<3; ++i) *rr++ = casadi_fabs( *cs++ );
+  /* #49: @30 = inf */
+  w30 = casadi_inf;
+  /* #50: @16 = (@16<@30) */
+  for (i=0, rr=w16, cr=w16; i<3; ++i) (*rr++)  = ((*cr++)<w30);
+  /* #51: @30 = min(@16) */
+  w30 = casadi_mmin(w16, 3, 1);
+  /* #52: @31 = 0 */
+  w31 = 0.;
+  /* #53: @32 = input[7][0] */
+  w32 = arg[7] ? arg[7][0] : 0;
+  /* #54: @31 = (@31==@32) */
+  w31  = (w31==w32);
+  /* #55: @30 = (@30&&@31) */
+  w30  = (w30&&w31);
   /* #56: @16 = 
   [[0.001, 00, 00], 
    [00, 0.001, 00], 
    [00, 00, 1]] */
   casadi_copy(casadi_c0, 3, w16);
-  /* #57: @22 = retry_if_failed(@28, @27, @16, @0, @19, @20, @21) */
-  arg1[0]=(&w28);
-  arg1[1]=w27;
+  /* #57: @24 = retry_if_failed(@30, @29, @16, @3, @19, @20, @23) */
+  arg1[0]=(&w30);
+  arg1[1]=w29;
   arg1[2]=w16;
-  arg1[3]=w00;
+  arg1[3]=w03;
   arg1[4]=w19;
   arg1[5]=w20;
-  arg1[6]=w21;
-  res1[0]=w22;
+  arg1[6]=w23;
+  res1[0]=w24;
   if (casadi_f7(arg1, res1, iw, w, 0)) return 1;
-  /* #58: @27 = fabs(@22) */
-  for (i=0, rr=w27, cs=w22; i<3; ++i) *rr++ = casadi_fabs( *cs++ );
-  /* #59: @28 = inf */
-  w28 = casadi_inf;
-  /* #60: @27 = (@27<@28) */
-  for (i=0, rr=w27, cr=w27; i<3; ++i) (*rr++)  = ((*cr++)<w28);
-  /* #61: @28 = min(@27) */
-  w28 = casadi_mmin(w27, 3, 1);
-  /* #62: @29 = 0 */
-  w29 = 0.;
-  /* #63: @27 = vertcat(@9, @4) */
-  rr=w27;
-  for (i=0, cs=w09; i<2; ++i) *rr++ = *cs++;
-  *rr++ = w04;
-  /* #64: @27 = (@27-@22) */
-  for (i=0, rr=w27, cs=w22; i<3; ++i) (*rr++) -= (*cs++);
-  /* #65: @16 = vertcat(@10, @11) */
+  /* #58: @29 = fabs(@24) */
+  for (i=0, rr=w29, cs=w24; i<3; ++i) *rr++ = casadi_fabs( *cs++ );
+  /* #59: @30 = inf */
+  w30 = casadi_inf;
+  /* #60: @29 = (@29<@30) */
+  for (i=0, rr=w29, cr=w29; i<3; ++i) (*rr++)  = ((*cr++)<w30);
+  /* #61: @30 = min(@29) */
+  w30 = casadi_mmin(w29, 3, 1);
+  /* #62: @31 = 0 */
+  w31 = 0.;
+  /* #63: @29 = vertcat(@1, @13) */
+  rr=w29;
+  for (i=0, cs=w01; i<2; ++i) *rr++ = *cs++;
+  *rr++ = w13;
+  /* #64: @29 = (@29-@24) */
+  for (i=0, rr=w29, cs=w24; i<3; ++i) (*rr++) -= (*cs++);
+  /* #65: @16 = vertcat(@2, @22) */
   rr=w16;
-  for (i=0, cs=w10; i<2; ++i) *rr++ = *cs++;
-  *rr++ = w11;
-  /* #66: @16 = (@22-@16) */
-  for (i=0, rr=w16, cr=w22, cs=w16; i<3; ++i) (*rr++)  = ((*cr++)-(*cs++));
-  /* #67: @27 = fmax(@27,@16) */
-  for (i=0, rr=w27, cr=w27, cs=w16; i<3; ++i) (*rr++)  = casadi_fmax((*cr++),(*cs++));
-  /* #68: @27 = fmax(@29,@27) */
-  for (i=0, rr=w27, cs=w27; i<3; ++i) (*rr++)  = casadi_fmax(w29,(*cs++));
-  /* #69: @29 = max(@27) */
-  w29 = casadi_mmax(w27, 3, 1);
-  /* #70: @11 = 1e-06 */
-  w11 = 9.9999999999999995e-07;
-  /* #71: @29 = (@29<=@11) */
-  w29  = (w29<=w11);
-  /* #72: @28 = (@28&&@29) */
-  w28  = (w28&&w29);
-  /* #73: @29 = 0 */
-  w29 = 0.;
-  /* #74: @2 = vertcat(@5, @3) */
-  rr=w02;
-  *rr++ = w05;
-  *rr++ = w03;
-  /* #75: @8 = zeros(2x1) */
-  casadi_clear(w08, 2);
-  /* #76: @31 = horzcat(@14, @15) */
-  rr=w31;
+  for (i=0, cs=w02; i<2; ++i) *rr++ = *cs++;
+  *rr++ = w22;
+  /* #66: @16 = (@24-@16) */
+  for (i=0, rr=w16, cr=w24, cs=w16; i<3; ++i) (*rr++)  = ((*cr++)-(*cs++));
+  /* #67: @29 = fmax(@29,@16) */
+  for (i=0, rr=w29, cr=w29, cs=w16; i<3; ++i) (*rr++)  = casadi_fmax((*cr++),(*cs++));
+  /* #68: @29 = fmax(@31,@29) */
+  for (i=0, rr=w29, cs=w29; i<3; ++i) (*rr++)  = casadi_fmax(w31,(*cs++));
+  /* #69: @31 = max(@29) */
+  w31 = casadi_mmax(w29, 3, 1);
+  /* #70: @22 = 1e-06 */
+  w22 = 9.9999999999999995e-07;
+  /* #71: @31 = (@31<=@22) */
+  w31  = (w31<=w22);
+  /* #72: @30 = (@30&&@31) */
+  w30  = (w30&&w31);
+  /* #73: @31 = 0 */
+  w31 = 0.;
+  /* #74: @5 = vertcat(@8, @7) */
+  rr=w05;
+  *rr++ = w08;
+  *rr++ = w07;
+  /* #75: @33 = zeros(2x1) */
+  casadi_clear(w33, 2);
+  /* #76: @34 = horzcat(@14, @15) */
+  rr=w34;
   for (i=0, cs=w14; i<3; ++i) *rr++ = *cs++;
   for (i=0, cs=w15; i<3; ++i) *rr++ = *cs++;
-  /* #77: @32 = @31' */
-  for (i=0, rr=w32, cs=w31; i<2; ++i) for (j=0; j<3; ++j) rr[i+j*2] = *cs++;
-  /* #78: @8 = mac(@32,@22,@8) */
-  casadi_mtimes_dense(w32, 2, 3, w22, 1, w08, 0);
-  /* #79: @2 = (@2-@8) */
-  for (i=0, rr=w02, cs=w08; i<2; ++i) (*rr++) -= (*cs++);
-  /* #80: @33 = vertcat(@13, @12) */
-  rr=w33;
-  *rr++ = w13;
+  /* #77: @35 = @34' */
+  for (i=0, rr=w35, cs=w34; i<2; ++i) for (j=0; j<3; ++j) rr[i+j*2] = *cs++;
+  /* #78: @33 = mac(@35,@24,@33) */
+  casadi_mtimes_dense(w35, 2, 3, w24, 1, w33, 0);
+  /* #79: @5 = (@5-@33) */
+  for (i=0, rr=w05, cs=w33; i<2; ++i) (*rr++) -= (*cs++);
+  /* #80: @36 = vertcat(@21, @12) */
+  rr=w36;
+  *rr++ = w21;
   *rr++ = w12;
-  /* #81: @8 = (@8-@33) */
-  for (i=0, rr=w08, cs=w33; i<2; ++i) (*rr++) -= (*cs++);
-  /* #82: @2 = fmax(@2,@8) */
-  for (i=0, rr=w02, cr=w02, cs=w08; i<2; ++i) (*rr++)  = casadi_fmax((*cr++),(*cs++));
-  /* #83: @2 = fmax(@29,@2) */
-  for (i=0, rr=w02, cs=w02; i<2; ++i) (*rr++)  = casadi_fmax(w29,(*cs++));
-  /* #84: @29 = max(@2) */
-  w29 = casadi_mmax(w02, 2, 1);
-  /* #85: @13 = 1e-06 */
-  w13 = 9.9999999999999995e-07;
-  /* #86: @29 = (@29<=@13) */
-  w29  = (w29<=w13);
-  /* #87: @28 = (@28&&@29) */
-  w28  = (w28&&w29);
-  /* #88: @34 = input[8][0] */
-  casadi_copy(arg[8], 4, w34);
-  /* #89: @2 = input[9][0] */
-  casadi_copy(arg[9], 2, w02);
-  /* #90: @32 = input[10][0] */
-  casadi_copy(arg[10], 6, w32);
-  /* #91: @29 = 1e-09 */
-  w29 = 1.0000000000000001e-09;
-  /* #92: @13 = 0 */
-  w13 = 0.;
-  /* #93: @3 = @22[2] */
-  for (rr=(&w03), cs=w22+2; cs!=w22+3; cs+=1) *rr++ = *cs;
-  /* #94: @13 = fmax(@13,@3) */
-  w13  = casadi_fmax(w13,w03);
-  /* #95: @13 = (@28?@13:0) */
-  w13  = (w28?w13:0);
-  /* #96: @29 = (@29<@13) */
-  w29  = (w29<w13);
-  /* #97: @3 = 1e-05 */
-  w03 = 9.9999999999999991e-06;
-  /* #98: @3 = (@3+@13) */
-  w03 += w13;
-  /* #99: @29 = (@29?@3:0) */
-  w29  = (w29?w03:0);
-  /* #100: @3 = (@5-@29) */
-  w03  = (w05-w29);
-  /* #101: @13 = 0 */
-  w13 = 0.;
-  /* #102: @8 = @22[:2] */
-  for (rr=w08, cs=w22+0; cs!=w22+2; cs+=1) *rr++ = *cs;
-  /* #103: @8 = fmax(@8,@9) */
-  for (i=0, rr=w08, cr=w08, cs=w09; i<2; ++i) (*rr++)  = casadi_fmax((*cr++),(*cs++));
-  /* #104: @8 = fmin(@8,@10) */
-  for (i=0, rr=w08, cr=w08, cs=w10; i<2; ++i) (*rr++)  = casadi_fmin((*cr++),(*cs++));
-  /* #105: @13 = mac(@7,@8,@13) */
-  casadi_mtimes_dense(w07, 1, 2, w08, 1, (&w13), 0);
-  /* #106: @13 = (@28?@13:0) */
-  w13  = (w28?w13:0);
-  /* #107: @11 = (!@28) */
-  w11 = (! w28 );
-  /* #108: @11 = (@11?@6:0) */
-  w11  = (w11?w06:0);
-  /* #109: @13 = (@13+@11) */
-  w13 += w11;
-  /* #110: @11 = fmin(@6,@13) */
-  w11  = casadi_fmin(w06,w13);
-  /* #111: @5 = fmin(@5,@11) */
-  w05  = casadi_fmin(w05,w11);
-  /* #112: @3 = fmax(@3,@5) */
-  w03  = casadi_fmax(w03,w05);
-  /* #113: @22 = input[11][0] */
-  casadi_copy(arg[11], 3, w22);
-  /* #114: @33 = @22[1:3] */
-  for (rr=w33, cs=w22+1; cs!=w22+3; cs+=1) *rr++ = *cs;
-  /* #115: @22 = vertcat(@3, @33) */
-  rr=w22;
-  *rr++ = w03;
-  for (i=0, cs=w33; i<2; ++i) *rr++ = *cs++;
-  /* #116: @29 = (@12+@29) */
-  w29  = (w12+w29);
-  /* #117: @6 = fmax(@6,@13) */
-  w06  = casadi_fmax(w06,w13);
-  /* #118: @12 = fmax(@12,@6) */
-  w12  = casadi_fmax(w12,w06);
-  /* #119: @29 = fmin(@29,@12) */
-  w29  = casadi_fmin(w29,w12);
-  /* #120: @14 = input[12][0] */
+  /* #81: @33 = (@33-@36) */
+  for (i=0, rr=w33, cs=w36; i<2; ++i) (*rr++) -= (*cs++);
+  /* #82: @5 = fmax(@5,@33) */
+  for (i=0, rr=w05, cr=w05, cs=w33; i<2; ++i) (*rr++)  = casadi_fmax((*cr++),(*cs++));
+  /* #83: @5 = fmax(@31,@5) */
+  for (i=0, rr=w05, cs=w05; i<2; ++i) (*rr++)  = casadi_fmax(w31,(*cs++));
+  /* #84: @31 = max(@5) */
+  w31 = casadi_mmax(w05, 2, 1);
+  /* #85: @21 = 1e-06 */
+  w21 = 9.9999999999999995e-07;
+  /* #86: @31 = (@31<=@21) */
+  w31  = (w31<=w21);
+  /* #87: @30 = (@30&&@31) */
+  w30  = (w30&&w31);
+  /* #88: @31 = (!@30) */
+  w31 = (! w30 );
+  /* #89: @21 = 0 */
+  w21 = 0.;
+  /* #90: @5 = fabs(@0) */
+  for (i=0, rr=w05, cs=w00; i<2; ++i) *rr++ = casadi_fabs( *cs++ );
+  /* #91: @7 = max(@5) */
+  w07 = casadi_mmax(w05, 2, 1);
+  /* #92: @21 = (@21<@7) */
+  w21  = (w21<w07);
+  /* #93: @31 = (@31||@21) */
+  w31  = (w31||w21);
+  /* #94: @21 = 0 */
+  w21 = 0.;
+  /* #95: @7 = 1e-06 */
+  w07 = 9.9999999999999995e-07;
+  /* #96: @22 = 1e-06 */
+  w22 = 9.9999999999999995e-07;
+  /* #97: @22 = (@22<@11) */
+  w22  = (w22<w11);
+  /* #98: @11 = 0 */
+  w11 = 0.;
+  /* #99: @13 = (-@12) */
+  w13 = (- w12 );
+  /* #100: @13 = fmax(@8,@13) */
+  w13  = casadi_fmax(w08,w13);
+  /* #101: @11 = fmax(@11,@13) */
+  w11  = casadi_fmax(w11,w13);
+  /* #102: @11 = (@22*@11) */
+  w11  = (w22*w11);
+  /* #103: @13 = max(@11) */
+  w13 = casadi_mmax((&w11), 1, 1);
+  /* #104: @7 = (@7<@13) */
+  w07  = (w07<w13);
+  /* #105: @11 = (@7?@13:0) */
+  w11  = (w07?w13:0);
+  /* #106: @11 = (@11/@6) */
+  w11 /= w06;
+  /* #107: @13 = sq(@13) */
+  w13 = casadi_sq( w13 );
+  /* #108: @13 = (@7?@13:0) */
+  w13  = (w07?w13:0);
+  /* #109: @7 = (@7?@13:0) */
+  w07  = (w07?w13:0);
+  /* #110: @13 = 2 */
+  w13 = 2.;
+  /* #111: @7 = (@7/@13) */
+  w07 /= w13;
+  /* #112: @11 = (@11+@7) */
+  w11 += w07;
+  /* #113: @21 = (@21==@11) */
+  w21  = (w21==w11);
+  /* #114: @31 = (@31||@21) */
+  w31  = (w31||w21);
+  /* #115: @5 = input[13][0] */
+  casadi_copy(arg[13], 2, w05);
+  /* #116: @33 = input[14][0] */
+  casadi_copy(arg[14], 2, w33);
+  /* #117: @21 = input[15][0] */
+  w21 = arg[15] ? arg[15][0] : 0;
+  /* #118: @7 = input[16][0] */
+  w07 = arg[16] ? arg[16][0] : 0;
+  /* #119: @37 = input[8][0] */
+  casadi_copy(arg[8], 4, w37);
+  /* #120: @36 = input[9][0] */
+  casadi_copy(arg[9], 2, w36);
+  /* #121: @35 = input[10][0] */
+  casadi_copy(arg[10], 6, w35);
+  /* #122: @13 = 1e-09 */
+  w13 = 1.0000000000000001e-09;
+  /* #123: @32 = 0 */
+  w32 = 0.;
+  /* #124: @38 = @24[2] */
+  for (rr=(&w38), cs=w24+2; cs!=w24+3; cs+=1) *rr++ = *cs;
+  /* #125: @32 = fmax(@32,@38) */
+  w32  = casadi_fmax(w32,w38);
+  /* #126: @32 = (@30?@32:0) */
+  w32  = (w30?w32:0);
+  /* #127: @13 = (@13<@32) */
+  w13  = (w13<w32);
+  /* #128: @38 = 1e-05 */
+  w38 = 9.9999999999999991e-06;
+  /* #129: @38 = (@38+@32) */
+  w38 += w32;
+  /* #130: @13 = (@13?@38:0) */
+  w13  = (w13?w38:0);
+  /* #131: @38 = (@8-@13) */
+  w38  = (w08-w13);
+  /* #132: @32 = 0 */
+  w32 = 0.;
+  /* #133: @39 = @24[:2] */
+  for (rr=w39, cs=w24+0; cs!=w24+2; cs+=1) *rr++ = *cs;
+  /* #134: @39 = fmax(@39,@1) */
+  for (i=0, rr=w39, cr=w39, cs=w01; i<2; ++i) (*rr++)  = casadi_fmax((*cr++),(*cs++));
+  /* #135: @39 = fmin(@39,@2) */
+  for (i=0, rr=w39, cr=w39, cs=w02; i<2; ++i) (*rr++)  = casadi_fmin((*cr++),(*cs++));
+  /* #136: @32 = mac(@10,@39,@32) */
+  casadi_mtimes_dense(w10, 1, 2, w39, 1, (&w32), 0);
+  /* #137: @32 = (@30?@32:0) */
+  w32  = (w30?w32:0);
+  /* #138: @40 = (!@30) */
+  w40 = (! w30 );
+  /* #139: @40 = (@40?@9:0) */
+  w40  = (w40?w09:0);
+  /* #140: @32 = (@32+@40) */
+  w32 += w40;
+  /* #141: @40 = fmin(@9,@32) */
+  w40  = casadi_fmin(w09,w32);
+  /* #142: @8 = fmin(@8,@40) */
+  w08  = casadi_fmin(w08,w40);
+  /* #143: @38 = fmax(@38,@8) */
+  w38  = casadi_fmax(w38,w08);
+  /* #144: @24 = input[11][0] */
+  casadi_copy(arg[11], 3, w24);
+  /* #145: @41 = @24[1:3] */
+  for (rr=w41, cs=w24+1; cs!=w24+3; cs+=1) *rr++ = *cs;
+  /* #146: @24 = vertcat(@38, @41) */
+  rr=w24;
+  *rr++ = w38;
+  for (i=0, cs=w41; i<2; ++i) *rr++ = *cs++;
+  /* #147: @13 = (@12+@13) */
+  w13  = (w12+w13);
+  /* #148: @9 = fmax(@9,@32) */
+  w09  = casadi_fmax(w09,w32);
+  /* #149: @12 = fmax(@12,@9) */
+  w12  = casadi_fmax(w12,w09);
+  /* #150: @13 = fmin(@13,@12) */
+  w13  = casadi_fmin(w13,w12);
+  /* #151: @14 = input[12][0] */
   casadi_copy(arg[12], 3, w14);
-  /* #121: @33 = @14[1:3] */
-  for (rr=w33, cs=w14+1; cs!=w14+3; cs+=1) *rr++ = *cs;
-  /* #122: @14 = vertcat(@29, @33) */
+  /* #152: @41 = @14[1:3] */
+  for (rr=w41, cs=w14+1; cs!=w14+3; cs+=1) *rr++ = *cs;
+  /* #153: @14 = vertcat(@13, @41) */
   rr=w14;
-  *rr++ = w29;
-  for (i=0, cs=w33; i<2; ++i) *rr++ = *cs++;
-  /* #123: @33 = -inf(2x1) */
-  casadi_fill(w33, 2, -casadi_inf);
-  /* #124: @35 = inf(2x1) */
-  casadi_fill(w35, 2, casadi_inf);
-  /* #125: @36 = zeros(2x1) */
-  casadi_clear(w36, 2);
-  /* #126: @15 = zeros(3x1) */
+  *rr++ = w13;
+  for (i=0, cs=w41; i<2; ++i) *rr++ = *cs++;
+  /* #154: @41 = -inf(2x1) */
+  casadi_fill(w41, 2, -casadi_inf);
+  /* #155: @42 = inf(2x1) */
+  casadi_fill(w42, 2, casadi_inf);
+  /* #156: @43 = zeros(2x1) */
+  casadi_clear(w43, 2);
+  /* #157: @15 = zeros(3x1) */
   casadi_clear(w15, 3);
-  /* #127: {@37, @12, NULL, NULL} = phase2b(@34, @2, @32, @22, @14, @33, @35, @8, @36, @15, @26, @26) */
-  arg1[0]=w34;
-  arg1[1]=w02;
-  arg1[2]=w32;
-  arg1[3]=w22;
+  /* #158: {@44, @12, NULL, NULL} = phase2b(@37, @36, @35, @24, @14, @41, @42, @39, @43, @15, @28, @28) */
+  arg1[0]=w37;
+  arg1[1]=w36;
+  arg1[2]=w35;
+  arg1[3]=w24;
   arg1[4]=w14;
-  arg1[5]=w33;
-  arg1[6]=w35;
-  arg1[7]=w08;
-  arg1[8]=w36;
+  arg1[5]=w41;
+  arg1[6]=w42;
+  arg1[7]=w39;
+  arg1[8]=w43;
   arg1[9]=w15;
   arg1[10]=0;
   arg1[11]=0;
-  res1[0]=w37;
+  res1[0]=w44;
   res1[1]=(&w12);
   res1[2]=0;
   res1[3]=0;
@@ -1484,114 +2225,126 @@ static int casadi_f5(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   flag = casadi_f11(arg1, res1, iw, w, mid);
   casadi_f11_release(mid);
   if (flag) return 1;
-  /* #128: @2 = fabs(@37) */
-  for (i=0, rr=w02, cs=w37; i<2; ++i) *rr++ = casadi_fabs( *cs++ );
-  /* #129: @6 = inf */
-  w06 = casadi_inf;
-  /* #130: @2 = (@2<@6) */
-  for (i=0, rr=w02, cr=w02; i<2; ++i) (*rr++)  = ((*cr++)<w06);
-  /* #131: @6 = min(@2) */
-  w06 = casadi_mmin(w02, 2, 1);
-  /* #132: @13 = 0 */
-  w13 = 0.;
-  /* #133: @2 = (@9-@37) */
-  for (i=0, rr=w02, cr=w09, cs=w37; i<2; ++i) (*rr++)  = ((*cr++)-(*cs++));
-  /* #134: @33 = (@37-@10) */
-  for (i=0, rr=w33, cr=w37, cs=w10; i<2; ++i) (*rr++)  = ((*cr++)-(*cs++));
-  /* #135: @2 = fmax(@2,@33) */
-  for (i=0, rr=w02, cr=w02, cs=w33; i<2; ++i) (*rr++)  = casadi_fmax((*cr++),(*cs++));
-  /* #136: @2 = fmax(@13,@2) */
-  for (i=0, rr=w02, cs=w02; i<2; ++i) (*rr++)  = casadi_fmax(w13,(*cs++));
-  /* #137: @13 = max(@2) */
-  w13 = casadi_mmax(w02, 2, 1);
-  /* #138: @5 = 1e-06 */
-  w05 = 9.9999999999999995e-07;
-  /* #139: @13 = (@13<=@5) */
-  w13  = (w13<=w05);
-  /* #140: @6 = (@6&&@13) */
-  w06  = (w06&&w13);
-  /* #141: @13 = 0 */
-  w13 = 0.;
-  /* #142: @5 = 0 */
-  w05 = 0.;
-  /* #143: @5 = mac(@7,@37,@5) */
-  casadi_mtimes_dense(w07, 1, 2, w37, 1, (&w05), 0);
-  /* #144: @3 = (@3-@5) */
-  w03 -= w05;
-  /* #145: @5 = (@5-@29) */
-  w05 -= w29;
-  /* #146: @3 = fmax(@3,@5) */
-  w03  = casadi_fmax(w03,w05);
-  /* #147: @13 = fmax(@13,@3) */
-  w13  = casadi_fmax(w13,w03);
-  /* #148: @3 = max(@13) */
-  w03 = casadi_mmax((&w13), 1, 1);
-  /* #149: @13 = 1e-06 */
-  w13 = 9.9999999999999995e-07;
-  /* #150: @3 = (@3<=@13) */
-  w03  = (w03<=w13);
-  /* #151: @6 = (@6&&@3) */
-  w06  = (w06&&w03);
-  /* #152: @37 = fmax(@37,@9) */
-  for (i=0, rr=w37, cr=w37, cs=w09; i<2; ++i) (*rr++)  = casadi_fmax((*cr++),(*cs++));
-  /* #153: @37 = fmin(@37,@10) */
-  for (i=0, rr=w37, cr=w37, cs=w10; i<2; ++i) (*rr++)  = casadi_fmin((*cr++),(*cs++));
-  /* #154: @37 = (@6?@37:0) */
-  for (i=0, rr=w37, cs=w37; i<2; ++i) (*rr++)  = (w06?cs[i]:0);
-  /* #155: @3 = (!@6) */
-  w03 = (! w06 );
-  /* #156: @8 = (@3?@8:0) */
-  for (i=0, rr=w08, cs=w08; i<2; ++i) (*rr++)  = (w03?cs[i]:0);
-  /* #157: @37 = (@37+@8) */
-  for (i=0, rr=w37, cs=w08; i<2; ++i) (*rr++) += (*cs++);
-  /* #158: @37 = (@28?@37:0) */
-  for (i=0, rr=w37, cs=w37; i<2; ++i) (*rr++)  = (w28?cs[i]:0);
-  /* #159: @3 = (!@28) */
-  w03 = (! w28 );
-  /* #160: @8 = zeros(2x1) */
-  casadi_clear(w08, 2);
-  /* #161: @8 = fmax(@8,@9) */
-  for (i=0, rr=w08, cr=w08, cs=w09; i<2; ++i) (*rr++)  = casadi_fmax((*cr++),(*cs++));
-  /* #162: @8 = fmin(@8,@10) */
-  for (i=0, rr=w08, cr=w08, cs=w10; i<2; ++i) (*rr++)  = casadi_fmin((*cr++),(*cs++));
-  /* #163: @8 = (@3?@8:0) */
-  for (i=0, rr=w08, cs=w08; i<2; ++i) (*rr++)  = (w03?cs[i]:0);
-  /* #164: @37 = (@37+@8) */
-  for (i=0, rr=w37, cs=w08; i<2; ++i) (*rr++) += (*cs++);
-  /* #165: output[0][0] = @37 */
-  casadi_copy(w37, 2, res[0]);
-  /* #166: @3 = 1 */
-  w03 = 1.;
-  /* #167: @13 = 4 */
-  w13 = 4.;
-  /* #168: @5 = 1 */
-  w05 = 1.;
-  /* #169: @5 = (@5-@28) */
-  w05 -= w28;
-  /* #170: @13 = (@13*@5) */
-  w13 *= w05;
-  /* #171: @3 = (@3+@13) */
-  w03 += w13;
-  /* #172: @13 = 8 */
-  w13 = 8.;
-  /* #173: @12 = (@6?@12:0) */
-  w12  = (w06?w12:0);
-  /* #174: @6 = (!@6) */
-  w06 = (! w06 );
-  /* #175: @5 = 1 */
-  w05 = 1.;
-  /* #176: @6 = (@6?@5:0) */
-  w06  = (w06?w05:0);
-  /* #177: @12 = (@12+@6) */
-  w12 += w06;
-  /* #178: @13 = (@13*@12) */
-  w13 *= w12;
-  /* #179: @28 = (@28?@13:0) */
-  w28  = (w28?w13:0);
-  /* #180: @3 = (@3+@28) */
-  w03 += w28;
-  /* #181: output[0][1] = @3 */
-  if (res[0]) res[0][2] = w03;
+  /* #159: @36 = fabs(@44) */
+  for (i=0, rr=w36, cs=w44; i<2; ++i) *rr++ = casadi_fabs( *cs++ );
+  /* #160: @9 = inf */
+  w09 = casadi_inf;
+  /* #161: @36 = (@36<@9) */
+  for (i=0, rr=w36, cr=w36; i<2; ++i) (*rr++)  = ((*cr++)<w09);
+  /* #162: @9 = min(@36) */
+  w09 = casadi_mmin(w36, 2, 1);
+  /* #163: @32 = 0 */
+  w32 = 0.;
+  /* #164: @36 = (@1-@44) */
+  for (i=0, rr=w36, cr=w01, cs=w44; i<2; ++i) (*rr++)  = ((*cr++)-(*cs++));
+  /* #165: @41 = (@44-@2) */
+  for (i=0, rr=w41, cr=w44, cs=w02; i<2; ++i) (*rr++)  = ((*cr++)-(*cs++));
+  /* #166: @36 = fmax(@36,@41) */
+  for (i=0, rr=w36, cr=w36, cs=w41; i<2; ++i) (*rr++)  = casadi_fmax((*cr++),(*cs++));
+  /* #167: @36 = fmax(@32,@36) */
+  for (i=0, rr=w36, cs=w36; i<2; ++i) (*rr++)  = casadi_fmax(w32,(*cs++));
+  /* #168: @32 = max(@36) */
+  w32 = casadi_mmax(w36, 2, 1);
+  /* #169: @8 = 1e-06 */
+  w08 = 9.9999999999999995e-07;
+  /* #170: @32 = (@32<=@8) */
+  w32  = (w32<=w08);
+  /* #171: @9 = (@9&&@32) */
+  w09  = (w09&&w32);
+  /* #172: @32 = 0 */
+  w32 = 0.;
+  /* #173: @8 = 0 */
+  w08 = 0.;
+  /* #174: @8 = mac(@10,@44,@8) */
+  casadi_mtimes_dense(w10, 1, 2, w44, 1, (&w08), 0);
+  /* #175: @38 = (@38-@8) */
+  w38 -= w08;
+  /* #176: @8 = (@8-@13) */
+  w08 -= w13;
+  /* #177: @38 = fmax(@38,@8) */
+  w38  = casadi_fmax(w38,w08);
+  /* #178: @32 = fmax(@32,@38) */
+  w32  = casadi_fmax(w32,w38);
+  /* #179: @38 = max(@32) */
+  w38 = casadi_mmax((&w32), 1, 1);
+  /* #180: @32 = 1e-06 */
+  w32 = 9.9999999999999995e-07;
+  /* #181: @38 = (@38<=@32) */
+  w38  = (w38<=w32);
+  /* #182: @9 = (@9&&@38) */
+  w09  = (w09&&w38);
+  /* #183: @44 = fmax(@44,@1) */
+  for (i=0, rr=w44, cr=w44, cs=w01; i<2; ++i) (*rr++)  = casadi_fmax((*cr++),(*cs++));
+  /* #184: @44 = fmin(@44,@2) */
+  for (i=0, rr=w44, cr=w44, cs=w02; i<2; ++i) (*rr++)  = casadi_fmin((*cr++),(*cs++));
+  /* #185: @44 = (@9?@44:0) */
+  for (i=0, rr=w44, cs=w44; i<2; ++i) (*rr++)  = (w09?cs[i]:0);
+  /* #186: @38 = (!@9) */
+  w38 = (! w09 );
+  /* #187: @39 = (@38?@39:0) */
+  for (i=0, rr=w39, cs=w39; i<2; ++i) (*rr++)  = (w38?cs[i]:0);
+  /* #188: @44 = (@44+@39) */
+  for (i=0, rr=w44, cs=w39; i<2; ++i) (*rr++) += (*cs++);
+  /* #189: @44 = (@30?@44:0) */
+  for (i=0, rr=w44, cs=w44; i<2; ++i) (*rr++)  = (w30?cs[i]:0);
+  /* #190: @38 = (!@30) */
+  w38 = (! w30 );
+  /* #191: @39 = (@38?@0:0) */
+  for (i=0, rr=w39, cs=w00; i<2; ++i) (*rr++)  = (w38?cs[i]:0);
+  /* #192: @44 = (@44+@39) */
+  for (i=0, rr=w44, cs=w39; i<2; ++i) (*rr++) += (*cs++);
+  /* #193: @38 = search_if_off(@31, @5, @33, @21, @7, @44, @6, @22, @11) */
+  arg1[0]=(&w31);
+  arg1[1]=w05;
+  arg1[2]=w33;
+  arg1[3]=(&w21);
+  arg1[4]=(&w07);
+  arg1[5]=w44;
+  arg1[6]=(&w06);
+  arg1[7]=(&w22);
+  arg1[8]=(&w11);
+  res1[0]=(&w38);
+  if (casadi_f12(arg1, res1, iw, w, 0)) return 1;
+  /* #194: @44 = (@44-@0) */
+  for (i=0, rr=w44, cs=w00; i<2; ++i) (*rr++) -= (*cs++);
+  /* #195: @44 = (@38*@44) */
+  for (i=0, rr=w44, cs=w44; i<2; ++i) (*rr++)  = (w38*(*cs++));
+  /* #196: @0 = (@0+@44) */
+  for (i=0, rr=w00, cs=w44; i<2; ++i) (*rr++) += (*cs++);
+  /* #197: output[0][0] = @0 */
+  casadi_copy(w00, 2, res[0]);
+  /* #198: @38 = 1 */
+  w38 = 1.;
+  /* #199: @31 = 4 */
+  w31 = 4.;
+  /* #200: @21 = 1 */
+  w21 = 1.;
+  /* #201: @21 = (@21-@30) */
+  w21 -= w30;
+  /* #202: @31 = (@31*@21) */
+  w31 *= w21;
+  /* #203: @38 = (@38+@31) */
+  w38 += w31;
+  /* #204: @31 = 8 */
+  w31 = 8.;
+  /* #205: @12 = (@9?@12:0) */
+  w12  = (w09?w12:0);
+  /* #206: @9 = (!@9) */
+  w09 = (! w09 );
+  /* #207: @21 = 1 */
+  w21 = 1.;
+  /* #208: @9 = (@9?@21:0) */
+  w09  = (w09?w21:0);
+  /* #209: @12 = (@12+@9) */
+  w12 += w09;
+  /* #210: @31 = (@31*@12) */
+  w31 *= w12;
+  /* #211: @30 = (@30?@31:0) */
+  w30  = (w30?w31:0);
+  /* #212: @38 = (@38+@30) */
+  w38 += w30;
+  /* #213: output[0][1] = @38 */
+  if (res[0]) res[0][2] = w38;
   return 0;
 }
 
@@ -1607,8 +2360,8 @@ void casadi_f5_decref(void) {
   casadi_f11_decref();
 }
 
-/* keep:(i0[1x2],i1,i2,i3[2],i4[2],i5[2],i6,i7,i8[2x2],i9[2],i10[3x2],i11[3],i12[3])->(o0[3]) */
-static int casadi_f12(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+/* keep:(i0[1x2],i1,i2,i3[2],i4[2],i5[2],i6,i7,i8[2x2],i9[2],i10[3x2],i11[3],i12[3],i13[2],i14[2],i15,i16)->(o0[3]) */
+static int casadi_f35(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real *w0=w+0, w1, w2;
   /* #0: @0 = input[5][0] */
   casadi_copy(arg[5], 2, w0);
@@ -1625,10 +2378,10 @@ static int casadi_f12(const casadi_real** arg, casadi_real** res, casadi_int* iw
   return 0;
 }
 
-/* phase2_if_needed:(i0,i1[1x2],i2,i3,i4[2],i5[2],i6[2],i7,i8,i9[2x2],i10[2],i11[3x2],i12[3],i13[3])->(o0[3]) */
+/* phase2_if_needed:(i0,i1[1x2],i2,i3,i4[2],i5[2],i6[2],i7,i8,i9[2x2],i10[2],i11[3x2],i12[3],i13[3],i14[2],i15[2],i16,i17)->(o0[3]) */
 static int casadi_f4(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   if (arg[0] ? casadi_to_int(*arg[0]) : 0) {
-    if (casadi_f12(arg+1, res, iw, w, 0)) return 1;
+    if (casadi_f35(arg+1, res, iw, w, 0)) return 1;
   } else {
     if (casadi_f5(arg+1, res, iw, w, 0)) return 1;
   }
@@ -1644,7 +2397,7 @@ void casadi_f4_decref(void) {
 }
 
 /* vf_golden_finish:(i0[3],i1[1x2],i2,i3,i4[2],i5[2],i6)->(o0[2],o1,o2) */
-static int casadi_f13(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+static int casadi_f36(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a00, a01, a02, a03, a04, a05, a06, a07, a08, a09, a10, a11;
   casadi_real a12, a13, a14;
   a00=arg[0]? arg[0][0] : 0;
@@ -1730,8 +2483,9 @@ static int casadi_f13(const casadi_real** arg, casadi_real** res, casadi_int* iw
 
 /* vf_golden:(q[2],u[2],p,dt,recover)->(x[2],status,violation) */
 static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
-  casadi_real **res1=res+3, *w00=w+230, *w01=w+232, w02, w03, *w04=w+234, w05, w06, *w07=w+236, *w08=w+238, w09, *w10=w+240;
-  casadi_real *w11=w+244, *w12=w+246, *w13=w+252, *w14=w+255, *w15=w+258, *w16=w+260, *w17=w+262, *w19=w+265, w20;
+  casadi_real **res1=res+3, *w00=w+257, *w01=w+259, w02, w03, *w04=w+261, w05, w06, *w07=w+263, *w08=w+265, w09, *w10=w+267;
+  casadi_real *w11=w+271, *w12=w+273, *w13=w+279, *w14=w+282, *w15=w+285, *w16=w+287, *w17=w+289, *w18=w+291, *w19=w+293, *w21=w+296, w22, w23;
+  casadi_real w24;
   const casadi_real **arg1=arg+5;
   int flag, mid;
   /* #0: @0 = input[0][0] */
@@ -1759,31 +2513,31 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   res1[9]=w13;
   res1[10]=w14;
   if (casadi_f1(arg1, res1, iw, w, 0)) return 1;
-  /* #5: @0 = -inf(2x1) */
-  casadi_fill(w00, 2, -casadi_inf);
-  /* #6: @1 = inf(2x1) */
-  casadi_fill(w01, 2, casadi_inf);
-  /* #7: @15 = zeros(2x1) */
-  casadi_clear(w15, 2);
-  /* #8: @16 = zeros(2x1) */
-  casadi_clear(w16, 2);
-  /* #9: @17 = zeros(3x1) */
-  casadi_clear(w17, 3);
-  /* #10: @18 = 0x0 */
-  /* #11: {@19, NULL, NULL, NULL} = phase1_warm(@10, @11, @12, @13, @14, @0, @1, @15, @16, @17, @18, @18) */
+  /* #5: @15 = -inf(2x1) */
+  casadi_fill(w15, 2, -casadi_inf);
+  /* #6: @16 = inf(2x1) */
+  casadi_fill(w16, 2, casadi_inf);
+  /* #7: @17 = zeros(2x1) */
+  casadi_clear(w17, 2);
+  /* #8: @18 = zeros(2x1) */
+  casadi_clear(w18, 2);
+  /* #9: @19 = zeros(3x1) */
+  casadi_clear(w19, 3);
+  /* #10: @20 = 0x0 */
+  /* #11: {@21, NULL, NULL, NULL} = phase1_warm(@10, @11, @12, @13, @14, @15, @16, @17, @18, @19, @20, @20) */
   arg1[0]=w10;
   arg1[1]=w11;
   arg1[2]=w12;
   arg1[3]=w13;
   arg1[4]=w14;
-  arg1[5]=w00;
-  arg1[6]=w01;
-  arg1[7]=w15;
-  arg1[8]=w16;
-  arg1[9]=w17;
+  arg1[5]=w15;
+  arg1[6]=w16;
+  arg1[7]=w17;
+  arg1[8]=w18;
+  arg1[9]=w19;
   arg1[10]=0;
   arg1[11]=0;
-  res1[0]=w19;
+  res1[0]=w21;
   res1[1]=0;
   res1[2]=0;
   res1[3]=0;
@@ -1792,60 +2546,64 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   flag = casadi_f2(arg1, res1, iw, w, mid);
   casadi_f2_release(mid);
   if (flag) return 1;
-  /* #12: @2 = vf_golden_accept(@19, @4, @5, @6, @7, @8) */
+  /* #12: @22 = vf_golden_accept(@21, @4, @5, @6, @7, @8) */
+  arg1[0]=w21;
+  arg1[1]=w04;
+  arg1[2]=(&w05);
+  arg1[3]=(&w06);
+  arg1[4]=w07;
+  arg1[5]=w08;
+  res1[0]=(&w22);
+  if (casadi_f3(arg1, res1, iw, w, 0)) return 1;
+  /* #13: @23 = 0 */
+  w23 = 0.;
+  /* #14: @24 = input[4][0] */
+  w24 = arg[4] ? arg[4][0] : 0;
+  /* #15: @23 = (@23==@24) */
+  w23  = (w23==w24);
+  /* #16: @22 = (@22&&@23) */
+  w22  = (w22&&w23);
+  /* #17: @23 = 0 */
+  w23 = 0.;
+  /* #18: @19 = phase2_if_needed(@22, @4, @5, @6, @7, @8, @21, @23, @24, @10, @11, @12, @13, @14, @0, @1, @2, @3) */
+  arg1[0]=(&w22);
+  arg1[1]=w04;
+  arg1[2]=(&w05);
+  arg1[3]=(&w06);
+  arg1[4]=w07;
+  arg1[5]=w08;
+  arg1[6]=w21;
+  arg1[7]=(&w23);
+  arg1[8]=(&w24);
+  arg1[9]=w10;
+  arg1[10]=w11;
+  arg1[11]=w12;
+  arg1[12]=w13;
+  arg1[13]=w14;
+  arg1[14]=w00;
+  arg1[15]=w01;
+  arg1[16]=(&w02);
+  arg1[17]=(&w03);
+  res1[0]=w19;
+  if (casadi_f4(arg1, res1, iw, w, 0)) return 1;
+  /* #19: {@21, @22, @23} = vf_golden_finish(@19, @4, @5, @6, @7, @8, @9) */
   arg1[0]=w19;
   arg1[1]=w04;
   arg1[2]=(&w05);
   arg1[3]=(&w06);
   arg1[4]=w07;
   arg1[5]=w08;
-  res1[0]=(&w02);
-  if (casadi_f3(arg1, res1, iw, w, 0)) return 1;
-  /* #13: @3 = 0 */
-  w03 = 0.;
-  /* #14: @20 = input[4][0] */
-  w20 = arg[4] ? arg[4][0] : 0;
-  /* #15: @3 = (@3==@20) */
-  w03  = (w03==w20);
-  /* #16: @2 = (@2&&@3) */
-  w02  = (w02&&w03);
-  /* #17: @3 = 0 */
-  w03 = 0.;
-  /* #18: @17 = phase2_if_needed(@2, @4, @5, @6, @7, @8, @19, @3, @20, @10, @11, @12, @13, @14) */
-  arg1[0]=(&w02);
-  arg1[1]=w04;
-  arg1[2]=(&w05);
-  arg1[3]=(&w06);
-  arg1[4]=w07;
-  arg1[5]=w08;
-  arg1[6]=w19;
-  arg1[7]=(&w03);
-  arg1[8]=(&w20);
-  arg1[9]=w10;
-  arg1[10]=w11;
-  arg1[11]=w12;
-  arg1[12]=w13;
-  arg1[13]=w14;
-  res1[0]=w17;
-  if (casadi_f4(arg1, res1, iw, w, 0)) return 1;
-  /* #19: {@19, @2, @3} = vf_golden_finish(@17, @4, @5, @6, @7, @8, @9) */
-  arg1[0]=w17;
-  arg1[1]=w04;
-  arg1[2]=(&w05);
-  arg1[3]=(&w06);
-  arg1[4]=w07;
-  arg1[5]=w08;
   arg1[6]=(&w09);
-  res1[0]=w19;
-  res1[1]=(&w02);
-  res1[2]=(&w03);
-  if (casadi_f13(arg1, res1, iw, w, 0)) return 1;
-  /* #20: output[0][0] = @19 */
-  casadi_copy(w19, 2, res[0]);
-  /* #21: output[1][0] = @2 */
-  if (res[1]) res[1][0] = w02;
-  /* #22: output[2][0] = @3 */
-  if (res[2]) res[2][0] = w03;
+  res1[0]=w21;
+  res1[1]=(&w22);
+  res1[2]=(&w23);
+  if (casadi_f36(arg1, res1, iw, w, 0)) return 1;
+  /* #20: output[0][0] = @21 */
+  casadi_copy(w21, 2, res[0]);
+  /* #21: output[1][0] = @22 */
+  if (res[1]) res[1][0] = w22;
+  /* #22: output[2][0] = @23 */
+  if (res[2]) res[2][0] = w23;
   return 0;
 }
 
@@ -1929,28 +2687,28 @@ CASADI_SYMBOL_EXPORT const casadi_int* vf_golden_sparsity_out(casadi_int i) {
 }
 
 CASADI_SYMBOL_EXPORT int vf_golden_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
-  if (sz_arg) *sz_arg = 57;
-  if (sz_res) *sz_res = 14;
+  if (sz_arg) *sz_arg = 180;
+  if (sz_res) *sz_res = 21;
   if (sz_iw) *sz_iw = 8;
-  if (sz_w) *sz_w = 267;
+  if (sz_w) *sz_w = 298;
   return 0;
 }
 
 CASADI_SYMBOL_EXPORT int vf_golden_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
-  if (sz_arg) *sz_arg = 57*sizeof(const casadi_real*);
-  if (sz_res) *sz_res = 14*sizeof(casadi_real*);
+  if (sz_arg) *sz_arg = 180*sizeof(const casadi_real*);
+  if (sz_res) *sz_res = 21*sizeof(casadi_real*);
   if (sz_iw) *sz_iw = 8*sizeof(casadi_int);
-  if (sz_w) *sz_w = 267*sizeof(casadi_real);
+  if (sz_w) *sz_w = 298*sizeof(casadi_real);
   return 0;
 }
 
 /* vf_golden_admissible:(i0)->(o0[0]) */
-static int casadi_f14(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+static int casadi_f37(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   return 0;
 }
 
 CASADI_SYMBOL_EXPORT int vf_golden_admissible(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem){
-  return casadi_f14(arg, res, iw, w, mem);
+  return casadi_f37(arg, res, iw, w, mem);
 }
 
 CASADI_SYMBOL_EXPORT int vf_golden_admissible_checkout(void) {

@@ -108,6 +108,13 @@ extern "C" {
 #define casadi_f20 CASADI_PREFIX(f20)
 #define casadi_f21 CASADI_PREFIX(f21)
 #define casadi_f22 CASADI_PREFIX(f22)
+#define casadi_f23 CASADI_PREFIX(f23)
+#define casadi_f24 CASADI_PREFIX(f24)
+#define casadi_f25 CASADI_PREFIX(f25)
+#define casadi_f26 CASADI_PREFIX(f26)
+#define casadi_f27 CASADI_PREFIX(f27)
+#define casadi_f28 CASADI_PREFIX(f28)
+#define casadi_f29 CASADI_PREFIX(f29)
 #define casadi_f2_alloc_mem CASADI_PREFIX(f2_alloc_mem)
 #define casadi_f2_checkout CASADI_PREFIX(f2_checkout)
 #define casadi_f2_decref CASADI_PREFIX(f2_decref)
@@ -121,9 +128,25 @@ extern "C" {
 #define casadi_f2_unused_stack CASADI_PREFIX(f2_unused_stack)
 #define casadi_f2_unused_stack_counter CASADI_PREFIX(f2_unused_stack_counter)
 #define casadi_f3 CASADI_PREFIX(f3)
+#define casadi_f30 CASADI_PREFIX(f30)
+#define casadi_f31 CASADI_PREFIX(f31)
+#define casadi_f32 CASADI_PREFIX(f32)
+#define casadi_f33 CASADI_PREFIX(f33)
+#define casadi_f34 CASADI_PREFIX(f34)
+#define casadi_f35 CASADI_PREFIX(f35)
+#define casadi_f36 CASADI_PREFIX(f36)
+#define casadi_f37 CASADI_PREFIX(f37)
+#define casadi_f38 CASADI_PREFIX(f38)
+#define casadi_f39 CASADI_PREFIX(f39)
 #define casadi_f3_decref CASADI_PREFIX(f3_decref)
 #define casadi_f3_incref CASADI_PREFIX(f3_incref)
 #define casadi_f4 CASADI_PREFIX(f4)
+#define casadi_f40 CASADI_PREFIX(f40)
+#define casadi_f41 CASADI_PREFIX(f41)
+#define casadi_f42 CASADI_PREFIX(f42)
+#define casadi_f43 CASADI_PREFIX(f43)
+#define casadi_f44 CASADI_PREFIX(f44)
+#define casadi_f45 CASADI_PREFIX(f45)
 #define casadi_f4_decref CASADI_PREFIX(f4_decref)
 #define casadi_f4_incref CASADI_PREFIX(f4_incref)
 #define casadi_f5 CASADI_PREFIX(f5)
@@ -182,6 +205,7 @@ extern "C" {
 #define casadi_s7 CASADI_PREFIX(s7)
 #define casadi_s8 CASADI_PREFIX(s8)
 #define casadi_s9 CASADI_PREFIX(s9)
+#define casadi_sq CASADI_PREFIX(sq)
 #define casadi_trans CASADI_PREFIX(trans)
 #define casadi_vfmax CASADI_PREFIX(vfmax)
 #define casadi_vfmin CASADI_PREFIX(vfmin)
@@ -460,6 +484,8 @@ static int casadi_f19_unused_stack[CASADI_MAX_NUM_THREADS];
 static struct casadi_daqp_data casadi_f19_mem[CASADI_MAX_NUM_THREADS];
 
 static int casadi_f19_ref_counter = 0;
+casadi_real casadi_sq(casadi_real x) { return x*x;}
+
 void casadi_mtimes_dense(const casadi_real* x, casadi_int nrow_x, casadi_int ncol_x,
     const casadi_real* y, casadi_int ncol_y, casadi_real* z, casadi_int tr) {
   casadi_int i, j, k;
@@ -1550,79 +1576,732 @@ void casadi_f19_decref(void) {
   }
 }
 
-/* recover:(i0[1x2],i1,i2,i3[2],i4[2],i5[2],i6,i7,i8[2x2,2nz],i9[2],i10[6x2],i11[6],i12[6])->(o0[3]) */
+/* vf_golden_search_measure:(i0[2],i1[2],i2,i3,i4,i5)->(o0) */
+static int casadi_f22(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+  casadi_real a0, a1, a2, a3, a4;
+  a0=1.;
+  a1=-casadi_inf;
+  a2=arg[2]? arg[2][0] : 0;
+  a1=(a1<=a2);
+  a0=(a0&&a1);
+  a1=9.9999999999999995e-07;
+  a3=arg[5]? arg[5][0] : 0;
+  a2=(-a2);
+  a4=0.;
+  a2=casadi_fmax(a2,a4);
+  a3=(a3*a2);
+  a1=(a1<a3);
+  a2=(a1?a3:0);
+  a4=arg[4]? arg[4][0] : 0;
+  a2=(a2/a4);
+  a3=casadi_sq(a3);
+  a3=(a1?a3:0);
+  a1=(a1?a3:0);
+  a3=2.;
+  a1=(a1/a3);
+  a2=(a2+a1);
+  a2=(a0?a2:0);
+  a0=(!a0);
+  a1=casadi_inf;
+  a0=(a0?a1:0);
+  a2=(a2+a0);
+  if (res[0]!=0) res[0][0]=a2;
+  return 0;
+}
+
+/* vf_golden_search_none:(i0[2],i1[2],i2,i3,i4[2],i5,i6,i7,i8)->(o0) */
+static int casadi_f35(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+  casadi_real w0;
+  /* #0: @0 = 0 */
+  w0 = 0.;
+  /* #1: output[0][0] = @0 */
+  if (res[0]) res[0][0] = w0;
+  return 0;
+}
+
+/* vf_golden_search_take5:(i0[2],i1[2],i2,i3,i4[2],i5,i6,i7,i8)->(o0) */
+static int casadi_f36(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+  casadi_real w0;
+  /* #0: @0 = 0.03125 */
+  w0 = 3.1250000000000000e-02;
+  /* #1: output[0][0] = @0 */
+  if (res[0]) res[0][0] = w0;
+  return 0;
+}
+
+/* vf_golden_search_pick5:(i0,i1[2],i2[2],i3,i4,i5[2],i6,i7,i8,i9)->(o0) */
+static int casadi_f34(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+  if (arg[0] ? casadi_to_int(*arg[0]) : 0) {
+    if (casadi_f36(arg+1, res, iw, w, 0)) return 1;
+  } else {
+    if (casadi_f35(arg+1, res, iw, w, 0)) return 1;
+  }
+  return 0;
+}
+
+/* vf_golden_search_try5:(i0[2],i1[2],i2,i3,i4[2],i5,i6,i7,i8)->(o0) */
+static int casadi_f33(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+  casadi_int i;
+  casadi_real **res1=res+1, *rr, *w00=w+5, w01, *w02=w+7, *w03=w+9, *w04=w+11, w05, w06, w07, w08, w09;
+  casadi_real w10, w11, w12;
+  const casadi_real **arg1=arg+9, *cr, *cs;
+  /* #0: @0 = input[0][0] */
+  casadi_copy(arg[0], 2, w00);
+  /* #1: @1 = 0.03125 */
+  w01 = 3.1250000000000000e-02;
+  /* #2: @2 = input[4][0] */
+  casadi_copy(arg[4], 2, w02);
+  /* #3: @3 = (@1*@2) */
+  for (i=0, rr=w03, cs=w02; i<2; ++i) (*rr++)  = (w01*(*cs++));
+  /* #4: @3 = (@0+@3) */
+  for (i=0, rr=w03, cr=w00, cs=w03; i<2; ++i) (*rr++)  = ((*cr++)+(*cs++));
+  /* #5: @4 = input[1][0] */
+  casadi_copy(arg[1], 2, w04);
+  /* #6: @1 = input[2][0] */
+  w01 = arg[2] ? arg[2][0] : 0;
+  /* #7: @5 = input[3][0] */
+  w05 = arg[3] ? arg[3][0] : 0;
+  /* #8: @6 = input[5][0] */
+  w06 = arg[5] ? arg[5][0] : 0;
+  /* #9: @7 = input[6][0] */
+  w07 = arg[6] ? arg[6][0] : 0;
+  /* #10: @8 = vf_golden_search_measure(@3, @4, @1, @5, @6, @7) */
+  arg1[0]=w03;
+  arg1[1]=w04;
+  arg1[2]=(&w01);
+  arg1[3]=(&w05);
+  arg1[4]=(&w06);
+  arg1[5]=(&w07);
+  res1[0]=(&w08);
+  if (casadi_f22(arg1, res1, iw, w, 0)) return 1;
+  /* #11: @9 = input[7][0] */
+  w09 = arg[7] ? arg[7][0] : 0;
+  /* #12: @10 = 0.003125 */
+  w10 = 3.1250000000000002e-03;
+  /* #13: @11 = 0 */
+  w11 = 0.;
+  /* #14: @12 = input[8][0] */
+  w12 = arg[8] ? arg[8][0] : 0;
+  /* #15: @11 = fmin(@11,@12) */
+  w11  = casadi_fmin(w11,w12);
+  /* #16: @10 = (@10*@11) */
+  w10 *= w11;
+  /* #17: @10 = (@9+@10) */
+  w10  = (w09+w10);
+  /* #18: @8 = (@8<@10) */
+  w08  = (w08<w10);
+  /* #19: @10 = vf_golden_search_pick5(@8, @0, @4, @1, @5, @2, @6, @7, @9, @12) */
+  arg1[0]=(&w08);
+  arg1[1]=w00;
+  arg1[2]=w04;
+  arg1[3]=(&w01);
+  arg1[4]=(&w05);
+  arg1[5]=w02;
+  arg1[6]=(&w06);
+  arg1[7]=(&w07);
+  arg1[8]=(&w09);
+  arg1[9]=(&w12);
+  res1[0]=(&w10);
+  if (casadi_f34(arg1, res1, iw, w, 0)) return 1;
+  /* #20: output[0][0] = @10 */
+  if (res[0]) res[0][0] = w10;
+  return 0;
+}
+
+/* vf_golden_search_take4:(i0[2],i1[2],i2,i3,i4[2],i5,i6,i7,i8)->(o0) */
+static int casadi_f37(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+  casadi_real w0;
+  /* #0: @0 = 0.0625 */
+  w0 = 6.2500000000000000e-02;
+  /* #1: output[0][0] = @0 */
+  if (res[0]) res[0][0] = w0;
+  return 0;
+}
+
+/* vf_golden_search_pick4:(i0,i1[2],i2[2],i3,i4,i5[2],i6,i7,i8,i9)->(o0) */
+static int casadi_f32(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+  if (arg[0] ? casadi_to_int(*arg[0]) : 0) {
+    if (casadi_f37(arg+1, res, iw, w, 0)) return 1;
+  } else {
+    if (casadi_f33(arg+1, res, iw, w, 0)) return 1;
+  }
+  return 0;
+}
+
+/* vf_golden_search_try4:(i0[2],i1[2],i2,i3,i4[2],i5,i6,i7,i8)->(o0) */
+static int casadi_f31(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+  casadi_int i;
+  casadi_real **res1=res+1, *rr, *w00=w+22, w01, *w02=w+24, *w03=w+26, *w04=w+28, w05, w06, w07, w08, w09;
+  casadi_real w10, w11, w12;
+  const casadi_real **arg1=arg+9, *cr, *cs;
+  /* #0: @0 = input[0][0] */
+  casadi_copy(arg[0], 2, w00);
+  /* #1: @1 = 0.0625 */
+  w01 = 6.2500000000000000e-02;
+  /* #2: @2 = input[4][0] */
+  casadi_copy(arg[4], 2, w02);
+  /* #3: @3 = (@1*@2) */
+  for (i=0, rr=w03, cs=w02; i<2; ++i) (*rr++)  = (w01*(*cs++));
+  /* #4: @3 = (@0+@3) */
+  for (i=0, rr=w03, cr=w00, cs=w03; i<2; ++i) (*rr++)  = ((*cr++)+(*cs++));
+  /* #5: @4 = input[1][0] */
+  casadi_copy(arg[1], 2, w04);
+  /* #6: @1 = input[2][0] */
+  w01 = arg[2] ? arg[2][0] : 0;
+  /* #7: @5 = input[3][0] */
+  w05 = arg[3] ? arg[3][0] : 0;
+  /* #8: @6 = input[5][0] */
+  w06 = arg[5] ? arg[5][0] : 0;
+  /* #9: @7 = input[6][0] */
+  w07 = arg[6] ? arg[6][0] : 0;
+  /* #10: @8 = vf_golden_search_measure(@3, @4, @1, @5, @6, @7) */
+  arg1[0]=w03;
+  arg1[1]=w04;
+  arg1[2]=(&w01);
+  arg1[3]=(&w05);
+  arg1[4]=(&w06);
+  arg1[5]=(&w07);
+  res1[0]=(&w08);
+  if (casadi_f22(arg1, res1, iw, w, 0)) return 1;
+  /* #11: @9 = input[7][0] */
+  w09 = arg[7] ? arg[7][0] : 0;
+  /* #12: @10 = 0.00625 */
+  w10 = 6.2500000000000003e-03;
+  /* #13: @11 = 0 */
+  w11 = 0.;
+  /* #14: @12 = input[8][0] */
+  w12 = arg[8] ? arg[8][0] : 0;
+  /* #15: @11 = fmin(@11,@12) */
+  w11  = casadi_fmin(w11,w12);
+  /* #16: @10 = (@10*@11) */
+  w10 *= w11;
+  /* #17: @10 = (@9+@10) */
+  w10  = (w09+w10);
+  /* #18: @8 = (@8<@10) */
+  w08  = (w08<w10);
+  /* #19: @10 = vf_golden_search_pick4(@8, @0, @4, @1, @5, @2, @6, @7, @9, @12) */
+  arg1[0]=(&w08);
+  arg1[1]=w00;
+  arg1[2]=w04;
+  arg1[3]=(&w01);
+  arg1[4]=(&w05);
+  arg1[5]=w02;
+  arg1[6]=(&w06);
+  arg1[7]=(&w07);
+  arg1[8]=(&w09);
+  arg1[9]=(&w12);
+  res1[0]=(&w10);
+  if (casadi_f32(arg1, res1, iw, w, 0)) return 1;
+  /* #20: output[0][0] = @10 */
+  if (res[0]) res[0][0] = w10;
+  return 0;
+}
+
+/* vf_golden_search_take3:(i0[2],i1[2],i2,i3,i4[2],i5,i6,i7,i8)->(o0) */
+static int casadi_f38(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+  casadi_real w0;
+  /* #0: @0 = 0.125 */
+  w0 = 1.2500000000000000e-01;
+  /* #1: output[0][0] = @0 */
+  if (res[0]) res[0][0] = w0;
+  return 0;
+}
+
+/* vf_golden_search_pick3:(i0,i1[2],i2[2],i3,i4,i5[2],i6,i7,i8,i9)->(o0) */
+static int casadi_f30(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+  if (arg[0] ? casadi_to_int(*arg[0]) : 0) {
+    if (casadi_f38(arg+1, res, iw, w, 0)) return 1;
+  } else {
+    if (casadi_f31(arg+1, res, iw, w, 0)) return 1;
+  }
+  return 0;
+}
+
+/* vf_golden_search_try3:(i0[2],i1[2],i2,i3,i4[2],i5,i6,i7,i8)->(o0) */
+static int casadi_f29(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+  casadi_int i;
+  casadi_real **res1=res+1, *rr, *w00=w+39, w01, *w02=w+41, *w03=w+43, *w04=w+45, w05, w06, w07, w08, w09;
+  casadi_real w10, w11, w12;
+  const casadi_real **arg1=arg+9, *cr, *cs;
+  /* #0: @0 = input[0][0] */
+  casadi_copy(arg[0], 2, w00);
+  /* #1: @1 = 0.125 */
+  w01 = 1.2500000000000000e-01;
+  /* #2: @2 = input[4][0] */
+  casadi_copy(arg[4], 2, w02);
+  /* #3: @3 = (@1*@2) */
+  for (i=0, rr=w03, cs=w02; i<2; ++i) (*rr++)  = (w01*(*cs++));
+  /* #4: @3 = (@0+@3) */
+  for (i=0, rr=w03, cr=w00, cs=w03; i<2; ++i) (*rr++)  = ((*cr++)+(*cs++));
+  /* #5: @4 = input[1][0] */
+  casadi_copy(arg[1], 2, w04);
+  /* #6: @1 = input[2][0] */
+  w01 = arg[2] ? arg[2][0] : 0;
+  /* #7: @5 = input[3][0] */
+  w05 = arg[3] ? arg[3][0] : 0;
+  /* #8: @6 = input[5][0] */
+  w06 = arg[5] ? arg[5][0] : 0;
+  /* #9: @7 = input[6][0] */
+  w07 = arg[6] ? arg[6][0] : 0;
+  /* #10: @8 = vf_golden_search_measure(@3, @4, @1, @5, @6, @7) */
+  arg1[0]=w03;
+  arg1[1]=w04;
+  arg1[2]=(&w01);
+  arg1[3]=(&w05);
+  arg1[4]=(&w06);
+  arg1[5]=(&w07);
+  res1[0]=(&w08);
+  if (casadi_f22(arg1, res1, iw, w, 0)) return 1;
+  /* #11: @9 = input[7][0] */
+  w09 = arg[7] ? arg[7][0] : 0;
+  /* #12: @10 = 0.0125 */
+  w10 = 1.2500000000000001e-02;
+  /* #13: @11 = 0 */
+  w11 = 0.;
+  /* #14: @12 = input[8][0] */
+  w12 = arg[8] ? arg[8][0] : 0;
+  /* #15: @11 = fmin(@11,@12) */
+  w11  = casadi_fmin(w11,w12);
+  /* #16: @10 = (@10*@11) */
+  w10 *= w11;
+  /* #17: @10 = (@9+@10) */
+  w10  = (w09+w10);
+  /* #18: @8 = (@8<@10) */
+  w08  = (w08<w10);
+  /* #19: @10 = vf_golden_search_pick3(@8, @0, @4, @1, @5, @2, @6, @7, @9, @12) */
+  arg1[0]=(&w08);
+  arg1[1]=w00;
+  arg1[2]=w04;
+  arg1[3]=(&w01);
+  arg1[4]=(&w05);
+  arg1[5]=w02;
+  arg1[6]=(&w06);
+  arg1[7]=(&w07);
+  arg1[8]=(&w09);
+  arg1[9]=(&w12);
+  res1[0]=(&w10);
+  if (casadi_f30(arg1, res1, iw, w, 0)) return 1;
+  /* #20: output[0][0] = @10 */
+  if (res[0]) res[0][0] = w10;
+  return 0;
+}
+
+/* vf_golden_search_take2:(i0[2],i1[2],i2,i3,i4[2],i5,i6,i7,i8)->(o0) */
+static int casadi_f39(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+  casadi_real w0;
+  /* #0: @0 = 0.25 */
+  w0 = 2.5000000000000000e-01;
+  /* #1: output[0][0] = @0 */
+  if (res[0]) res[0][0] = w0;
+  return 0;
+}
+
+/* vf_golden_search_pick2:(i0,i1[2],i2[2],i3,i4,i5[2],i6,i7,i8,i9)->(o0) */
+static int casadi_f28(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+  if (arg[0] ? casadi_to_int(*arg[0]) : 0) {
+    if (casadi_f39(arg+1, res, iw, w, 0)) return 1;
+  } else {
+    if (casadi_f29(arg+1, res, iw, w, 0)) return 1;
+  }
+  return 0;
+}
+
+/* vf_golden_search_try2:(i0[2],i1[2],i2,i3,i4[2],i5,i6,i7,i8)->(o0) */
+static int casadi_f27(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+  casadi_int i;
+  casadi_real **res1=res+1, *rr, *w00=w+56, w01, *w02=w+58, *w03=w+60, *w04=w+62, w05, w06, w07, w08, w09;
+  casadi_real w10, w11, w12;
+  const casadi_real **arg1=arg+9, *cr, *cs;
+  /* #0: @0 = input[0][0] */
+  casadi_copy(arg[0], 2, w00);
+  /* #1: @1 = 0.25 */
+  w01 = 2.5000000000000000e-01;
+  /* #2: @2 = input[4][0] */
+  casadi_copy(arg[4], 2, w02);
+  /* #3: @3 = (@1*@2) */
+  for (i=0, rr=w03, cs=w02; i<2; ++i) (*rr++)  = (w01*(*cs++));
+  /* #4: @3 = (@0+@3) */
+  for (i=0, rr=w03, cr=w00, cs=w03; i<2; ++i) (*rr++)  = ((*cr++)+(*cs++));
+  /* #5: @4 = input[1][0] */
+  casadi_copy(arg[1], 2, w04);
+  /* #6: @1 = input[2][0] */
+  w01 = arg[2] ? arg[2][0] : 0;
+  /* #7: @5 = input[3][0] */
+  w05 = arg[3] ? arg[3][0] : 0;
+  /* #8: @6 = input[5][0] */
+  w06 = arg[5] ? arg[5][0] : 0;
+  /* #9: @7 = input[6][0] */
+  w07 = arg[6] ? arg[6][0] : 0;
+  /* #10: @8 = vf_golden_search_measure(@3, @4, @1, @5, @6, @7) */
+  arg1[0]=w03;
+  arg1[1]=w04;
+  arg1[2]=(&w01);
+  arg1[3]=(&w05);
+  arg1[4]=(&w06);
+  arg1[5]=(&w07);
+  res1[0]=(&w08);
+  if (casadi_f22(arg1, res1, iw, w, 0)) return 1;
+  /* #11: @9 = input[7][0] */
+  w09 = arg[7] ? arg[7][0] : 0;
+  /* #12: @10 = 0.025 */
+  w10 = 2.5000000000000001e-02;
+  /* #13: @11 = 0 */
+  w11 = 0.;
+  /* #14: @12 = input[8][0] */
+  w12 = arg[8] ? arg[8][0] : 0;
+  /* #15: @11 = fmin(@11,@12) */
+  w11  = casadi_fmin(w11,w12);
+  /* #16: @10 = (@10*@11) */
+  w10 *= w11;
+  /* #17: @10 = (@9+@10) */
+  w10  = (w09+w10);
+  /* #18: @8 = (@8<@10) */
+  w08  = (w08<w10);
+  /* #19: @10 = vf_golden_search_pick2(@8, @0, @4, @1, @5, @2, @6, @7, @9, @12) */
+  arg1[0]=(&w08);
+  arg1[1]=w00;
+  arg1[2]=w04;
+  arg1[3]=(&w01);
+  arg1[4]=(&w05);
+  arg1[5]=w02;
+  arg1[6]=(&w06);
+  arg1[7]=(&w07);
+  arg1[8]=(&w09);
+  arg1[9]=(&w12);
+  res1[0]=(&w10);
+  if (casadi_f28(arg1, res1, iw, w, 0)) return 1;
+  /* #20: output[0][0] = @10 */
+  if (res[0]) res[0][0] = w10;
+  return 0;
+}
+
+/* vf_golden_search_take1:(i0[2],i1[2],i2,i3,i4[2],i5,i6,i7,i8)->(o0) */
+static int casadi_f40(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+  casadi_real w0;
+  /* #0: @0 = 0.5 */
+  w0 = 5.0000000000000000e-01;
+  /* #1: output[0][0] = @0 */
+  if (res[0]) res[0][0] = w0;
+  return 0;
+}
+
+/* vf_golden_search_pick1:(i0,i1[2],i2[2],i3,i4,i5[2],i6,i7,i8,i9)->(o0) */
+static int casadi_f26(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+  if (arg[0] ? casadi_to_int(*arg[0]) : 0) {
+    if (casadi_f40(arg+1, res, iw, w, 0)) return 1;
+  } else {
+    if (casadi_f27(arg+1, res, iw, w, 0)) return 1;
+  }
+  return 0;
+}
+
+/* vf_golden_search_try1:(i0[2],i1[2],i2,i3,i4[2],i5,i6,i7,i8)->(o0) */
+static int casadi_f25(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+  casadi_int i;
+  casadi_real **res1=res+1, *rr, *w00=w+73, w01, *w02=w+75, *w03=w+77, *w04=w+79, w05, w06, w07, w08, w09;
+  casadi_real w10, w11, w12;
+  const casadi_real **arg1=arg+9, *cr, *cs;
+  /* #0: @0 = input[0][0] */
+  casadi_copy(arg[0], 2, w00);
+  /* #1: @1 = 0.5 */
+  w01 = 5.0000000000000000e-01;
+  /* #2: @2 = input[4][0] */
+  casadi_copy(arg[4], 2, w02);
+  /* #3: @3 = (@1*@2) */
+  for (i=0, rr=w03, cs=w02; i<2; ++i) (*rr++)  = (w01*(*cs++));
+  /* #4: @3 = (@0+@3) */
+  for (i=0, rr=w03, cr=w00, cs=w03; i<2; ++i) (*rr++)  = ((*cr++)+(*cs++));
+  /* #5: @4 = input[1][0] */
+  casadi_copy(arg[1], 2, w04);
+  /* #6: @1 = input[2][0] */
+  w01 = arg[2] ? arg[2][0] : 0;
+  /* #7: @5 = input[3][0] */
+  w05 = arg[3] ? arg[3][0] : 0;
+  /* #8: @6 = input[5][0] */
+  w06 = arg[5] ? arg[5][0] : 0;
+  /* #9: @7 = input[6][0] */
+  w07 = arg[6] ? arg[6][0] : 0;
+  /* #10: @8 = vf_golden_search_measure(@3, @4, @1, @5, @6, @7) */
+  arg1[0]=w03;
+  arg1[1]=w04;
+  arg1[2]=(&w01);
+  arg1[3]=(&w05);
+  arg1[4]=(&w06);
+  arg1[5]=(&w07);
+  res1[0]=(&w08);
+  if (casadi_f22(arg1, res1, iw, w, 0)) return 1;
+  /* #11: @9 = input[7][0] */
+  w09 = arg[7] ? arg[7][0] : 0;
+  /* #12: @10 = 0.05 */
+  w10 = 5.0000000000000003e-02;
+  /* #13: @11 = 0 */
+  w11 = 0.;
+  /* #14: @12 = input[8][0] */
+  w12 = arg[8] ? arg[8][0] : 0;
+  /* #15: @11 = fmin(@11,@12) */
+  w11  = casadi_fmin(w11,w12);
+  /* #16: @10 = (@10*@11) */
+  w10 *= w11;
+  /* #17: @10 = (@9+@10) */
+  w10  = (w09+w10);
+  /* #18: @8 = (@8<@10) */
+  w08  = (w08<w10);
+  /* #19: @10 = vf_golden_search_pick1(@8, @0, @4, @1, @5, @2, @6, @7, @9, @12) */
+  arg1[0]=(&w08);
+  arg1[1]=w00;
+  arg1[2]=w04;
+  arg1[3]=(&w01);
+  arg1[4]=(&w05);
+  arg1[5]=w02;
+  arg1[6]=(&w06);
+  arg1[7]=(&w07);
+  arg1[8]=(&w09);
+  arg1[9]=(&w12);
+  res1[0]=(&w10);
+  if (casadi_f26(arg1, res1, iw, w, 0)) return 1;
+  /* #20: output[0][0] = @10 */
+  if (res[0]) res[0][0] = w10;
+  return 0;
+}
+
+/* vf_golden_search_take0:(i0[2],i1[2],i2,i3,i4[2],i5,i6,i7,i8)->(o0) */
+static int casadi_f41(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+  casadi_real w0;
+  /* #0: @0 = 1 */
+  w0 = 1.;
+  /* #1: output[0][0] = @0 */
+  if (res[0]) res[0][0] = w0;
+  return 0;
+}
+
+/* vf_golden_search_pick0:(i0,i1[2],i2[2],i3,i4,i5[2],i6,i7,i8,i9)->(o0) */
+static int casadi_f24(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+  if (arg[0] ? casadi_to_int(*arg[0]) : 0) {
+    if (casadi_f41(arg+1, res, iw, w, 0)) return 1;
+  } else {
+    if (casadi_f25(arg+1, res, iw, w, 0)) return 1;
+  }
+  return 0;
+}
+
+/* vf_golden_search_try0:(i0[2],i1[2],i2,i3,i4[2],i5,i6,i7,i8)->(o0) */
+static int casadi_f23(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+  casadi_int i;
+  casadi_real **res1=res+1, *rr, *w00=w+90, *w01=w+92, *w02=w+94, *w03=w+96, w04, w05, w06, w07, w08, w09;
+  casadi_real w10, w11, w12;
+  const casadi_real **arg1=arg+9, *cr, *cs;
+  /* #0: @0 = input[0][0] */
+  casadi_copy(arg[0], 2, w00);
+  /* #1: @1 = input[4][0] */
+  casadi_copy(arg[4], 2, w01);
+  /* #2: @2 = (@0+@1) */
+  for (i=0, rr=w02, cr=w00, cs=w01; i<2; ++i) (*rr++)  = ((*cr++)+(*cs++));
+  /* #3: @3 = input[1][0] */
+  casadi_copy(arg[1], 2, w03);
+  /* #4: @4 = input[2][0] */
+  w04 = arg[2] ? arg[2][0] : 0;
+  /* #5: @5 = input[3][0] */
+  w05 = arg[3] ? arg[3][0] : 0;
+  /* #6: @6 = input[5][0] */
+  w06 = arg[5] ? arg[5][0] : 0;
+  /* #7: @7 = input[6][0] */
+  w07 = arg[6] ? arg[6][0] : 0;
+  /* #8: @8 = vf_golden_search_measure(@2, @3, @4, @5, @6, @7) */
+  arg1[0]=w02;
+  arg1[1]=w03;
+  arg1[2]=(&w04);
+  arg1[3]=(&w05);
+  arg1[4]=(&w06);
+  arg1[5]=(&w07);
+  res1[0]=(&w08);
+  if (casadi_f22(arg1, res1, iw, w, 0)) return 1;
+  /* #9: @9 = input[7][0] */
+  w09 = arg[7] ? arg[7][0] : 0;
+  /* #10: @10 = 0.1 */
+  w10 = 1.0000000000000001e-01;
+  /* #11: @11 = 0 */
+  w11 = 0.;
+  /* #12: @12 = input[8][0] */
+  w12 = arg[8] ? arg[8][0] : 0;
+  /* #13: @11 = fmin(@11,@12) */
+  w11  = casadi_fmin(w11,w12);
+  /* #14: @10 = (@10*@11) */
+  w10 *= w11;
+  /* #15: @10 = (@9+@10) */
+  w10  = (w09+w10);
+  /* #16: @8 = (@8<@10) */
+  w08  = (w08<w10);
+  /* #17: @10 = vf_golden_search_pick0(@8, @0, @3, @4, @5, @1, @6, @7, @9, @12) */
+  arg1[0]=(&w08);
+  arg1[1]=w00;
+  arg1[2]=w03;
+  arg1[3]=(&w04);
+  arg1[4]=(&w05);
+  arg1[5]=w01;
+  arg1[6]=(&w06);
+  arg1[7]=(&w07);
+  arg1[8]=(&w09);
+  arg1[9]=(&w12);
+  res1[0]=(&w10);
+  if (casadi_f24(arg1, res1, iw, w, 0)) return 1;
+  /* #18: output[0][0] = @10 */
+  if (res[0]) res[0][0] = w10;
+  return 0;
+}
+
+/* vf_golden_search:(i0[2],i1[2],i2,i3,i4[2],i5,i6,i7)->(o0) */
+static int casadi_f21(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+  casadi_int i;
+  casadi_real **res1=res+1, *rr, *w00=w+107, *w01=w+109, w02, w03, *w04=w+111, w05, w06, w07, w08, *w09=w+113;
+  casadi_real w10;
+  const casadi_real **arg1=arg+8, *cr, *cs;
+  /* #0: @0 = input[0][0] */
+  casadi_copy(arg[0], 2, w00);
+  /* #1: @1 = input[1][0] */
+  casadi_copy(arg[1], 2, w01);
+  /* #2: @2 = input[2][0] */
+  w02 = arg[2] ? arg[2][0] : 0;
+  /* #3: @3 = input[3][0] */
+  w03 = arg[3] ? arg[3][0] : 0;
+  /* #4: @4 = input[4][0] */
+  casadi_copy(arg[4], 2, w04);
+  /* #5: @5 = input[5][0] */
+  w05 = arg[5] ? arg[5][0] : 0;
+  /* #6: @6 = input[6][0] */
+  w06 = arg[6] ? arg[6][0] : 0;
+  /* #7: @7 = input[7][0] */
+  w07 = arg[7] ? arg[7][0] : 0;
+  /* #8: @8 = 0.0001 */
+  w08 = 1.0000000000000000e-04;
+  /* #9: @9 = (@8*@4) */
+  for (i=0, rr=w09, cs=w04; i<2; ++i) (*rr++)  = (w08*(*cs++));
+  /* #10: @9 = (@0+@9) */
+  for (i=0, rr=w09, cr=w00, cs=w09; i<2; ++i) (*rr++)  = ((*cr++)+(*cs++));
+  /* #11: @8 = vf_golden_search_measure(@9, @1, @2, @3, @5, @6) */
+  arg1[0]=w09;
+  arg1[1]=w01;
+  arg1[2]=(&w02);
+  arg1[3]=(&w03);
+  arg1[4]=(&w05);
+  arg1[5]=(&w06);
+  res1[0]=(&w08);
+  if (casadi_f22(arg1, res1, iw, w, 0)) return 1;
+  /* #12: @8 = (@8-@7) */
+  w08 -= w07;
+  /* #13: @10 = 0.0001 */
+  w10 = 1.0000000000000000e-04;
+  /* #14: @8 = (@8/@10) */
+  w08 /= w10;
+  /* #15: @10 = vf_golden_search_try0(@0, @1, @2, @3, @4, @5, @6, @7, @8) */
+  arg1[0]=w00;
+  arg1[1]=w01;
+  arg1[2]=(&w02);
+  arg1[3]=(&w03);
+  arg1[4]=w04;
+  arg1[5]=(&w05);
+  arg1[6]=(&w06);
+  arg1[7]=(&w07);
+  arg1[8]=(&w08);
+  res1[0]=(&w10);
+  if (casadi_f23(arg1, res1, iw, w, 0)) return 1;
+  /* #16: output[0][0] = @10 */
+  if (res[0]) res[0][0] = w10;
+  return 0;
+}
+
+/* whole_step:(i0[2],i1[2],i2,i3,i4[2],i5,i6,i7)->(o0) */
+static int casadi_f42(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+  casadi_real w0;
+  /* #0: @0 = 1 */
+  w0 = 1.;
+  /* #1: output[0][0] = @0 */
+  if (res[0]) res[0][0] = w0;
+  return 0;
+}
+
+/* search_if_off:(i0,i1[2],i2[2],i3,i4,i5[2],i6,i7,i8)->(o0) */
+static int casadi_f20(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+  if (arg[0] ? casadi_to_int(*arg[0]) : 0) {
+    if (casadi_f42(arg+1, res, iw, w, 0)) return 1;
+  } else {
+    if (casadi_f21(arg+1, res, iw, w, 0)) return 1;
+  }
+  return 0;
+}
+
+/* recover:(i0[1x2],i1,i2,i3[2],i4[2],i5[2],i6,i7,i8[2x2,2nz],i9[2],i10[6x2],i11[6],i12[6],i13[2],i14[2],i15,i16)->(o0[3]) */
 static int casadi_f13(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_int i, j;
-  casadi_real **res1=res+1, *rr, *w00=w+105, *w01=w+108, *w02=w+117, w03, w04, w05, w06, *w07=w+119, *w08=w+121, *w09=w+123;
-  casadi_real *w10=w+125, w11, w12, w13, *w14=w+127, *w15=w+130, *w16=w+133, *w17=w+136, *w18=w+145, *w19=w+154, *w20=w+169, *w21=w+174;
-  casadi_real *w22=w+179, *w23=w+182, *w24=w+185, *w25=w+188, *w27=w+193, w28, w29, w30, *w31=w+196, *w32=w+202, *w33=w+208, *w34=w+210;
-  casadi_real *w36=w+214, *w37=w+216, *w38=w+218, *w39=w+224;
-  const casadi_real **arg1=arg+13, *cr, *cs, *wr35;
+  casadi_real **res1=res+1, *rr, *w00=w+122, *w01=w+124, *w02=w+126, *w03=w+128, *w04=w+131, *w05=w+140, w06, w07, w08, w09;
+  casadi_real *w10=w+142, w11, w12, w13, *w14=w+144, *w15=w+147, *w16=w+150, *w17=w+153, *w18=w+162, *w19=w+171, *w20=w+186, w21;
+  casadi_real w22, *w23=w+191, *w24=w+196, *w25=w+199, *w26=w+202, *w27=w+205, *w29=w+210, w30, w31, w32, *w33=w+213, *w34=w+215;
+  casadi_real *w35=w+221, *w36=w+227, *w37=w+229, w39, *w40=w+233, w41, *w42=w+235, *w43=w+237, *w44=w+239, *w45=w+241, *w46=w+247;
+  const casadi_real **arg1=arg+17, *cr, *cs, *wr38;
   int flag, mid;
-  /* #0: @0 = 
+  /* #0: @0 = zeros(2x1) */
+  casadi_clear(w00, 2);
+  /* #1: @1 = input[3][0] */
+  casadi_copy(arg[3], 2, w01);
+  /* #2: @0 = fmax(@0,@1) */
+  for (i=0, rr=w00, cr=w00, cs=w01; i<2; ++i) (*rr++)  = casadi_fmax((*cr++),(*cs++));
+  /* #3: @2 = input[4][0] */
+  casadi_copy(arg[4], 2, w02);
+  /* #4: @0 = fmin(@0,@2) */
+  for (i=0, rr=w00, cr=w00, cs=w02; i<2; ++i) (*rr++)  = casadi_fmin((*cr++),(*cs++));
+  /* #5: @3 = 
   [[0.001, 00, 00], 
    [00, 0.001, 00], 
    [00, 00, 1]] */
-  casadi_copy(casadi_c0, 3, w00);
-  /* #1: @1 = dense(@0) */
-  casadi_densify(w00, casadi_s5, w01, 0);
-  /* #2: @2 = zeros(2x1) */
-  casadi_clear(w02, 2);
-  /* #3: @3 = 0.0001 */
-  w03 = 1.0000000000000000e-04;
-  /* #4: @4 = 0 */
-  w04 = 0.;
-  /* #5: @5 = input[1][0] */
-  w05 = arg[1] ? arg[1][0] : 0;
-  /* #6: @6 = 0 */
-  w06 = 0.;
-  /* #7: @7 = input[0][0] */
-  casadi_copy(arg[0], 2, w07);
-  /* #8: @8 = zeros(2x1) */
-  casadi_clear(w08, 2);
-  /* #9: @9 = input[3][0] */
-  casadi_copy(arg[3], 2, w09);
-  /* #10: @8 = fmax(@8,@9) */
-  for (i=0, rr=w08, cr=w08, cs=w09; i<2; ++i) (*rr++)  = casadi_fmax((*cr++),(*cs++));
-  /* #11: @10 = input[4][0] */
-  casadi_copy(arg[4], 2, w10);
-  /* #12: @8 = fmin(@8,@10) */
-  for (i=0, rr=w08, cr=w08, cs=w10; i<2; ++i) (*rr++)  = casadi_fmin((*cr++),(*cs++));
-  /* #13: @6 = mac(@7,@8,@6) */
-  casadi_mtimes_dense(w07, 1, 2, w08, 1, (&w06), 0);
-  /* #14: @11 = (@5-@6) */
-  w11  = (w05-w06);
+  casadi_copy(casadi_c0, 3, w03);
+  /* #6: @4 = dense(@3) */
+  casadi_densify(w03, casadi_s5, w04, 0);
+  /* #7: @5 = zeros(2x1) */
+  casadi_clear(w05, 2);
+  /* #8: @6 = 0.0001 */
+  w06 = 1.0000000000000000e-04;
+  /* #9: @7 = 0 */
+  w07 = 0.;
+  /* #10: @8 = input[1][0] */
+  w08 = arg[1] ? arg[1][0] : 0;
+  /* #11: @9 = 0 */
+  w09 = 0.;
+  /* #12: @10 = input[0][0] */
+  casadi_copy(arg[0], 2, w10);
+  /* #13: @9 = mac(@10,@0,@9) */
+  casadi_mtimes_dense(w10, 1, 2, w00, 1, (&w09), 0);
+  /* #14: @11 = (@8-@9) */
+  w11  = (w08-w09);
   /* #15: @12 = input[2][0] */
   w12 = arg[2] ? arg[2][0] : 0;
-  /* #16: @13 = (@6-@12) */
-  w13  = (w06-w12);
+  /* #16: @13 = (@9-@12) */
+  w13  = (w09-w12);
   /* #17: @11 = fmax(@11,@13) */
   w11  = casadi_fmax(w11,w13);
-  /* #18: @4 = fmax(@4,@11) */
-  w04  = casadi_fmax(w04,w11);
-  /* #19: @11 = max(@4) */
-  w11 = casadi_mmax((&w04), 1, 1);
-  /* #20: @3 = fmax(@3,@11) */
-  w03  = casadi_fmax(w03,w11);
-  /* #21: @3 = (1./@3) */
-  w03 = (1./ w03 );
-  /* #22: @0 = vertcat(@2, @3) */
-  rr=w00;
-  for (i=0, cs=w02; i<2; ++i) *rr++ = *cs++;
-  *rr++ = w03;
-  /* #23: @3 = 1 */
-  w03 = 1.;
-  /* #24: @14 = horzcat(@7, @3) */
+  /* #18: @7 = fmax(@7,@11) */
+  w07  = casadi_fmax(w07,w11);
+  /* #19: @11 = max(@7) */
+  w11 = casadi_mmax((&w07), 1, 1);
+  /* #20: @6 = fmax(@6,@11) */
+  w06  = casadi_fmax(w06,w11);
+  /* #21: @7 = (1./@6) */
+  w07 = (1./ w06 );
+  /* #22: @3 = vertcat(@5, @7) */
+  rr=w03;
+  for (i=0, cs=w05; i<2; ++i) *rr++ = *cs++;
+  *rr++ = w07;
+  /* #23: @7 = 1 */
+  w07 = 1.;
+  /* #24: @14 = horzcat(@10, @7) */
   rr=w14;
-  for (i=0, cs=w07; i<2; ++i) *rr++ = *cs++;
-  *rr++ = w03;
+  for (i=0, cs=w10; i<2; ++i) *rr++ = *cs++;
+  *rr++ = w07;
   /* #25: @14 = @14' */
-  /* #26: @3 = -1 */
-  w03 = -1.;
-  /* #27: @15 = horzcat(@7, @3) */
+  /* #26: @7 = -1 */
+  w07 = -1.;
+  /* #27: @15 = horzcat(@10, @7) */
   rr=w15;
-  for (i=0, cs=w07; i<2; ++i) *rr++ = *cs++;
-  *rr++ = w03;
+  for (i=0, cs=w10; i<2; ++i) *rr++ = *cs++;
+  *rr++ = w07;
   /* #28: @15 = @15' */
   /* #29: @16 = ones(3x3,3nz) */
   casadi_fill(w16, 3, 1.);
@@ -1635,55 +2314,55 @@ static int casadi_f13(const casadi_real** arg, casadi_real** res, casadi_int* iw
   casadi_trans(w17,casadi_s7, w18, casadi_s6, iw);
   /* #32: @19 = dense(@18) */
   casadi_densify(w18, casadi_s6, w19, 0);
-  /* #33: @3 = fmin(@5,@6) */
-  w03  = casadi_fmin(w05,w06);
-  /* #34: @3 = (@3-@11) */
-  w03 -= w11;
-  /* #35: @4 = 0 */
-  w04 = 0.;
-  /* #36: @20 = vertcat(@5, @3, @9, @4) */
+  /* #33: @7 = fmin(@8,@9) */
+  w07  = casadi_fmin(w08,w09);
+  /* #34: @7 = (@7-@11) */
+  w07 -= w11;
+  /* #35: @13 = 0 */
+  w13 = 0.;
+  /* #36: @20 = vertcat(@8, @7, @1, @13) */
   rr=w20;
-  *rr++ = w05;
-  *rr++ = w03;
-  for (i=0, cs=w09; i<2; ++i) *rr++ = *cs++;
-  *rr++ = w04;
-  /* #37: @13 = fmax(@12,@6) */
-  w13  = casadi_fmax(w12,w06);
-  /* #38: @13 = (@13+@11) */
-  w13 += w11;
-  /* #39: @11 = inf */
-  w11 = casadi_inf;
-  /* #40: @21 = vertcat(@13, @12, @10, @11) */
-  rr=w21;
+  *rr++ = w08;
+  *rr++ = w07;
+  for (i=0, cs=w01; i<2; ++i) *rr++ = *cs++;
   *rr++ = w13;
+  /* #37: @21 = fmax(@12,@9) */
+  w21  = casadi_fmax(w12,w09);
+  /* #38: @21 = (@21+@11) */
+  w21 += w11;
+  /* #39: @22 = inf */
+  w22 = casadi_inf;
+  /* #40: @23 = vertcat(@21, @12, @2, @22) */
+  rr=w23;
+  *rr++ = w21;
   *rr++ = w12;
-  for (i=0, cs=w10; i<2; ++i) *rr++ = *cs++;
-  *rr++ = w11;
+  for (i=0, cs=w02; i<2; ++i) *rr++ = *cs++;
+  *rr++ = w22;
   /* #41: @16 = -inf(3x1) */
   casadi_fill(w16, 3, -casadi_inf);
-  /* #42: @22 = inf(3x1) */
-  casadi_fill(w22, 3, casadi_inf);
-  /* #43: @23 = zeros(3x1) */
-  casadi_clear(w23, 3);
-  /* #44: @24 = zeros(3x1) */
-  casadi_clear(w24, 3);
-  /* #45: @25 = zeros(5x1) */
-  casadi_clear(w25, 5);
-  /* #46: @26 = 0x0 */
-  /* #47: {@27, NULL, NULL, NULL} = phase2a(@1, @0, @19, @20, @21, @16, @22, @23, @24, @25, @26, @26) */
-  arg1[0]=w01;
-  arg1[1]=w00;
+  /* #42: @24 = inf(3x1) */
+  casadi_fill(w24, 3, casadi_inf);
+  /* #43: @25 = zeros(3x1) */
+  casadi_clear(w25, 3);
+  /* #44: @26 = zeros(3x1) */
+  casadi_clear(w26, 3);
+  /* #45: @27 = zeros(5x1) */
+  casadi_clear(w27, 5);
+  /* #46: @28 = 0x0 */
+  /* #47: {@29, NULL, NULL, NULL} = phase2a(@4, @3, @19, @20, @23, @16, @24, @25, @26, @27, @28, @28) */
+  arg1[0]=w04;
+  arg1[1]=w03;
   arg1[2]=w19;
   arg1[3]=w20;
-  arg1[4]=w21;
+  arg1[4]=w23;
   arg1[5]=w16;
-  arg1[6]=w22;
-  arg1[7]=w23;
-  arg1[8]=w24;
-  arg1[9]=w25;
+  arg1[6]=w24;
+  arg1[7]=w25;
+  arg1[8]=w26;
+  arg1[9]=w27;
   arg1[10]=0;
   arg1[11]=0;
-  res1[0]=w27;
+  res1[0]=w29;
   res1[1]=0;
   res1[2]=0;
   res1[3]=0;
@@ -1692,205 +2371,267 @@ static int casadi_f13(const casadi_real** arg, casadi_real** res, casadi_int* iw
   flag = casadi_f14(arg1, res1, iw, w, mid);
   casadi_f14_release(mid);
   if (flag) return 1;
-  /* #48: @16 = fabs(@27) */
-  for (i=0, rr=w16, cs=w27; i<3; ++i) *rr++ = casadi_fabs( *cs++ );
-  /* #49: @28 = inf */
-  w28 = casadi_inf;
-  /* #50: @16 = (@16<@28) */
-  for (i=0, rr=w16, cr=w16; i<3; ++i) (*rr++)  = ((*cr++)<w28);
-  /* #51: @28 = min(@16) */
-  w28 = casadi_mmin(w16, 3, 1);
-  /* #52: @29 = 0 */
-  w29 = 0.;
-  /* #53: @30 = input[7][0] */
-  w30 = arg[7] ? arg[7][0] : 0;
-  /* #54: @29 = (@29==@30) */
-  w29  = (w29==w30);
-  /* #55: @28 = (@28&&@29) */
-  w28  = (w28&&w29);
+  /* #48: @16 = fabs(@29) */
+  for (i=0, rr=w16, cs=w29; i<3; ++i) *rr++ = casadi_fabs( *cs++ );
+  /* #49: @30 = inf */
+  w30 = casadi_inf;
+  /* #50: @16 = (@16<@30) */
+  for (i=0, rr=w16, cr=w16; i<3; ++i) (*rr++)  = ((*cr++)<w30);
+  /* #51: @30 = min(@16) */
+  w30 = casadi_mmin(w16, 3, 1);
+  /* #52: @31 = 0 */
+  w31 = 0.;
+  /* #53: @32 = input[7][0] */
+  w32 = arg[7] ? arg[7][0] : 0;
+  /* #54: @31 = (@31==@32) */
+  w31  = (w31==w32);
+  /* #55: @30 = (@30&&@31) */
+  w30  = (w30&&w31);
   /* #56: @16 = 
   [[0.001, 00, 00], 
    [00, 0.001, 00], 
    [00, 00, 1]] */
   casadi_copy(casadi_c0, 3, w16);
-  /* #57: @22 = retry_if_failed(@28, @27, @16, @0, @19, @20, @21) */
-  arg1[0]=(&w28);
-  arg1[1]=w27;
+  /* #57: @24 = retry_if_failed(@30, @29, @16, @3, @19, @20, @23) */
+  arg1[0]=(&w30);
+  arg1[1]=w29;
   arg1[2]=w16;
-  arg1[3]=w00;
+  arg1[3]=w03;
   arg1[4]=w19;
   arg1[5]=w20;
-  arg1[6]=w21;
-  res1[0]=w22;
+  arg1[6]=w23;
+  res1[0]=w24;
   if (casadi_f15(arg1, res1, iw, w, 0)) return 1;
-  /* #58: @27 = fabs(@22) */
-  for (i=0, rr=w27, cs=w22; i<3; ++i) *rr++ = casadi_fabs( *cs++ );
-  /* #59: @28 = inf */
-  w28 = casadi_inf;
-  /* #60: @27 = (@27<@28) */
-  for (i=0, rr=w27, cr=w27; i<3; ++i) (*rr++)  = ((*cr++)<w28);
-  /* #61: @28 = min(@27) */
-  w28 = casadi_mmin(w27, 3, 1);
-  /* #62: @29 = 0 */
-  w29 = 0.;
-  /* #63: @27 = vertcat(@9, @4) */
-  rr=w27;
-  for (i=0, cs=w09; i<2; ++i) *rr++ = *cs++;
-  *rr++ = w04;
-  /* #64: @27 = (@27-@22) */
-  for (i=0, rr=w27, cs=w22; i<3; ++i) (*rr++) -= (*cs++);
-  /* #65: @16 = vertcat(@10, @11) */
+  /* #58: @29 = fabs(@24) */
+  for (i=0, rr=w29, cs=w24; i<3; ++i) *rr++ = casadi_fabs( *cs++ );
+  /* #59: @30 = inf */
+  w30 = casadi_inf;
+  /* #60: @29 = (@29<@30) */
+  for (i=0, rr=w29, cr=w29; i<3; ++i) (*rr++)  = ((*cr++)<w30);
+  /* #61: @30 = min(@29) */
+  w30 = casadi_mmin(w29, 3, 1);
+  /* #62: @31 = 0 */
+  w31 = 0.;
+  /* #63: @29 = vertcat(@1, @13) */
+  rr=w29;
+  for (i=0, cs=w01; i<2; ++i) *rr++ = *cs++;
+  *rr++ = w13;
+  /* #64: @29 = (@29-@24) */
+  for (i=0, rr=w29, cs=w24; i<3; ++i) (*rr++) -= (*cs++);
+  /* #65: @16 = vertcat(@2, @22) */
   rr=w16;
-  for (i=0, cs=w10; i<2; ++i) *rr++ = *cs++;
-  *rr++ = w11;
-  /* #66: @16 = (@22-@16) */
-  for (i=0, rr=w16, cr=w22, cs=w16; i<3; ++i) (*rr++)  = ((*cr++)-(*cs++));
-  /* #67: @27 = fmax(@27,@16) */
-  for (i=0, rr=w27, cr=w27, cs=w16; i<3; ++i) (*rr++)  = casadi_fmax((*cr++),(*cs++));
-  /* #68: @27 = fmax(@29,@27) */
-  for (i=0, rr=w27, cs=w27; i<3; ++i) (*rr++)  = casadi_fmax(w29,(*cs++));
-  /* #69: @29 = max(@27) */
-  w29 = casadi_mmax(w27, 3, 1);
-  /* #70: @11 = 1e-06 */
-  w11 = 9.9999999999999995e-07;
-  /* #71: @29 = (@29<=@11) */
-  w29  = (w29<=w11);
-  /* #72: @28 = (@28&&@29) */
-  w28  = (w28&&w29);
-  /* #73: @29 = 0 */
-  w29 = 0.;
-  /* #74: @2 = vertcat(@5, @3) */
-  rr=w02;
-  *rr++ = w05;
-  *rr++ = w03;
-  /* #75: @8 = zeros(2x1) */
-  casadi_clear(w08, 2);
-  /* #76: @31 = horzcat(@14, @15) */
-  rr=w31;
+  for (i=0, cs=w02; i<2; ++i) *rr++ = *cs++;
+  *rr++ = w22;
+  /* #66: @16 = (@24-@16) */
+  for (i=0, rr=w16, cr=w24, cs=w16; i<3; ++i) (*rr++)  = ((*cr++)-(*cs++));
+  /* #67: @29 = fmax(@29,@16) */
+  for (i=0, rr=w29, cr=w29, cs=w16; i<3; ++i) (*rr++)  = casadi_fmax((*cr++),(*cs++));
+  /* #68: @29 = fmax(@31,@29) */
+  for (i=0, rr=w29, cs=w29; i<3; ++i) (*rr++)  = casadi_fmax(w31,(*cs++));
+  /* #69: @31 = max(@29) */
+  w31 = casadi_mmax(w29, 3, 1);
+  /* #70: @22 = 1e-06 */
+  w22 = 9.9999999999999995e-07;
+  /* #71: @31 = (@31<=@22) */
+  w31  = (w31<=w22);
+  /* #72: @30 = (@30&&@31) */
+  w30  = (w30&&w31);
+  /* #73: @31 = 0 */
+  w31 = 0.;
+  /* #74: @5 = vertcat(@8, @7) */
+  rr=w05;
+  *rr++ = w08;
+  *rr++ = w07;
+  /* #75: @33 = zeros(2x1) */
+  casadi_clear(w33, 2);
+  /* #76: @34 = horzcat(@14, @15) */
+  rr=w34;
   for (i=0, cs=w14; i<3; ++i) *rr++ = *cs++;
   for (i=0, cs=w15; i<3; ++i) *rr++ = *cs++;
-  /* #77: @32 = @31' */
-  for (i=0, rr=w32, cs=w31; i<2; ++i) for (j=0; j<3; ++j) rr[i+j*2] = *cs++;
-  /* #78: @8 = mac(@32,@22,@8) */
-  casadi_mtimes_dense(w32, 2, 3, w22, 1, w08, 0);
-  /* #79: @2 = (@2-@8) */
-  for (i=0, rr=w02, cs=w08; i<2; ++i) (*rr++) -= (*cs++);
-  /* #80: @33 = vertcat(@13, @12) */
-  rr=w33;
-  *rr++ = w13;
+  /* #77: @35 = @34' */
+  for (i=0, rr=w35, cs=w34; i<2; ++i) for (j=0; j<3; ++j) rr[i+j*2] = *cs++;
+  /* #78: @33 = mac(@35,@24,@33) */
+  casadi_mtimes_dense(w35, 2, 3, w24, 1, w33, 0);
+  /* #79: @5 = (@5-@33) */
+  for (i=0, rr=w05, cs=w33; i<2; ++i) (*rr++) -= (*cs++);
+  /* #80: @36 = vertcat(@21, @12) */
+  rr=w36;
+  *rr++ = w21;
   *rr++ = w12;
-  /* #81: @8 = (@8-@33) */
-  for (i=0, rr=w08, cs=w33; i<2; ++i) (*rr++) -= (*cs++);
-  /* #82: @2 = fmax(@2,@8) */
-  for (i=0, rr=w02, cr=w02, cs=w08; i<2; ++i) (*rr++)  = casadi_fmax((*cr++),(*cs++));
-  /* #83: @2 = fmax(@29,@2) */
-  for (i=0, rr=w02, cs=w02; i<2; ++i) (*rr++)  = casadi_fmax(w29,(*cs++));
-  /* #84: @29 = max(@2) */
-  w29 = casadi_mmax(w02, 2, 1);
-  /* #85: @13 = 1e-06 */
-  w13 = 9.9999999999999995e-07;
-  /* #86: @29 = (@29<=@13) */
-  w29  = (w29<=w13);
-  /* #87: @28 = (@28&&@29) */
-  w28  = (w28&&w29);
-  /* #88: @2 = input[8][0] */
-  casadi_copy(arg[8], 2, w02);
-  /* #89: @34 = dense(@2) */
-  casadi_densify(w02, casadi_s2, w34, 0);
-  /* #90: @2 = input[9][0] */
-  casadi_copy(arg[9], 2, w02);
-  /* #91: @35 = input[10][0] */
-  wr35 = arg[10] ? arg[10] : casadi_zeros;
-  /* #92: @29 = 1e-09 */
-  w29 = 1.0000000000000001e-09;
-  /* #93: @13 = 0 */
-  w13 = 0.;
-  /* #94: @3 = @22[2] */
-  for (rr=(&w03), cs=w22+2; cs!=w22+3; cs+=1) *rr++ = *cs;
-  /* #95: @13 = fmax(@13,@3) */
-  w13  = casadi_fmax(w13,w03);
-  /* #96: @13 = (@28?@13:0) */
-  w13  = (w28?w13:0);
-  /* #97: @29 = (@29<@13) */
-  w29  = (w29<w13);
-  /* #98: @3 = 1e-05 */
-  w03 = 9.9999999999999991e-06;
-  /* #99: @3 = (@3+@13) */
-  w03 += w13;
-  /* #100: @29 = (@29?@3:0) */
-  w29  = (w29?w03:0);
-  /* #101: @3 = (@5-@29) */
-  w03  = (w05-w29);
-  /* #102: @13 = 0 */
-  w13 = 0.;
-  /* #103: @8 = @22[:2] */
-  for (rr=w08, cs=w22+0; cs!=w22+2; cs+=1) *rr++ = *cs;
-  /* #104: @8 = fmax(@8,@9) */
-  for (i=0, rr=w08, cr=w08, cs=w09; i<2; ++i) (*rr++)  = casadi_fmax((*cr++),(*cs++));
-  /* #105: @8 = fmin(@8,@10) */
-  for (i=0, rr=w08, cr=w08, cs=w10; i<2; ++i) (*rr++)  = casadi_fmin((*cr++),(*cs++));
-  /* #106: @13 = mac(@7,@8,@13) */
-  casadi_mtimes_dense(w07, 1, 2, w08, 1, (&w13), 0);
-  /* #107: @13 = (@28?@13:0) */
-  w13  = (w28?w13:0);
-  /* #108: @11 = (!@28) */
-  w11 = (! w28 );
-  /* #109: @11 = (@11?@6:0) */
-  w11  = (w11?w06:0);
-  /* #110: @13 = (@13+@11) */
-  w13 += w11;
-  /* #111: @11 = fmin(@6,@13) */
-  w11  = casadi_fmin(w06,w13);
-  /* #112: @5 = fmin(@5,@11) */
-  w05  = casadi_fmin(w05,w11);
-  /* #113: @3 = fmax(@3,@5) */
-  w03  = casadi_fmax(w03,w05);
-  /* #114: @32 = input[11][0] */
-  casadi_copy(arg[11], 6, w32);
-  /* #115: @20 = @32[1:6] */
-  for (rr=w20, cs=w32+1; cs!=w32+6; cs+=1) *rr++ = *cs;
-  /* #116: @32 = vertcat(@3, @20) */
-  rr=w32;
-  *rr++ = w03;
+  /* #81: @33 = (@33-@36) */
+  for (i=0, rr=w33, cs=w36; i<2; ++i) (*rr++) -= (*cs++);
+  /* #82: @5 = fmax(@5,@33) */
+  for (i=0, rr=w05, cr=w05, cs=w33; i<2; ++i) (*rr++)  = casadi_fmax((*cr++),(*cs++));
+  /* #83: @5 = fmax(@31,@5) */
+  for (i=0, rr=w05, cs=w05; i<2; ++i) (*rr++)  = casadi_fmax(w31,(*cs++));
+  /* #84: @31 = max(@5) */
+  w31 = casadi_mmax(w05, 2, 1);
+  /* #85: @21 = 1e-06 */
+  w21 = 9.9999999999999995e-07;
+  /* #86: @31 = (@31<=@21) */
+  w31  = (w31<=w21);
+  /* #87: @30 = (@30&&@31) */
+  w30  = (w30&&w31);
+  /* #88: @31 = (!@30) */
+  w31 = (! w30 );
+  /* #89: @21 = 0 */
+  w21 = 0.;
+  /* #90: @5 = fabs(@0) */
+  for (i=0, rr=w05, cs=w00; i<2; ++i) *rr++ = casadi_fabs( *cs++ );
+  /* #91: @7 = max(@5) */
+  w07 = casadi_mmax(w05, 2, 1);
+  /* #92: @21 = (@21<@7) */
+  w21  = (w21<w07);
+  /* #93: @31 = (@31||@21) */
+  w31  = (w31||w21);
+  /* #94: @21 = 0 */
+  w21 = 0.;
+  /* #95: @7 = 1e-06 */
+  w07 = 9.9999999999999995e-07;
+  /* #96: @22 = 1e-06 */
+  w22 = 9.9999999999999995e-07;
+  /* #97: @22 = (@22<@11) */
+  w22  = (w22<w11);
+  /* #98: @11 = 0 */
+  w11 = 0.;
+  /* #99: @13 = (-@12) */
+  w13 = (- w12 );
+  /* #100: @13 = fmax(@8,@13) */
+  w13  = casadi_fmax(w08,w13);
+  /* #101: @11 = fmax(@11,@13) */
+  w11  = casadi_fmax(w11,w13);
+  /* #102: @11 = (@22*@11) */
+  w11  = (w22*w11);
+  /* #103: @13 = max(@11) */
+  w13 = casadi_mmax((&w11), 1, 1);
+  /* #104: @7 = (@7<@13) */
+  w07  = (w07<w13);
+  /* #105: @11 = (@7?@13:0) */
+  w11  = (w07?w13:0);
+  /* #106: @11 = (@11/@6) */
+  w11 /= w06;
+  /* #107: @13 = sq(@13) */
+  w13 = casadi_sq( w13 );
+  /* #108: @13 = (@7?@13:0) */
+  w13  = (w07?w13:0);
+  /* #109: @7 = (@7?@13:0) */
+  w07  = (w07?w13:0);
+  /* #110: @13 = 2 */
+  w13 = 2.;
+  /* #111: @7 = (@7/@13) */
+  w07 /= w13;
+  /* #112: @11 = (@11+@7) */
+  w11 += w07;
+  /* #113: @21 = (@21==@11) */
+  w21  = (w21==w11);
+  /* #114: @31 = (@31||@21) */
+  w31  = (w31||w21);
+  /* #115: @5 = input[13][0] */
+  casadi_copy(arg[13], 2, w05);
+  /* #116: @33 = input[14][0] */
+  casadi_copy(arg[14], 2, w33);
+  /* #117: @21 = input[15][0] */
+  w21 = arg[15] ? arg[15][0] : 0;
+  /* #118: @7 = input[16][0] */
+  w07 = arg[16] ? arg[16][0] : 0;
+  /* #119: @36 = input[8][0] */
+  casadi_copy(arg[8], 2, w36);
+  /* #120: @37 = dense(@36) */
+  casadi_densify(w36, casadi_s2, w37, 0);
+  /* #121: @36 = input[9][0] */
+  casadi_copy(arg[9], 2, w36);
+  /* #122: @38 = input[10][0] */
+  wr38 = arg[10] ? arg[10] : casadi_zeros;
+  /* #123: @13 = 1e-09 */
+  w13 = 1.0000000000000001e-09;
+  /* #124: @32 = 0 */
+  w32 = 0.;
+  /* #125: @39 = @24[2] */
+  for (rr=(&w39), cs=w24+2; cs!=w24+3; cs+=1) *rr++ = *cs;
+  /* #126: @32 = fmax(@32,@39) */
+  w32  = casadi_fmax(w32,w39);
+  /* #127: @32 = (@30?@32:0) */
+  w32  = (w30?w32:0);
+  /* #128: @13 = (@13<@32) */
+  w13  = (w13<w32);
+  /* #129: @39 = 1e-05 */
+  w39 = 9.9999999999999991e-06;
+  /* #130: @39 = (@39+@32) */
+  w39 += w32;
+  /* #131: @13 = (@13?@39:0) */
+  w13  = (w13?w39:0);
+  /* #132: @39 = (@8-@13) */
+  w39  = (w08-w13);
+  /* #133: @32 = 0 */
+  w32 = 0.;
+  /* #134: @40 = @24[:2] */
+  for (rr=w40, cs=w24+0; cs!=w24+2; cs+=1) *rr++ = *cs;
+  /* #135: @40 = fmax(@40,@1) */
+  for (i=0, rr=w40, cr=w40, cs=w01; i<2; ++i) (*rr++)  = casadi_fmax((*cr++),(*cs++));
+  /* #136: @40 = fmin(@40,@2) */
+  for (i=0, rr=w40, cr=w40, cs=w02; i<2; ++i) (*rr++)  = casadi_fmin((*cr++),(*cs++));
+  /* #137: @32 = mac(@10,@40,@32) */
+  casadi_mtimes_dense(w10, 1, 2, w40, 1, (&w32), 0);
+  /* #138: @32 = (@30?@32:0) */
+  w32  = (w30?w32:0);
+  /* #139: @41 = (!@30) */
+  w41 = (! w30 );
+  /* #140: @41 = (@41?@9:0) */
+  w41  = (w41?w09:0);
+  /* #141: @32 = (@32+@41) */
+  w32 += w41;
+  /* #142: @41 = fmin(@9,@32) */
+  w41  = casadi_fmin(w09,w32);
+  /* #143: @8 = fmin(@8,@41) */
+  w08  = casadi_fmin(w08,w41);
+  /* #144: @39 = fmax(@39,@8) */
+  w39  = casadi_fmax(w39,w08);
+  /* #145: @35 = input[11][0] */
+  casadi_copy(arg[11], 6, w35);
+  /* #146: @20 = @35[1:6] */
+  for (rr=w20, cs=w35+1; cs!=w35+6; cs+=1) *rr++ = *cs;
+  /* #147: @35 = vertcat(@39, @20) */
+  rr=w35;
+  *rr++ = w39;
   for (i=0, cs=w20; i<5; ++i) *rr++ = *cs++;
-  /* #117: @29 = (@12+@29) */
-  w29  = (w12+w29);
-  /* #118: @6 = fmax(@6,@13) */
-  w06  = casadi_fmax(w06,w13);
-  /* #119: @12 = fmax(@12,@6) */
-  w12  = casadi_fmax(w12,w06);
-  /* #120: @29 = fmin(@29,@12) */
-  w29  = casadi_fmin(w29,w12);
-  /* #121: @31 = input[12][0] */
-  casadi_copy(arg[12], 6, w31);
-  /* #122: @20 = @31[1:6] */
-  for (rr=w20, cs=w31+1; cs!=w31+6; cs+=1) *rr++ = *cs;
-  /* #123: @31 = vertcat(@29, @20) */
-  rr=w31;
-  *rr++ = w29;
+  /* #148: @13 = (@12+@13) */
+  w13  = (w12+w13);
+  /* #149: @9 = fmax(@9,@32) */
+  w09  = casadi_fmax(w09,w32);
+  /* #150: @12 = fmax(@12,@9) */
+  w12  = casadi_fmax(w12,w09);
+  /* #151: @13 = fmin(@13,@12) */
+  w13  = casadi_fmin(w13,w12);
+  /* #152: @34 = input[12][0] */
+  casadi_copy(arg[12], 6, w34);
+  /* #153: @20 = @34[1:6] */
+  for (rr=w20, cs=w34+1; cs!=w34+6; cs+=1) *rr++ = *cs;
+  /* #154: @34 = vertcat(@13, @20) */
+  rr=w34;
+  *rr++ = w13;
   for (i=0, cs=w20; i<5; ++i) *rr++ = *cs++;
-  /* #124: @33 = -inf(2x1) */
-  casadi_fill(w33, 2, -casadi_inf);
-  /* #125: @36 = inf(2x1) */
-  casadi_fill(w36, 2, casadi_inf);
-  /* #126: @37 = zeros(2x1) */
-  casadi_clear(w37, 2);
-  /* #127: @38 = zeros(6x1) */
-  casadi_clear(w38, 6);
-  /* #128: {@39, @12, NULL, NULL} = phase2b(@34, @2, @35, @32, @31, @33, @36, @8, @37, @38, @26, @26) */
-  arg1[0]=w34;
-  arg1[1]=w02;
-  arg1[2]=wr35;
-  arg1[3]=w32;
-  arg1[4]=w31;
-  arg1[5]=w33;
-  arg1[6]=w36;
-  arg1[7]=w08;
-  arg1[8]=w37;
-  arg1[9]=w38;
+  /* #155: @42 = -inf(2x1) */
+  casadi_fill(w42, 2, -casadi_inf);
+  /* #156: @43 = inf(2x1) */
+  casadi_fill(w43, 2, casadi_inf);
+  /* #157: @44 = zeros(2x1) */
+  casadi_clear(w44, 2);
+  /* #158: @45 = zeros(6x1) */
+  casadi_clear(w45, 6);
+  /* #159: {@46, @12, NULL, NULL} = phase2b(@37, @36, @38, @35, @34, @42, @43, @40, @44, @45, @28, @28) */
+  arg1[0]=w37;
+  arg1[1]=w36;
+  arg1[2]=wr38;
+  arg1[3]=w35;
+  arg1[4]=w34;
+  arg1[5]=w42;
+  arg1[6]=w43;
+  arg1[7]=w40;
+  arg1[8]=w44;
+  arg1[9]=w45;
   arg1[10]=0;
   arg1[11]=0;
-  res1[0]=w39;
+  res1[0]=w46;
   res1[1]=(&w12);
   res1[2]=0;
   res1[3]=0;
@@ -1899,114 +2640,126 @@ static int casadi_f13(const casadi_real** arg, casadi_real** res, casadi_int* iw
   flag = casadi_f19(arg1, res1, iw, w, mid);
   casadi_f19_release(mid);
   if (flag) return 1;
-  /* #129: @2 = fabs(@39) */
-  for (i=0, rr=w02, cs=w39; i<2; ++i) *rr++ = casadi_fabs( *cs++ );
-  /* #130: @6 = inf */
-  w06 = casadi_inf;
-  /* #131: @2 = (@2<@6) */
-  for (i=0, rr=w02, cr=w02; i<2; ++i) (*rr++)  = ((*cr++)<w06);
-  /* #132: @6 = min(@2) */
-  w06 = casadi_mmin(w02, 2, 1);
-  /* #133: @13 = 0 */
-  w13 = 0.;
-  /* #134: @2 = (@9-@39) */
-  for (i=0, rr=w02, cr=w09, cs=w39; i<2; ++i) (*rr++)  = ((*cr++)-(*cs++));
-  /* #135: @33 = (@39-@10) */
-  for (i=0, rr=w33, cr=w39, cs=w10; i<2; ++i) (*rr++)  = ((*cr++)-(*cs++));
-  /* #136: @2 = fmax(@2,@33) */
-  for (i=0, rr=w02, cr=w02, cs=w33; i<2; ++i) (*rr++)  = casadi_fmax((*cr++),(*cs++));
-  /* #137: @2 = fmax(@13,@2) */
-  for (i=0, rr=w02, cs=w02; i<2; ++i) (*rr++)  = casadi_fmax(w13,(*cs++));
-  /* #138: @13 = max(@2) */
-  w13 = casadi_mmax(w02, 2, 1);
-  /* #139: @5 = 1e-05 */
-  w05 = 9.9999999999999991e-06;
-  /* #140: @13 = (@13<=@5) */
-  w13  = (w13<=w05);
-  /* #141: @6 = (@6&&@13) */
-  w06  = (w06&&w13);
-  /* #142: @13 = 0 */
-  w13 = 0.;
-  /* #143: @5 = 0 */
-  w05 = 0.;
-  /* #144: @5 = mac(@7,@39,@5) */
-  casadi_mtimes_dense(w07, 1, 2, w39, 1, (&w05), 0);
-  /* #145: @3 = (@3-@5) */
-  w03 -= w05;
-  /* #146: @5 = (@5-@29) */
-  w05 -= w29;
-  /* #147: @3 = fmax(@3,@5) */
-  w03  = casadi_fmax(w03,w05);
-  /* #148: @13 = fmax(@13,@3) */
-  w13  = casadi_fmax(w13,w03);
-  /* #149: @3 = max(@13) */
-  w03 = casadi_mmax((&w13), 1, 1);
-  /* #150: @13 = 1e-05 */
-  w13 = 9.9999999999999991e-06;
-  /* #151: @3 = (@3<=@13) */
-  w03  = (w03<=w13);
-  /* #152: @6 = (@6&&@3) */
-  w06  = (w06&&w03);
-  /* #153: @39 = fmax(@39,@9) */
-  for (i=0, rr=w39, cr=w39, cs=w09; i<2; ++i) (*rr++)  = casadi_fmax((*cr++),(*cs++));
-  /* #154: @39 = fmin(@39,@10) */
-  for (i=0, rr=w39, cr=w39, cs=w10; i<2; ++i) (*rr++)  = casadi_fmin((*cr++),(*cs++));
-  /* #155: @39 = (@6?@39:0) */
-  for (i=0, rr=w39, cs=w39; i<2; ++i) (*rr++)  = (w06?cs[i]:0);
-  /* #156: @3 = (!@6) */
-  w03 = (! w06 );
-  /* #157: @8 = (@3?@8:0) */
-  for (i=0, rr=w08, cs=w08; i<2; ++i) (*rr++)  = (w03?cs[i]:0);
-  /* #158: @39 = (@39+@8) */
-  for (i=0, rr=w39, cs=w08; i<2; ++i) (*rr++) += (*cs++);
-  /* #159: @39 = (@28?@39:0) */
-  for (i=0, rr=w39, cs=w39; i<2; ++i) (*rr++)  = (w28?cs[i]:0);
-  /* #160: @3 = (!@28) */
-  w03 = (! w28 );
-  /* #161: @8 = zeros(2x1) */
-  casadi_clear(w08, 2);
-  /* #162: @8 = fmax(@8,@9) */
-  for (i=0, rr=w08, cr=w08, cs=w09; i<2; ++i) (*rr++)  = casadi_fmax((*cr++),(*cs++));
-  /* #163: @8 = fmin(@8,@10) */
-  for (i=0, rr=w08, cr=w08, cs=w10; i<2; ++i) (*rr++)  = casadi_fmin((*cr++),(*cs++));
-  /* #164: @8 = (@3?@8:0) */
-  for (i=0, rr=w08, cs=w08; i<2; ++i) (*rr++)  = (w03?cs[i]:0);
-  /* #165: @39 = (@39+@8) */
-  for (i=0, rr=w39, cs=w08; i<2; ++i) (*rr++) += (*cs++);
-  /* #166: output[0][0] = @39 */
-  casadi_copy(w39, 2, res[0]);
-  /* #167: @3 = 1 */
-  w03 = 1.;
-  /* #168: @13 = 4 */
-  w13 = 4.;
-  /* #169: @5 = 1 */
-  w05 = 1.;
-  /* #170: @5 = (@5-@28) */
-  w05 -= w28;
-  /* #171: @13 = (@13*@5) */
-  w13 *= w05;
-  /* #172: @3 = (@3+@13) */
-  w03 += w13;
-  /* #173: @13 = 8 */
-  w13 = 8.;
-  /* #174: @12 = (@6?@12:0) */
-  w12  = (w06?w12:0);
-  /* #175: @6 = (!@6) */
-  w06 = (! w06 );
-  /* #176: @5 = 1 */
-  w05 = 1.;
-  /* #177: @6 = (@6?@5:0) */
-  w06  = (w06?w05:0);
-  /* #178: @12 = (@12+@6) */
-  w12 += w06;
-  /* #179: @13 = (@13*@12) */
-  w13 *= w12;
-  /* #180: @28 = (@28?@13:0) */
-  w28  = (w28?w13:0);
-  /* #181: @3 = (@3+@28) */
-  w03 += w28;
-  /* #182: output[0][1] = @3 */
-  if (res[0]) res[0][2] = w03;
+  /* #160: @36 = fabs(@46) */
+  for (i=0, rr=w36, cs=w46; i<2; ++i) *rr++ = casadi_fabs( *cs++ );
+  /* #161: @9 = inf */
+  w09 = casadi_inf;
+  /* #162: @36 = (@36<@9) */
+  for (i=0, rr=w36, cr=w36; i<2; ++i) (*rr++)  = ((*cr++)<w09);
+  /* #163: @9 = min(@36) */
+  w09 = casadi_mmin(w36, 2, 1);
+  /* #164: @32 = 0 */
+  w32 = 0.;
+  /* #165: @36 = (@1-@46) */
+  for (i=0, rr=w36, cr=w01, cs=w46; i<2; ++i) (*rr++)  = ((*cr++)-(*cs++));
+  /* #166: @42 = (@46-@2) */
+  for (i=0, rr=w42, cr=w46, cs=w02; i<2; ++i) (*rr++)  = ((*cr++)-(*cs++));
+  /* #167: @36 = fmax(@36,@42) */
+  for (i=0, rr=w36, cr=w36, cs=w42; i<2; ++i) (*rr++)  = casadi_fmax((*cr++),(*cs++));
+  /* #168: @36 = fmax(@32,@36) */
+  for (i=0, rr=w36, cs=w36; i<2; ++i) (*rr++)  = casadi_fmax(w32,(*cs++));
+  /* #169: @32 = max(@36) */
+  w32 = casadi_mmax(w36, 2, 1);
+  /* #170: @8 = 1e-05 */
+  w08 = 9.9999999999999991e-06;
+  /* #171: @32 = (@32<=@8) */
+  w32  = (w32<=w08);
+  /* #172: @9 = (@9&&@32) */
+  w09  = (w09&&w32);
+  /* #173: @32 = 0 */
+  w32 = 0.;
+  /* #174: @8 = 0 */
+  w08 = 0.;
+  /* #175: @8 = mac(@10,@46,@8) */
+  casadi_mtimes_dense(w10, 1, 2, w46, 1, (&w08), 0);
+  /* #176: @39 = (@39-@8) */
+  w39 -= w08;
+  /* #177: @8 = (@8-@13) */
+  w08 -= w13;
+  /* #178: @39 = fmax(@39,@8) */
+  w39  = casadi_fmax(w39,w08);
+  /* #179: @32 = fmax(@32,@39) */
+  w32  = casadi_fmax(w32,w39);
+  /* #180: @39 = max(@32) */
+  w39 = casadi_mmax((&w32), 1, 1);
+  /* #181: @32 = 1e-05 */
+  w32 = 9.9999999999999991e-06;
+  /* #182: @39 = (@39<=@32) */
+  w39  = (w39<=w32);
+  /* #183: @9 = (@9&&@39) */
+  w09  = (w09&&w39);
+  /* #184: @46 = fmax(@46,@1) */
+  for (i=0, rr=w46, cr=w46, cs=w01; i<2; ++i) (*rr++)  = casadi_fmax((*cr++),(*cs++));
+  /* #185: @46 = fmin(@46,@2) */
+  for (i=0, rr=w46, cr=w46, cs=w02; i<2; ++i) (*rr++)  = casadi_fmin((*cr++),(*cs++));
+  /* #186: @46 = (@9?@46:0) */
+  for (i=0, rr=w46, cs=w46; i<2; ++i) (*rr++)  = (w09?cs[i]:0);
+  /* #187: @39 = (!@9) */
+  w39 = (! w09 );
+  /* #188: @40 = (@39?@40:0) */
+  for (i=0, rr=w40, cs=w40; i<2; ++i) (*rr++)  = (w39?cs[i]:0);
+  /* #189: @46 = (@46+@40) */
+  for (i=0, rr=w46, cs=w40; i<2; ++i) (*rr++) += (*cs++);
+  /* #190: @46 = (@30?@46:0) */
+  for (i=0, rr=w46, cs=w46; i<2; ++i) (*rr++)  = (w30?cs[i]:0);
+  /* #191: @39 = (!@30) */
+  w39 = (! w30 );
+  /* #192: @40 = (@39?@0:0) */
+  for (i=0, rr=w40, cs=w00; i<2; ++i) (*rr++)  = (w39?cs[i]:0);
+  /* #193: @46 = (@46+@40) */
+  for (i=0, rr=w46, cs=w40; i<2; ++i) (*rr++) += (*cs++);
+  /* #194: @39 = search_if_off(@31, @5, @33, @21, @7, @46, @6, @22, @11) */
+  arg1[0]=(&w31);
+  arg1[1]=w05;
+  arg1[2]=w33;
+  arg1[3]=(&w21);
+  arg1[4]=(&w07);
+  arg1[5]=w46;
+  arg1[6]=(&w06);
+  arg1[7]=(&w22);
+  arg1[8]=(&w11);
+  res1[0]=(&w39);
+  if (casadi_f20(arg1, res1, iw, w, 0)) return 1;
+  /* #195: @46 = (@46-@0) */
+  for (i=0, rr=w46, cs=w00; i<2; ++i) (*rr++) -= (*cs++);
+  /* #196: @46 = (@39*@46) */
+  for (i=0, rr=w46, cs=w46; i<2; ++i) (*rr++)  = (w39*(*cs++));
+  /* #197: @0 = (@0+@46) */
+  for (i=0, rr=w00, cs=w46; i<2; ++i) (*rr++) += (*cs++);
+  /* #198: output[0][0] = @0 */
+  casadi_copy(w00, 2, res[0]);
+  /* #199: @39 = 1 */
+  w39 = 1.;
+  /* #200: @31 = 4 */
+  w31 = 4.;
+  /* #201: @21 = 1 */
+  w21 = 1.;
+  /* #202: @21 = (@21-@30) */
+  w21 -= w30;
+  /* #203: @31 = (@31*@21) */
+  w31 *= w21;
+  /* #204: @39 = (@39+@31) */
+  w39 += w31;
+  /* #205: @31 = 8 */
+  w31 = 8.;
+  /* #206: @12 = (@9?@12:0) */
+  w12  = (w09?w12:0);
+  /* #207: @9 = (!@9) */
+  w09 = (! w09 );
+  /* #208: @21 = 1 */
+  w21 = 1.;
+  /* #209: @9 = (@9?@21:0) */
+  w09  = (w09?w21:0);
+  /* #210: @12 = (@12+@9) */
+  w12 += w09;
+  /* #211: @31 = (@31*@12) */
+  w31 *= w12;
+  /* #212: @30 = (@30?@31:0) */
+  w30  = (w30?w31:0);
+  /* #213: @39 = (@39+@30) */
+  w39 += w30;
+  /* #214: output[0][1] = @39 */
+  if (res[0]) res[0][2] = w39;
   return 0;
 }
 
@@ -2022,8 +2775,8 @@ void casadi_f13_decref(void) {
   casadi_f19_decref();
 }
 
-/* keep:(i0[1x2],i1,i2,i3[2],i4[2],i5[2],i6,i7,i8[2x2,2nz],i9[2],i10[6x2],i11[6],i12[6])->(o0[3]) */
-static int casadi_f20(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+/* keep:(i0[1x2],i1,i2,i3[2],i4[2],i5[2],i6,i7,i8[2x2,2nz],i9[2],i10[6x2],i11[6],i12[6],i13[2],i14[2],i15,i16)->(o0[3]) */
+static int casadi_f43(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real *w0=w+0, w1, w2;
   /* #0: @0 = input[5][0] */
   casadi_copy(arg[5], 2, w0);
@@ -2040,10 +2793,10 @@ static int casadi_f20(const casadi_real** arg, casadi_real** res, casadi_int* iw
   return 0;
 }
 
-/* phase2_if_needed:(i0,i1[1x2],i2,i3,i4[2],i5[2],i6[2],i7,i8,i9[2x2,2nz],i10[2],i11[6x2],i12[6],i13[6])->(o0[3]) */
+/* phase2_if_needed:(i0,i1[1x2],i2,i3,i4[2],i5[2],i6[2],i7,i8,i9[2x2,2nz],i10[2],i11[6x2],i12[6],i13[6],i14[2],i15[2],i16,i17)->(o0[3]) */
 static int casadi_f12(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   if (arg[0] ? casadi_to_int(*arg[0]) : 0) {
-    if (casadi_f20(arg+1, res, iw, w, 0)) return 1;
+    if (casadi_f43(arg+1, res, iw, w, 0)) return 1;
   } else {
     if (casadi_f13(arg+1, res, iw, w, 0)) return 1;
   }
@@ -2059,7 +2812,7 @@ void casadi_f12_decref(void) {
 }
 
 /* vf_golden_finish:(i0[3],i1[1x2],i2,i3,i4[2],i5[2],i6)->(o0[2],o1,o2) */
-static int casadi_f21(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+static int casadi_f44(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a00, a01, a02, a03, a04, a05, a06, a07, a08, a09, a10, a11;
   casadi_real a12, a13, a14;
   a00=arg[0]? arg[0][0] : 0;
@@ -2146,9 +2899,9 @@ static int casadi_f21(const casadi_real** arg, casadi_real** res, casadi_int* iw
 /* vf_golden:(q[2],u[2],p,dt,recover)->(x[2],status,violation) */
 static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_int i;
-  casadi_real **res1=res+3, *rr, *w00=w+248, *w01=w+250, w02, w03, *w04=w+252, w05, w06, *w07=w+254, *w08=w+256, w09;
-  casadi_real *w10=w+258, *w11=w+260, *w12=w+262, *w13=w+274, *w14=w+280, *w15=w+286, *w16=w+290, *w17=w+292, *w18=w+294, *w20=w+300, *w21=w+302, *w22=w+305;
-  casadi_real w23;
+  casadi_real **res1=res+3, *rr, *w00=w+275, *w01=w+277, w02, w03, *w04=w+279, w05, w06, *w07=w+281, *w08=w+283, w09;
+  casadi_real *w10=w+285, *w11=w+287, *w12=w+289, *w13=w+301, *w14=w+307, *w15=w+313, *w16=w+317, *w17=w+319, *w18=w+321, *w19=w+323, *w20=w+325, *w22=w+331;
+  casadi_real w23, *w24=w+333, *w25=w+336, w26, w27;
   const casadi_real **arg1=arg+5, *cr, *cs;
   int flag, mid;
   /* #0: @0 = input[0][0] */
@@ -2178,32 +2931,32 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   if (casadi_f1(arg1, res1, iw, w, 0)) return 1;
   /* #5: @15 = dense(@10) */
   casadi_densify(w10, casadi_s2, w15, 0);
-  /* #6: @0 = -inf(2x1) */
-  casadi_fill(w00, 2, -casadi_inf);
-  /* #7: @1 = inf(2x1) */
-  casadi_fill(w01, 2, casadi_inf);
-  /* #8: @16 = zeros(2x1) */
-  casadi_clear(w16, 2);
-  /* #9: @17 = zeros(2x1) */
-  casadi_clear(w17, 2);
-  /* #10: @18 = zeros(6x1) */
-  casadi_clear(w18, 6);
-  /* #11: @19 = 0x0 */
-  /* #12: {@20, @2, NULL, NULL} = phase1_try0(@15, @11, @12, @13, @14, @0, @1, @16, @17, @18, @19, @19) */
+  /* #6: @16 = -inf(2x1) */
+  casadi_fill(w16, 2, -casadi_inf);
+  /* #7: @17 = inf(2x1) */
+  casadi_fill(w17, 2, casadi_inf);
+  /* #8: @18 = zeros(2x1) */
+  casadi_clear(w18, 2);
+  /* #9: @19 = zeros(2x1) */
+  casadi_clear(w19, 2);
+  /* #10: @20 = zeros(6x1) */
+  casadi_clear(w20, 6);
+  /* #11: @21 = 0x0 */
+  /* #12: {@22, @23, NULL, NULL} = phase1_try0(@15, @11, @12, @13, @14, @16, @17, @18, @19, @20, @21, @21) */
   arg1[0]=w15;
   arg1[1]=w11;
   arg1[2]=w12;
   arg1[3]=w13;
   arg1[4]=w14;
-  arg1[5]=w00;
-  arg1[6]=w01;
-  arg1[7]=w16;
-  arg1[8]=w17;
-  arg1[9]=w18;
+  arg1[5]=w16;
+  arg1[6]=w17;
+  arg1[7]=w18;
+  arg1[8]=w19;
+  arg1[9]=w20;
   arg1[10]=0;
   arg1[11]=0;
-  res1[0]=w20;
-  res1[1]=(&w02);
+  res1[0]=w22;
+  res1[1]=(&w23);
   res1[2]=0;
   res1[3]=0;
   mid = casadi_f2_checkout();
@@ -2211,114 +2964,118 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   flag = casadi_f2(arg1, res1, iw, w, mid);
   casadi_f2_release(mid);
   if (flag) return 1;
-  /* #13: @21 = vertcat(@20, @2) */
-  rr=w21;
-  for (i=0, cs=w20; i<2; ++i) *rr++ = *cs++;
-  *rr++ = w02;
-  /* #14: @22 = fabs(@21) */
-  for (i=0, rr=w22, cs=w21; i<3; ++i) *rr++ = casadi_fabs( *cs++ );
-  /* #15: @2 = inf */
-  w02 = casadi_inf;
-  /* #16: @22 = (@22<@2) */
-  for (i=0, rr=w22, cr=w22; i<3; ++i) (*rr++)  = ((*cr++)<w02);
-  /* #17: @2 = min(@22) */
-  w02 = casadi_mmin(w22, 3, 1);
-  /* #18: @3 = 0 */
-  w03 = 0.;
-  /* #19: @23 = input[4][0] */
-  w23 = arg[4] ? arg[4][0] : 0;
-  /* #20: @3 = (@3==@23) */
-  w03  = (w03==w23);
-  /* #21: @2 = (@2&&@3) */
-  w02  = (w02&&w03);
-  /* #22: @22 = retry_if_failed(@2, @21, @10, @11, @12, @13, @14) */
-  arg1[0]=(&w02);
-  arg1[1]=w21;
+  /* #13: @24 = vertcat(@22, @23) */
+  rr=w24;
+  for (i=0, cs=w22; i<2; ++i) *rr++ = *cs++;
+  *rr++ = w23;
+  /* #14: @25 = fabs(@24) */
+  for (i=0, rr=w25, cs=w24; i<3; ++i) *rr++ = casadi_fabs( *cs++ );
+  /* #15: @23 = inf */
+  w23 = casadi_inf;
+  /* #16: @25 = (@25<@23) */
+  for (i=0, rr=w25, cr=w25; i<3; ++i) (*rr++)  = ((*cr++)<w23);
+  /* #17: @23 = min(@25) */
+  w23 = casadi_mmin(w25, 3, 1);
+  /* #18: @26 = 0 */
+  w26 = 0.;
+  /* #19: @27 = input[4][0] */
+  w27 = arg[4] ? arg[4][0] : 0;
+  /* #20: @26 = (@26==@27) */
+  w26  = (w26==w27);
+  /* #21: @23 = (@23&&@26) */
+  w23  = (w23&&w26);
+  /* #22: @25 = retry_if_failed(@23, @24, @10, @11, @12, @13, @14) */
+  arg1[0]=(&w23);
+  arg1[1]=w24;
   arg1[2]=w10;
   arg1[3]=w11;
   arg1[4]=w12;
   arg1[5]=w13;
   arg1[6]=w14;
-  res1[0]=w22;
+  res1[0]=w25;
   if (casadi_f3(arg1, res1, iw, w, 0)) return 1;
-  /* #23: @21 = fabs(@22) */
-  for (i=0, rr=w21, cs=w22; i<3; ++i) *rr++ = casadi_fabs( *cs++ );
-  /* #24: @2 = inf */
-  w02 = casadi_inf;
-  /* #25: @21 = (@21<@2) */
-  for (i=0, rr=w21, cr=w21; i<3; ++i) (*rr++)  = ((*cr++)<w02);
-  /* #26: @2 = min(@21) */
-  w02 = casadi_mmin(w21, 3, 1);
-  /* #27: @3 = 0 */
-  w03 = 0.;
-  /* #28: @3 = (@3==@23) */
-  w03  = (w03==w23);
-  /* #29: @2 = (@2&&@3) */
-  w02  = (w02&&w03);
-  /* #30: @21 = retry_if_failed(@2, @22, @10, @11, @12, @13, @14) */
-  arg1[0]=(&w02);
-  arg1[1]=w22;
+  /* #23: @24 = fabs(@25) */
+  for (i=0, rr=w24, cs=w25; i<3; ++i) *rr++ = casadi_fabs( *cs++ );
+  /* #24: @23 = inf */
+  w23 = casadi_inf;
+  /* #25: @24 = (@24<@23) */
+  for (i=0, rr=w24, cr=w24; i<3; ++i) (*rr++)  = ((*cr++)<w23);
+  /* #26: @23 = min(@24) */
+  w23 = casadi_mmin(w24, 3, 1);
+  /* #27: @26 = 0 */
+  w26 = 0.;
+  /* #28: @26 = (@26==@27) */
+  w26  = (w26==w27);
+  /* #29: @23 = (@23&&@26) */
+  w23  = (w23&&w26);
+  /* #30: @24 = retry_if_failed(@23, @25, @10, @11, @12, @13, @14) */
+  arg1[0]=(&w23);
+  arg1[1]=w25;
   arg1[2]=w10;
   arg1[3]=w11;
   arg1[4]=w12;
   arg1[5]=w13;
   arg1[6]=w14;
-  res1[0]=w21;
+  res1[0]=w24;
   if (casadi_f7(arg1, res1, iw, w, 0)) return 1;
-  /* #31: @20 = @21[:2] */
-  for (rr=w20, cs=w21+0; cs!=w21+2; cs+=1) *rr++ = *cs;
-  /* #32: @2 = vf_golden_accept(@20, @4, @5, @6, @7, @8) */
-  arg1[0]=w20;
+  /* #31: @22 = @24[:2] */
+  for (rr=w22, cs=w24+0; cs!=w24+2; cs+=1) *rr++ = *cs;
+  /* #32: @23 = vf_golden_accept(@22, @4, @5, @6, @7, @8) */
+  arg1[0]=w22;
   arg1[1]=w04;
   arg1[2]=(&w05);
   arg1[3]=(&w06);
   arg1[4]=w07;
   arg1[5]=w08;
-  res1[0]=(&w02);
+  res1[0]=(&w23);
   if (casadi_f11(arg1, res1, iw, w, 0)) return 1;
-  /* #33: @3 = 0 */
-  w03 = 0.;
-  /* #34: @3 = (@3==@23) */
-  w03  = (w03==w23);
-  /* #35: @2 = (@2&&@3) */
-  w02  = (w02&&w03);
-  /* #36: @3 = @21[2] */
-  for (rr=(&w03), cs=w21+2; cs!=w21+3; cs+=1) *rr++ = *cs;
-  /* #37: @21 = phase2_if_needed(@2, @4, @5, @6, @7, @8, @20, @3, @23, @10, @11, @12, @13, @14) */
-  arg1[0]=(&w02);
+  /* #33: @26 = 0 */
+  w26 = 0.;
+  /* #34: @26 = (@26==@27) */
+  w26  = (w26==w27);
+  /* #35: @23 = (@23&&@26) */
+  w23  = (w23&&w26);
+  /* #36: @26 = @24[2] */
+  for (rr=(&w26), cs=w24+2; cs!=w24+3; cs+=1) *rr++ = *cs;
+  /* #37: @24 = phase2_if_needed(@23, @4, @5, @6, @7, @8, @22, @26, @27, @10, @11, @12, @13, @14, @0, @1, @2, @3) */
+  arg1[0]=(&w23);
   arg1[1]=w04;
   arg1[2]=(&w05);
   arg1[3]=(&w06);
   arg1[4]=w07;
   arg1[5]=w08;
-  arg1[6]=w20;
-  arg1[7]=(&w03);
-  arg1[8]=(&w23);
+  arg1[6]=w22;
+  arg1[7]=(&w26);
+  arg1[8]=(&w27);
   arg1[9]=w10;
   arg1[10]=w11;
   arg1[11]=w12;
   arg1[12]=w13;
   arg1[13]=w14;
-  res1[0]=w21;
+  arg1[14]=w00;
+  arg1[15]=w01;
+  arg1[16]=(&w02);
+  arg1[17]=(&w03);
+  res1[0]=w24;
   if (casadi_f12(arg1, res1, iw, w, 0)) return 1;
-  /* #38: {@20, @2, @3} = vf_golden_finish(@21, @4, @5, @6, @7, @8, @9) */
-  arg1[0]=w21;
+  /* #38: {@22, @23, @26} = vf_golden_finish(@24, @4, @5, @6, @7, @8, @9) */
+  arg1[0]=w24;
   arg1[1]=w04;
   arg1[2]=(&w05);
   arg1[3]=(&w06);
   arg1[4]=w07;
   arg1[5]=w08;
   arg1[6]=(&w09);
-  res1[0]=w20;
-  res1[1]=(&w02);
-  res1[2]=(&w03);
-  if (casadi_f21(arg1, res1, iw, w, 0)) return 1;
-  /* #39: output[0][0] = @20 */
-  casadi_copy(w20, 2, res[0]);
-  /* #40: output[1][0] = @2 */
-  if (res[1]) res[1][0] = w02;
-  /* #41: output[2][0] = @3 */
-  if (res[2]) res[2][0] = w03;
+  res1[0]=w22;
+  res1[1]=(&w23);
+  res1[2]=(&w26);
+  if (casadi_f44(arg1, res1, iw, w, 0)) return 1;
+  /* #39: output[0][0] = @22 */
+  casadi_copy(w22, 2, res[0]);
+  /* #40: output[1][0] = @23 */
+  if (res[1]) res[1][0] = w23;
+  /* #41: output[2][0] = @26 */
+  if (res[2]) res[2][0] = w26;
   return 0;
 }
 
@@ -2406,28 +3163,28 @@ CASADI_SYMBOL_EXPORT const casadi_int* vf_golden_sparsity_out(casadi_int i) {
 }
 
 CASADI_SYMBOL_EXPORT int vf_golden_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
-  if (sz_arg) *sz_arg = 57;
-  if (sz_res) *sz_res = 14;
+  if (sz_arg) *sz_arg = 180;
+  if (sz_res) *sz_res = 21;
   if (sz_iw) *sz_iw = 8;
-  if (sz_w) *sz_w = 308;
+  if (sz_w) *sz_w = 339;
   return 0;
 }
 
 CASADI_SYMBOL_EXPORT int vf_golden_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
-  if (sz_arg) *sz_arg = 57*sizeof(const casadi_real*);
-  if (sz_res) *sz_res = 14*sizeof(casadi_real*);
+  if (sz_arg) *sz_arg = 180*sizeof(const casadi_real*);
+  if (sz_res) *sz_res = 21*sizeof(casadi_real*);
   if (sz_iw) *sz_iw = 8*sizeof(casadi_int);
-  if (sz_w) *sz_w = 308*sizeof(casadi_real);
+  if (sz_w) *sz_w = 339*sizeof(casadi_real);
   return 0;
 }
 
 /* vf_golden_admissible:(i0)->(o0[0]) */
-static int casadi_f22(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+static int casadi_f45(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   return 0;
 }
 
 CASADI_SYMBOL_EXPORT int vf_golden_admissible(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem){
-  return casadi_f22(arg, res, iw, w, mem);
+  return casadi_f45(arg, res, iw, w, mem);
 }
 
 CASADI_SYMBOL_EXPORT int vf_golden_admissible_checkout(void) {
