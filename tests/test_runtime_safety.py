@@ -92,6 +92,41 @@ def test_one_controller_from_two_threads_is_serialised(task_b, backend):
         np.testing.assert_allclose(np.array(got[k]), np.array(expected), atol=1e-5)
 
 
+@pytest.mark.parametrize("backend", ["native", "interpreted"])
+def test_violations_read_from_another_thread_are_one_ticks(task_b, backend):
+    """One thread ticks alternately at a state with five violated rows and at one with none; another reads
+    violations() all along: every read is one tick's, never rows of one with amounts or rows of the other (before
+    the read took the tick's lock: 57 mixed reads of 171,775 in 5 s on the generated path, 22 interpreted)."""
+    ctrl = vfdsl.compile(task_b, backend=backend)
+    far = {"pivot": [0.05, 0, 0.29], "axis": [1.0, 0, 0.2]}
+    ctrl.step(task_b.start, TAU, far)
+    off = [(str(v), v.amount) for v in ctrl.violations()]
+    ctrl.step(task_b.start, TAU)
+    assert len(off) == 5 and not ctrl.violations()
+    done, mixed, reads = threading.Event(), [], []
+
+    def tick() -> None:
+        while not done.is_set():
+            ctrl.step(task_b.start, TAU, far)
+            ctrl.step(task_b.start, TAU)
+
+    def read() -> None:
+        while not done.is_set():
+            got = [(str(v), v.amount) for v in ctrl.violations()]
+            reads.append(1)
+            if got and got != off:
+                mixed.append(got)
+
+    threads = [threading.Thread(target=tick), threading.Thread(target=read)]
+    for t in threads:
+        t.start()
+    done.wait(2.0)
+    done.set()
+    for t in threads:
+        t.join()
+    assert len(reads) > 1000 and not mixed, (len(reads), mixed[:2])
+
+
 @pytest.mark.parametrize("example", ["procedures/needle_procedure.vf", "teleop/teleop_guide_line.vf"])
 def test_reset_waits_for_a_tick_in_another_thread(example, monkeypatch):
     """reset() takes the ticks' locks (the procedure's, the teleoperation readout's): a tick in another thread runs

@@ -257,6 +257,39 @@ static PyObject* Stepper_margins(Stepper* s, PyObject* p) {
   return out;
 }
 
+/* results() -> (x, status, violation, p, activity): copies of the last tick's results, its full params and (a
+ * procedure's) activity, else None, taken under the lock: a tick in another thread comes before or after, never
+ * between two of them. */
+static PyObject* Stepper_results(Stepper* s, PyObject* unused) {
+  int slots[4] = {X, VFDSL_STATUS, VFDSL_VIOLATION, P}, k;
+  PyObject* copies[5] = {0, 0, 0, 0, 0};
+  if (!ready(s)) return NULL;
+  for (k=0; k<4; ++k) {
+    npy_intp n = s->core.size[slots[k]];
+    if (!(copies[k] = PyArray_SimpleNew(1, &n, NPY_DOUBLE))) goto failed;
+  }
+#ifdef VFDSL_PROCEDURE
+  {
+    npy_intp na = VFDSL_ACTIVITY_LENGTH;
+    if (!(copies[4] = PyArray_SimpleNew(1, &na, NPY_DOUBLE))) goto failed;
+  }
+#else
+  Py_INCREF(Py_None);
+  copies[4] = Py_None;
+#endif
+  lock(s);
+  for (k=0; k<4; ++k)
+    memcpy(PyArray_DATA((PyArrayObject*) copies[k]), s->core.data[slots[k]], s->core.size[slots[k]] * sizeof(double));
+#ifdef VFDSL_PROCEDURE
+  memcpy(PyArray_DATA((PyArrayObject*) copies[4]), s->activity, VFDSL_ACTIVITY_LENGTH * sizeof(double));
+#endif
+  PyThread_release_lock(s->lock);
+  return Py_BuildValue("NNNNN", copies[0], copies[1], copies[2], copies[3], copies[4]);
+failed:
+  for (k=0; k<5; ++k) Py_XDECREF(copies[k]);
+  return NULL;
+}
+
 /* ------------------------------------------------------------------------------- construction */
 
 /* Offsets and sizes (tuples of ints, one per name) of named parts of an array of ``bound`` numbers. */
@@ -405,6 +438,8 @@ static PyMethodDef Stepper_methods[] = {
    "margins(p) -> the column of checks of the params p (contiguous float64), from the generated C"},
   {"run", (PyCFunction) Stepper_run, METH_VARARGS,
    "run(q, u, p, dt, recover) -> dq for checked float64 arrays (p None: the default params)"},
+  {"results", (PyCFunction) Stepper_results, METH_NOARGS,
+   "results() -> (x, status, violation, p, activity or None): copies of the last tick's, taken under the lock"},
   {"prime", (PyCFunction) Stepper_prime, METH_VARARGS,
    "prime(q, u, dt): every solver's workspace allocated (the step with and without recovery; a procedure's in "
    "each case of its step), on checked float64 arrays and the default params"},

@@ -175,8 +175,12 @@ class Controller:
         until its phase is entered); {} without phases."""
         if self._procedure is None:
             return {}
-        p = self._procedure.p
-        return {name: p[slot.offset:slot.offset + slot.size].copy()
+        if self._runner.kind == "native":       # the C's buffer, copied under its lock
+            p = self._runner.results()[3]
+        else:
+            with self._procedure.lock:
+                p = self._procedure.p.copy()
+        return {name: p[slot.offset:slot.offset + slot.size]
                 for name, slot in self.assembled.context.layout.capture_slots.items()}
 
     def reset(self) -> None:
@@ -249,15 +253,16 @@ class Controller:
         """What the last step leaves violated: hard rows (excess over their bound) and soft constraints
         (their slack: how far the fixture is off), each in its SI unit. Empty after a step that meets
         every constraint. A procedure's phase that weighs nothing has no violation (its hard rows are off, its
-        slacks free)."""
+        slacks free). Read from one copy of the tick's results, taken under its lock (a tick in another thread
+        comes before or after it)."""
+        x, _, violation, _, activity = self._runner.results()
         rows = self.assembled.row_labels
         found = [Violation(label, float(a), unit) for label, a, unit
-                 in zip(rows, self._runner.violation, self._units) if a > 0 and not label.soft]
-        slacks = self._runner.x[self.nq:]
-        weighs = (lambda phase: True) if self._procedure is None else self._procedure.weighs
+                 in zip(rows, violation, self._units) if a > 0 and not label.soft]
+        phases = {phase.name: k for k, phase in enumerate(self.task.phases)}    # a phase weighs: activity[k] > 0
         found += [Violation(label, float(s), unit) for label, s, unit
-                  in zip(self.assembled.slack_labels, slacks, self._slack_units)
-                  if s > self._tolerance and (label.phase is None or weighs(label.phase))]
+                  in zip(self.assembled.slack_labels, x[self.nq:], self._slack_units)
+                  if s > self._tolerance and (label.phase is None or activity[phases[label.phase]] > 0.0)]
         return found
 
     @property

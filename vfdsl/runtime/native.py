@@ -162,6 +162,14 @@ class LockedRunner:
                 self.run(q, u, None, dt, recover)
         self.activity[:] = initial
 
+    def results(self) -> tuple:
+        """(x, status, violation, p, activity or None): copies of the last evaluation's results, its params and (a
+        procedure's) activity, taken under the lock: another thread's evaluation comes before or after, never
+        between two of them."""
+        with self._lock:
+            return (self.x.copy(), self.status.copy(), self.violation.copy(), self._arguments[2].copy(),
+                    None if self.activity is None else self.activity.copy())
+
     def data(self) -> tuple[np.ndarray, ...]:
         """The QP data arguments of the last evaluation (q, u, p, dt, and a procedure's activity), as its buffers
         hold them (overwritten by the next)."""
@@ -225,6 +233,7 @@ class StepperRunner:
         self.stepper.checked = step
         self.fast_step = self.stepper.step
         self.run = self.stepper.run
+        self.results = self.stepper.results     # (x, status, violation, p, activity or None), under the C's lock
         margins = self.stepper.margins
         self.margins = (lambda p: margins(full(p))) if procedure else margins
 
@@ -249,7 +258,6 @@ class NativeProcedure:
         self._stepper = runner.stepper
         self._named = named
         self._transitions = sorted(task.transitions, key=lambda tr: tr.order)
-        self._index = {phase.name: k for k, phase in enumerate(task.phases)}
         self.p = runner.p
         self.lock = threading.Lock()
 
@@ -273,10 +281,6 @@ class NativeProcedure:
     @property
     def activity(self) -> np.ndarray:
         return self._stepper.machine()[4]
-
-    def weighs(self, phase: str) -> bool:
-        """Whether the phase's terms weigh anything after the last tick (its weight > 0)."""
-        return self.activity[self._index[phase]] > 0.0
 
     def reset(self) -> None:
         self._stepper.reset()

@@ -135,7 +135,6 @@ class Procedure:
         self.table, self._named = machine_table(task, values, input_offsets)
         self._raw = values.function
         self._transitions = _in_order(task)
-        self._index = {phase.name: k for k, phase in enumerate(task.phases)}
         self._captures = captures
         self._user = sum(slot.size for slot in layout.slots.values())
         self._defaults = layout.defaults[:self._user]
@@ -168,10 +167,6 @@ class Procedure:
     def monitors(self) -> dict[str, bool]:
         """Each named monitor: True when it held at the last tick (False before the first, and when UNKNOWN)."""
         return {name: self.state.value[k] == pm.TRUE for name, k in self._named.items()}
-
-    def weighs(self, phase: str) -> bool:
-        """Whether the phase's terms weigh anything after the last tick (its weight > 0)."""
-        return self.activity[self._index[phase]] > 0.0
 
     def tick(self, q: np.ndarray, u: np.ndarray, p: np.ndarray | None, dt: float, last_status: int) -> np.ndarray:
         """The machine's tick before the solve: returns the full params (this tick's, captures included); the
