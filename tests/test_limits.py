@@ -51,6 +51,8 @@ def _refused(capsys, *args) -> str:
 
 @pytest.mark.parametrize("args, message", [
     (["--duration", "1e9s"], "100,000,000,000 control ticks per trial: the limit is 1,000,000"),
+    (["--duration", "1e-9s"], "error: a duration of 1e-09 s is not one control tick at a 10 ms period"),
+    (["--grid", "duration=1s,4ms"], "--grid duration=0.004: a duration of 0.004 s is not one control tick"),
     (["--period", "1e-9s"], "--period 1e-9s: a period of 1e-09 s is too short: the limit is 1e-05 s"),
     (["--period", "1e-300s"], "a period of 1e-300 s is too short"),
     (["--trials", "1000000000000"], "--trials 1000000000000: 1,000,000,000,000 trials per setting: the limit is 100,000"),
@@ -70,6 +72,7 @@ def test_simulate_options_beyond_a_limit_exit_2_before_any_work(capsys, no_run, 
 
 @pytest.mark.parametrize("line, column, message", [
     ("duration: 1e9 s", 11, "1e+09 s at a 10 ms period is 100,000,000,000 control ticks per trial"),
+    ("duration: 1e-9 s", 11, "a duration of 1e-09 s is not one control tick at a 10 ms period"),
     ("period: 1e-12 s", 9, "a period of 1e-12 s is too short: the limit is 1e-05 s"),
     ("trials: 1000000000000", 9, "1,000,000,000,000 trials per setting"),
     ("seed: -1", 7, "seed must be a whole number from 0"),

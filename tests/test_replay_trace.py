@@ -115,3 +115,15 @@ def test_an_output_that_is_an_input_is_refused_and_the_file_kept(tmp_path, capsy
         err = capsys.readouterr().err
         assert f"-o {out} is {what}" in err and "Traceback" not in err, err
     assert ticks.read_text() == f"{Q} 0 0 0\n" and answers.read_text() == "0 0 0 0 0 0 0 0\n"
+
+
+def test_a_refused_first_tick_of_a_procedure_is_in_its_initial_phase(tmp_path):
+    """A tick the replay refused before any other ran no machine: the trace's phase is the one the procedure starts
+    in (it was '', no phase of the task), and the next tick's is its answer's."""
+    ticks, answers = _files(tmp_path, "0 0 0 0 0 0 0.005 0 0 0 0\n0 0 0 0 0 0 0.005 0 0 0 0\n",
+                            "error -3 a joint value is not finite\n0 0 0 0 0 0 0 0 | insert\n")
+    task = TASKS_DIR / "procedures" / "needle_procedure.vf"
+    out = tmp_path / "run.csv"
+    assert main(["replay-trace", str(task), str(ticks), str(answers), "-o", str(out)]) == 0
+    rows = list(csv.DictReader(out.open()))
+    assert [r["phase"] for r in rows] == ["approach", "insert"]

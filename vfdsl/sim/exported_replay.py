@@ -124,7 +124,8 @@ def read(task: ir.Task, ticks: Path, replayed: Path, dt: float, start_params=Non
             raise VfError(f"{len(values)} numbers, expected {nq + nu} (q, then every input)"
                           + (f" or {nq + nu + len(current)} (then every param)" if len(current) else ""),
                           _at(ticks, n))
-        _answer(rows, replayed, m, answer, nq, teleop, [phase.name for phase in task.phases])
+        _answer(rows, replayed, m, answer, nq, teleop, [phase.name for phase in task.phases],
+                next((phase.name for phase in task.phases if phase.initial), ""))
         if len(values) > nq + nu and rows["status"][-1] != PARAMS_REFUSED:     # refused params were not set
             current = values[nq + nu:]
         rows["q"].append(values[:nq])
@@ -153,9 +154,11 @@ def read(task: ir.Task, ticks: Path, replayed: Path, dt: float, start_params=Non
     return trace
 
 
-def _answer(rows: dict, path: Path, n: int, line: str, nq: int, teleop: bool, phases: list[str]) -> None:
+def _answer(rows: dict, path: Path, n: int, line: str, nq: int, teleop: bool, phases: list[str],
+            initial: str) -> None:
     """One line of the replay's output (:func:`vfdsl.export.selftest.parse_answer`) into ``rows``; ``phases``: the
-    task's phase names (none without a procedure)."""
+    task's phase names (none without a procedure), ``initial`` the one it starts in (a refused first tick's: the
+    machine has not run)."""
     procedure = bool(phases)
     expected = (f"`STATUS` and {nq} dq{' | PHASE' if procedure else ''}"
                 f"{f' # and {READOUT_NUMBERS} numbers of readout' if teleop else ''}, or `error CODE MESSAGE`")
@@ -173,7 +176,7 @@ def _answer(rows: dict, path: Path, n: int, line: str, nq: int, teleop: bool, ph
         rows["dq"].append(np.full(nq, np.nan))
         rows["status"].append(answer[0])
         rows["violations"].append(f"error {answer[0]} {answer[1]}")
-        rows["phase"].append(rows["phase"][-1] if rows["phase"] else "")
+        rows["phase"].append(rows["phase"][-1] if rows["phase"] else initial)
         rows["haptic"].append(np.zeros(3))
         rows["following"].append(0)
         return

@@ -284,8 +284,13 @@ def check_setting(name: str, value, where: Span | None = None) -> None:
 
 
 def check_ticks(duration: float, period: float, where: Span | None = None, what: str = "") -> int:
-    """The control ticks of one trial, refused above ``limits.TRIAL_TICKS``."""
+    """The control ticks of one trial (duration / period, rounded), refused above ``limits.TRIAL_TICKS`` and when
+    it rounds to none (a duration under half the period: a unit slip, 1e-9 for 1 s, ran one tick in silence)."""
     ticks = duration / period
+    if round(ticks) < 1:
+        raise VfError(f"{what}a duration of {duration:g} s is not one control tick at a {period * 1e3:g} ms period",
+                      where, hint="a trial runs duration / period ticks, rounded: give a duration of at least one "
+                      "period (units: 60s, 500ms)")
     if ticks > limits.TRIAL_TICKS:
         raise limits.exceeded(f"{what}{duration:g} s at a {period * 1e3:g} ms period is {ticks:,.0f} control ticks "
                               "per trial", limits.TRIAL_TICKS, where,
