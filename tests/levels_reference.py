@@ -190,3 +190,58 @@ def least_violation_set(qp, groups):
     lower = np.maximum(lb - widened, np.minimum(lb, np.minimum(at_rest, at_a)))
     upper = np.minimum(ub + widened, np.maximum(ub, np.maximum(at_rest, at_a)))
     return z[:n], dataclasses.replace(qp, lb=np.r_[qp.lb[:n], lower], ub=np.r_[qp.ub[:n], upper])
+
+
+FEASIBILITY = 1e-9          # vfdsl.pipeline.FEASIBILITY_TOLERANCE, restated
+TRIALS, SLOPE_STEP, DECREASE = 6, 1e-4, 0.1     # vfdsl.runtime.line_search's, restated
+
+
+def whole_step(ctrl):
+    """The controller's step with phase 2's step taken whole (no step length, ``backtrack=False``), interpreted:
+    ``f(q, u, p, dt, recover) -> (x, status, violation)`` of the task's own QP data."""
+    from vfdsl.runtime import BufferedFunction, build_step_function
+    problem = ctrl.assembled
+    return BufferedFunction.interpreted(build_step_function(
+        problem.function, "whole_step", row_groups=problem.row_groups, feas_tol=FEASIBILITY,
+        last_level_is_cost=problem.last_level_is_damping, backtrack=False))
+
+
+def step_length(ctrl, q, inputs, params, x):
+    """a: how far along phase 2's step x (its whole step) the tick goes (docs/runtime.md, Phase 2 (C)), restated
+    from the definition: the measure sum_g rho t_g / w_g + t_g^2 / 2 over the hard rows (no slack column) of the
+    groups off at rest, t_g their largest violation at rest in the QP at q + a dq (``ctrl.problem`` there, dead
+    zone FEASIBILITY), w_g = max(v_g, FLOOR); the largest a of 1, 1/2, ..., 1/32 with phi(a) < phi(0) + c a min(s,
+    0), s the difference quotient over SLOPE_STEP, else 0; 1 where the box forces a motion or nothing is off."""
+    qp = ctrl.problem(q, inputs, params)
+    n, nq = qp.P.shape[0], qp.nq
+    lo, hi = box(qp.lb[:n], qp.ub[:n])
+    if np.any(np.clip(0.0, lo, hi) != 0):
+        return 1.0
+    A = qp.A[n:]
+    ids = {g: k for k, g in enumerate(dict.fromkeys(ctrl.assembled.row_groups))}
+    group = np.array([ids[g] for g in ctrl.assembled.row_groups], dtype=int)
+
+    def worst(violation):
+        t = np.zeros(len(ids))
+        np.maximum.at(t, group, violation)
+        return t
+
+    v = worst(np.maximum(np.maximum(qp.lb[n:], -qp.ub[n:]), 0))
+    counted = ~np.any(A[:, nq:] != 0, axis=1) & (v[group] > FEASIBILITY)
+    w = np.maximum(v, FLOOR)
+
+    def phi(a):
+        at = ctrl.problem(q + a * x[:nq], inputs, params)
+        t = worst(np.where(counted, np.maximum(np.maximum(at.lb[n:], -at.ub[n:]), 0), 0))
+        t = np.where(t > FEASIBILITY, t, 0)
+        return float(np.sum(PENALTY * t / w + t * t / 2))
+
+    phi0 = phi(0.0)
+    if phi0 == 0:
+        return 1.0
+    slope = (phi(SLOPE_STEP) - phi0) / SLOPE_STEP
+    for k in range(TRIALS):
+        a = 0.5 ** k
+        if phi(a) < phi0 + DECREASE * a * min(slope, 0.0):
+            return a
+    return 0.0

@@ -10,14 +10,16 @@ checked the same way over the least-violation set S, which the reference compute
 (levels_reference.least_violation_set: its own phase 2 (A), its own S); where the controller found no certificate its
 answer is (A)'s, x_A, the reference's within 1e-9 (at most half of a task's least-violation ticks: 3 of polyline_guide's
 8 here, none on most tasks; benchmarks/least_violation.py counts them on more states), and its status has the bit
-UNCERTIFIED: a tick without it is exact, on both paths."""
+UNCERTIFIED: a tick without it is exact, on both paths. A least-violation tick goes a of phase 2's step (docs/runtime.md,
+Phase 2 (C)): both paths' answers are a times the whole step (the task's step built with backtrack=False) within
+1e-10, a restated from its definition (levels_reference.step_length), and the levels are judged on the whole step."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 from conftest import TASKS_DIR
-from levels_reference import kkt_excess, least_violation_set
+from levels_reference import kkt_excess, least_violation_set, step_length, whole_step
 
 import vfdsl
 from vfdsl.kinematics.robot import Robot
@@ -47,6 +49,7 @@ def test_every_level_is_exact_at_cold_states_on_both_paths(name):
     robot = Robot.load(task.robots[0].urdf)
     rng = np.random.default_rng(21)
     damping_last = interpreted.assembled.last_level_is_damping
+    whole = whole_step(interpreted)
     checked = least = uncertified = 0
     for k in range(STATES):
         scale = 1e-5 if k % 2 == 0 else 1e-3
@@ -62,18 +65,24 @@ def test_every_level_is_exact_at_cold_states_on_both_paths(name):
         assert np.max(np.abs(dq_n - dq_i)) <= 1e-10, (k, status_n, np.max(np.abs(dq_n - dq_i)))
         qp = interpreted.problem(q, inputs, params)
         violated, certified = status_n & StepStatus.LEAST_VIOLATION, not status_n & StepStatus.UNCERTIFIED
+        answers = (x_n, x_i)
         if violated:
             x_a, qp = least_violation_set(qp, interpreted.assembled.row_groups)
             least += 1
+            # the levels are judged on phase 2's whole step, which the tick takes a of (Phase 2 (C), restated)
+            x_whole = np.array(whole(*interpreted._data(q, inputs, params, None), 0.0)[0]).ravel()
+            a = step_length(interpreted, q, inputs, params, x_whole)
+            assert max(np.max(np.abs(x.ravel() - a * x_whole)) for x in answers) <= 1e-10, (k, a)
+            answers = (x_whole,) if a < 1 else answers
         if status_n & ~(StepStatus.LEAST_VIOLATION | StepStatus.UNCERTIFIED):
             continue
         checked += 1
-        for x in (x_n, x_i):
+        for x in answers:
             residuals, excess = kkt_excess(qp, x, damping_last)
             assert excess <= 1e-9, (k, excess)
             if violated and not certified:          # the status says no certificate: x_A
                 assert np.max(np.abs(x - x_a)) <= 1e-9, (k, residuals)
-                uncertified += x is x_n
+                uncertified += x is answers[0]
                 continue
             assert max(residuals, default=0.0) <= 1e-9, (k, status_n, residuals)
     assert checked >= STATES // 2
