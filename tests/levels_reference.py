@@ -193,7 +193,7 @@ def least_violation_set(qp, groups):
 
 
 FEASIBILITY = 1e-9          # vfdsl.pipeline.FEASIBILITY_TOLERANCE, restated
-TRIALS, SLOPE_STEP, DECREASE = 6, 1e-4, 0.1     # vfdsl.runtime.line_search's, restated
+TRIALS, SLOPE_STEP, DECREASE, AGREEMENT = 6, 1e-4, 0.1, 0.9     # vfdsl.runtime.line_search's, restated
 
 
 def whole_step(ctrl):
@@ -211,7 +211,8 @@ def step_length(ctrl, q, inputs, params, x):
     from the definition: the measure sum_g rho t_g / w_g + t_g^2 / 2 over the hard rows (no slack column) of the
     groups off at rest, t_g their largest violation at rest in the QP at q + a dq (``ctrl.problem`` there, dead
     zone FEASIBILITY), w_g = max(v_g, FLOOR); the largest a of 1, 1/2, ..., 1/32 with phi(a) < phi(0) + c a min(s,
-    0), s the difference quotient over SLOPE_STEP, else 0; 1 where the box forces a motion or nothing is off."""
+    0), s the difference quotient over SLOPE_STEP, else 0; 1 where the box forces a motion, where nothing is off,
+    and where s > AGREEMENT m, m the same quotient of the measure the tick's linearized rows give."""
     qp = ctrl.problem(q, inputs, params)
     n, nq = qp.P.shape[0], qp.nq
     lo, hi = box(qp.lb[:n], qp.ub[:n])
@@ -230,16 +231,23 @@ def step_length(ctrl, q, inputs, params, x):
     counted = ~np.any(A[:, nq:] != 0, axis=1) & (v[group] > FEASIBILITY)
     w = np.maximum(v, FLOOR)
 
-    def phi(a):
-        at = ctrl.problem(q + a * x[:nq], inputs, params)
-        t = worst(np.where(counted, np.maximum(np.maximum(at.lb[n:], -at.ub[n:]), 0), 0))
+    def measure(violation):
+        t = worst(np.where(counted, violation, 0))
         t = np.where(t > FEASIBILITY, t, 0)
         return float(np.sum(PENALTY * t / w + t * t / 2))
+
+    def phi(a):
+        at = ctrl.problem(q + a * x[:nq], inputs, params)
+        return measure(np.maximum(np.maximum(at.lb[n:], -at.ub[n:]), 0))
 
     phi0 = phi(0.0)
     if phi0 == 0:
         return 1.0
     slope = (phi(SLOPE_STEP) - phi0) / SLOPE_STEP
+    moved = A @ (SLOPE_STEP * x)
+    predicted = (measure(np.maximum(np.maximum(qp.lb[n:] - moved, moved - qp.ub[n:]), 0)) - phi0) / SLOPE_STEP
+    if slope > AGREEMENT * predicted:       # the rows mislead along x: the step whole
+        return 1.0
     for k in range(TRIALS):
         a = 0.5 ** k
         if phi(a) < phi0 + DECREASE * a * min(slope, 0.0):

@@ -102,7 +102,7 @@ import numpy as np
 from vfdsl.codegen import tick_buffers
 from vfdsl.codegen.solve_plan import PlannedFunction, SolvePlan, record
 from vfdsl.runtime.daqp_solve import daqp_rows, daqp_solver
-from vfdsl.runtime.line_search import group_worst, line_search, measure, worst_counted
+from vfdsl.runtime.line_search import SLOPE_STEP, group_worst, line_search, measure, worst_counted
 
 QP_DATA_OUTPUTS = ("H", "g", "A", "lba", "uba", "lbx", "ubx")
 GRADIENT_SATURATION = 1e3
@@ -518,10 +518,12 @@ def _step_length(A, lba, uba, x_0, x, data, E: ca.DM, v, w, tol, rho, search, fa
     nq = data[0].size1()
     hard = ca.sum2(ca.fabs(A[:, nq:])) == 0 if A.size2() > nq else ca.MX.ones(A.size1())    # no slack column
     counted = hard * (E @ (v > tol))
-    phi_0 = measure(worst_counted(E, _row_violation(0, lba, uba), counted, tol), w, rho)
+    phi = lambda y: measure(worst_counted(E, _row_violation(A @ y, lba, uba), counted, tol), w, rho)  # noqa: E731
+    phi_0 = phi(ca.MX.zeros(x.sparsity()))
+    predicted = (phi(SLOPE_STEP * x) - phi_0) / SLOPE_STEP           # the rows' slope along x
     whole = ca.Function("whole_step", search.mx_in(), [ca.MX(1)])
     skip = ca.logic_or(ca.logic_or(failed, ca.mmax(ca.fabs(x_0)) > 0), phi_0 == 0)
-    return ca.Function.if_else("search_if_off", whole, search)(skip, *data, x, w, counted, phi_0)
+    return ca.Function.if_else("search_if_off", whole, search)(skip, *data, x, w, counted, phi_0, predicted)
 
 
 def _least_violation_set(lba, uba, low, high, relaxed, tol) -> tuple[ca.MX, ca.MX]:

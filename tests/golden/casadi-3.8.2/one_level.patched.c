@@ -110,6 +110,8 @@ static int vfdsl_current_slot(void);
 #define casadi_f35 CASADI_PREFIX(f35)
 #define casadi_f36 CASADI_PREFIX(f36)
 #define casadi_f37 CASADI_PREFIX(f37)
+#define casadi_f38 CASADI_PREFIX(f38)
+#define casadi_f39 CASADI_PREFIX(f39)
 #define casadi_f4 CASADI_PREFIX(f4)
 #define casadi_f4_decref CASADI_PREFIX(f4_decref)
 #define casadi_f4_incref CASADI_PREFIX(f4_incref)
@@ -1072,7 +1074,7 @@ static int casadi_f14(const casadi_real** arg, casadi_real** res, casadi_int* iw
 }
 
 /* vf_golden_search_none:(i0[2],i1[2],i2,i3,i4[2],i5,i6,i7,i8)->(o0) */
-static int casadi_f27(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+static int casadi_f28(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real w0;
   /* #0: @0 = 0 */
   w0 = 0.;
@@ -1082,7 +1084,7 @@ static int casadi_f27(const casadi_real** arg, casadi_real** res, casadi_int* iw
 }
 
 /* vf_golden_search_take5:(i0[2],i1[2],i2,i3,i4[2],i5,i6,i7,i8)->(o0) */
-static int casadi_f28(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+static int casadi_f29(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real w0;
   /* #0: @0 = 0.03125 */
   w0 = 3.1250000000000000e-02;
@@ -1092,17 +1094,17 @@ static int casadi_f28(const casadi_real** arg, casadi_real** res, casadi_int* iw
 }
 
 /* vf_golden_search_pick5:(i0,i1[2],i2[2],i3,i4,i5[2],i6,i7,i8,i9)->(o0) */
-static int casadi_f26(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+static int casadi_f27(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   if (arg[0] ? casadi_to_int(*arg[0]) : 0) {
-    if (casadi_f28(arg+1, res, iw, w, 0)) return 1;
+    if (casadi_f29(arg+1, res, iw, w, 0)) return 1;
   } else {
-    if (casadi_f27(arg+1, res, iw, w, 0)) return 1;
+    if (casadi_f28(arg+1, res, iw, w, 0)) return 1;
   }
   return 0;
 }
 
 /* vf_golden_search_try5:(i0[2],i1[2],i2,i3,i4[2],i5,i6,i7,i8)->(o0) */
-static int casadi_f25(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+static int casadi_f26(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_int i;
   casadi_real **res1=res+1, *rr, *w00=w+5, w01, *w02=w+7, *w03=w+9, *w04=w+11, w05, w06, w07, w08, w09;
   casadi_real w10, w11, w12;
@@ -1164,14 +1166,14 @@ static int casadi_f25(const casadi_real** arg, casadi_real** res, casadi_int* iw
   arg1[8]=(&w09);
   arg1[9]=(&w12);
   res1[0]=(&w10);
-  if (casadi_f26(arg1, res1, iw, w, 0)) return 1;
+  if (casadi_f27(arg1, res1, iw, w, 0)) return 1;
   /* #20: output[0][0] = @10 */
   if (res[0]) res[0][0] = w10;
   return 0;
 }
 
 /* vf_golden_search_take4:(i0[2],i1[2],i2,i3,i4[2],i5,i6,i7,i8)->(o0) */
-static int casadi_f29(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+static int casadi_f30(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real w0;
   /* #0: @0 = 0.0625 */
   w0 = 6.2500000000000000e-02;
@@ -1181,17 +1183,17 @@ static int casadi_f29(const casadi_real** arg, casadi_real** res, casadi_int* iw
 }
 
 /* vf_golden_search_pick4:(i0,i1[2],i2[2],i3,i4,i5[2],i6,i7,i8,i9)->(o0) */
-static int casadi_f24(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+static int casadi_f25(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   if (arg[0] ? casadi_to_int(*arg[0]) : 0) {
-    if (casadi_f29(arg+1, res, iw, w, 0)) return 1;
+    if (casadi_f30(arg+1, res, iw, w, 0)) return 1;
   } else {
-    if (casadi_f25(arg+1, res, iw, w, 0)) return 1;
+    if (casadi_f26(arg+1, res, iw, w, 0)) return 1;
   }
   return 0;
 }
 
 /* vf_golden_search_try4:(i0[2],i1[2],i2,i3,i4[2],i5,i6,i7,i8)->(o0) */
-static int casadi_f23(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+static int casadi_f24(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_int i;
   casadi_real **res1=res+1, *rr, *w00=w+22, w01, *w02=w+24, *w03=w+26, *w04=w+28, w05, w06, w07, w08, w09;
   casadi_real w10, w11, w12;
@@ -1253,14 +1255,14 @@ static int casadi_f23(const casadi_real** arg, casadi_real** res, casadi_int* iw
   arg1[8]=(&w09);
   arg1[9]=(&w12);
   res1[0]=(&w10);
-  if (casadi_f24(arg1, res1, iw, w, 0)) return 1;
+  if (casadi_f25(arg1, res1, iw, w, 0)) return 1;
   /* #20: output[0][0] = @10 */
   if (res[0]) res[0][0] = w10;
   return 0;
 }
 
 /* vf_golden_search_take3:(i0[2],i1[2],i2,i3,i4[2],i5,i6,i7,i8)->(o0) */
-static int casadi_f30(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+static int casadi_f31(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real w0;
   /* #0: @0 = 0.125 */
   w0 = 1.2500000000000000e-01;
@@ -1270,17 +1272,17 @@ static int casadi_f30(const casadi_real** arg, casadi_real** res, casadi_int* iw
 }
 
 /* vf_golden_search_pick3:(i0,i1[2],i2[2],i3,i4,i5[2],i6,i7,i8,i9)->(o0) */
-static int casadi_f22(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+static int casadi_f23(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   if (arg[0] ? casadi_to_int(*arg[0]) : 0) {
-    if (casadi_f30(arg+1, res, iw, w, 0)) return 1;
+    if (casadi_f31(arg+1, res, iw, w, 0)) return 1;
   } else {
-    if (casadi_f23(arg+1, res, iw, w, 0)) return 1;
+    if (casadi_f24(arg+1, res, iw, w, 0)) return 1;
   }
   return 0;
 }
 
 /* vf_golden_search_try3:(i0[2],i1[2],i2,i3,i4[2],i5,i6,i7,i8)->(o0) */
-static int casadi_f21(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+static int casadi_f22(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_int i;
   casadi_real **res1=res+1, *rr, *w00=w+39, w01, *w02=w+41, *w03=w+43, *w04=w+45, w05, w06, w07, w08, w09;
   casadi_real w10, w11, w12;
@@ -1342,14 +1344,14 @@ static int casadi_f21(const casadi_real** arg, casadi_real** res, casadi_int* iw
   arg1[8]=(&w09);
   arg1[9]=(&w12);
   res1[0]=(&w10);
-  if (casadi_f22(arg1, res1, iw, w, 0)) return 1;
+  if (casadi_f23(arg1, res1, iw, w, 0)) return 1;
   /* #20: output[0][0] = @10 */
   if (res[0]) res[0][0] = w10;
   return 0;
 }
 
 /* vf_golden_search_take2:(i0[2],i1[2],i2,i3,i4[2],i5,i6,i7,i8)->(o0) */
-static int casadi_f31(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+static int casadi_f32(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real w0;
   /* #0: @0 = 0.25 */
   w0 = 2.5000000000000000e-01;
@@ -1359,17 +1361,17 @@ static int casadi_f31(const casadi_real** arg, casadi_real** res, casadi_int* iw
 }
 
 /* vf_golden_search_pick2:(i0,i1[2],i2[2],i3,i4,i5[2],i6,i7,i8,i9)->(o0) */
-static int casadi_f20(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+static int casadi_f21(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   if (arg[0] ? casadi_to_int(*arg[0]) : 0) {
-    if (casadi_f31(arg+1, res, iw, w, 0)) return 1;
+    if (casadi_f32(arg+1, res, iw, w, 0)) return 1;
   } else {
-    if (casadi_f21(arg+1, res, iw, w, 0)) return 1;
+    if (casadi_f22(arg+1, res, iw, w, 0)) return 1;
   }
   return 0;
 }
 
 /* vf_golden_search_try2:(i0[2],i1[2],i2,i3,i4[2],i5,i6,i7,i8)->(o0) */
-static int casadi_f19(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+static int casadi_f20(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_int i;
   casadi_real **res1=res+1, *rr, *w00=w+56, w01, *w02=w+58, *w03=w+60, *w04=w+62, w05, w06, w07, w08, w09;
   casadi_real w10, w11, w12;
@@ -1431,14 +1433,14 @@ static int casadi_f19(const casadi_real** arg, casadi_real** res, casadi_int* iw
   arg1[8]=(&w09);
   arg1[9]=(&w12);
   res1[0]=(&w10);
-  if (casadi_f20(arg1, res1, iw, w, 0)) return 1;
+  if (casadi_f21(arg1, res1, iw, w, 0)) return 1;
   /* #20: output[0][0] = @10 */
   if (res[0]) res[0][0] = w10;
   return 0;
 }
 
 /* vf_golden_search_take1:(i0[2],i1[2],i2,i3,i4[2],i5,i6,i7,i8)->(o0) */
-static int casadi_f32(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+static int casadi_f33(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real w0;
   /* #0: @0 = 0.5 */
   w0 = 5.0000000000000000e-01;
@@ -1448,17 +1450,17 @@ static int casadi_f32(const casadi_real** arg, casadi_real** res, casadi_int* iw
 }
 
 /* vf_golden_search_pick1:(i0,i1[2],i2[2],i3,i4,i5[2],i6,i7,i8,i9)->(o0) */
-static int casadi_f18(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+static int casadi_f19(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   if (arg[0] ? casadi_to_int(*arg[0]) : 0) {
-    if (casadi_f32(arg+1, res, iw, w, 0)) return 1;
+    if (casadi_f33(arg+1, res, iw, w, 0)) return 1;
   } else {
-    if (casadi_f19(arg+1, res, iw, w, 0)) return 1;
+    if (casadi_f20(arg+1, res, iw, w, 0)) return 1;
   }
   return 0;
 }
 
 /* vf_golden_search_try1:(i0[2],i1[2],i2,i3,i4[2],i5,i6,i7,i8)->(o0) */
-static int casadi_f17(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+static int casadi_f18(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_int i;
   casadi_real **res1=res+1, *rr, *w00=w+73, w01, *w02=w+75, *w03=w+77, *w04=w+79, w05, w06, w07, w08, w09;
   casadi_real w10, w11, w12;
@@ -1520,14 +1522,14 @@ static int casadi_f17(const casadi_real** arg, casadi_real** res, casadi_int* iw
   arg1[8]=(&w09);
   arg1[9]=(&w12);
   res1[0]=(&w10);
-  if (casadi_f18(arg1, res1, iw, w, 0)) return 1;
+  if (casadi_f19(arg1, res1, iw, w, 0)) return 1;
   /* #20: output[0][0] = @10 */
   if (res[0]) res[0][0] = w10;
   return 0;
 }
 
 /* vf_golden_search_take0:(i0[2],i1[2],i2,i3,i4[2],i5,i6,i7,i8)->(o0) */
-static int casadi_f33(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+static int casadi_f34(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real w0;
   /* #0: @0 = 1 */
   w0 = 1.;
@@ -1537,17 +1539,17 @@ static int casadi_f33(const casadi_real** arg, casadi_real** res, casadi_int* iw
 }
 
 /* vf_golden_search_pick0:(i0,i1[2],i2[2],i3,i4,i5[2],i6,i7,i8,i9)->(o0) */
-static int casadi_f16(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+static int casadi_f17(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   if (arg[0] ? casadi_to_int(*arg[0]) : 0) {
-    if (casadi_f33(arg+1, res, iw, w, 0)) return 1;
+    if (casadi_f34(arg+1, res, iw, w, 0)) return 1;
   } else {
-    if (casadi_f17(arg+1, res, iw, w, 0)) return 1;
+    if (casadi_f18(arg+1, res, iw, w, 0)) return 1;
   }
   return 0;
 }
 
 /* vf_golden_search_try0:(i0[2],i1[2],i2,i3,i4[2],i5,i6,i7,i8)->(o0) */
-static int casadi_f15(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+static int casadi_f16(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_int i;
   casadi_real **res1=res+1, *rr, *w00=w+90, *w01=w+92, *w02=w+94, *w03=w+96, w04, w05, w06, w07, w08, w09;
   casadi_real w10, w11, w12;
@@ -1605,74 +1607,14 @@ static int casadi_f15(const casadi_real** arg, casadi_real** res, casadi_int* iw
   arg1[8]=(&w09);
   arg1[9]=(&w12);
   res1[0]=(&w10);
-  if (casadi_f16(arg1, res1, iw, w, 0)) return 1;
+  if (casadi_f17(arg1, res1, iw, w, 0)) return 1;
   /* #18: output[0][0] = @10 */
   if (res[0]) res[0][0] = w10;
   return 0;
 }
 
-/* vf_golden_search:(i0[2],i1[2],i2,i3,i4[2],i5,i6,i7)->(o0) */
-static int casadi_f13(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
-  casadi_int i;
-  casadi_real **res1=res+1, *rr, *w00=w+107, *w01=w+109, w02, w03, *w04=w+111, w05, w06, w07, w08, *w09=w+113;
-  casadi_real w10;
-  const casadi_real **arg1=arg+8, *cr, *cs;
-  /* #0: @0 = input[0][0] */
-  casadi_copy(arg[0], 2, w00);
-  /* #1: @1 = input[1][0] */
-  casadi_copy(arg[1], 2, w01);
-  /* #2: @2 = input[2][0] */
-  w02 = arg[2] ? arg[2][0] : 0;
-  /* #3: @3 = input[3][0] */
-  w03 = arg[3] ? arg[3][0] : 0;
-  /* #4: @4 = input[4][0] */
-  casadi_copy(arg[4], 2, w04);
-  /* #5: @5 = input[5][0] */
-  w05 = arg[5] ? arg[5][0] : 0;
-  /* #6: @6 = input[6][0] */
-  w06 = arg[6] ? arg[6][0] : 0;
-  /* #7: @7 = input[7][0] */
-  w07 = arg[7] ? arg[7][0] : 0;
-  /* #8: @8 = 0.0001 */
-  w08 = 1.0000000000000000e-04;
-  /* #9: @9 = (@8*@4) */
-  for (i=0, rr=w09, cs=w04; i<2; ++i) (*rr++)  = (w08*(*cs++));
-  /* #10: @9 = (@0+@9) */
-  for (i=0, rr=w09, cr=w00, cs=w09; i<2; ++i) (*rr++)  = ((*cr++)+(*cs++));
-  /* #11: @8 = vf_golden_search_measure(@9, @1, @2, @3, @5, @6) */
-  arg1[0]=w09;
-  arg1[1]=w01;
-  arg1[2]=(&w02);
-  arg1[3]=(&w03);
-  arg1[4]=(&w05);
-  arg1[5]=(&w06);
-  res1[0]=(&w08);
-  if (casadi_f14(arg1, res1, iw, w, 0)) return 1;
-  /* #12: @8 = (@8-@7) */
-  w08 -= w07;
-  /* #13: @10 = 0.0001 */
-  w10 = 1.0000000000000000e-04;
-  /* #14: @8 = (@8/@10) */
-  w08 /= w10;
-  /* #15: @10 = vf_golden_search_try0(@0, @1, @2, @3, @4, @5, @6, @7, @8) */
-  arg1[0]=w00;
-  arg1[1]=w01;
-  arg1[2]=(&w02);
-  arg1[3]=(&w03);
-  arg1[4]=w04;
-  arg1[5]=(&w05);
-  arg1[6]=(&w06);
-  arg1[7]=(&w07);
-  arg1[8]=(&w08);
-  res1[0]=(&w10);
-  if (casadi_f15(arg1, res1, iw, w, 0)) return 1;
-  /* #16: output[0][0] = @10 */
-  if (res[0]) res[0][0] = w10;
-  return 0;
-}
-
-/* whole_step:(i0[2],i1[2],i2,i3,i4[2],i5,i6,i7)->(o0) */
-static int casadi_f34(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+/* vf_golden_search_whole:(i0[2],i1[2],i2,i3,i4[2],i5,i6,i7,i8)->(o0) */
+static int casadi_f35(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real w0;
   /* #0: @0 = 1 */
   w0 = 1.;
@@ -1681,10 +1623,99 @@ static int casadi_f34(const casadi_real** arg, casadi_real** res, casadi_int* iw
   return 0;
 }
 
-/* search_if_off:(i0,i1[2],i2[2],i3,i4,i5[2],i6,i7,i8)->(o0) */
+/* vf_golden_search_if_trusted:(i0,i1[2],i2[2],i3,i4,i5[2],i6,i7,i8,i9)->(o0) */
+static int casadi_f15(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+  if (arg[0] ? casadi_to_int(*arg[0]) : 0) {
+    if (casadi_f35(arg+1, res, iw, w, 0)) return 1;
+  } else {
+    if (casadi_f16(arg+1, res, iw, w, 0)) return 1;
+  }
+  return 0;
+}
+
+/* vf_golden_search:(i0[2],i1[2],i2,i3,i4[2],i5,i6,i7,i8)->(o0) */
+static int casadi_f13(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+  casadi_int i;
+  casadi_real **res1=res+1, *rr, w00, w01, *w02=w+107, *w03=w+109, *w04=w+111, *w05=w+113, w06, w07, w08, w09;
+  casadi_real w10, w11;
+  const casadi_real **arg1=arg+9, *cr, *cs;
+  /* #0: @0 = 0.9 */
+  w00 = 9.0000000000000002e-01;
+  /* #1: @1 = input[8][0] */
+  w01 = arg[8] ? arg[8][0] : 0;
+  /* #2: @0 = (@0*@1) */
+  w00 *= w01;
+  /* #3: @2 = input[0][0] */
+  casadi_copy(arg[0], 2, w02);
+  /* #4: @1 = 0.0001 */
+  w01 = 1.0000000000000000e-04;
+  /* #5: @3 = input[4][0] */
+  casadi_copy(arg[4], 2, w03);
+  /* #6: @4 = (@1*@3) */
+  for (i=0, rr=w04, cs=w03; i<2; ++i) (*rr++)  = (w01*(*cs++));
+  /* #7: @4 = (@2+@4) */
+  for (i=0, rr=w04, cr=w02, cs=w04; i<2; ++i) (*rr++)  = ((*cr++)+(*cs++));
+  /* #8: @5 = input[1][0] */
+  casadi_copy(arg[1], 2, w05);
+  /* #9: @1 = input[2][0] */
+  w01 = arg[2] ? arg[2][0] : 0;
+  /* #10: @6 = input[3][0] */
+  w06 = arg[3] ? arg[3][0] : 0;
+  /* #11: @7 = input[5][0] */
+  w07 = arg[5] ? arg[5][0] : 0;
+  /* #12: @8 = input[6][0] */
+  w08 = arg[6] ? arg[6][0] : 0;
+  /* #13: @9 = vf_golden_search_measure(@4, @5, @1, @6, @7, @8) */
+  arg1[0]=w04;
+  arg1[1]=w05;
+  arg1[2]=(&w01);
+  arg1[3]=(&w06);
+  arg1[4]=(&w07);
+  arg1[5]=(&w08);
+  res1[0]=(&w09);
+  if (casadi_f14(arg1, res1, iw, w, 0)) return 1;
+  /* #14: @10 = input[7][0] */
+  w10 = arg[7] ? arg[7][0] : 0;
+  /* #15: @9 = (@9-@10) */
+  w09 -= w10;
+  /* #16: @11 = 0.0001 */
+  w11 = 1.0000000000000000e-04;
+  /* #17: @9 = (@9/@11) */
+  w09 /= w11;
+  /* #18: @0 = (@0<@9) */
+  w00  = (w00<w09);
+  /* #19: @11 = vf_golden_search_if_trusted(@0, @2, @5, @1, @6, @3, @7, @8, @10, @9) */
+  arg1[0]=(&w00);
+  arg1[1]=w02;
+  arg1[2]=w05;
+  arg1[3]=(&w01);
+  arg1[4]=(&w06);
+  arg1[5]=w03;
+  arg1[6]=(&w07);
+  arg1[7]=(&w08);
+  arg1[8]=(&w10);
+  arg1[9]=(&w09);
+  res1[0]=(&w11);
+  if (casadi_f15(arg1, res1, iw, w, 0)) return 1;
+  /* #20: output[0][0] = @11 */
+  if (res[0]) res[0][0] = w11;
+  return 0;
+}
+
+/* whole_step:(i0[2],i1[2],i2,i3,i4[2],i5,i6,i7,i8)->(o0) */
+static int casadi_f36(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+  casadi_real w0;
+  /* #0: @0 = 1 */
+  w0 = 1.;
+  /* #1: output[0][0] = @0 */
+  if (res[0]) res[0][0] = w0;
+  return 0;
+}
+
+/* search_if_off:(i0,i1[2],i2[2],i3,i4,i5[2],i6,i7,i8,i9)->(o0) */
 static int casadi_f12(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   if (arg[0] ? casadi_to_int(*arg[0]) : 0) {
-    if (casadi_f34(arg+1, res, iw, w, 0)) return 1;
+    if (casadi_f36(arg+1, res, iw, w, 0)) return 1;
   } else {
     if (casadi_f13(arg+1, res, iw, w, 0)) return 1;
   }
@@ -1694,10 +1725,10 @@ static int casadi_f12(const casadi_real** arg, casadi_real** res, casadi_int* iw
 /* recover:(i0[1x2],i1,i2,i3[2],i4[2],i5[2],i6,i7,i8[2x2],i9[2],i10[3x2],i11[3],i12[3],i13[2],i14[2],i15,i16)->(o0[3]) */
 static int casadi_f5(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_int i, j;
-  casadi_real **res1=res+1, *rr, *w00=w+122, *w01=w+124, *w02=w+126, *w03=w+128, *w04=w+131, *w05=w+140, w06, w07, w08, w09;
-  casadi_real *w10=w+142, w11, w12, w13, *w14=w+144, *w15=w+147, *w16=w+150, *w17=w+153, *w18=w+162, *w19=w+171, *w20=w+186, w21;
-  casadi_real w22, *w23=w+191, *w24=w+196, *w25=w+199, *w26=w+202, *w27=w+205, *w29=w+210, w30, w31, w32, *w33=w+213, *w34=w+215;
-  casadi_real *w35=w+221, *w36=w+227, *w37=w+229, w38, *w39=w+233, w40, *w41=w+235, *w42=w+237, *w43=w+239, *w44=w+241;
+  casadi_real **res1=res+1, *rr, *w00=w+123, *w01=w+125, *w02=w+127, *w03=w+129, *w04=w+132, *w05=w+141, w06, w07, w08, w09;
+  casadi_real *w10=w+143, w11, w12, w13, *w14=w+145, *w15=w+148, *w16=w+151, *w17=w+154, *w18=w+163, *w19=w+172, *w20=w+187, w21;
+  casadi_real w22, *w23=w+192, *w24=w+197, *w25=w+200, *w26=w+203, *w27=w+206, *w29=w+211, w30, w31, w32, *w33=w+214, *w34=w+216;
+  casadi_real *w35=w+222, *w36=w+228, *w37=w+230, w38, *w39=w+234, w40, *w41=w+236, *w42=w+238, *w43=w+240, *w44=w+242, w45;
   const casadi_real **arg1=arg+17, *cr, *cs;
   int flag, mid;
   /* #0: @0 = zeros(2x1) */
@@ -2042,10 +2073,10 @@ static int casadi_f5(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   w32 += w40;
   /* #141: @40 = fmin(@9,@32) */
   w40  = casadi_fmin(w09,w32);
-  /* #142: @8 = fmin(@8,@40) */
-  w08  = casadi_fmin(w08,w40);
-  /* #143: @38 = fmax(@38,@8) */
-  w38  = casadi_fmax(w38,w08);
+  /* #142: @40 = fmin(@8,@40) */
+  w40  = casadi_fmin(w08,w40);
+  /* #143: @38 = fmax(@38,@40) */
+  w38  = casadi_fmax(w38,w40);
   /* #144: @24 = input[11][0] */
   casadi_copy(arg[11], 3, w24);
   /* #145: @41 = @24[1:3] */
@@ -2058,10 +2089,10 @@ static int casadi_f5(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   w13  = (w12+w13);
   /* #148: @9 = fmax(@9,@32) */
   w09  = casadi_fmax(w09,w32);
-  /* #149: @12 = fmax(@12,@9) */
-  w12  = casadi_fmax(w12,w09);
-  /* #150: @13 = fmin(@13,@12) */
-  w13  = casadi_fmin(w13,w12);
+  /* #149: @9 = fmax(@12,@9) */
+  w09  = casadi_fmax(w12,w09);
+  /* #150: @13 = fmin(@13,@9) */
+  w13  = casadi_fmin(w13,w09);
   /* #151: @14 = input[12][0] */
   casadi_copy(arg[12], 3, w14);
   /* #152: @41 = @14[1:3] */
@@ -2078,7 +2109,7 @@ static int casadi_f5(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   casadi_clear(w43, 2);
   /* #157: @15 = zeros(3x1) */
   casadi_clear(w15, 3);
-  /* #158: {@44, @12, NULL, NULL} = phase2b(@37, @36, @35, @24, @14, @41, @42, @39, @43, @15, @28, @28) */
+  /* #158: {@44, @9, NULL, NULL} = phase2b(@37, @36, @35, @24, @14, @41, @42, @39, @43, @15, @28, @28) */
   arg1[0]=w37;
   arg1[1]=w36;
   arg1[2]=w35;
@@ -2092,7 +2123,7 @@ static int casadi_f5(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   arg1[10]=0;
   arg1[11]=0;
   res1[0]=w44;
-  res1[1]=(&w12);
+  res1[1]=(&w09);
   res1[2]=0;
   res1[3]=0;
   mid = casadi_f11_checkout();
@@ -2102,60 +2133,60 @@ static int casadi_f5(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   if (flag) return 1;
   /* #159: @36 = fabs(@44) */
   for (i=0, rr=w36, cs=w44; i<2; ++i) *rr++ = casadi_fabs( *cs++ );
-  /* #160: @9 = inf */
-  w09 = casadi_inf;
-  /* #161: @36 = (@36<@9) */
-  for (i=0, rr=w36, cr=w36; i<2; ++i) (*rr++)  = ((*cr++)<w09);
-  /* #162: @9 = min(@36) */
-  w09 = casadi_mmin(w36, 2, 1);
-  /* #163: @32 = 0 */
-  w32 = 0.;
+  /* #160: @32 = inf */
+  w32 = casadi_inf;
+  /* #161: @36 = (@36<@32) */
+  for (i=0, rr=w36, cr=w36; i<2; ++i) (*rr++)  = ((*cr++)<w32);
+  /* #162: @32 = min(@36) */
+  w32 = casadi_mmin(w36, 2, 1);
+  /* #163: @40 = 0 */
+  w40 = 0.;
   /* #164: @36 = (@1-@44) */
   for (i=0, rr=w36, cr=w01, cs=w44; i<2; ++i) (*rr++)  = ((*cr++)-(*cs++));
   /* #165: @41 = (@44-@2) */
   for (i=0, rr=w41, cr=w44, cs=w02; i<2; ++i) (*rr++)  = ((*cr++)-(*cs++));
   /* #166: @36 = fmax(@36,@41) */
   for (i=0, rr=w36, cr=w36, cs=w41; i<2; ++i) (*rr++)  = casadi_fmax((*cr++),(*cs++));
-  /* #167: @36 = fmax(@32,@36) */
-  for (i=0, rr=w36, cs=w36; i<2; ++i) (*rr++)  = casadi_fmax(w32,(*cs++));
-  /* #168: @32 = max(@36) */
-  w32 = casadi_mmax(w36, 2, 1);
-  /* #169: @8 = 1e-06 */
-  w08 = 9.9999999999999995e-07;
-  /* #170: @32 = (@32<=@8) */
-  w32  = (w32<=w08);
-  /* #171: @9 = (@9&&@32) */
-  w09  = (w09&&w32);
-  /* #172: @32 = 0 */
-  w32 = 0.;
-  /* #173: @8 = 0 */
-  w08 = 0.;
-  /* #174: @8 = mac(@10,@44,@8) */
-  casadi_mtimes_dense(w10, 1, 2, w44, 1, (&w08), 0);
-  /* #175: @38 = (@38-@8) */
-  w38 -= w08;
-  /* #176: @8 = (@8-@13) */
-  w08 -= w13;
-  /* #177: @38 = fmax(@38,@8) */
-  w38  = casadi_fmax(w38,w08);
-  /* #178: @32 = fmax(@32,@38) */
-  w32  = casadi_fmax(w32,w38);
-  /* #179: @38 = max(@32) */
-  w38 = casadi_mmax((&w32), 1, 1);
-  /* #180: @32 = 1e-06 */
-  w32 = 9.9999999999999995e-07;
-  /* #181: @38 = (@38<=@32) */
-  w38  = (w38<=w32);
-  /* #182: @9 = (@9&&@38) */
-  w09  = (w09&&w38);
+  /* #167: @36 = fmax(@40,@36) */
+  for (i=0, rr=w36, cs=w36; i<2; ++i) (*rr++)  = casadi_fmax(w40,(*cs++));
+  /* #168: @40 = max(@36) */
+  w40 = casadi_mmax(w36, 2, 1);
+  /* #169: @45 = 1e-06 */
+  w45 = 9.9999999999999995e-07;
+  /* #170: @40 = (@40<=@45) */
+  w40  = (w40<=w45);
+  /* #171: @32 = (@32&&@40) */
+  w32  = (w32&&w40);
+  /* #172: @40 = 0 */
+  w40 = 0.;
+  /* #173: @45 = 0 */
+  w45 = 0.;
+  /* #174: @45 = mac(@10,@44,@45) */
+  casadi_mtimes_dense(w10, 1, 2, w44, 1, (&w45), 0);
+  /* #175: @38 = (@38-@45) */
+  w38 -= w45;
+  /* #176: @45 = (@45-@13) */
+  w45 -= w13;
+  /* #177: @38 = fmax(@38,@45) */
+  w38  = casadi_fmax(w38,w45);
+  /* #178: @40 = fmax(@40,@38) */
+  w40  = casadi_fmax(w40,w38);
+  /* #179: @38 = max(@40) */
+  w38 = casadi_mmax((&w40), 1, 1);
+  /* #180: @40 = 1e-06 */
+  w40 = 9.9999999999999995e-07;
+  /* #181: @38 = (@38<=@40) */
+  w38  = (w38<=w40);
+  /* #182: @32 = (@32&&@38) */
+  w32  = (w32&&w38);
   /* #183: @44 = fmax(@44,@1) */
   for (i=0, rr=w44, cr=w44, cs=w01; i<2; ++i) (*rr++)  = casadi_fmax((*cr++),(*cs++));
   /* #184: @44 = fmin(@44,@2) */
   for (i=0, rr=w44, cr=w44, cs=w02; i<2; ++i) (*rr++)  = casadi_fmin((*cr++),(*cs++));
-  /* #185: @44 = (@9?@44:0) */
-  for (i=0, rr=w44, cs=w44; i<2; ++i) (*rr++)  = (w09?cs[i]:0);
-  /* #186: @38 = (!@9) */
-  w38 = (! w09 );
+  /* #185: @44 = (@32?@44:0) */
+  for (i=0, rr=w44, cs=w44; i<2; ++i) (*rr++)  = (w32?cs[i]:0);
+  /* #186: @38 = (!@32) */
+  w38 = (! w32 );
   /* #187: @39 = (@38?@39:0) */
   for (i=0, rr=w39, cs=w39; i<2; ++i) (*rr++)  = (w38?cs[i]:0);
   /* #188: @44 = (@44+@39) */
@@ -2168,7 +2199,55 @@ static int casadi_f5(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   for (i=0, rr=w39, cs=w00; i<2; ++i) (*rr++)  = (w38?cs[i]:0);
   /* #192: @44 = (@44+@39) */
   for (i=0, rr=w44, cs=w39; i<2; ++i) (*rr++) += (*cs++);
-  /* #193: @38 = search_if_off(@31, @5, @33, @21, @7, @44, @6, @22, @11) */
+  /* #193: @38 = 1e-06 */
+  w38 = 9.9999999999999995e-07;
+  /* #194: @40 = 0 */
+  w40 = 0.;
+  /* #195: @45 = 0 */
+  w45 = 0.;
+  /* #196: @13 = 0.0001 */
+  w13 = 1.0000000000000000e-04;
+  /* #197: @39 = (@13*@44) */
+  for (i=0, rr=w39, cs=w44; i<2; ++i) (*rr++)  = (w13*(*cs++));
+  /* #198: @45 = mac(@10,@39,@45) */
+  casadi_mtimes_dense(w10, 1, 2, w39, 1, (&w45), 0);
+  /* #199: @8 = (@8-@45) */
+  w08 -= w45;
+  /* #200: @45 = (@45-@12) */
+  w45 -= w12;
+  /* #201: @8 = fmax(@8,@45) */
+  w08  = casadi_fmax(w08,w45);
+  /* #202: @40 = fmax(@40,@8) */
+  w40  = casadi_fmax(w40,w08);
+  /* #203: @40 = (@22*@40) */
+  w40  = (w22*w40);
+  /* #204: @8 = max(@40) */
+  w08 = casadi_mmax((&w40), 1, 1);
+  /* #205: @38 = (@38<@8) */
+  w38  = (w38<w08);
+  /* #206: @40 = (@38?@8:0) */
+  w40  = (w38?w08:0);
+  /* #207: @40 = (@40/@6) */
+  w40 /= w06;
+  /* #208: @8 = sq(@8) */
+  w08 = casadi_sq( w08 );
+  /* #209: @8 = (@38?@8:0) */
+  w08  = (w38?w08:0);
+  /* #210: @38 = (@38?@8:0) */
+  w38  = (w38?w08:0);
+  /* #211: @8 = 2 */
+  w08 = 2.;
+  /* #212: @38 = (@38/@8) */
+  w38 /= w08;
+  /* #213: @40 = (@40+@38) */
+  w40 += w38;
+  /* #214: @40 = (@40-@11) */
+  w40 -= w11;
+  /* #215: @38 = 0.0001 */
+  w38 = 1.0000000000000000e-04;
+  /* #216: @40 = (@40/@38) */
+  w40 /= w38;
+  /* #217: @38 = search_if_off(@31, @5, @33, @21, @7, @44, @6, @22, @11, @40) */
   arg1[0]=(&w31);
   arg1[1]=w05;
   arg1[2]=w33;
@@ -2178,47 +2257,48 @@ static int casadi_f5(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   arg1[6]=(&w06);
   arg1[7]=(&w22);
   arg1[8]=(&w11);
+  arg1[9]=(&w40);
   res1[0]=(&w38);
   if (casadi_f12(arg1, res1, iw, w, 0)) return 1;
-  /* #194: @44 = (@44-@0) */
+  /* #218: @44 = (@44-@0) */
   for (i=0, rr=w44, cs=w00; i<2; ++i) (*rr++) -= (*cs++);
-  /* #195: @44 = (@38*@44) */
+  /* #219: @44 = (@38*@44) */
   for (i=0, rr=w44, cs=w44; i<2; ++i) (*rr++)  = (w38*(*cs++));
-  /* #196: @0 = (@0+@44) */
+  /* #220: @0 = (@0+@44) */
   for (i=0, rr=w00, cs=w44; i<2; ++i) (*rr++) += (*cs++);
-  /* #197: output[0][0] = @0 */
+  /* #221: output[0][0] = @0 */
   casadi_copy(w00, 2, res[0]);
-  /* #198: @38 = 1 */
+  /* #222: @38 = 1 */
   w38 = 1.;
-  /* #199: @31 = 4 */
+  /* #223: @31 = 4 */
   w31 = 4.;
-  /* #200: @21 = 1 */
+  /* #224: @21 = 1 */
   w21 = 1.;
-  /* #201: @21 = (@21-@30) */
+  /* #225: @21 = (@21-@30) */
   w21 -= w30;
-  /* #202: @31 = (@31*@21) */
+  /* #226: @31 = (@31*@21) */
   w31 *= w21;
-  /* #203: @38 = (@38+@31) */
+  /* #227: @38 = (@38+@31) */
   w38 += w31;
-  /* #204: @31 = 8 */
+  /* #228: @31 = 8 */
   w31 = 8.;
-  /* #205: @12 = (@9?@12:0) */
-  w12  = (w09?w12:0);
-  /* #206: @9 = (!@9) */
-  w09 = (! w09 );
-  /* #207: @21 = 1 */
+  /* #229: @9 = (@32?@9:0) */
+  w09  = (w32?w09:0);
+  /* #230: @32 = (!@32) */
+  w32 = (! w32 );
+  /* #231: @21 = 1 */
   w21 = 1.;
-  /* #208: @9 = (@9?@21:0) */
-  w09  = (w09?w21:0);
-  /* #209: @12 = (@12+@9) */
-  w12 += w09;
-  /* #210: @31 = (@31*@12) */
-  w31 *= w12;
-  /* #211: @30 = (@30?@31:0) */
+  /* #232: @32 = (@32?@21:0) */
+  w32  = (w32?w21:0);
+  /* #233: @9 = (@9+@32) */
+  w09 += w32;
+  /* #234: @31 = (@31*@9) */
+  w31 *= w09;
+  /* #235: @30 = (@30?@31:0) */
   w30  = (w30?w31:0);
-  /* #212: @38 = (@38+@30) */
+  /* #236: @38 = (@38+@30) */
   w38 += w30;
-  /* #213: output[0][1] = @38 */
+  /* #237: output[0][1] = @38 */
   if (res[0]) res[0][2] = w38;
   return 0;
 }
@@ -2236,7 +2316,7 @@ void casadi_f5_decref(void) {
 }
 
 /* keep:(i0[1x2],i1,i2,i3[2],i4[2],i5[2],i6,i7,i8[2x2],i9[2],i10[3x2],i11[3],i12[3],i13[2],i14[2],i15,i16)->(o0[3]) */
-static int casadi_f35(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+static int casadi_f37(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real *w0=w+0, w1, w2;
   /* #0: @0 = input[5][0] */
   casadi_copy(arg[5], 2, w0);
@@ -2256,7 +2336,7 @@ static int casadi_f35(const casadi_real** arg, casadi_real** res, casadi_int* iw
 /* phase2_if_needed:(i0,i1[1x2],i2,i3,i4[2],i5[2],i6[2],i7,i8,i9[2x2],i10[2],i11[3x2],i12[3],i13[3],i14[2],i15[2],i16,i17)->(o0[3]) */
 static int casadi_f4(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   if (arg[0] ? casadi_to_int(*arg[0]) : 0) {
-    if (casadi_f35(arg+1, res, iw, w, 0)) return 1;
+    if (casadi_f37(arg+1, res, iw, w, 0)) return 1;
   } else {
     if (casadi_f5(arg+1, res, iw, w, 0)) return 1;
   }
@@ -2272,7 +2352,7 @@ void casadi_f4_decref(void) {
 }
 
 /* vf_golden_finish:(i0[3],i1[1x2],i2,i3,i4[2],i5[2],i6)->(o0[2],o1,o2) */
-static int casadi_f36(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+static int casadi_f38(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a00, a01, a02, a03, a04, a05, a06, a07, a08, a09, a10, a11;
   casadi_real a12, a13, a14;
   a00=arg[0]? arg[0][0] : 0;
@@ -2358,8 +2438,8 @@ static int casadi_f36(const casadi_real** arg, casadi_real** res, casadi_int* iw
 
 /* vf_golden:(q[2],u[2],p,dt,recover)->(x[2],status,violation) */
 static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
-  casadi_real **res1=res+3, *w00=w+257, *w01=w+259, w02, w03, *w04=w+261, w05, w06, *w07=w+263, *w08=w+265, w09, *w10=w+267;
-  casadi_real *w11=w+271, *w12=w+273, *w13=w+279, *w14=w+282, *w15=w+285, *w16=w+287, *w17=w+289, *w18=w+291, *w19=w+293, *w21=w+296, w22, w23;
+  casadi_real **res1=res+3, *w00=w+259, *w01=w+261, w02, w03, *w04=w+263, w05, w06, *w07=w+265, *w08=w+267, w09, *w10=w+269;
+  casadi_real *w11=w+273, *w12=w+275, *w13=w+281, *w14=w+284, *w15=w+287, *w16=w+289, *w17=w+291, *w18=w+293, *w19=w+295, *w21=w+298, w22, w23;
   casadi_real w24;
   const casadi_real **arg1=arg+5;
   int flag, mid;
@@ -2472,7 +2552,7 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   res1[0]=w21;
   res1[1]=(&w22);
   res1[2]=(&w23);
-  if (casadi_f36(arg1, res1, iw, w, 0)) return 1;
+  if (casadi_f38(arg1, res1, iw, w, 0)) return 1;
   /* #20: output[0][0] = @21 */
   casadi_copy(w21, 2, res[0]);
   /* #21: output[1][0] = @22 */
@@ -2565,28 +2645,28 @@ CASADI_SYMBOL_EXPORT const casadi_int* vf_golden_sparsity_out(casadi_int i) {
 }
 
 CASADI_SYMBOL_EXPORT int vf_golden_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
-  if (sz_arg) *sz_arg = 180;
-  if (sz_res) *sz_res = 21;
+  if (sz_arg) *sz_arg = 192;
+  if (sz_res) *sz_res = 22;
   if (sz_iw) *sz_iw = 8;
-  if (sz_w) *sz_w = 298;
+  if (sz_w) *sz_w = 300;
   return 0;
 }
 
 CASADI_SYMBOL_EXPORT int vf_golden_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
-  if (sz_arg) *sz_arg = 180*sizeof(const casadi_real*);
-  if (sz_res) *sz_res = 21*sizeof(casadi_real*);
+  if (sz_arg) *sz_arg = 192*sizeof(const casadi_real*);
+  if (sz_res) *sz_res = 22*sizeof(casadi_real*);
   if (sz_iw) *sz_iw = 8*sizeof(casadi_int);
-  if (sz_w) *sz_w = 298*sizeof(casadi_real);
+  if (sz_w) *sz_w = 300*sizeof(casadi_real);
   return 0;
 }
 
 /* vf_golden_admissible:(i0)->(o0[0]) */
-static int casadi_f37(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+static int casadi_f39(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   return 0;
 }
 
 CASADI_SYMBOL_EXPORT int vf_golden_admissible(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem){
-  return casadi_f37(arg, res, iw, w, mem);
+  return casadi_f39(arg, res, iw, w, mem);
 }
 
 CASADI_SYMBOL_EXPORT int vf_golden_admissible_checkout(void) {

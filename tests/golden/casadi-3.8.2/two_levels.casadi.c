@@ -147,6 +147,8 @@ extern "C" {
 #define casadi_f43 CASADI_PREFIX(f43)
 #define casadi_f44 CASADI_PREFIX(f44)
 #define casadi_f45 CASADI_PREFIX(f45)
+#define casadi_f46 CASADI_PREFIX(f46)
+#define casadi_f47 CASADI_PREFIX(f47)
 #define casadi_f4_decref CASADI_PREFIX(f4_decref)
 #define casadi_f4_incref CASADI_PREFIX(f4_incref)
 #define casadi_f5 CASADI_PREFIX(f5)
@@ -1610,7 +1612,7 @@ static int casadi_f22(const casadi_real** arg, casadi_real** res, casadi_int* iw
 }
 
 /* vf_golden_search_none:(i0[2],i1[2],i2,i3,i4[2],i5,i6,i7,i8)->(o0) */
-static int casadi_f35(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+static int casadi_f36(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real w0;
   /* #0: @0 = 0 */
   w0 = 0.;
@@ -1620,7 +1622,7 @@ static int casadi_f35(const casadi_real** arg, casadi_real** res, casadi_int* iw
 }
 
 /* vf_golden_search_take5:(i0[2],i1[2],i2,i3,i4[2],i5,i6,i7,i8)->(o0) */
-static int casadi_f36(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+static int casadi_f37(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real w0;
   /* #0: @0 = 0.03125 */
   w0 = 3.1250000000000000e-02;
@@ -1630,17 +1632,17 @@ static int casadi_f36(const casadi_real** arg, casadi_real** res, casadi_int* iw
 }
 
 /* vf_golden_search_pick5:(i0,i1[2],i2[2],i3,i4,i5[2],i6,i7,i8,i9)->(o0) */
-static int casadi_f34(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+static int casadi_f35(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   if (arg[0] ? casadi_to_int(*arg[0]) : 0) {
-    if (casadi_f36(arg+1, res, iw, w, 0)) return 1;
+    if (casadi_f37(arg+1, res, iw, w, 0)) return 1;
   } else {
-    if (casadi_f35(arg+1, res, iw, w, 0)) return 1;
+    if (casadi_f36(arg+1, res, iw, w, 0)) return 1;
   }
   return 0;
 }
 
 /* vf_golden_search_try5:(i0[2],i1[2],i2,i3,i4[2],i5,i6,i7,i8)->(o0) */
-static int casadi_f33(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+static int casadi_f34(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_int i;
   casadi_real **res1=res+1, *rr, *w00=w+5, w01, *w02=w+7, *w03=w+9, *w04=w+11, w05, w06, w07, w08, w09;
   casadi_real w10, w11, w12;
@@ -1702,14 +1704,14 @@ static int casadi_f33(const casadi_real** arg, casadi_real** res, casadi_int* iw
   arg1[8]=(&w09);
   arg1[9]=(&w12);
   res1[0]=(&w10);
-  if (casadi_f34(arg1, res1, iw, w, 0)) return 1;
+  if (casadi_f35(arg1, res1, iw, w, 0)) return 1;
   /* #20: output[0][0] = @10 */
   if (res[0]) res[0][0] = w10;
   return 0;
 }
 
 /* vf_golden_search_take4:(i0[2],i1[2],i2,i3,i4[2],i5,i6,i7,i8)->(o0) */
-static int casadi_f37(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+static int casadi_f38(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real w0;
   /* #0: @0 = 0.0625 */
   w0 = 6.2500000000000000e-02;
@@ -1719,17 +1721,17 @@ static int casadi_f37(const casadi_real** arg, casadi_real** res, casadi_int* iw
 }
 
 /* vf_golden_search_pick4:(i0,i1[2],i2[2],i3,i4,i5[2],i6,i7,i8,i9)->(o0) */
-static int casadi_f32(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+static int casadi_f33(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   if (arg[0] ? casadi_to_int(*arg[0]) : 0) {
-    if (casadi_f37(arg+1, res, iw, w, 0)) return 1;
+    if (casadi_f38(arg+1, res, iw, w, 0)) return 1;
   } else {
-    if (casadi_f33(arg+1, res, iw, w, 0)) return 1;
+    if (casadi_f34(arg+1, res, iw, w, 0)) return 1;
   }
   return 0;
 }
 
 /* vf_golden_search_try4:(i0[2],i1[2],i2,i3,i4[2],i5,i6,i7,i8)->(o0) */
-static int casadi_f31(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+static int casadi_f32(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_int i;
   casadi_real **res1=res+1, *rr, *w00=w+22, w01, *w02=w+24, *w03=w+26, *w04=w+28, w05, w06, w07, w08, w09;
   casadi_real w10, w11, w12;
@@ -1791,14 +1793,14 @@ static int casadi_f31(const casadi_real** arg, casadi_real** res, casadi_int* iw
   arg1[8]=(&w09);
   arg1[9]=(&w12);
   res1[0]=(&w10);
-  if (casadi_f32(arg1, res1, iw, w, 0)) return 1;
+  if (casadi_f33(arg1, res1, iw, w, 0)) return 1;
   /* #20: output[0][0] = @10 */
   if (res[0]) res[0][0] = w10;
   return 0;
 }
 
 /* vf_golden_search_take3:(i0[2],i1[2],i2,i3,i4[2],i5,i6,i7,i8)->(o0) */
-static int casadi_f38(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+static int casadi_f39(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real w0;
   /* #0: @0 = 0.125 */
   w0 = 1.2500000000000000e-01;
@@ -1808,17 +1810,17 @@ static int casadi_f38(const casadi_real** arg, casadi_real** res, casadi_int* iw
 }
 
 /* vf_golden_search_pick3:(i0,i1[2],i2[2],i3,i4,i5[2],i6,i7,i8,i9)->(o0) */
-static int casadi_f30(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+static int casadi_f31(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   if (arg[0] ? casadi_to_int(*arg[0]) : 0) {
-    if (casadi_f38(arg+1, res, iw, w, 0)) return 1;
+    if (casadi_f39(arg+1, res, iw, w, 0)) return 1;
   } else {
-    if (casadi_f31(arg+1, res, iw, w, 0)) return 1;
+    if (casadi_f32(arg+1, res, iw, w, 0)) return 1;
   }
   return 0;
 }
 
 /* vf_golden_search_try3:(i0[2],i1[2],i2,i3,i4[2],i5,i6,i7,i8)->(o0) */
-static int casadi_f29(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+static int casadi_f30(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_int i;
   casadi_real **res1=res+1, *rr, *w00=w+39, w01, *w02=w+41, *w03=w+43, *w04=w+45, w05, w06, w07, w08, w09;
   casadi_real w10, w11, w12;
@@ -1880,14 +1882,14 @@ static int casadi_f29(const casadi_real** arg, casadi_real** res, casadi_int* iw
   arg1[8]=(&w09);
   arg1[9]=(&w12);
   res1[0]=(&w10);
-  if (casadi_f30(arg1, res1, iw, w, 0)) return 1;
+  if (casadi_f31(arg1, res1, iw, w, 0)) return 1;
   /* #20: output[0][0] = @10 */
   if (res[0]) res[0][0] = w10;
   return 0;
 }
 
 /* vf_golden_search_take2:(i0[2],i1[2],i2,i3,i4[2],i5,i6,i7,i8)->(o0) */
-static int casadi_f39(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+static int casadi_f40(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real w0;
   /* #0: @0 = 0.25 */
   w0 = 2.5000000000000000e-01;
@@ -1897,17 +1899,17 @@ static int casadi_f39(const casadi_real** arg, casadi_real** res, casadi_int* iw
 }
 
 /* vf_golden_search_pick2:(i0,i1[2],i2[2],i3,i4,i5[2],i6,i7,i8,i9)->(o0) */
-static int casadi_f28(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+static int casadi_f29(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   if (arg[0] ? casadi_to_int(*arg[0]) : 0) {
-    if (casadi_f39(arg+1, res, iw, w, 0)) return 1;
+    if (casadi_f40(arg+1, res, iw, w, 0)) return 1;
   } else {
-    if (casadi_f29(arg+1, res, iw, w, 0)) return 1;
+    if (casadi_f30(arg+1, res, iw, w, 0)) return 1;
   }
   return 0;
 }
 
 /* vf_golden_search_try2:(i0[2],i1[2],i2,i3,i4[2],i5,i6,i7,i8)->(o0) */
-static int casadi_f27(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+static int casadi_f28(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_int i;
   casadi_real **res1=res+1, *rr, *w00=w+56, w01, *w02=w+58, *w03=w+60, *w04=w+62, w05, w06, w07, w08, w09;
   casadi_real w10, w11, w12;
@@ -1969,14 +1971,14 @@ static int casadi_f27(const casadi_real** arg, casadi_real** res, casadi_int* iw
   arg1[8]=(&w09);
   arg1[9]=(&w12);
   res1[0]=(&w10);
-  if (casadi_f28(arg1, res1, iw, w, 0)) return 1;
+  if (casadi_f29(arg1, res1, iw, w, 0)) return 1;
   /* #20: output[0][0] = @10 */
   if (res[0]) res[0][0] = w10;
   return 0;
 }
 
 /* vf_golden_search_take1:(i0[2],i1[2],i2,i3,i4[2],i5,i6,i7,i8)->(o0) */
-static int casadi_f40(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+static int casadi_f41(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real w0;
   /* #0: @0 = 0.5 */
   w0 = 5.0000000000000000e-01;
@@ -1986,17 +1988,17 @@ static int casadi_f40(const casadi_real** arg, casadi_real** res, casadi_int* iw
 }
 
 /* vf_golden_search_pick1:(i0,i1[2],i2[2],i3,i4,i5[2],i6,i7,i8,i9)->(o0) */
-static int casadi_f26(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+static int casadi_f27(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   if (arg[0] ? casadi_to_int(*arg[0]) : 0) {
-    if (casadi_f40(arg+1, res, iw, w, 0)) return 1;
+    if (casadi_f41(arg+1, res, iw, w, 0)) return 1;
   } else {
-    if (casadi_f27(arg+1, res, iw, w, 0)) return 1;
+    if (casadi_f28(arg+1, res, iw, w, 0)) return 1;
   }
   return 0;
 }
 
 /* vf_golden_search_try1:(i0[2],i1[2],i2,i3,i4[2],i5,i6,i7,i8)->(o0) */
-static int casadi_f25(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+static int casadi_f26(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_int i;
   casadi_real **res1=res+1, *rr, *w00=w+73, w01, *w02=w+75, *w03=w+77, *w04=w+79, w05, w06, w07, w08, w09;
   casadi_real w10, w11, w12;
@@ -2058,14 +2060,14 @@ static int casadi_f25(const casadi_real** arg, casadi_real** res, casadi_int* iw
   arg1[8]=(&w09);
   arg1[9]=(&w12);
   res1[0]=(&w10);
-  if (casadi_f26(arg1, res1, iw, w, 0)) return 1;
+  if (casadi_f27(arg1, res1, iw, w, 0)) return 1;
   /* #20: output[0][0] = @10 */
   if (res[0]) res[0][0] = w10;
   return 0;
 }
 
 /* vf_golden_search_take0:(i0[2],i1[2],i2,i3,i4[2],i5,i6,i7,i8)->(o0) */
-static int casadi_f41(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+static int casadi_f42(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real w0;
   /* #0: @0 = 1 */
   w0 = 1.;
@@ -2075,17 +2077,17 @@ static int casadi_f41(const casadi_real** arg, casadi_real** res, casadi_int* iw
 }
 
 /* vf_golden_search_pick0:(i0,i1[2],i2[2],i3,i4,i5[2],i6,i7,i8,i9)->(o0) */
-static int casadi_f24(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+static int casadi_f25(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   if (arg[0] ? casadi_to_int(*arg[0]) : 0) {
-    if (casadi_f41(arg+1, res, iw, w, 0)) return 1;
+    if (casadi_f42(arg+1, res, iw, w, 0)) return 1;
   } else {
-    if (casadi_f25(arg+1, res, iw, w, 0)) return 1;
+    if (casadi_f26(arg+1, res, iw, w, 0)) return 1;
   }
   return 0;
 }
 
 /* vf_golden_search_try0:(i0[2],i1[2],i2,i3,i4[2],i5,i6,i7,i8)->(o0) */
-static int casadi_f23(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+static int casadi_f24(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_int i;
   casadi_real **res1=res+1, *rr, *w00=w+90, *w01=w+92, *w02=w+94, *w03=w+96, w04, w05, w06, w07, w08, w09;
   casadi_real w10, w11, w12;
@@ -2143,74 +2145,14 @@ static int casadi_f23(const casadi_real** arg, casadi_real** res, casadi_int* iw
   arg1[8]=(&w09);
   arg1[9]=(&w12);
   res1[0]=(&w10);
-  if (casadi_f24(arg1, res1, iw, w, 0)) return 1;
+  if (casadi_f25(arg1, res1, iw, w, 0)) return 1;
   /* #18: output[0][0] = @10 */
   if (res[0]) res[0][0] = w10;
   return 0;
 }
 
-/* vf_golden_search:(i0[2],i1[2],i2,i3,i4[2],i5,i6,i7)->(o0) */
-static int casadi_f21(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
-  casadi_int i;
-  casadi_real **res1=res+1, *rr, *w00=w+107, *w01=w+109, w02, w03, *w04=w+111, w05, w06, w07, w08, *w09=w+113;
-  casadi_real w10;
-  const casadi_real **arg1=arg+8, *cr, *cs;
-  /* #0: @0 = input[0][0] */
-  casadi_copy(arg[0], 2, w00);
-  /* #1: @1 = input[1][0] */
-  casadi_copy(arg[1], 2, w01);
-  /* #2: @2 = input[2][0] */
-  w02 = arg[2] ? arg[2][0] : 0;
-  /* #3: @3 = input[3][0] */
-  w03 = arg[3] ? arg[3][0] : 0;
-  /* #4: @4 = input[4][0] */
-  casadi_copy(arg[4], 2, w04);
-  /* #5: @5 = input[5][0] */
-  w05 = arg[5] ? arg[5][0] : 0;
-  /* #6: @6 = input[6][0] */
-  w06 = arg[6] ? arg[6][0] : 0;
-  /* #7: @7 = input[7][0] */
-  w07 = arg[7] ? arg[7][0] : 0;
-  /* #8: @8 = 0.0001 */
-  w08 = 1.0000000000000000e-04;
-  /* #9: @9 = (@8*@4) */
-  for (i=0, rr=w09, cs=w04; i<2; ++i) (*rr++)  = (w08*(*cs++));
-  /* #10: @9 = (@0+@9) */
-  for (i=0, rr=w09, cr=w00, cs=w09; i<2; ++i) (*rr++)  = ((*cr++)+(*cs++));
-  /* #11: @8 = vf_golden_search_measure(@9, @1, @2, @3, @5, @6) */
-  arg1[0]=w09;
-  arg1[1]=w01;
-  arg1[2]=(&w02);
-  arg1[3]=(&w03);
-  arg1[4]=(&w05);
-  arg1[5]=(&w06);
-  res1[0]=(&w08);
-  if (casadi_f22(arg1, res1, iw, w, 0)) return 1;
-  /* #12: @8 = (@8-@7) */
-  w08 -= w07;
-  /* #13: @10 = 0.0001 */
-  w10 = 1.0000000000000000e-04;
-  /* #14: @8 = (@8/@10) */
-  w08 /= w10;
-  /* #15: @10 = vf_golden_search_try0(@0, @1, @2, @3, @4, @5, @6, @7, @8) */
-  arg1[0]=w00;
-  arg1[1]=w01;
-  arg1[2]=(&w02);
-  arg1[3]=(&w03);
-  arg1[4]=w04;
-  arg1[5]=(&w05);
-  arg1[6]=(&w06);
-  arg1[7]=(&w07);
-  arg1[8]=(&w08);
-  res1[0]=(&w10);
-  if (casadi_f23(arg1, res1, iw, w, 0)) return 1;
-  /* #16: output[0][0] = @10 */
-  if (res[0]) res[0][0] = w10;
-  return 0;
-}
-
-/* whole_step:(i0[2],i1[2],i2,i3,i4[2],i5,i6,i7)->(o0) */
-static int casadi_f42(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+/* vf_golden_search_whole:(i0[2],i1[2],i2,i3,i4[2],i5,i6,i7,i8)->(o0) */
+static int casadi_f43(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real w0;
   /* #0: @0 = 1 */
   w0 = 1.;
@@ -2219,10 +2161,99 @@ static int casadi_f42(const casadi_real** arg, casadi_real** res, casadi_int* iw
   return 0;
 }
 
-/* search_if_off:(i0,i1[2],i2[2],i3,i4,i5[2],i6,i7,i8)->(o0) */
+/* vf_golden_search_if_trusted:(i0,i1[2],i2[2],i3,i4,i5[2],i6,i7,i8,i9)->(o0) */
+static int casadi_f23(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+  if (arg[0] ? casadi_to_int(*arg[0]) : 0) {
+    if (casadi_f43(arg+1, res, iw, w, 0)) return 1;
+  } else {
+    if (casadi_f24(arg+1, res, iw, w, 0)) return 1;
+  }
+  return 0;
+}
+
+/* vf_golden_search:(i0[2],i1[2],i2,i3,i4[2],i5,i6,i7,i8)->(o0) */
+static int casadi_f21(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+  casadi_int i;
+  casadi_real **res1=res+1, *rr, w00, w01, *w02=w+107, *w03=w+109, *w04=w+111, *w05=w+113, w06, w07, w08, w09;
+  casadi_real w10, w11;
+  const casadi_real **arg1=arg+9, *cr, *cs;
+  /* #0: @0 = 0.9 */
+  w00 = 9.0000000000000002e-01;
+  /* #1: @1 = input[8][0] */
+  w01 = arg[8] ? arg[8][0] : 0;
+  /* #2: @0 = (@0*@1) */
+  w00 *= w01;
+  /* #3: @2 = input[0][0] */
+  casadi_copy(arg[0], 2, w02);
+  /* #4: @1 = 0.0001 */
+  w01 = 1.0000000000000000e-04;
+  /* #5: @3 = input[4][0] */
+  casadi_copy(arg[4], 2, w03);
+  /* #6: @4 = (@1*@3) */
+  for (i=0, rr=w04, cs=w03; i<2; ++i) (*rr++)  = (w01*(*cs++));
+  /* #7: @4 = (@2+@4) */
+  for (i=0, rr=w04, cr=w02, cs=w04; i<2; ++i) (*rr++)  = ((*cr++)+(*cs++));
+  /* #8: @5 = input[1][0] */
+  casadi_copy(arg[1], 2, w05);
+  /* #9: @1 = input[2][0] */
+  w01 = arg[2] ? arg[2][0] : 0;
+  /* #10: @6 = input[3][0] */
+  w06 = arg[3] ? arg[3][0] : 0;
+  /* #11: @7 = input[5][0] */
+  w07 = arg[5] ? arg[5][0] : 0;
+  /* #12: @8 = input[6][0] */
+  w08 = arg[6] ? arg[6][0] : 0;
+  /* #13: @9 = vf_golden_search_measure(@4, @5, @1, @6, @7, @8) */
+  arg1[0]=w04;
+  arg1[1]=w05;
+  arg1[2]=(&w01);
+  arg1[3]=(&w06);
+  arg1[4]=(&w07);
+  arg1[5]=(&w08);
+  res1[0]=(&w09);
+  if (casadi_f22(arg1, res1, iw, w, 0)) return 1;
+  /* #14: @10 = input[7][0] */
+  w10 = arg[7] ? arg[7][0] : 0;
+  /* #15: @9 = (@9-@10) */
+  w09 -= w10;
+  /* #16: @11 = 0.0001 */
+  w11 = 1.0000000000000000e-04;
+  /* #17: @9 = (@9/@11) */
+  w09 /= w11;
+  /* #18: @0 = (@0<@9) */
+  w00  = (w00<w09);
+  /* #19: @11 = vf_golden_search_if_trusted(@0, @2, @5, @1, @6, @3, @7, @8, @10, @9) */
+  arg1[0]=(&w00);
+  arg1[1]=w02;
+  arg1[2]=w05;
+  arg1[3]=(&w01);
+  arg1[4]=(&w06);
+  arg1[5]=w03;
+  arg1[6]=(&w07);
+  arg1[7]=(&w08);
+  arg1[8]=(&w10);
+  arg1[9]=(&w09);
+  res1[0]=(&w11);
+  if (casadi_f23(arg1, res1, iw, w, 0)) return 1;
+  /* #20: output[0][0] = @11 */
+  if (res[0]) res[0][0] = w11;
+  return 0;
+}
+
+/* whole_step:(i0[2],i1[2],i2,i3,i4[2],i5,i6,i7,i8)->(o0) */
+static int casadi_f44(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+  casadi_real w0;
+  /* #0: @0 = 1 */
+  w0 = 1.;
+  /* #1: output[0][0] = @0 */
+  if (res[0]) res[0][0] = w0;
+  return 0;
+}
+
+/* search_if_off:(i0,i1[2],i2[2],i3,i4,i5[2],i6,i7,i8,i9)->(o0) */
 static int casadi_f20(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   if (arg[0] ? casadi_to_int(*arg[0]) : 0) {
-    if (casadi_f42(arg+1, res, iw, w, 0)) return 1;
+    if (casadi_f44(arg+1, res, iw, w, 0)) return 1;
   } else {
     if (casadi_f21(arg+1, res, iw, w, 0)) return 1;
   }
@@ -2232,10 +2263,10 @@ static int casadi_f20(const casadi_real** arg, casadi_real** res, casadi_int* iw
 /* recover:(i0[1x2],i1,i2,i3[2],i4[2],i5[2],i6,i7,i8[2x2,2nz],i9[2],i10[6x2],i11[6],i12[6],i13[2],i14[2],i15,i16)->(o0[3]) */
 static int casadi_f13(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_int i, j;
-  casadi_real **res1=res+1, *rr, *w00=w+122, *w01=w+124, *w02=w+126, *w03=w+128, *w04=w+131, *w05=w+140, w06, w07, w08, w09;
-  casadi_real *w10=w+142, w11, w12, w13, *w14=w+144, *w15=w+147, *w16=w+150, *w17=w+153, *w18=w+162, *w19=w+171, *w20=w+186, w21;
-  casadi_real w22, *w23=w+191, *w24=w+196, *w25=w+199, *w26=w+202, *w27=w+205, *w29=w+210, w30, w31, w32, *w33=w+213, *w34=w+215;
-  casadi_real *w35=w+221, *w36=w+227, *w37=w+229, w39, *w40=w+233, w41, *w42=w+235, *w43=w+237, *w44=w+239, *w45=w+241, *w46=w+247;
+  casadi_real **res1=res+1, *rr, *w00=w+123, *w01=w+125, *w02=w+127, *w03=w+129, *w04=w+132, *w05=w+141, w06, w07, w08, w09;
+  casadi_real *w10=w+143, w11, w12, w13, *w14=w+145, *w15=w+148, *w16=w+151, *w17=w+154, *w18=w+163, *w19=w+172, *w20=w+187, w21;
+  casadi_real w22, *w23=w+192, *w24=w+197, *w25=w+200, *w26=w+203, *w27=w+206, *w29=w+211, w30, w31, w32, *w33=w+214, *w34=w+216;
+  casadi_real *w35=w+222, *w36=w+228, *w37=w+230, w39, *w40=w+234, w41, *w42=w+236, *w43=w+238, *w44=w+240, *w45=w+242, *w46=w+248, w47;
   const casadi_real **arg1=arg+17, *cr, *cs, *wr38;
   int flag, mid;
   /* #0: @0 = zeros(2x1) */
@@ -2582,10 +2613,10 @@ static int casadi_f13(const casadi_real** arg, casadi_real** res, casadi_int* iw
   w32 += w41;
   /* #142: @41 = fmin(@9,@32) */
   w41  = casadi_fmin(w09,w32);
-  /* #143: @8 = fmin(@8,@41) */
-  w08  = casadi_fmin(w08,w41);
-  /* #144: @39 = fmax(@39,@8) */
-  w39  = casadi_fmax(w39,w08);
+  /* #143: @41 = fmin(@8,@41) */
+  w41  = casadi_fmin(w08,w41);
+  /* #144: @39 = fmax(@39,@41) */
+  w39  = casadi_fmax(w39,w41);
   /* #145: @35 = input[11][0] */
   casadi_copy(arg[11], 6, w35);
   /* #146: @20 = @35[1:6] */
@@ -2598,10 +2629,10 @@ static int casadi_f13(const casadi_real** arg, casadi_real** res, casadi_int* iw
   w13  = (w12+w13);
   /* #149: @9 = fmax(@9,@32) */
   w09  = casadi_fmax(w09,w32);
-  /* #150: @12 = fmax(@12,@9) */
-  w12  = casadi_fmax(w12,w09);
-  /* #151: @13 = fmin(@13,@12) */
-  w13  = casadi_fmin(w13,w12);
+  /* #150: @9 = fmax(@12,@9) */
+  w09  = casadi_fmax(w12,w09);
+  /* #151: @13 = fmin(@13,@9) */
+  w13  = casadi_fmin(w13,w09);
   /* #152: @34 = input[12][0] */
   casadi_copy(arg[12], 6, w34);
   /* #153: @20 = @34[1:6] */
@@ -2618,7 +2649,7 @@ static int casadi_f13(const casadi_real** arg, casadi_real** res, casadi_int* iw
   casadi_clear(w44, 2);
   /* #158: @45 = zeros(6x1) */
   casadi_clear(w45, 6);
-  /* #159: {@46, @12, NULL, NULL} = phase2b(@37, @36, @38, @35, @34, @42, @43, @40, @44, @45, @28, @28) */
+  /* #159: {@46, @9, NULL, NULL} = phase2b(@37, @36, @38, @35, @34, @42, @43, @40, @44, @45, @28, @28) */
   arg1[0]=w37;
   arg1[1]=w36;
   arg1[2]=wr38;
@@ -2632,7 +2663,7 @@ static int casadi_f13(const casadi_real** arg, casadi_real** res, casadi_int* iw
   arg1[10]=0;
   arg1[11]=0;
   res1[0]=w46;
-  res1[1]=(&w12);
+  res1[1]=(&w09);
   res1[2]=0;
   res1[3]=0;
   mid = casadi_f19_checkout();
@@ -2642,60 +2673,60 @@ static int casadi_f13(const casadi_real** arg, casadi_real** res, casadi_int* iw
   if (flag) return 1;
   /* #160: @36 = fabs(@46) */
   for (i=0, rr=w36, cs=w46; i<2; ++i) *rr++ = casadi_fabs( *cs++ );
-  /* #161: @9 = inf */
-  w09 = casadi_inf;
-  /* #162: @36 = (@36<@9) */
-  for (i=0, rr=w36, cr=w36; i<2; ++i) (*rr++)  = ((*cr++)<w09);
-  /* #163: @9 = min(@36) */
-  w09 = casadi_mmin(w36, 2, 1);
-  /* #164: @32 = 0 */
-  w32 = 0.;
+  /* #161: @32 = inf */
+  w32 = casadi_inf;
+  /* #162: @36 = (@36<@32) */
+  for (i=0, rr=w36, cr=w36; i<2; ++i) (*rr++)  = ((*cr++)<w32);
+  /* #163: @32 = min(@36) */
+  w32 = casadi_mmin(w36, 2, 1);
+  /* #164: @41 = 0 */
+  w41 = 0.;
   /* #165: @36 = (@1-@46) */
   for (i=0, rr=w36, cr=w01, cs=w46; i<2; ++i) (*rr++)  = ((*cr++)-(*cs++));
   /* #166: @42 = (@46-@2) */
   for (i=0, rr=w42, cr=w46, cs=w02; i<2; ++i) (*rr++)  = ((*cr++)-(*cs++));
   /* #167: @36 = fmax(@36,@42) */
   for (i=0, rr=w36, cr=w36, cs=w42; i<2; ++i) (*rr++)  = casadi_fmax((*cr++),(*cs++));
-  /* #168: @36 = fmax(@32,@36) */
-  for (i=0, rr=w36, cs=w36; i<2; ++i) (*rr++)  = casadi_fmax(w32,(*cs++));
-  /* #169: @32 = max(@36) */
-  w32 = casadi_mmax(w36, 2, 1);
-  /* #170: @8 = 1e-05 */
-  w08 = 9.9999999999999991e-06;
-  /* #171: @32 = (@32<=@8) */
-  w32  = (w32<=w08);
-  /* #172: @9 = (@9&&@32) */
-  w09  = (w09&&w32);
-  /* #173: @32 = 0 */
-  w32 = 0.;
-  /* #174: @8 = 0 */
-  w08 = 0.;
-  /* #175: @8 = mac(@10,@46,@8) */
-  casadi_mtimes_dense(w10, 1, 2, w46, 1, (&w08), 0);
-  /* #176: @39 = (@39-@8) */
-  w39 -= w08;
-  /* #177: @8 = (@8-@13) */
-  w08 -= w13;
-  /* #178: @39 = fmax(@39,@8) */
-  w39  = casadi_fmax(w39,w08);
-  /* #179: @32 = fmax(@32,@39) */
-  w32  = casadi_fmax(w32,w39);
-  /* #180: @39 = max(@32) */
-  w39 = casadi_mmax((&w32), 1, 1);
-  /* #181: @32 = 1e-05 */
-  w32 = 9.9999999999999991e-06;
-  /* #182: @39 = (@39<=@32) */
-  w39  = (w39<=w32);
-  /* #183: @9 = (@9&&@39) */
-  w09  = (w09&&w39);
+  /* #168: @36 = fmax(@41,@36) */
+  for (i=0, rr=w36, cs=w36; i<2; ++i) (*rr++)  = casadi_fmax(w41,(*cs++));
+  /* #169: @41 = max(@36) */
+  w41 = casadi_mmax(w36, 2, 1);
+  /* #170: @47 = 1e-05 */
+  w47 = 9.9999999999999991e-06;
+  /* #171: @41 = (@41<=@47) */
+  w41  = (w41<=w47);
+  /* #172: @32 = (@32&&@41) */
+  w32  = (w32&&w41);
+  /* #173: @41 = 0 */
+  w41 = 0.;
+  /* #174: @47 = 0 */
+  w47 = 0.;
+  /* #175: @47 = mac(@10,@46,@47) */
+  casadi_mtimes_dense(w10, 1, 2, w46, 1, (&w47), 0);
+  /* #176: @39 = (@39-@47) */
+  w39 -= w47;
+  /* #177: @47 = (@47-@13) */
+  w47 -= w13;
+  /* #178: @39 = fmax(@39,@47) */
+  w39  = casadi_fmax(w39,w47);
+  /* #179: @41 = fmax(@41,@39) */
+  w41  = casadi_fmax(w41,w39);
+  /* #180: @39 = max(@41) */
+  w39 = casadi_mmax((&w41), 1, 1);
+  /* #181: @41 = 1e-05 */
+  w41 = 9.9999999999999991e-06;
+  /* #182: @39 = (@39<=@41) */
+  w39  = (w39<=w41);
+  /* #183: @32 = (@32&&@39) */
+  w32  = (w32&&w39);
   /* #184: @46 = fmax(@46,@1) */
   for (i=0, rr=w46, cr=w46, cs=w01; i<2; ++i) (*rr++)  = casadi_fmax((*cr++),(*cs++));
   /* #185: @46 = fmin(@46,@2) */
   for (i=0, rr=w46, cr=w46, cs=w02; i<2; ++i) (*rr++)  = casadi_fmin((*cr++),(*cs++));
-  /* #186: @46 = (@9?@46:0) */
-  for (i=0, rr=w46, cs=w46; i<2; ++i) (*rr++)  = (w09?cs[i]:0);
-  /* #187: @39 = (!@9) */
-  w39 = (! w09 );
+  /* #186: @46 = (@32?@46:0) */
+  for (i=0, rr=w46, cs=w46; i<2; ++i) (*rr++)  = (w32?cs[i]:0);
+  /* #187: @39 = (!@32) */
+  w39 = (! w32 );
   /* #188: @40 = (@39?@40:0) */
   for (i=0, rr=w40, cs=w40; i<2; ++i) (*rr++)  = (w39?cs[i]:0);
   /* #189: @46 = (@46+@40) */
@@ -2708,7 +2739,55 @@ static int casadi_f13(const casadi_real** arg, casadi_real** res, casadi_int* iw
   for (i=0, rr=w40, cs=w00; i<2; ++i) (*rr++)  = (w39?cs[i]:0);
   /* #193: @46 = (@46+@40) */
   for (i=0, rr=w46, cs=w40; i<2; ++i) (*rr++) += (*cs++);
-  /* #194: @39 = search_if_off(@31, @5, @33, @21, @7, @46, @6, @22, @11) */
+  /* #194: @39 = 1e-06 */
+  w39 = 9.9999999999999995e-07;
+  /* #195: @41 = 0 */
+  w41 = 0.;
+  /* #196: @47 = 0 */
+  w47 = 0.;
+  /* #197: @13 = 0.0001 */
+  w13 = 1.0000000000000000e-04;
+  /* #198: @40 = (@13*@46) */
+  for (i=0, rr=w40, cs=w46; i<2; ++i) (*rr++)  = (w13*(*cs++));
+  /* #199: @47 = mac(@10,@40,@47) */
+  casadi_mtimes_dense(w10, 1, 2, w40, 1, (&w47), 0);
+  /* #200: @8 = (@8-@47) */
+  w08 -= w47;
+  /* #201: @47 = (@47-@12) */
+  w47 -= w12;
+  /* #202: @8 = fmax(@8,@47) */
+  w08  = casadi_fmax(w08,w47);
+  /* #203: @41 = fmax(@41,@8) */
+  w41  = casadi_fmax(w41,w08);
+  /* #204: @41 = (@22*@41) */
+  w41  = (w22*w41);
+  /* #205: @8 = max(@41) */
+  w08 = casadi_mmax((&w41), 1, 1);
+  /* #206: @39 = (@39<@8) */
+  w39  = (w39<w08);
+  /* #207: @41 = (@39?@8:0) */
+  w41  = (w39?w08:0);
+  /* #208: @41 = (@41/@6) */
+  w41 /= w06;
+  /* #209: @8 = sq(@8) */
+  w08 = casadi_sq( w08 );
+  /* #210: @8 = (@39?@8:0) */
+  w08  = (w39?w08:0);
+  /* #211: @39 = (@39?@8:0) */
+  w39  = (w39?w08:0);
+  /* #212: @8 = 2 */
+  w08 = 2.;
+  /* #213: @39 = (@39/@8) */
+  w39 /= w08;
+  /* #214: @41 = (@41+@39) */
+  w41 += w39;
+  /* #215: @41 = (@41-@11) */
+  w41 -= w11;
+  /* #216: @39 = 0.0001 */
+  w39 = 1.0000000000000000e-04;
+  /* #217: @41 = (@41/@39) */
+  w41 /= w39;
+  /* #218: @39 = search_if_off(@31, @5, @33, @21, @7, @46, @6, @22, @11, @41) */
   arg1[0]=(&w31);
   arg1[1]=w05;
   arg1[2]=w33;
@@ -2718,47 +2797,48 @@ static int casadi_f13(const casadi_real** arg, casadi_real** res, casadi_int* iw
   arg1[6]=(&w06);
   arg1[7]=(&w22);
   arg1[8]=(&w11);
+  arg1[9]=(&w41);
   res1[0]=(&w39);
   if (casadi_f20(arg1, res1, iw, w, 0)) return 1;
-  /* #195: @46 = (@46-@0) */
+  /* #219: @46 = (@46-@0) */
   for (i=0, rr=w46, cs=w00; i<2; ++i) (*rr++) -= (*cs++);
-  /* #196: @46 = (@39*@46) */
+  /* #220: @46 = (@39*@46) */
   for (i=0, rr=w46, cs=w46; i<2; ++i) (*rr++)  = (w39*(*cs++));
-  /* #197: @0 = (@0+@46) */
+  /* #221: @0 = (@0+@46) */
   for (i=0, rr=w00, cs=w46; i<2; ++i) (*rr++) += (*cs++);
-  /* #198: output[0][0] = @0 */
+  /* #222: output[0][0] = @0 */
   casadi_copy(w00, 2, res[0]);
-  /* #199: @39 = 1 */
+  /* #223: @39 = 1 */
   w39 = 1.;
-  /* #200: @31 = 4 */
+  /* #224: @31 = 4 */
   w31 = 4.;
-  /* #201: @21 = 1 */
+  /* #225: @21 = 1 */
   w21 = 1.;
-  /* #202: @21 = (@21-@30) */
+  /* #226: @21 = (@21-@30) */
   w21 -= w30;
-  /* #203: @31 = (@31*@21) */
+  /* #227: @31 = (@31*@21) */
   w31 *= w21;
-  /* #204: @39 = (@39+@31) */
+  /* #228: @39 = (@39+@31) */
   w39 += w31;
-  /* #205: @31 = 8 */
+  /* #229: @31 = 8 */
   w31 = 8.;
-  /* #206: @12 = (@9?@12:0) */
-  w12  = (w09?w12:0);
-  /* #207: @9 = (!@9) */
-  w09 = (! w09 );
-  /* #208: @21 = 1 */
+  /* #230: @9 = (@32?@9:0) */
+  w09  = (w32?w09:0);
+  /* #231: @32 = (!@32) */
+  w32 = (! w32 );
+  /* #232: @21 = 1 */
   w21 = 1.;
-  /* #209: @9 = (@9?@21:0) */
-  w09  = (w09?w21:0);
-  /* #210: @12 = (@12+@9) */
-  w12 += w09;
-  /* #211: @31 = (@31*@12) */
-  w31 *= w12;
-  /* #212: @30 = (@30?@31:0) */
+  /* #233: @32 = (@32?@21:0) */
+  w32  = (w32?w21:0);
+  /* #234: @9 = (@9+@32) */
+  w09 += w32;
+  /* #235: @31 = (@31*@9) */
+  w31 *= w09;
+  /* #236: @30 = (@30?@31:0) */
   w30  = (w30?w31:0);
-  /* #213: @39 = (@39+@30) */
+  /* #237: @39 = (@39+@30) */
   w39 += w30;
-  /* #214: output[0][1] = @39 */
+  /* #238: output[0][1] = @39 */
   if (res[0]) res[0][2] = w39;
   return 0;
 }
@@ -2776,7 +2856,7 @@ void casadi_f13_decref(void) {
 }
 
 /* keep:(i0[1x2],i1,i2,i3[2],i4[2],i5[2],i6,i7,i8[2x2,2nz],i9[2],i10[6x2],i11[6],i12[6],i13[2],i14[2],i15,i16)->(o0[3]) */
-static int casadi_f43(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+static int casadi_f45(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real *w0=w+0, w1, w2;
   /* #0: @0 = input[5][0] */
   casadi_copy(arg[5], 2, w0);
@@ -2796,7 +2876,7 @@ static int casadi_f43(const casadi_real** arg, casadi_real** res, casadi_int* iw
 /* phase2_if_needed:(i0,i1[1x2],i2,i3,i4[2],i5[2],i6[2],i7,i8,i9[2x2,2nz],i10[2],i11[6x2],i12[6],i13[6],i14[2],i15[2],i16,i17)->(o0[3]) */
 static int casadi_f12(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   if (arg[0] ? casadi_to_int(*arg[0]) : 0) {
-    if (casadi_f43(arg+1, res, iw, w, 0)) return 1;
+    if (casadi_f45(arg+1, res, iw, w, 0)) return 1;
   } else {
     if (casadi_f13(arg+1, res, iw, w, 0)) return 1;
   }
@@ -2812,7 +2892,7 @@ void casadi_f12_decref(void) {
 }
 
 /* vf_golden_finish:(i0[3],i1[1x2],i2,i3,i4[2],i5[2],i6)->(o0[2],o1,o2) */
-static int casadi_f44(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+static int casadi_f46(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a00, a01, a02, a03, a04, a05, a06, a07, a08, a09, a10, a11;
   casadi_real a12, a13, a14;
   a00=arg[0]? arg[0][0] : 0;
@@ -2899,9 +2979,9 @@ static int casadi_f44(const casadi_real** arg, casadi_real** res, casadi_int* iw
 /* vf_golden:(q[2],u[2],p,dt,recover)->(x[2],status,violation) */
 static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_int i;
-  casadi_real **res1=res+3, *rr, *w00=w+275, *w01=w+277, w02, w03, *w04=w+279, w05, w06, *w07=w+281, *w08=w+283, w09;
-  casadi_real *w10=w+285, *w11=w+287, *w12=w+289, *w13=w+301, *w14=w+307, *w15=w+313, *w16=w+317, *w17=w+319, *w18=w+321, *w19=w+323, *w20=w+325, *w22=w+331;
-  casadi_real w23, *w24=w+333, *w25=w+336, w26, w27;
+  casadi_real **res1=res+3, *rr, *w00=w+277, *w01=w+279, w02, w03, *w04=w+281, w05, w06, *w07=w+283, *w08=w+285, w09;
+  casadi_real *w10=w+287, *w11=w+289, *w12=w+291, *w13=w+303, *w14=w+309, *w15=w+315, *w16=w+319, *w17=w+321, *w18=w+323, *w19=w+325, *w20=w+327, *w22=w+333;
+  casadi_real w23, *w24=w+335, *w25=w+338, w26, w27;
   const casadi_real **arg1=arg+5, *cr, *cs;
   int flag, mid;
   /* #0: @0 = input[0][0] */
@@ -3069,7 +3149,7 @@ static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   res1[0]=w22;
   res1[1]=(&w23);
   res1[2]=(&w26);
-  if (casadi_f44(arg1, res1, iw, w, 0)) return 1;
+  if (casadi_f46(arg1, res1, iw, w, 0)) return 1;
   /* #39: output[0][0] = @22 */
   casadi_copy(w22, 2, res[0]);
   /* #40: output[1][0] = @23 */
@@ -3163,28 +3243,28 @@ CASADI_SYMBOL_EXPORT const casadi_int* vf_golden_sparsity_out(casadi_int i) {
 }
 
 CASADI_SYMBOL_EXPORT int vf_golden_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
-  if (sz_arg) *sz_arg = 180;
-  if (sz_res) *sz_res = 21;
+  if (sz_arg) *sz_arg = 192;
+  if (sz_res) *sz_res = 22;
   if (sz_iw) *sz_iw = 8;
-  if (sz_w) *sz_w = 339;
+  if (sz_w) *sz_w = 341;
   return 0;
 }
 
 CASADI_SYMBOL_EXPORT int vf_golden_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
-  if (sz_arg) *sz_arg = 180*sizeof(const casadi_real*);
-  if (sz_res) *sz_res = 21*sizeof(casadi_real*);
+  if (sz_arg) *sz_arg = 192*sizeof(const casadi_real*);
+  if (sz_res) *sz_res = 22*sizeof(casadi_real*);
   if (sz_iw) *sz_iw = 8*sizeof(casadi_int);
-  if (sz_w) *sz_w = 339*sizeof(casadi_real);
+  if (sz_w) *sz_w = 341*sizeof(casadi_real);
   return 0;
 }
 
 /* vf_golden_admissible:(i0)->(o0[0]) */
-static int casadi_f45(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+static int casadi_f47(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   return 0;
 }
 
 CASADI_SYMBOL_EXPORT int vf_golden_admissible(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem){
-  return casadi_f45(arg, res, iw, w, mem);
+  return casadi_f47(arg, res, iw, w, mem);
 }
 
 CASADI_SYMBOL_EXPORT int vf_golden_admissible_checkout(void) {
