@@ -10,9 +10,10 @@ checked the same way over the least-violation set S, which the reference compute
 (levels_reference.least_violation_set: its own phase 2 (A), its own S); where the controller found no certificate its
 answer is (A)'s, x_A, the reference's within 1e-9 (at most half of a task's least-violation ticks: 3 of polyline_guide's
 8 here, none on most tasks; benchmarks/least_violation.py counts them on more states), and its status has the bit
-UNCERTIFIED: a tick without it is exact, on both paths. A least-violation tick goes a of phase 2's step (docs/runtime.md,
-Phase 2 (C)): both paths' answers are a times the whole step (the task's step built with backtrack=False) within
-1e-10, a restated from its definition (levels_reference.step_length), and the levels are judged on the whole step."""
+UNCERTIFIED: a tick without it is exact, on both paths. A least-violation tick goes a of phase 2's step
+(docs/runtime.md, Phase 2 (C)): both paths' answers are a times the whole step (the task's step built with
+backtrack=False) within 1e-10, a restated from its definition (levels_reference.step_length), and the levels are
+judged on the whole step."""
 
 from __future__ import annotations
 
