@@ -108,6 +108,7 @@ class Controller:
         self._labels = self._all_labels()
         self._units = [row_unit(label.primitive) for label in problem.row_labels]
         self._slack_units = [row_unit(label.primitive) for label in problem.slack_labels]
+        self._phase_index = {phase.name: k for k, phase in enumerate(task.phases)}     # a phase weighs: activity[k] > 0
         if runner.kind == "native":
             self._prime()
 
@@ -259,10 +260,9 @@ class Controller:
         rows = self.assembled.row_labels
         found = [Violation(label, float(a), unit) for label, a, unit
                  in zip(rows, violation, self._units) if a > 0 and not label.soft]
-        phases = {phase.name: k for k, phase in enumerate(self.task.phases)}    # a phase weighs: activity[k] > 0
         found += [Violation(label, float(s), unit) for label, s, unit
                   in zip(self.assembled.slack_labels, x[self.nq:], self._slack_units)
-                  if s > self._tolerance and (label.phase is None or activity[phases[label.phase]] > 0.0)]
+                  if s > self._tolerance and (label.phase is None or activity[self._phase_index[label.phase]] > 0.0)]
         return found
 
     @property

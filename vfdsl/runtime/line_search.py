@@ -64,15 +64,12 @@ def group_worst(E: ca.DM, violation):
     return ca.vertcat(*(ca.mmax(violation[np.flatnonzero(column).tolist()]) for column in columns))
 
 
-def measure(t, w, rho: float):
-    """phase 2's measure of the group violations t: sum_g rho t_g / w_g + t_g^2 / 2."""
-    return ca.sum1(rho * t / w + t * t / 2)
-
-
-def worst_counted(E: ca.DM, violation, counted, tol: float):
-    """t_g over the rows ``counted`` (1 per row counted, else 0), a violation within ``tol`` counting as none."""
+def measure(E: ca.DM, violation, counted, w, tol: float, rho: float):
+    """phi: phase 2's measure sum_g rho t_g / w_g + t_g^2 / 2 of the rows' ``violation``, t_g the largest over group
+    g's rows ``counted`` (1 per row counted, else 0), a violation within ``tol`` counting as none."""
     t = group_worst(E, counted * violation)
-    return ca.if_else(t > tol, t, 0)
+    t = ca.if_else(t > tol, t, 0)
+    return ca.sum1(rho * t / w + t * t / 2)
 
 
 def line_search(qp_data: ca.Function, inputs: list[ca.MX], E: ca.DM, tol: float, rho: float,
@@ -115,6 +112,6 @@ def _measure_function(qp_data: ca.Function, E: ca.DM, tol: float, rho: float, na
     lba, uba = qp_data.call(symbols)[3:5]
     Sym = ca.SX if sx else ca.MX
     w, counted = Sym.sym("w", E.size2()), Sym.sym("counted", E.size1())
-    phi = measure(worst_counted(E, ca.fmax(ca.fmax(lba, -uba), 0), counted, tol), w, rho)
+    phi = measure(E, ca.fmax(ca.fmax(lba, -uba), 0), counted, w, tol, rho)
     defined = ca.logic_and(ca.mmin(lba <= ca.inf), ca.mmin(uba >= -ca.inf))
     return ca.Function(name, [*symbols, w, counted], [ca.if_else(defined, phi, ca.inf)])

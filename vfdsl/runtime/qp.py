@@ -102,7 +102,7 @@ import numpy as np
 from vfdsl.codegen import tick_buffers
 from vfdsl.codegen.solve_plan import PlannedFunction, SolvePlan, record
 from vfdsl.runtime.daqp_solve import daqp_rows, daqp_solver
-from vfdsl.runtime.line_search import SLOPE_STEP, group_worst, line_search, measure, worst_counted
+from vfdsl.runtime.line_search import SLOPE_STEP, group_worst, line_search, measure
 
 QP_DATA_OUTPUTS = ("H", "g", "A", "lba", "uba", "lbx", "ubx")
 GRADIENT_SATURATION = 1e3
@@ -518,7 +518,7 @@ def _step_length(A, lba, uba, x_0, x, data, E: ca.DM, v, w, tol, rho, search, fa
     nq = data[0].size1()
     hard = ca.sum2(ca.fabs(A[:, nq:])) == 0 if A.size2() > nq else ca.MX.ones(A.size1())    # no slack column
     counted = hard * (E @ (v > tol))
-    phi = lambda y: measure(worst_counted(E, _row_violation(A @ y, lba, uba), counted, tol), w, rho)  # noqa: E731
+    phi = lambda y: measure(E, _row_violation(A @ y, lba, uba), counted, w, tol, rho)  # noqa: E731
     phi_0 = phi(ca.MX.zeros(x.sparsity()))
     predicted = (phi(SLOPE_STEP * x) - phi_0) / SLOPE_STEP           # the rows' slope along x
     whole = ca.Function("whole_step", search.mx_in(), [ca.MX(1)])
