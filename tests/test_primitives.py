@@ -165,9 +165,10 @@ def documented_basis(l) -> tuple[np.ndarray, np.ndarray]:
     return v1, v2
 
 
-def polygon_ref(l, n: int) -> np.ndarray:
-    """Paper eq. (9): u_i = R3 [cos a_i, sin a_i, 0], a_i = 2 pi i / n, with the documented R3 = [v1 v2 l]."""
-    v1, v2 = documented_basis(l)
+def polygon_ref(l, n: int, first=None) -> np.ndarray:
+    """Paper eq. (9): u_i = R3 [cos a_i, sin a_i, 0], a_i = 2 pi i / n, with the documented R3 = [v1 v2 l], or
+    v1 = ``first`` (the rotation rows' facet n/n along their error's direction), v2 = v1 x l."""
+    v1, v2 = documented_basis(l) if first is None else (first, np.cross(first, l))
     return np.array([math.cos(2 * math.pi * i / n) * v1 + math.sin(2 * math.pi * i / n) * v2
                      for i in range(1, n + 1)])
 
@@ -188,7 +189,7 @@ def assert_sphere_rows(A, lb, ub, J3, delta, eps, n, m):
     assert np.all(np.isinf(ub)) and np.all(ub > 0)
 
 
-def assert_polygon_rows(A, lb, ub, J3, delta, eps, normal, n):
+def assert_polygon_rows(A, lb, ub, J3, delta, eps, normal, n, first=None):
     """(a) basis-free: a regular n-gon of unit normals in the plane normal to ``normal``, any phase;
     (b) exactly the documented basis, row by row."""
     assert A.shape[0] == n
@@ -208,7 +209,7 @@ def assert_polygon_rows(A, lb, ub, J3, delta, eps, normal, n):
     gaps = np.diff(np.sort(angles + [min(angles) + 2 * math.pi]))
     assert np.allclose(gaps, 2 * math.pi / n, atol=1e-8), f"not a regular {n}-gon: gaps {gaps}"
     # (b) documented orientation, row by row
-    U = polygon_ref(normal, n)
+    U = polygon_ref(normal, n, first)
     np.testing.assert_allclose(A, -U @ J3, atol=ATOL, rtol=0)
     np.testing.assert_allclose(lb, -eps + U @ delta, atol=ATOL, rtol=0)
 
@@ -414,7 +415,7 @@ def test_rotates_around(tmp_path, robot, frame):
         A, _, lb, ub = rows_of(ctrl, qp, "rotates_around", frame)
         l_pi = unit(f.l - (f.l @ w) * w)                              # projection of l_t on the plane
         delta_r = np.cross(l_pi, f.l)                                 # II-B.4: l_Pi x l_t
-        assert_polygon_rows(A, lb, ub, f.Jw, delta_r, eps, w, n)      # eq. (13), erratum 2: on delta_r + dx_r
+        assert_polygon_rows(A, lb, ub, f.Jw, delta_r, eps, w, n, np.cross(l_pi, w))   # eq. (13), erratum 2
 
 
 # ======================================================================================= above, on_plane
@@ -481,6 +482,11 @@ def cone_reference(l_t, l_a_raw, gamma):
     return w_d, delta_r
 
 
+def cone_tilt(l_t, l_a):
+    """d1 = l_t x l_a / |.|: the direction of the cone's delta_r, its polygon's facet n/n."""
+    return unit(np.cross(l_t, unit(l_a)))
+
+
 @pytest.mark.parametrize("robot,frame", ROBOT_FRAMES)
 def test_cone(tmp_path, robot, frame):
     eps, n = 0.001, 8
@@ -498,7 +504,7 @@ def test_cone(tmp_path, robot, frame):
         qp = ctrl.problem(q, {}, {"axis": l_a, "gamma": gamma}, dt=0.01)
         A, _, lb, ub = rows_of(ctrl, qp, "cone", frame)
         w_d, delta_r = cone_reference(f.l, l_a, gamma)
-        assert_polygon_rows(A, lb, ub, f.Jw, delta_r, eps, w_d, n)   # eq. (13) about w_d
+        assert_polygon_rows(A, lb, ub, f.Jw, delta_r, eps, w_d, n, cone_tilt(f.l, l_a))   # eq. (13) about w_d
 
 
 def test_cone_geometry_on_the_cone(tmp_path):
@@ -521,6 +527,37 @@ def test_cone_geometry_on_the_cone(tmp_path):
         assert np.linalg.norm(delta_r) < 1e-12 and abs(w_d @ f.l) < 1e-12
         np.testing.assert_allclose(lb, -0.001, atol=1e-12)
         assert np.abs(A[:, roll]).max() > 0.5                          # roll about the tool axis is bounded
+
+
+@pytest.mark.parametrize("robot,frame", ROBOT_FRAMES)
+def test_a_roll_meets_no_facet_a_turn_must(tmp_path, robot, frame):
+    """cone and rotates_around's polygons lie in a plane that holds (nearly) the tool axis, so their rows on J_w dq
+    see a roll about it (J dq = [0; l]: the axis and origin stay). Their facet n/n lies along +-delta_r: the worst
+    has no roll in it, and the facets off at rest come in pairs mirrored about it, a roll meeting one as much as it
+    leaves the other. So a roll meets no set of facets off at rest. With the polygon's phase from a fixed basis
+    (before) a roll met a facet off at rest that it never changes: hands off, panda7's tool rolled 1.4e-4 rad a
+    tick for good, OPTIMAL, beside a port that held it a facet off its cone."""
+    ctrl = build(tmp_path, f"""
+        param w : direction = [1, 0, 0]
+        param axis : direction = [0, -0.2, 1]
+        require {frame} rotates_around(w) within 0.002
+        require {frame} cone(axis, 15 deg) within 0.001
+        """, robot)
+    rng = np.random.default_rng(12)
+    for _ in range(TRIALS):
+        q = random_q(robot, rng)
+        f = FrameState(robot, frame, q)
+        roll, *_ = np.linalg.lstsq(f.J, np.concatenate([np.zeros(3), f.l]), rcond=None)
+        assert np.allclose(f.J @ roll, np.concatenate([np.zeros(3), f.l]), atol=1e-9)    # a pure roll
+        w, axis = unit(f.l + rng.normal(scale=2.0, size=3)), near_direction(f.l, rng, 1.0)
+        qp = ctrl.problem(q, {}, {"w": w, "axis": axis}, dt=0.01)
+        for primitive in ("rotates_around", "cone"):
+            A, _, lb, _ = rows_of(ctrl, qp, primitive, frame)
+            off = lb > 1e-9                                    # the facets off at rest
+            worst = int(np.argmax(lb))                         # facet n/n along delta_r, or n/2 against it
+            assert off.any() and worst in (3, 7), primitive
+            assert abs(A[worst] @ roll) < 1e-9, primitive
+            assert not np.all(A[off] @ roll > 1e-12) and not np.all(A[off] @ roll < -1e-12), primitive
 
 
 # ====================================================================================== passes_through

@@ -27,8 +27,8 @@ import pytest
 from scipy.optimize import linear_sum_assignment
 
 from test_primitives import (DEG, FRAMES, GENTLE, ROBOT_FRAMES, ROBOTS, ReferenceCurve, build,  # isort: skip
-                             cone_reference, near_direction, offset_matrix, polygon_ref, random_q, random_unit,
-                             rows_of, sphere_directions_ref, unit, urdf_limits)
+                             cone_reference, cone_tilt, near_direction, offset_matrix, polygon_ref, random_q,
+                             random_unit, rows_of, sphere_directions_ref, unit, urdf_limits)
 
 H = 1e-6
 RTOL = 1e-6
@@ -161,11 +161,13 @@ def test_rotation_rows(tmp_path, robot, frame):
 
         A, _, lb, _ = rows_of(ctrl, qp, "rotates_around")
         l_pi = unit(l_t - (l_t @ w) * w)
-        assert_taylor_rows(A, lb, rotation_g(robot, frame, q0, polygon_ref(w, 6), np.cross(l_pi, l_t)), 0.002, q0)
+        U = polygon_ref(w, 6, np.cross(l_pi, w))
+        assert_taylor_rows(A, lb, rotation_g(robot, frame, q0, U, np.cross(l_pi, l_t)), 0.002, q0)
 
         A, _, lb, _ = rows_of(ctrl, qp, "cone")
         w_d, delta_r = cone_reference(l_t, l_a, 15 * DEG)
-        assert_taylor_rows(A, lb, rotation_g(robot, frame, q0, polygon_ref(w_d, 8), delta_r), 0.001, q0)
+        U = polygon_ref(w_d, 8, cone_tilt(l_t, l_a))
+        assert_taylor_rows(A, lb, rotation_g(robot, frame, q0, U, delta_r), 0.001, q0)
 
         A, _, lb, _ = rows_of(ctrl, qp, "angular_speed")
         assert_taylor_rows(A, lb, rotation_g(robot, frame, q0, sphere_directions_ref(6, 6), np.zeros(3)),

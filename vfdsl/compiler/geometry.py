@@ -81,9 +81,10 @@ def plane_basis(l):
     return v1, v2
 
 
-def polygon_directions(l, n: int):
-    """The n rows u_i = R3 [cos a_i, sin a_i, 0] of the polygon in the plane normal to l (n x 3, CasADi)."""
-    v1, v2 = plane_basis(l)
+def polygon_directions(l, n: int, first=None):
+    """The n rows u_i = R3 [cos a_i, sin a_i, 0] of the polygon in the plane normal to l (n x 3, CasADi);
+    R3 = [v1 v2 l] from :func:`plane_basis`, or v1 = ``first`` (a unit vector normal to l), v2 = v1 x l."""
+    v1, v2 = plane_basis(l) if first is None else (first, normalize(ca.cross(first, l)))
     return ca.vertcat(*[(math.cos(a) * v1 + math.sin(a) * v2).T for a in polygon_angles(n)])
 
 

@@ -72,4 +72,4 @@ def lower(c: ir.Constraint, ctx: Context) -> Rows:
     d2 = normalize(ca.cross(d1, l_a))
     w_d = ca.cos(gamma) * d2 + ca.sin(gamma) * l_a          # eq. 22: R [cos g, sin g, 0]^T, R = [d2, l_a, -d1]
     delta_r = d1 * ca.sin(gamma) - continued_sine(cross, ca.dot(l_t, l_a), d1)      # eq. 23
-    return around_axis(f, w_d, c.tolerance, c.resolution[0], delta_r)
+    return around_axis(f, w_d, c.tolerance, c.resolution[0], delta_r, tilt=d1)

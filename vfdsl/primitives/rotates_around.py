@@ -43,9 +43,10 @@ def lower(c: ir.Constraint, ctx: Context) -> Rows:
     return around_axis(ctx.frame(c.frame), ctx.direction(c.args["axis"]), c.tolerance, c.resolution[0])
 
 
-def around_axis(frame, w, eps, n, delta_r=None) -> Rows:
-    """Polygon rows (normal to w) on delta_r + dx_r; delta_r defaults to l_Pi x l_t (eq. 11)."""
+def around_axis(frame, w, eps, n, delta_r=None, tilt=None) -> Rows:
+    """Polygon rows (normal to w) on delta_r + dx_r, its facet n/n along ``tilt`` (the unit direction of delta_r,
+    normal to l_t and w); delta_r defaults to l_Pi x l_t (eq. 11), along l_Pi x w."""
     if delta_r is None:      # the projection's length is |l_t x w|: none along w, where a fixed normal turns the tool
         l_pi = turn_axis(frame.axis - ca.dot(frame.axis, w) * w, plane_basis(w)[0])
-        delta_r = ca.cross(l_pi, frame.axis)
-    return facets(polygon_directions(w, n), delta_r, eps, frame.Jw)
+        delta_r, tilt = ca.cross(l_pi, frame.axis), ca.cross(l_pi, w)
+    return facets(polygon_directions(w, n, first=tilt), delta_r, eps, frame.Jw)
