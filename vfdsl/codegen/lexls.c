@@ -296,9 +296,10 @@ static int lex_ls_columns(vfdsl_lex* L, const double* N, int k, const int* idx, 
 static int lex_nnls_within(vfdsl_lex* L, const double* N, int k, int a, const double* c, double thr) {
   double *lam = L->lam, *sol = L->sol, *w = L->w, *res = L->res;
   int *passive = L->cols, *idx = L->piv, i, j, l, iter;
-  double tol = 0;
+  double tol = 0, cc = 0;
   for (j=0;j<a;++j) { lam[j] = 0; passive[j] = 0; idx[j] = j; for (i=0;i<k;++i) tol += fabs(N[i + j*k]); }
-  tol *= 10 * 2.220446049250313e-16 * (k > a ? k : a);
+  for (i=0;i<k;++i) cc += c[i]*c[i];
+  tol *= 10 * 2.220446049250313e-16 * (k > a ? k : a) * sqrt(cc);   /* w = N'(c - N lam) scales as c */
   L->hint_column = -1;
   if (lex_ls_columns(L, N, k, idx, a, c) == 0) {
     double most = 0;

@@ -354,9 +354,11 @@ def _nnls_within(N, c, threshold) -> bool:
     bounds the minimum), then Lawson and Hanson's active-set method, which stops with the lam it has when a passive
     set's columns are (nearly) dependent. lexls.c's algorithm step for step, not scipy's nnls: where the multipliers
     are not unique, two algorithms find different ones, and the rounding charged to them decided the certificate
-    differently on the two paths (polyline_guide, a least-violation state)."""
+    differently on the two paths (polyline_guide, a least-violation state). A column enters when its w exceeds
+    rounding relative to |c|: with an absolute tolerance, a state at rest on its rows (c ~ 1e-17, the rows' bounds
+    +-1e-16) let no column enter, and panda7's tool held beside a port and a cone was uncertified every tick."""
     k, a = N.shape
-    tol = 10 * np.finfo(float).eps * max(k, a) * np.abs(N).sum()
+    tol = 10 * np.finfo(float).eps * max(k, a) * np.abs(N).sum() * np.linalg.norm(c)   # w = N'(c - N lam) scales as c
 
     def within(lam):
         return np.linalg.norm(N @ lam - c) + ROUNDING * np.abs(lam).sum() <= threshold
