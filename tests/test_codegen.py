@@ -67,7 +67,7 @@ def test_build_then_hit(tmp_path, compiles, interpreted_x):
     assert meta["inputs"][0] == {"name": "q", "shape": [2, 1]}
     assert meta["outputs"][2] == {"name": "violation", "shape": [1, 1]}
     assert {"compiler", "compiler_version", "flags", "casadi_version", "created"} <= meta.keys()
-    assert "-O3" in meta["flags"]
+    assert f"-{os.environ.get('VFDSL_OPTIMIZE', 'O3')}" in meta["flags"]        # (the suite builds at O0)
     assert "vf_a(const casadi_real** arg" in first.h_path.read_text()
     np.testing.assert_allclose(evaluate(first, "vf_a"), interpreted_x, atol=1e-12)
 
@@ -158,6 +158,30 @@ def test_two_processes_build_the_same_entry(tmp_path, interpreted_x):
         assert library.so_path.is_file()
         np.testing.assert_allclose(x, interpreted_x, atol=1e-12)
     assert [p.name for p in tmp_path.iterdir()] == [outcomes[0][0].so_path.parent.name]
+
+
+def test_the_optimisation_is_in_the_key_and_changes_no_answer(tmp_path, monkeypatch):
+    """$VFDSL_OPTIMIZE: O3 by default, O0 for the suite (tests/conftest.py). Each level is its own cache entry, and
+    paper B's closed loop (300 ticks, a torque that sweeps the cone) is the same to the bit at O0 and O3: IEEE
+    arithmetic at every level (-ffp-contract=off, never -ffast-math). A level that is not one is refused."""
+    import vfdsl
+    from conftest import TASKS_DIR
+    monkeypatch.setenv("VFDSL_CACHE", str(tmp_path))
+    task = vfdsl.load(TASKS_DIR / "paper_b_virtual_rcm.vf")
+    runs = {}
+    for level in ("O0", "O3"):
+        monkeypatch.setenv("VFDSL_OPTIMIZE", level)
+        ctrl = vfdsl.compile(task)
+        q, trajectory = task.start.copy(), []
+        for k in range(300):
+            q = q + ctrl.step(q, {"tau": [0.01, 0.004 * np.cos(0.05 * k), 0.002]})
+            trajectory.append(q.copy())
+        runs[level] = np.array(trajectory)
+    assert len(list(tmp_path.glob("vf_paper_b_virtual_rcm_*"))) == 2
+    assert np.array_equal(runs["O0"], runs["O3"])
+    monkeypatch.setenv("VFDSL_OPTIMIZE", "fast")
+    with pytest.raises(VfError, match="VFDSL_OPTIMIZE"):
+        vfdsl.compile(task)
 
 
 def test_missing_compiler(tmp_path, monkeypatch):

@@ -65,6 +65,11 @@ FLAGS = ("-O3", "-march=native", "-ffp-contract=off", "-fPIC", "-pthread", "-fvi
          "-Werror=implicit-function-declaration",
          "-DGCC_HASCLASSVISIBILITY")
 """Speed flags. Never ``-ffast-math``: the step's NaN/inf checks must survive optimisation."""
+OPTIMIZE = "VFDSL_OPTIMIZE"
+"""The environment variable that sets the optimisation of a task's own C (its generated step and the Python
+extension; DAQP's and the certificate's libraries stay at -O3): O3 (default), O2, O1 or O0. The arithmetic is
+IEEE's at every level (-ffp-contract=off, never -ffast-math), so a tick's answer is the same to the bit; O0 builds
+about 4x faster and ticks slower (the test suite builds at O0, tests/conftest.py)."""
 STEPPER = Path(__file__).parent / "stepper.c"
 STEPPER_PARTS = (STEPPER, STEPPER.with_name("stepper_values.h"), STEPPER.with_name("stepper_procedure.h"))
 """The Python extension's source: stepper.c and the parts it includes."""
@@ -285,8 +290,17 @@ def _renamed(fn: ca.Function, name: str) -> ca.Function:
     return ca.Function(name, args, fn.call(args), fn.name_in(), fn.name_out())
 
 
+def task_flags() -> tuple[str, ...]:
+    """FLAGS with the optimisation $VFDSL_OPTIMIZE asks for (:data:`OPTIMIZE`)."""
+    level = os.environ.get(OPTIMIZE, "O3")
+    if level not in ("O0", "O1", "O2", "O3"):
+        raise VfError(f"${OPTIMIZE} is {level!r}, not an optimisation level",
+                      hint=f"set {OPTIMIZE} to O3 (the default), O2, O1 or O0, or unset it")
+    return (f"-{level}", *FLAGS[1:])
+
+
 def _digest(source: str, header: str, compiler: Compiler, metadata: dict) -> str:
-    key = json.dumps({"source": source, "header": header, "flags": FLAGS,
+    key = json.dumps({"source": source, "header": header, "flags": task_flags(),
                       "compiler": compiler.version, "target": compiler.target,
                       "casadi": ca.__version__, "daqp": daqp_version(), "lexls": _LEXLS_KEY, "metadata": metadata,
                       "python_module": _python_build_key()}, sort_keys=True)
@@ -322,20 +336,21 @@ def _compile(fn: ca.Function, prefix: str, work: Path, compiler: Compiler, diges
     so_name = f"lib{prefix}-{nonce}.so"
     root = daqp_sources(daqp_home())
     daqp = solver_libraries(compiler, fn.size1_out(0), root)
-    _cc(compiler, work, [*FLAGS, f"-I{root / 'include'}", "-c", f"{prefix}.c", "-o", f"{prefix}.o"])
+    flags = task_flags()
+    _cc(compiler, work, [*flags, f"-I{root / 'include'}", "-c", f"{prefix}.c", "-o", f"{prefix}.o"])
     objects = [f"{prefix}.o"]
     for source in extra:     # kept in the entry (for `vfdsl export`); their symbols stay hidden in the library
         shutil.copyfile(source, work / source.name)
         objects.append(f"{source.stem}.o")
-        _cc(compiler, work, [*FLAGS, "-DVFM_EXPORT=", "-c", source.name, "-o", objects[-1]])
-    _cc(compiler, work, [*FLAGS, "-shared", *objects, "-o", so_name, *daqp])
+        _cc(compiler, work, [*flags, "-DVFM_EXPORT=", "-c", source.name, "-o", objects[-1]])
+    _cc(compiler, work, [*flags, "-shared", *objects, "-o", so_name, *daqp])
     _load(work / so_name, prefix)
     module_file = None
     headers = python_headers()
     if headers is not None:
         module = f"{prefix}_py"
         module_file = f"{module}-{nonce}.so"
-        _cc(compiler, work, [*FLAGS, "-shared", *(f"-I{d}" for d in headers), f"-DVFDSL_PREFIX={prefix}",
+        _cc(compiler, work, [*flags, "-shared", *(f"-I{d}" for d in headers), f"-DVFDSL_PREFIX={prefix}",
                              f"-DVFDSL_MODULE={module}", "-include", f"{prefix}.h", str(STEPPER),
                              *objects, "-o", module_file, "-Wl,-Bsymbolic", *daqp])
         load_module(work / module_file)
@@ -343,7 +358,7 @@ def _compile(fn: ca.Function, prefix: str, work: Path, compiler: Compiler, diges
             "prefix": prefix, "digest": digest,
             "inputs": _io(fn.name_in(), fn.size_in), "outputs": _io(fn.name_out(), fn.size_out),
             "compiler": compiler.command[0], "compiler_version": compiler.version,
-            "compiler_target_sha256": compiler.target, "flags": list(FLAGS),
+            "compiler_target_sha256": compiler.target, "flags": list(flags),
             "casadi_version": ca.__version__, "daqp_version": daqp_version(), "max_slots": MAX_SLOTS,
             "created": datetime.datetime.now(datetime.UTC).isoformat(),
             "so_file": so_name, "so_sha256": _sha256(work / so_name), "extra_sources": [x.name for x in extra],
