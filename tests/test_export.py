@@ -47,11 +47,10 @@ CONTRACT_TASKS = (*EXPERIMENTS, "sinus_channel")
 TASKS_WITH_PARAMS = [name for name in TASKS if ParamLayout(vfdsl.load(TASKS_DIR / f"{name}.vf").params).size]
 CLEAN_ENV = {"PATH": os.environ.get("PATH", "/usr/bin:/bin"), "LANG": "C"}
 """make's environment: no CPATH, C_INCLUDE_PATH or CFLAGS from this (Python) session."""
-TEST_CFLAGS = "-O1"
-"""The exports' builds in the tests. The generated C is the native path's, which every test that compiles a task
-builds at -O3 -march=native; -O1 builds it about 3 times faster (the exports were the suite's largest cost), and
-arithmetic without -ffast-math gives the same answers at any level. The Makefile's own default (-O3) is built for
-DEFAULT_BUILD."""
+TEST_CFLAGS = "-O0"
+"""The exports' builds in the tests, at the level the suite builds every task's C (tests/conftest.py,
+$VFDSL_OPTIMIZE): about 4 times faster than the Makefile's -O3, and arithmetic without -ffast-math gives the same
+answers at any level. The Makefile's own default (-O3) is built for DEFAULT_BUILD."""
 DEFAULT_BUILD = "paper_b_virtual_rcm"
 
 
