@@ -497,7 +497,8 @@ def _least_violation(A, lba, uba, lo, hi, solve_args, data, E: ca.DM, tol, rho, 
     x_b = answer[:n]
     ok_b = _acceptable(x_b, A @ x_b, lower, upper, lo, hi, accept_tol)
     x = ca.if_else(ok_a, ca.if_else(ok_b, _clip(x_b, lo, hi), x_a), x_0)
-    x = x_0 + _step_length(A, lba, uba, x_0, x, data, E, v, w, tol, rho, search, ca.logic_not(ok_a)) * (x - x_0)
+    x = x_0 + _step_length(A, lba, uba, at_rest, x_0, x, data, E, v, w, tol, rho, search,
+                           ca.logic_not(ok_a)) * (x - x_0)
     uncertified = ca.if_else(ok_a, ca.if_else(ok_b, answer[n], 1), 0)     # (A) failed: FALLBACK says it
     status = (int(StepStatus.LEAST_VIOLATION) + int(StepStatus.FALLBACK) * (1 - ok_a)
               + int(StepStatus.UNCERTIFIED) * uncertified)
@@ -509,18 +510,22 @@ def _rest_violations(E: ca.DM, lba, uba, at_rest) -> ca.MX:
     return group_worst(E, _row_violation(at_rest, lba, uba))
 
 
-def _step_length(A, lba, uba, x_0, x, data, E: ca.DM, v, w, tol, rho, search, failed) -> ca.MX:
+def _step_length(A, lba, uba, at_rest, x_0, x, data, E: ca.DM, v, w, tol, rho, search, failed) -> ca.MX:
     """a in [0, 1]: how far along x_0 -> x phase 2's step goes (:mod:`vfdsl.runtime.line_search`), its measure
     counting the hard rows (no slack column) of the groups off at rest (v_g > tol); 1 where (A) ``failed`` (x is
-    x_0), where the box forces a motion (x_0 != 0) and where no hard group is off at rest."""
+    x_0), where the box forces a motion (x_0 != 0) and where no hard group is off at rest. ``at_rest`` = A x_0, the
+    rows at rest wherever the search runs (x_0 = 0)."""
     if search is None:
         return ca.MX(1)
     nq = data[0].size1()
     hard = ca.sum2(ca.fabs(A[:, nq:])) == 0 if A.size2() > nq else ca.MX.ones(A.size1())    # no slack column
     counted = hard * (E @ (v > tol))
-    phi = lambda y: measure(E, _row_violation(A @ y, lba, uba), counted, w, tol, rho)  # noqa: E731
-    phi_0 = phi(ca.MX.zeros(x.sparsity()))
-    predicted = (phi(SLOPE_STEP * x) - phi_0) / SLOPE_STEP           # the rows' slope along x
+
+    def phi(moved):     # the measure of the rows at A dq = ``moved``
+        return measure(E, _row_violation(moved, lba, uba), counted, w, tol, rho)
+
+    phi_0 = phi(at_rest)
+    predicted = (phi(at_rest + A @ (SLOPE_STEP * x)) - phi_0) / SLOPE_STEP       # the rows' slope along x
     whole = ca.Function("whole_step", search.mx_in(), [ca.MX(1)])
     skip = ca.logic_or(ca.logic_or(failed, ca.mmax(ca.fabs(x_0)) > 0), phi_0 == 0)
     return ca.Function.if_else("search_if_off", whole, search)(skip, *data, x, w, counted, phi_0, predicted)
