@@ -219,6 +219,51 @@ def test_bad_teleop_arguments_are_refused_at_their_place(tmp_path, written, mess
     assert info.value.pos is not None and info.value.pos.line == 17
 
 
+@pytest.mark.parametrize("written, message", [("scale = 500,", "'scale' must be in \\(0, 100\\], got 500"),
+                                              ("scale = 0,", "'scale' must be in \\(0, 100\\], got 0"),
+                                              ("scale = 100.5,", "must be in \\(0, 100\\]")])
+def test_a_scale_written_upside_down_is_refused_at_its_place(tmp_path, written, message):
+    """A ratio of 1:500 written as 500 would move the tool half a metre per millimetre of the hand: refused at the
+    value, with the hint saying which way the ratio goes; 100 (the limit) and 0.002 load."""
+    (tmp_path / "t.yaml").write_text(START)
+    (tmp_path / "t.vf").write_text(WALL.replace("scale = 0.5,", written))
+    with pytest.raises(VfError, match=message) as info:
+        vfdsl.load(tmp_path / "t.vf")
+    assert info.value.pos is not None and info.value.pos.line == 16
+    assert "0.2 moves the tool 1 mm per 5 mm of the hand" in str(info.value)
+    for allowed in ("scale = 100,", "scale = 0.002,"):
+        (tmp_path / "t.vf").write_text(WALL.replace("scale = 0.5,", allowed))
+        vfdsl.load(tmp_path / "t.vf")
+
+
+def test_a_haptic_force_beyond_any_master_is_refused(tmp_path):
+    (tmp_path / "t.yaml").write_text(START)
+    (tmp_path / "t.vf").write_text(WALL.replace("saturation = 3 N", "saturation = 3000 N"))
+    with pytest.raises(VfError, match="'saturation' must be in \\(0, 1000\\]") as info:
+        vfdsl.load(tmp_path / "t.vf")
+    assert info.value.pos is not None and info.value.pos.line == 17
+
+
+@pytest.mark.parametrize("backend", ["interpreted", "native"])
+def test_a_scale_held_in_a_param_is_held_to_the_same_limit(tmp_path, backend):
+    """scale = gain, a run-time param: 500 in the scene is refused at the scene's line (naming where it is used);
+    500 given to step() is refused before anything moves, on both paths, and the next tick with 0.25 runs."""
+    text = (WALL.replace("param camera", "param gain : number = 0.5\nparam camera")
+            .replace("scale = 0.5,", "scale = gain,"))
+    (tmp_path / "t.vf").write_text(text)
+    (tmp_path / "t.yaml").write_text(START + "params:\n  gain: 500\n")
+    with pytest.raises(VfError, match="'scale', which must be in \\(0, 100\\]; its value is 500") as info:
+        vfdsl.load(tmp_path / "t.vf")
+    assert info.value.pos is not None and info.value.pos.line == 4
+    (tmp_path / "t.yaml").write_text(START)
+    task = vfdsl.load(tmp_path / "t.vf")
+    ctrl = vfdsl.compile(task, backend=backend)
+    q, u = np.array(task.start, dtype=float), {"master": np.zeros(6), "clutch": [0.0]}
+    with pytest.raises(VfError, match="param 'gain' = 500 \\(SI\\) must be in \\(0, 100\\]"):
+        ctrl.step(q, u, params={"gain": 500.0})
+    assert np.all(np.isfinite(ctrl.step(q, u, params={"gain": 0.25})))
+
+
 TELEOP_TASKS = Path(__file__).resolve().parent.parent / "tasks" / "teleop"
 
 

@@ -47,6 +47,11 @@ ROW_VALUE = 1e6                  # m, rad, m/s or rad/s: the largest length, spe
                                  # constraint's rows `check` analyses (LPs)
 GAIN = 1e6                       # SI: the largest gain of `track` (m/s per N, rad/s per N m, or a twist's scale);
                                  # 1 / GAIN the smallest
+TELEOP_SCALE = 100.0             # the largest `teleop` scale (tool motion per master motion): surgical masters scale
+                                 # down (0.2-1); at 100 a 0.1 mm tremor of the hand moves the tool 10 mm, and more is
+                                 # a ratio written upside down (1:500 as 500 instead of 0.002)
+HAPTIC_FORCE = 1_000.0           # N: the largest force `teleop` may feed back (its `saturation`): hand-held masters
+                                 # give 3-40 N; more pushes the operator's hand harder than any master can
 CHECK_SAMPLES = 5_000            # states of check's random walk (about 7 ms each on a loaded 2-core machine)
 SEED = 2 ** 32 - 1               # the largest seed (seeds are 0 or more)
 CONNECT_TIMEOUT = 10.0           # s: to reach a Dask scheduler and hear its handshake

@@ -37,8 +37,10 @@ SPEC = ObjectiveSpec(
           ArgSpec("master", "input", "the master's pose (an input of type pose)"),
           ArgSpec("anchor", "pose", "the frame's pose at engage: capture NAME = FRAME.pose in the following phase"),
           ArgSpec("master_anchor", "pose", "the master's pose at engage: capture NAME = MASTER in the same phase"),
-          ArgSpec("scale", "number", "slave motion per master motion (translation only)",
-                  default=ir.ScalarValue(dimension="number", value=1.0), range=POSITIVE),
+          ArgSpec("scale", "number", "slave motion per master motion (translation only): 0.2 moves the tool 1 mm per "
+                  "5 mm of the hand (a ratio 1:5)",
+                  default=ir.ScalarValue(dimension="number", value=1.0),
+                  range=Range(low=0.0, low_open=True, high=limits.TELEOP_SCALE)),
           ArgSpec("rotation", "choice", "relative: the master's rotation since engage; absolute: its orientation; "
                   "locked: keep the orientation at engage", default=ir.ChoiceValue(value="relative"),
                   choices=ROTATIONS),
@@ -52,7 +54,8 @@ SPEC = ObjectiveSpec(
           ArgSpec("damping", "force_damping", "haptic damper on the rate of that motion",
                   default=ir.ScalarValue(dimension="force_damping", value=0.0), range=NONNEGATIVE),
           ArgSpec("saturation", "force", "the largest haptic force",
-                  default=ir.ScalarValue(dimension="force", value=3.0), range=POSITIVE),
+                  default=ir.ScalarValue(dimension="force", value=3.0),
+                  range=Range(low=0.0, low_open=True, high=limits.HAPTIC_FORCE)),
           ArgSpec("rate_limit", "force_rate", "how fast the haptic force may change",
                   default=ir.ScalarValue(dimension="force_rate", value=500.0), range=POSITIVE),
           ArgSpec("ramp", "time", "how long the haptic force takes to ramp in after engage",
