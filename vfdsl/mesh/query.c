@@ -33,16 +33,27 @@
  *   closed, consistently oriented mesh: for an end, its first hit's; between the ends, the first hit's point x
  *   is checked against every triangle within that hit's distance. The part's other hits take that side.
  *
- * How: a best-first walk of a BVH of oriented boxes (vfdsl/mesh/tables.py), one priority queue of boxes and hits
- * keyed by distance, a box by a lower bound of its hits' distances over the parts it may still give a kept hit
- * to (exact point-box and segment-box distances in the box's frame): hits come out in the order above, so each
- * is merged or kept as it comes out; a box is expanded as soon as it is ahead of the queue (the order in which
- * boxes are expanded does not change the answer, only how soon the walk stops). A part is done when it has K
- * kept hits, or one and K kept hits in all (its later hits could not be rows: they are farther than every kept
- * hit), and the walk stops when every part is done. A box is skipped for a part when it is beyond the cutoff;
- * a hit is dropped as soon as it is within VFM_SIMILAR of a kept hit of its part (it would be merged). (Boxes
- * are not tested against the kept hits' cones: along a wall, where the walk works longest, a box's hits spread
- * over more than one cone, and the test skipped 322 boxes in 1.9 million on benchmarks/mesh.py's states.)
+ * How: a best-first walk of a BVH of oriented boxes (vfdsl/mesh/tables.py), one priority queue (a binary heap)
+ * of boxes, pending entries and hits keyed by distance, a box by a lower bound of its hits' distances over the
+ * parts it may still give a kept hit to (point-box and segment-box distances in the box's frame, lowered by
+ * VFM_LINE_SLACK for rounding): hits come out in the order above, so each is merged or kept as it comes out; a box
+ * is expanded as soon as it is ahead of the queue (the order in which boxes are expanded does not change the
+ * answer, only how soon the walk stops). A part is done when it has K kept hits, or one and K kept hits in all
+ * (its later hits could not be rows: they are farther than every kept hit), and the walk stops when every part
+ * is done. A box is skipped for a part when it is beyond the cutoff; a hit is dropped as soon as it is within
+ * VFM_SIMILAR of a kept hit of its part (it would be merged).
+ * - pending entries: a triangle's hit between the ends (its closest pair with the segment: three segment-edge
+ *   pairs and a face test, the costliest part of a triangle) is not computed when its leaf is expanded. If it
+ *   exists, its segment point is interior, so it is a local, hence the global, least of the distance from the
+ *   segment's line (convex along the line): the triangle's projection on the plane normal to ab gives, in two
+ *   dimensions, its distance (the line's, never more than the hit's) and its direction u (the projection's
+ *   closest point's, up to rounding). The triangle waits in the queue as a pending entry keyed by that distance
+ *   (a box's key, lowered by VFM_LINE_SLACK), and when it comes out the hit is computed only if that part is not
+ *   done and u is not within VFM_SIMILAR + VFM_SAME_SLACK of a kept hit (kept hits come out before it: its hit
+ *   would be merged), u being trusted only from VFM_SAME_FROM away. Along a wall nearly every triangle's hit is
+ *   merged: at benchmarks/mesh.py's slowest states 14 pairs are computed where 508 were.
+ * (Boxes are not tested against the kept hits' cones: along a wall, where the walk works longest, a box's hits
+ * spread over more than one cone, and the test skipped 322 boxes in 1.9 million on benchmarks/mesh.py's states.)
  * The walk's memory (vfm_walk, with a queue of VFM_HEAP entries) is the work vector w the caller gives (CasADi
  * sizes it by @NAME@_work and allocates it with the caller's work arrays: once per controller); every call
  * writes what it reads first, so no call depends on another. When the queue is full, its farthest entry is
@@ -72,6 +83,13 @@
 
 #define VFM_STACK 128
 #define VFM_TOUCH 1e-12
+#define VFM_NN ((int)(sizeof(vfm_nodes) / (2 * sizeof(int))))   /* nodes of the BVH */
+#define VFM_PENDING (-1)            /* region of a pending entry: a triangle's hit between the ends, not computed */
+#define VFM_LINE_SLACK 1e-9         /* relative: keys (a box's bound, a pending entry's distance) lowered by this, and
+                                       a pending entry's by 1e-15 m more, so that rounding keeps them lower bounds */
+#define VFM_SAME_SLACK 1e-9         /* cosine: a pending entry's hit is merged for sure beyond VFM_SIMILAR + this ... */
+#define VFM_SAME_FROM 1e-5          /* m: ... when the triangle is at least this far from the segment's line (its
+                                       direction's rounding is then below 1e-11) */
 
 typedef struct {
   double dist;      /* unsigned distance */
@@ -80,17 +98,17 @@ typedef struct {
   double u[3];      /* unit from c to x (touching: the face's normal times side) */
   int t, region;    /* triangle and feature: 0 face, 1 + e edge e, 4 + i vertex i (vfm_point_triangle) */
   int part;         /* 0 the segment's start, 2 its end, 1 between */
-} vfm_hit;
+} vfm_hit;          /* also a pending entry (region VFM_PENDING: dist its key, u its hit's direction when s = 1) */
 
 typedef struct {
   double key;       /* a box: a lower bound of its hits' distances; a hit: its distance */
-  int ref;          /* >= 0 a node; < 0 the hit in slot -1 - ref */
+  int ref;          /* a node (< VFM_NN), a pending entry in slot ref - VFM_NN, or (< 0) the hit in slot -1 - ref */
   int mask;         /* a box: the parts (bit p) it may give a kept hit to */
 } vfm_item;
 
 typedef struct {
   const double *a, *b;
-  double ab[3], cutoff, side;
+  double ab[3], e1[3], e2[3], cutoff, side;  /* e1, e2: an orthonormal basis of the plane normal to ab */
   int point, parts;                 /* parts: 1 for a point, 7 for a segment */
   vfm_item heap[VFM_HEAP];
   vfm_hit slot[VFM_HEAP];
@@ -114,42 +132,53 @@ static double vfm_clamp01(double x) { return x < 0 ? 0 : (x > 1 ? 1 : x); }
 
 static int vfm_is_leaf(int node) { return vfm_nodes[2 * node] < 0; }
 
-/* Closest point on triangle (a, b, c) to p (Ericson, Real-Time Collision Detection, 5.1.5); region:
- * 0 face, 1 + e edge e (edges (0,1), (1,2), (2,0)), 4 + i vertex i. */
-static void vfm_point_triangle(const double* p, const double* a, const double* b, const double* c,
-                               double* out, int* region) {
-  double ab[3], ac[3], ap[3], bp[3], cp[3];
+/* a . b over the first n (2 or 3) coordinates, summed in order. */
+static double vfm_dotn(int n, const double* a, const double* b) {
+  double s = a[0] * b[0] + a[1] * b[1];
+  return n == 3 ? s + a[2] * b[2] : s;
+}
+
+/* Closest point on triangle (a, b, c) to p in n (2 or 3) dimensions (Ericson, Real-Time Collision Detection,
+ * 5.1.5); region: 0 face, 1 + e edge e (edges (0,1), (1,2), (2,0)), 4 + i vertex i. */
+static void vfm_closest_point(int n, const double* p, const double* a, const double* b, const double* c,
+                              double* out, int* region) {
+  double ab[3] = {0}, ac[3] = {0}, ap[3] = {0}, bp[3] = {0}, cp[3] = {0};
   int i;
-  for (i = 0; i < 3; ++i) { ab[i] = b[i] - a[i]; ac[i] = c[i] - a[i]; ap[i] = p[i] - a[i]; }
-  double d1 = vfm_dot(ab, ap), d2 = vfm_dot(ac, ap);
-  if (d1 <= 0 && d2 <= 0) { for (i = 0; i < 3; ++i) out[i] = a[i]; *region = 4; return; }
-  for (i = 0; i < 3; ++i) bp[i] = p[i] - b[i];
-  double d3 = vfm_dot(ab, bp), d4 = vfm_dot(ac, bp);
-  if (d3 >= 0 && d4 <= d3) { for (i = 0; i < 3; ++i) out[i] = b[i]; *region = 5; return; }
+  for (i = 0; i < n; ++i) { ab[i] = b[i] - a[i]; ac[i] = c[i] - a[i]; ap[i] = p[i] - a[i]; }
+  double d1 = vfm_dotn(n, ab, ap), d2 = vfm_dotn(n, ac, ap);
+  if (d1 <= 0 && d2 <= 0) { for (i = 0; i < n; ++i) out[i] = a[i]; *region = 4; return; }
+  for (i = 0; i < n; ++i) bp[i] = p[i] - b[i];
+  double d3 = vfm_dotn(n, ab, bp), d4 = vfm_dotn(n, ac, bp);
+  if (d3 >= 0 && d4 <= d3) { for (i = 0; i < n; ++i) out[i] = b[i]; *region = 5; return; }
   double vc = d1 * d4 - d3 * d2;
   if (vc <= 0 && d1 >= 0 && d3 <= 0) {
     double v = d1 / (d1 - d3);
-    for (i = 0; i < 3; ++i) out[i] = a[i] + v * ab[i];
+    for (i = 0; i < n; ++i) out[i] = a[i] + v * ab[i];
     *region = 1; return;
   }
-  for (i = 0; i < 3; ++i) cp[i] = p[i] - c[i];
-  double d5 = vfm_dot(ab, cp), d6 = vfm_dot(ac, cp);
-  if (d6 >= 0 && d5 <= d6) { for (i = 0; i < 3; ++i) out[i] = c[i]; *region = 6; return; }
+  for (i = 0; i < n; ++i) cp[i] = p[i] - c[i];
+  double d5 = vfm_dotn(n, ab, cp), d6 = vfm_dotn(n, ac, cp);
+  if (d6 >= 0 && d5 <= d6) { for (i = 0; i < n; ++i) out[i] = c[i]; *region = 6; return; }
   double vb = d5 * d2 - d1 * d6;
   if (vb <= 0 && d2 >= 0 && d6 <= 0) {
     double w = d2 / (d2 - d6);
-    for (i = 0; i < 3; ++i) out[i] = a[i] + w * ac[i];
+    for (i = 0; i < n; ++i) out[i] = a[i] + w * ac[i];
     *region = 3; return;
   }
   double va = d3 * d6 - d5 * d4;
   if (va <= 0 && (d4 - d3) >= 0 && (d5 - d6) >= 0) {
     double w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
-    for (i = 0; i < 3; ++i) out[i] = b[i] + w * (c[i] - b[i]);
+    for (i = 0; i < n; ++i) out[i] = b[i] + w * (c[i] - b[i]);
     *region = 2; return;
   }
   double denom = 1.0 / (va + vb + vc), v = vb * denom, w = vc * denom;
-  for (i = 0; i < 3; ++i) out[i] = a[i] + ab[i] * v + ac[i] * w;
+  for (i = 0; i < n; ++i) out[i] = a[i] + ab[i] * v + ac[i] * w;
   *region = 0;
+}
+
+static void vfm_point_triangle(const double* p, const double* a, const double* b, const double* c,
+                               double* out, int* region) {
+  vfm_closest_point(3, p, a, b, c, out, region);
 }
 
 /* Closest points of segments p1 q1 and p2 q2 (Ericson 5.1.9): parameters s, t in [0, 1]. */
@@ -241,11 +270,20 @@ static int vfm_done(const vfm_walk* w, int p) {
   return w->count[p] >= VFM_K || (w->count[p] > 0 && w->total >= VFM_K);
 }
 
-/* Whether direction u is within VFM_SIMILAR of a kept hit of part p (it would be merged). */
-static int vfm_merged(const vfm_walk* w, int p, const double* u) {
+/* Whether direction u has a cosine above `cosine` with a kept hit of part p. */
+static int vfm_near_kept(const vfm_walk* w, int p, const double* u, double cosine) {
   int k;
-  for (k = 0; k < w->count[p]; ++k) if (vfm_dot(w->kept[p][k].u, u) > VFM_SIMILAR) return 1;
+  for (k = 0; k < w->count[p]; ++k) if (vfm_dot(w->kept[p][k].u, u) > cosine) return 1;
   return 0;
+}
+
+/* Whether direction u is within VFM_SIMILAR of a kept hit of part p (it would be merged). */
+static int vfm_merged(const vfm_walk* w, int p, const double* u) { return vfm_near_kept(w, p, u, VFM_SIMILAR); }
+
+/* Whether a pending entry's hit, if it has one, would be merged: its direction (exact up to rounding) is within
+ * VFM_SIMILAR of a kept hit between the ends by more than the rounding of either. */
+static int vfm_merged_for_sure(const vfm_walk* w, const vfm_hit* pending) {
+  return pending->s > 0 && vfm_near_kept(w, 1, pending->u, VFM_SIMILAR + VFM_SAME_SLACK);
 }
 
 /* x in the frame of node's oriented box (centre, axes, half-sides: vfm_boxes[15 node ...]). */
@@ -267,38 +305,47 @@ static double vfm_point_box(const double* y, const double* h) {
   return sqrt(d2);
 }
 
-/* The distance from segment p p + d (in the box's frame) to the box of half-sides h: the squared distance of
- * p + t d is the sum over the axes of the squared gaps, convex and quadratic between the t where the segment
- * crosses a side's plane; its least value on each of these pieces. */
-static double vfm_segment_box(const double* p, const double* d, const double* h) {
-  double cuts[8], best = INFINITY;
-  int n = 0, i, j, k;
-  cuts[n++] = 0;
+/* Half the slope in t of the squared distance f(t) from p + t d to the box of half-sides h (f is the sum over the
+ * axes of the squared gaps max(|p_i + t d_i| - h_i, 0): convex, its slope increasing). */
+static double vfm_slope(const double* p, const double* d, const double* h, double t) {
+  double g = 0;
+  int i;
   for (i = 0; i < 3; ++i) {
-    if (d[i] == 0) continue;
-    for (k = -1; k <= 1; k += 2) {
-      double t = (k * h[i] - p[i]) / d[i];
-      if (t > 0 && t < 1) cuts[n++] = t;
-    }
+    double y = p[i] + t * d[i];
+    if (y > h[i]) g += (y - h[i]) * d[i];
+    else if (y < -h[i]) g += (y + h[i]) * d[i];
   }
-  cuts[n++] = 1;
-  for (i = 2; i < n - 1; ++i)
-    for (j = i; j > 1 && cuts[j] < cuts[j - 1]; --j) { double x = cuts[j]; cuts[j] = cuts[j - 1]; cuts[j - 1] = x; }
-  for (j = 0; j + 1 < n; ++j) {
-    double t0 = cuts[j], t1 = cuts[j + 1], mid = 0.5 * (t0 + t1), ab = 0, bb = 0, alpha[3], beta[3];
-    for (i = 0; i < 3; ++i) {             /* the gap on this piece: alpha + beta t */
-      double y = p[i] + mid * d[i];
-      if (y > h[i]) { alpha[i] = p[i] - h[i]; beta[i] = d[i]; }
-      else if (y < -h[i]) { alpha[i] = -h[i] - p[i]; beta[i] = -d[i]; }
-      else { alpha[i] = 0; beta[i] = 0; }
-      ab += alpha[i] * beta[i]; bb += beta[i] * beta[i];
+  return g;
+}
+
+/* The distance from segment p p + d (in the box's frame) to the box of half-sides h: f's least value on [0, 1], at 0
+ * when f rises there, at 1 when it falls there, else on the piece between the last cut (a t where the segment
+ * crosses a side's plane) where f falls and the first where it does not: one quadratic there. */
+static double vfm_segment_box(const double* p, const double* d, const double* h) {
+  double lo = 0, hi = 1, mid, ab = 0, bb = 0, alpha[3], beta[3], t, f = 0;
+  int i, k;
+  if (vfm_slope(p, d, h, 0) >= 0) hi = 0;
+  else if (vfm_slope(p, d, h, 1) <= 0) lo = 1;
+  else
+    for (i = 0; i < 3; ++i) {
+      if (d[i] == 0) continue;
+      for (k = -1; k <= 1; k += 2) {
+        t = (k * h[i] - p[i]) / d[i];
+        if (t > lo && t < hi) { if (vfm_slope(p, d, h, t) < 0) lo = t; else hi = t; }
+      }
     }
-    double t = bb > 0 ? -ab / bb : t0, f = 0;
-    t = t < t0 ? t0 : (t > t1 ? t1 : t);
-    for (i = 0; i < 3; ++i) { double g = alpha[i] + beta[i] * t; f += g * g; }
-    if (f < best) best = f;
+  mid = 0.5 * (lo + hi);
+  for (i = 0; i < 3; ++i) {             /* the gap on this piece: alpha + beta t */
+    double y = p[i] + mid * d[i];
+    if (y > h[i]) { alpha[i] = p[i] - h[i]; beta[i] = d[i]; }
+    else if (y < -h[i]) { alpha[i] = -h[i] - p[i]; beta[i] = -d[i]; }
+    else { alpha[i] = 0; beta[i] = 0; }
+    ab += alpha[i] * beta[i]; bb += beta[i] * beta[i];
   }
-  return sqrt(best);
+  t = bb > 0 ? -ab / bb : lo;
+  t = t < lo ? lo : (t > hi ? hi : t);
+  for (i = 0; i < 3; ++i) { double g = alpha[i] + beta[i] * t; f += g * g; }
+  return sqrt(f);
 }
 
 /* The parts of `mask` to which box `node` may still give a kept hit (within the cutoff, not done), and in *key
@@ -322,7 +369,7 @@ static int vfm_useful(const vfm_walk* w, int node, int mask, double* key) {
     out |= 1 << p;
     if (bound < best) best = bound;
   }
-  *key = best;
+  *key = best * (1 - VFM_LINE_SLACK);  /* a lower bound, lowered for rounding */
   return out;
 }
 
@@ -333,7 +380,8 @@ static int vfm_still(const vfm_walk* w, const vfm_item* item) {
   return mask;
 }
 
-/* The queue: a 4-ary heap of items, least first (key, then boxes before hits, then the hits' order). */
+/* The queue: a binary heap of items, least first (key, then boxes and pending entries before hits, then the hits'
+ * order). */
 static int vfm_tie_before(const vfm_walk* w, const vfm_item* x, const vfm_item* y) {
   if ((x->ref >= 0) != (y->ref >= 0)) return x->ref >= 0;
   if (x->ref >= 0) return x->ref < y->ref;
@@ -347,7 +395,7 @@ static int vfm_item_before(const vfm_walk* w, const vfm_item* x, const vfm_item*
 static void vfm_sift_up(vfm_walk* w, int i) {
   vfm_item item = w->heap[i];
   while (i > 0) {
-    int parent = (i - 1) / 4;
+    int parent = (i - 1) / 2;
     if (!vfm_item_before(w, &item, &w->heap[parent])) break;
     w->heap[i] = w->heap[parent];
     i = parent;
@@ -355,21 +403,23 @@ static void vfm_sift_up(vfm_walk* w, int i) {
   w->heap[i] = item;
 }
 
-static void vfm_sift_down(vfm_walk* w, int i) {
-  vfm_item item = w->heap[i];
-  for (;;) {
-    int first = 4 * i + 1, child = first, k, last = first + 4 < w->size ? first + 4 : w->size;
-    if (first >= w->size) break;
-    for (k = first + 1; k < last; ++k) if (vfm_item_before(w, &w->heap[k], &w->heap[child])) child = k;
-    if (!vfm_item_before(w, &w->heap[child], &item)) break;
+/* Removes heap item i: its hole goes down to a leaf, the last item fills it and goes up. */
+static void vfm_remove(vfm_walk* w, int i) {
+  int child;
+  vfm_item last = w->heap[--w->size];
+  if (i == w->size) return;
+  while ((child = 2 * i + 1) < w->size) {
+    if (child + 1 < w->size && vfm_item_before(w, &w->heap[child + 1], &w->heap[child])) ++child;
     w->heap[i] = w->heap[child];
     i = child;
   }
-  w->heap[i] = item;
+  w->heap[i] = last;
+  vfm_sift_up(w, i);
 }
 
 static void vfm_release(vfm_walk* w, int ref) {
   if (ref < 0) w->free_slot[w->nfree++] = -1 - ref;
+  else if (ref >= VFM_NN) w->free_slot[w->nfree++] = ref - VFM_NN;
 }
 
 /* Room for an item of `key`: when the queue is full, the farthest entry (this one, or one queued) is dropped and
@@ -382,8 +432,7 @@ static int vfm_room(vfm_walk* w, double key) {
   if (key >= w->heap[far].key) { w->horizon = key; return 0; }
   w->horizon = w->heap[far].key;
   vfm_release(w, w->heap[far].ref);
-  w->heap[far] = w->heap[--w->size];
-  if (far < w->size) { vfm_sift_down(w, far); vfm_sift_up(w, far); }
+  vfm_remove(w, far);
   return 1;
 }
 
@@ -402,11 +451,14 @@ static void vfm_offer(vfm_walk* w, const vfm_hit* hit) {
   w->leaf[w->nleaf++] = *hit;
 }
 
-static void vfm_queue_hit(vfm_walk* w, const vfm_hit* hit) {
-  if (!vfm_room(w, hit->dist)) return;
+static int vfm_is_pending(const vfm_hit* e) { return e->region == VFM_PENDING; }
+
+/* A hit, or a pending entry (queued as a box is, before the hits of its key), into the queue. */
+static void vfm_queue(vfm_walk* w, const vfm_hit* entry) {
+  if (!vfm_room(w, entry->dist)) return;
   int s = w->nfree > 0 ? w->free_slot[--w->nfree] : w->used++;
-  w->slot[s] = *hit;
-  vfm_item item = {hit->dist, -1 - s, 0};
+  w->slot[s] = *entry;
+  vfm_item item = {entry->dist, vfm_is_pending(entry) ? VFM_NN + s : -1 - s, 0};
   vfm_push(w, item);
 }
 
@@ -428,33 +480,86 @@ static void vfm_make_hit(const vfm_walk* w, int t, int part, double s, const dou
   }
 }
 
-/* Triangle t's hits for the parts of `mask`. */
-static void vfm_triangle(vfm_walk* w, int t, int mask) {
+/* The corners of triangle t. */
+static void vfm_corners(int t, const double** v) {
   const int* tri = vfm_triangles + 3 * t;
-  const double* v[3] = {vfm_vertices + 3 * tri[0], vfm_vertices + 3 * tri[1], vfm_vertices + 3 * tri[2]};
-  double ca[3], cb[3], da2 = 0, db2 = 0;
-  int ra = 0, rb = 0, p;
+  v[0] = vfm_vertices + 3 * tri[0]; v[1] = vfm_vertices + 3 * tri[1]; v[2] = vfm_vertices + 3 * tri[2];
+}
+
+/* Triangle t's hit between the ends (its closest pair with the segment, the segment's point strictly between a and
+ * b, within the cutoff), given the closest points ca, cb of its corners v to a and b: 1 and the hit, or 0. */
+static int vfm_pair_hit(const vfm_walk* w, int t, const double* const* v, const double* ca, int ra, const double* cb,
+                        int rb, vfm_hit* hit) {
+  double c[3], s;
+  int region;
+  double d2 = vfm_pair(w, t, v, ca, vfm_dist2(w->a, ca), ra, cb, vfm_dist2(w->b, cb), rb, &s, c, &region);
+  if (!(s > 0 && s < 1 && d2 <= w->cutoff * w->cutoff)) return 0;
+  vfm_make_hit(w, t, 1, s, c, region, d2, hit);
+  return 1;
+}
+
+/* The same from the triangle alone. */
+static int vfm_inner_hit(const vfm_walk* w, int t, vfm_hit* hit) {
+  const double* v[3];
+  double ca[3], cb[3];
+  int ra, rb;
+  vfm_corners(t, v);
+  vfm_point_triangle(w->a, v[0], v[1], v[2], ca, &ra);
+  vfm_point_triangle(w->b, v[0], v[1], v[2], cb, &rb);
+  return vfm_pair_hit(w, t, v, ca, ra, cb, rb, hit);
+}
+
+/* Triangle t's hit between the ends, deferred (the best-first mode): a pending entry keyed by the distance from the
+ * segment's line to the triangle (the least distance of the triangle's projection on the plane normal to ab from
+ * the origin), never more than the hit's distance, and at least `floor` (its box's key). When the hit exists, its
+ * segment point is a local, so global, least of the distance along the line (convex): the line's closest pair,
+ * whose direction is the projection's closest point's, up to rounding; a pending entry whose direction is merged
+ * for sure is dropped, now or when it comes out. */
+static void vfm_pending(vfm_walk* w, int t, double floor) {
+  const double* v[3];
+  double p[3][2], origin[2] = {0, 0}, c[2];
+  int k, i, region;
+  vfm_hit e;
+  vfm_corners(t, v);
+  for (k = 0; k < 3; ++k) {
+    double d[3] = {v[k][0] - w->a[0], v[k][1] - w->a[1], v[k][2] - w->a[2]};
+    p[k][0] = vfm_dot(d, w->e1); p[k][1] = vfm_dot(d, w->e2);
+  }
+  vfm_closest_point(2, origin, p[0], p[1], p[2], c, &region);
+  double line = sqrt(c[0] * c[0] + c[1] * c[1]), key = line * (1 - VFM_LINE_SLACK) - 1e-15;
+  if (key > w->cutoff) return;        /* its hit, if any, is beyond the cutoff */
+  floor *= 1 - VFM_LINE_SLACK;
+  e.dist = key > floor ? key : floor;  /* a degenerate projection (NaN): the box's key */
+  e.part = 1; e.t = t; e.region = VFM_PENDING; e.s = 0;
+  for (i = 0; i < 3; ++i) { e.c[i] = 0; e.u[i] = 0; }
+  if (line >= VFM_SAME_FROM) {        /* s = 1: u is the hit's direction */
+    double x = -c[0] / line, y = -c[1] / line;
+    for (i = 0; i < 3; ++i) e.u[i] = x * w->e1[i] + y * w->e2[i];
+    e.s = 1;
+  }
+  if (!vfm_merged_for_sure(w, &e)) w->leaf[w->nleaf++] = e;
+}
+
+/* Triangle t's hits for the parts of `mask` (between the ends: pending, or computed in the depth-first mode). */
+static void vfm_triangle(vfm_walk* w, int t, int mask, double floor) {
+  const double* v[3];
+  double c[2][3];
+  int region[2] = {0, 0}, p;
   vfm_hit hit;
+  vfm_corners(t, v);
   for (p = 0; p < 3; ++p) if (vfm_done(w, p)) mask &= ~(1 << p);
-  if (mask & 3) { vfm_point_triangle(w->a, v[0], v[1], v[2], ca, &ra); da2 = vfm_dist2(w->a, ca); }
-  if (mask & 6) { vfm_point_triangle(w->b, v[0], v[1], v[2], cb, &rb); db2 = vfm_dist2(w->b, cb); }
-  if ((mask & 1) && da2 <= w->cutoff * w->cutoff) {
-    vfm_make_hit(w, t, 0, 0, ca, ra, da2, &hit);
+  for (p = 0; p < 3; p += 2) {         /* an end's closest point: for its hit, and in the depth-first mode the pair's */
+    if (!(mask & (w->successor ? 3 << (p / 2) : 1 << p))) continue;
+    const double* x = p ? w->b : w->a;
+    vfm_point_triangle(x, v[0], v[1], v[2], c[p / 2], &region[p / 2]);
+    double d2 = vfm_dist2(x, c[p / 2]);
+    if (!(mask >> p & 1) || d2 > w->cutoff * w->cutoff) continue;
+    vfm_make_hit(w, t, p, p == 2, c[p / 2], region[p / 2], d2, &hit);
     vfm_offer(w, &hit);
   }
-  if ((mask & 4) && db2 <= w->cutoff * w->cutoff) {
-    vfm_make_hit(w, t, 2, 1, cb, rb, db2, &hit);
-    vfm_offer(w, &hit);
-  }
-  if (mask & 2) {
-    double s, c[3];
-    int region;
-    double d2 = vfm_pair(w, t, v, ca, da2, ra, cb, db2, rb, &s, c, &region);
-    if (s > 0 && s < 1 && d2 <= w->cutoff * w->cutoff) {
-      vfm_make_hit(w, t, 1, s, c, region, d2, &hit);
-      vfm_offer(w, &hit);
-    }
-  }
+  if (!(mask & 2)) return;
+  if (!w->successor) vfm_pending(w, t, floor);
+  else if (vfm_pair_hit(w, t, v, c[0], region[0], c[1], region[1], &hit)) vfm_offer(w, &hit);
 }
 
 /* The pseudo-normal of feature `region` of triangle t. */
@@ -551,30 +656,58 @@ static int vfm_all_done(const vfm_walk* w) {
   return 1;
 }
 
-static void vfm_leaf(vfm_walk* w, int node, int mask) {
+static void vfm_leaf(vfm_walk* w, int node, int mask, double floor) {
   int t, first = -1 - vfm_nodes[2 * node];
-  for (t = first; t < first + vfm_nodes[2 * node + 1]; ++t) vfm_triangle(w, t, mask);
+  for (t = first; t < first + vfm_nodes[2 * node + 1]; ++t) vfm_triangle(w, t, mask, floor);
 }
 
-/* The best-first mode's leaf: its hits in order; each that comes before everything queued is taken at once
- * (as it would be when it came out of the queue), the others are queued. */
-static void vfm_leaf_hits(vfm_walk* w, int node, int mask) {
+/* The order of a leaf's entries: by key (a hit's distance, a pending entry's bound), a pending entry before the hits
+ * of its key (as a box is), the hits in their order. */
+static int vfm_entry_before(const vfm_hit* x, const vfm_hit* y) {
+  if (x->dist != y->dist) return x->dist < y->dist;
+  if (vfm_is_pending(x) != vfm_is_pending(y)) return vfm_is_pending(x);
+  return vfm_is_pending(x) ? x->t < y->t : vfm_before(x, y);
+}
+
+/* Whether entry e comes before everything queued (it would come out next). */
+static int vfm_ahead(const vfm_walk* w, const vfm_hit* e) {
+  if (!(e->dist < w->horizon)) return 0;
+  if (w->size == 0) return 1;
+  const vfm_item* top = &w->heap[0];
+  if (e->dist != top->key) return e->dist < top->key;
+  return top->ref < 0 && (vfm_is_pending(e) || vfm_before(e, &w->slot[-1 - top->ref]));
+}
+
+/* A pending entry comes out: its triangle's hit between the ends, unless that part is done or the hit is merged. */
+static int vfm_resolve(vfm_walk* w, const vfm_hit* pending, vfm_hit* hit) {
+  if (vfm_done(w, 1) || vfm_merged_for_sure(w, pending)) return 0;
+  return vfm_inner_hit(w, pending->t, hit) && !vfm_merged(w, 1, hit->u);
+}
+
+/* The best-first mode's leaf: its entries in order; each that comes before everything queued is taken (a hit) or
+ * resolved (a pending entry, its hit put back in order) at once, as it would be when it came out of the queue; the
+ * others are queued. */
+static void vfm_leaf_hits(vfm_walk* w, int node, int mask, double floor) {
   int i, j;
   w->nleaf = 0;
-  vfm_leaf(w, node, mask);
+  vfm_leaf(w, node, mask, floor);
   for (i = 1; i < w->nleaf; ++i)
-    for (j = i; j > 0 && vfm_before(&w->leaf[j], &w->leaf[j - 1]); --j) {
+    for (j = i; j > 0 && vfm_entry_before(&w->leaf[j], &w->leaf[j - 1]); --j) {
       vfm_hit h = w->leaf[j]; w->leaf[j] = w->leaf[j - 1]; w->leaf[j - 1] = h;
     }
   for (i = 0; i < w->nleaf; ++i) {
-    const vfm_hit* hit = &w->leaf[i];
-    const vfm_item* top = &w->heap[0];
-    if (!(hit->dist < w->horizon)) break;
-    if (w->size > 0 && !(hit->dist < top->key ||
-                         (hit->dist == top->key && top->ref < 0 && vfm_before(hit, &w->slot[-1 - top->ref])))) break;
-    vfm_take(w, hit);
+    vfm_hit hit;
+    if (!vfm_ahead(w, &w->leaf[i])) break;
+    if (!vfm_is_pending(&w->leaf[i])) { vfm_take(w, &w->leaf[i]); continue; }
+    if (!vfm_resolve(w, &w->leaf[i], &hit)) continue;
+    for (j = i; j + 1 < w->nleaf && vfm_entry_before(&w->leaf[j + 1], &hit); ++j) w->leaf[j] = w->leaf[j + 1];
+    w->leaf[j] = hit;
+    --i;
   }
-  for (; i < w->nleaf; ++i) if (!vfm_merged(w, w->leaf[i].part, w->leaf[i].u)) vfm_queue_hit(w, &w->leaf[i]);
+  for (; i < w->nleaf; ++i) {
+    const vfm_hit* e = &w->leaf[i];
+    if (vfm_is_pending(e) ? !vfm_merged_for_sure(w, e) : !vfm_merged(w, e->part, e->u)) vfm_queue(w, e);
+  }
 }
 
 /* Depth-first mode: the first hit after w->after that would be kept, into w->best (returns whether found). */
@@ -588,7 +721,7 @@ static int vfm_next(vfm_walk* w) {
     int node = stack[--top];
     mask = vfm_useful(w, node, masks[top], &key);
     if (!mask || (w->found && key > w->best.dist)) continue;
-    if (vfm_is_leaf(node)) { vfm_leaf(w, node, mask); continue; }
+    if (vfm_is_leaf(node)) { vfm_leaf(w, node, mask, 0); continue; }
     if (top + 2 > VFM_STACK) continue;   /* unreachable: the builder bounds the depth below VFM_STACK / 2 */
     stack[top] = vfm_nodes[2 * node + 1]; masks[top++] = mask;
     stack[top] = vfm_nodes[2 * node]; masks[top++] = mask;
@@ -604,6 +737,16 @@ static void vfm_query(vfm_walk* w, const double* a, const double* b, double cuto
   for (i = 0; i < 3; ++i) { w->ab[i] = b[i] - a[i]; w->count[i] = 0; w->part_side[i] = 1; }
   w->point = a[0] == b[0] && a[1] == b[1] && a[2] == b[2];
   w->parts = w->point ? 1 : 7;
+  if (!w->point) {                    /* e1, e2: normal to ab, from the axis least along it */
+    double len = sqrt(vfm_dot(w->ab, w->ab)), z[3], r[3] = {0, 0, 0}, n;
+    for (i = 0; i < 3; ++i) z[i] = w->ab[i] / len;
+    r[fabs(z[0]) <= fabs(z[1]) ? (fabs(z[0]) <= fabs(z[2]) ? 0 : 2) : (fabs(z[1]) <= fabs(z[2]) ? 1 : 2)] = 1;
+    w->e1[0] = z[1] * r[2] - z[2] * r[1]; w->e1[1] = z[2] * r[0] - z[0] * r[2]; w->e1[2] = z[0] * r[1] - z[1] * r[0];
+    n = sqrt(vfm_dot(w->e1, w->e1));
+    for (i = 0; i < 3; ++i) w->e1[i] /= n;
+    w->e2[0] = z[1] * w->e1[2] - z[2] * w->e1[1]; w->e2[1] = z[2] * w->e1[0] - z[0] * w->e1[2];
+    w->e2[2] = z[0] * w->e1[1] - z[1] * w->e1[0];
+  }
   w->total = 0; w->size = 0; w->used = 0; w->nfree = 0; w->horizon = INFINITY; w->successor = 0;
   mask = vfm_useful(w, 0, w->parts, &key);
   vfm_item item = {key, 0, mask};
@@ -612,8 +755,7 @@ static void vfm_query(vfm_walk* w, const double* a, const double* b, double cuto
     if (!held) {
       if (w->size == 0 || w->heap[0].key >= w->horizon) break;
       item = w->heap[0];
-      w->heap[0] = w->heap[--w->size];
-      if (w->size > 0) vfm_sift_down(w, 0);
+      vfm_remove(w, 0);
     }
     held = 0;
     if (item.ref < 0) {
@@ -622,9 +764,18 @@ static void vfm_query(vfm_walk* w, const double* a, const double* b, double cuto
       vfm_take(w, &hit);
       continue;
     }
+    if (item.ref >= VFM_NN) {         /* a pending entry: its hit now, taken or queued in order */
+      vfm_hit pending = w->slot[item.ref - VFM_NN], hit;
+      vfm_release(w, item.ref);
+      if (vfm_resolve(w, &pending, &hit)) {
+        if (vfm_ahead(w, &hit)) vfm_take(w, &hit);
+        else vfm_queue(w, &hit);
+      }
+      continue;
+    }
     mask = vfm_still(w, &item);
     if (!mask) continue;
-    if (vfm_is_leaf(item.ref)) { vfm_leaf_hits(w, item.ref, mask); continue; }
+    if (vfm_is_leaf(item.ref)) { vfm_leaf_hits(w, item.ref, mask, item.key); continue; }
     vfm_item child[2];
     for (i = 0; i < 2; ++i) {
       child[i].ref = vfm_nodes[2 * item.ref + i];
