@@ -7,6 +7,7 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 import vfdsl
@@ -17,6 +18,7 @@ from vfdsl.ir import statechart
 
 REPO = Path(__file__).resolve().parent.parent
 EXAMPLE = REPO / "tasks" / "procedures" / "needle_procedure.vf"
+CHANNEL = REPO / "tasks" / "anatomy" / "channel.stl"
 
 PRELUDE = """\
 task t
@@ -199,6 +201,10 @@ CASES = [   # id, body after the prelude, (line after the prelude, column), code
     ("capture of an input's part", "phase a initial { capture s = f.linear }\n", (0, 33), "E809",
      "'f' has no part 'linear' to capture"),
     ("capture of the robot", "phase a initial { capture s = shr }\n", (0, 31), "E809", "cannot capture 'shr'"),
+    ("capture of a curve param", "param c : curve(degree = 1) = [[0, 0, 280], [10, 0, 280]]\n"
+     "phase a initial { capture k = c }\n", (1, 31), "E809", "a curve param cannot be captured"),
+    ("capture of a mesh param", f"param m : mesh(unit = 1 mm) = \"{CHANNEL}\"\nphase a initial {{ capture k = m }}\n",
+     (1, 31), "E809", "a mesh param cannot be captured"),
     ("capture outside the phases", "phase a initial { capture s = tip.position }\n"
      "require tip stays_at(s) within 1 mm\n", (1, 22), "E810", "'s' is captured on entry to a phase"),
     ("capture outside the phases through a fixture",
@@ -287,6 +293,27 @@ def test_captures_of_an_input_a_param_and_an_axis_are_typed(tmp_path):
     assert [(c.name, c.kind, c.source) for c in task.phases[0].captures] == [
         ("f0", "force", ir.InputRef(name="f")), ("d0", "direction", ir.ParamRef(name="d")),
         ("ax", "direction", ir.FrameMeasure(frame="tip", part="axis"))]
+
+
+@pytest.mark.parametrize("backend", ["interpreted", "native"])
+def test_a_param_captured_into_an_argument_meets_the_arguments_range(tmp_path, backend):
+    """`capture k = r`, then `time_constant = k`: a default of -1 s is refused at the value, naming the capture; a
+    run-time -1 s is refused by step() before anything moves, on both paths, as it is without the capture."""
+    body = ("param r : time = {}\ninput tau : torque\nminimize track(tip, tau, angular_gain = 20 deg/s/Nmm)\n"
+            "phase a initial {{ capture k = r }}\nphase b final {{ minimize centering(time_constant = k) }}\n"
+            "transition a -> b when go\n")
+    err = error(tmp_path, body.format(-1))
+    assert (err.code, err.line, err.column) == ("E402", FIRST, 18), err.render()
+    assert "must be > 0, as the argument 'time_constant' of centering through the capture 'k'" in err.message
+    (tmp_path / "t.yaml").write_text("units: mm, deg\nperiod: 10 ms\n"
+                                      "start: {x: 0, y: 0, z: 0, rcm_a: 0, rcm_b: 0, roll: 0, insert: 20}\n")
+    task = load(tmp_path, body.format(1))
+    ctrl = vfdsl.compile(task, backend=backend)
+    q = np.array(task.start, dtype=float)
+    u = {"f": np.zeros(3), "w": np.zeros(6), "go": [1.0], "tau": np.zeros(3)}
+    with pytest.raises(VfError, match="param 'r' = -1 \\(SI\\) must be > 0"):
+        ctrl.step(q, u, params={"r": -1.0}, dt=0.01)
+    assert np.all(np.isfinite(ctrl.step(q, u, params={"r": 2.0}, dt=0.01))) and ctrl.phase == "b"
 
 
 def test_a_capture_passed_to_a_fixture_inside_a_phase(tmp_path):

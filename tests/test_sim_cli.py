@@ -89,6 +89,24 @@ def test_any_task_runs_with_the_generic_hand_and_a_plot(tmp_path, capsys):
     assert doc["hand"]["kind"] == "push" and doc["metrics"]["tip_passes_through_error_mm"]["max"] <= 0.5
 
 
+def test_a_joint_speed_fraction_held_in_a_param_simulates_as_the_same_literal(tmp_path):
+    """`require joint_speed(k)` with `param k : number = 0.5`: the generic hand's speed and the joint speed metric
+    read k's value (simulate read `.value` of the argument and crashed on a param): the same run as joint_speed(0.5)."""
+    head = ('task js\nunits mm, deg\nrobot shr = urdf "shr7"\nframe tip = shr.link("tool_tip")\ninput f : force\n'
+            'minimize track(tip, f, gain = 1 mm/s/N)\n')
+    runs = []
+    for name, body in [("with_param", "param k : number = 0.5\nrequire joint_speed(k)\n"),
+                       ("literal", "require joint_speed(0.5)\n")]:
+        (tmp_path / f"{name}.vf").write_text(head.replace("task js", f"task {name}") + body)
+        (tmp_path / f"{name}.yaml").write_text("units: mm, deg\nperiod: 10 ms\n"
+                                               "start: {x: 0, y: 0, z: 0, rcm_a: 0, rcm_b: 0, roll: 0, insert: 20}\n")
+        runs.append(_simulate(tmp_path, str(tmp_path / f"{name}.vf"), "--duration", "0.5s", name=f"{name}.json"))
+    hands = [{**run["hand"], "assumed": run["hand"]["assumed"].replace("with_param.vf:8", "at")
+              .replace("literal.vf:7", "at")} for run in runs]
+    assert hands[0] == hands[1] and "joint speed limits of `joint_speed`" in hands[0]["assumed"], hands
+    assert runs[0]["metrics"]["joint_speed_mm_s"] == runs[1]["metrics"]["joint_speed_mm_s"]
+
+
 def test_plate_move_is_absorbed():
     """Fig. 8: after the plate moves 2 mm and tilts, the fixture brings the tip back to the curve."""
     settings = load_settings(vfdsl.load(A), TASKS_DIR / "paper_a_plate_moves.sim.yaml").replace(trials=1, duration=9.0)

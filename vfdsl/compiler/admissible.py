@@ -225,7 +225,14 @@ def _of_params(arg) -> bool:
 
 def _param_ranges(task: ir.Task) -> dict[str, list]:
     """param name -> [(Range, 'argument x of y'), ...]: the allowed range (``ArgSpec.range``) of every
-    argument the param feeds, in phases too, so that a run-time value meets the same range as a literal."""
+    argument the param feeds, in phases too, so that a run-time value meets the same range as a literal; a param
+    captured in a phase (``capture k = param``) feeds what the capture feeds (the capture holds a value the param
+    had, checked then)."""
+    captured: dict[str, set] = {}
+    for phase in task.phases:
+        for c in phase.captures:
+            if isinstance(c.source, ir.ParamRef):
+                captured.setdefault(c.name, set()).add(c.source.name)
     out: dict[str, list] = {}
     for statement in [*task.every_constraint, *task.every_objective]:
         name = statement.primitive if isinstance(statement, ir.Constraint) else statement.term
@@ -234,6 +241,12 @@ def _param_ranges(task: ir.Task) -> dict[str, list]:
         for arg_spec in spec.args if spec else ():
             arg = statement.args.get(arg_spec.name)
             allowed = getattr(arg_spec, "range", None)
-            if isinstance(arg, ir.ParamRef) and allowed is not None:
+            if allowed is None:
+                continue
+            if isinstance(arg, ir.ParamRef):
                 out.setdefault(arg.name, []).append((allowed, f"argument '{arg_spec.name}' of {name}"))
+            elif isinstance(arg, ir.CaptureRef):
+                for param in sorted(captured.get(arg.name, ())):
+                    out.setdefault(param, []).append(
+                        (allowed, f"argument '{arg_spec.name}' of {name} through the capture '{arg.name}'"))
     return out

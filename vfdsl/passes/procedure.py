@@ -21,6 +21,9 @@ from vfdsl.passes.monitors import RESERVED, Conditions
 from vfdsl.syntax import ast
 
 _FRAME_PARTS = {"position": "point", "axis": "direction", "pose": "pose"}
+UNCAPTURED = {"curve": "a run-time curve (runtime = true) changes when the program sets it",
+              "mesh": "a mesh moves with its pose param"}
+"""Param kinds a capture cannot hold (their values are not numbers of a fixed count), with what to do instead."""
 
 # statements(body, scope) -> (objectives, constraints) of those statements, fixtures expanded
 Statements = Callable[[list, fx.Scope], tuple[list[ir.Objective], list[ir.Constraint]]]
@@ -97,8 +100,12 @@ class Procedure:
             if source in r.inputs:
                 return ir.Capture(name=stmt.name.text, kind=r.inputs[source].type, span=stmt.span,
                                   source=ir.InputRef(name=source))
-            return ir.Capture(name=stmt.name.text, kind=r.params[source].type, span=stmt.span,
-                              source=ir.ParamRef(name=source))
+            kind = r.params[source].type
+            if kind in UNCAPTURED:
+                raise VfError(f"a {kind} param cannot be captured: '{source}' is read where it is used",
+                              stmt.source.span,
+                              hint=f"use {source} itself in the phase's statements ({UNCAPTURED[kind]})", code="E809")
+            return ir.Capture(name=stmt.name.text, kind=kind, span=stmt.span, source=ir.ParamRef(name=source))
         raise VfError(f"cannot capture '{source}': it is not a frame, an input or a param", stmt.source.span,
                       hint=suggest(source, [*r.frames, *r.inputs, *r.params], "frames, inputs and params"),
                       code="E809")

@@ -248,7 +248,8 @@ def _hand_speed(task, robot: Robot, frame, offset, direction: np.ndarray, rotati
         why = f"the `{c.frame} {primitive}` limit ({_at(c)}), {speed * factor:.3g} {unit_name}"
     else:
         joint = next((c for c in task.constraints if c.primitive == "joint_speed"), None)
-        fraction = joint.args["fraction"].value.value if joint is not None and "fraction" in joint.args else 1.0
+        fraction = 1.0 if joint is None or "fraction" not in joint.args \
+            else float(np.min(scene.scalar(joint.args["fraction"])))
         vmax = fraction * robot.velocity_limit
         J = robot.frame_jacobian(q0, frame.link, offset)
         dq = np.linalg.pinv(J[3:6] if rotational else J[0:3]) @ unit(direction)
