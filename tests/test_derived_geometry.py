@@ -292,8 +292,10 @@ def test_frames_from_frames_match_pinocchio(tmp_path):
     ("frame s = tip offset 2 * [0, 0, 1]", "expected a vector, got a vector of plain numbers", 5, 22, "[x, y, z] mm"),
     ("frame s = tip offset [1e308, 0, 0] m\nframe s2 = s offset [1e308, 0, 0] m",
      "frame 's' is 1e+308 m from its link: the limit is 1000 m", 5, 22, None),
-    ("frame s = tip offset [600, 0, 0] m\nframe s2 = s offset [600, 0, 0] m",
-     "frame 's2' is 1200 m from its link: the limit is 1000 m", 6, 21, None),
+    ("frame s = tip offset [1.5, 0, 0] m\nframe s2 = s offset [1.5, 0, 0] m",
+     "frame 's2' is 3 m from its link: beyond 1.86 m, 3 x robot 'shr''s reach", 6, 21, "millimetres given as metres?"),
+    ("frame s = tip rotate [0, 0, 400]", "frame 's' rotates by [0, 0, 6.98132] rad: beyond a full turn", 5, 22,
+     "degrees given as radians?"),
 ])
 def test_frame_mistakes(tmp_path, text, message, line, column, hint):
     body = 'task t\nunits mm, deg\nrobot shr = urdf "shr7"\nframe tip = shr.link("tool_tip")\n' + text + "\n"
@@ -326,17 +328,35 @@ def test_overflow_and_underflow_are_errors_not_nan(tmp_path, body, message, colu
 
 
 @pytest.mark.parametrize("constraint, params, column", [
-    ("above(plane(a, normalize(v + v)))", {"v": [1.7e308, 0, 0]}, 28),      # points are bounded: vectors overflow
-    ("stays_at(a + v + v) within 1 mm", {"v": [1.7e308, 0, 0]}, 22),
+    ("above(plane(a, normalize(k * [1, 0, 0] m + k * [1, 0, 0] m)))", {"k": 1.7e308}, 28),   # points and vectors
+    ("stays_at(a + k * [1, 0, 0] m + k * [1, 0, 0] m) within 1 mm", {"k": 1.7e308}, 22),     # are bounded: numbers
+    #                                                                                          scaling them overflow
 ])
 def test_run_time_overflow_is_refused(tmp_path, constraint, params, column):
-    task = load(tmp_path, f"input f : force\nminimize track(tip, f, gain = 1 mm/s/N)\nrequire tip {constraint}\n")
+    task = load(tmp_path, f"param k : number = 1\ninput f : force\nminimize track(tip, f, gain = 1 mm/s/N)\n"
+                          f"require tip {constraint}\n")
     ctrl = vfdsl.compile(task, backend="interpreted")
     q = np.zeros(ctrl.nq)
     with pytest.raises(VfError, match="too large") as info:
         ctrl.step(q, {"f": [0, 0, 0]}, params=params, dt=0.01)
-    assert (info.value.pos.line, info.value.pos.column) == (12, column)
+    assert (info.value.pos.line, info.value.pos.column) == (13, column)
     assert np.all(np.isfinite(ctrl.step(q, {"f": [0, 0, 0]}, params={"a": [0, 0, 0.2]}, dt=0.01)))
+
+
+@pytest.mark.parametrize("backend", ["interpreted", "native"])
+def test_a_vector_is_as_plausible_as_a_point(tmp_path, backend):
+    """A displacement no longer than a point may lie away: `follows(c, shift = [0, 0, 1e9])` (mm: 1000 km) is
+    refused at its statement, and a vector param given 100 km at run time is refused before anything moves, on both
+    paths (both were accepted: the tool drove toward a curve 1000 km away, least violation every tick)."""
+    curve = "param c : curve(degree = 1) = [[0, 0, 280], [10, 0, 280]]\ninput f : force\n" \
+            "minimize track(tip, f, gain = 1 mm/s/N)\n"
+    with pytest.raises(VfError, match=r"follows\(\.\.\.\) argument 'shift' is \[0, 0, 1e\+06\] m: beyond 1.86 m"):
+        load(tmp_path, curve + "require tip follows(c, shift = [0, 0, 1e9]) within 0.1\n")
+    ctrl = vfdsl.compile(load(tmp_path, curve + "require tip follows(c, shift = v) within 0.1\n"), backend=backend)
+    q = np.zeros(ctrl.nq)
+    with pytest.raises(VfError, match=r"param 'v' is \[0, 0, 100000\] m: beyond 1.86 m"):
+        ctrl.step(q, {"f": [0, 0, 0]}, params={"v": [0, 0, 1e5]}, dt=0.01)
+    assert np.all(np.isfinite(ctrl.step(q, {"f": [0, 0, 0]}, params={"v": [0, 0, 1e-3]}, dt=0.01)))
 
 
 def test_lists_take_their_dimension_from_their_use(tmp_path):

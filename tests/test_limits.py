@@ -225,13 +225,13 @@ def test_a_frame_a_kilometre_from_its_link_is_refused_at_its_offset(tmp_path, ca
 
 def test_check_refuses_rows_beyond_the_linear_programs_range_at_the_constraint(tmp_path, capsys):
     """A point 1e300 m away: the rows hold numbers HiGHS refuses (it was a 'Model error' traceback). A param
-    point that far is refused at its value already (implausible); one computed from a run-time vector, which
-    has no plausible length, reaches the rows."""
+    point (or vector) that far is refused at its value already (implausible); one computed from a run-time number,
+    which has no plausible size, reaches the rows."""
     err = _refused(capsys, "check", str(_far(tmp_path, point="[1e300, 0, 0]")))
     assert "far.vf:6:19: error: param 'p' is [1e+297, 0, 0] m: beyond 1.86 m" in err
     task = _far(tmp_path)
-    task.write_text(task.read_text().replace("param p : point = [0, 0, 290]", "param p : vector = [1e300, 0, 0]")
-                    .replace("stays_at(p)", "stays_at([0, 0, 290] + p)"))
+    task.write_text(task.read_text().replace("param p : point = [0, 0, 290]", "param k : number = 1e300")
+                    .replace("stays_at(p)", "stays_at([0, 0, 290] + k * [1, 0, 0] mm)"))
     err = _refused(capsys, "check", str(task))
     assert "far.vf:8:1: error: at the start, the rows of stays_at(tip) hold 1e+297 (m or rad): the limit is 1e+06" in err
     assert main(["show", str(task)]) == 0

@@ -10,7 +10,8 @@ and accepts a tick only when every check holds). Each check, in SI units:
 
 - a direction, a line's direction, a plane's normal: ``|d| >= MIN_DIRECTION_NORM`` (it is normalized in the
   step; shorter, it has no direction);
-- a point, a line's or plane's point, a pose's translation, each point of a run-time curve: every coordinate
+- a point, a vector (a displacement), a line's or plane's point, a pose's translation, each point of a run-time
+  curve: every coordinate
   within the task's plausible distance ``L = min(MAX_DISTANCE, REACH_FACTOR x reach)``, reach being the
   robot's (:attr:`vfdsl.kinematics.robot.Robot.reach`) plus the longest task-frame offset; a length param:
   ``|x| <= L``. A value in millimetres read as metres lands beyond it (any coordinate over 3 x the reach in
@@ -110,15 +111,16 @@ class Admissible:
         value = arg.value
         for k, xyz in enumerate(_written_points(value)):
             if np.max(np.abs(xyz)) > self.distance:
-                part = f"'s point {k + 1}" if value.kind == "curve" else "" if value.kind == "point" else "'s point"
+                part = f"'s point {k + 1}" if value.kind == "curve" else "" if value.kind in ("point", "vector") \
+                    else "'s point"
                 yield span, notes, f"{what}{part} is {show_vector(xyz)} m: beyond {self._bound_words()}"
 
     # ------------------------------------------------------------------------------------------ params
     def _param(self, decl: ir.ParamDecl, slot: ParamSlot, x, ranges: list) -> None:
         name, kind = decl.name, decl.type
         what = f"param '{name}'"
-        if kind in ("point", "line", "plane"):
-            self._point(name, what if kind == "point" else f"{what}'s point", x[0:3], slot.offset)
+        if kind in ("point", "vector", "line", "plane"):
+            self._point(name, what if kind in ("point", "vector") else f"{what}'s point", x[0:3], slot.offset)
         if kind in ("direction", "line", "plane"):
             part = {"direction": "", "line": "'s direction", "plane": "'s normal"}[kind]
             d = x[0:3] if kind == "direction" else x[3:6]
@@ -195,8 +197,9 @@ class Admissible:
 
 
 def _written_points(value: ir.Value) -> list:
-    """The points a constant value is written with: a point's, a line's or a plane's point, a curve's (none else)."""
-    if value.kind == "point":
+    """The points a constant value is written with: a point's, a vector's (a displacement: no longer than a point may
+    lie away), a line's or a plane's point, a curve's (none else)."""
+    if value.kind in ("point", "vector"):
         return [value.xyz]
     if value.kind in ("line", "plane"):
         return [value.point]

@@ -14,9 +14,9 @@ from pathlib import Path
 
 from vfdsl import limits
 from vfdsl import units as u
-from vfdsl.compiler.admissible import Admissible
+from vfdsl.compiler.admissible import REACH_FACTOR, Admissible
 from vfdsl.compiler.geometry import compose, rotation
-from vfdsl.errors import VfError, combined, non_finite_name, suggest
+from vfdsl.errors import VfError, combined, non_finite_name, show_vector, suggest
 from vfdsl.inputs import INPUT_TYPES
 from vfdsl.ir import model as ir
 from vfdsl.kinematics.robot import ROBOTS_DIR, Robot
@@ -141,6 +141,10 @@ class Declarations:
                               hint=suggest(link, robot.link_names(), "links"), code="E201")
         offset = self._literal(stmt.offset, "vector", self.units).xyz if stmt.offset else [0.0, 0.0, 0.0]
         rpy = self._literal(stmt.rotate, "rpy", self.units).xyz if stmt.rotate else [0.0, 0.0, 0.0]
+        if max(map(abs, rpy)) > 2 * math.pi:     # as a pose's rpy (vfdsl.compiler.admissible)
+            raise VfError(f"frame '{stmt.name.text}' rotates by {show_vector(rpy)} rad: beyond a full turn",
+                          stmt.rotate.span, hint="is the unit right? (bare angles take the file's `units`: radians "
+                          "without one; degrees given as radians?)", code="E402")
         if stmt.axis is not None:
             axis = (_AXES[stmt.axis.name] if isinstance(stmt.axis, ast.NameRef) and stmt.axis.name in _AXES
                     else self._literal(stmt.axis, "direction", self.units).xyz)
@@ -159,6 +163,12 @@ class Declarations:
                                   (stmt.offset.span if stmt.offset is not None else stmt.span),
                                   hint="is the unit right? (bare numbers take the file's `units`)", unit="m",
                                   code="E701")
+        if distance > REACH_FACTOR * robot.reach:  # as a point's plausible distance (vfdsl.compiler.admissible)
+            raise VfError(f"frame '{stmt.name.text}' is {distance:.3g} m from its link: beyond "
+                          f"{REACH_FACTOR * robot.reach:.3g} m, {REACH_FACTOR:g} x robot '{robot_name}''s reach",
+                          stmt.offset.span if stmt.offset is not None else stmt.span,
+                          hint="is the unit right? (bare numbers take the file's `units`: metres without one; "
+                          "millimetres given as metres?)", code="E402")
         self.frames[stmt.name.text] = ir.FrameDecl(name=stmt.name.text, robot=robot_name, link=link,
                                                    offset=offset, rpy=rpy, tool_axis=axis, span=stmt.span,
                                                    base=stmt.base.text if stmt.base is not None else None)
