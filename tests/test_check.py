@@ -332,7 +332,7 @@ def test_a_bare_overshoot_is_a_percentage_as_pct_says(tmp_path):
     ((("link(\"tool_tip\")", "link(\"tool_tip\"))"),), 4, 33, "unexpected ')'"),                 # syntax
     ((("stays_at(target)", "stays_at(tagret)"),), 9, 22, "unknown point 'tagret'"),              # a name
     ((("[0, 0, 290]", "[0, 0, 29000]"),), 6, 24, "param 'target' is [0, 0, 29] m: beyond"),       # out of reach
-    ((("point = [0, 0, 290]", "vector = [1e300, 0, 0]"), ("stays_at(target)", "stays_at([0, 0, 290] + target)")),
+    ((("point = [0, 0, 290]", "number = 1e300"), ("stays_at(target)", "stays_at([0, 0, 290] + target * [1, 0, 0] mm)")),
      9, 1, "at the start, the rows of stays_at(tip) hold 1e+297"),                              # found by check
     ("no task", None, None, "file not found: "),
     ("no scene", None, None, "scene file not found: "),

@@ -86,6 +86,10 @@ def test_dt_in_seconds_for_milliseconds_is_refused_with_the_period(request, task
             ctrl.step(q, PUSH, dt=dt)
     with pytest.raises(VfError, match="far from the task's period"):
         ctrl.problem(q, PUSH, dt=1.0)
+    for dt in (0.0100000001, 9.999999e-06):      # just outside: shown with the digits that put it there
+        with pytest.raises(VfError) as info:
+            ctrl.step(q, PUSH, dt=dt)
+        assert f"dt = {dt!r} s is far" in info.value.message, info.value.message
 
 
 def test_the_c_fast_path_itself_refuses_a_far_dt(task_1ms, native):

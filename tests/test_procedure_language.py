@@ -249,6 +249,14 @@ def test_each_mistake_has_its_code_line_and_column(tmp_path, body, where, code, 
     assert message in err.message
 
 
+@pytest.mark.parametrize("body", ["capture s = tip.position\n",
+                                  "fixture hold(at: frame) { capture s = at.position }\n"])
+def test_a_capture_outside_a_phase_says_where_it_belongs(tmp_path, body):
+    """The hint was "did you mean 'capture'?" for the word as written."""
+    err = error(tmp_path, body)
+    assert err.code == "E101" and err.errors[0].hint.startswith("a capture is taken on entry to a phase"), err.render()
+
+
 def test_a_hint_says_e_g_once(tmp_path):
     """The hint of a value in the wrong unit (E806) read "e.g. a number with a unit, e.g. 5 N"."""
     err = error(tmp_path, "monitor m = norm(f) > 1 mm\n")

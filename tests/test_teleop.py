@@ -204,8 +204,13 @@ def test_a_teleop_term_needs_a_pose_master(tmp_path):
     (tmp_path / "t.vf").write_text(WALL.replace("input master : pose", "input master : force")
                                    .replace("master_anchor = m0", "master_anchor = camera"))
     (tmp_path / "t.yaml").write_text(START)
-    with pytest.raises(VfError, match="teleop follows a master's pose; 'master' is a force"):
+    with pytest.raises(VfError, match="teleop follows a master's pose; 'master' is a force") as info:
         vfdsl.load(tmp_path / "t.vf")
+    assert "a force is read by track" in str(info.value)
+    (tmp_path / "t.vf").write_text(WALL.replace("teleop(tip, master,", "teleop(tip, clutch,"))
+    with pytest.raises(VfError, match="'clutch' is a button") as info:   # the hint said "read by track"
+        vfdsl.load(tmp_path / "t.vf")
+    assert "a button is read by monitors" in str(info.value)
 
 
 @pytest.mark.parametrize("written, message", [("rotation = sideways, stiffness = 1 N/mm", "one of relative, absolute"),

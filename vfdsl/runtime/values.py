@@ -301,7 +301,10 @@ class RuntimeValues:
             raise VfError(f"dt must be a positive number of seconds, got {dt:.6g}",
                           hint="dt is the control period in seconds, e.g. 0.001 for a 1 kHz loop")
         if not self.dt_min <= dt <= self.dt_max:
-            raise VfError(f"dt = {dt:.6g} s {self.dt_rule}",
+            shown = f"{dt:.6g}"
+            if self.dt_min <= float(shown) <= self.dt_max:     # just outside: rounded, it would look inside
+                shown = repr(dt)
+            raise VfError(f"dt = {shown} s {self.dt_rule}",
                           hint="dt is in seconds (1 ms is 0.001): pass the loop's period; if the loop really runs at "
                                "that period, give it as the `period` of the task's scene")
         return dt

@@ -28,6 +28,9 @@ _TERMINAL_WORDS = {
 }
 
 
+_MISPLACED = {"capture": "a capture is taken on entry to a phase, inside it: phase NAME { capture s = tip.position }"}
+"""Where a statement keyword read in the wrong place belongs."""
+
 def _describe(terminal: str, parser: Lark) -> str:
     if terminal in _TERMINAL_WORDS:
         return _TERMINAL_WORDS[terminal]
@@ -66,7 +69,9 @@ def syntax_error(exc: UnexpectedInput, text: str, file: str, parser: Lark) -> Vf
         previous = (exc.token_history or [None])[-1]
         swallowed = (difflib.get_close_matches(str(previous), STATEMENT_KEYWORDS, n=1, cutoff=0.75)
                      if previous is not None and previous.type == "NAME" and _starts_line(text, previous) else [])
-        if close:
+        if close and close[0] == found:     # the word is right, the place is not
+            hint = _MISPLACED.get(found, f"'{found}' cannot stand here")
+        elif close:
             hint = f"did you mean '{close[0]}'?"
         elif swallowed:
             hint = (f"'{previous}' (line {previous.line}) was read as a unit; did you mean the statement "
