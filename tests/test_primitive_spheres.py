@@ -246,6 +246,7 @@ FAR = """
     input f : force
     param c : point = [0, 0, 0.3]
     param v : vector = [0, 0, 0]
+    param k : number = 1
     param r : length = 0.01
     minimize track(tip, f, gain = 0.001)
     minimize damping() weight 1e-6
@@ -255,25 +256,28 @@ FAR = """
 
 
 def test_centers_far_away_do_not_overflow(tmp_path):
-    """A center given 1e200 m away is refused before anything moves (an implausible point). Computed that far (a
-    point plus a run-time vector, which has no plausible length), |p - c|^2 would overflow (and underflow at
-    1e-200 m): the rows stay exact. A step then reports the ball violated and does not move (its least-violation
-    solve fails on numbers that large, and the fallback is the zero motion)."""
+    """A center given 1e200 m away is refused before anything moves (an implausible point, as a vector would be).
+    Computed that far (a point plus a run-time vector scaled by a number, which has no plausible size), |p - c|^2
+    would overflow (and underflow at 1e-200 m): the rows stay exact. A step then reports the ball violated and does
+    not move (its least-violation solve fails on numbers that large, and the fallback is the zero motion)."""
     q = np.array([0.01, -0.02, 0.005, 0.3, -0.2, 0.4, 0.03])
     f = FrameState("shr7", "tip", q)
     with pytest.raises(VfError, match=r"param 'c' is .* m: beyond 2.16 m"):
         spheres(tmp_path).problem(q, {}, {"c": f.p - np.array([1e200, -1e200, 3e199]), "r": 0.005}, dt=0.01)
-    ctrl = build(tmp_path, FAR + "require tip outside_sphere(c + v, r)\n", name="far")
-    for offset in ([1e200, -1e200, 3e199], [1e-200, 0, 0]):
-        n = unit(np.asarray(offset) * (1e200 if offset[0] < 1 else 1e-200))
-        qp = ctrl.problem(q, {"f": [0, 0, 0]}, {"c": f.p, "v": -np.asarray(offset), "r": 0.005}, dt=0.01)
-        far = offset[0] > 1
+    plain = build(tmp_path, FAR + "require tip outside_sphere(c + v, r)\n", name="far_v")
+    with pytest.raises(VfError, match=r"param 'v' is .* m: beyond 2.16 m"):
+        plain.problem(q, {"f": [0, 0, 0]}, {"c": f.p, "v": [-1e200, 0, 0], "r": 0.005}, dt=0.01)
+    ctrl = build(tmp_path, FAR + "require tip outside_sphere(c + k * v, r)\n", name="far")
+    for offset, scale in (([1.0, -1.0, 0.3], 1e200), ([1.0, 0, 0], 1e-200)):
+        n = unit(np.asarray(offset))
+        qp = ctrl.problem(q, {"f": [0, 0, 0]}, {"c": f.p, "v": -np.asarray(offset), "k": scale, "r": 0.005}, dt=0.01)
+        far = scale > 1
         A, lb = rows(ctrl, qp, "outside_sphere")
         np.testing.assert_allclose(A, ((n if far else f.l) @ f.Jv)[None], atol=1e-9)
         assert np.isfinite(lb).all() and (lb[0] < -1e199 if far else lb[0] == pytest.approx(0.005))
-    ctrl = build(tmp_path, FAR + "require tip within_sphere(c + v, 0.005)\nrequire tip outside_sphere(c + v, 0.004)\n",
-                 name="far_guided")
-    dq = ctrl.step(q, {"f": [1.0, 0, 0]}, {"v": [1e200, 0, 0]}, dt=0.01)   # 1e200 m outside the ball: no motion
+    ctrl = build(tmp_path, FAR + "require tip within_sphere(c + k * v, 0.005)\n"
+                 "require tip outside_sphere(c + k * v, 0.004)\n", name="far_guided")
+    dq = ctrl.step(q, {"f": [1.0, 0, 0]}, {"v": [1.0, 0, 0], "k": 1e200}, dt=0.01)   # 1e200 m outside: no motion
     assert ctrl.status & StepStatus.LEAST_VIOLATION and np.all(dq == 0)
     assert [(v.label.primitive, v.amount) for v in ctrl.violations()] == [("within_sphere", 1e200)]
 
