@@ -8,12 +8,9 @@ one exact row (a half-space of rotations, like ``above``, with no tolerance and 
 
 At l = a the gradient l x a is zero and the row reads 0 >= cos gamma - 1 < 0: inactive, as it should be (the
 axis is the cone's centre). At l = -a it would read 0 >= cos gamma + 1 > 0, which no step can meet (the tool held
-reversed, the row violated tick after tick): there (|l x a| <= PARALLEL, l . a < 0) the row is k^T J_w dq >=
-angle(l, a) - gamma instead, k a fixed unit normal to a: a turn by phi about k takes l off -a and the angle down by
-phi exactly, so the row asks the whole turn back inside (least violation where a tick cannot make it), after which
-l x a points along k and the exact row takes over. (With the bound cos gamma + 1 of the cos form it asked a turn of
-1 + cos gamma, ~ (pi - gamma)^2 / 2: 0.15 mrad for gamma = 179 deg, where 17.5 mrad was needed, and the tick said
-OPTIMAL with the tool still reversed.) ``check`` flags such a start (the true angle, not the rows).
+reversed, the row violated tick after tick): there (|l x a| <= PARALLEL, l . a < 0) the gradient is a fixed unit
+normal k to a instead, any turn about which takes l off -a, after which l x a points along k and the exact row
+takes over. ``check`` flags such a start (the true angle, not the rows).
 
 Bound: a step that turns l by an angle phi about any axis and meets the row ends with
 l' . a >= cos gamma - (1 - cos phi) - (phi - sin phi)  (Rodrigues' formula; |(k x l) . a|, |k x (k x l) . a| <= 1),
@@ -60,9 +57,6 @@ SPEC = ConstraintSpec(
 def lower(c: ir.Constraint, ctx: Context) -> Rows:
     f = ctx.frame(c.frame)
     a = ctx.direction(c.args["axis"])
-    gamma = ctx.scalar(c.args["angle"])
     cross = ca.cross(f.axis, a)                          # d(l . a) = alpha . (l x a)
-    reversed_ = ca.logic_and(ca.norm_2(cross) <= PARALLEL, ca.dot(f.axis, a) < 0)
-    gradient = ca.if_else(reversed_, plane_basis(a)[0], cross)
-    bound = ca.if_else(reversed_, angle_between(f.axis, a) - gamma, ca.cos(gamma) - ca.dot(f.axis, a))
-    return lower_bounds(gradient.T @ f.Jw, bound, ["tilt"])
+    gradient = ca.if_else(ca.logic_or(ca.norm_2(cross) > PARALLEL, ca.dot(f.axis, a) >= 0), cross, plane_basis(a)[0])
+    return lower_bounds(gradient.T @ f.Jw, ca.cos(ctx.scalar(c.args["angle"])) - ca.dot(f.axis, a), ["tilt"])
