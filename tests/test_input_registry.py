@@ -226,7 +226,7 @@ def test_a_pose_is_neither_tracked_nor_a_condition(tmp_path):
     path.write_text(head + "minimize track(tip, master)\n")
     with pytest.raises(VfError, match="'master' is a pose") as info:
         vfdsl.load(path)
-    assert info.value.code == "E503" and "set-point" in info.value.hint
+    assert info.value.code == "E503" and "a pose is read by teleop" in info.value.hint   # (it said "no term yet")
     path.write_text(head + "monitor held = master\nphase a initial final { minimize damping() }\n")
     with pytest.raises(VfError, match="input 'master' is a pose, not a condition") as info:
         vfdsl.load(path)
