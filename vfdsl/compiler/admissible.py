@@ -57,6 +57,11 @@ _SLIP_M = "run-time values are in metres (millimetres given as metres?)"
 _SLIP_RAD = "angles are in radians at run time (degrees given as radians?)"
 
 
+def plausible_distance(reach: float) -> float:
+    """L (m): the largest coordinate plausible for a task whose frames reach ``reach`` from the robot's base."""
+    return min(MAX_DISTANCE, REACH_FACTOR * reach)
+
+
 def task_reach(task: ir.Task, robot_reach: float) -> float:
     """How far from the robot's base a task frame can be (m): the robot's reach and the longest frame offset."""
     return robot_reach + max((float(np.linalg.norm(f.offset)) for f in task.frames), default=0.0)
@@ -69,7 +74,7 @@ class Admissible:
         """``reach``: the robot's (:attr:`vfdsl.kinematics.robot.Robot.reach`)."""
         self.task = task
         self.reach = task_reach(task, reach)
-        self.distance = min(MAX_DISTANCE, REACH_FACTOR * self.reach)
+        self.distance = plausible_distance(self.reach)
         reader = ParamReader(task.params)
         self.layout = reader.layout
         self.margins = Margins()

@@ -514,7 +514,7 @@ static int vfm_inner_hit(const vfm_walk* w, int t, vfm_hit* hit) {
  * the origin), never more than the hit's distance, and at least `floor` (its box's key). When the hit exists, its
  * segment point is a local, so global, least of the distance along the line (convex): the line's closest pair,
  * whose direction is the projection's closest point's, up to rounding; a pending entry whose direction is merged
- * for sure is dropped, now or when it comes out. */
+ * for sure is dropped, now or when it comes out. (`floor`, a box's key, is already lowered for rounding.) */
 static void vfm_pending(vfm_walk* w, int t, double floor) {
   const double* v[3];
   double p[3][2], origin[2] = {0, 0}, c[2];
@@ -528,7 +528,6 @@ static void vfm_pending(vfm_walk* w, int t, double floor) {
   vfm_closest_point(2, origin, p[0], p[1], p[2], c, &region);
   double line = sqrt(c[0] * c[0] + c[1] * c[1]), key = line * (1 - VFM_LINE_SLACK) - 1e-15;
   if (key > w->cutoff) return;        /* its hit, if any, is beyond the cutoff */
-  floor *= 1 - VFM_LINE_SLACK;
   e.dist = key > floor ? key : floor;  /* a degenerate projection (NaN): the box's key */
   e.part = 1; e.t = t; e.region = VFM_PENDING; e.s = 0;
   for (i = 0; i < 3; ++i) { e.c[i] = 0; e.u[i] = 0; }

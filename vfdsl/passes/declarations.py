@@ -14,7 +14,7 @@ from pathlib import Path
 
 from vfdsl import limits
 from vfdsl import units as u
-from vfdsl.compiler.admissible import REACH_FACTOR, Admissible
+from vfdsl.compiler.admissible import FULL_TURN, MAX_DISTANCE, REACH_FACTOR, Admissible, plausible_distance
 from vfdsl.compiler.geometry import compose, rotation
 from vfdsl.errors import VfError, combined, non_finite_name, show_vector, suggest
 from vfdsl.inputs import INPUT_TYPES
@@ -141,7 +141,7 @@ class Declarations:
                               hint=suggest(link, robot.link_names(), "links"), code="E201")
         offset = self._literal(stmt.offset, "vector", self.units).xyz if stmt.offset else [0.0, 0.0, 0.0]
         rpy = self._literal(stmt.rotate, "rpy", self.units).xyz if stmt.rotate else [0.0, 0.0, 0.0]
-        if max(map(abs, rpy)) > 2 * math.pi:     # as a pose's rpy (vfdsl.compiler.admissible)
+        if max(map(abs, rpy)) > FULL_TURN:     # as a pose's rpy (vfdsl.compiler.admissible)
             raise VfError(f"frame '{stmt.name.text}' rotates by {show_vector(rpy)} rad: beyond a full turn",
                           stmt.rotate.span, hint="is the unit right? (bare angles take the file's `units`: radians "
                           "without one; degrees given as radians?)", code="E402")
@@ -163,9 +163,10 @@ class Declarations:
                                   (stmt.offset.span if stmt.offset is not None else stmt.span),
                                   hint="is the unit right? (bare numbers take the file's `units`)", unit="m",
                                   code="E701")
-        if distance > REACH_FACTOR * robot.reach:  # as a point's plausible distance (vfdsl.compiler.admissible)
-            raise VfError(f"frame '{stmt.name.text}' is {distance:.3g} m from its link: beyond "
-                          f"{REACH_FACTOR * robot.reach:.3g} m, {REACH_FACTOR:g} x robot '{robot_name}''s reach",
+        plausible = plausible_distance(robot.reach)    # as a point's (vfdsl.compiler.admissible)
+        if distance > plausible:
+            raise VfError(f"frame '{stmt.name.text}' is {distance:.3g} m from its link: beyond {plausible:.3g} m, "
+                          f"{REACH_FACTOR:g} x robot '{robot_name}''s reach (at most {MAX_DISTANCE:g} m)",
                           stmt.offset.span if stmt.offset is not None else stmt.span,
                           hint="is the unit right? (bare numbers take the file's `units`: metres without one; "
                           "millimetres given as metres?)", code="E402")

@@ -304,10 +304,9 @@ class Resolver(Declarations):
                           hint="leave one part tracked, or remove the term", code="E503")
         input_type = self.inputs[args["input"].name].type
         if not INPUT_TYPES[input_type].moves:
-            reader = _reader(input_type)
             raise VfError(f"track needs an input that commands a motion; '{args['input'].name}' is a {input_type}",
                           call.span, hint=f"track reads {described(lambda t: t.moves)}; a {input_type} is read by "
-                                          f"{reader}", code="E503")
+                                          f"{_reader(input_type)}", code="E503")
         default = INPUT_TYPES[input_type].default_gain
         for kind in ("gain", "angular_gain"):
             if gain_dimension(input_type, kind) is not None and kind not in args:
@@ -324,7 +323,7 @@ class Resolver(Declarations):
         if input_type != "pose":
             raise VfError(f"teleop follows a master's pose; '{args['master'].name}' is a {input_type}", call.span,
                           hint=f"declare the master as `input {args['master'].name} : pose`; a {input_type} is read "
-                               f"by {'track' if INPUT_TYPES[input_type].moves else _reader(input_type)}", code="E503")
+                               f"by {_reader(input_type)}", code="E503")
 
     def _constraint(self, stmt: ast.RequireStmt, scope: fx.Scope) -> ir.Constraint:
         name = stmt.call.name
@@ -446,7 +445,9 @@ def _lookup_spec(name: ast.Name, table: dict, what: str, other: dict, other_hint
 
 
 def _reader(input_type: str) -> str:
-    """What reads an input of a type no term tracks: a button, monitors; a pose, teleop."""
+    """What reads an input of this type: track (a motion), monitors (a button), teleop (a pose)."""
+    if INPUT_TYPES[input_type].moves:
+        return "track"
     if INPUT_TYPES[input_type].switch:
         return "monitors"
     return "teleop (a master's pose)" if input_type == "pose" else "no term yet (a set-point, not a rate)"

@@ -356,8 +356,8 @@ def _joint_limits(d: MetricDef, m: Measured) -> np.ndarray:
 def _joint_speed(d: MetricDef, m: Measured) -> np.ndarray:
     c = d.constraint
     speed = np.abs(_steps(m.qs)) / m.period
-    fraction = np.reshape(m.scene.scalar(c.args["fraction"]), (-1, 1)) if "fraction" in c.args else 1.0  # a param's
-    # value where a motion moves it: one a sample
+    # a param's value, one a sample where a scene's motion moves it
+    fraction = np.reshape(m.scene.scalar(c.args["fraction"]), (-1, 1)) if "fraction" in c.args else 1.0
     return np.maximum(0.0, speed - fraction * m.robot.velocity_limit)[:, _joint_mask(d, m)].max(axis=1)
 
 

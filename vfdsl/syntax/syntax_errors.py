@@ -31,6 +31,7 @@ _TERMINAL_WORDS = {
 _MISPLACED = {"capture": "a capture is taken on entry to a phase, inside it: phase NAME { capture s = tip.position }"}
 """Where a statement keyword read in the wrong place belongs."""
 
+
 def _describe(terminal: str, parser: Lark) -> str:
     if terminal in _TERMINAL_WORDS:
         return _TERMINAL_WORDS[terminal]
