@@ -121,6 +121,33 @@ def test_tool_on_the_axis_and_opposite(tmp_path):
     assert [v.label.primitive for v in ctrl.violations()] == ["tilt_at_most"]
 
 
+@pytest.mark.parametrize("robot,frame", ROBOT_FRAMES)
+@pytest.mark.parametrize("gamma_deg", [179.0, 120.0, 11.5])
+def test_a_reversed_tool_is_asked_the_whole_turn_back(tmp_path, robot, frame, gamma_deg):
+    """l = -a: the row is s k^T J_w dq >= cos gamma + 1 with k a unit normal to a, and asks a turn of exactly
+    pi - gamma about k (the turn that brings l . a from -1 to cos gamma); the step then brings the tool inside the
+    cone or the status says least violation. With s = 1 it asked 1 + cos gamma: at 179 deg, 0.15 mrad where
+    17.5 mrad were needed, and the tick said OPTIMAL with the tool 1 deg out."""
+    ctrl = build(tmp_path, TASK.format(frame=frame), robot)
+    rng = np.random.default_rng(7)
+    gamma = gamma_deg * DEG
+    for _ in range(3):
+        q = random_q(robot, rng)
+        f = FrameState(robot, frame, q)
+        params = {"axis": -f.l, "gamma": gamma}
+        A, _, lb, _ = rows_of(ctrl, ctrl.problem(q, {}, params, dt=0.01), "tilt_at_most", frame)
+        assert lb[0] == pytest.approx(1 + math.cos(gamma), rel=1e-12, abs=1e-15)
+        sk = np.linalg.lstsq(f.Jw.T, A[0], rcond=None)[0]          # A = (s k)^T J_w
+        assert abs(float(sk @ f.l)) < 1e-9                          # k is normal to a
+        assert lb[0] / np.linalg.norm(sk) == pytest.approx(math.pi - gamma, rel=1e-9)
+        dq = ctrl.step(q, {}, params, dt=0.01)
+        after = FrameState(robot, frame, q + dq)
+        slack = step_slack(pin.log3(after.R @ f.R.T), f.Jw @ dq)
+        assert (float(after.l @ -f.l) >= math.cos(gamma) - slack - 1e-9
+                or ctrl.status & StepStatus.LEAST_VIOLATION), (tilt(after.l, -f.l) / DEG, ctrl.status)
+        assert tilt(after.l, -f.l) < math.pi - 1e-6 or ctrl.status & StepStatus.LEAST_VIOLATION
+
+
 def test_zero_axis_and_angle_range_are_refused(tmp_path):
     with pytest.raises(VfError, match="zero"):
         build(tmp_path, "require tip tilt_at_most([0, 0, 0], 0.3)\n")

@@ -8,9 +8,14 @@ one exact row (a half-space of rotations, like ``above``, with no tolerance and 
 
 At l = a the gradient l x a is zero and the row reads 0 >= cos gamma - 1 < 0: inactive, as it should be (the
 axis is the cone's centre). At l = -a it would read 0 >= cos gamma + 1 > 0, which no step can meet (the tool held
-reversed, the row violated tick after tick): there (|l x a| <= PARALLEL, l . a < 0) the gradient is a fixed unit
-normal k to a instead, any turn about which takes l off -a, after which l x a points along k and the exact row
-takes over. ``check`` flags such a start (the true angle, not the rows).
+reversed, the row violated tick after tick): there (|l x a| <= PARALLEL, l . a < 0) the gradient is s k instead, k a
+fixed unit normal to a: a turn by phi about k takes l . a from -1 to -cos phi, into the cone at phi = pi - gamma, so
+s = (1 + cos gamma) / (pi - gamma) makes the row ask that whole turn, with the bound left as it is on either side
+of the switch (phase 2's line search measures the bounds: a bound that jumped there, the angle pi - gamma for
+1 + cos gamma, made its slope look steep and held the tool still). With s = 1 the row asked a turn of 1 + cos gamma,
+~ (pi - gamma)^2 / 2: 0.15 mrad where 17.5 mrad were needed for gamma = 179 deg, and a tick without speed limits said
+OPTIMAL with the tool still reversed. After the turn l x a points along k and the exact row takes over. ``check``
+flags such a start (the true angle, not the rows).
 
 Bound: a step that turns l by an angle phi about any axis and meets the row ends with
 l' . a >= cos gamma - (1 - cos phi) - (phi - sin phi)  (Rodrigues' formula; |(k x l) . a|, |k x (k x l) . a| <= 1),
@@ -57,6 +62,8 @@ SPEC = ConstraintSpec(
 def lower(c: ir.Constraint, ctx: Context) -> Rows:
     f = ctx.frame(c.frame)
     a = ctx.direction(c.args["axis"])
+    gamma = ctx.scalar(c.args["angle"])
     cross = ca.cross(f.axis, a)                          # d(l . a) = alpha . (l x a)
-    gradient = ca.if_else(ca.logic_or(ca.norm_2(cross) > PARALLEL, ca.dot(f.axis, a) >= 0), cross, plane_basis(a)[0])
-    return lower_bounds(gradient.T @ f.Jw, ca.cos(ctx.scalar(c.args["angle"])) - ca.dot(f.axis, a), ["tilt"])
+    reversed_ = (1 + ca.cos(gamma)) / (ca.pi - gamma) * plane_basis(a)[0]     # asks the turn pi - gamma about k
+    gradient = ca.if_else(ca.logic_or(ca.norm_2(cross) > PARALLEL, ca.dot(f.axis, a) >= 0), cross, reversed_)
+    return lower_bounds(gradient.T @ f.Jw, ca.cos(gamma) - ca.dot(f.axis, a), ["tilt"])
