@@ -9,8 +9,9 @@ query's fixed stack.
 Each node keeps an oriented box holding its triangles: axes from the principal directions of its vertices
 (or the world's axes when their box is smaller), centre and half-sides from the vertices' extents along them,
 widened by PAD so that the query's rounding cannot put a triangle outside. Anatomy is curved and seldom
-axis-aligned: a leaf of a wall is a thin oriented box, and the query's distance bounds (exact point-box and
-segment-box distances in the box's frame) stay close to the triangles' own distances.
+axis-aligned: a leaf of a wall is a thin oriented box, and the query's distance bounds (the exact point-box
+distance and a lower bound of the segment-box distance, in the box's frame) stay close to the triangles' own
+distances.
 
 **Pseudo-normals** (Baerentzen & Aanaes, IEEE TVCG 2005) give the side of a point x relative to its closest
 feature c of a closed, consistently oriented mesh: sign((x - c) . n_c) with n_c the face normal (face), the
