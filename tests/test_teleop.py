@@ -341,7 +341,7 @@ def test_check_finds_where_the_scaled_master_outreaches_the_fixture(tmp_path):
     tool stops 3.7 mm short, straight down, and the master feels 0.2 N/mm x 3.7 mm / 0.5."""
     (tmp_path / "t.vf").write_text(WALL.replace("ramp = 100 ms)", "ramp = 100 ms, master_reach = 40 mm)"))
     (tmp_path / "t.yaml").write_text(START)
-    report = vfdsl.check(vfdsl.load(tmp_path / "t.vf"), samples=0, backend="interpreted")
+    report = vfdsl.check(vfdsl.load(tmp_path / "t.vf"), samples=0)     # generated: the check runs 2 s per direction
     found = [f for f in report.findings if f.code == "VF971"]
     assert len(found) == 1 and found[0].severity.value == "warning"
     assert found[0].data["shortfall"] == pytest.approx(0.0037, abs=2e-5)
@@ -352,7 +352,7 @@ def test_check_finds_where_the_scaled_master_outreaches_the_fixture(tmp_path):
 @pytest.mark.parametrize("name", ["teleop_keep_out", "teleop_guide_line"])
 def test_the_examples_are_sound_and_explain_their_warnings(name):
     path = TELEOP_TASKS / f"{name}.vf"
-    report = vfdsl.check(vfdsl.load(path), samples=20, backend="interpreted")
+    report = vfdsl.check(vfdsl.load(path), samples=20)      # generated: the workspace check runs 2 s per direction
     assert report.exit_status() == 0, report.render_text()
     for finding in report.findings:
         if finding.severity.value == "warning":
