@@ -5,6 +5,7 @@ against numpy, and composed frames against Pinocchio."""
 from __future__ import annotations
 
 import logging
+from pathlib import Path
 
 import casadi as ca
 import numpy as np
@@ -31,6 +32,8 @@ param n : direction = [0, 0, 2]
 param depth : length = 20
 """
 # Appended lines start at line 10.
+
+TASKS = Path(__file__).resolve().parent.parent / "tasks"
 
 
 def load(tmp_path, body: str) -> ir.Task:
@@ -444,3 +447,19 @@ def test_an_expression_error_in_a_fixture_names_the_use(tmp_path):
     err = fails(tmp_path, "fixture f(t: frame, p: point, q: point) {\n    require t along(line(p, q))\n}\n"
                           "use f(tip, a, a + 0 * v)\n", "the two points of this line coincide", 11, 21)
     assert any("in a fixture used at" in note and ":13:1" in note for note in err.notes), err.render()
+
+
+@pytest.mark.parametrize("statement, column", [
+    ("require tip stays_at([0, 0, 5000]) within 0.001", 22),                      # positional
+    ("require tip within_sphere(radius = 0.01, center = [9000, 0, 0])", 51),      # keyword, after another
+    ("use virtual_rcm(tip, [0, 0, 2900], [0, 0, 1], 0.2, eps_p = 0.001, eps_r = 0.001)", 22),   # at the use
+])
+def test_a_far_constant_is_reported_at_the_argument(tmp_path, statement, column):
+    """A point beyond the plausible distance (millimetres read as metres) is reported where it is written, not at the
+    statement's first column; one given to a fixture, at the use's argument."""
+    (tmp_path / "far.vf").write_text(
+        f'task far\nimport "{TASKS / "library" / "fixtures.vf"}"\nrobot shr = urdf "shr7"\n'
+        f'frame tip = shr.link("tool_tip")\n{statement}\n')
+    with pytest.raises(VfError, match="beyond 1.86 m") as info:
+        vfdsl.load(tmp_path / "far.vf")
+    assert (info.value.pos.line, info.value.pos.column) == (5, column), str(info.value)

@@ -104,7 +104,8 @@ class Admissible:
             name = statement.primitive if isinstance(statement, ir.Constraint) else statement.term
             notes = tuple(f"in a fixture used at {span}" for span in reversed(statement.via))
             for arg_name, arg in statement.args.items():
-                yield from self._far(arg, f"{name}(...) argument '{arg_name}'", statement.span, notes)
+                yield from self._far(arg, f"{name}(...) argument '{arg_name}'",
+                                     statement.arg_spans.get(arg_name, statement.span), notes)
         for monitor in self.task.monitors:
             for node in ir.expression_leaves(monitor.expr):
                 arg = getattr(getattr(node, "measure", None), "to", None)

@@ -222,6 +222,7 @@ class Constraint(_Model):
     priority: int | None = None      # level of a soft constraint's slack term (1 = solved first)
     span: Span
     via: list[Span] = []
+    arg_spans: dict[str, Span] = {}  # where each argument given was written (a fixture's: at its use)
 
 
 class Objective(_Model):
@@ -233,6 +234,7 @@ class Objective(_Model):
     priority: int = 1                # 1 = solved first; a larger level acts in the optimal set of the smaller ones
     span: Span
     via: list[Span] = []
+    arg_spans: dict[str, Span] = {}  # where each argument given was written (a fixture's: at its use)
 
 
 # ------------------------------------------------------------------------------------------------ procedures

@@ -215,9 +215,11 @@ class Resolver(Declarations):
 
     # ------------------------------------------------------------------------------- statements
     def _bind(self, call: ast.Call, specs: tuple[ArgSpec, ...], scope: fx.Scope, what: str,
-              subject: ir.FrameRef | None = None) -> dict[str, ir.Arg]:
-        """Every argument checked on its own; a gain not when its input failed (its unit depends on the input)."""
+              subject: ir.FrameRef | None = None) -> tuple[dict[str, ir.Arg], dict[str, ast.Span]]:
+        """The arguments and where each given one was written. Every argument checked on its own; a gain not when its
+        input failed (its unit depends on the input)."""
         given = bind_arguments(call, [s.name for s in specs], {s.name for s in specs if s.required}, what)
+        spans = {name: scope.source_span(value) for name, value in given.items()}
         args: dict[str, ir.Arg] = {}
         input_type, input_failed = None, False
         checks = []
@@ -231,7 +233,7 @@ class Resolver(Declarations):
                     if isinstance(args[spec.name], ir.InputRef):
                         input_type = self.inputs[args[spec.name].name].type
                     if spec.range is not None:
-                        self._check_range(spec, args[spec.name], scope.source_span(given[spec.name]), call, scope)
+                        self._check_range(spec, args[spec.name], spans[spec.name], call, scope)
                 checks.append(check)
                 input_failed = input_failed or (spec.kind == "input" and check.failed)
             elif spec.default == "subject":
@@ -239,7 +241,7 @@ class Resolver(Declarations):
             elif spec.default is not None:
                 args[spec.name] = ir.Const(value=spec.default)
         self.errors.settle(*checks)
-        return args
+        return args, spans
 
     def _check_range(self, spec: ArgSpec, arg: ir.Arg, written: ast.Span, call: ast.Call, scope: fx.Scope) -> None:
         """A scalar argument (a literal, or a param's value) must lie in its spec's range."""
@@ -274,7 +276,7 @@ class Resolver(Declarations):
                     raise VfError(f"`{word}` applies to constraints, not to objective terms", _span(clause),
                                   code="E502")
         with self.errors.each(scope.note) as bound:
-            args = self._bind(stmt.call, spec.args, scope, f"{name.text}(...)")
+            args, spans = self._bind(stmt.call, spec.args, scope, f"{name.text}(...)")
             if name.text == "track":
                 self._check_track(stmt.call, args)
             elif name.text == "teleop":
@@ -285,7 +287,7 @@ class Resolver(Declarations):
             priority = self._priority(clauses.priority, scope, spec.priority)
         self.errors.settle(form, bound, weighed, levelled)
         return ir.Objective(term=name.text, args=args, weight=weight, priority=priority, span=stmt.span,
-                            via=list(scope.via))
+                            via=list(scope.via), arg_spans=spans)
 
     def _priority(self, value: ast.Value | None, scope: fx.Scope, default: int) -> int:
         if value is None:
@@ -334,7 +336,7 @@ class Resolver(Declarations):
         with self.errors.each(scope.note) as subjected:
             subject = self._subject(stmt, spec, scope)
         with self.errors.each(scope.note) as bound:
-            args = self._bind(stmt.call, spec.args, scope, f"{name.text}(...)", subject)
+            args, spans = self._bind(stmt.call, spec.args, scope, f"{name.text}(...)", subject)
         with self.errors.each(scope.note) as tolerated:
             tolerance = self._tolerance(clauses.within, spec, scope)
         with self.errors.each(scope.note) as resolved:
@@ -355,7 +357,7 @@ class Resolver(Declarations):
         self.errors.settle(subjected, bound, tolerated, resolved, softened)
         return ir.Constraint(primitive=name.text, frame=subject.name if subject else None, args=args,
                              tolerance=tolerance, resolution=resolution, soft=soft, weight=weight,
-                             priority=priority, span=stmt.span, via=list(scope.via))
+                             priority=priority, span=stmt.span, via=list(scope.via), arg_spans=spans)
 
     def _subject(self, stmt: ast.RequireStmt, spec, scope: fx.Scope) -> ir.FrameRef | None:
         """The task frame a constraint applies to (None for a whole-robot constraint)."""
