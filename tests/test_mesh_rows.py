@@ -113,24 +113,24 @@ def _in_the_bend(rng, n):
     return out
 
 
-THROUGH_THE_WALL = [   # shafts 30 mm long crossing the channel's wall twice (found among 400 random such shafts)
-    ([-0.002790383755125069, -0.0004796983128308079, 0.250055810260534],
+THROUGH_THE_WALL = [(np.array(a), np.array(b)) for a, b in [   # shafts 30 mm long crossing the channel's wall twice
+    ([-0.002790383755125069, -0.0004796983128308079, 0.250055810260534],     # (found among 400 random such shafts)
      [-0.002157336508999525, 0.004914020451222921, 0.2795601667029048]),
     ([-0.0014624744027899243, 0.007343263765287279, 0.2609704648275786],
      [-0.00579849025977488, -0.0026349678558437034, 0.28892818040312296]),
     ([0.007250291766473912, -0.0016466407448570857, 0.2705226742957797],
      [0.0013334568340789112, 0.007815735546239978, 0.2983696579620311]),
-]
+]]
 
 
 @pytest.mark.parametrize("side", [-1.0, 1.0])
 def test_a_shaft_through_the_wall_gives_the_first_crossing_first(channel, side):
-    """Hits at distance 0 (the shaft crosses a triangle) come in the answer's order (part, then the point c): here a box
-    the shaft crosses was bounded a little above 0 by rounding (~1e-18 m), so another crossing was taken before it was opened
-    (the first row's s and u those of the wrong crossing); the boxes' bounds are now lowered by their rounding."""
+    """Hits at distance 0 (the shaft crosses a triangle) come in the answer's order (part, then the point c): here a
+    box the shaft crosses was bounded a little above 0 by rounding (~1e-18 m), so another crossing was taken before it
+    was opened (the first row's s and u those of the wrong crossing); the boxes' bounds are now lowered by their
+    rounding."""
     mesh, query = channel
     for a, b in THROUGH_THE_WALL:
-        a, b = np.array(a), np.array(b)
         for cutoff in (1.0, 0.0015 + REACH):
             d, s, u = (np.array(x) for x in query.function(a, b, [cutoff, side]))
             answer = d.ravel(), s.ravel(), u.reshape(3, K, order="F")
@@ -168,9 +168,8 @@ def test_a_full_queue_gives_the_same_answer(channel, tmp_path):
                     "-lm"], cwd=tmp_path, check=True, capture_output=True)
     small = ca.external(name, str(tmp_path / f"lib{name}.so"))
     rng = np.random.default_rng(5)
-    through = [(np.array(a), np.array(b)) for a, b in THROUGH_THE_WALL]
     for i, (a, b) in enumerate([*zip(*_samples(rng, 10, True)), *_along_the_wall(rng, 5), *_in_the_bend(rng, 5),
-                                *through]):
+                                *THROUGH_THE_WALL]):
         cutoff = 1.0 if i % 3 == 0 else 0.0015 + REACH
         expected = _answer(query.function, a, b, cutoff)
         assert all(np.array_equal(x, y) for x, y in zip(_answer(small, a, b, cutoff), expected))

@@ -744,12 +744,14 @@ static void vfm_query(vfm_walk* w, const double* a, const double* b, double cuto
   w->point = a[0] == b[0] && a[1] == b[1] && a[2] == b[2];
   w->parts = w->point ? 1 : 7;
   if (!w->point) {                    /* e1, e2: normal to ab, from the axis least along it */
-    double len = sqrt(vfm_dot(w->ab, w->ab)), z[3], r[3] = {0, 0, 0}, n;
-    for (i = 0; i < 3; ++i) z[i] = w->unit[i] = w->ab[i] / len;
-    w->len = len;
-    w->slack = 0;
-    for (i = 0; i < 3; ++i) w->slack = fmax(w->slack, fmax(fabs(a[i]), fabs(b[i])));
-    w->slack = 1e-15 * (1 + 4 * w->slack);
+    const double* z = w->unit;
+    double r[3] = {0, 0, 0}, n, extent = 0;
+    w->len = sqrt(vfm_dot(w->ab, w->ab));
+    for (i = 0; i < 3; ++i) {
+      w->unit[i] = w->ab[i] / w->len;
+      extent = fmax(extent, fmax(fabs(a[i]), fabs(b[i])));
+    }
+    w->slack = 1e-15 * (1 + 4 * extent);
     r[fabs(z[0]) <= fabs(z[1]) ? (fabs(z[0]) <= fabs(z[2]) ? 0 : 2) : (fabs(z[1]) <= fabs(z[2]) ? 1 : 2)] = 1;
     w->e1[0] = z[1] * r[2] - z[2] * r[1]; w->e1[1] = z[2] * r[0] - z[0] * r[2]; w->e1[2] = z[0] * r[1] - z[1] * r[0];
     n = sqrt(vfm_dot(w->e1, w->e1));
