@@ -1,8 +1,8 @@
 """A mesh's proximity query as C (its tables as static arrays + ``query.c``) and as a CasADi external.
 
 One C source per (mesh, K): ``<cache>/meshes/<name>/<name>.c``, with ``name = vfmesh_<digest>_k<K>`` from the mesh
-file's digest, the query's text and the constants, so a source is written (tables built) once. The interpreted
-path calls ``casadi.external(name, lib<name>.so)``, compiled from that source with the flags of
+file's digest, the query's text, the tables builder's text and the constants, so a source is written (tables built)
+once. The interpreted path calls ``casadi.external(name, lib<name>.so)``, compiled from that source with the flags of
 :mod:`vfdsl.codegen.build`; the generated path compiles the same source into the task's library
 (``build_library(..., extra_sources=...)``), where CasADi's generated code calls the symbol ``name`` directly.
 Both need a C compiler: without one, :class:`~vfdsl.codegen.build.CompilerUnavailable` (the query has no
@@ -30,6 +30,7 @@ from vfdsl.mesh.load import MeshData
 from vfdsl.mesh.tables import LEAF, build_tables
 
 QUERY = Path(__file__).with_name("query.c")
+BUILDER = Path(__file__).with_name("tables.py")   # the tables' builder: a cached query is keyed by its text too
 SIMILAR = 0.97
 """Two features whose directions u have a cosine above this (14 deg apart) are one row (the nearer)."""
 
@@ -43,7 +44,8 @@ class MeshQuery:
 
 
 def query_name(mesh: MeshData, k: int) -> str:
-    key = hashlib.sha256(f"{mesh.sha256}|{QUERY.read_text()}|{k}|{SIMILAR}|{LEAF}".encode()).hexdigest()
+    text = f"{mesh.sha256}|{QUERY.read_text()}|{BUILDER.read_text()}|{k}|{SIMILAR}|{LEAF}"
+    key = hashlib.sha256(text.encode()).hexdigest()
     return f"vfmesh_{key[:16]}_k{k}"
 
 

@@ -32,6 +32,8 @@
  *   its nearest feature (face, edge or vertex) on the mesh, which is right at faces, edges and vertices of a
  *   closed, consistently oriented mesh: for an end, its first hit's; between the ends, the first hit's point x
  *   is checked against every triangle within that hit's distance. The part's other hits take that side.
+ *   (A nearest feature that two triangles give at the same distance, an edge they share, is the one whose point
+ *   comes first in the order of coordinates: the answer is the same bits whatever the BVH.)
  *
  * How: a best-first walk of a BVH of oriented boxes (vfdsl/mesh/tables.py), one priority queue (a binary heap)
  * of boxes, pending entries and hits keyed by distance, a box by a lower bound of its hits' distances over the
@@ -265,13 +267,20 @@ static double vfm_pair(const vfm_walk* w, int t, const double* const* v, const d
   return best;
 }
 
+/* -1, 0 or 1 as point x comes before, with or after y in the order of their coordinates. */
+static int vfm_compare_points(const double* x, const double* y) {
+  int i;
+  for (i = 0; i < 3; ++i) if (x[i] != y[i]) return x[i] < y[i] ? -1 : 1;
+  return 0;
+}
+
 /* Whether hit x comes before hit y (distance, part, c, s). */
 static int vfm_before(const vfm_hit* x, const vfm_hit* y) {
-  int i;
+  int order;
   if (x->dist != y->dist) return x->dist < y->dist;
   if (x->part != y->part) return x->part < y->part;
-  for (i = 0; i < 3; ++i) if (x->c[i] != y->c[i]) return x->c[i] < y->c[i];
-  return x->s < y->s;
+  order = vfm_compare_points(x->c, y->c);
+  return order ? order < 0 : x->s < y->s;
 }
 
 static int vfm_done(const vfm_walk* w, int p) {
@@ -593,7 +602,9 @@ static void vfm_take(vfm_walk* w, const vfm_hit* hit) {
 }
 
 /* The nearest feature of the mesh to x nearer than sqrt(*best2) (a depth-first search, the nearer child first):
- * updates *best2, *t, *region and c when one is found. */
+ * updates *best2, *t, *region and c when one is found; of features at the same distance, the one whose point comes
+ * first in the order of coordinates (triangles that share an edge or a corner give it at the same distance: the one
+ * taken does not depend on the order of the walk, hence of the BVH or of the triangles in the file). */
 static void vfm_nearest(const double* x, double* best2, int* t_best, int* r_best, double* near) {
   double y[3], c[3];
   int stack[VFM_STACK], top = 0, i, t, region;
@@ -602,7 +613,7 @@ static void vfm_nearest(const double* x, double* best2, int* t_best, int* r_best
     int node = stack[--top];
     vfm_local(node, x, y);
     double bound = vfm_point_box(y, vfm_boxes + 15 * node + 12);
-    if (!(bound * bound < *best2)) continue;
+    if (!(bound * bound <= *best2)) continue;
     if (vfm_is_leaf(node)) {
       int from = -1 - vfm_nodes[2 * node];
       for (t = from; t < from + vfm_nodes[2 * node + 1]; ++t) {
@@ -610,7 +621,7 @@ static void vfm_nearest(const double* x, double* best2, int* t_best, int* r_best
         vfm_point_triangle(x, vfm_vertices + 3 * tri[0], vfm_vertices + 3 * tri[1], vfm_vertices + 3 * tri[2], c,
                            &region);
         double d2 = vfm_dist2(x, c);
-        if (d2 < *best2) { *best2 = d2; *t_best = t; *r_best = region; for (i = 0; i < 3; ++i) near[i] = c[i]; }
+        if (d2 < *best2 || (d2 == *best2 && vfm_compare_points(c, near) < 0)) { *best2 = d2; *t_best = t; *r_best = region; for (i = 0; i < 3; ++i) near[i] = c[i]; }
       }
       continue;
     }
