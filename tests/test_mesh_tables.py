@@ -123,7 +123,7 @@ def test_the_answer_does_not_depend_on_the_bvh(tmp_path, monkeypatch):
     45 % of its parent, leaves of 3): every output the same to the bit at 1,500 probes, keep in and keep out, with the
     example's cutoff and 10 um (where the nearest feature of an end outside is kept: ties between the two triangles
     of an edge, broken by the feature point's coordinates, not by the walk's order; the query before gave other bits
-    in 11 of these 6,000 calls)."""
+    in 7 of these 6,000 calls)."""
     mesh = read_mesh(CHANNEL, 1e-3)
     rng = np.random.default_rng(11)
     usual = mesh_query(mesh, K, tmp_path / "usual").function

@@ -2,19 +2,21 @@
 
 **BVH.** Triangles are split recursively, one level at a time, down to LEAF triangles: a node's triangles are
 ordered by their centroids along nine directions (the world's axes, the principal axes of the centroids and of the
-corners) and cut where the two children's spread is least (:func:`_splits`, a surface-area heuristic on the corners'
-covariance), each child keeping at least SHARE of them. Nodes are numbered level by level, the two children of a node
-side by side; an inner node stores its two children, a leaf (-1 - first, count) for its triangles, which are
-renumbered so a leaf's triangles are contiguous. A child holds at most 3/4 of its parent's triangles, so the depth is
-at most ceil(log(T / LEAF) / log(4 / 3)) + 1 (34 for the 100,000 triangles of limits.MESH_TRIANGLES), below the
-query's fixed stack (VFM_STACK / 2 = 64).
+corners), each cut where the two children's spread is least (a surface-area heuristic on the corners' covariance),
+each child keeping at least SHARE of them, and the cut whose two boxes have the least volume is taken
+(:func:`_splits`). Nodes are numbered level by level, the two children of a node side by side; an inner node stores
+its two children, a leaf (-1 - first, count) for its triangles, which are renumbered so a leaf's triangles are
+contiguous. A child holds at most 3/4 of its parent's triangles, so the depth is at most
+ceil(log(T / LEAF) / log(4 / 3)) + 1 (34 for the 100,000 triangles of limits.MESH_TRIANGLES), below the query's
+fixed stack (VFM_STACK / 2 = 64).
 
 The split matters along a wall, where the query works longest: the median of the centroids along the longest side of
 their box (this module's rule before) cut a curved wall into boxes that the shaft's neighbourhood touched in more
 places. On tasks/sinus_channel.vf's channel at 10k triangles, with the shaft pushed into the bend's wall
-(benchmarks/mesh.py's slowest states), the query expands 414 triangles where it expanded 507 (391 lie within the
-distance at which the walk stops), and runs 0.69 of the instructions. The answer does not depend on the BVH (the
-order of hits is total, the nearest feature's ties are broken by coordinates): bit for bit the same with either rule.
+(benchmarks/mesh.py's slowest states), the query expands 400 triangles in 61 leaves where it expanded 507 in 103 (391
+lie within the distance at which the walk stops), and runs 0.64 of the instructions (0.60 over all the run's
+states). The answer does not depend on the BVH (the order of hits is total, the nearest feature's ties are broken by
+coordinates): bit for bit the same with either rule.
 
 Each node keeps an oriented box holding its triangles: axes from the principal directions of its vertices
 (or the world's axes when their box is smaller), centre and half-sides from the vertices' extents along them,
@@ -145,9 +147,9 @@ def _splits(corner: np.ndarray, count: np.ndarray) -> tuple[np.ndarray, np.ndarr
     of the rows that puts each node's left child first, and each left child's count.
 
     A node's triangles are ordered by their centroids along each of nine directions (the world's axes, the principal
-    axes of the centroids, of the corners), and cut at each place that leaves each child at least SHARE of them; the
-    cut taken is the one whose children's spread (:func:`_spread` of their corners) is least. Prefix sums give every
-    cut's covariances at once."""
+    axes of the centroids, of the corners); along each, of the cuts that leave each child at least SHARE of them, the
+    one whose children's spread (:func:`_spread` of their corners) is least (prefix sums give every cut's covariances
+    at once); of these nine, the one whose children's boxes (:func:`oriented_boxes`) have the least volume in all."""
     nodes = len(count)
     node, start = np.repeat(np.arange(nodes), count), _starts(count)
     centroid = corner.mean(axis=1)
@@ -159,21 +161,23 @@ def _splits(corner: np.ndarray, count: np.ndarray) -> tuple[np.ndarray, np.ndarr
     centred = corner - mean[node][:, None, :]
     x, y, z = centred[:, :, 0], centred[:, :, 1], centred[:, :, 2]
     moments = np.stack([w.sum(axis=1) for w in (x, y, z, x * x, y * y, z * z, x * y, x * z, y * z)], axis=1)
-    low = np.ceil(SHARE * count).astype(int)
+    low = np.minimum(np.ceil(SHARE * count).astype(int), count // 2)
     cuts = count - 2 * low + 1                                       # a node's cuts: left counts low ... count - low
     cut_node = np.repeat(np.arange(nodes), cuts)
     left, cut_start = _runs(low, cuts)
-    best_cost, best_left, best_order = np.full(nodes, np.inf), np.zeros(nodes, dtype=int), np.arange(len(node))
+    best_volume, best_left, best_order = np.full(nodes, np.inf), np.zeros(nodes, dtype=int), np.arange(len(node))
     for k in range(directions.shape[1]):
         order = np.lexsort((np.einsum("ni,ni->n", centroid, directions[node, k]), node))
         prefix = np.concatenate([np.zeros((1, 9)), np.cumsum(moments[order], axis=0)])   # sums of the rows before
         before = prefix[start]
         inner = prefix[start[cut_node] + left] - before[cut_node]
         outer = prefix[start + count][cut_node] - before[cut_node] - inner
-        cost = _spread(inner, 3.0 * left) + _spread(outer, 3.0 * (count[cut_node] - left))
-        pick = np.lexsort((cost, cut_node))[cut_start]                # each node's least cost, its first cut
-        better = cost[pick] < best_cost
-        best_cost[better], best_left[better] = cost[pick][better], left[pick][better]
+        spread = _spread(inner, 3.0 * left) + _spread(outer, 3.0 * (count[cut_node] - left))
+        cut = left[np.lexsort((spread, cut_node))[cut_start]]          # each node's least spread, its first cut
+        boxes = oriented_boxes(corner[order].reshape(-1, 3), 3 * np.column_stack([start, start + cut]).ravel())
+        volume = np.prod(boxes[:, 12:], axis=1).reshape(-1, 2).sum(axis=1)
+        better = volume < best_volume
+        best_volume[better], best_left[better] = volume[better], cut[better]
         take = better[node]
         best_order[take] = order[take]
     return best_order, best_left
