@@ -130,7 +130,7 @@ typedef struct {
   vfm_hit after, best;
   int found;
   vfm_hit kept[3][VFM_K];
-  int count[3], total;
+  int count[3], total, done;         /* done: the parts (bit p) done, from count and total (vfm_counted) */
   double part_side[3];
 } vfm_walk;
 
@@ -283,8 +283,16 @@ static int vfm_before(const vfm_hit* x, const vfm_hit* y) {
   return order ? order < 0 : x->s < y->s;
 }
 
-static int vfm_done(const vfm_walk* w, int p) {
-  return w->count[p] >= VFM_K || (w->count[p] > 0 && w->total >= VFM_K);
+static int vfm_done(const vfm_walk* w, int p) { return w->done >> p & 1; }
+
+/* One more kept hit of part p (in w->kept[p][w->count[p]]): a part is done when it has K kept hits, or one and K in
+ * all. */
+static void vfm_counted(vfm_walk* w, int p) {
+  int q;
+  ++w->count[p];
+  ++w->total;
+  w->done = 0;
+  for (q = 0; q < 3; ++q) if (w->count[q] >= VFM_K || (w->count[q] > 0 && w->total >= VFM_K)) w->done |= 1 << q;
 }
 
 /* Whether direction u has a cosine above `cosine` with a kept hit of part p. */
@@ -352,11 +360,11 @@ static int vfm_useful(const vfm_walk* w, int node, int mask, double* key) {
   const double* h = vfm_boxes + 15 * node + 12;
   double la[3], lb[3], lz[3], bound, best = INFINITY;
   int i, p, out = 0;
-  mask &= w->parts;
+  mask &= w->parts & ~w->done;
   if (mask & 3) vfm_local(node, w->a, la);
   if (mask & 4) vfm_local(node, w->b, lb);
   for (p = 0; p < 3; ++p) {
-    if (!(mask >> p & 1) || vfm_done(w, p)) continue;
+    if (!(mask >> p & 1)) continue;
     if (p == 1) {
       for (i = 0; i < 3; ++i) lz[i] = vfm_dot(vfm_boxes + 15 * node + 3 + 3 * i, w->unit);
       bound = vfm_segment_box(la, lz, w->len, h) - w->slack;
@@ -373,11 +381,7 @@ static int vfm_useful(const vfm_walk* w, int node, int mask, double* key) {
 }
 
 /* A queued box's parts when it comes out: those not done since. */
-static int vfm_still(const vfm_walk* w, const vfm_item* item) {
-  int p, mask = item->mask;
-  for (p = 0; p < 3; ++p) if ((mask >> p & 1) && vfm_done(w, p)) mask &= ~(1 << p);
-  return mask;
-}
+static int vfm_still(const vfm_walk* w, const vfm_item* item) { return item->mask & ~w->done; }
 
 /* The queue: a binary heap of items, least first (key, then boxes and pending entries before hits, then the hits'
  * order). */
@@ -525,18 +529,16 @@ static int vfm_inner_hit(const vfm_walk* w, int t, vfm_hit* hit) {
   return vfm_pair_hit(w, t, v, ca, ra, cb, rb, hit);
 }
 
-/* Triangle t's hit between the ends, deferred (the best-first mode): a pending entry keyed by the distance from the
+/* Triangle t's (corners v) hit between the ends, deferred (the best-first mode): a pending entry keyed by the distance from the
  * segment's line to the triangle (the least distance of the triangle's projection on the plane normal to ab from
  * the origin), never more than the hit's distance, and at least `floor` (its box's key). When the hit exists, its
  * segment point is a local, so global, least of the distance along the line (convex): the line's closest pair,
  * whose direction is the projection's closest point's, up to rounding; a pending entry whose direction is merged
  * for sure is dropped, now or when it comes out. (`floor`, a box's key, is already lowered for rounding.) */
-static void vfm_pending(vfm_walk* w, int t, double floor) {
-  const double* v[3];
+static void vfm_pending(vfm_walk* w, int t, const double* const* v, double floor) {
   double p[3][2], origin[2] = {0, 0}, c[2];
   int k, i, region;
   vfm_hit e;
-  vfm_corners(t, v);
   for (k = 0; k < 3; ++k) {
     double d[3] = {v[k][0] - w->a[0], v[k][1] - w->a[1], v[k][2] - w->a[2]};
     p[k][0] = vfm_dot(d, w->e1); p[k][1] = vfm_dot(d, w->e2);
@@ -562,8 +564,9 @@ static void vfm_triangle(vfm_walk* w, int t, int mask, double floor) {
   int region[2] = {0, 0}, p;
   vfm_hit hit;
   vfm_corners(t, v);
-  for (p = 0; p < 3; ++p) if (vfm_done(w, p)) mask &= ~(1 << p);
-  for (p = 0; p < 3; p += 2) {         /* an end's closest point: for its hit, and in the depth-first mode the pair's */
+  mask &= ~w->done;
+  for (p = 0; p < 3 && (mask & (w->successor ? 7 : 5)); p += 2) {   /* an end's closest point: for its hit, and in
+                                                                          the depth-first mode the pair's */
     if (!(mask & (w->successor ? 3 << (p / 2) : 1 << p))) continue;
     const double* x = p ? w->b : w->a;
     vfm_point_triangle(x, v[0], v[1], v[2], c[p / 2], &region[p / 2]);
@@ -573,7 +576,7 @@ static void vfm_triangle(vfm_walk* w, int t, int mask, double floor) {
     vfm_offer(w, &hit);
   }
   if (!(mask & 2)) return;
-  if (!w->successor) vfm_pending(w, t, floor);
+  if (!w->successor) vfm_pending(w, t, v, floor);
   else if (vfm_pair_hit(w, t, v, c[0], region[0], c[1], region[1], &hit)) vfm_offer(w, &hit);
 }
 
@@ -597,8 +600,8 @@ static void vfm_take(vfm_walk* w, const vfm_hit* hit) {
   int p = hit->part;
   if (vfm_done(w, p) || vfm_merged(w, p, hit->u)) return;
   if (w->count[p] == 0 && p != 1) w->part_side[p] = vfm_side_of(w, p ? w->b : w->a, hit->c, hit->t, hit->region);
-  w->kept[p][w->count[p]++] = *hit;
-  ++w->total;
+  w->kept[p][w->count[p]] = *hit;
+  vfm_counted(w, p);
 }
 
 /* The nearest feature of the mesh to x nearer than sqrt(*best2) (a depth-first search, the nearer child first):
@@ -661,17 +664,12 @@ static void vfm_far_ends(vfm_walk* w) {
     vfm_nearest(x, &best2, &t, &region, near);
     if (t < 0 || vfm_side_of(w, x, near, t, region) > 0) continue;
     vfm_make_hit(w, t, p, p == 2, near, region, best2, &w->kept[p][0]);
-    w->count[p] = 1;
-    ++w->total;
+    vfm_counted(w, p);
     w->part_side[p] = -1;
   }
 }
 
-static int vfm_all_done(const vfm_walk* w) {
-  int p;
-  for (p = 0; p < 3; ++p) if ((w->parts >> p & 1) && !vfm_done(w, p)) return 0;
-  return 1;
-}
+static int vfm_all_done(const vfm_walk* w) { return (w->done & w->parts) == w->parts; }
 
 static void vfm_leaf(vfm_walk* w, int node, int mask, double floor) {
   int t, first = -1 - vfm_nodes[2 * node];
@@ -770,7 +768,7 @@ static void vfm_query(vfm_walk* w, const double* a, const double* b, double cuto
     w->e2[0] = z[1] * w->e1[2] - z[2] * w->e1[1]; w->e2[1] = z[2] * w->e1[0] - z[0] * w->e1[2];
     w->e2[2] = z[0] * w->e1[1] - z[1] * w->e1[0];
   }
-  w->total = 0; w->size = 0; w->used = 0; w->nfree = 0; w->horizon = INFINITY; w->successor = 0;
+  w->total = 0; w->done = 0; w->size = 0; w->used = 0; w->nfree = 0; w->horizon = INFINITY; w->successor = 0;
   mask = vfm_useful(w, 0, w->parts, &key);
   vfm_item item = {key, 0, mask};
   int held = mask != 0;               /* an item in hand, not queued: the walk goes on down the nearer child */
