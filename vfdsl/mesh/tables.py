@@ -90,7 +90,9 @@ def _scatter(points: np.ndarray, starts: np.ndarray) -> tuple[np.ndarray, ...]:
     counts = np.diff(np.append(starts, len(points)))
     mean = np.add.reduceat(points, starts) / counts[:, None]
     centred = points - np.repeat(mean, counts, axis=0)
-    return counts, mean, centred, np.add.reduceat(centred[:, :, None] * centred[:, None, :], starts)
+    x, y, z = centred.T
+    sums = np.add.reduceat(np.column_stack([x * x, y * y, z * z, x * y, x * z, y * z]), starts)
+    return counts, mean, centred, sums[:, [[0, 3, 4], [3, 1, 5], [4, 5, 2]]]
 
 
 def oriented_boxes(points: np.ndarray, starts: np.ndarray) -> np.ndarray:
