@@ -529,12 +529,12 @@ static int vfm_inner_hit(const vfm_walk* w, int t, vfm_hit* hit) {
   return vfm_pair_hit(w, t, v, ca, ra, cb, rb, hit);
 }
 
-/* Triangle t's (corners v) hit between the ends, deferred (the best-first mode): a pending entry keyed by the distance from the
- * segment's line to the triangle (the least distance of the triangle's projection on the plane normal to ab from
- * the origin), never more than the hit's distance, and at least `floor` (its box's key). When the hit exists, its
- * segment point is a local, so global, least of the distance along the line (convex): the line's closest pair,
- * whose direction is the projection's closest point's, up to rounding; a pending entry whose direction is merged
- * for sure is dropped, now or when it comes out. (`floor`, a box's key, is already lowered for rounding.) */
+/* Triangle t's (corners v) hit between the ends, deferred (the best-first mode): a pending entry keyed by the
+ * distance from the segment's line to the triangle (the least distance of the triangle's projection on the plane
+ * normal to ab from the origin), never more than the hit's distance, and at least `floor` (its box's key). When the
+ * hit exists, its segment point is a local, so global, least of the distance along the line (convex): the line's
+ * closest pair, whose direction is the projection's closest point's, up to rounding; a pending entry whose direction
+ * is merged for sure is dropped, now or when it comes out. (`floor`, a box's key, is already lowered for rounding.) */
 static void vfm_pending(vfm_walk* w, int t, const double* const* v, double floor) {
   double p[3][2], origin[2] = {0, 0}, c[2];
   int k, i, region;
@@ -565,8 +565,8 @@ static void vfm_triangle(vfm_walk* w, int t, int mask, double floor) {
   vfm_hit hit;
   vfm_corners(t, v);
   mask &= ~w->done;
-  for (p = 0; p < 3 && (mask & (w->successor ? 7 : 5)); p += 2) {   /* an end's closest point: for its hit, and in
-                                                                          the depth-first mode the pair's */
+  for (p = 0; p < 3 && (mask & (w->successor ? 7 : 5)); p += 2) {   /* an end's closest point, when an end or (in
+    the depth-first mode) the pair needs it: for the end's hit, and in the depth-first mode the pair's */
     if (!(mask & (w->successor ? 3 << (p / 2) : 1 << p))) continue;
     const double* x = p ? w->b : w->a;
     vfm_point_triangle(x, v[0], v[1], v[2], c[p / 2], &region[p / 2]);
@@ -624,7 +624,10 @@ static void vfm_nearest(const double* x, double* best2, int* t_best, int* r_best
         vfm_point_triangle(x, vfm_vertices + 3 * tri[0], vfm_vertices + 3 * tri[1], vfm_vertices + 3 * tri[2], c,
                            &region);
         double d2 = vfm_dist2(x, c);
-        if (d2 < *best2 || (d2 == *best2 && vfm_compare_points(c, near) < 0)) { *best2 = d2; *t_best = t; *r_best = region; for (i = 0; i < 3; ++i) near[i] = c[i]; }
+        if (d2 < *best2 || (d2 == *best2 && vfm_compare_points(c, near) < 0)) {
+          *best2 = d2; *t_best = t; *r_best = region;
+          for (i = 0; i < 3; ++i) near[i] = c[i];
+        }
       }
       continue;
     }
