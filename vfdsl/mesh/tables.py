@@ -167,7 +167,7 @@ def _splits(corner: np.ndarray, count: np.ndarray) -> tuple[np.ndarray, np.ndarr
     cuts = count - 2 * low + 1                                       # a node's cuts: left counts low ... count - low
     cut_node = np.repeat(np.arange(nodes), cuts)
     left, cut_start = _runs(low, cuts)
-    best_volume, best_left, best_order = np.full(nodes, np.inf), np.zeros(nodes, dtype=int), np.arange(len(node))
+    best_volume, best_left, best_order = np.full(nodes, np.inf), count // 2, np.arange(len(node))   # (a valid cut)
     for k in range(directions.shape[1]):
         order = np.lexsort((np.einsum("ni,ni->n", centroid, directions[node, k]), node))
         prefix = np.concatenate([np.zeros((1, 9)), np.cumsum(moments[order], axis=0)])   # sums of the rows before
