@@ -144,9 +144,10 @@ def _runs(first: np.ndarray, count: np.ndarray) -> tuple[np.ndarray, np.ndarray]
     return np.repeat(first - start, count) + np.arange(count.sum()), start
 
 
-def _splits(corner: np.ndarray, count: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _splits(corner: np.ndarray, count: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The splits of one level's nodes, node j the next count_j triangles of ``corner`` (n x 3 x 3): the permutation
-    of the rows that puts each node's left child first, and each left child's count.
+    of the rows that puts each node's left child first, each left child's count, and the children's boxes (2 nodes x
+    15, each node's left then right: :func:`oriented_boxes` of their corners in that order).
 
     A node's triangles are ordered by their centroids along each of nine directions (the world's axes, the principal
     axes of the centroids, of the corners); along each, of the cuts that leave each child at least SHARE of them, the
@@ -167,7 +168,8 @@ def _splits(corner: np.ndarray, count: np.ndarray) -> tuple[np.ndarray, np.ndarr
     cuts = count - 2 * low + 1                                       # a node's cuts: left counts low ... count - low
     cut_node = np.repeat(np.arange(nodes), cuts)
     left, cut_start = _runs(low, cuts)
-    best_volume, best_left, best_order = np.full(nodes, np.inf), count // 2, np.arange(len(node))   # (a valid cut)
+    best_volume, best_left, best_order = np.full(nodes, np.inf), np.zeros(nodes, dtype=int), np.arange(len(node))
+    best_boxes = np.empty((2 * nodes, 15))
     for k in range(directions.shape[1]):
         order = np.lexsort((np.einsum("ni,ni->n", centroid, directions[node, k]), node))
         prefix = np.concatenate([np.zeros((1, 9)), np.cumsum(moments[order], axis=0)])   # sums of the rows before
@@ -178,11 +180,12 @@ def _splits(corner: np.ndarray, count: np.ndarray) -> tuple[np.ndarray, np.ndarr
         cut = left[np.lexsort((spread, cut_node))[cut_start]]          # each node's least spread, its first cut
         boxes = oriented_boxes(corner[order].reshape(-1, 3), 3 * np.column_stack([start, start + cut]).ravel())
         volume = np.prod(boxes[:, 12:], axis=1).reshape(-1, 2).sum(axis=1)
-        better = volume < best_volume
+        better = (volume < best_volume) | (k == 0)                     # the first direction's cut whatever its volume
         best_volume[better], best_left[better] = volume[better], cut[better]
+        best_boxes.reshape(nodes, 2, 15)[better] = boxes.reshape(nodes, 2, 15)[better]
         take = better[node]
         best_order[take] = order[take]
-    return best_order, best_left
+    return best_order, best_left, best_boxes
 
 
 def build_tables(vertices: np.ndarray, triangles: np.ndarray) -> Tables:
@@ -190,24 +193,23 @@ def build_tables(vertices: np.ndarray, triangles: np.ndarray) -> Tables:
     nodes = np.zeros((max(2 * len(triangles) - 1, 1), 2), dtype=np.int64)
     boxes = np.empty((len(nodes), 15))
     ids, first, count = np.array([0]), np.array([0]), np.array([len(triangles)])
+    boxes[0] = oriented_boxes(vertices[triangles].reshape(-1, 3), np.array([0]))[0]
     size, depth = 1, 0
     while len(ids):                                       # one level at a time, its nodes' triangles disjoint
         depth += 1
-        corners = vertices[triangles[order]]
-        rows, start = _runs(first, count)
-        boxes[ids] = oriented_boxes(corners[rows].reshape(-1, 3), 3 * start)
         leaf = count <= LEAF
         nodes[ids[leaf]] = np.column_stack([-1 - first[leaf], count[leaf]])
         ids, first, count = ids[~leaf], first[~leaf], count[~leaf]
         if not len(ids):
             break
         rows = _runs(first, count)[0]
-        split, left = _splits(corners[rows], count)
+        split, left, child_boxes = _splits(vertices[triangles[order[rows]]], count)
         order[rows] = order[rows[split]]
         children = size + 2 * np.arange(len(ids))
         nodes[ids] = np.column_stack([children, children + 1])
         size += 2 * len(ids)
         ids = np.column_stack([children, children + 1]).ravel()
+        boxes[ids] = child_boxes
         first, count = np.column_stack([first, first + left]).ravel(), np.column_stack([left, count - left]).ravel()
     ordered = triangles[order]
     faces, edge_normals, vertex_normals = pseudo_normals(vertices, ordered)
