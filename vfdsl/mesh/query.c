@@ -38,8 +38,8 @@
  * How: a best-first walk of a BVH of oriented boxes (vfdsl/mesh/tables.py), one priority queue (a binary heap)
  * of boxes, pending entries and hits keyed by distance, a box by a lower bound of its hits' distances over the
  * parts it may still give a kept hit to (the point-box distance, a lower bound of the segment-box distance, in the
- * box's frame, lowered for rounding): hits come out in the order above, so each is merged or kept as it comes out; a box
- * is expanded as soon as it is ahead of the queue (the order in which boxes are expanded does not change the
+ * box's frame, lowered for rounding): hits come out in the order above, so each is merged or kept as it comes out; a
+ * box is expanded as soon as it is ahead of the queue (the order in which boxes are expanded does not change the
  * answer, only how soon the walk stops). A part is done when it has K kept hits, or one and K kept hits in all
  * (its later hits could not be rows: they are farther than every kept hit), and the walk stops when every part
  * is done. A box is skipped for a part when it is beyond the cutoff; a hit is dropped as soon as it is within
@@ -565,8 +565,8 @@ static void vfm_triangle(vfm_walk* w, int t, int mask, double floor) {
   vfm_hit hit;
   vfm_corners(t, v);
   mask &= ~w->done;
-  for (p = 0; p < 3 && (mask & (w->successor ? 7 : 5)); p += 2) {   /* an end's closest point, when an end or (in
-    the depth-first mode) the pair needs it: for the end's hit, and in the depth-first mode the pair's */
+  /* an end's closest point: for its hit, and in the depth-first mode the pair's (none when no part needs it) */
+  for (p = 0; p < 3 && (mask & (w->successor ? 7 : 5)); p += 2) {
     if (!(mask & (w->successor ? 3 << (p / 2) : 1 << p))) continue;
     const double* x = p ? w->b : w->a;
     vfm_point_triangle(x, v[0], v[1], v[2], c[p / 2], &region[p / 2]);
