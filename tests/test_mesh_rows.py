@@ -158,6 +158,41 @@ def test_query_is_the_brute_force_answer(channel, segment):
     assert all(np.array_equal(x, y) for x, y in zip(again, answers[0]))
 
 
+def _tangent_to_the_bend(rng, n):
+    """Shafts 60 mm long touching the bend's outer wall at their middle, 0.1 mm from it, within 15 deg of the bend's
+    plane (out of it: hits mirrored across it tie up to rounding): the wall curves away, so the ends lie ~2.1 mm from
+    it, beyond a cutoff of 1.2 mm, while the middle has hits in many directions."""
+    out = []
+    for _ in range(n):
+        z = rng.uniform(0.25, 0.275)
+        x, slope = 10e-3 * ((0.295 - z) / 0.065) ** 2, -2 * 10e-3 * (0.295 - z) / 0.065 ** 2
+        along = np.array([slope, 0.0, 1.0]) / np.hypot(slope, 1.0)
+        side = rng.uniform(0.05, 0.25) * rng.choice([-1, 1])
+        radial = np.cos(side) * np.array([along[2], 0.0, -along[0]]) + np.sin(side) * np.array([0.0, 1.0, 0.0])
+        middle = np.array([x, 0.0, z]) + (0.005 - 1e-4) * radial
+        out.append((middle - 0.03 * along, middle + 0.03 * along))
+    return out
+
+
+def test_the_ends_rows_to_come_are_counted_only_when_they_come(channel):
+    """The walk stops a part when it and the rows of the other parts make K, counting an end that has no kept hit
+    yet when its nearest feature gives it a row (within the cutoff, or on the forbidden side). The same shafts along
+    the bend with both ends beyond the cutoff: keeping out (the channel read as a solid) both ends are on the forbidden
+    side and have rows of their own, so the middle gives K - 2; keeping in they are on the free side and the middle
+    gives all K. Both as brute.features."""
+    mesh, query = channel
+    cutoff, rows = 1.2e-3, {-1.0: [], 1.0: []}
+    for a, b in _tangent_to_the_bend(np.random.default_rng(11), 5):
+        for side in (-1.0, 1.0):
+            d, s, u = (np.array(x) for x in query.function(a, b, [cutoff, side]))
+            d, s, u = d.ravel(), s.ravel(), u.reshape(3, K, order="F")
+            _same((d, s, u), brute.features(a, b, mesh.vertices, mesh.triangles, cutoff, side, K, SIMILAR))
+            rows[side].append(((s > 0) & (s < 1) & np.isfinite(d)).sum())
+            if side > 0 and rows[side][-1] == K - 2:
+                assert sorted(s[(s == 0) | (s == 1)]) == [0, 1] and np.all(d[(s == 0) | (s == 1)] < -cutoff)
+    assert K in rows[-1.0] and K - 2 in rows[1.0], rows
+
+
 def test_a_full_queue_gives_the_same_answer(channel, tmp_path):
     """Built with a queue of 8 entries (the default holds 1,024), the walk overflows on every capsule and ends
     depth-first, one kept hit at a time: the same answers as the default build."""

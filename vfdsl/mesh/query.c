@@ -40,10 +40,15 @@
  * parts it may still give a kept hit to (the point-box distance, a lower bound of the segment-box distance, in the
  * box's frame, lowered for rounding): hits come out in the order above, so each is merged or kept as it comes out; a
  * box is expanded as soon as it is ahead of the queue (the order in which boxes are expanded does not change the
- * answer, only how soon the walk stops). A part is done when it has K kept hits, or one and K kept hits in all
- * (its later hits could not be rows: they are farther than every kept hit), and the walk stops when every part
- * is done. A box is skipped for a part when it is beyond the cutoff; a hit is dropped as soon as it is within
- * VFM_SIMILAR of a kept hit of its part (it would be merged).
+ * answer, only how soon the walk stops). A part is done when it has K kept hits, or one and K rows in all: its kept
+ * hits, the other parts' and the rows of the ends with no kept hit yet that will have one (its later hits could not
+ * be rows: they come after K - P others, P the parts with a row); the walk stops when every part is done. Whether an
+ * end will have a row is looked up, once a call, only when it decides: its nearest feature (the far ends' search,
+ * below) is within the cutoff, or puts it on the forbidden side. (At benchmarks/mesh.py's slowest states the tip's and
+ * the shaft's first hits come at 1.9-2.5 mm, after the hits between the ends that complete the rows; the walk went on
+ * between the ends until then.) Queued items whose parts are all done are then dropped at once. A box is skipped for
+ * a part when it is beyond the cutoff; a hit is dropped as soon as it is within VFM_SIMILAR of a kept hit of its part
+ * (it would be merged).
  * - pending entries: a triangle's hit between the ends (its closest pair with the segment: three segment-edge
  *   pairs and a face test, the costliest part of a triangle) is not computed when its leaf is expanded. If it
  *   exists, its segment point is interior, so it is a local, hence the global, least of the distance from the
@@ -112,6 +117,11 @@ typedef struct {
 } vfm_item;
 
 typedef struct {
+  double d2, c[3];  /* squared distance, the point on the mesh */
+  int t, region;    /* triangle (-1: none found), feature */
+} vfm_near;         /* a point's nearest feature on the mesh */
+
+typedef struct {
   const double *a, *b;
   double ab[3], unit[3], len, e1[3], e2[3], cutoff, side;  /* unit = ab / len; e1, e2: an orthonormal basis of the
                                                               plane normal to ab */
@@ -132,6 +142,8 @@ typedef struct {
   vfm_hit kept[3][VFM_K];
   int count[3], total, done;         /* done: the parts (bit p) done, from count and total (vfm_counted) */
   double part_side[3];
+  int known;                        /* ends (bit p) whose nearest feature is in near[p / 2] (vfm_end_near) */
+  vfm_near near[2];
 } vfm_walk;
 
 static double vfm_dot(const double* a, const double* b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
@@ -285,14 +297,39 @@ static int vfm_before(const vfm_hit* x, const vfm_hit* y) {
 
 static int vfm_done(const vfm_walk* w, int p) { return w->done >> p & 1; }
 
+static void vfm_nearest(const double* x, double* best2, int* t_best, int* r_best, double* near);
+static double vfm_side_of(const vfm_walk* w, const double* x, const double* c, int t, int region);
+
+/* End p's (0: a, 2: b) nearest feature on the mesh, at whatever distance: looked up once a call. */
+static const vfm_near* vfm_end_near(vfm_walk* w, int p) {
+  vfm_near* e = &w->near[p / 2];
+  if (!(w->known >> p & 1)) {
+    e->d2 = INFINITY; e->t = -1; e->region = 0; e->c[0] = e->c[1] = e->c[2] = 0;
+    vfm_nearest(p ? w->b : w->a, &e->d2, &e->t, &e->region, e->c);
+    w->known |= 1 << p;
+  }
+  return e;
+}
+
+/* Whether end p, with no kept hit yet, will have a row of its own: a hit within the cutoff (its nearest feature), or
+ * by the far ends' rule (its nearest feature puts it on the forbidden side). */
+static int vfm_end_row(vfm_walk* w, int p) {
+  const vfm_near* e = vfm_end_near(w, p);
+  return e->t >= 0 && (e->d2 <= w->cutoff * w->cutoff || vfm_side_of(w, p ? w->b : w->a, e->c, e->t, e->region) < 0);
+}
+
 /* One more kept hit of part p (in w->kept[p][w->count[p]]): a part is done when it has K kept hits, or one and K in
  * all. */
 static void vfm_counted(vfm_walk* w, int p) {
-  int q;
+  int q, waiting = 0, coming = 0;
   ++w->count[p];
   ++w->total;
+  for (q = 0; q < 3; q += 2) waiting += (w->parts >> q & 1) && w->count[q] == 0;
+  if (w->total < VFM_K && w->total + waiting >= VFM_K)
+    for (q = 0; q < 3; q += 2) if ((w->parts >> q & 1) && w->count[q] == 0) coming += vfm_end_row(w, q);
   w->done = 0;
-  for (q = 0; q < 3; ++q) if (w->count[q] >= VFM_K || (w->count[q] > 0 && w->total >= VFM_K)) w->done |= 1 << q;
+  for (q = 0; q < 3; ++q)
+    if (w->count[q] >= VFM_K || (w->count[q] > 0 && w->total + coming >= VFM_K)) w->done |= 1 << q;
 }
 
 /* Whether direction u has a cosine above `cosine` with a kept hit of part p. */
@@ -437,6 +474,31 @@ static int vfm_room(vfm_walk* w, double key) {
   vfm_release(w, w->heap[far].ref);
   vfm_remove(w, far);
   return 1;
+}
+
+/* Drops the queued items that can give no kept hit any more (every part they serve is done), and makes the rest a
+ * heap again (Floyd's: each parent's subtree from the last up). */
+static void vfm_purge(vfm_walk* w) {
+  int i, n = 0;
+  for (i = 0; i < w->size; ++i) {
+    const vfm_item* item = &w->heap[i];
+    int live = item->ref < 0 ? !vfm_done(w, w->slot[-1 - item->ref].part)
+                             : (item->ref >= VFM_NN ? !vfm_done(w, 1) : (item->mask & ~w->done) != 0);
+    if (live) w->heap[n++] = *item;
+    else vfm_release(w, item->ref);
+  }
+  w->size = n;
+  for (i = n / 2 - 1; i >= 0; --i) {
+    vfm_item item = w->heap[i];
+    int j = i, child;
+    while ((child = 2 * j + 1) < n) {
+      if (child + 1 < n && vfm_item_before(w, &w->heap[child + 1], &w->heap[child])) ++child;
+      if (!vfm_item_before(w, &w->heap[child], &item)) break;
+      w->heap[j] = w->heap[child];
+      j = child;
+    }
+    w->heap[j] = item;
+  }
 }
 
 static void vfm_push(vfm_walk* w, vfm_item item) {
@@ -661,12 +723,9 @@ static void vfm_far_ends(vfm_walk* w) {
   int p;
   for (p = 0; p < 3; p += 2) {
     if (!(w->parts >> p & 1) || w->count[p] > 0) continue;
-    const double* x = p ? w->b : w->a;
-    double best2 = INFINITY, near[3] = {0, 0, 0};
-    int t = -1, region = 0;
-    vfm_nearest(x, &best2, &t, &region, near);
-    if (t < 0 || vfm_side_of(w, x, near, t, region) > 0) continue;
-    vfm_make_hit(w, t, p, p == 2, near, region, best2, &w->kept[p][0]);
+    const vfm_near* e = vfm_end_near(w, p);
+    if (e->t < 0 || vfm_side_of(w, p ? w->b : w->a, e->c, e->t, e->region) > 0) continue;
+    vfm_make_hit(w, e->t, p, p == 2, e->c, e->region, e->d2, &w->kept[p][0]);
     vfm_counted(w, p);
     w->part_side[p] = -1;
   }
@@ -771,11 +830,14 @@ static void vfm_query(vfm_walk* w, const double* a, const double* b, double cuto
     w->e2[0] = z[1] * w->e1[2] - z[2] * w->e1[1]; w->e2[1] = z[2] * w->e1[0] - z[0] * w->e1[2];
     w->e2[2] = z[0] * w->e1[1] - z[1] * w->e1[0];
   }
-  w->total = 0; w->done = 0; w->size = 0; w->used = 0; w->nfree = 0; w->horizon = INFINITY; w->successor = 0;
+  w->total = 0; w->done = 0; w->known = 0;
+  w->size = 0; w->used = 0; w->nfree = 0; w->horizon = INFINITY; w->successor = 0;
   mask = vfm_useful(w, 0, w->parts, &key);
   vfm_item item = {key, 0, mask};
   int held = mask != 0;               /* an item in hand, not queued: the walk goes on down the nearer child */
+  int purged = 0;                     /* the parts done when the queue was last purged */
   while (!vfm_all_done(w)) {
+    if (w->done != purged) { vfm_purge(w); purged = w->done; }
     if (!held) {
       if (w->size == 0 || w->heap[0].key >= w->horizon) break;
       item = w->heap[0];
@@ -840,7 +902,9 @@ static int vfm_rows(const vfm_walk* w, vfm_hit* rows) {
     rows[n++] = w->kept[best][next[best]++];
   }
   for (i = 1; i < n; ++i)
-    for (j = i; j > 0 && vfm_before(&rows[j], &rows[j - 1]); --j) { vfm_hit h = rows[j]; rows[j] = rows[j - 1]; rows[j - 1] = h; }
+    for (j = i; j > 0 && vfm_before(&rows[j], &rows[j - 1]); --j) {
+      vfm_hit h = rows[j]; rows[j] = rows[j - 1]; rows[j - 1] = h;
+    }
   return n;
 }
 
