@@ -86,6 +86,11 @@ def test_every_triangle_is_in_one_leaf_and_every_box_holds_its_triangles(name):
         left, right = t.nodes[node]
         if left < 0:
             assert 1 <= count <= LEAF
+            listed = t.leaf_vertices[3 * first:3 * (first + count)]           # the leaf's distinct vertices, then -1
+            distinct = listed[listed >= 0]
+            assert np.all(listed[len(distinct):] == -1) and len(set(distinct)) == len(distinct)
+            assert set(distinct) == set(t.triangles[first:first + count].ravel())
+            assert np.array_equal(distinct[t.corner_slots[first:first + count]], t.triangles[first:first + count])
         else:
             assert count > LEAF
             assert min(ranges[int(left)][1], ranges[int(right)][1]) >= math.ceil(SHARE * count)

@@ -110,5 +110,7 @@ def c_source(name: str, mesh: MeshData, k: int) -> str:
         _array("float", "vfm_vertex_normals", t.vertex_normals, "%.9g"),
         _array("int", "vfm_nodes", t.nodes, "%d"),
         _array("double", "vfm_boxes", t.boxes, "%.17g"),
+        _array("int", "vfm_leaf_vertices", t.leaf_vertices, "%d"),
+        _array("unsigned char", "vfm_corner_slots", t.corner_slots, "%d"),
     ])
     return head + tables + QUERY.read_text().replace("@NAME@", name)

@@ -54,11 +54,12 @@
  *   exists, its segment point is interior, so it is a local, hence the global, least of the distance from the
  *   segment's line (convex along the line): the triangle's projection on the plane normal to ab gives, in two
  *   dimensions, its distance (the line's, never more than the hit's) and its direction u (the projection's
- *   closest point's, up to rounding). The triangle waits in the queue as a pending entry keyed by that distance
- *   (a box's key, lowered by VFM_LINE_SLACK), and when it comes out the hit is computed only if that part is not
- *   done and u is not within VFM_SIMILAR + VFM_SAME_SLACK of a kept hit (kept hits come out before it: its hit
- *   would be merged), u being trusted only from VFM_SAME_FROM away. Along a wall nearly every triangle's hit is
- *   merged: at benchmarks/mesh.py's slowest states 14 pairs are computed where 508 were.
+ *   closest point's, up to rounding; a leaf's distinct vertices, listed by the tables, are projected once, and u is
+ *   compared with the kept hits' directions in that plane). The triangle waits in the queue as a pending entry keyed
+ *   by that distance (a box's key, lowered by VFM_LINE_SLACK), and when it comes out the hit is computed only if
+ *   that part is not done and u is not within VFM_SIMILAR + VFM_SAME_SLACK of a kept hit (kept hits come out before
+ *   it: its hit would be merged), u being trusted only from VFM_SAME_FROM away. Along a wall nearly every triangle's
+ *   hit is merged: at benchmarks/mesh.py's slowest states 14 pairs are computed where 508 were.
  * (Boxes are not tested against the kept hits' cones: along a wall, where the walk works longest, a box's hits
  * spread over more than one cone, and the test skipped 322 boxes in 1.9 million on benchmarks/mesh.py's states; nor
  * against their union, in angle about the segment: a leaf there spans 60-90 deg seen from the shaft, and the test
@@ -140,6 +141,7 @@ typedef struct {
   vfm_hit after, best;
   int found;
   vfm_hit kept[3][VFM_K];
+  double plane[VFM_K][2];           /* the kept hits between the ends: u's coordinates in e1, e2 */
   int count[3], total, done;         /* done: the parts (bit p) done, from count and total (vfm_counted) */
   double part_side[3];
   int known;                        /* ends (bit p) whose nearest feature is in near[p / 2] (vfm_end_near) */
@@ -345,7 +347,11 @@ static int vfm_merged(const vfm_walk* w, int p, const double* u) { return vfm_ne
 /* Whether a pending entry's hit, if it has one, would be merged: its direction (exact up to rounding) is within
  * VFM_SIMILAR of a kept hit between the ends by more than the rounding of either. */
 static int vfm_merged_for_sure(const vfm_walk* w, const vfm_hit* pending) {
-  return pending->s > 0 && vfm_near_kept(w, 1, pending->u, VFM_SIMILAR + VFM_SAME_SLACK);
+  int k;
+  if (!(pending->s > 0)) return 0;
+  for (k = 0; k < w->count[1]; ++k)
+    if (pending->u[0] * w->plane[k][0] + pending->u[1] * w->plane[k][1] > VFM_SIMILAR + VFM_SAME_SLACK) return 1;
+  return 0;
 }
 
 /* x in the frame of node's oriented box (centre, axes, half-sides: vfm_boxes[15 node ...]). */
@@ -597,30 +603,26 @@ static int vfm_inner_hit(const vfm_walk* w, int t, vfm_hit* hit) {
  * hit exists, its segment point is a local, so global, least of the distance along the line (convex): the line's
  * closest pair, whose direction is the projection's closest point's, up to rounding; a pending entry whose direction
  * is merged for sure is dropped, now or when it comes out. (`floor`, a box's key, is already lowered for rounding.) */
-static void vfm_pending(vfm_walk* w, int t, const double* const* v, double floor) {
-  double p[3][2], origin[2] = {0, 0}, c[2];
-  int k, i, region;
-  vfm_hit e;
-  for (k = 0; k < 3; ++k) {
-    double d[3] = {v[k][0] - w->a[0], v[k][1] - w->a[1], v[k][2] - w->a[2]};
-    p[k][0] = vfm_dot(d, w->e1); p[k][1] = vfm_dot(d, w->e2);
-  }
-  vfm_closest_point(2, origin, p[0], p[1], p[2], c, &region);
+static void vfm_pending(vfm_walk* w, int t, const double (*plane)[2], double floor) {
+  const unsigned char* slot = vfm_corner_slots + 3 * t;
+  double origin[2] = {0, 0}, c[2];
+  int region;
+  vfm_closest_point(2, origin, plane[slot[0]], plane[slot[1]], plane[slot[2]], c, &region);
   double line = sqrt(c[0] * c[0] + c[1] * c[1]), key = line * (1 - VFM_LINE_SLACK) - w->slack;
   if (key > w->cutoff) return;        /* its hit, if any, is beyond the cutoff */
-  e.dist = key > floor ? key : floor;  /* a degenerate projection (NaN): the box's key */
-  e.part = 1; e.t = t; e.region = VFM_PENDING; e.s = 0;
-  for (i = 0; i < 3; ++i) { e.c[i] = 0; e.u[i] = 0; }
-  if (line >= VFM_SAME_FROM) {        /* s = 1: u is the hit's direction */
-    double x = -c[0] / line, y = -c[1] / line;
-    for (i = 0; i < 3; ++i) e.u[i] = x * w->e1[i] + y * w->e2[i];
-    e.s = 1;
+  vfm_hit* e = &w->leaf[w->nleaf];
+  e->dist = key > floor ? key : floor;  /* a degenerate projection (NaN): the box's key */
+  e->part = 1; e->t = t; e->region = VFM_PENDING; e->s = 0;
+  e->u[0] = e->u[1] = e->u[2] = 0;
+  if (line >= VFM_SAME_FROM) {        /* s = 1: u is the hit's direction (in e1, e2) */
+    e->u[0] = -c[0] / line; e->u[1] = -c[1] / line;
+    e->s = 1;
   }
-  if (!vfm_merged_for_sure(w, &e)) w->leaf[w->nleaf++] = e;
+  if (!vfm_merged_for_sure(w, e)) ++w->nleaf;
 }
 
 /* Triangle t's hits for the parts of `mask` (between the ends: pending, or computed in the depth-first mode). */
-static void vfm_triangle(vfm_walk* w, int t, int mask, double floor) {
+static void vfm_triangle(vfm_walk* w, int t, int mask, double floor, const double (*plane)[2]) {
   const double* v[3];
   double c[2][3];
   int region[2] = {0, 0}, p;
@@ -638,7 +640,7 @@ static void vfm_triangle(vfm_walk* w, int t, int mask, double floor) {
     vfm_offer(w, &hit);
   }
   if (!(mask & 2)) return;
-  if (!w->successor) vfm_pending(w, t, v, floor);
+  if (!w->successor) vfm_pending(w, t, plane, floor);
   else if (vfm_pair_hit(w, t, v, c[0], region[0], c[1], region[1], &hit)) vfm_offer(w, &hit);
 }
 
@@ -663,6 +665,7 @@ static void vfm_take(vfm_walk* w, const vfm_hit* hit) {
   if (vfm_done(w, p) || vfm_merged(w, p, hit->u)) return;
   if (w->count[p] == 0 && p != 1) w->part_side[p] = vfm_side_of(w, p ? w->b : w->a, hit->c, hit->t, hit->region);
   w->kept[p][w->count[p]] = *hit;
+  if (p == 1) { w->plane[w->count[1]][0] = vfm_dot(hit->u, w->e1); w->plane[w->count[1]][1] = vfm_dot(hit->u, w->e2); }
   vfm_counted(w, p);
 }
 
@@ -734,8 +737,15 @@ static void vfm_far_ends(vfm_walk* w) {
 static int vfm_all_done(const vfm_walk* w) { return (w->done & w->parts) == w->parts; }
 
 static void vfm_leaf(vfm_walk* w, int node, int mask, double floor) {
-  int t, first = -1 - vfm_nodes[2 * node];
-  for (t = first; t < first + vfm_nodes[2 * node + 1]; ++t) vfm_triangle(w, t, mask, floor);
+  int t, j, first = -1 - vfm_nodes[2 * node], count = vfm_nodes[2 * node + 1];
+  double plane[3 * VFM_LEAF][2];      /* the leaf's vertices projected on the plane normal to ab, from a */
+  if (mask & 2 & ~w->done && !w->successor)
+    for (j = 0; j < 3 * count && vfm_leaf_vertices[3 * first + j] >= 0; ++j) {
+      const double* v = vfm_vertices + 3 * vfm_leaf_vertices[3 * first + j];
+      double d[3] = {v[0] - w->a[0], v[1] - w->a[1], v[2] - w->a[2]};
+      plane[j][0] = vfm_dot(d, w->e1); plane[j][1] = vfm_dot(d, w->e2);
+    }
+  for (t = first; t < first + count; ++t) vfm_triangle(w, t, mask, floor, plane);
 }
 
 /* The order of a leaf's entries: by key (a hit's distance, a pending entry's bound), a pending entry before the hits
