@@ -2,23 +2,26 @@
 
     python benchmarks/mesh.py            # 1k, 10k, 100k triangles; 3,000 timed ticks each
     python benchmarks/mesh.py --quick    # 1k and 10k, 1,000 ticks
+    python benchmarks/mesh.py --rounds 9 # the query from C called 9 times at each state (5 by default)
 
 The task is tasks/sinus_channel.vf (the shaft, a capsule, inside a curved channel), with its channel rebuilt at
 1k, 10k and 100k triangles (the same tube, finer: tasks/anatomy/make_meshes.py's ``tube``), and without the
 ``inside_mesh`` line (the baseline: same robot, objectives, speed limits). Each tick is Controller.step on the
 generated C path, timed with time.perf_counter_ns after 500 warm-up ticks, GC disabled, over the states of one
 closed-loop run recorded beforehand (the hand pushes the shaft into the bend's wall, then toward the target;
-the same states for every variant). Also timed: the proximity query alone, the C function called through ctypes
-at the same states (about 1 us of the figure is ctypes' call). Progress on stderr, the report on stdout.
+the same states for every variant). Also timed: the proximity query alone, from C (benchmarks/mesh_query.c, compiled
+with the query's source and the task's flags) at the same states' segments, every state in turn, ROUNDS times over:
+wall and thread CPU time, over every call and over the states of each state's median over the rounds. Progress on
+stderr, the report on stdout.
 """
 
 from __future__ import annotations
 
 import argparse
-import ctypes
 import gc
 import importlib.util
 import platform
+import subprocess
 import sys
 import tempfile
 import time
@@ -28,6 +31,7 @@ import numpy as np
 
 import vfdsl
 from vfdsl.check.kinematics import frame_pose
+from vfdsl.codegen.build import FLAGS, find_compiler
 from vfdsl.compiler.mesh_rows import K, REACH
 from vfdsl.kinematics.robot import Robot
 from vfdsl.mesh.external import mesh_query
@@ -37,6 +41,7 @@ ROOT = Path(__file__).resolve().parent.parent
 TASK = (ROOT / "tasks" / "sinus_channel.vf").read_text()
 SIZES = {1_000: (16, 32), 10_000: (48, 105), 100_000: (128, 390)}   # triangles: (sections, rings), within the limit
 WARMUP = 500
+ROUNDS = 5
 
 
 def _tube_module():
@@ -83,25 +88,19 @@ def record(ctrl, task, ticks: int) -> list:
     return states
 
 
-def _c_calls(mesh, segments) -> list:
-    """The query of ``mesh`` at each segment (a, b) (the example's cutoff, keep in) as a ctypes call of its C
-    function, all with one work vector (the walk's memory, CasADi's w)."""
+def query_from_c(mesh, segments, folder: Path, rounds: int) -> tuple[np.ndarray, np.ndarray]:
+    """The query of ``mesh`` (the example's cutoff, keep in) timed from C at each segment (a, b), every segment in
+    turn, ``rounds`` times over: (wall median, p99, p99.9, max, then the same of CPU time, us) over every call, and
+    over the states of each state's median over the rounds."""
     query = mesh_query(mesh, K)
-    library = ctypes.CDLL(str(query.source.parent / f"lib{query.name}.so"))
-    function = getattr(library, query.name)
-    sizes = [ctypes.c_longlong() for _ in range(4)]
-    getattr(library, f"{query.name}_work")(*[ctypes.byref(x) for x in sizes])
-    double_p = ctypes.POINTER(ctypes.c_double)
-    work = np.zeros(sizes[3].value)
-    w = work.ctypes.data_as(double_p)
-    outputs = [np.zeros(K), np.zeros(K), np.zeros(3 * K)]
-    res = (double_p * 3)(*[x.ctypes.data_as(double_p) for x in outputs])
-
-    def call(a, b):
-        inputs = [np.array(a, float), np.array(b, float), np.array([0.0015 + REACH, -1.0])]
-        arg = (double_p * 3)(*[x.ctypes.data_as(double_p) for x in inputs])
-        return lambda: function(arg, res, None, w, 0) or (inputs, outputs, work)   # keeps the arrays alive
-    return [call(a, b) for a, b in segments]
+    program = folder / f"time_{query.name}"
+    subprocess.run([*find_compiler().command, *FLAGS, f"-DQUERY={query.name}", f"-DROWS={K}",
+                    str(ROOT / "benchmarks" / "mesh_query.c"), str(query.source), "-o", str(program), "-lm"],
+                   check=True, capture_output=True)
+    text = "".join(" ".join(f"{x:.17g}" for x in (*a, *b)) + "\n" for a, b in segments)
+    out = subprocess.run([str(program), str(rounds), f"{0.0015 + REACH!r}", "-1"], input=text, check=True,
+                         capture_output=True, text=True).stdout.split("\n")
+    return np.array(out[0].split(), float), np.array(out[1].split(), float)
 
 
 def timed(call, states) -> np.ndarray:
@@ -120,12 +119,17 @@ def timed(call, states) -> np.ndarray:
 
 
 def line(name: str, us: np.ndarray) -> str:
-    return f"| {name} | {np.median(us):.1f} | {np.percentile(us, 99):.1f} |"
+    return f"| {name} | " + " | ".join(f"{x:.1f}" for x in np.percentile(us, [50, 99, 99.9, 100])) + " |"
+
+
+def c_line(name: str, figures: np.ndarray) -> str:
+    return f"| {name} | " + " | ".join(f"{x:.1f}" for x in figures) + " |"
 
 
 def main() -> None:
     parser = argparse.ArgumentParser()
     parser.add_argument("--quick", action="store_true")
+    parser.add_argument("--rounds", type=int, default=ROUNDS, help="calls of the query from C at each state")
     args = parser.parse_args()
     sizes = [1_000, 10_000] if args.quick else list(SIZES)
     ticks = 1_000 if args.quick else 3_000
@@ -146,17 +150,22 @@ def main() -> None:
                 states = record(ctrl, task, ticks)
             mesh = read_mesh(stl, 1e-3)
             robot = Robot.load(task.robots[0].urdf)
-            calls = _c_calls(mesh, [(frame_pose(robot, task.frame("tip"), q)[0],
-                                     frame_pose(robot, task.frame("shaft"), q)[0]) for q, _ in states])
-            q_us = timed(lambda call, _: call(), [(call, None) for call in calls])
-            rows.append((len(mesh.triangles), timed(lambda q, u: ctrl.step(q, u), states), q_us, build))
+            segments = [(frame_pose(robot, task.frame("tip"), q)[0], frame_pose(robot, task.frame("shaft"), q)[0])
+                        for q, _ in states]
+            print(f"{stl.name}: the query from C, {args.rounds} rounds", file=sys.stderr)
+            from_c = query_from_c(mesh, segments, folder, args.rounds)
+            rows.append((len(mesh.triangles), timed(lambda q, u: ctrl.step(q, u), states), from_c, build))
         base_us = timed(lambda q, u: base.step(q, u), states)
     print(f"# mesh fixture tick time ({platform.processor() or platform.machine()}, {ticks} ticks, us)\n")
-    print("| variant | median | p99 |\n|---|---|---|")
+    print("| variant | median | p99 | p99.9 | max |\n|---|---|---|---|---|")
     print(line("without the mesh", base_us))
-    for n, us, q_us, build in rows:
+    for n, us, _, _ in rows:
         print(line(f"{n:,} triangles (tick)", us))
-        print(line(f"{n:,} triangles (query alone, C through ctypes)", q_us))
+    print(f"\n# the query alone, from C ({ticks} states x {args.rounds} rounds, us)\n")
+    print("| query | wall: median | p99 | p99.9 | max | CPU: median | p99 | p99.9 | max |\n" + "|---" * 9 + "|")
+    for n, _, (calls, per_state), _ in rows:
+        print(c_line(f"{n:,} triangles, every call", calls))
+        print(c_line(f"{n:,} triangles, each state's median", per_state))
     print("\nfirst build (tables, query, task library), s: "
           + ", ".join(f"{n:,}: {build:.1f}" for n, _, _, build in rows))
 
