@@ -109,7 +109,8 @@ typedef struct {
   double u[3];      /* unit from c to x (touching: the face's normal times side) */
   int t, region;    /* triangle and feature: 0 face, 1 + e edge e, 4 + i vertex i (vfm_point_triangle) */
   int part;         /* 0 the segment's start, 2 its end, 1 between */
-} vfm_hit;          /* also a pending entry (region VFM_PENDING: dist its key, u its hit's direction when s = 1) */
+} vfm_hit;          /* also a pending entry (region VFM_PENDING: dist its key; when s = 1, u[0], u[1] its hit's
+                       direction in the walk's e1, e2) */
 
 typedef struct {
   double key;       /* a box: a lower bound of its hits' distances; a hit: its distance */
@@ -320,8 +321,8 @@ static int vfm_end_row(vfm_walk* w, int p) {
   return e->t >= 0 && (e->d2 <= w->cutoff * w->cutoff || vfm_side_of(w, p ? w->b : w->a, e->c, e->t, e->region) < 0);
 }
 
-/* One more kept hit of part p (in w->kept[p][w->count[p]]): a part is done when it has K kept hits, or one and K in
- * all. */
+/* One more kept hit of part p (in w->kept[p][w->count[p]]): a part is done when it has K kept hits, or one and K rows
+ * in all, the kept hits and the rows of the ends to come (vfm_end_row, asked only when it decides). */
 static void vfm_counted(vfm_walk* w, int p) {
   int q, waiting = 0, coming = 0;
   ++w->count[p];
