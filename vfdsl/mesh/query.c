@@ -335,15 +335,12 @@ static void vfm_counted(vfm_walk* w, int p) {
     if (w->count[q] >= VFM_K || (w->count[q] > 0 && w->total + coming >= VFM_K)) w->done |= 1 << q;
 }
 
-/* Whether direction u has a cosine above `cosine` with a kept hit of part p. */
-static int vfm_near_kept(const vfm_walk* w, int p, const double* u, double cosine) {
+/* Whether direction u is within VFM_SIMILAR (cosine) of a kept hit of part p (it would be merged). */
+static int vfm_merged(const vfm_walk* w, int p, const double* u) {
   int k;
-  for (k = 0; k < w->count[p]; ++k) if (vfm_dot(w->kept[p][k].u, u) > cosine) return 1;
+  for (k = 0; k < w->count[p]; ++k) if (vfm_dot(w->kept[p][k].u, u) > VFM_SIMILAR) return 1;
   return 0;
 }
-
-/* Whether direction u is within VFM_SIMILAR of a kept hit of part p (it would be merged). */
-static int vfm_merged(const vfm_walk* w, int p, const double* u) { return vfm_near_kept(w, p, u, VFM_SIMILAR); }
 
 /* Whether a pending entry's hit, if it has one, would be merged: its direction (exact up to rounding) is within
  * VFM_SIMILAR of a kept hit between the ends by more than the rounding of either. */
