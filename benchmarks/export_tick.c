@@ -8,9 +8,7 @@
  *
  *     ./export_tick TICKS DT < states.txt
  */
-#include <stdio.h>
-#include <stdlib.h>
-#include <time.h>
+#include "quantiles.h"
 
 #define CAT_(a, b) a##b
 #define CAT(a, b) CAT_(a, b)
@@ -20,18 +18,6 @@
 #define WARMUP 1000
 
 static double states[MAX_STATES][WIDTH];
-
-static int by_value(const void* a, const void* b) {
-  long long x = *(const long long*) a, y = *(const long long*) b;
-  return (x > y) - (x < y);
-}
-
-/* Sorts x (ticks values, ns) and prints its median, p99, p99.9 and max in us, each followed by a space. */
-static void print_quantiles(long long* x, long ticks) {
-  qsort(x, ticks, sizeof(long long), by_value);
-  printf("%.3f %.3f %.3f %.3f ", x[ticks / 2] / 1e3, x[(long) (0.99 * (ticks - 1))] / 1e3,
-         x[(long) (0.999 * (ticks - 1))] / 1e3, x[ticks - 1] / 1e3);
-}
 
 int main(int argc, char** argv) {
   long ticks = argc > 1 ? atol(argv[1]) : 100000, k;
@@ -59,8 +45,8 @@ read:
     clock_gettime(CLOCK_THREAD_CPUTIME_ID, &c1);
     if (status < 0) { fprintf(stderr, "tick %ld refused: %s\n", k, F(_error_message)(status)); return 1; }
     if (k >= WARMUP) {
-      ns[k - WARMUP] = (t1.tv_sec - t0.tv_sec) * 1000000000LL + (t1.tv_nsec - t0.tv_nsec);
-      cpu[k - WARMUP] = (c1.tv_sec - c0.tv_sec) * 1000000000LL + (c1.tv_nsec - c0.tv_nsec);
+      ns[k - WARMUP] = elapsed_ns(&t0, &t1);
+      cpu[k - WARMUP] = elapsed_ns(&c0, &c1);
       optimal += status == VF_OPTIMAL;
     }
   }

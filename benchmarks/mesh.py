@@ -118,12 +118,12 @@ def timed(call, states) -> np.ndarray:
     return out / 1e3
 
 
-def line(name: str, us: np.ndarray) -> str:
-    return f"| {name} | " + " | ".join(f"{x:.1f}" for x in np.percentile(us, [50, 99, 99.9, 100])) + " |"
-
-
 def c_line(name: str, figures: np.ndarray) -> str:
     return f"| {name} | " + " | ".join(f"{x:.1f}" for x in figures) + " |"
+
+
+def line(name: str, us: np.ndarray) -> str:
+    return c_line(name, np.percentile(us, [50, 99, 99.9, 100]))
 
 
 def main() -> None:

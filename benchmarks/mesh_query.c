@@ -12,9 +12,7 @@
  *
  *     ./mesh_query ROUNDS CUTOFF SIDE < segments.txt
  */
-#include <stdio.h>
-#include <stdlib.h>
-#include <time.h>
+#include "quantiles.h"
 
 #define CAT_(a, b) a##b
 #define CAT(a, b) CAT_(a, b)
@@ -25,22 +23,6 @@ int QUERY(const double** arg, double** res, casadi_int* iw, double* w, int mem);
 int CAT(QUERY, _work)(casadi_int* sz_arg, casadi_int* sz_res, casadi_int* sz_iw, casadi_int* sz_w);
 
 static double segments[MAX_STATES][6];
-
-static int by_value(const void* a, const void* b) {
-  long long x = *(const long long*) a, y = *(const long long*) b;
-  return (x > y) - (x < y);
-}
-
-/* Sorts x (n values, ns) and prints its median, p99, p99.9 and max in us, each followed by a space. */
-static void print_quantiles(long long* x, long n) {
-  qsort(x, n, sizeof(long long), by_value);
-  printf("%.3f %.3f %.3f %.3f ", x[n / 2] / 1e3, x[(long) (0.99 * (n - 1))] / 1e3, x[(long) (0.999 * (n - 1))] / 1e3,
-         x[n - 1] / 1e3);
-}
-
-static long long elapsed(const struct timespec* t0, const struct timespec* t1) {
-  return (t1->tv_sec - t0->tv_sec) * 1000000000LL + (t1->tv_nsec - t0->tv_nsec);
-}
 
 int main(int argc, char** argv) {
   int rounds = argc > 1 ? atoi(argv[1]) : 5, n = 0, r, i, j;
@@ -73,7 +55,7 @@ read:
       clock_gettime(CLOCK_MONOTONIC, &t1);
       clock_gettime(CLOCK_THREAD_CPUTIME_ID, &c1);
       if (status != 0) { fprintf(stderr, "the query failed at state %d\n", i); return 1; }
-      if (r >= 0) { wall[(long) r * n + i] = elapsed(&t0, &t1); cpu[(long) r * n + i] = elapsed(&c0, &c1); }
+      if (r >= 0) { wall[(long) r * n + i] = elapsed_ns(&t0, &t1); cpu[(long) r * n + i] = elapsed_ns(&c0, &c1); }
     }
   for (i = 0; i < n; ++i) {
     for (r = 0; r < rounds; ++r) one[r] = wall[(long) r * n + i];
