@@ -3,8 +3,11 @@ a port on the tool axis above the tip (:func:`port_task`)."""
 
 from __future__ import annotations
 
+import contextlib
+import io
 import os
 import shutil
+import subprocess
 from pathlib import Path
 
 import pytest
@@ -60,6 +63,22 @@ def solver_ready(private_cache) -> None:
         build.daqp_library(build.find_compiler())
     except VfError:
         pass
+
+
+def run_cli(*args: str) -> subprocess.CompletedProcess:
+    """``vfdsl ARGS`` run in this process (``vfdsl.cli.main``), its stdout, stderr and exit status captured as a
+    CompletedProcess: what the command prints and returns, without a new interpreter's 2-3 s of imports per call
+    (tests/test_cli.py runs the installed command in a subprocess). An exception that escapes ``main`` fails the
+    test, as a traceback would."""
+    from vfdsl import cli
+
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        try:
+            status = cli.main(list(args))
+        except SystemExit as stop:          # argparse: --help (0) and usage errors (2)
+            status = stop.code if isinstance(stop.code, int) else 1
+    return subprocess.CompletedProcess(["vfdsl", *args], status, out.getvalue(), err.getvalue())
 
 
 PORT_START = {"panda7": (TASKS_DIR / "lecture_remote_center.vf", "[0, -45, 0, -135, 0, 90, 45]"),

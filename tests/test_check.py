@@ -7,13 +7,12 @@ import argparse
 import itertools
 import json
 import math
-import subprocess
 import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import TASKS_DIR
+from conftest import TASKS_DIR, run_cli
 
 import vfdsl
 from vfdsl.check import check, polytope
@@ -281,34 +280,27 @@ def test_without_joint_speed_the_start_is_judged_within_the_urdf_velocity_limits
 
 # ------------------------------------------------------------------------------------------ the command
 
-def vfdsl_cli(*args: str) -> subprocess.CompletedProcess:
-    """The command in a subprocess (conftest's ``solver_ready`` has fetched and built DAQP before any test, so the
-    timeout never includes the first controller of a fresh machine)."""
-    return subprocess.run([sys.executable, "-P", "-m", "vfdsl.cli", *args], capture_output=True, text=True,
-                          check=False, timeout=120)
-
-
 def test_cli_exit_codes_and_json(tmp_path):
     probe(tmp_path, PROBE.replace("resolution 12x12", "resolution 4x4"))
-    proc = vfdsl_cli("check", str(tmp_path / "probe.vf"))
+    proc = run_cli("check", str(tmp_path / "probe.vf"))
     assert proc.returncode == 0, proc.stdout + proc.stderr
     assert "warning VF102 polytope-overshoot" in proc.stdout and "^^^" in proc.stdout
     assert proc.stdout.rstrip().splitlines()[-1].startswith("probe: sound")
-    assert vfdsl_cli("check", str(tmp_path / "probe.vf"), "--strict").returncode == 1
-    data = json.loads(vfdsl_cli("check", str(tmp_path / "probe.vf"), "--json").stdout)
+    assert run_cli("check", str(tmp_path / "probe.vf"), "--strict").returncode == 1
+    data = json.loads(run_cli("check", str(tmp_path / "probe.vf"), "--json").stdout)
     assert data["schema"] == 1 and data["exit_status"] == 0
     [overshoot] = [f for f in data["findings"] if f["code"] == "VF102"]
     assert overshoot["location"]["line"] == 9 and overshoot["severity"] == "warning"
     probe(tmp_path, PROBE.replace("[0, 0, 290]", "[0, 0, 280]"))
-    proc = vfdsl_cli("check", str(tmp_path / "probe.vf"))
+    proc = run_cli("check", str(tmp_path / "probe.vf"))
     assert proc.returncode == 1 and "NOT SOUND" in proc.stdout
 
 
 def test_cli_usage_and_front_end_errors_exit_2(tmp_path):
     write_probe(tmp_path, PROBE.replace("stays_at(target)", "stays_at(tagret)"))
-    proc = vfdsl_cli("check", str(tmp_path / "probe.vf"))
+    proc = run_cli("check", str(tmp_path / "probe.vf"))
     assert proc.returncode == 2 and "Traceback" not in proc.stderr and "unknown" in proc.stderr
-    assert vfdsl_cli("check", str(tmp_path / "probe.vf"), "--overshoot", "lots").returncode == 2
+    assert run_cli("check", str(tmp_path / "probe.vf"), "--overshoot", "lots").returncode == 2
 
 
 def test_a_bare_overshoot_is_a_percentage_as_pct_says(tmp_path):
@@ -317,14 +309,14 @@ def test_a_bare_overshoot_is_a_percentage_as_pct_says(tmp_path):
     from vfdsl.check.command import _fraction
     write_probe(tmp_path, PROBE)
     for given in ("5", "5%"):
-        proc = vfdsl_cli("check", str(tmp_path / "probe.vf"), "--overshoot", given)
+        proc = run_cli("check", str(tmp_path / "probe.vf"), "--overshoot", given)
         assert "VF102" in proc.stdout and "(limit 5%;" in proc.stdout, proc.stdout
     assert _fraction("5") == _fraction("5%") == pytest.approx(0.05)
     assert _fraction("10") == pytest.approx(0.1) and _fraction("999") == pytest.approx(9.99)
     for text in ("0", "1000", "-5%", "lots"):
         with pytest.raises(argparse.ArgumentTypeError):
             _fraction(text)
-    proc = vfdsl_cli("check", str(TASKS_DIR / "paper_b_virtual_rcm.vf"), "--scene", str(tmp_path / "none.yaml"))
+    proc = run_cli("check", str(TASKS_DIR / "paper_b_virtual_rcm.vf"), "--scene", str(tmp_path / "none.yaml"))
     assert proc.returncode == 2 and "scene file not found" in proc.stderr
 
 
@@ -372,7 +364,7 @@ def test_cli_json_reports_a_task_that_does_not_load(tmp_path, capsys, monkeypatc
 def test_cli_scene_option_replaces_the_scene(tmp_path):
     probe(tmp_path)
     (tmp_path / "far.yaml").write_text(SCENE.replace("insert: 10", "insert: 20"))     # tip 10 mm below target
-    proc = vfdsl_cli("check", str(tmp_path / "probe.vf"), "--scene", str(tmp_path / "far.yaml"), "--json")
+    proc = run_cli("check", str(tmp_path / "probe.vf"), "--scene", str(tmp_path / "far.yaml"), "--json")
     assert proc.returncode == 1
     assert "VF301" in {f["code"] for f in json.loads(proc.stdout)["findings"]}
 
@@ -680,7 +672,7 @@ def test_start_outside_the_limits_is_an_error(tmp_path):
 
 
 def test_check_help_teaches():
-    proc = vfdsl_cli("check", "--help")
+    proc = run_cli("check", "--help")
     assert proc.returncode == 0
     for text in ("--scene", "--json", "--strict", "--overshoot", "(default: 10%)", "--samples", "exit status",
                  "docs/check.md"):

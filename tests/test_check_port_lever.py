@@ -9,12 +9,10 @@ the tool's own material point at the port (its velocity normal to the axis is ze
 from __future__ import annotations
 
 import json
-import subprocess
-import sys
 
 import numpy as np
 import pytest
-from conftest import TASKS_DIR, port_task
+from conftest import TASKS_DIR, port_task, run_cli
 from scipy.optimize import linprog
 
 import vfdsl
@@ -120,8 +118,7 @@ def test_the_lecture_remote_center_port_is_far_enough():
 
 def test_the_finding_in_the_json_output(tmp_path):
     port_task(tmp_path, "panda7", 4e-3)
-    proc = subprocess.run([sys.executable, "-P", "-m", "vfdsl.cli", "check", str(tmp_path / "port.vf"), "--json",
-                           "--samples", "0"], capture_output=True, text=True, check=False, timeout=120)
+    proc = run_cli("check", str(tmp_path / "port.vf"), "--json", "--samples", "0")
     assert proc.returncode == 0, proc.stderr
     data = json.loads(proc.stdout)
     finding, = [f for f in data["findings"] if f["name"] == "port-lever-short"]

@@ -7,12 +7,11 @@ from __future__ import annotations
 
 import json
 import math
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import run_cli
 
 import vfdsl
 from vfdsl.check import monitors
@@ -317,13 +316,8 @@ def test_a_phase_cannot_loosen_a_fixture_of_every_phase(variant):
 
 
 # ------------------------------------------------------------------------------------------------ JSON and the CLI
-def vfdsl_cli(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-P", "-m", "vfdsl.cli", *args], capture_output=True, text=True,
-                          check=False, timeout=120)
-
-
 def test_cli_prints_the_procedure_findings_and_exits_0():
-    proc = vfdsl_cli("check", str(EXAMPLE))
+    proc = run_cli("check", str(EXAMPLE))
     assert proc.returncode == 0, proc.stdout + proc.stderr
     for code in ("note VF953 guards-overlap", "note VF956 entry-unfunnelled", "note VF700 sampled-summary: in phase "
                  "insert: 200 states"):
@@ -334,7 +328,7 @@ def test_cli_prints_the_procedure_findings_and_exits_0():
 def test_cli_json_carries_the_findings_and_an_error_exits_1(variant, tmp_path):
     _, text = variant("transition align -> insert when aligned", "transition align -> retract when aligned",
                       "blend 200 ms\n", "")
-    proc = vfdsl_cli("check", str(tmp_path / "procedures" / "needle_procedure.vf"), "--json", "--samples", "0")
+    proc = run_cli("check", str(tmp_path / "procedures" / "needle_procedure.vf"), "--json", "--samples", "0")
     data = json.loads(proc.stdout)
     assert proc.returncode == 1 and data["exit_status"] == 1 and not data["sound"]
     codes = {(f["code"], f["severity"], f["location"]["line"]) for f in data["findings"] if f["location"]}

@@ -163,15 +163,16 @@ def test_two_processes_build_the_same_entry(tmp_path, interpreted_x):
 def test_the_optimisation_is_in_the_key_and_changes_no_answer(tmp_path, monkeypatch):
     """$VFDSL_OPTIMIZE: O3 by default, O0 for the suite (tests/conftest.py). Each level is its own cache entry, and
     paper B's closed loop (300 ticks, a torque that sweeps the cone) is the same to the bit at O0 and O3: IEEE
-    arithmetic at every level (-ffp-contract=off, never -ffast-math). A level that is not one is refused."""
+    arithmetic at every level (-ffp-contract=off, never -ffast-math). A level that is not one is refused.
+    (The entries go to a folder of this test, DAQP's library stays in the session's cache: a fresh $VFDSL_CACHE
+    would fetch and build DAQP again, 30 s.)"""
     import vfdsl
     from conftest import TASKS_DIR
-    monkeypatch.setenv("VFDSL_CACHE", str(tmp_path))
     task = vfdsl.load(TASKS_DIR / "paper_b_virtual_rcm.vf")
     runs = {}
     for level in ("O0", "O3"):
         monkeypatch.setenv("VFDSL_OPTIMIZE", level)
-        ctrl = vfdsl.compile(task)
+        ctrl = vfdsl.compile(task, cache_dir=tmp_path)
         q, trajectory = task.start.copy(), []
         for k in range(300):
             q = q + ctrl.step(q, {"tau": [0.01, 0.004 * np.cos(0.05 * k), 0.002]})
@@ -181,7 +182,7 @@ def test_the_optimisation_is_in_the_key_and_changes_no_answer(tmp_path, monkeypa
     assert np.array_equal(runs["O0"], runs["O3"])
     monkeypatch.setenv("VFDSL_OPTIMIZE", "fast")
     with pytest.raises(VfError, match="VFDSL_OPTIMIZE"):
-        vfdsl.compile(task)
+        vfdsl.compile(task, cache_dir=tmp_path)
 
 
 def test_missing_compiler(tmp_path, monkeypatch):

@@ -10,11 +10,10 @@ from __future__ import annotations
 import ast
 import json
 import re
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
+from conftest import run_cli
 
 import vfdsl
 from vfdsl.check.report import CODES as FINDING_CODES
@@ -137,15 +136,10 @@ def test_a_single_error_is_one_error_with_its_code(tmp_path):
     assert err.render().splitlines()[-1] == f"code: E201, {CODES['E201']}"
 
 
-def vfdsl_cli(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-P", "-m", "vfdsl.cli", *args], capture_output=True, text=True,
-                          check=False, timeout=300)
-
-
 @pytest.mark.parametrize("command", ["compile", "check"])
 def test_cli_prints_every_error_and_exits_2(tmp_path, command):
     (tmp_path / "task.vf").write_text(SEVERAL)
-    proc = vfdsl_cli(command, str(tmp_path / "task.vf"))
+    proc = run_cli(command, str(tmp_path / "task.vf"))
     assert proc.returncode == 2 and proc.stdout == "" and "Traceback" not in proc.stderr
     heads = re.findall(r"^.+:(\d+):(\d+): error: ", proc.stderr, re.MULTILINE)
     assert [tuple(map(int, h)) for h in heads] == [e[:2] for e in EXPECTED]
@@ -154,7 +148,7 @@ def test_cli_prints_every_error_and_exits_2(tmp_path, command):
 
 def test_check_json_has_a_finding_per_error_with_its_code(tmp_path):
     (tmp_path / "task.vf").write_text(SEVERAL)
-    proc = vfdsl_cli("check", str(tmp_path / "task.vf"), "--json")
+    proc = run_cli("check", str(tmp_path / "task.vf"), "--json")
     assert proc.returncode == 2
     findings = json.loads(proc.stdout)["findings"]
     assert [f["code"] for f in findings] == ["VF000"] * len(EXPECTED)
