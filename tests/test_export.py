@@ -307,7 +307,7 @@ def _run_contract(exe: Path, mode: str, ticks, env=None) -> str:
 @pytest.mark.slow
 def test_no_leak_under_address_sanitizer(contract_task, tmp_path):
     exported = contract_task
-    exe = _contract(exported, tmp_path, ["-fsanitize=address"], "-O1 -g -fsanitize=address -fno-omit-frame-pointer")
+    exe = _contract(exported, tmp_path, ["-fsanitize=address"], "-O0 -g -fsanitize=address -fno-omit-frame-pointer")
     ticks = record(exported.controller(), 300)
     env = {**CLEAN_ENV, "ASAN_OPTIONS": "detect_leaks=1:halt_on_error=1"}
     assert _run_contract(exe, "leaks", ticks, env) == "ok"
