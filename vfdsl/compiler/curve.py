@@ -93,11 +93,12 @@ class SplineCurve:
     def length_parameter(self) -> float:
         return float(self.breaks[-1])
 
-    def evaluate(self, s: float, derivative: int = 0) -> np.ndarray:
-        """Numeric C^(derivative)(s) (for tests and plots)."""
-        k = int(np.clip(np.searchsorted(self.breaks, s, side="right") - 1, 0, len(self.breaks) - 2))
-        tau = s - self.breaks[k]
-        out = np.zeros(3)
+    def evaluate(self, s, derivative: int = 0) -> np.ndarray:
+        """Numeric C^(derivative)(s): a 3-vector, or one row per parameter when s is an array."""
+        s = np.asarray(s, dtype=float)
+        k = np.clip(np.searchsorted(self.breaks, s, side="right") - 1, 0, len(self.breaks) - 2)
+        tau = (s - self.breaks[k])[..., None]
+        out = np.zeros(s.shape + (3,))
         for j in range(derivative, self.degree + 1):
             out += self.coeffs[k, j] * math.factorial(j) / math.factorial(j - derivative) * tau ** (j - derivative)
         return out
@@ -105,7 +106,7 @@ class SplineCurve:
     def samples(self) -> np.ndarray:
         """Sample parameters equally spaced in arc length (the coarse search grid)."""
         fine = np.linspace(0.0, self.length_parameter, 200 * (len(self.breaks) - 1) * 8 + 1)
-        speed = np.array([np.linalg.norm(self.evaluate(t, 1)) for t in fine])
+        speed = np.linalg.norm(self.evaluate(fine, 1), axis=1)
         arc = np.concatenate([[0.0], np.cumsum((speed[1:] + speed[:-1]) / 2 * np.diff(fine))])
         count = max(MIN_SAMPLES, int(np.ceil(arc[-1] / SAMPLE_SPACING)) + 1)
         return np.interp(np.linspace(0.0, arc[-1], count), arc, fine)
