@@ -1,6 +1,9 @@
 """The ``vfdsl`` command line: output formats, exit codes, diagnostics without tracebacks, help texts.
 
-Most tests run the CLI as a separate process (``python -m vfdsl.cli``), exactly as a user would.
+What a process shows (the output formats, help texts, --version, a relative path from another folder, a closed
+pipe) is tested on the CLI run as a separate process (``python -m vfdsl.cli``), exactly as a user would; the
+diagnostics and exit statuses of mistaken files and usage run ``vfdsl.cli.main`` in the test's process
+(conftest.run_cli), without 2-3 s of a new interpreter's imports each.
 """
 
 from __future__ import annotations
@@ -13,7 +16,7 @@ from pathlib import Path
 
 import pytest
 import yaml
-from conftest import TASKS_DIR
+from conftest import TASKS_DIR, run_cli
 
 from vfdsl.cli import main
 
@@ -74,7 +77,7 @@ require tpi stays_at([0, 0, 290]) within 1 um
 def test_malformed_file_exits_2_with_a_diagnostic(tmp_path, text, line, column, message):
     bad = tmp_path / "bad.vf"
     bad.write_text(text)
-    proc = vfdsl("show", str(bad))
+    proc = run_cli("show", str(bad))
     assert proc.returncode == 2
     assert proc.stdout == ""
     assert "Traceback" not in proc.stderr
@@ -88,7 +91,7 @@ def test_malformed_file_exits_2_with_a_diagnostic(tmp_path, text, line, column, 
 def test_malformed_scene_exits_2_pointing_into_the_yaml(tmp_path):
     (tmp_path / "t.vf").write_text(MALFORMED.replace("tpi", "tip") + 'scene "t.yaml"\n')
     (tmp_path / "t.yaml").write_text("period: 10 ms\nstart: [1, 2\n")
-    proc = vfdsl("show", str(tmp_path / "t.vf"))
+    proc = run_cli("show", str(tmp_path / "t.vf"))
     assert proc.returncode == 2
     assert "Traceback" not in proc.stderr
     assert proc.stderr.startswith(f"{tmp_path / 't.yaml'}:")
@@ -106,21 +109,21 @@ def test_main_returns_2_on_user_error(tmp_path, capsys):
 
 def test_nonexistent_file(tmp_path):
     missing = tmp_path / "no_such_task.vf"
-    proc = vfdsl("show", str(missing))
+    proc = run_cli("show", str(missing))
     assert proc.returncode == 2
     assert "Traceback" not in proc.stderr
     assert proc.stderr.strip() == f"error: file not found: {missing}"
 
 
 def test_directory_instead_of_a_file(tmp_path):
-    proc = vfdsl("show", str(tmp_path))
+    proc = run_cli("show", str(tmp_path))
     assert proc.returncode == 2
     assert "Traceback" not in proc.stderr
     assert proc.stderr.startswith("error: cannot read")
 
 
 def test_library_instead_of_a_task():
-    proc = vfdsl("show", str(TASKS_DIR / "library" / "fixtures.vf"))
+    proc = run_cli("show", str(TASKS_DIR / "library" / "fixtures.vf"))
     assert proc.returncode == 2
     assert "Traceback" not in proc.stderr
     assert ":1:9: error: fixtures.vf is a library; load a task file" in proc.stderr
@@ -168,7 +171,7 @@ def test_version():
     (("frobnicate",), "invalid choice: 'frobnicate'"),
 ])
 def test_usage_errors_exit_2(args, message):
-    proc = vfdsl(*args)
+    proc = run_cli(*args)
     assert proc.returncode == 2
     assert message in proc.stderr
     assert "Traceback" not in proc.stderr

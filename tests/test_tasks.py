@@ -9,14 +9,12 @@ from __future__ import annotations
 
 import math
 import re
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
 import yaml
-from conftest import TASKS_DIR
+from conftest import TASKS_DIR, run_cli
 from scipy.spatial.transform import Rotation
 
 import vfdsl
@@ -101,9 +99,9 @@ def test_task_loads(path: Path):
 
 @pytest.mark.parametrize("path", TASK_FILES, ids=TASK_IDS)
 def test_json_from_cli_round_trips(path: Path):
-    """`vfdsl show --format json`, run as a separate process, gives back exactly the task vfdsl.load builds."""
-    proc = subprocess.run([sys.executable, "-P", "-m", "vfdsl.cli", "show", str(path), "--format", "json"],
-                          capture_output=True, text=True, timeout=120, check=False)
+    """`vfdsl show --format json` gives back exactly the task vfdsl.load builds (the command as a separate process:
+    tests/test_cli.py)."""
+    proc = run_cli("show", str(path), "--format", "json")
     assert proc.returncode == 0, proc.stderr
     assert proc.stderr == ""
     assert Task.model_validate_json(proc.stdout) == vfdsl.load(path)
