@@ -88,21 +88,23 @@ def polygon_directions(l, n: int, first=None):
     return ca.vertcat(*[(math.cos(a) * v1 + math.sin(a) * v2).T for a in polygon_angles(n)])
 
 
+def _rpy_entries(r, p, y, cos, sin) -> list[list]:
+    """The rows of Rz(yaw) Ry(pitch) Rx(roll) from the angles and a cos and sin (CasADi's or math's)."""
+    cr, sr, cp, sp, cy, sy = cos(r), sin(r), cos(p), sin(p), cos(y), sin(y)
+    return [[cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
+            [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
+            [-sp, cp * sr, cp * cr]]
+
+
 def rpy_matrix(rpy):
     """R = Rz(yaw) Ry(pitch) Rx(roll): URDF's fixed-axis roll-pitch-yaw (works on numbers and CasADi)."""
-    r, p, y = rpy[0], rpy[1], rpy[2]
-    cr, sr, cp, sp, cy, sy = ca.cos(r), ca.sin(r), ca.cos(p), ca.sin(p), ca.cos(y), ca.sin(y)
-    return ca.vertcat(
-        ca.horzcat(cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr),
-        ca.horzcat(sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr),
-        ca.horzcat(-sp, cp * sr, cp * cr),
-    )
+    return ca.vertcat(*(ca.horzcat(*row) for row in _rpy_entries(rpy[0], rpy[1], rpy[2], ca.cos, ca.sin)))
 
 
 def homogeneous(xyz, rpy) -> np.ndarray:
-    """The 4x4 numeric transform of a translation and fixed-axis rpy."""
+    """The 4x4 numeric transform of a translation and fixed-axis rpy (in floats: no CasADi object per entry)."""
     T = np.eye(4)
-    T[:3, :3] = np.array(ca.DM(rpy_matrix(ca.DM(rpy))))
+    T[:3, :3] = _rpy_entries(*(float(a) for a in rpy), math.cos, math.sin)
     T[:3, 3] = xyz
     return T
 
