@@ -142,3 +142,21 @@ def test_the_answer_does_not_depend_on_the_bvh(tmp_path, monkeypatch):
             for side in (-1.0, 1.0):
                 first, second = ([np.array(x) for x in query(a, b, [cutoff, side])] for query in (usual, other))
                 assert all(np.array_equal(x, y) for x, y in zip(first, second)), (i, cutoff, side)
+
+
+def test_one_source_and_a_library_per_optimisation_level(tmp_path, monkeypatch):
+    """$VFDSL_OPTIMIZE sets the query library's level as a task's (O0 in this suite): the library is named by its
+    level beside the one source (written once), so a cache built at O0 never gives an O3 user its slower query, and
+    the answers are the same to the bit (IEEE arithmetic at every level) at 200 probes."""
+    mesh = read_mesh(CHANNEL, 1e-3)
+    functions = {}
+    for level in ("O0", "O3"):
+        monkeypatch.setenv("VFDSL_OPTIMIZE", level)
+        functions[level] = mesh_query(mesh, K, tmp_path).function
+    [folder] = list(tmp_path.glob("meshes/vfmesh_*"))
+    assert sorted(p.name for p in folder.iterdir()) == sorted(
+        [f"{folder.name}.c", f"lib{folder.name}-O0.so", f"lib{folder.name}-O3.so"])
+    for a, b in _probes(mesh, np.random.default_rng(5), 70):
+        for side in (-1.0, 1.0):
+            first, second = ([np.array(x) for x in f(a, b, [0.0015 + REACH, side])] for f in functions.values())
+            assert all(np.array_equal(x, y) for x, y in zip(first, second))

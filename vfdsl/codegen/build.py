@@ -66,8 +66,9 @@ FLAGS = ("-O3", "-march=native", "-ffp-contract=off", "-fPIC", "-pthread", "-fvi
          "-DGCC_HASCLASSVISIBILITY")
 """Speed flags. Never ``-ffast-math``: the step's NaN/inf checks must survive optimisation."""
 OPTIMIZE = "VFDSL_OPTIMIZE"
-"""The environment variable that sets the optimisation of a task's own C (its generated step and the Python
-extension; DAQP's and the certificate's libraries stay at -O3): O3 (default), O2, O1 or O0. The arithmetic is
+"""The environment variable that sets the optimisation of a task's own C (its generated step, the Python
+extension and its meshes' query libraries, vfdsl.mesh.external; DAQP's and the certificate's libraries stay at
+-O3): O3 (default), O2, O1 or O0. The arithmetic is
 IEEE's at every level (-ffp-contract=off, never -ffast-math), so a tick's answer is the same to the bit; O0 builds
 about 4x faster and ticks slower (the test suite builds at O0, tests/conftest.py)."""
 STEPPER = Path(__file__).parent / "stepper.c"

@@ -2,8 +2,9 @@
 
 One C source per (mesh, K): ``<cache>/meshes/<name>/<name>.c``, with ``name = vfmesh_<digest>_k<K>`` from the mesh
 file's digest, the query's text, the tables builder's text and the constants, so a source is written (tables built)
-once. The interpreted path calls ``casadi.external(name, lib<name>.so)``, compiled from that source with the flags of
-:mod:`vfdsl.codegen.build`; the generated path compiles the same source into the task's library
+once. The interpreted path calls ``casadi.external(name, lib<name>-<level>.so)``, compiled from that source beside it
+with the flags of :mod:`vfdsl.codegen.build` at $VFDSL_OPTIMIZE's level (``task_flags``: one library per level, the
+source shared); the generated path compiles the same source into the task's library
 (``build_library(..., extra_sources=...)``), where CasADi's generated code calls the symbol ``name`` directly.
 Both need a C compiler: without one, :class:`~vfdsl.codegen.build.CompilerUnavailable` (the query has no
 CasADi form).
@@ -24,7 +25,7 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
-from vfdsl.codegen.build import FLAGS, CompilerUnavailable, default_cache_dir, find_compiler
+from vfdsl.codegen.build import CompilerUnavailable, default_cache_dir, find_compiler, task_flags
 from vfdsl.errors import VfError
 from vfdsl.mesh.load import MeshData
 from vfdsl.mesh.tables import LEAF, build_tables
@@ -56,13 +57,15 @@ def mesh_query(mesh: MeshData, k: int, cache_dir: Path | None = None) -> MeshQue
 
 
 @functools.lru_cache(maxsize=16)
-def _cached(name: str, root: Path) -> tuple[Path, Path] | None:
-    source, library = root / name / f"{name}.c", root / name / f"lib{name}.so"
+def _cached(name: str, library_name: str, root: Path) -> tuple[Path, Path] | None:
+    source, library = root / name / f"{name}.c", root / name / library_name
     return (source, library) if source.is_file() and library.is_file() else None
 
 
 def _load(name: str, mesh: MeshData, k: int, root: Path) -> MeshQuery:
-    found = _cached(name, root)
+    flags = task_flags()
+    library_name = f"lib{name}-{flags[0].lstrip('-')}.so"
+    found = _cached(name, library_name, root)
     if found is not None:
         try:
             return MeshQuery(name, found[0], ca.external(name, str(found[1])), k)
@@ -70,20 +73,21 @@ def _load(name: str, mesh: MeshData, k: int, root: Path) -> MeshQuery:
             _cached.cache_clear()
     compiler = find_compiler()
     root.mkdir(parents=True, exist_ok=True)
+    published = root / name / f"{name}.c"     # the same text at every level: written (its tables built) once
     with tempfile.TemporaryDirectory(dir=root, prefix=f".build-{name}-") as tmp:
         work = Path(tmp) / name
         work.mkdir()
-        (work / f"{name}.c").write_text(c_source(name, mesh, k))
-        argv = [*compiler.command, *FLAGS, "-shared", f"{name}.c", "-o", f"lib{name}.so", "-lm"]
+        (work / f"{name}.c").write_text(published.read_text() if published.is_file() else c_source(name, mesh, k))
+        argv = [*compiler.command, *flags, "-shared", f"{name}.c", "-o", library_name, "-lm"]
         result = subprocess.run(argv, cwd=work, capture_output=True, text=True)
         if result.returncode != 0:
             raise VfError(f"the C compiler failed on the mesh query {name}: {result.stderr[-2000:]}")
         try:
-            os.replace(work, root / name)
-        except OSError:    # another process published it first
-            pass
+            os.replace(work, root / name)       # a new folder: the source and this library at once
+        except OSError:                         # the folder is there (another level's library, another process)
+            os.replace(work / library_name, root / name / library_name)
     _cached.cache_clear()
-    found = _cached(name, root)
+    found = _cached(name, library_name, root)
     if found is None:
         raise CompilerUnavailable(f"the mesh query {name} could not be published in {root}")
     return MeshQuery(name, found[0], ca.external(name, str(found[1])), k)
