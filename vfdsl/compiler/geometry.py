@@ -101,10 +101,15 @@ def rpy_matrix(rpy):
     return ca.vertcat(*(ca.horzcat(*row) for row in _rpy_entries(rpy[0], rpy[1], rpy[2], ca.cos, ca.sin)))
 
 
+def _finite_or_nan(f):
+    """math's f, NaN (as CasADi's) where math refuses an infinite angle."""
+    return lambda x: f(x) if math.isfinite(x) else math.nan
+
+
 def homogeneous(xyz, rpy) -> np.ndarray:
     """The 4x4 numeric transform of a translation and fixed-axis rpy (in floats: no CasADi object per entry)."""
     T = np.eye(4)
-    T[:3, :3] = _rpy_entries(*(float(a) for a in rpy), math.cos, math.sin)
+    T[:3, :3] = _rpy_entries(*(float(a) for a in rpy), _finite_or_nan(math.cos), _finite_or_nan(math.sin))
     T[:3, 3] = xyz
     return T
 
