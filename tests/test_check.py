@@ -296,6 +296,24 @@ def test_cli_exit_codes_and_json(tmp_path):
     assert proc.returncode == 1 and "NOT SOUND" in proc.stdout
 
 
+def test_cli_backend_interpreted_builds_nothing_and_finds_the_same(tmp_path, monkeypatch):
+    """--backend interpreted: the closed-loop analyses run in CasADi, no library is built (an empty cache stays
+    empty), and the findings are the default backend's (codes, severities, lines: the summary's worst tick can differ
+    where states tie to rounding, 0.707 at ticks 11 and 98); a backend that is not one is a usage error."""
+    probe(tmp_path, PROBE.replace("resolution 12x12", "resolution 4x4"))
+    task = str(tmp_path / "probe.vf")
+    native = json.loads(run_cli("check", task, "--json").stdout)
+    monkeypatch.setenv("VFDSL_CACHE", str(tmp_path / "empty"))
+    proc = run_cli("check", task, "--json", "--backend", "interpreted")
+    assert proc.returncode == 0, proc.stderr
+    interpreted = json.loads(proc.stdout)
+    assert not (tmp_path / "empty").exists() or not any((tmp_path / "empty").iterdir())
+    assert [(f["code"], f["severity"], f["location"]) for f in interpreted["findings"]] == \
+        [(f["code"], f["severity"], f["location"]) for f in native["findings"]]
+    proc = run_cli("check", task, "--backend", "fast")
+    assert proc.returncode == 2 and "invalid choice: 'fast'" in proc.stderr
+
+
 def test_cli_usage_and_front_end_errors_exit_2(tmp_path):
     write_probe(tmp_path, PROBE.replace("stays_at(target)", "stays_at(tagret)"))
     proc = run_cli("check", str(tmp_path / "probe.vf"))

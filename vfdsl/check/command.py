@@ -9,6 +9,7 @@ from pathlib import Path
 
 from vfdsl.check import DEFAULT_OVERSHOOT, MAX_OVERSHOOT, Report, checked_overshoot
 from vfdsl.check.sampling import DEFAULT_SAMPLES
+from vfdsl.pipeline import BACKENDS
 from vfdsl.errors import VfError
 from vfdsl.files import path_argument
 from vfdsl import limits
@@ -18,6 +19,7 @@ examples:
   vfdsl check tasks/paper_b_virtual_rcm.vf
   vfdsl check tasks/paper_b_virtual_rcm.vf --overshoot 5% --strict
   vfdsl check tasks/lecture_stay_near_goal.vf --scene other_start.yaml --json > report.json
+  vfdsl check tasks/paper_a_follow_curve.vf --backend interpreted
 
 Each finding has a stable code (VF101 polytope-unbounded, VF301 start-infeasible, ...), a severity
 (error, warning, note) and the file:line:col of the construct it is about; docs/check.md explains every
@@ -49,6 +51,11 @@ def register(commands: argparse._SubParsersAction) -> None:
                              f"0 skips it; at most {limits.CHECK_SAMPLES:,})")
     parser.add_argument("--seed", metavar="S", type=_counter(limits.SEED), default=0,
                         help=f"seed of the random walk (default: 0; 0 to {limits.SEED:,})")
+    parser.add_argument("--backend", choices=BACKENDS, default="auto",
+                        help="how the closed-loop analyses run the controller: auto (default: the generated C when a "
+                             "C compiler is found, built once per task version, 2-20 s), interpreted (CasADi in this "
+                             "process: no build, slower ticks; quick checks while editing) or native (the generated "
+                             "C; an error without a compiler)")
     parser.set_defaults(run=run)
 
 
@@ -58,7 +65,8 @@ def run(args: argparse.Namespace) -> int:
 
     try:
         task = load_with_scene(args.file, args.scene) if args.scene else vfdsl.load(args.file)
-        report = check(task, overshoot=args.overshoot, samples=args.samples, seed=args.seed)
+        report = check(task, overshoot=args.overshoot, samples=args.samples, seed=args.seed,
+                       backend=args.backend)
     except VfError as error:
         if args.json:              # whoever reads the JSON gets a report: the error as its finding (VF000)
             _print_json(Report.input_error(args.file, error).to_json(args.strict))
