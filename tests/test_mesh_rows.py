@@ -158,6 +158,40 @@ def test_query_is_the_brute_force_answer(channel, segment):
     assert all(np.array_equal(x, y) for x, y in zip(again, answers[0]))
 
 
+PARALLEL_TO_THE_WALL = [(np.array(a), np.array(a) + [0.0, 0.0, length]) for a, length in [  # shafts along z near the
+    ([0.0035064955160189078, 0.0041965398143575406, 0.31531975516936783], -0.003),   # straight wall, in and out
+    ([-0.0021111545017843624, 0.0046890899205401923, 0.31498885734312931], 1e-4),    # (found among 600 random
+    ([0.00078131212045700553, -0.0046640170718043519, 0.31741876397513591], -0.003),  # segments where a query that
+    ([-0.00022332056231567574, -0.0057712199165766611, 0.3031545966742431], 0.1),    # dropped such triangles, or
+    ([0.0036668150959751769, 0.001379640134325715, 0.3011804898676938], -0.003),     # keyed them by a corner, gave
+]]                                                                                  # other rows)
+
+
+def test_a_shaft_parallel_to_the_wall_is_the_brute_force_answer(channel):
+    """Shafts exactly along the straight part's axis (z), as the example's tool stands at its start, inside the
+    channel and outside it: the wall's triangles have an edge parallel to the shaft, so their projection on the plane
+    normal to it has no area (1,540 of the channel's triangles). The query measures such a triangle on its projected
+    edges (vfm_nearest_on_edges; the face step divided 0 by 0, and every such triangle's hit was computed in full: 90
+    at one state of benchmarks/mesh.py). The rows' distances and directions are brute.features', keep in and keep
+    out, with the example's cutoff and 1 m, and their points on the shaft are no farther from the mesh than their
+    distances. (Where a triangle is parallel to the shaft its nearest points make a line: the query and the brute
+    force may pick different ones, and rows at one distance may come in another order, before this change too.)"""
+    mesh, query = channel
+    for a, b in PARALLEL_TO_THE_WALL:
+        for cutoff in (0.0015 + REACH, 1.0):
+            for side in (-1.0, 1.0):
+                d, s, u = (np.array(x) for x in query.function(a, b, [cutoff, side]))
+                d, s, u = d.ravel(), s.ravel(), u.reshape(3, K, order="F")
+                rd, _, ru = brute.features(a, b, mesh.vertices, mesh.triangles, cutoff, side, K, SIMILAR)
+                assert np.array_equal(np.isinf(d), np.isinf(rd))
+                assert np.allclose(d[np.isfinite(d)], rd[np.isfinite(rd)], atol=1e-12, rtol=0), (d, rd)
+                assert np.allclose(u, ru, atol=1e-9, rtol=0), (u, ru)
+                for i in np.flatnonzero(np.isfinite(d) if cutoff == 1.0 else []):
+                    x = a + s[i] * (b - a)
+                    nearest = brute.segment_distances(x, x, mesh.vertices, mesh.triangles).min()
+                    assert nearest <= abs(d[i]) + 1e-12, (i, nearest, d[i])
+
+
 def _tangent_to_the_bend(rng, n):
     """Shafts 60 mm long touching the bend's outer wall at their middle, 0.1 mm from it, within 15 deg of the bend's
     plane (out of it: hits mirrored across it tie up to rounding): the wall curves away, so the ends lie ~2.1 mm from

@@ -55,7 +55,9 @@
  *   segment's line (convex along the line): the triangle's projection on the plane normal to ab gives, in two
  *   dimensions, its distance (the line's, never more than the hit's) and its direction u (the projection's
  *   closest point's, up to rounding; a leaf's distinct vertices, listed by the tables, are projected once, and u is
- *   compared with the kept hits' directions in that plane). The triangle waits in the queue as a pending entry keyed
+ *   compared with the kept hits' directions in that plane; a projection of no area, a triangle with an edge
+ *   parallel to ab, is measured on its edges: with the shaft upright beside an upright wall, as at the example's
+ *   start, such triangles had no key but their box's and no u, and each one's hit was computed). The triangle waits in the queue as a pending entry keyed
  *   by that distance (a box's key, lowered by VFM_LINE_SLACK), and when it comes out the hit is computed only if
  *   that part is not done and u is not within VFM_SIMILAR + VFM_SAME_SLACK of a kept hit (kept hits come out before
  *   it: its hit would be merged), u being trusted only from VFM_SAME_FROM away. Along a wall nearly every triangle's
@@ -595,6 +597,20 @@ static int vfm_inner_hit(const vfm_walk* w, int t, vfm_hit* hit) {
   return vfm_pair_hit(w, t, v, ca, ra, cb, rb, hit);
 }
 
+/* The point of 2-D triangle v's edges nearest the origin: the triangle's nearest point when it has no area (two
+ * corners on one line with ab: a wall parallel to the segment), where vfm_closest_point's face step divides 0 by 0. */
+static void vfm_nearest_on_edges(const double* const* v, double* out) {
+  double best = INFINITY;
+  int e;
+  for (e = 0; e < 3; ++e) {
+    const double *p = v[e], *q = v[(e + 1) % 3];
+    double d[2] = {q[0] - p[0], q[1] - p[1]}, dd = d[0] * d[0] + d[1] * d[1];
+    double s = dd > 0 ? vfm_clamp01(-(p[0] * d[0] + p[1] * d[1]) / dd) : 0;
+    double x[2] = {p[0] + s * d[0], p[1] + s * d[1]}, r = x[0] * x[0] + x[1] * x[1];
+    if (r < best) { best = r; out[0] = x[0]; out[1] = x[1]; }
+  }
+}
+
 /* Triangle t's (corners v) hit between the ends, deferred (the best-first mode): a pending entry keyed by the
  * distance from the segment's line to the triangle (the least distance of the triangle's projection on the plane
  * normal to ab from the origin), never more than the hit's distance, and at least `floor` (its box's key). When the
@@ -603,13 +619,15 @@ static int vfm_inner_hit(const vfm_walk* w, int t, vfm_hit* hit) {
  * is merged for sure is dropped, now or when it comes out. (`floor`, a box's key, is already lowered for rounding.) */
 static void vfm_pending(vfm_walk* w, int t, const double (*plane)[2], double floor) {
   const unsigned char* slot = vfm_corner_slots + 3 * t;
+  const double* v[3] = {plane[slot[0]], plane[slot[1]], plane[slot[2]]};
   double origin[2] = {0, 0}, c[2];
   int region;
-  vfm_closest_point(2, origin, plane[slot[0]], plane[slot[1]], plane[slot[2]], c, &region);
+  vfm_closest_point(2, origin, v[0], v[1], v[2], c, &region);
+  if (!(c[0] == c[0] && c[1] == c[1])) vfm_nearest_on_edges(v, c);   /* a projection of no area */
   double line = sqrt(c[0] * c[0] + c[1] * c[1]), key = line * (1 - VFM_LINE_SLACK) - w->slack;
   if (key > w->cutoff) return;        /* its hit, if any, is beyond the cutoff */
   vfm_hit* e = &w->leaf[w->nleaf];
-  e->dist = key > floor ? key : floor;  /* a degenerate projection (NaN): the box's key */
+  e->dist = key > floor ? key : floor;
   e->part = 1; e->t = t; e->region = VFM_PENDING; e->s = 0;
   e->u[0] = e->u[1] = e->u[2] = 0;
   if (line >= VFM_SAME_FROM) {        /* s = 1: u is the hit's direction (in e1, e2) */
