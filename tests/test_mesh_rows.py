@@ -173,23 +173,23 @@ def test_a_shaft_parallel_to_the_wall_is_the_brute_force_answer(channel):
     normal to it has no area (1,540 of the channel's triangles). The query measures such a triangle on its projected
     edges (vfm_nearest_on_edges; the face step divided 0 by 0, and every such triangle's hit was computed in full: 90
     at one state of benchmarks/mesh.py). The rows' distances and directions are brute.features', keep in and keep
-    out, with the example's cutoff and 1 m, and their points on the shaft are no farther from the mesh than their
-    distances. (Where a triangle is parallel to the shaft its nearest points make a line: the query and the brute
-    force may pick different ones, and rows at one distance may come in another order, before this change too.)"""
+    out with the example's cutoff, keep in with 1 m (every row), and their points on the shaft are no farther from the
+    mesh than their distances. (Where a triangle is parallel to the shaft its nearest points make a line: the query
+    and the brute force may pick different ones, and rows at one distance may come in another order, before this
+    change too.) Either fault fails it: such triangles dropped, or keyed by a corner."""
     mesh, query = channel
     for a, b in PARALLEL_TO_THE_WALL:
-        for cutoff in (0.0015 + REACH, 1.0):
-            for side in (-1.0, 1.0):
-                d, s, u = (np.array(x) for x in query.function(a, b, [cutoff, side]))
-                d, s, u = d.ravel(), s.ravel(), u.reshape(3, K, order="F")
-                rd, _, ru = brute.features(a, b, mesh.vertices, mesh.triangles, cutoff, side, K, SIMILAR)
-                assert np.array_equal(np.isinf(d), np.isinf(rd))
-                assert np.allclose(d[np.isfinite(d)], rd[np.isfinite(rd)], atol=1e-12, rtol=0), (d, rd)
-                assert np.allclose(u, ru, atol=1e-9, rtol=0), (u, ru)
-                for i in np.flatnonzero(np.isfinite(d) if cutoff == 1.0 else []):
-                    x = a + s[i] * (b - a)
-                    nearest = brute.segment_distances(x, x, mesh.vertices, mesh.triangles).min()
-                    assert nearest <= abs(d[i]) + 1e-12, (i, nearest, d[i])
+        for cutoff, side in ((0.0015 + REACH, -1.0), (1.0, -1.0), (0.0015 + REACH, 1.0)):
+            d, s, u = (np.array(x) for x in query.function(a, b, [cutoff, side]))
+            d, s, u = d.ravel(), s.ravel(), u.reshape(3, K, order="F")
+            rd, _, ru = brute.features(a, b, mesh.vertices, mesh.triangles, cutoff, side, K, SIMILAR)
+            assert np.array_equal(np.isinf(d), np.isinf(rd))
+            assert np.allclose(d[np.isfinite(d)], rd[np.isfinite(rd)], atol=1e-12, rtol=0), (d, rd)
+            assert np.allclose(u, ru, atol=1e-9, rtol=0), (u, ru)
+            for i in np.flatnonzero(np.isfinite(d) if cutoff == 1.0 else []):
+                x = a + s[i] * (b - a)
+                nearest = brute.segment_distances(x, x, mesh.vertices, mesh.triangles).min()
+                assert nearest <= abs(d[i]) + 1e-12, (i, nearest, d[i])
 
 
 def _tangent_to_the_bend(rng, n):
