@@ -106,10 +106,13 @@ def _finite_or_nan(f):
     return lambda x: f(x) if math.isfinite(x) else math.nan
 
 
+_COS, _SIN = _finite_or_nan(math.cos), _finite_or_nan(math.sin)
+
+
 def homogeneous(xyz, rpy) -> np.ndarray:
     """The 4x4 numeric transform of a translation and fixed-axis rpy (in floats: no CasADi object per entry)."""
     T = np.eye(4)
-    T[:3, :3] = _rpy_entries(*(float(a) for a in rpy), _finite_or_nan(math.cos), _finite_or_nan(math.sin))
+    T[:3, :3] = _rpy_entries(*(float(a) for a in rpy), _COS, _SIN)
     T[:3, 3] = xyz
     return T
 

@@ -56,12 +56,12 @@
  *   dimensions, its distance (the line's, never more than the hit's) and its direction u (the projection's
  *   closest point's, up to rounding; a leaf's distinct vertices, listed by the tables, are projected once, and u is
  *   compared with the kept hits' directions in that plane; a projection of no area, a triangle with an edge
- *   parallel to ab, is measured on its edges: with the shaft upright beside an upright wall, as at the example's
- *   start, such triangles had no key but their box's and no u, and each one's hit was computed). The triangle waits in the queue as a pending entry keyed
- *   by that distance (a box's key, lowered by VFM_LINE_SLACK), and when it comes out the hit is computed only if
- *   that part is not done and u is not within VFM_SIMILAR + VFM_SAME_SLACK of a kept hit (kept hits come out before
- *   it: its hit would be merged), u being trusted only from VFM_SAME_FROM away. Along a wall nearly every triangle's
- *   hit is merged: at benchmarks/mesh.py's slowest states 14 pairs are computed where 508 were.
+ *   parallel to ab, as the straight wall's beside the example's upright shaft at its start, is measured on its
+ *   edges). The triangle waits in the queue as a pending entry keyed by that distance (a box's key, lowered by
+ *   VFM_LINE_SLACK), and when it comes out the hit is computed only if that part is not done and u is not within
+ *   VFM_SIMILAR + VFM_SAME_SLACK of a kept hit (kept hits come out before it: its hit would be merged), u being
+ *   trusted only from VFM_SAME_FROM away. Along a wall nearly every triangle's hit is merged: at benchmarks/mesh.py's
+ *   slowest states 14 pairs are computed where 508 were.
  * (Boxes are not tested against the kept hits' cones: along a wall, where the walk works longest, a box's hits
  * spread over more than one cone, and the test skipped 322 boxes in 1.9 million on benchmarks/mesh.py's states; nor
  * against their union, in angle about the segment: a leaf there spans 60-90 deg seen from the shaft, and the test
