@@ -61,17 +61,21 @@
  *   VFM_LINE_SLACK), and when it comes out the hit is computed only if that part is not done and u is not within
  *   VFM_SIMILAR + VFM_SAME_SLACK of a kept hit (kept hits come out before it: its hit would be merged), u being
  *   trusted only from VFM_SAME_FROM away. Along a wall nearly every triangle's hit is merged: at benchmarks/mesh.py's
- *   slowest states 14 pairs are computed where 508 were.
+ *   slowest states 14 pairs are computed where 508 were. A leaf's pending entries wait as one run (its slots linked
+ *   in order), queued as its first entry: when that comes out, the rest of the run goes back into the queue, less
+ *   the entries merged for sure by then, before the first's hit is placed (so the queue always holds the least key of
+ *   every entry not yet out, as if each were queued alone). Along a wall the first entry's kept hit merges the rest:
+ *   at the bend of benchmarks/mesh.py 144 entries a call went in and out of the queue, and 32 runs do now.
  * (Boxes are not tested against the kept hits' cones: along a wall, where the walk works longest, a box's hits
  * spread over more than one cone, and the test skipped 322 boxes in 1.9 million on benchmarks/mesh.py's states; nor
  * against their union, in angle about the segment: a leaf there spans 60-90 deg seen from the shaft, and the test
  * skipped 13 of the 164 boxes it was asked about at the slowest state, for 18 % more instructions.)
  * The walk's memory (vfm_walk, with a queue of VFM_HEAP entries) is the work vector w the caller gives (CasADi
  * sizes it by @NAME@_work and allocates it with the caller's work arrays: once per controller); every call
- * writes what it reads first, so no call depends on another. When the queue is full, its farthest entry is
- * dropped and the walk stops before that distance (the horizon); the rest of the answer is then found one kept
- * hit at a time, each the first hit after the last taken, by depth-first walks with a fixed stack: the same
- * answer. Nothing is allocated; iw and mem are unused.
+ * writes what it reads first, so no call depends on another. When the queue or its VFM_HEAP slots for hits and
+ * pending entries are full, its farthest entry is dropped and the walk stops before that distance (the horizon);
+ * the rest of the answer is then found one kept hit at a time, each the first hit after the last taken, by
+ * depth-first walks with a fixed stack: the same answer. Nothing is allocated; iw and mem are unused.
  *
  * One file, over 500 lines, on purpose: it is the text of one translation unit per mesh (vfdsl/mesh/external.py
  * puts the mesh's tables above it, names its symbols and keys the cache by this text), compiled alone or into the
@@ -111,12 +115,14 @@ typedef struct {
   double u[3];      /* unit from c to x (touching: the face's normal times side) */
   int t, region;    /* triangle and feature: 0 face, 1 + e edge e, 4 + i vertex i (vfm_point_triangle) */
   int part;         /* 0 the segment's start, 2 its end, 1 between */
+  int next;         /* a queued pending entry: the slot of the next entry of its run, or -1 */
 } vfm_hit;          /* also a pending entry (region VFM_PENDING: dist its key; when s = 1, u[0], u[1] its hit's
                        direction in the walk's e1, e2) */
 
 typedef struct {
   double key;       /* a box: a lower bound of its hits' distances; a hit: its distance */
-  int ref;          /* a node (< VFM_NN), a pending entry in slot ref - VFM_NN, or (< 0) the hit in slot -1 - ref */
+  int ref;          /* a node (< VFM_NN), a run of pending entries from slot ref - VFM_NN, or (< 0) the hit in slot
+                       -1 - ref */
   int mask;         /* a box: the parts (bit p) it may give a kept hit to */
 } vfm_item;
 
@@ -463,22 +469,28 @@ static void vfm_remove(vfm_walk* w, int i) {
   vfm_sift_up(w, i);
 }
 
+static void vfm_free(vfm_walk* w, int s) { w->free_slot[w->nfree++] = s; }
+
+/* Frees the slots of a queued item: a hit's, a pending run's (each entry's). */
 static void vfm_release(vfm_walk* w, int ref) {
-  if (ref < 0) w->free_slot[w->nfree++] = -1 - ref;
-  else if (ref >= VFM_NN) w->free_slot[w->nfree++] = ref - VFM_NN;
+  int s;
+  if (ref < 0) vfm_free(w, -1 - ref);
+  else if (ref >= VFM_NN)
+    for (s = ref - VFM_NN; s >= 0; s = w->slot[s].next) vfm_free(w, s);
 }
 
-/* Room for an item of `key`: when the queue is full, the farthest entry (this one, or one queued) is dropped and
- * the horizon comes down to its key. Returns 0 when this item is the one dropped. */
-static int vfm_room(vfm_walk* w, double key) {
-  int i, far = 0;
+/* Room for an item of `key` that needs `slots` free slots: while the queue or its slots are full, the farthest entry
+ * (this one, or one queued) is dropped and the horizon comes down to its key. Returns 0 when this item is dropped. */
+static int vfm_room(vfm_walk* w, double key, int slots) {
+  int i, far;
   if (key >= w->horizon) return 0;
-  if (w->size < VFM_HEAP) return 1;
-  for (i = 1; i < w->size; ++i) if (w->heap[i].key > w->heap[far].key) far = i;
-  if (key >= w->heap[far].key) { w->horizon = key; return 0; }
-  w->horizon = w->heap[far].key;
-  vfm_release(w, w->heap[far].ref);
-  vfm_remove(w, far);
+  while (w->size == VFM_HEAP || VFM_HEAP - w->used + w->nfree < slots) {
+    for (far = 0, i = 1; i < w->size; ++i) if (w->heap[i].key > w->heap[far].key) far = i;
+    if (w->size == 0 || key >= w->heap[far].key) { w->horizon = key; return 0; }
+    w->horizon = w->heap[far].key;
+    vfm_release(w, w->heap[far].ref);
+    vfm_remove(w, far);
+  }
   return 1;
 }
 
@@ -525,7 +537,7 @@ static int vfm_split(vfm_walk* w, const vfm_item* item) {
     bound = vfm_point_box(y, h) * (1 - VFM_LINE_SLACK);
     if (bound > item->key) { later |= 1 << p; if (bound < key) key = bound; }
   }
-  if (later && vfm_room(w, key)) { vfm_item rest = {key, item->ref, later}; vfm_push(w, rest); }
+  if (later && vfm_room(w, key, 0)) { vfm_item rest = {key, item->ref, later}; vfm_push(w, rest); }
   return item->mask & ~later;
 }
 
@@ -541,12 +553,25 @@ static void vfm_offer(vfm_walk* w, const vfm_hit* hit) {
 
 static int vfm_is_pending(const vfm_hit* e) { return e->region == VFM_PENDING; }
 
-/* A hit, or a pending entry (queued as a box is, before the hits of its key), into the queue. */
-static void vfm_queue(vfm_walk* w, const vfm_hit* entry) {
-  if (!vfm_room(w, entry->dist)) return;
-  int s = w->nfree > 0 ? w->free_slot[--w->nfree] : w->used++;
-  w->slot[s] = *entry;
-  vfm_item item = {entry->dist, vfm_is_pending(entry) ? VFM_NN + s : -1 - s, 0};
+static int vfm_slot(vfm_walk* w) { return w->nfree > 0 ? w->free_slot[--w->nfree] : w->used++; }
+
+/* A hit into the queue. */
+static void vfm_queue(vfm_walk* w, const vfm_hit* hit) {
+  if (!vfm_room(w, hit->dist, 1)) return;
+  int s = vfm_slot(w);
+  w->slot[s] = *hit;
+  vfm_item item = {hit->dist, -1 - s, 0};
+  vfm_push(w, item);
+}
+
+/* A run of pending entries (slots linked by `next`, in order) into the queue from slot s on, less those whose hits are
+ * merged for sure by now (or all, part 1 done): one item, keyed by its first entry and queued as a box is (before
+ * the hits of its key), that comes out as that entry; the rest of the run goes back in then. */
+static void vfm_queue_run(vfm_walk* w, int s) {
+  for (; s >= 0 && (vfm_done(w, 1) || vfm_merged_for_sure(w, &w->slot[s])); s = w->slot[s].next) vfm_free(w, s);
+  if (s < 0) return;
+  if (!vfm_room(w, w->slot[s].dist, 0)) { vfm_release(w, VFM_NN + s); return; }
+  vfm_item item = {w->slot[s].dist, VFM_NN + s, 0};
   vfm_push(w, item);
 }
 
@@ -643,8 +668,8 @@ static void vfm_triangle(vfm_walk* w, int t, int mask, double floor, const doubl
   double c[2][3];
   int region[2] = {0, 0}, p;
   vfm_hit hit;
-  vfm_corners(t, v);
   mask &= ~w->done;
+  if (mask & (w->successor ? 7 : 5)) vfm_corners(t, v);   /* a pending entry needs only the leaf's projection */
   /* an end's closest point: for its hit, and in the depth-first mode the pair's (none when no part needs it) */
   for (p = 0; p < 3 && (mask & (w->successor ? 7 : 5)); p += 2) {
     if (!(mask & (w->successor ? 3 << (p / 2) : 1 << p))) continue;
@@ -787,13 +812,38 @@ static int vfm_resolve(vfm_walk* w, const vfm_hit* pending, vfm_hit* hit) {
   return vfm_inner_hit(w, pending->t, hit) && !vfm_merged(w, 1, hit->u);
 }
 
+/* A leaf's entries from `from` on into the queue: each hit that would not be merged, and the pending entries as one
+ * run, in order (their slots room first: the run needs them all at once). */
+static void vfm_queue_leaf(vfm_walk* w, int from) {
+  int i, n = 0, head = -1, *link, s;
+  double first = INFINITY;
+  for (i = from; i < w->nleaf; ++i) {
+    const vfm_hit* e = &w->leaf[i];
+    if (!vfm_is_pending(e)) { if (!vfm_merged(w, e->part, e->u)) vfm_queue(w, e); }
+    else { ++n; if (e->dist < first) first = e->dist; }
+  }
+  if (n == 0 || !vfm_room(w, first, n)) return;
+  for (i = from; i < w->nleaf; ++i) {
+    const vfm_hit* e = &w->leaf[i];
+    if (!vfm_is_pending(e)) continue;
+    s = vfm_slot(w);
+    w->slot[s] = *e;
+    for (link = &head; *link >= 0 && !vfm_entry_before(e, &w->slot[*link]); link = &w->slot[*link].next) {}
+    w->slot[s].next = *link;
+    *link = s;
+  }
+  vfm_queue_run(w, head);
+}
+
 /* The best-first mode's leaf: its entries in order; each that comes before everything queued is taken (a hit) or
  * resolved (a pending entry, its hit put back in order) at once, as it would be when it came out of the queue; the
  * others are queued. */
 static void vfm_leaf_hits(vfm_walk* w, int node, int mask, double floor) {
-  int i, j;
+  int i, j, least = 0;
   w->nleaf = 0;
   vfm_leaf(w, node, mask, floor);
+  for (i = 1; i < w->nleaf; ++i) if (vfm_entry_before(&w->leaf[i], &w->leaf[least])) least = i;
+  if (w->nleaf > 0 && !vfm_ahead(w, &w->leaf[least])) { vfm_queue_leaf(w, 0); return; }   /* none comes out now */
   for (i = 1; i < w->nleaf; ++i)
     for (j = i; j > 0 && vfm_entry_before(&w->leaf[j], &w->leaf[j - 1]); --j) {
       vfm_hit h = w->leaf[j]; w->leaf[j] = w->leaf[j - 1]; w->leaf[j - 1] = h;
@@ -807,10 +857,7 @@ static void vfm_leaf_hits(vfm_walk* w, int node, int mask, double floor) {
     w->leaf[j] = hit;
     --i;
   }
-  for (; i < w->nleaf; ++i) {
-    const vfm_hit* e = &w->leaf[i];
-    if (vfm_is_pending(e) ? !vfm_merged_for_sure(w, e) : !vfm_merged(w, e->part, e->u)) vfm_queue(w, e);
-  }
+  vfm_queue_leaf(w, i);
 }
 
 /* Depth-first mode: the first hit after w->after that would be kept, into w->best (returns whether found). */
@@ -878,7 +925,8 @@ static void vfm_query(vfm_walk* w, const double* a, const double* b, double cuto
     }
     if (item.ref >= VFM_NN) {         /* a pending entry: its hit now, taken or queued in order */
       vfm_hit pending = w->slot[item.ref - VFM_NN], hit;
-      vfm_release(w, item.ref);
+      vfm_free(w, item.ref - VFM_NN);
+      vfm_queue_run(w, pending.next);   /* the rest of its run, before its hit is placed */
       if (vfm_resolve(w, &pending, &hit)) {
         if (vfm_ahead(w, &hit)) vfm_take(w, &hit);
         else vfm_queue(w, &hit);
@@ -900,7 +948,7 @@ static void vfm_query(vfm_walk* w, const double* a, const double* b, double cuto
       vfm_item* next = &child[i == 0 ? !near : near];
       if (!next->mask || next->key >= w->horizon) continue;
       if (i == 1 && (w->size == 0 || next->key <= w->heap[0].key)) { item = *next; held = 1; }
-      else if (vfm_room(w, next->key)) vfm_push(w, *next);
+      else if (vfm_room(w, next->key, 0)) vfm_push(w, *next);
     }
   }
   if (w->horizon < INFINITY) {        /* the queue overflowed: the rest, one kept hit at a time */
