@@ -143,6 +143,8 @@ typedef struct {
   vfm_item heap[VFM_HEAP];
   vfm_hit slot[VFM_HEAP];
   int size, used, nfree, free_slot[VFM_HEAP];
+  int taken;                        /* the top item is out (in hand) but still in the heap: the next push takes its
+                                       place and goes down (one sift where a removal and a push were two) */
   double horizon;                   /* entries at or beyond it may have been dropped */
   int successor;                    /* the depth-first mode: hits after `after`, the first in `best` */
   vfm_hit leaf[3 * VFM_LEAF];       /* the best-first mode: a leaf's hits, before they are taken or queued */
@@ -433,7 +435,8 @@ static int vfm_useful(const vfm_walk* w, int node, int mask, double* key) {
 static int vfm_still(const vfm_walk* w, const vfm_item* item) { return item->mask & ~w->done; }
 
 /* The queue: a binary heap of items, least first (key, then boxes and pending entries before hits, then the hits'
- * order). */
+ * order). The item taken out of the top stays there until the next push takes its place (most items that come out
+ * are followed by one: a box's farther child, the rest of a run) or the heap is read (vfm_settle). */
 static int vfm_tie_before(const vfm_walk* w, const vfm_item* x, const vfm_item* y) {
   if ((x->ref >= 0) != (y->ref >= 0)) return x->ref >= 0;
   if (x->ref >= 0) return x->ref < y->ref;
@@ -469,6 +472,23 @@ static void vfm_remove(vfm_walk* w, int i) {
   vfm_sift_up(w, i);
 }
 
+/* Item into the hole at i, down to its place in i's subtree. */
+static void vfm_sift_down(vfm_walk* w, int i, vfm_item item) {
+  int child;
+  while ((child = 2 * i + 1) < w->size) {
+    if (child + 1 < w->size && vfm_item_before(w, &w->heap[child + 1], &w->heap[child])) ++child;
+    if (!vfm_item_before(w, &w->heap[child], &item)) break;
+    w->heap[i] = w->heap[child];
+    i = child;
+  }
+  w->heap[i] = item;
+}
+
+/* The item taken out of the top is removed now, before the heap is read (unless a push took its place). */
+static void vfm_settle(vfm_walk* w) {
+  if (w->taken) { w->taken = 0; vfm_remove(w, 0); }
+}
+
 static void vfm_free(vfm_walk* w, int s) { w->free_slot[w->nfree++] = s; }
 
 /* Frees the slots of a queued item: a hit's, a pending run's (each entry's). */
@@ -484,6 +504,8 @@ static void vfm_release(vfm_walk* w, int ref) {
 static int vfm_room(vfm_walk* w, double key, int slots) {
   int i, far;
   if (key >= w->horizon) return 0;
+  if (w->size - w->taken < VFM_HEAP && VFM_HEAP - w->used + w->nfree >= slots) return 1;
+  vfm_settle(w);
   while (w->size == VFM_HEAP || VFM_HEAP - w->used + w->nfree < slots) {
     for (far = 0, i = 1; i < w->size; ++i) if (w->heap[i].key > w->heap[far].key) far = i;
     if (w->size == 0 || key >= w->heap[far].key) { w->horizon = key; return 0; }
@@ -498,6 +520,7 @@ static int vfm_room(vfm_walk* w, double key, int slots) {
  * heap again (Floyd's: each parent's subtree from the last up). */
 static void vfm_purge(vfm_walk* w) {
   int i, n = 0;
+  vfm_settle(w);
   for (i = 0; i < w->size; ++i) {
     const vfm_item* item = &w->heap[i];
     int live = item->ref < 0 ? !vfm_done(w, w->slot[-1 - item->ref].part)
@@ -506,20 +529,11 @@ static void vfm_purge(vfm_walk* w) {
     else vfm_release(w, item->ref);
   }
   w->size = n;
-  for (i = n / 2 - 1; i >= 0; --i) {
-    vfm_item item = w->heap[i];
-    int j = i, child;
-    while ((child = 2 * j + 1) < n) {
-      if (child + 1 < n && vfm_item_before(w, &w->heap[child + 1], &w->heap[child])) ++child;
-      if (!vfm_item_before(w, &w->heap[child], &item)) break;
-      w->heap[j] = w->heap[child];
-      j = child;
-    }
-    w->heap[j] = item;
-  }
+  for (i = n / 2 - 1; i >= 0; --i) vfm_sift_down(w, i, w->heap[i]);
 }
 
 static void vfm_push(vfm_walk* w, vfm_item item) {
+  if (w->taken) { w->taken = 0; vfm_sift_down(w, 0, item); return; }
   w->heap[w->size] = item;
   vfm_sift_up(w, w->size++);
 }
@@ -798,8 +812,9 @@ static int vfm_entry_before(const vfm_hit* x, const vfm_hit* y) {
 }
 
 /* Whether entry e comes before everything queued (it would come out next). */
-static int vfm_ahead(const vfm_walk* w, const vfm_hit* e) {
+static int vfm_ahead(vfm_walk* w, const vfm_hit* e) {
   if (!(e->dist < w->horizon)) return 0;
+  vfm_settle(w);
   if (w->size == 0) return 1;
   const vfm_item* top = &w->heap[0];
   if (e->dist != top->key) return e->dist < top->key;
@@ -904,7 +919,7 @@ static void vfm_query(vfm_walk* w, const double* a, const double* b, double cuto
     w->e2[2] = z[0] * w->e1[1] - z[1] * w->e1[0];
   }
   w->total = 0; w->done = 0; w->known = 0;
-  w->size = 0; w->used = 0; w->nfree = 0; w->horizon = INFINITY; w->successor = 0;
+  w->size = 0; w->used = 0; w->nfree = 0; w->horizon = INFINITY; w->successor = 0; w->taken = 0;
   mask = vfm_useful(w, 0, w->parts, &key);
   vfm_item item = {key, 0, mask};
   int held = mask != 0;               /* an item in hand, not queued: the walk goes on down the nearer child */
@@ -912,9 +927,10 @@ static void vfm_query(vfm_walk* w, const double* a, const double* b, double cuto
   while (!vfm_all_done(w)) {
     if (w->done != purged) { vfm_purge(w); purged = w->done; }
     if (!held) {
+      vfm_settle(w);
       if (w->size == 0 || w->heap[0].key >= w->horizon) break;
       item = w->heap[0];
-      vfm_remove(w, 0);
+      w->taken = 1;
     }
     held = 0;
     if (item.ref < 0) {
@@ -947,8 +963,11 @@ static void vfm_query(vfm_walk* w, const double* a, const double* b, double cuto
     for (i = 0; i < 2; ++i) {         /* the farther child first: the nearer may stay in hand */
       vfm_item* next = &child[i == 0 ? !near : near];
       if (!next->mask || next->key >= w->horizon) continue;
-      if (i == 1 && (w->size == 0 || next->key <= w->heap[0].key)) { item = *next; held = 1; }
-      else if (vfm_room(w, next->key, 0)) vfm_push(w, *next);
+      if (i == 1) {
+        vfm_settle(w);
+        if (w->size == 0 || next->key <= w->heap[0].key) { item = *next; held = 1; continue; }
+      }
+      if (vfm_room(w, next->key, 0)) vfm_push(w, *next);
     }
   }
   if (w->horizon < INFINITY) {        /* the queue overflowed: the rest, one kept hit at a time */
