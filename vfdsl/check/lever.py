@@ -34,10 +34,10 @@ from __future__ import annotations
 
 import casadi as ca
 import numpy as np
-from scipy.optimize import linprog
 
 from vfdsl.check.kinematics import frame_jacobian, frame_pose
 from vfdsl.check.linearized import ConstraintRows, Linearization
+from vfdsl.check.lp import linprog
 from vfdsl.ir.constraints import describe, subject, value_of, where
 from vfdsl.check.report import Finding, Severity, quantity
 from vfdsl.check.sampling import SAMPLE_SPEED

@@ -15,13 +15,19 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import linprog
 
 from vfdsl.check.linearized import ConstraintRows
 
 T_CAP = 1.0                          # m or rad: a margin this large means "far from every row"
 FEASIBLE = -1e-10                    # margins above this count as feasible (LP noise)
 _HIGHS = {"primal_feasibility_tolerance": 1e-10, "dual_feasibility_tolerance": 1e-10}
+
+
+def linprog(c, **options):
+    """scipy.optimize.linprog, imported at the first call (~0.5 s to import, and only ``check`` solves LPs)."""
+    from scipy.optimize import linprog as highs
+
+    return highs(c, **options)
 
 
 @dataclass(frozen=True)

@@ -37,7 +37,6 @@ from dataclasses import dataclass, replace
 
 import casadi as ca
 import numpy as np
-from scipy.interpolate import make_interp_spline
 
 from vfdsl.compiler.geometry import normalize
 
@@ -74,6 +73,8 @@ class SplineCurve:
 
     @classmethod
     def interpolate(cls, points: np.ndarray, degree: int) -> "SplineCurve":
+        from scipy.interpolate import make_interp_spline   # here: ~0.5 s to import, and most commands build no curve
+
         points = np.asarray(points, dtype=float)
         chords = np.linalg.norm(np.diff(points, axis=0), axis=1)
         if np.any(chords < 1e-12):

@@ -24,7 +24,6 @@ from types import SimpleNamespace
 
 import casadi as ca
 import numpy as np
-from scipy.interpolate import make_interp_spline
 from scipy.spatial.transform import Rotation
 
 from vfdsl.compiler import derived
@@ -50,6 +49,8 @@ class Curve:
     """A ``curve`` value as a scipy b-spline, in its own coordinates (the frame it is expressed in)."""
 
     def __init__(self, value: ir.CurveValue, shift=(0.0, 0.0, 0.0)):
+        from scipy.interpolate import make_interp_spline   # here: ~0.5 s to import, and most tasks have no curve
+
         points = np.asarray(value.points, dtype=float) + np.asarray(shift, dtype=float)
         s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(points, axis=0), axis=1))])
         self.length = float(s[-1])
