@@ -458,20 +458,6 @@ static void vfm_sift_up(vfm_walk* w, int i) {
   w->heap[i] = item;
 }
 
-/* Removes heap item i: its hole goes down to a leaf, the last item fills it and goes up. */
-static void vfm_remove(vfm_walk* w, int i) {
-  int child;
-  vfm_item last = w->heap[--w->size];
-  if (i == w->size) return;
-  while ((child = 2 * i + 1) < w->size) {
-    if (child + 1 < w->size && vfm_item_before(w, &w->heap[child + 1], &w->heap[child])) ++child;
-    w->heap[i] = w->heap[child];
-    i = child;
-  }
-  w->heap[i] = last;
-  vfm_sift_up(w, i);
-}
-
 /* Item into the hole at i, down to its place in i's subtree. */
 static void vfm_sift_down(vfm_walk* w, int i, vfm_item item) {
   int child;
@@ -482,6 +468,14 @@ static void vfm_sift_down(vfm_walk* w, int i, vfm_item item) {
     i = child;
   }
   w->heap[i] = item;
+}
+
+/* Removes heap item i: the last item takes its place, and goes up or down to where it belongs. */
+static void vfm_remove(vfm_walk* w, int i) {
+  vfm_item last = w->heap[--w->size];
+  if (i == w->size) return;
+  if (i > 0 && vfm_item_before(w, &last, &w->heap[(i - 1) / 2])) { w->heap[i] = last; vfm_sift_up(w, i); }
+  else vfm_sift_down(w, i, last);
 }
 
 /* The item taken out of the top is removed now, before the heap is read (unless a push took its place). */
